@@ -1,0 +1,111 @@
+"""Rules of the scene format that relate values to each other.
+
+Each check yields ``(path, message)`` pairs, with paths written the way users
+see them: ``objects[3].material``.  They run only on a structurally valid
+:class:`~schemas.scene.Scene`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+
+import numpy as np
+
+from .scene import AreaLight, DirectionalLight, Mesh, Plane, PointLight, Scene, SpotLight, Triangle
+
+Problem = tuple[str, str]
+#: at most this many index errors are listed for one mesh
+MAX_LISTED = 10
+
+
+def parallel(a: Sequence[float], b: Sequence[float]) -> bool:
+    """The contract's test: ``|a × b| ≤ 1e-12 |a| |b|``; a zero vector is parallel to all.
+
+    Both vectors are scaled to a largest component of 1 first, which changes
+    nothing in the test but keeps huge inputs from overflowing.
+    """
+    va, vb = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    sa, sb = np.abs(va).max(), np.abs(vb).max()
+    if sa == 0 or sb == 0:
+        return True
+    va, vb = va / sa, vb / sb
+    cross = float(np.linalg.norm(np.cross(va, vb)))
+    return cross <= 1e-12 * float(np.linalg.norm(va)) * float(np.linalg.norm(vb))
+
+
+def is_zero(v: Sequence[float]) -> bool:
+    return all(c == 0 for c in v)
+
+
+def _sub(a: Sequence[float], b: Sequence[float]) -> list[float]:
+    return [x - y for x, y in zip(a, b)]
+
+
+def check_scene(scene: Scene) -> list[Problem]:
+    return [*_camera(scene), *_materials(scene), *_objects(scene), *_lights(scene)]
+
+
+def _camera(scene: Scene) -> Iterator[Problem]:
+    cam = scene.camera
+    forward = _sub(cam.look_at, cam.position)
+    if is_zero(forward) or not np.all(np.isfinite(forward)):
+        yield "camera.look_at", "must differ from camera.position"
+    elif parallel(forward, cam.up):
+        yield "camera.up", "must not be parallel to look_at − position"
+
+
+def _materials(scene: Scene) -> Iterator[Problem]:
+    for name, mat in scene.materials.items():
+        if mat.checker is None:
+            continue
+        other = scene.materials.get(mat.checker.material)
+        where = f"materials.{name}.checker.material"
+        if other is None:
+            yield where, f"unknown material '{mat.checker.material}'"
+        elif other.checker is not None:
+            yield where, f"material '{mat.checker.material}' has a checker itself"
+
+
+def _objects(scene: Scene) -> Iterator[Problem]:
+    for i, obj in enumerate(scene.objects):
+        where = f"objects[{i}]"
+        if obj.material not in scene.materials:
+            yield f"{where}.material", f"unknown material '{obj.material}'"
+        if isinstance(obj, Plane) and is_zero(obj.normal):
+            yield f"{where}.normal", "must be non-zero"
+        elif isinstance(obj, Triangle):
+            v0, v1, v2 = obj.vertices
+            if parallel(_sub(v1, v0), _sub(v2, v0)):
+                yield f"{where}.vertices", "must not be collinear (the triangle has zero area)"
+        elif isinstance(obj, Mesh):
+            yield from _mesh(obj, where)
+
+
+def _mesh(mesh: Mesh, where: str) -> Iterator[Problem]:
+    n = len(mesh.vertices)
+    if mesh.faces:
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+        bad = np.argwhere(faces >= n)
+        for f, k in bad[:MAX_LISTED]:
+            yield f"{where}.faces[{f}][{k}]", f"index {faces[f, k]} out of range (the mesh has {n} vertices)"
+        if len(bad) > MAX_LISTED:
+            yield f"{where}.faces", f"{len(bad) - MAX_LISTED} more indices out of range"
+    if mesh.normals is not None:
+        if len(mesh.normals) != n:
+            yield f"{where}.normals", f"must have one normal per vertex ({n}), got {len(mesh.normals)}"
+        zero = np.flatnonzero(~np.any(np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3), axis=1))
+        for k in zero[:MAX_LISTED]:
+            yield f"{where}.normals[{k}]", "must be non-zero"
+
+
+def _lights(scene: Scene) -> Iterator[Problem]:
+    for i, light in enumerate(scene.lights):
+        where = f"lights[{i}]"
+        if isinstance(light, (DirectionalLight, SpotLight)) and is_zero(light.direction):
+            yield f"{where}.direction", "must be non-zero"
+        if isinstance(light, (PointLight, SpotLight, AreaLight)) and is_zero(light.attenuation):
+            yield f"{where}.attenuation", "coefficients must not all be zero"
+        if isinstance(light, SpotLight) and light.inner > light.cutoff:
+            yield f"{where}.inner_cutoff", f"must be ≤ cutoff ({light.cutoff:g})"
+        if isinstance(light, AreaLight) and parallel(light.edge_u, light.edge_v):
+            yield f"{where}.edge_v", "must not be parallel to edge_u"

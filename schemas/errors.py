@@ -1,0 +1,121 @@
+"""Turning every way a scene can be wrong into ``path: message`` lines."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from pydantic import ValidationError
+
+#: the tags of the tagged unions, which pydantic puts into error locations
+_UNION_TAGS = {"sphere", "plane", "triangle", "mesh", "ambient", "directional", "point", "spot", "area"}
+
+
+class SceneError(ValueError):
+    """A scene that breaks the format; ``problems`` lists ``(path, message)``."""
+
+    def __init__(self, problems: list[tuple[str, str]]):
+        self.problems = problems
+        super().__init__("\n".join(format_problem(p) for p in problems))
+
+
+def format_problem(problem: tuple[str, str]) -> str:
+    path, message = problem
+    return f"{path}: {message}" if path else message
+
+
+def path_of(loc: tuple[Any, ...]) -> str:
+    """``('objects', 2, 'sphere', 'radius')`` → ``objects[2].radius``."""
+    out = ""
+    previous: Any = None
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif isinstance(previous, int) and part in _UNION_TAGS:
+            pass  # the union branch chosen by "type" is not part of the user's path
+        else:
+            out += f".{part}" if out else str(part)
+        previous = part
+    return out
+
+
+def _message(err: dict[str, Any]) -> str:
+    kind, ctx = err["type"], err.get("ctx") or {}
+    if kind == "missing":
+        return "required"
+    if kind == "extra_forbidden":
+        return "unknown key"
+    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        op = {"greater_than": ">", "greater_than_equal": "≥", "less_than": "<", "less_than_equal": "≤"}[kind]
+        bound = next(iter(ctx.values()))
+        return f"must be {op} {bound:g}" if isinstance(bound, (int, float)) else err["msg"]
+    if kind == "union_tag_invalid":
+        return f"unknown type {ctx.get('tag')!r} (expected one of {ctx.get('expected_tags')})"
+    if kind == "union_tag_not_found":
+        return "'type' is required"
+    if kind in ("float_type", "float_parsing"):
+        return "must be a number"
+    if kind in ("int_type", "int_parsing", "int_from_float"):
+        return "must be an integer"
+    if kind == "finite_number":
+        return "must be a finite number"
+    if kind in ("too_short", "too_long"):
+        return f"has the wrong length ({err['msg'].lower()})"
+    if kind in ("tuple_type", "list_type"):
+        return "must be an array"
+    if kind in ("dict_type", "model_type", "model_attributes_type"):
+        return "must be an object"
+    if kind == "literal_error":
+        return f"must be {ctx.get('expected')}"
+    if kind == "string_type":
+        return "must be a string"
+    return err["msg"]
+
+
+def _tuple_missing(err: dict[str, Any]) -> bool:
+    loc = err["loc"]
+    return err["type"] == "missing" and bool(loc) and isinstance(loc[-1], int)
+
+
+def problems_from_validation(exc: ValidationError) -> list[tuple[str, str]]:
+    out: list[tuple[str, str]] = []
+    seen: set[tuple[str, str]] = set()
+    for err in exc.errors(include_url=False):
+        loc = err["loc"]
+        if _tuple_missing(err):  # a short array: report the array, once
+            problem = (path_of(loc[:-1]), "has too few elements")
+        elif err["type"].startswith("union_tag"):
+            problem = (path_of((*loc, "type")), _message(err))
+        else:
+            problem = (path_of(loc), _message(err))
+        if problem not in seen:
+            seen.add(problem)
+            out.append(problem)
+    return out
+
+
+def _reject_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"duplicate key {key!r}")
+        out[key] = value
+    return out
+
+
+def parse_json(text: str | bytes) -> Any:
+    """Strict JSON: no NaN/Infinity tokens, no duplicate keys; errors as SceneError."""
+    try:
+        return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates)
+    except json.JSONDecodeError as exc:
+        raise SceneError([("", f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}")]) from None
+    except UnicodeDecodeError:
+        raise SceneError([("", "invalid JSON: the document is not UTF-8 text")]) from None
+    except RecursionError:
+        raise SceneError([("", "invalid JSON: nested too deeply")]) from None
+    except ValueError as exc:
+        raise SceneError([("", f"invalid JSON: {exc}")]) from None

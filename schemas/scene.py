@@ -1,0 +1,157 @@
+"""Pydantic models of the scene format, version 1 (docs/scene-format.md).
+
+Structure, types, ranges and defaults live here.  Rules that relate one part of
+a scene to another (material names, face indices, collinear vertices, ...) are
+checked afterwards by :mod:`schemas.checks`, which can name the exact place.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictFloat, StrictInt
+
+Number = StrictFloat
+NonNegative = Annotated[StrictFloat, Field(ge=0)]
+Vec3 = tuple[Number, Number, Number]
+
+
+def _expand_grey(value: Any) -> Any:
+    """A single number ``k`` where a colour is expected means ``[k, k, k]``."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return [value, value, value]
+    return value
+
+
+Colour = Annotated[tuple[NonNegative, NonNegative, NonNegative], BeforeValidator(_expand_grey)]
+Attenuation = tuple[NonNegative, NonNegative, NonNegative]
+
+
+class Strict(BaseModel):
+    """Base of every model: unknown keys are errors, numbers are finite."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class Camera(Strict):
+    type: Literal["perspective", "orthographic"] = "perspective"
+    position: Vec3
+    look_at: Vec3
+    up: Vec3 = (0.0, 1.0, 0.0)
+    fov: Annotated[StrictFloat, Field(gt=0, lt=180)] = 60.0
+    height: Annotated[StrictFloat, Field(gt=0)] = 2.0
+
+
+class Image(Strict):
+    width: Annotated[StrictInt, Field(ge=1)]
+    height: Annotated[StrictInt, Field(ge=1)]
+    samples: Annotated[StrictInt, Field(ge=1)] = 1
+    max_depth: Annotated[StrictInt, Field(ge=0)] = 4
+    background: Colour = (0.0, 0.0, 0.0)
+
+
+class Checker(Strict):
+    size: Annotated[StrictFloat, Field(gt=0)]
+    material: str
+
+
+class Material(Strict):
+    ambient: Colour = (0.3, 0.3, 0.3)
+    diffuse: Colour = (0.5, 0.5, 0.5)
+    specular: Colour = (0.8, 0.8, 0.8)
+    shininess: NonNegative = 100.0
+    reflectance: Annotated[StrictFloat, Field(ge=0, le=1)] = 0.0
+    transmittance: Annotated[StrictFloat, Field(ge=0, le=1)] = 0.0
+    ior: Annotated[StrictFloat, Field(gt=0)] = 1.5
+    checker: Checker | None = None
+
+
+class Sphere(Strict):
+    type: Literal["sphere"]
+    material: str
+    center: Vec3
+    radius: Annotated[StrictFloat, Field(gt=0)]
+
+
+class Plane(Strict):
+    type: Literal["plane"]
+    material: str
+    point: Vec3
+    normal: Vec3
+
+
+class Triangle(Strict):
+    type: Literal["triangle"]
+    material: str
+    vertices: tuple[Vec3, Vec3, Vec3]
+
+
+class Mesh(Strict):
+    type: Literal["mesh"]
+    material: str
+    vertices: list[Vec3]
+    faces: list[tuple[Annotated[StrictInt, Field(ge=0)], Annotated[StrictInt, Field(ge=0)],
+                      Annotated[StrictInt, Field(ge=0)]]]
+    normals: list[Vec3] | None = None
+
+
+Object = Annotated[Union[Sphere, Plane, Triangle, Mesh], Field(discriminator="type")]
+
+
+class AmbientLight(Strict):
+    type: Literal["ambient"]
+    color: Colour
+
+
+class DirectionalLight(Strict):
+    type: Literal["directional"]
+    color: Colour
+    direction: Vec3
+
+
+class PointLight(Strict):
+    type: Literal["point"]
+    color: Colour
+    position: Vec3
+    attenuation: Attenuation = (1.0, 0.0, 0.0)
+
+
+class SpotLight(Strict):
+    type: Literal["spot"]
+    color: Colour
+    position: Vec3
+    direction: Vec3
+    attenuation: Attenuation = (1.0, 0.0, 0.0)
+    cutoff: Annotated[StrictFloat, Field(gt=0, le=90)] = 45.0
+    inner_cutoff: Annotated[StrictFloat, Field(gt=0, le=90)] | None = None
+    exponent: NonNegative = 1.0
+
+    @property
+    def inner(self) -> float:
+        """The inner cone angle; it defaults to ``cutoff``."""
+        return self.cutoff if self.inner_cutoff is None else self.inner_cutoff
+
+
+class AreaLight(Strict):
+    type: Literal["area"]
+    color: Colour
+    corner: Vec3
+    edge_u: Vec3
+    edge_v: Vec3
+    samples: tuple[Annotated[StrictInt, Field(ge=1)], Annotated[StrictInt, Field(ge=1)]] = (4, 4)
+    attenuation: Attenuation = (1.0, 0.0, 0.0)
+
+
+Light = Annotated[
+    Union[AmbientLight, DirectionalLight, PointLight, SpotLight, AreaLight],
+    Field(discriminator="type"),
+]
+
+
+class Scene(Strict):
+    version: Literal[1] = 1
+    camera: Camera
+    image: Image
+    materials: dict[str, Material] = Field(default_factory=dict)
+    objects: list[Object] = Field(default_factory=list)
+    lights: list[Light] = Field(default_factory=list)
