@@ -1,0 +1,11 @@
+"""The phongray tracer: ``render(scene)`` turns a validated scene into pixels."""
+
+from .image import decode_png, encode_png
+from .render import Renderer, render
+
+__all__ = ["Renderer", "decode_png", "encode_png", "render", "render_png"]
+
+
+def render_png(scene, **kwargs) -> bytes:  # type: ignore[no-untyped-def]
+    """Render a validated scene straight to PNG bytes."""
+    return encode_png(render(scene, **kwargs))

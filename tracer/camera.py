@@ -1,0 +1,46 @@
+"""Primary rays, exactly as the scene format defines them."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from schemas import Camera, Image
+
+from .world import unit
+
+
+class CameraRays:
+    """Generates the rays of a range of pixels, each with its n×n regular grid of sub-samples."""
+
+    def __init__(self, camera: Camera, image: Image, origin: np.ndarray):
+        eye = np.asarray(camera.position, dtype=np.float64) - origin
+        target = np.asarray(camera.look_at, dtype=np.float64) - origin
+        self.forward = unit(target - eye)
+        self.right = unit(np.cross(self.forward, unit(np.asarray(camera.up, dtype=np.float64))))
+        self.up = np.cross(self.right, self.forward)
+        self.eye = eye
+        self.orthographic = camera.type == "orthographic"
+        self.h = camera.height / 2.0 if self.orthographic else float(np.tan(np.radians(camera.fov) / 2.0))
+        self.width, self.height, self.n = image.width, image.height, image.samples
+
+    def rays(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """Origins and unit directions, each ``((stop − start)·n², 3)``, pixel-major.
+
+        Pixels are numbered row by row from the top left; within a pixel,
+        sub-sample ``(a, b)`` comes at position ``b·n + a``.
+        """
+        n, W, H = self.n, self.width, self.height
+        pixel = np.arange(start, stop, dtype=np.int64)
+        i = (pixel % W).astype(np.float64)
+        j = (pixel // W).astype(np.float64)
+        offsets = (np.arange(n, dtype=np.float64) + 0.5) / n
+        a = np.tile(offsets, n)  # varies fastest
+        b = np.repeat(offsets, n)
+        sx = (i[:, None] + a[None, :]).ravel() / W
+        sy = (j[:, None] + b[None, :]).ravel() / H
+        x = (2.0 * sx - 1.0) * (W / H) * self.h
+        y = (1.0 - 2.0 * sy) * self.h
+        plane = x[:, None] * self.right + y[:, None] * self.up
+        if self.orthographic:
+            return self.eye + plane, np.broadcast_to(self.forward, plane.shape).copy()
+        return np.broadcast_to(self.eye, plane.shape).copy(), unit(self.forward + plane)

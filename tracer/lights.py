@@ -1,0 +1,102 @@
+"""Light sources: direction towards the light, distance and intensity at surface points.
+
+Every non-ambient light becomes one or more :class:`Emitter` records: a
+directional light, a point light, a spot, or one sample of an area light
+(a point light of ``color / (nu·nv)``).  Ambient light is summed separately.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from schemas.scene import AreaLight, DirectionalLight, PointLight, SpotLight
+
+F64 = np.float64
+
+
+@dataclass(frozen=True)
+class Emitter:
+    kind: str  # "directional" or "point" (point lights, spots and area samples)
+    color: np.ndarray  # (3,)
+    position: np.ndarray  # (3,) local; unused for directional
+    direction: np.ndarray  # (3,) unit: the way light travels (directional, spot)
+    attenuation: np.ndarray  # (3,) c, l, q
+    cos_outer: float = -2.0  # spot: cos(cutoff); -2 means "no cone"
+    cos_inner: float = -2.0
+    exponent: float = 0.0
+
+    @property
+    def is_spot(self) -> bool:
+        return self.cos_outer > -2.0
+
+
+Emitters = list[Emitter]
+
+
+def _unit3(v: Sequence[float]) -> np.ndarray:
+    a = np.asarray(v, dtype=F64)
+    a = a / np.max(np.abs(a))
+    return a / np.linalg.norm(a)
+
+
+def build_emitters(lights: Sequence[object], origin: np.ndarray) -> Emitters:
+    out: Emitters = []
+    no_dir = np.zeros(3)
+    for light in lights:
+        if isinstance(light, DirectionalLight):
+            out.append(Emitter("directional", np.array(light.color, F64), no_dir, _unit3(light.direction),
+                               np.array([1.0, 0, 0])))
+        elif isinstance(light, SpotLight):
+            out.append(Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin,
+                               _unit3(light.direction), np.array(light.attenuation, F64),
+                               cos_outer=math.cos(math.radians(light.cutoff)),
+                               cos_inner=math.cos(math.radians(light.inner)), exponent=light.exponent))
+        elif isinstance(light, PointLight):
+            out.append(Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin,
+                               no_dir, np.array(light.attenuation, F64)))
+        elif isinstance(light, AreaLight):
+            nu, nv = light.samples
+            color = np.array(light.color, F64) / (nu * nv)
+            corner = np.array(light.corner, F64)
+            eu, ev = np.array(light.edge_u, F64), np.array(light.edge_v, F64)
+            for i in range(nu):
+                for j in range(nv):
+                    pos = corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev
+                    out.append(Emitter("point", color, pos - origin, no_dir, np.array(light.attenuation, F64)))
+    return out
+
+
+def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Towards-light unit vectors L (N, 3), distances d (N,) and intensities I (N, 3).
+
+    I is zero wherever the light gives nothing: a point at the light's own
+    position, a zero attenuation denominator, or outside a spot's cone.
+    """
+    n = len(points)
+    if em.kind == "directional":
+        return (np.broadcast_to(-em.direction, (n, 3)), np.full(n, np.inf),
+                np.broadcast_to(em.color, (n, 3)))
+    v = em.position - points
+    d = np.sqrt(np.einsum("ij,ij->i", v, v))
+    safe_d = np.where(d > 0, d, 1.0)
+    L = v / safe_d[:, None]
+    c, lin, q = em.attenuation
+    denom = c + lin * d + q * d * d
+    factor = np.where((d > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
+    if em.is_spot:
+        factor = factor * spot_factor(em, -L)
+    return L, d, factor[:, None] * em.color
+
+
+def spot_factor(em: Emitter, from_light: np.ndarray) -> np.ndarray:
+    """S for unit vectors from the spot towards the points, shape (N,)."""
+    s = from_light @ em.direction
+    with np.errstate(invalid="ignore", divide="ignore"):
+        span = em.cos_inner - em.cos_outer
+        ramp = np.where(s >= em.cos_inner, 1.0, (s - em.cos_outer) / (span if span > 0 else 1.0))
+        powered = np.where(s > 0, np.power(np.maximum(s, 0.0), em.exponent), 0.0 if em.exponent > 0 else 1.0)
+    return np.where(s < em.cos_outer, 0.0, powered * ramp)

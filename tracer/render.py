@@ -1,0 +1,158 @@
+"""The one place that knows the order of the stages.
+
+For each chunk of pixels, per depth: intersect → misses take the background →
+direct light (ambient, then one shadow batch per light or area-light sample)
+→ spawn mirror and refracted rays.  Chunks run on a thread pool: Embree and
+the large NumPy operations release the GIL, and each chunk writes only its own
+pixels, so the result does not depend on the thread count or the chunk size.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from schemas import Scene
+
+from .camera import CameraRays
+from .image import quantize
+from .intersect import MISS, Intersector
+from .lights import illuminate
+from .shading import mirror, phong, refract, resolve_material, shading_normal, spawn
+from .world import World, build_world, unit
+
+#: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory
+CHUNK_RAYS = 1 << 16
+
+Progress = Callable[[int, int], None]
+
+
+class Renderer:
+    """A scene prepared for tracing; :meth:`pixels` renders it."""
+
+    def __init__(self, scene: Scene):
+        self.scene = scene
+        self.world: World = build_world(scene)
+        self.intersector = Intersector(self.world)
+        self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
+
+    # -- whole image -------------------------------------------------------
+    def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+               progress: Progress | None = None) -> np.ndarray:
+        """The image as ``(H, W, 3) uint8``."""
+        img = self.scene.image
+        total = img.width * img.height
+        per_chunk = max(1, chunk_rays // (img.samples * img.samples))
+        bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        out = np.empty((total, 3), dtype=np.uint8)
+        workers = threads or os.cpu_count() or 1
+
+        def work(bound: tuple[int, int]) -> int:
+            a, b = bound
+            out[a:b] = quantize(self.chunk(a, b))
+            return b - a
+
+        if workers == 1 or len(bounds) == 1:
+            done = 0
+            for bound in bounds:
+                done += work(bound)
+                if progress:
+                    progress(done, total)
+        else:
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                done = 0
+                for count in pool.map(work, bounds):
+                    done += count
+                    if progress:
+                        progress(done, total)
+        return out.reshape(img.height, img.width, 3)
+
+    # -- one chunk ---------------------------------------------------------
+    def chunk(self, start: int, stop: int) -> np.ndarray:
+        """Linear colour of pixels ``start..stop`` (mean of their sub-samples). Shape (stop − start, 3)."""
+        img = self.scene.image
+        s = img.samples * img.samples
+        with np.errstate(all="ignore"):
+            origins, dirs = self.camera.rays(start, stop)
+            colour = np.zeros((len(origins), 3))
+            sample = np.arange(len(origins))
+            weight = np.ones(len(origins))
+            background = np.asarray(img.background, dtype=np.float64)
+            for depth in range(img.max_depth + 1):
+                hits = self.intersector.closest(origins, dirs)
+                missed = hits.kind == MISS
+                _accumulate(colour, sample[missed], weight[missed, None] * background)
+                rows = np.flatnonzero(~missed)
+                if len(rows) == 0:
+                    break
+                hit = hits.take(rows)
+                d, w, smp = dirs[rows], weight[rows], sample[rows]
+                mat = resolve_material(self.world, hit)
+                normal = shading_normal(self.world, hit, d)
+                _accumulate(colour, smp, w[:, None] * self.direct(hit, mat, normal, d))
+                if depth == img.max_depth:
+                    break
+                origins, dirs, sample, weight = self.secondary(hit, mat, normal, d, w, smp)
+                if len(origins) == 0:
+                    break
+            pixel = np.zeros((stop - start, 3))
+            per_pixel = colour.reshape(stop - start, s, 3)
+            for k in range(s):  # a fixed summation order
+                pixel += per_pixel[:, k]
+            return pixel / s
+
+    def direct(self, hit, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Ambient plus every light's unshadowed Phong term at the hit points. Shape (N, 3)."""
+        m = self.world.materials
+        colour = m.ambient[mat] * self.world.ambient
+        view = -dirs
+        for em in self.world.emitters:
+            to_light, dist, intensity = illuminate(em, hit.point)
+            rows = np.flatnonzero((np.einsum("ij,ij->i", normal, to_light) > 0) & np.any(intensity > 0, axis=1))
+            if len(rows) == 0:
+                continue
+            if em.kind == "directional":
+                shadow_dirs = np.ascontiguousarray(to_light[rows])
+                starts = spawn(hit, rows, shadow_dirs)
+                reach = np.full(len(rows), np.inf)
+            else:
+                starts = spawn(hit, rows, to_light[rows])
+                towards = em.position - starts
+                span = np.sqrt(np.einsum("ij,ij->i", towards, towards))
+                shadow_dirs = unit(towards)
+                reach = span - self.intersector.light_end_offset(em.position, span)
+            lit = rows[~self.intersector.occluded(starts, shadow_dirs, reach)]
+            colour[lit] += phong(self.world, mat[lit], normal[lit], view[lit], to_light[lit], intensity[lit])
+        return colour
+
+    def secondary(self, hit, mat, normal, dirs, weight, sample):
+        """Mirror and refracted rays of the hits whose material asks for them."""
+        m = self.world.materials
+        kr, kt = m.reflectance[mat], m.transmittance[mat]
+        parts = []
+        r = np.flatnonzero(kr > 0)
+        if len(r):
+            out = mirror(dirs[r], normal[r])
+            parts.append((spawn(hit, r, out), out, sample[r], weight[r] * kr[r]))
+        t = np.flatnonzero(kt > 0)
+        if len(t):
+            out = refract(dirs[t], hit.normal[t], m.ior[mat[t]])
+            parts.append((spawn(hit, t, out), out, sample[t], weight[t] * kt[t]))
+        if not parts:
+            return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0)
+        return tuple(np.concatenate(p) for p in zip(*parts))
+
+
+def _accumulate(colour: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
+    """``colour[index] += values``, with repeated indices summed in order."""
+    if len(index):
+        np.add.at(colour, index, values)
+
+
+def render(scene: Scene, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+           progress: Progress | None = None) -> np.ndarray:
+    """Render a validated scene to ``(H, W, 3) uint8`` pixels."""
+    return Renderer(scene).pixels(threads=threads, chunk_rays=chunk_rays, progress=progress)

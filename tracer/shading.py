@@ -1,0 +1,105 @@
+"""Surface response: materials with checkers, shading normals, Phong, mirror and refraction.
+
+Nothing here casts a ray; :mod:`tracer.render` decides which rays to cast.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .intersect import PLANE, TRIANGLE, Hits
+from .world import World, unit
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", a, b)
+
+
+def resolve_material(world: World, hits: Hits) -> np.ndarray:
+    """Material id after the checker, per hit. Shape (N,), int.
+
+    The checker is evaluated in world coordinates; on flat surfaces the point
+    is first projected onto the surface's plane, computed from the plane's
+    point (or the face's first vertex) as given, so that a floor lying on a
+    cell boundary such as y = 0 lands exactly on it.
+    """
+    mats = world.materials
+    mat = hits.material
+    size = mats.checker_size[mat]
+    sel = np.flatnonzero(size > 0)
+    if len(sel) == 0:
+        return mat
+    p = hits.point[sel] + world.origin
+    kind = hits.kind[sel]
+    normal = hits.normal[sel]
+    anchor = np.zeros_like(p)
+    planes = kind == PLANE
+    anchor[planes] = world.planes.point_world[hits.index[sel][planes]]
+    tris = kind == TRIANGLE
+    anchor[tris] = world.triangles.v0_world[hits.index[sel][tris]]
+    flat = planes | tris
+    p[flat] -= _dot(p[flat] - anchor[flat], normal[flat])[:, None] * normal[flat]
+    cells = np.sum(np.floor(p / size[sel, None]), axis=1)
+    odd = np.mod(cells, 2.0) == 1.0
+    out = mat.copy()
+    out[sel[odd]] = mats.checker_other[mat[sel[odd]]]
+    return out
+
+
+def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
+    """Unit shading normal turned to face the ray (N·D ≤ 0). Shape (N, 3)."""
+    normal = hits.normal.copy()
+    tris = np.flatnonzero(hits.kind == TRIANGLE)
+    if len(tris):
+        k = hits.index[tris]
+        smooth = world.triangles.smooth[k]
+        if np.any(smooth):
+            rows, k = tris[smooth], k[smooth]
+            u, v = hits.bary[rows, 0:1], hits.bary[rows, 1:2]
+            vn = world.triangles.vertex_normals[k]
+            blend = unit((1.0 - u - v) * vn[:, 0] + u * vn[:, 1] + v * vn[:, 2])
+            zero = ~np.any(blend != 0, axis=1)
+            blend[zero] = normal[rows[zero]]
+            normal[rows] = blend
+    flip = _dot(normal, dirs) > 0
+    normal[flip] *= -1.0
+    return normal
+
+
+def phong(world: World, mat: np.ndarray, normal: np.ndarray, view: np.ndarray, to_light: np.ndarray,
+          intensity: np.ndarray) -> np.ndarray:
+    """``I ⊙ (k_d (N·L) + k_s max(0, R·V)^n)`` per point, zero where N·L ≤ 0. Shape (N, 3)."""
+    m = world.materials
+    nl = _dot(normal, to_light)
+    reflected = 2.0 * nl[:, None] * normal - to_light
+    rv = _dot(reflected, view)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        spec = np.where(rv > 0, np.power(np.maximum(rv, 0.0), m.shininess[mat]), 0.0)
+    response = m.diffuse[mat] * nl[:, None] + m.specular[mat] * spec[:, None]
+    return np.where((nl > 0)[:, None], intensity * response, 0.0)
+
+
+def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """``D − 2(D·N)N``. Shape (N, 3)."""
+    return unit(dirs - 2.0 * _dot(dirs, normal)[:, None] * normal)
+
+
+def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray) -> np.ndarray:
+    """Refracted unit directions by the contract's rule (mirror direction on total internal reflection)."""
+    entering = _dot(dirs, geometric) < 0
+    eta = np.where(entering, 1.0 / ior, ior)
+    w = np.where(entering[:, None], geometric, -geometric)
+    c = -_dot(dirs, w)
+    k = 1.0 - eta * eta * (1.0 - c * c)
+    root = np.sqrt(np.maximum(k, 0.0))
+    through = eta[:, None] * dirs + (eta * c - root)[:, None] * w
+    bounced = dirs - 2.0 * _dot(dirs, w)[:, None] * w
+    return unit(np.where((k < 0)[:, None], bounced, through))
+
+
+def spawn(hits: Hits, rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """Origins of rays leaving hit points ``rows`` along ``dirs``: pushed off the surface,
+    on the side the ray goes, by the hit's own offset. Shape (len(rows), 3)."""
+    n = hits.normal[rows]
+    side = np.where(_dot(dirs, n) >= 0, 1.0, -1.0)
+    return hits.point[rows] + (side * hits.offset[rows])[:, None] * n

@@ -1,0 +1,181 @@
+"""A validated scene turned into flat float64 arrays, re-centred on the camera's target.
+
+Every position the tracer works with is *local*: world position minus
+``World.origin``.  Moving a whole scene (camera and lights with it) therefore
+changes no local coordinate beyond the rounding of the input, so a scene far
+from the world origin is exactly as precise as one near it, both in float64 and
+after the float32 cast that Embree needs.
+
+Array shapes: S spheres, Q planes, T triangles (lone triangles and mesh faces
+of non-zero area), M materials.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from schemas import Mesh, Plane, Scene, Sphere, Triangle
+
+from .lights import Emitters, build_emitters
+
+F64 = np.float64
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    """Rows of ``v`` scaled to length 1 (zero rows stay zero), computed without overflow."""
+    v = np.asarray(v, dtype=F64)
+    scale = np.max(np.abs(v), axis=-1, keepdims=True)
+    scale = np.where(scale > 0, scale, 1.0)
+    w = v / scale
+    length = np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
+    return np.where(length > 0, w / np.where(length > 0, length, 1.0), 0.0)
+
+
+@dataclass(frozen=True)
+class Materials:
+    """Material parameters as arrays indexed by material id."""
+
+    ambient: np.ndarray  # (M, 3)
+    diffuse: np.ndarray  # (M, 3)
+    specular: np.ndarray  # (M, 3)
+    shininess: np.ndarray  # (M,)
+    reflectance: np.ndarray  # (M,)
+    transmittance: np.ndarray  # (M,)
+    ior: np.ndarray  # (M,)
+    checker_size: np.ndarray  # (M,), 0 where the material has no checker
+    checker_other: np.ndarray  # (M,) int, the material of odd cells (itself if none)
+
+    @property
+    def any_checker(self) -> bool:
+        return bool(np.any(self.checker_size > 0))
+
+
+@dataclass(frozen=True)
+class Spheres:
+    center: np.ndarray  # (S, 3) local
+    radius: np.ndarray  # (S,)
+    material: np.ndarray  # (S,) int
+    scale: np.ndarray  # (S,) magnitude that bounds the float64 error of a hit
+
+
+@dataclass(frozen=True)
+class Planes:
+    point: np.ndarray  # (Q, 3) local
+    normal: np.ndarray  # (Q, 3) unit
+    material: np.ndarray  # (Q,) int
+    point_world: np.ndarray  # (Q, 3) as given, for the checker projection
+
+
+@dataclass(frozen=True)
+class Triangles:
+    v0: np.ndarray  # (T, 3) local
+    e1: np.ndarray  # (T, 3) v1 - v0
+    e2: np.ndarray  # (T, 3) v2 - v0
+    normal: np.ndarray  # (T, 3) unit face normal
+    material: np.ndarray  # (T,) int
+    v0_world: np.ndarray  # (T, 3) first vertex as given, for the checker projection
+    vertex_normals: np.ndarray  # (T, 3, 3) per-corner shading normals (face normal where none)
+    smooth: np.ndarray  # (T,) bool: has per-vertex normals
+    span: np.ndarray  # (T,) largest |coordinate| of the triangle, local
+
+
+@dataclass(frozen=True)
+class World:
+    origin: np.ndarray  # (3,) world position of the local origin
+    materials: Materials
+    spheres: Spheres
+    planes: Planes
+    triangles: Triangles
+    ambient: np.ndarray  # (3,) sum of ambient light colours
+    emitters: Emitters
+    names: dict[str, int] = field(default_factory=dict)
+
+
+def build_world(scene: Scene) -> World:
+    origin = np.asarray(scene.camera.look_at, dtype=F64)
+    names = {name: k for k, name in enumerate(scene.materials)}
+    return World(
+        origin=origin,
+        materials=_materials(scene, names),
+        spheres=_spheres(scene, names, origin),
+        planes=_planes(scene, names, origin),
+        triangles=_triangles(scene, names, origin),
+        ambient=np.sum([light.color for light in scene.lights if light.type == "ambient"] or [[0.0] * 3],
+                       axis=0, dtype=F64),
+        emitters=build_emitters(scene.lights, origin),
+        names=names,
+    )
+
+
+def _materials(scene: Scene, names: dict[str, int]) -> Materials:
+    mats = list(scene.materials.values())
+
+    def col(attr: str) -> np.ndarray:
+        return np.array([getattr(m, attr) for m in mats], dtype=F64).reshape(-1, 3)
+
+    def num(attr: str) -> np.ndarray:
+        return np.array([getattr(m, attr) for m in mats], dtype=F64).reshape(-1)
+
+    return Materials(
+        ambient=col("ambient"), diffuse=col("diffuse"), specular=col("specular"),
+        shininess=num("shininess"), reflectance=num("reflectance"),
+        transmittance=num("transmittance"), ior=num("ior"),
+        checker_size=np.array([m.checker.size if m.checker else 0.0 for m in mats], dtype=F64),
+        checker_other=np.array([names[m.checker.material] if m.checker else k for k, m in enumerate(mats)],
+                               dtype=np.int64),
+    )
+
+
+def _spheres(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Spheres:
+    objs = [o for o in scene.objects if isinstance(o, Sphere)]
+    center = np.array([o.center for o in objs], dtype=F64).reshape(-1, 3) - origin
+    radius = np.array([o.radius for o in objs], dtype=F64)
+    return Spheres(center=center, radius=radius,
+                   material=np.array([names[o.material] for o in objs], dtype=np.int64),
+                   scale=np.max(np.abs(center), axis=1, initial=0.0) + radius)
+
+
+def _planes(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Planes:
+    objs = [o for o in scene.objects if isinstance(o, Plane)]
+    point_world = np.array([o.point for o in objs], dtype=F64).reshape(-1, 3)
+    return Planes(point=point_world - origin,
+                  normal=unit(np.array([o.normal for o in objs], dtype=F64).reshape(-1, 3)),
+                  material=np.array([names[o.material] for o in objs], dtype=np.int64),
+                  point_world=point_world)
+
+
+def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Triangles:
+    corners, materials, normals, smooth = [], [], [], []
+    for obj in scene.objects:
+        if isinstance(obj, Triangle):
+            corners.append(np.array(obj.vertices, dtype=F64).reshape(1, 3, 3))
+            materials.append(np.full(1, names[obj.material]))
+            normals.append(np.zeros((1, 3, 3)))
+            smooth.append(np.zeros(1, dtype=bool))
+        elif isinstance(obj, Mesh) and obj.faces:
+            verts = np.array(obj.vertices, dtype=F64).reshape(-1, 3)
+            faces = np.array(obj.faces, dtype=np.int64).reshape(-1, 3)
+            corners.append(verts[faces])
+            materials.append(np.full(len(faces), names[obj.material]))
+            if obj.normals is not None:
+                normals.append(np.array(obj.normals, dtype=F64).reshape(-1, 3)[faces])
+                smooth.append(np.ones(len(faces), dtype=bool))
+            else:
+                normals.append(np.zeros((len(faces), 3, 3)))
+                smooth.append(np.zeros(len(faces), dtype=bool))
+    world = np.concatenate(corners) if corners else np.zeros((0, 3, 3))
+    local = world - origin
+    e1, e2 = local[:, 1] - local[:, 0], local[:, 2] - local[:, 0]
+    normal = unit(np.cross(unit(e1), unit(e2)))
+    keep = np.any(normal != 0, axis=1) & np.all(np.isfinite(local), axis=(1, 2))  # zero-area faces are never hit
+    vertex_normals = np.concatenate(normals) if normals else np.zeros((0, 3, 3))
+    smooth_mask = np.concatenate(smooth) if smooth else np.zeros(0, dtype=bool)
+    vertex_normals = np.where(smooth_mask[:, None, None], vertex_normals, normal[:, None, :])
+    return Triangles(
+        v0=local[keep, 0], e1=e1[keep], e2=e2[keep], normal=normal[keep],
+        material=(np.concatenate(materials) if materials else np.zeros(0, dtype=np.int64))[keep].astype(np.int64),
+        v0_world=world[keep, 0], vertex_normals=vertex_normals[keep], smooth=smooth_mask[keep],
+        span=np.max(np.abs(local[keep]), axis=(1, 2), initial=0.0),
+    )
