@@ -19,7 +19,7 @@ from .world import World, unit
 #: kinds of surface in :attr:`Hits.kind`
 MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
 #: relative spawn offsets: float64 work, and float32 work inside Embree
-REL64 = 2.0**-36
+REL64 = 2.0**-44
 REL32 = 2.0**-18
 
 

@@ -78,7 +78,7 @@ class Triangles:
     v0_world: np.ndarray  # (T, 3) first vertex as given, for the checker projection
     vertex_normals: np.ndarray  # (T, 3, 3) per-corner shading normals (face normal where none)
     smooth: np.ndarray  # (T,) bool: has per-vertex normals
-    span: np.ndarray  # (T,) largest |coordinate| of the triangle, local
+    span: np.ndarray  # (T,) float32 error scale of the triangle's plane: max over corners of Σ|n_k·v_k|
 
 
 @dataclass(frozen=True)
@@ -177,5 +177,5 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
         v0=local[keep, 0], e1=e1[keep], e2=e2[keep], normal=normal[keep],
         material=(np.concatenate(materials) if materials else np.zeros(0, dtype=np.int64))[keep].astype(np.int64),
         v0_world=world[keep, 0], vertex_normals=vertex_normals[keep], smooth=smooth_mask[keep],
-        span=np.max(np.abs(local[keep]), axis=(1, 2), initial=0.0),
+        span=np.max(np.einsum("tk,tck->tc", np.abs(normal[keep]), np.abs(local[keep])), axis=1, initial=0.0),
     )

@@ -1,0 +1,1 @@
+"""phongray over HTTP, and the command line."""

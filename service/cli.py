@@ -1,0 +1,172 @@
+"""The ``phongray`` command: render, validate, schema (and more as they land).
+
+Every failure a user can cause ends in a one-line message on stderr and a
+non-zero exit, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+EXIT_BAD_INPUT = 2
+
+
+class CliError(Exception):
+    """A user-facing failure: printed as one line, exit code attached."""
+
+    def __init__(self, message: str, code: int = EXIT_BAD_INPUT):
+        super().__init__(message)
+        self.code = code
+
+
+def _read(path: str) -> bytes:
+    try:
+        return sys.stdin.buffer.read() if path == "-" else Path(path).read_bytes()
+    except OSError as exc:
+        raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+
+def _load(path: str, overrides: dict[str, Any] | None = None):  # type: ignore[no-untyped-def]
+    from schemas import SceneError, parse_json, validate_scene
+
+    try:
+        data = parse_json(_read(path))
+        if overrides and isinstance(data, dict) and isinstance(data.get("image"), dict):
+            data["image"].update({k: v for k, v in overrides.items() if v is not None})
+        return validate_scene(data)
+    except SceneError as exc:
+        raise CliError(f"{path}: " + "; ".join(_lines(exc))) from None
+
+
+def _lines(exc: Any) -> list[str]:
+    from schemas import format_problem
+
+    return [format_problem(p) for p in exc.problems]
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr, shown only on a terminal and only after a second."""
+
+    def __init__(self, delay: float = 1.0):
+        self.start = time.monotonic()
+        self.delay = delay
+        self.shown = False
+        self.enabled = sys.stderr.isatty()
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled or time.monotonic() - self.start < self.delay:
+            return
+        self.shown = True
+        width = 30
+        filled = int(width * done / max(total, 1))
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * done / max(total, 1):5.1f}%")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.shown:
+            sys.stderr.write("\n")
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from tracer import encode_png, render
+
+    overrides = {"width": args.width, "height": args.height, "samples": args.samples}
+    scene = _load(args.scene, overrides)
+    bar = ProgressBar()
+    started = time.perf_counter()
+    pixels = render(scene, threads=args.threads, progress=bar)
+    bar.close()
+    data = encode_png(pixels)
+    _write(args.output, data)
+    if not args.quiet:
+        print(f"{args.output}: {pixels.shape[1]}×{pixels.shape[0]} in {time.perf_counter() - started:.3f} s",
+              file=sys.stderr)
+    return 0
+
+
+def _write(path: str, data: bytes) -> None:
+    try:
+        if path == "-":
+            sys.stdout.buffer.write(data)
+        else:
+            Path(path).write_bytes(data)
+    except OSError as exc:
+        raise CliError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from schemas import SceneError, load_scene
+
+    try:
+        load_scene(_read(args.scene))
+    except SceneError as exc:
+        for line in _lines(exc):
+            print(f"{args.scene}: {line}")
+        return 1
+    print(f"{args.scene}: valid")
+    return 0
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from schemas import json_schema
+
+    print(json.dumps(json_schema(), indent=2))
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be ≥ 1")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="phongray", description="A reference Phong/Whitted ray tracer.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("render", help="render a scene to a PNG")
+    p.add_argument("scene", help="scene JSON file ('-' for stdin)")
+    p.add_argument("-o", "--output", required=True, help="output PNG ('-' for stdout)")
+    p.add_argument("--width", type=_positive_int)
+    p.add_argument("--height", type=_positive_int)
+    p.add_argument("--samples", type=_positive_int, help="n: an n×n grid of sub-samples per pixel")
+    p.add_argument("--threads", type=_positive_int, help="worker threads (default: all cores)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("validate", help="check a scene; print every error with its place")
+    p.add_argument("scene")
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("schema", help="print the scene JSON Schema")
+    p.set_defaults(func=cmd_schema)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except CliError as exc:
+        print(f"phongray: {exc}", file=sys.stderr)
+        return exc.code
+    except KeyboardInterrupt:
+        print("phongray: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print("phongray: out of memory", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,90 @@
+"""Shared helpers for the tests: scene files, moving scenes, comparing images."""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import schemas
+import tracer
+
+SCENES = Path(__file__).parent / "scenes"
+EXAMPLES = sorted(p.stem for p in SCENES.glob("*.json"))
+
+
+def scene_dict(name: str) -> dict[str, Any]:
+    return json.loads((SCENES / f"{name}.json").read_text())
+
+
+def reference(name: str) -> np.ndarray:
+    return tracer.decode_png((SCENES / f"{name}.png").read_bytes())
+
+
+def render_dict(data: dict[str, Any], **kwargs: Any) -> np.ndarray:
+    return tracer.render(schemas.validate_scene(data), **kwargs)
+
+
+def translated(data: dict[str, Any], shift: tuple[float, float, float]) -> dict[str, Any]:
+    """The same scene moved by ``shift``: camera, objects and lights alike."""
+    out = copy.deepcopy(data)
+    s = np.asarray(shift, dtype=np.float64)
+
+    def move(p: list[float]) -> list[float]:
+        return [float(v) for v in np.asarray(p, dtype=np.float64) + s]
+
+    cam = out["camera"]
+    cam["position"], cam["look_at"] = move(cam["position"]), move(cam["look_at"])
+    for obj in out.get("objects", []):
+        for key in ("center", "point"):
+            if key in obj:
+                obj[key] = move(obj[key])
+        if "vertices" in obj:
+            obj["vertices"] = [move(v) for v in obj["vertices"]]
+    for light in out.get("lights", []):
+        for key in ("position", "corner"):
+            if key in light:
+                light[key] = move(light[key])
+    return out
+
+
+def differing(a: np.ndarray, b: np.ndarray, tolerance: int = 2) -> float:
+    """Fraction of pixels whose largest channel difference exceeds ``tolerance``."""
+    d = np.abs(a.astype(np.int16) - b.astype(np.int16)).max(axis=2)
+    return float(np.mean(d > tolerance))
+
+
+def mean_abs(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.mean(np.abs(a.astype(np.float64) - b.astype(np.float64))))
+
+
+def scaled(data: dict[str, Any], factor: float) -> dict[str, Any]:
+    """The same scene scaled about the world origin (attenuation-free scenes look the same)."""
+    out = copy.deepcopy(data)
+
+    def mul(p: list[float]) -> list[float]:
+        return [float(v) * factor for v in p]
+
+    cam = out["camera"]
+    cam["position"], cam["look_at"] = mul(cam["position"]), mul(cam["look_at"])
+    if cam.get("type") == "orthographic":
+        cam["height"] = cam.get("height", 2.0) * factor
+    for mat in out.get("materials", {}).values():
+        if "checker" in mat:
+            mat["checker"]["size"] *= factor
+    for obj in out.get("objects", []):
+        for key in ("center", "point"):
+            if key in obj:
+                obj[key] = mul(obj[key])
+        if "radius" in obj:
+            obj["radius"] *= factor
+        if "vertices" in obj:
+            obj["vertices"] = [mul(v) for v in obj["vertices"]]
+    for light in out.get("lights", []):
+        for key in ("position", "corner", "edge_u", "edge_v"):
+            if key in light:
+                light[key] = mul(light[key])
+    return out

@@ -1,0 +1,71 @@
+"""Each light formula against numbers worked out by hand."""
+
+import math
+
+import numpy as np
+import pytest
+
+import schemas
+from tracer.lights import build_emitters, illuminate
+
+ORIGIN = np.zeros(3)
+
+
+def emitters(*lights):
+    scene = schemas.validate_scene({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+                                    "image": {"width": 1, "height": 1}, "lights": list(lights)})
+    return build_emitters(scene.lights, ORIGIN)
+
+
+def test_directional_light_points_against_its_travel():
+    (em,) = emitters({"type": "directional", "color": [1, 2, 3], "direction": [0, -2, 0]})
+    L, d, I = illuminate(em, np.zeros((2, 3)))
+    np.testing.assert_allclose(L, [[0, 1, 0]] * 2)
+    assert np.all(np.isinf(d))
+    np.testing.assert_allclose(I, [[1, 2, 3]] * 2)
+
+
+def test_point_light_attenuation():
+    (em,) = emitters({"type": "point", "color": 1, "position": [3, 4, 0], "attenuation": [1, 0.1, 0.01]})
+    L, d, I = illuminate(em, np.zeros((1, 3)))
+    np.testing.assert_allclose(L, [[0.6, 0.8, 0]])
+    np.testing.assert_allclose(d, [5])
+    np.testing.assert_allclose(I, [[1 / 1.75] * 3])
+
+
+def test_point_exactly_at_the_light_receives_nothing():
+    (em,) = emitters({"type": "point", "color": 1, "position": [1, 1, 1], "attenuation": [0, 0, 1]})
+    L, d, I = illuminate(em, np.array([[1.0, 1, 1], [1, 1, 3]]))
+    assert np.all(np.isfinite(L))
+    np.testing.assert_allclose(I, [[0, 0, 0], [0.25] * 3])
+
+
+def spot_intensity(x):
+    (em,) = emitters({"type": "spot", "color": 1, "position": [0, 4, 0], "direction": [0, -1, 0],
+                      "cutoff": 30, "inner_cutoff": 10, "exponent": 2})
+    return illuminate(em, np.array([[x, 0.0, 0]]))[2][0, 0]
+
+
+def test_spot_inside_inner_cone_is_s_to_the_exponent():
+    s = 4 / math.hypot(4, 0.5)  # 7.1° off axis
+    assert spot_intensity(0.5) == pytest.approx(s**2, rel=1e-12)
+
+
+def test_spot_between_cones_ramps_linearly():
+    x = 4 * math.tan(math.radians(20))
+    s = math.cos(math.radians(20))
+    ramp = (s - math.cos(math.radians(30))) / (math.cos(math.radians(10)) - math.cos(math.radians(30)))
+    assert spot_intensity(x) == pytest.approx(s**2 * ramp, rel=1e-9)
+
+
+def test_spot_outside_cutoff_is_dark():
+    assert spot_intensity(4 * math.tan(math.radians(31))) == 0
+
+
+def test_area_light_is_a_grid_of_point_lights_at_cell_centres():
+    ems = emitters({"type": "area", "color": [4, 4, 4], "corner": [0, 2, 0], "edge_u": [2, 0, 0],
+                    "edge_v": [0, 0, 1], "samples": [2, 1], "attenuation": [1, 0, 0]})
+    positions = sorted(tuple(e.position) for e in ems)
+    assert positions == [(0.5, 2, 0.5), (1.5, 2, 0.5)]
+    for e in ems:
+        np.testing.assert_allclose(e.color, [2, 2, 2])

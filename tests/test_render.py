@@ -1,0 +1,120 @@
+"""Whole scenes: the reference images, translation invariance, determinism and hard cases."""
+
+import copy
+
+import numpy as np
+import pytest
+
+from helpers import EXAMPLES, differing, mean_abs, reference, render_dict, scaled, scene_dict, translated
+from tracer import Renderer, encode_png
+import schemas
+
+
+@pytest.fixture(scope="module")
+def renders():
+    return {name: render_dict(scene_dict(name)) for name in EXAMPLES}
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_matches_reference(renders, name):
+    img, ref = renders[name], reference(name)
+    assert img.shape == ref.shape
+    assert differing(img, ref) <= 0.001
+    assert mean_abs(img, ref) < 0.1
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_scene_moved_far_from_the_origin_renders_the_same(renders, name):
+    moved = render_dict(translated(scene_dict(name), (1e6, -1e6, 1e6)))
+    assert differing(moved, renders[name], tolerance=0) <= 0.001
+
+
+@pytest.mark.parametrize("name", ["01_three_spheres", "04_whitted", "05_mesh", "06_orthographic"])
+@pytest.mark.parametrize("factor", [1e-6, 1e6])
+def test_scene_scaled_up_or_down_renders_the_same(renders, name, factor):
+    assert differing(render_dict(scaled(scene_dict(name), factor)), renders[name]) <= 0.001
+
+
+def test_same_bytes_for_any_thread_count_and_chunk_size():
+    scene = schemas.validate_scene(scene_dict("04_whitted"))
+    first = encode_png(Renderer(scene).pixels(threads=1))
+    assert encode_png(Renderer(scene).pixels(threads=2, chunk_rays=999)) == first
+    assert encode_png(Renderer(scene).pixels(threads=3, chunk_rays=4096)) == first
+
+
+def floor_as_triangles(data, size):
+    out = copy.deepcopy(data)
+    s = size
+    out["objects"][0] = {"type": "mesh", "material": out["objects"][0]["material"],
+                         "vertices": [[-s, 0, -s], [s, 0, -s], [s, 0, s], [-s, 0, s]], "faces": [[0, 2, 1], [0, 3, 2]]}
+    return out
+
+
+@pytest.mark.parametrize("size", [1e3, 1e5])
+def test_triangle_floor_has_no_acne_and_matches_the_plane(renders, size):
+    img = render_dict(floor_as_triangles(scene_dict("01_three_spheres"), size))
+    assert differing(img, renders["01_three_spheres"]) <= 0.001
+
+
+@pytest.mark.parametrize("radius", [1e6, 1e9])
+def test_planet_sized_sphere_floor_matches_the_plane(renders, radius):
+    data = scene_dict("01_three_spheres")
+    data["objects"][0] = {"type": "sphere", "material": "floor", "center": [0, -radius, 0], "radius": radius}
+    assert differing(render_dict(data), renders["01_three_spheres"]) <= 0.001
+
+
+def hard_scene(objects, lights, camera=None, **image):
+    return {"camera": camera or {"position": [0, 1, 4], "look_at": [0, 0.5, 0]},
+            "image": {"width": 48, "height": 36, "max_depth": 3, **image},
+            "materials": {"m": {"reflectance": 0.3, "transmittance": 0.3},
+                          "c": {"checker": {"size": 0.25, "material": "m"}}},
+            "objects": objects, "lights": lights}
+
+
+FLOOR = {"type": "plane", "material": "c", "point": [0, 0, 0], "normal": [0, 1, 0]}
+BALL = {"type": "sphere", "material": "m", "center": [0, 0.5, 0], "radius": 0.5}
+LAMP = {"type": "point", "color": 1, "position": [1, 3, 2]}
+
+HARD = {
+    "camera inside a sphere": hard_scene([FLOOR, {**BALL, "radius": 10}], [LAMP, {"type": "ambient", "color": 0.2}]),
+    "light exactly on the floor": hard_scene([FLOOR, BALL], [{**LAMP, "position": [1, 0, 1]}]),
+    "light exactly on a sphere": hard_scene([FLOOR, BALL], [{**LAMP, "position": [0, 1, 0]}]),
+    "camera in the floor plane": hard_scene([FLOOR, BALL], [LAMP], camera={"position": [0, 0, 4], "look_at": [0, 0, 0]}),
+    "coplanar planes and triangle": hard_scene(
+        [FLOOR, {**FLOOR, "material": "m"},
+         {"type": "triangle", "material": "m", "vertices": [[-1, 0, -1], [1, 0, -1], [0, 0, 1]]}, BALL], [LAMP]),
+    "tiny sphere on a huge one": hard_scene(
+        [{"type": "sphere", "material": "c", "center": [0, -1e7, 0], "radius": 1e7},
+         {"type": "sphere", "material": "m", "center": [0, 1e-4, 0], "radius": 1e-4}], [LAMP],
+        camera={"position": [0, 2e-4, 6e-4], "look_at": [0, 1e-4, 0]}),
+    "grazing light": hard_scene([FLOOR, BALL], [{"type": "directional", "color": 1, "direction": [1, -1e-9, 0]}]),
+    "spot with a 90 degree cone and zero exponent": hard_scene(
+        [FLOOR, BALL], [{"type": "spot", "color": 1, "position": [0, 2, 0], "direction": [0, -1, 0], "cutoff": 90,
+                         "exponent": 0, "attenuation": [0, 0, 1]}]),
+    "zero-area mesh faces": hard_scene(
+        [FLOOR, {"type": "mesh", "material": "m", "vertices": [[0, 0, 0], [1, 1, 1], [2, 2, 2], [0, 1, 0]],
+                 "faces": [[0, 1, 2], [0, 1, 3]], "normals": [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, 0, 1]]}], [LAMP]),
+    "huge coordinates": hard_scene(
+        [{**FLOOR, "point": [0, -1e300, 0]}, {**BALL, "radius": 1e300, "center": [0, 0, -2e300]}],
+        [{**LAMP, "position": [1e300, 1e300, 1e300]}]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(HARD))
+def test_hard_case_is_finite_and_deterministic(name):
+    scene = schemas.validate_scene(HARD[name])
+    first = Renderer(scene).chunk(0, 48 * 36)
+    assert np.all(np.isfinite(first))
+    again = Renderer(scene).pixels(threads=2, chunk_rays=500)
+    assert np.array_equal(again, Renderer(scene).pixels(threads=1))
+
+
+def test_camera_inside_a_sphere_sees_its_lit_inside():
+    img = render_dict(HARD["camera inside a sphere"])
+    assert img.max() > 0
+
+
+def test_light_on_a_sphere_lights_the_floor_below():
+    scene = HARD["light exactly on a sphere"]
+    img = render_dict({**scene, "objects": [FLOOR, {**BALL, "center": [0, 1.5, 0]}]})
+    assert img[-1].max() > 50

@@ -1,0 +1,183 @@
+"""Validation: every rule of the format is enforced and every error names its place."""
+
+import json
+
+import pytest
+
+import schemas
+from helpers import EXAMPLES, scene_dict
+
+
+def minimal(**extra):
+    data = {"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]}, "image": {"width": 4, "height": 3}}
+    data.update(extra)
+    return data
+
+
+def problems(data):
+    with pytest.raises(schemas.SceneError) as info:
+        schemas.validate_scene(data)
+    return [schemas.format_problem(p) for p in info.value.problems]
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_examples_are_valid(name):
+    schemas.validate_scene(scene_dict(name))
+
+
+def test_defaults_follow_the_contract():
+    s = schemas.validate_scene(minimal(materials={"m": {}}, lights=[{"type": "spot", "color": 1,
+                                                                        "position": [0, 1, 0], "direction": [0, -1, 0]}]))
+    assert s.version == 1 and s.camera.type == "perspective" and s.camera.fov == 60 and s.camera.up == (0, 1, 0)
+    assert s.image.samples == 1 and s.image.max_depth == 4 and s.image.background == (0, 0, 0)
+    m = s.materials["m"]
+    assert (m.ambient, m.diffuse, m.specular) == ((0.3,) * 3, (0.5,) * 3, (0.8,) * 3)
+    assert (m.shininess, m.reflectance, m.transmittance, m.ior) == (100, 0, 0, 1.5)
+    spot = s.lights[0]
+    assert spot.cutoff == 45 and spot.inner == 45 and spot.exponent == 1 and spot.attenuation == (1, 0, 0)
+
+
+def test_single_number_colour_means_grey():
+    s = schemas.validate_scene(minimal(materials={"m": {"diffuse": 0.25}}))
+    assert s.materials["m"].diffuse == (0.25, 0.25, 0.25)
+
+
+@pytest.mark.parametrize("patch, expected", [
+    ({"objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 0}]}, "objects[0].radius: must be > 0"),
+    ({"objects": [{"type": "sphere", "material": "gold", "center": [0, 0, 0], "radius": 1}]},
+     "objects[0].material: unknown material 'gold'"),
+    ({"objects": [{"type": "cube", "material": "m"}]}, "objects[0].type: unknown type 'cube'"),
+    ({"objects": [{"type": "sphere", "material": "m", "center": [0, 0], "radius": 1}]}, "objects[0].center: has too few elements"),
+    ({"objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1, "colour": 1}]},
+     "objects[0].colour: unknown key"),
+    ({"objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 0, 0]}]},
+     "objects[0].normal: must be non-zero"),
+    ({"objects": [{"type": "triangle", "material": "m", "vertices": [[0, 0, 0], [1, 1, 1], [2, 2, 2]]}]},
+     "objects[0].vertices: must not be collinear"),
+    ({"objects": [{"type": "mesh", "material": "m", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 3]]}]},
+     "objects[0].faces[0][2]: index 3 out of range"),
+    ({"objects": [{"type": "mesh", "material": "m", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]],
+                   "normals": [[0, 0, 1]]}]}, "objects[0].normals: must have one normal per vertex"),
+    ({"objects": [{"type": "mesh", "material": "m", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]],
+                   "normals": [[0, 0, 1], [0, 0, 0], [0, 0, 1]]}]}, "objects[0].normals[1]: must be non-zero"),
+    ({"objects": [{"type": "mesh", "material": "m", "vertices": [[0, 0, 0]], "faces": [[0, -1, 0]]}]},
+     "objects[0].faces[0][1]: must be ≥ 0"),
+    ({"materials": {"m": {"shininess": -1}}}, "materials.m.shininess: must be ≥ 0"),
+    ({"materials": {"m": {"reflectance": 1.5}}}, "materials.m.reflectance: must be ≤ 1"),
+    ({"materials": {"m": {"transmittance": -0.1}}}, "materials.m.transmittance: must be ≥ 0"),
+    ({"materials": {"m": {"ior": 0}}}, "materials.m.ior: must be > 0"),
+    ({"materials": {"m": {"diffuse": [0.1, -0.1, 0]}}}, "materials.m.diffuse[1]: must be ≥ 0"),
+    ({"materials": {"m": {"checker": {"size": 1, "material": "nope"}}}}, "materials.m.checker.material: unknown material 'nope'"),
+    ({"materials": {"m": {"checker": {"size": 1, "material": "n"}}, "n": {"checker": {"size": 1, "material": "m"}}}},
+     "materials.m.checker.material: material 'n' has a checker itself"),
+    ({"materials": {"m": {"checker": {"size": 0, "material": "m"}}}}, "materials.m.checker.size: must be > 0"),
+    ({"lights": [{"type": "point", "color": 1, "position": [0, 0, 0], "attenuation": [0, 0, 0]}]},
+     "lights[0].attenuation: coefficients must not all be zero"),
+    ({"lights": [{"type": "point", "color": 1, "position": [0, 0, 0], "attenuation": [1, -1, 0]}]},
+     "lights[0].attenuation[1]: must be ≥ 0"),
+    ({"lights": [{"type": "directional", "color": 1, "direction": [0, 0, 0]}]}, "lights[0].direction: must be non-zero"),
+    ({"lights": [{"type": "spot", "color": 1, "position": [0, 0, 0], "direction": [0, -1, 0], "cutoff": 20,
+                  "inner_cutoff": 30}]}, "lights[0].inner_cutoff: must be ≤ cutoff"),
+    ({"lights": [{"type": "spot", "color": 1, "position": [0, 0, 0], "direction": [0, -1, 0], "cutoff": 95}]},
+     "lights[0].cutoff: must be ≤ 90"),
+    ({"lights": [{"type": "spot", "color": 1, "position": [0, 0, 0], "direction": [0, -1, 0], "exponent": -1}]},
+     "lights[0].exponent: must be ≥ 0"),
+    ({"lights": [{"type": "area", "color": 1, "corner": [0, 0, 0], "edge_u": [1, 0, 0], "edge_v": [2, 0, 0]}]},
+     "lights[0].edge_v: must not be parallel to edge_u"),
+    ({"lights": [{"type": "area", "color": 1, "corner": [0, 0, 0], "edge_u": [1, 0, 0], "edge_v": [0, 1, 0],
+                  "samples": [0, 4]}]}, "lights[0].samples[0]: must be ≥ 1"),
+    ({"lights": [{"type": "point", "color": [1, 1, 1]}]}, "lights[0].position: required"),
+    ({"lights": [{"color": 1}]}, "lights[0].type: 'type' is required"),
+    ({"version": 2}, "version: must be 1"),
+    ({"extra": 1}, "extra: unknown key"),
+])
+def test_rule_is_enforced_at_its_place(patch, expected):
+    data = minimal(materials={"m": {}})
+    data.update(patch)
+    assert any(p.startswith(expected) for p in problems(data)), problems(data)
+
+
+@pytest.mark.parametrize("camera, expected", [
+    ({"position": [0, 0, 0], "look_at": [0, 0, 0]}, "camera.look_at: must differ from camera.position"),
+    ({"position": [0, 0, 0], "look_at": [0, 5, 0]}, "camera.up: must not be parallel"),
+    ({"position": [0, 0, 5], "look_at": [0, 0, 0], "fov": 180}, "camera.fov: must be < 180"),
+    ({"position": [0, 0, 5], "look_at": [0, 0, 0], "fov": 0}, "camera.fov: must be > 0"),
+    ({"position": [0, 0, 5], "look_at": [0, 0, 0], "type": "orthographic", "height": -1}, "camera.height: must be > 0"),
+    ({"position": [0, 0, 5], "look_at": [0, 0, 0], "type": "fisheye"}, "camera.type: must be"),
+])
+def test_camera_rules(camera, expected):
+    assert any(p.startswith(expected) for p in problems(minimal(camera=camera)))
+
+
+def test_fov_is_range_checked_for_orthographic_too():
+    cam = {"type": "orthographic", "position": [0, 0, 5], "look_at": [0, 0, 0], "fov": 200}
+    assert "camera.fov: must be < 180" in problems(minimal(camera=cam))
+
+
+@pytest.mark.parametrize("image, expected", [
+    ({"width": 160.0, "height": 120}, "image.width: must be an integer"),
+    ({"width": True, "height": 120}, "image.width: must be an integer"),
+    ({"width": 0, "height": 120}, "image.width: must be ≥ 1"),
+    ({"width": 4, "height": 3, "samples": 0}, "image.samples: must be ≥ 1"),
+    ({"width": 4, "height": 3, "max_depth": -1}, "image.max_depth: must be ≥ 0"),
+    ({"width": 4}, "image.height: required"),
+])
+def test_image_rules(image, expected):
+    assert expected in problems(minimal(image=image))
+
+
+def test_booleans_are_not_numbers():
+    assert "materials.m.shininess: must be a number" in problems(minimal(materials={"m": {"shininess": True}}))
+
+
+def test_every_problem_is_reported_not_just_the_first():
+    data = minimal(objects=[{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": -1},
+                            {"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": -2}])
+    data["image"]["width"] = 0
+    assert len(problems(data)) == 3
+
+
+def test_cross_references_are_all_reported():
+    data = minimal(objects=[{"type": "sphere", "material": "a", "center": [0, 0, 0], "radius": 1},
+                            {"type": "sphere", "material": "b", "center": [0, 0, 0], "radius": 1}])
+    assert problems(data) == ["objects[0].material: unknown material 'a'", "objects[1].material: unknown material 'b'"]
+
+
+def test_zero_area_mesh_face_is_allowed():
+    schemas.validate_scene(minimal(materials={"m": {}}, objects=[
+        {"type": "mesh", "material": "m", "vertices": [[0, 0, 0], [1, 0, 0], [2, 0, 0]], "faces": [[0, 1, 2]]}]))
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('{"a": NaN}', "NaN is not a JSON number"),
+    ('{"a": Infinity}', "Infinity is not a JSON number"),
+    ('{"a": -Infinity}', "-Infinity is not a JSON number"),
+    ('{"a": 1, "a": 2}', "duplicate key 'a'"),
+    ('{"a": ', "invalid JSON"),
+    ("[1, 2]", "a scene must be a JSON object"),
+    (b"\xff\xfe", "invalid JSON"),
+])
+def test_malformed_documents(text, expected):
+    with pytest.raises(schemas.SceneError) as info:
+        schemas.load_scene(text)
+    assert expected in str(info.value)
+
+
+def test_numbers_too_large_for_float64_are_rejected():
+    data = json.loads(json.dumps(minimal(materials={"m": {}})))
+    text = json.dumps(data).replace('"look_at": [0, 0, 0]', '"look_at": [0, 0, 1e400]')
+    with pytest.raises(schemas.SceneError) as info:
+        schemas.load_scene(text)
+    assert "camera.look_at[2]: must be a finite number" in str(info.value)
+
+
+def test_deep_nesting_is_an_error_not_a_crash():
+    with pytest.raises(schemas.SceneError):
+        schemas.load_scene("[" * 100_000 + "]" * 100_000)
+
+
+def test_json_schema_describes_the_format():
+    schema = schemas.json_schema()
+    assert set(schema["required"]) == {"camera", "image"}
+    assert schema["additionalProperties"] is False
+    json.dumps(schema)
