@@ -1,9 +1,9 @@
 """The phongray tracer: ``render(scene)`` turns a validated scene into pixels."""
 
 from .image import decode_png, encode_png
-from .render import Renderer, render
+from .render import RenderCancelled, Renderer, render
 
-__all__ = ["Renderer", "decode_png", "encode_png", "render", "render_png"]
+__all__ = ["RenderCancelled", "Renderer", "decode_png", "encode_png", "render", "render_png"]
 
 
 def render_png(scene, **kwargs) -> bytes:  # type: ignore[no-untyped-def]

@@ -30,6 +30,10 @@ CHUNK_RAYS = 1 << 16
 Progress = Callable[[int, int], None]
 
 
+class RenderCancelled(Exception):
+    """Raised by :meth:`Renderer.pixels` when its ``cancel`` callback asked it to stop."""
+
+
 class Renderer:
     """A scene prepared for tracing; :meth:`pixels` renders it."""
 
@@ -41,8 +45,12 @@ class Renderer:
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
-               progress: Progress | None = None) -> np.ndarray:
-        """The image as ``(H, W, 3) uint8``."""
+               progress: Progress | None = None, cancel: Callable[[], bool] | None = None) -> np.ndarray:
+        """The image as ``(H, W, 3) uint8``.
+
+        ``cancel`` is polled before every chunk; once it returns True the
+        remaining chunks are skipped and :class:`RenderCancelled` is raised.
+        """
         img = self.scene.image
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
@@ -50,8 +58,14 @@ class Renderer:
         out = np.empty((total, 3), dtype=np.uint8)
         workers = threads or os.cpu_count() or 1
 
+        stopped = False
+
         def work(bound: tuple[int, int]) -> int:
+            nonlocal stopped
             a, b = bound
+            if stopped or (cancel is not None and cancel()):
+                stopped = True
+                return 0
             out[a:b] = quantize(self.chunk(a, b))
             return b - a
 
@@ -68,6 +82,8 @@ class Renderer:
                     done += count
                     if progress:
                         progress(done, total)
+        if stopped:
+            raise RenderCancelled("the render was cancelled")
         return out.reshape(img.height, img.width, 3)
 
     # -- one chunk ---------------------------------------------------------
@@ -153,6 +169,6 @@ def _accumulate(colour: np.ndarray, index: np.ndarray, values: np.ndarray) -> No
 
 
 def render(scene: Scene, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
-           progress: Progress | None = None) -> np.ndarray:
+           progress: Progress | None = None, cancel: Callable[[], bool] | None = None) -> np.ndarray:
     """Render a validated scene to ``(H, W, 3) uint8`` pixels."""
-    return Renderer(scene).pixels(threads=threads, chunk_rays=chunk_rays, progress=progress)
+    return Renderer(scene).pixels(threads=threads, chunk_rays=chunk_rays, progress=progress, cancel=cancel)

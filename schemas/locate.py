@@ -1,0 +1,81 @@
+"""Line numbers of JSON values by their user-facing path (``objects[2].radius``).
+
+Used to show an error next to the line it concerns.  The scanner is iterative,
+so deeply nested input cannot exhaust the stack; it assumes the text is JSON
+that has already parsed.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+
+_TOKEN = re.compile(r'\s*(?:("(?:[^"\\]|\\.)*")|([{}\[\]:,])|(-?[0-9][0-9eE.+\-]*|true|false|null))', re.S)
+
+
+def value_lines(text: str, limit: int = 200_000) -> dict[str, int]:
+    """Map from path to the 1-based line where that value starts (for at most ``limit`` values)."""
+    out: dict[str, int] = {}
+    stack: list[list] = []  # frames: [kind, path, next index or pending key]
+    pos, n = 0, len(text)
+    line_starts = [0] + [m.end() for m in re.finditer("\n", text)]
+
+    def line_of(offset: int) -> int:
+        lo, hi = 0, len(line_starts) - 1
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            if line_starts[mid] <= offset:
+                lo = mid
+            else:
+                hi = mid - 1
+        return lo + 1
+
+    def current_path() -> str | None:
+        if not stack:
+            return ""
+        kind, path, slot = stack[-1]
+        if kind == "[":
+            return f"{path}[{slot}]"
+        return f"{path}.{slot}" if path else str(slot)
+
+    expecting_key = False
+    while pos < n and len(out) < limit:
+        m = _TOKEN.match(text, pos)
+        if not m:
+            break
+        start = m.start(1) if m.group(1) else m.start(2) if m.group(2) else m.start(3)
+        pos = m.end()
+        string, punct, scalar = m.groups()
+        if punct in ("{", "["):
+            path = current_path()
+            if path is not None:
+                out.setdefault(path, line_of(start))
+            stack.append([punct, path or "", 0 if punct == "[" else None])
+            expecting_key = punct == "{"
+        elif punct in ("}", "]"):
+            stack.pop() if stack else None
+            expecting_key = False
+        elif punct == ",":
+            if stack and stack[-1][0] == "[":
+                stack[-1][2] += 1
+            expecting_key = bool(stack) and stack[-1][0] == "{"
+        elif punct == ":":
+            expecting_key = False
+        elif string is not None and expecting_key:
+            stack[-1][2] = json.loads(string)
+            out.setdefault(current_path() or "", line_of(start))
+        else:
+            path = current_path()
+            if path is not None:
+                out.setdefault(path, line_of(start))
+    return out
+
+
+def line_for(lines: dict[str, int], path: str) -> int | None:
+    """The line of ``path`` or of its nearest enclosing value that is known."""
+    while path:
+        if path in lines:
+            return lines[path]
+        cut = max(path.rfind("."), path.rfind("["))
+        path = path[:cut] if cut > 0 else ""
+    return None

@@ -1,0 +1,97 @@
+"""From request bytes to a validated scene, and from a scene to PNG bytes, with the
+cache, the render slots and cancellation.  No HTTP here: the routes translate the
+exceptions into status codes."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from schemas import Scene, parse_json, validate_scene
+from tracer import RenderCancelled, encode_png, render
+
+from .cache import RenderCache
+from .limits import check_raw, check_scene
+from .settings import Settings
+
+RENDERER_VERSION = "phongray-1"
+
+
+class Busy(Exception):
+    """Every render slot is taken."""
+
+
+class TooSlow(Exception):
+    """The render ran past the time limit."""
+
+
+@dataclass(frozen=True)
+class Job:
+    scene: Scene
+    key: str  # sha256 of the canonical scene
+
+    @property
+    def etag(self) -> str:
+        return f'"{self.key}"'
+
+
+def prepare(body: bytes | str, overrides: dict[str, int | None], settings: Settings) -> Job:
+    """Parse, apply image overrides, validate and check limits. Raises SceneError or LimitError."""
+    data = parse_json(body)
+    check_raw(data, settings)
+    if isinstance(data, dict) and isinstance(data.get("image"), dict):
+        data["image"].update({k: v for k, v in overrides.items() if v is not None})
+    scene = validate_scene(data)
+    check_scene(scene, settings)
+    canonical = json.dumps([RENDERER_VERSION, scene.model_dump(mode="json")], sort_keys=True,
+                           separators=(",", ":"))
+    return Job(scene, hashlib.sha256(canonical.encode()).hexdigest())
+
+
+class RenderService:
+    def __init__(self, settings: Settings):
+        self.settings = settings
+        self.cache = RenderCache(settings.cache_bytes)
+        self.slots = threading.BoundedSemaphore(settings.max_concurrent_renders)
+        self.threads = settings.render_threads or os.cpu_count() or 1
+        self.renders = 0
+
+    def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:
+        """The PNG of a job, from the cache or rendered once. Raises Busy, TooSlow or RenderCancelled."""
+        cached = self.cache.get(job.key)
+        if cached is not None:
+            return cached
+        with self.cache.key_lock(job.key):
+            cached = self.cache.get(job.key)
+            if cached is not None:
+                return cached
+            if not self.slots.acquire(blocking=False):
+                raise Busy()
+            try:
+                deadline = time.monotonic() + self.settings.render_timeout
+
+                def stop() -> bool:
+                    return cancelled() or time.monotonic() > deadline
+
+                try:
+                    pixels = render(job.scene, threads=self.threads, cancel=stop)
+                except RenderCancelled:
+                    if time.monotonic() > deadline:
+                        raise TooSlow() from None
+                    raise
+                data = encode_png(pixels)
+                self.renders += 1
+            finally:
+                self.slots.release()
+        self.cache.put(job.key, data)
+        return data
+
+    def status(self) -> dict[str, Any]:
+        return {"cache_entries": len(self.cache), "cache_bytes": self.cache.size, "cache_hits": self.cache.hits,
+                "renders": self.renders}

@@ -1,0 +1,196 @@
+"""The HTTP endpoints. Each validates, hands the work to :mod:`service.jobs` off the
+event loop, and turns outcomes into status codes; none of them knows any physics."""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from typing import Annotated, Any, Literal
+
+import anyio
+from fastapi import APIRouter, Query, Request, Response
+from fastapi.responses import JSONResponse
+from starlette.datastructures import UploadFile
+
+from schemas import SceneError, json_schema, parse_json, validate_scene
+from schemas.locate import line_for, value_lines
+from tracer import RenderCancelled, decode_png
+
+from . import grading
+from .jobs import Busy, Job, RenderService, TooSlow, prepare
+from .limits import LimitError
+
+router = APIRouter()
+
+SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {"schema": {
+    "$ref": "#/components/schemas/Scene"}}}}}
+GRADE_BODY = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
+    "type": "object", "required": ["scene", "image"],
+    "properties": {"scene": {"type": "string", "description": "the scene, as JSON text or a JSON file"},
+                   "image": {"type": "string", "format": "binary", "description": "the submitted PNG"},
+                   "tolerance": {"type": "number", "minimum": 0, "maximum": 255, "default": 2},
+                   "max_fraction": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.001}}}}}}}
+ERRORS = {413: {"description": "a limit was exceeded"}, 415: {"description": "wrong content type"},
+          422: {"description": "invalid scene or image"}, 503: {"description": "every render slot is busy"}}
+
+
+class HTTPProblem(Exception):
+    def __init__(self, status: int, detail: str, errors: list[dict[str, Any]] | None = None,
+                 headers: dict[str, str] | None = None):
+        self.status, self.detail, self.errors, self.headers = status, detail, errors, headers
+
+
+def problem_response(exc: HTTPProblem) -> JSONResponse:
+    body: dict[str, Any] = {"detail": exc.detail}
+    if exc.errors is not None:
+        body["errors"] = exc.errors
+    return JSONResponse(body, status_code=exc.status, headers=exc.headers)
+
+
+def scene_errors(exc: SceneError, text: bytes | str) -> list[dict[str, Any]]:
+    """Every problem with its path, message and (where found) the line of the JSON text."""
+    lines: dict[str, int] = {}
+    if len(text) <= 1_000_000:
+        try:
+            lines = value_lines(text.decode("utf-8", "replace") if isinstance(text, bytes) else text)
+        except Exception:  # positions are a courtesy; a scanner failure must not hide the errors
+            lines = {}
+    return [{"path": path, "message": message, "line": line_for(lines, path) if path else None}
+            for path, message in exc.problems]
+
+
+def _require_json(request: Request) -> None:
+    kind = request.headers.get("content-type", "application/json").split(";")[0].strip().lower()
+    if kind != "application/json" and not kind.endswith("+json"):
+        raise HTTPProblem(415, f"content type must be application/json, got {kind or 'none'}")
+
+
+def _prepare(body: bytes | str, overrides: dict[str, int | None], service: RenderService) -> Job:
+    try:
+        return prepare(body, overrides, service.settings)
+    except SceneError as exc:
+        raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
+    except LimitError as exc:
+        raise HTTPProblem(exc.status, str(exc)) from None
+
+
+async def _png(request: Request, job: Job) -> bytes:
+    """Render (or fetch) off the event loop; stop rendering if the client goes away."""
+    service: RenderService = request.app.state.service
+    gone = anyio.Event()
+    result: bytes | None = None
+
+    async def watch() -> None:
+        while not gone.is_set():
+            if await request.is_disconnected():
+                gone.set()
+                return
+            await anyio.sleep(0.05)
+
+    try:
+        async with anyio.create_task_group() as tasks:
+            tasks.start_soon(watch)
+            try:
+                result = await anyio.to_thread.run_sync(service.png, job, gone.is_set)
+            finally:
+                tasks.cancel_scope.cancel()
+    except Busy:
+        raise HTTPProblem(503, "every render slot is busy; try again shortly",
+                          headers={"Retry-After": str(service.settings.retry_after)}) from None
+    except TooSlow:
+        raise HTTPProblem(503, f"the render ran past the limit render_timeout = {service.settings.render_timeout:g} s",
+                          headers={"Retry-After": str(service.settings.retry_after)}) from None
+    except RenderCancelled:
+        raise HTTPProblem(499, "client closed the request") from None
+    assert result is not None
+    return result
+
+
+@router.post("/render", openapi_extra=SCENE_BODY, responses={200: {"content": {"image/png": {}}}, 304: {}, **ERRORS},
+             response_class=Response, summary="Render a scene to a PNG")
+async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1)] = None,
+                       height: Annotated[int | None, Query(ge=1)] = None,
+                       samples: Annotated[int | None, Query(ge=1)] = None) -> Response:
+    _require_json(request)
+    service: RenderService = request.app.state.service
+    job = _prepare(await request.body(), {"width": width, "height": height, "samples": samples}, service)
+    headers = {"ETag": job.etag, "Cache-Control": "no-cache"}
+    if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
+        return Response(status_code=304, headers=headers)
+    started = time.perf_counter()
+    data = await _png(request, job)
+    headers["X-Render-Seconds"] = f"{time.perf_counter() - started:.4f}"
+    return Response(data, media_type="image/png", headers=headers)
+
+
+@router.post("/validate", openapi_extra=SCENE_BODY, summary="Check a scene; list every error with its place",
+             responses={422: {"description": "the scene is invalid"}, 415: ERRORS[415]})
+async def validate(request: Request) -> dict[str, bool]:
+    _require_json(request)
+    body = await request.body()
+    try:
+        validate_scene(parse_json(body))
+    except SceneError as exc:
+        raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
+    return {"valid": True}
+
+
+@router.post("/grade", openapi_extra=GRADE_BODY, summary="Grade a submitted PNG against the reference render",
+             responses={200: {"content": {"application/json": {}, "image/png": {}}}, **ERRORS})
+async def grade(request: Request, format: Literal["json", "png"] = "json") -> Response:
+    service: RenderService = request.app.state.service
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "multipart/form-data":
+        raise HTTPProblem(415, f"content type must be multipart/form-data, got {kind or 'none'}")
+    try:
+        form = await request.form(max_files=4, max_fields=16)
+    except Exception as exc:  # malformed multipart bodies
+        raise HTTPProblem(422, f"invalid multipart form: {exc}") from None
+    scene_text = await _field(form.get("scene"), "scene")
+    image = await _field(form.get("image"), "image", text=False)
+    tolerance = _number(form.get("tolerance"), "tolerance", grading.DEFAULT_TOLERANCE, 0, 255)
+    max_fraction = _number(form.get("max_fraction"), "max_fraction", grading.DEFAULT_MAX_FRACTION, 0, 1)
+    job = _prepare(scene_text, {}, service)
+    png = await _png(request, job)
+    reference = decode_png(png)
+    try:
+        submitted = grading.read_submission(image, (reference.shape[1], reference.shape[0]),
+                                            service.settings.max_image_bytes)
+    except grading.ImageError as exc:
+        raise HTTPProblem(422, f"image: {exc}") from None
+    if format == "png":
+        return Response(grading.heatmap(reference, submitted), media_type="image/png")
+    result = grading.grade(reference, submitted, hashlib.sha256(png).hexdigest(), tolerance, max_fraction)
+    return JSONResponse(result.as_dict())
+
+
+async def _field(value: Any, name: str, text: bool = True) -> Any:
+    if value is None:
+        raise HTTPProblem(422, f"{name}: required form field")
+    if isinstance(value, UploadFile):
+        value = await value.read()
+    if text:
+        return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+    return value.encode() if isinstance(value, str) else value
+
+
+def _number(value: Any, name: str, default: float, low: float, high: float) -> float:
+    if value is None or value == "":
+        return default
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise HTTPProblem(422, f"{name}: must be a number") from None
+    if not low <= number <= high:
+        raise HTTPProblem(422, f"{name}: must be between {low:g} and {high:g}")
+    return number
+
+
+@router.get("/schema", summary="The scene JSON Schema")
+def schema() -> dict[str, Any]:
+    return json_schema()
+
+
+@router.get("/healthz", summary="Liveness and counters")
+def healthz(request: Request) -> dict[str, Any]:
+    return {"status": "ok", **request.app.state.service.status()}

@@ -1,0 +1,44 @@
+"""Every limit and knob of the service, in one object read from the environment.
+
+Each field can be set by an environment variable ``PHONGRAY_<NAME>`` (upper
+case), for example ``PHONGRAY_MAX_PIXELS=1000000``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, fields
+
+
+@dataclass(frozen=True)
+class Settings:
+    max_body_bytes: int = 8 * 1024 * 1024  # request body
+    max_image_bytes: int = 16 * 1024 * 1024  # submitted PNG in /grade
+    max_pixels: int = 4096 * 4096  # width × height
+    max_samples: int = 8  # n of the n×n sub-sample grid
+    max_depth: int = 16
+    max_objects: int = 10_000
+    max_triangles: int = 1_000_000
+    max_light_samples: int = 1_024  # directional + point + spot lights + all area-light samples
+    max_cost: float = 4e9  # pixels × samples² × (1 + light samples) × (1 + max_depth)
+    max_concurrent_renders: int = 2  # renders at once per worker process; more get 503
+    render_threads: int = 0  # threads per render; 0 means every core
+    render_timeout: float = 120.0  # seconds; a longer render is stopped and answered with 503
+    cache_bytes: int = 64 * 1024 * 1024  # reference renders kept for /grade and /render
+    retry_after: int = 1  # seconds, in the Retry-After header of a 503
+    api_key: str = ""  # when set, every endpoint but /healthz needs it
+
+    @classmethod
+    def from_env(cls, environ: dict[str, str] | None = None) -> "Settings":
+        env = os.environ if environ is None else environ
+        values: dict[str, object] = {}
+        for f in fields(cls):
+            raw = env.get(f"PHONGRAY_{f.name.upper()}")
+            if raw is None:
+                continue
+            kind = type(f.default)
+            try:
+                values[f.name] = kind(raw)
+            except ValueError:
+                raise ValueError(f"PHONGRAY_{f.name.upper()}: expected {kind.__name__}, got {raw!r}") from None
+        return cls(**values)  # type: ignore[arg-type]
