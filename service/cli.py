@@ -72,10 +72,29 @@ class ProgressBar:
             sys.stderr.write("\n")
 
 
+def _server_call(func, *a, **kw):  # type: ignore[no-untyped-def]
+    from .client import ServerError
+
+    try:
+        return func(*a, **kw)
+    except ServerError as exc:
+        body = exc.body
+        if isinstance(body, dict) and body.get("errors"):
+            lines = [f"{e['path']}: {e['message']}" if e.get("path") else e["message"] for e in body["errors"]]
+            raise CliError("; ".join(lines), 1 if exc.status == 422 else EXIT_BAD_INPUT) from None
+        raise CliError(str(exc)) from None
+
+
 def cmd_render(args: argparse.Namespace) -> int:
     from tracer import encode_png, render
 
     overrides = {"width": args.width, "height": args.height, "samples": args.samples}
+    if args.server:
+        from .client import post_json
+
+        data = _server_call(post_json, args.server, "/render", _read(args.scene), overrides)
+        _write(args.output, data)
+        return 0
     scene = _load(args.scene, overrides)
     bar = ProgressBar()
     started = time.perf_counter()
@@ -102,6 +121,20 @@ def _write(path: str, data: bytes) -> None:
 def cmd_validate(args: argparse.Namespace) -> int:
     from schemas import SceneError, load_scene
 
+    if args.server:
+        from .client import ServerError, post_json
+
+        try:
+            post_json(args.server, "/validate", _read(args.scene))
+        except ServerError as exc:
+            if exc.status != 422 or not isinstance(exc.body, dict):
+                raise CliError(str(exc)) from None
+            for e in exc.body.get("errors", []):
+                print(f"{args.scene}: {e['path']}: {e['message']}" if e.get("path") else f"{args.scene}: {e['message']}")
+            return 1
+        print(f"{args.scene}: valid")
+        return 0
+
     try:
         load_scene(_read(args.scene))
     except SceneError as exc:
@@ -109,6 +142,49 @@ def cmd_validate(args: argparse.Namespace) -> int:
             print(f"{args.scene}: {line}")
         return 1
     print(f"{args.scene}: valid")
+    return 0
+
+
+def cmd_grade(args: argparse.Namespace) -> int:
+    """Exit 0 when the submission passes, 1 when it fails, 2 for bad input."""
+    image = _read(args.image)
+    if args.server:
+        from .client import post_form
+
+        fields = {"scene": _read(args.scene), "tolerance": str(args.tolerance), "max_fraction": str(args.max_fraction)}
+        files = {"image": ("submission.png", image, "image/png")}
+        result = json.loads(_server_call(post_form, args.server, "/grade", fields, files))
+        if args.heatmap:
+            _write(args.heatmap, _server_call(post_form, args.server, "/grade", fields, files, {"format": "png"}))
+    else:
+        import hashlib
+
+        from tracer import encode_png, render
+
+        from . import grading
+
+        scene = _load(args.scene)
+        reference = render(scene)
+        try:
+            submitted = grading.read_submission(image, (reference.shape[1], reference.shape[0]), 1 << 30)
+        except grading.ImageError as exc:
+            raise CliError(f"{args.image}: {exc}") from None
+        sha = hashlib.sha256(encode_png(reference)).hexdigest()
+        result = grading.grade(reference, submitted, sha, args.tolerance, args.max_fraction).as_dict()
+        if args.heatmap:
+            _write(args.heatmap, grading.heatmap(reference, submitted))
+    print("PASS" if result["passed"] else "FAIL")
+    for key, value in result.items():
+        if key != "passed":
+            print(f"  {key}: {value}")
+    return 0 if result["passed"] else 1
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    import uvicorn
+
+    uvicorn.run("service.app:create_app", factory=True, host=args.host, port=args.port, workers=args.workers,
+                log_level="info")
     return 0
 
 
@@ -141,11 +217,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=_positive_int, help="n: an n×n grid of sub-samples per pixel")
     p.add_argument("--threads", type=_positive_int, help="worker threads (default: all cores)")
     p.add_argument("-q", "--quiet", action="store_true")
+    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("validate", help="check a scene; print every error with its place")
     p.add_argument("scene")
+    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
     p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("grade", help="grade a submitted PNG against the scene's reference render")
+    p.add_argument("scene")
+    p.add_argument("image", help="the submitted PNG")
+    p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (default 2)")
+    p.add_argument("--max-fraction", type=float, default=0.001,
+                   help="fraction of pixels that may be off even against their 3×3 neighbourhood (default 0.001)")
+    p.add_argument("--heatmap", metavar="OUT.png", help="write the difference heat-map")
+    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
+    p.set_defaults(func=cmd_grade)
+
+    p = sub.add_parser("serve", help="run the HTTP service")
+    p.add_argument("--host", default="127.0.0.1")
+    p.add_argument("--port", type=int, default=8000)
+    p.add_argument("--workers", type=_positive_int, default=1)
+    p.set_defaults(func=cmd_serve)
 
     p = sub.add_parser("schema", help="print the scene JSON Schema")
     p.set_defaults(func=cmd_schema)

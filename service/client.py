@@ -1,0 +1,61 @@
+"""Sending CLI work to a running phongray service (standard library only)."""
+
+from __future__ import annotations
+
+import json
+import urllib.error
+import urllib.request
+import uuid
+from typing import Any
+
+
+class ServerError(Exception):
+    """The server answered with an error, or could not be reached."""
+
+    def __init__(self, message: str, status: int = 0, body: Any = None):
+        super().__init__(message)
+        self.status, self.body = status, body
+
+
+def _call(request: urllib.request.Request, timeout: float) -> tuple[int, bytes, dict[str, str]]:
+    try:
+        with urllib.request.urlopen(request, timeout=timeout) as res:
+            return res.status, res.read(), dict(res.headers)
+    except urllib.error.HTTPError as exc:
+        raw = exc.read()
+        try:
+            body: Any = json.loads(raw)
+        except ValueError:
+            body = raw.decode("utf-8", "replace")
+        detail = body.get("detail", body) if isinstance(body, dict) else body
+        raise ServerError(f"server answered {exc.code}: {detail}", exc.code, body) from None
+    except (urllib.error.URLError, OSError) as exc:
+        reason = getattr(exc, "reason", exc)
+        raise ServerError(f"cannot reach {request.full_url}: {reason}") from None
+
+
+def post_json(server: str, path: str, body: bytes, query: dict[str, Any] | None = None,
+              timeout: float = 600) -> bytes:
+    params = "&".join(f"{k}={v}" for k, v in (query or {}).items() if v is not None)
+    url = server.rstrip("/") + path + (f"?{params}" if params else "")
+    req = urllib.request.Request(url, data=body, method="POST", headers={"content-type": "application/json"})
+    return _call(req, timeout)[1]
+
+
+def post_form(server: str, path: str, fields: dict[str, bytes | str], files: dict[str, tuple[str, bytes, str]],
+              query: dict[str, Any] | None = None, timeout: float = 600) -> bytes:
+    boundary = uuid.uuid4().hex
+    parts: list[bytes] = []
+    for name, value in fields.items():
+        data = value.encode() if isinstance(value, str) else value
+        parts.append(f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"\r\n\r\n'.encode() + data + b"\r\n")
+    for name, (filename, data, kind) in files.items():
+        head = (f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"; filename="{filename}"\r\n'
+                f"Content-Type: {kind}\r\n\r\n")
+        parts.append(head.encode() + data + b"\r\n")
+    body = b"".join(parts) + f"--{boundary}--\r\n".encode()
+    params = "&".join(f"{k}={v}" for k, v in (query or {}).items() if v is not None)
+    url = server.rstrip("/") + path + (f"?{params}" if params else "")
+    req = urllib.request.Request(url, data=body, method="POST",
+                                 headers={"content-type": f"multipart/form-data; boundary={boundary}"})
+    return _call(req, timeout)[1]
