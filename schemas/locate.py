@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import re
 
+#: deeper values are not located (a scene is never nested more than a few levels)
+MAX_DEPTH = 64
 _TOKEN = re.compile(r'\s*(?:("(?:[^"\\]|\\.)*")|([{}\[\]:,])|(-?[0-9][0-9eE.+\-]*|true|false|null))', re.S)
 
 
@@ -39,7 +41,7 @@ def value_lines(text: str, limit: int = 200_000) -> dict[str, int]:
         return f"{path}.{slot}" if path else str(slot)
 
     expecting_key = False
-    while pos < n and len(out) < limit:
+    while pos < n and len(out) < limit and len(stack) <= MAX_DEPTH:
         m = _TOKEN.match(text, pos)
         if not m:
             break

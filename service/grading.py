@@ -51,6 +51,11 @@ def read_submission(data: bytes, expected: tuple[int, int], max_bytes: int) -> n
         raise ImageError(f"image is {len(data)} bytes, more than the limit of {max_bytes}")
     if not data.startswith(b"\x89PNG\r\n\x1a\n"):
         raise ImageError("image is not a PNG")
+    if len(data) < 24 or data[12:16] != b"IHDR":
+        raise ImageError("image is truncated or corrupt (no IHDR header)")
+    declared = (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"))
+    if declared != expected:  # checked on the header, before anything is decompressed
+        raise ImageError(f"image is {declared[0]}×{declared[1]} pixels, the scene is {expected[0]}×{expected[1]}")
     try:
         with Image.open(io.BytesIO(data)) as img:
             if img.format != "PNG":

@@ -50,7 +50,7 @@ def problem_response(exc: HTTPProblem) -> JSONResponse:
 def scene_errors(exc: SceneError, text: bytes | str) -> list[dict[str, Any]]:
     """Every problem with its path, message and (where found) the line of the JSON text."""
     lines: dict[str, int] = {}
-    if len(text) <= 1_000_000:
+    if len(text) <= 1_000_000 and any(path for path, _ in exc.problems):
         try:
             lines = value_lines(text.decode("utf-8", "replace") if isinstance(text, bytes) else text)
         except Exception:  # positions are a courtesy; a scanner failure must not hide the errors
@@ -87,13 +87,18 @@ async def _png(request: Request, job: Job) -> bytes:
                 return
             await anyio.sleep(0.05)
 
+    failure: Exception | None = None
+    async with anyio.create_task_group() as tasks:
+        tasks.start_soon(watch)
+        try:
+            result = await anyio.to_thread.run_sync(service.png, job, gone.is_set)
+        except Exception as exc:  # re-raised below, outside the task group
+            failure = exc
+        finally:
+            tasks.cancel_scope.cancel()
     try:
-        async with anyio.create_task_group() as tasks:
-            tasks.start_soon(watch)
-            try:
-                result = await anyio.to_thread.run_sync(service.png, job, gone.is_set)
-            finally:
-                tasks.cancel_scope.cancel()
+        if failure is not None:
+            raise failure
     except Busy:
         raise HTTPProblem(503, "every render slot is busy; try again shortly",
                           headers={"Retry-After": str(service.settings.retry_after)}) from None
@@ -140,14 +145,17 @@ async def validate(request: Request) -> dict[str, bool]:
 async def grade(request: Request, format: Literal["json", "png"] = "json") -> Response:
     service: RenderService = request.app.state.service
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if kind != "multipart/form-data":
+    if kind not in ("multipart/form-data", "application/x-www-form-urlencoded"):
         raise HTTPProblem(415, f"content type must be multipart/form-data, got {kind or 'none'}")
     try:
         form = await request.form(max_files=4, max_fields=16)
     except Exception as exc:  # malformed multipart bodies
         raise HTTPProblem(422, f"invalid multipart form: {exc}") from None
-    scene_text = await _field(form.get("scene"), "scene")
-    image = await _field(form.get("image"), "image", text=False)
+    try:
+        scene_text = await _field(form.get("scene"), "scene")
+        image = await _field(form.get("image"), "image", text=False)
+    finally:
+        await form.close()
     tolerance = _number(form.get("tolerance"), "tolerance", grading.DEFAULT_TOLERANCE, 0, 255)
     max_fraction = _number(form.get("max_fraction"), "max_fraction", grading.DEFAULT_MAX_FRACTION, 0, 1)
     job = _prepare(scene_text, {}, service)

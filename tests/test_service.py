@@ -1,0 +1,231 @@
+"""Every endpoint and error, in-process."""
+
+import io
+import json
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+from PIL import Image
+
+import schemas
+import tracer
+from helpers import SCENES, scene_dict
+from service.app import create_app
+from service.settings import Settings
+
+JSON = {"content-type": "application/json"}
+SCENE = (SCENES / "01_three_spheres.json").read_bytes()
+
+
+def client(**settings):
+    return TestClient(create_app(Settings(**settings)))
+
+
+@pytest.fixture(scope="module")
+def api():
+    return client()
+
+
+@pytest.fixture(scope="module")
+def reference_png():
+    return tracer.encode_png(tracer.render(schemas.load_scene(SCENE)))
+
+
+def png_of(pixels):
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def test_render_gives_the_same_bytes_as_the_cli_path(api, reference_png):
+    res = api.post("/render", content=SCENE, headers=JSON)
+    assert res.status_code == 200 and res.headers["content-type"] == "image/png"
+    assert res.content == reference_png
+    assert float(res.headers["x-render-seconds"]) >= 0
+
+
+def test_etag_and_if_none_match(api):
+    etag = api.post("/render", content=SCENE, headers=JSON).headers["etag"]
+    res = api.post("/render", content=SCENE, headers={**JSON, "if-none-match": etag})
+    assert res.status_code == 304 and res.content == b"" and res.headers["etag"] == etag
+    # whitespace and key order do not change the canonical scene
+    reordered = json.dumps(dict(reversed(list(json.loads(SCENE).items()))), indent=4)
+    assert api.post("/render", content=reordered, headers={**JSON, "if-none-match": etag}).status_code == 304
+
+
+def test_query_overrides(api):
+    res = api.post("/render?width=32&height=24&samples=2", content=SCENE, headers=JSON)
+    assert tracer.decode_png(res.content).shape == (24, 32, 3)
+    res = api.post("/render?width=0", content=SCENE, headers=JSON)
+    assert res.status_code == 422 and res.json()["errors"][0]["path"] == "query.width"
+
+
+def test_validate_valid_and_invalid_with_lines(api):
+    assert api.post("/validate", content=SCENE, headers=JSON).json() == {"valid": True}
+    bad = SCENE.replace(b'"radius": 0.7', b'"radius": -0.7')
+    res = api.post("/validate", content=bad, headers=JSON)
+    assert res.status_code == 422
+    (err,) = res.json()["errors"]
+    assert err["path"] == "objects[1].radius" and err["message"] == "must be > 0"
+    assert bad.decode().splitlines()[err["line"] - 1].count("-0.7") == 1
+
+
+@pytest.mark.parametrize("body", [b"", b"{", b"[]", b'{"a": NaN}', b"\xff\xfe", b"[" * 100_000])
+def test_malformed_bodies_are_422(api, body):
+    for path in ("/render", "/validate"):
+        res = api.post(path, content=body, headers=JSON)
+        assert res.status_code == 422, (path, body[:10])
+        assert res.json()["errors"]
+
+
+def test_wrong_content_type_is_415(api):
+    assert api.post("/render", content=SCENE, headers={"content-type": "text/plain"}).status_code == 415
+    assert api.post("/grade", content=SCENE, headers=JSON).status_code == 415
+
+
+def test_body_limit_is_413():
+    api = client(max_body_bytes=1000)
+    res = api.post("/render", content=SCENE, headers=JSON)
+    assert res.status_code == 413 and "max_body_bytes" in res.json()["detail"]
+
+    def chunks():  # no Content-Length: the limit applies while streaming
+        for _ in range(10):
+            yield b" " * 500
+
+    res = api.post("/validate", content=chunks(), headers=JSON)
+    assert res.status_code == 413
+
+
+@pytest.mark.parametrize("settings, patch, limit", [
+    ({"max_pixels": 100}, {}, "max_pixels"),
+    ({"max_samples": 2}, {"samples": 3}, "max_samples"),
+    ({"max_depth": 2}, {"max_depth": 3}, "max_depth"),
+    ({"max_cost": 1000}, {}, "max_cost"),
+    ({"max_objects": 2}, {}, "max_objects"),
+    ({"max_light_samples": 0}, {}, "max_light_samples"),
+])
+def test_scene_limits_name_the_limit(settings, patch, limit):
+    data = scene_dict("01_three_spheres")
+    data["image"].update(patch)
+    res = client(**settings).post("/render", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and limit in res.json()["detail"]
+
+
+def test_too_many_faces_is_refused_before_validation():
+    data = scene_dict("01_three_spheres")
+    data["objects"].append({"type": "mesh", "material": "red", "vertices": [[0, 0, 0]], "faces": [[0, 0, 0]] * 50})
+    res = client(max_triangles=10).post("/render", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and "max_triangles" in res.json()["detail"]
+
+
+def test_busy_service_answers_503_with_retry_after():
+    res = client(max_concurrent_renders=0).post("/render", content=SCENE, headers=JSON)
+    assert res.status_code == 503 and res.headers["retry-after"] == "1"
+
+
+def test_render_timeout_is_503():
+    res = client(render_timeout=0.0).post("/render", content=SCENE, headers=JSON)
+    assert res.status_code == 503 and "render_timeout" in res.json()["detail"]
+
+
+def grade(api, scene=SCENE, image=b"", **fields):
+    return api.post("/grade", data={"scene": scene.decode(), **fields}, files={"image": ("s.png", image, "image/png")})
+
+
+def test_grading_the_reference_passes_with_zero_error(api, reference_png):
+    res = grade(api, image=reference_png)
+    body = res.json()
+    assert res.status_code == 200 and body["passed"] is True
+    assert body["mean_abs_error"] == 0 and body["max_error"] == 0 and body["psnr"] is None
+    assert body["tolerance"] == 2 and len(body["reference_sha256"]) == 64
+
+
+def test_grading_an_image_with_a_light_removed_fails(api):
+    data = scene_dict("02_all_lights")
+    submitted = tracer.render(schemas.validate_scene({**data, "lights": data["lights"][:-1]}))
+    res = grade(api, scene=json.dumps(data).encode(), image=tracer.encode_png(submitted))
+    body = res.json()
+    assert res.status_code == 200 and body["passed"] is False
+    assert body["fraction_off_nearby"] > 0.001 and body["psnr"] > 0
+
+
+def test_one_pixel_shift_is_forgiven_by_the_neighbourhood_measure(api, reference_png):
+    shifted = np.roll(tracer.decode_png(reference_png), 1, axis=1)
+    body = grade(api, image=png_of(shifted)).json()
+    assert body["fraction_off"] > 0.01 and body["fraction_off_nearby"] <= body["fraction_off"]
+
+
+@pytest.mark.parametrize("image, says", [
+    (png_of(np.zeros((10, 10, 3), np.uint8)), "10×10 pixels, the scene is 160×120"),
+    (b"GIF89a" + b"\0" * 100, "not a PNG"),
+    (b"", "not a PNG"),
+])
+def test_bad_submissions_are_422(api, image, says):
+    res = grade(api, image=image)
+    assert res.status_code == 422 and says in res.json()["detail"]
+
+
+def test_truncated_png_is_422(api, reference_png):
+    res = grade(api, image=reference_png[: len(reference_png) // 2])
+    assert res.status_code == 422 and "truncated or corrupt" in res.json()["detail"]
+
+
+def test_png_bomb_is_refused_before_decoding(api):
+    # a valid header declaring 50,000 × 50,000 pixels, with almost no data
+    img = Image.new("RGB", (1, 1))
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    data = bytearray(buf.getvalue())
+    import struct
+    import zlib
+    ihdr = struct.pack(">IIBBBBB", 50_000, 50_000, 8, 2, 0, 0, 0)
+    data[8:33] = struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+    res = grade(api, image=bytes(data))
+    assert res.status_code == 422 and "50000×50000" in res.json()["detail"]
+
+
+def test_grade_form_errors(api, reference_png):
+    assert grade(api, image=reference_png, tolerance="x").status_code == 422
+    assert grade(api, image=reference_png, tolerance="-1").status_code == 422
+    res = api.post("/grade", data={"scene": SCENE.decode()})
+    assert res.status_code == 422 and "image: required" in res.json()["detail"]
+    bad_scene = grade(api, scene=b'{"camera": {}}', image=reference_png)
+    assert bad_scene.status_code == 422 and bad_scene.json()["errors"]
+
+
+def test_heatmap(api, reference_png):
+    res = api.post("/grade?format=png", data={"scene": SCENE.decode()},
+                   files={"image": ("s.png", reference_png, "image/png")})
+    assert res.status_code == 200 and res.headers["content-type"] == "image/png"
+    heat = tracer.decode_png(res.content)
+    assert heat.shape == (120, 160, 3) and heat.max() == 0
+
+
+def test_the_scene_is_rendered_once_for_many_gradings(reference_png):
+    api = client()
+    for _ in range(5):
+        assert grade(api, image=reference_png).json()["passed"]
+    assert api.get("/healthz").json()["renders"] == 1
+
+
+def test_schema_health_playground_docs(api):
+    assert api.get("/schema").json()["required"] == ["camera", "image"]
+    assert api.get("/healthz").json()["status"] == "ok"
+    for path in ("/", "/docs"):
+        page = api.get(path).text
+        assert "<script src=" not in page and "<link" not in page  # nothing is fetched from elsewhere
+    assert '"look_at"' in api.get("/").text
+    spec = api.get("/openapi.json").json()
+    assert {"/render", "/validate", "/grade", "/schema", "/healthz"} <= set(spec["paths"])
+    assert "Scene" in spec["components"]["schemas"]
+
+
+def test_api_key():
+    api = client(api_key="s3cret")
+    assert api.get("/healthz").status_code == 200
+    assert api.get("/schema").status_code == 401
+    assert api.post("/render", content=SCENE, headers=JSON).status_code == 401
+    assert api.get("/schema", headers={"authorization": "Bearer s3cret"}).status_code == 200
+    assert api.get("/schema", headers={"x-api-key": "s3cret"}).status_code == 200
+    assert api.get("/schema", headers={"x-api-key": "wrong"}).status_code == 401
