@@ -22,7 +22,8 @@ def _call(request: urllib.request.Request, timeout: float) -> tuple[int, bytes, 
         with urllib.request.urlopen(request, timeout=timeout) as res:
             return res.status, res.read(), dict(res.headers)
     except urllib.error.HTTPError as exc:
-        raw = exc.read()
+        with exc:
+            raw = exc.read()
         try:
             body: Any = json.loads(raw)
         except ValueError:

@@ -1,0 +1,166 @@
+"""End to end against a real ``phongray serve`` on 127.0.0.1, and the playground in headless Chromium."""
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from concurrent.futures import ThreadPoolExecutor
+
+import pytest
+
+from helpers import SCENES, scene_dict
+from service.client import ServerError, post_form, post_json
+
+SCENE = (SCENES / "01_three_spheres.json").read_bytes()
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    port = free_port()
+    env = {**os.environ, "PHONGRAY_MAX_CONCURRENT_RENDERS": "1", "PHONGRAY_MAX_BODY_BYTES": "200000",
+           "PHONGRAY_RENDER_THREADS": "1"}
+    log = open(tmp_path_factory.mktemp("server") / "log.txt", "w")
+    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(port)],
+                            env=env, stdout=log, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}"
+    for _ in range(100):
+        try:
+            with urllib.request.urlopen(url + "/healthz", timeout=1):
+                break
+        except OSError:
+            time.sleep(0.1)
+    else:
+        proc.kill()
+        raise RuntimeError("the server did not start")
+    yield url
+    proc.terminate()
+    proc.wait(timeout=10)
+    log.close()
+
+
+def status_of(func, *args, **kwargs):
+    try:
+        func(*args, **kwargs)
+        return 200
+    except ServerError as exc:
+        return exc.status
+
+
+def test_render_matches_the_cli_bytes(server, tmp_path):
+    out = tmp_path / "cli.png"
+    subprocess.run([sys.executable, "-m", "service.cli", "render", str(SCENES / "01_three_spheres.json"), "-o",
+                    str(out), "-q"], check=True)
+    assert post_json(server, "/render", SCENE) == out.read_bytes()
+
+
+def test_304_on_matching_etag(server):
+    req = urllib.request.Request(server + "/render", data=SCENE, headers={"content-type": "application/json"})
+    with urllib.request.urlopen(req) as res:
+        etag = res.headers["etag"]
+    req = urllib.request.Request(server + "/render", data=SCENE,
+                                 headers={"content-type": "application/json", "if-none-match": etag})
+    with pytest.raises(urllib.error.HTTPError) as info:
+        urllib.request.urlopen(req)
+    info.value.close()
+    assert info.value.code == 304
+
+
+def test_grade_pass_and_fail(server):
+    png = post_json(server, "/render", SCENE)
+    passed = json.loads(post_form(server, "/grade", {"scene": SCENE}, {"image": ("a.png", png, "image/png")}))
+    assert passed["passed"] is True and passed["mean_abs_error"] == 0
+    other = post_json(server, "/render", (SCENES / "07_spotlights.json").read_bytes())
+    failed = json.loads(post_form(server, "/grade", {"scene": SCENE}, {"image": ("b.png", other, "image/png")}))
+    assert failed["passed"] is False
+
+
+def test_413_and_422(server):
+    assert status_of(post_json, server, "/render", b" " * 300_000) == 413
+    assert status_of(post_json, server, "/render", b'{"camera": 1}') == 422
+
+
+def test_burst_beyond_the_slot_count_gets_200_or_503_and_the_service_stays_healthy(server):
+    data = scene_dict("03_soft_shadows")
+    bodies = []
+    for k in range(12):  # distinct scenes, so the cache cannot answer for the renderer
+        data["image"]["background"] = [0.01 * k, 0, 0]
+        bodies.append(json.dumps(data).encode())
+    with ThreadPoolExecutor(max_workers=12) as pool:
+        codes = list(pool.map(lambda b: status_of(post_json, server, "/render", b), bodies))
+    assert set(codes) <= {200, 503}
+    assert 503 in codes and 200 in codes
+    with urllib.request.urlopen(server + "/healthz") as res:
+        health = json.loads(res.read())
+    assert health["status"] == "ok"
+    assert status_of(post_json, server, "/render", SCENE) == 200
+
+
+def test_cli_talks_to_the_server(server, tmp_path):
+    out = tmp_path / "s.png"
+    run = [sys.executable, "-m", "service.cli"]
+    assert subprocess.run([*run, "render", str(SCENES / "07_spotlights.json"), "-o", str(out), "--server", server]).returncode == 0
+    assert subprocess.run([*run, "grade", str(SCENES / "07_spotlights.json"), str(out), "--server", server],
+                          capture_output=True).returncode == 0
+    assert subprocess.run([*run, "grade", str(SCENES / "01_three_spheres.json"), str(out), "--server", server],
+                          capture_output=True).returncode == 1  # another scene's image: fails
+    small = tmp_path / "small.png"
+    assert subprocess.run([*run, "render", str(SCENES / "07_spotlights.json"), "-o", str(small), "--width", "20",
+                           "--server", server]).returncode == 0
+    wrong = subprocess.run([*run, "grade", str(SCENES / "07_spotlights.json"), str(small), "--server", server],
+                           capture_output=True)
+    assert wrong.returncode == 2 and b"20" in wrong.stderr  # wrong size: bad input
+    assert subprocess.run([*run, "validate", str(SCENES / "05_mesh.json"), "--server", server]).returncode == 0
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if CHROMIUM is None:
+        if os.environ.get("PHONGRAY_REQUIRE_BROWSER"):
+            pytest.fail("Chromium is required (PHONGRAY_REQUIRE_BROWSER is set) but not installed")
+        pytest.skip("Chromium is not installed (CI installs it and sets PHONGRAY_REQUIRE_BROWSER)")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu",
+                                                              "--disable-background-networking"])
+        yield b
+        b.close()
+
+
+def test_playground_renders_and_shows_errors_by_line(server, browser):
+    page = browser.new_page()
+    page.goto(server + "/")
+    page.click("#render")
+    page.wait_for_function("document.getElementById('image').naturalWidth > 0", timeout=20_000)
+    assert page.evaluate("document.getElementById('image').naturalWidth") == 160
+    text = page.input_value("#scene").replace('"radius": 0.9', '"radius": -0.9')
+    page.fill("#scene", text)
+    page.click("#render")
+    page.wait_for_selector("#errors li", timeout=20_000)
+    error = page.inner_text("#errors li")
+    line = next(i for i, l in enumerate(text.splitlines(), 1) if "-0.9" in l)
+    assert error == f"line {line}: objects[2].radius: must be > 0"
+    assert page.inner_text("#gutter .bad") == f"● {line}"
+    page.close()
+
+
+def test_docs_page_lists_the_endpoints_offline(server, browser):
+    page = browser.new_page()
+    page.goto(server + "/docs")
+    page.wait_for_selector(".op", timeout=20_000)
+    text = page.inner_text("#ops")
+    for path in ("/render", "/validate", "/grade", "/schema", "/healthz"):
+        assert path in text
+    page.close()
