@@ -1,9 +1,16 @@
 """Closest-hit and occlusion queries over every kind of surface a scene contains.
 
-Spheres and planes are tested exactly in float64.  Triangles go through an
-Embree BVH (float32) and the hit it names is then recomputed in float64.
-Only the kinds present in the scene cost anything: with no triangles there is
-no Embree scene at all.
+Planes, and spheres far larger than the rest (a planet under tiny objects),
+are tested exactly in float64 against every ray: a scene has few.  Triangles
+and the other spheres share one Embree BVH: triangles as themselves, spheres
+as enclosing octahedra (:func:`~tracer.shapes.sphere_proxies`).  Embree names
+the nearest candidate along the ray; a triangle is then recomputed in float64,
+a sphere tested exactly in float64, and the ray goes on past that candidate.
+It stops when no candidate is nearer than the best hit plus the largest proxy
+diameter: a ray that starts inside a proxy never crosses its entry face, but
+crosses its exit face within that margin of any hit on its sphere.  So a
+sphere costs about log n, not n, and is still exact.  With no triangles and no
+small spheres there is no Embree scene at all.
 """
 
 from __future__ import annotations
@@ -12,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .embree import TriangleIndex
-from .shapes import plane_t, sphere_t, triangle_hit
+from .embree import Bvh
+from .shapes import FACES_PER_PROXY, plane_t, sphere_proxies, sphere_proxy_half, sphere_t, triangle_hit
 from .world import World, unit
 
 #: kinds of surface in :attr:`Hits.kind`
@@ -21,6 +28,10 @@ MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
 #: relative spawn offsets: float64 work, and float32 work inside Embree
 REL64 = 2.0**-44
 REL32 = 2.0**-18
+#: at most this many candidates are examined along one ray
+MAX_PASSES = 256
+#: a sphere this many times larger than the median one is tested directly, not through the BVH
+BIG_SPHERE = 64.0
 
 
 @dataclass
@@ -38,18 +49,29 @@ class Hits:
 
     def take(self, rows: np.ndarray) -> "Hits":
         """The hits of the rays ``rows`` only, as contiguous arrays."""
-        return Hits(**{name: value[rows] for name, value in vars(self).items()})
+        return Hits(self.t[rows], self.kind[rows], self.index[rows], self.point[rows], self.normal[rows],
+                    self.bary[rows], self.material[rows], self.offset[rows])
 
 
 class Intersector:
     def __init__(self, world: World):
         self.world = world
-        tris = world.triangles
-        self.has_triangles = len(tris.v0) > 0
-        self.triangle_index: TriangleIndex | None = None
-        if self.has_triangles:
-            corners = np.stack([tris.v0, tris.v0 + tris.e1, tris.v0 + tris.e2], axis=1)
-            self.triangle_index = TriangleIndex(corners)
+        tris, spheres = world.triangles, world.spheres
+        self.n_triangles = len(tris.v0)
+        self.has_triangles = self.n_triangles > 0
+        self.has_spheres = len(spheres.radius) > 0
+        radius = spheres.radius
+        big = radius > BIG_SPHERE * np.median(radius) if self.has_spheres else np.zeros(0, dtype=bool)
+        self.direct_spheres = np.flatnonzero(big)
+        self.proxied = np.flatnonzero(~big)
+        self.margin = 2.01 * float(np.max(sphere_proxy_half(radius[self.proxied]), initial=0.0))
+        self.bvh: Bvh | None = None
+        if self.has_triangles or len(self.proxied):
+            corners = np.concatenate([
+                np.stack([tris.v0, tris.v0 + tris.e1, tris.v0 + tris.e2], axis=1),
+                sphere_proxies(spheres.center[self.proxied], radius[self.proxied]),
+            ])
+            self.bvh = Bvh(corners)
 
     # -- closest hit -------------------------------------------------------
     def closest(self, origins: np.ndarray, dirs: np.ndarray) -> Hits:
@@ -60,24 +82,55 @@ class Intersector:
         kind = np.zeros(n, dtype=np.int8)
         index = np.full(n, -1, dtype=np.int64)
         bary = np.zeros((n, 2))
-        for k in range(len(w.spheres.radius)):
-            t = sphere_t(origins, dirs, w.spheres.center[k], w.spheres.radius[k])
-            closer = t < best
-            best[closer], kind[closer], index[closer] = t[closer], SPHERE, k
         for k in range(len(w.planes.normal)):
             t = plane_t(origins, dirs, w.planes.point[k], w.planes.normal[k])
             closer = t < best
             best[closer], kind[closer], index[closer] = t[closer], PLANE, k
-        if self.triangle_index is not None:
-            prim = self.triangle_index.closest(origins, dirs, best)
-            sel = np.flatnonzero(prim >= 0)
-            p = prim[sel]
-            t, u, v = triangle_hit(origins[sel], dirs[sel], w.triangles.v0[p], w.triangles.e1[p], w.triangles.e2[p])
-            closer = t < best[sel]
-            rows = sel[closer]
-            best[rows], kind[rows], index[rows] = t[closer], TRIANGLE, p[closer]
-            bary[rows, 0], bary[rows, 1] = u[closer], v[closer]
+        for k in self.direct_spheres:
+            t = sphere_t(origins, dirs, w.spheres.center[k], w.spheres.radius[k])
+            closer = t < best
+            best[closer], kind[closer], index[closer] = t[closer], SPHERE, k
+        if self.bvh is not None:
+            self._walk(origins, dirs, best, kind, index, bary)
         return self._describe(origins, dirs, best, kind, index, bary)
+
+    def _walk(self, origins: np.ndarray, dirs: np.ndarray, best: np.ndarray, kind: np.ndarray,
+              index: np.ndarray, bary: np.ndarray) -> None:
+        """Visit Embree's candidates along each ray in order, updating the best hit in place."""
+        assert self.bvh is not None
+        live = np.arange(len(origins))
+        skipped = np.zeros(len(origins))  # distance already walked along each ray
+        for _ in range(MAX_PASSES):
+            if len(live) == 0:
+                break
+            o, d, s = origins[live], dirs[live], skipped[live]
+            start = o + s[:, None] * d if np.any(s) else o
+            prim, step = self.bvh.first_hit(start, d, best[live] + self.margin - s)
+            found = prim >= 0
+            live, prim, step, o, d, start = live[found], prim[found], step[found], o[found], d[found], start[found]
+            done = np.zeros(len(live), dtype=bool)
+            tri = np.flatnonzero(prim < self.n_triangles)
+            if len(tri):
+                rows, p = live[tri], prim[tri]
+                tr = self.world.triangles
+                t, u, v = triangle_hit(o[tri], d[tri], tr.v0[p], tr.e1[p], tr.e2[p])
+                real = np.isfinite(t)  # float64 confirms it; otherwise it was float32 noise: walk past it
+                closer = real & (t < best[rows])
+                r = rows[closer]
+                best[r], kind[r], index[r] = t[closer], TRIANGLE, p[closer]
+                bary[r, 0], bary[r, 1] = u[closer], v[closer]
+                if self.margin == 0:  # nothing can be nearer than a confirmed triangle
+                    done[tri[real]] = True
+            sph = np.flatnonzero(prim >= self.n_triangles)
+            if len(sph):
+                rows = live[sph]
+                k = self.proxied[(prim[sph] - self.n_triangles) // FACES_PER_PROXY]
+                t = sphere_t(o[sph], d[sph], self.world.spheres.center[k], self.world.spheres.radius[k])
+                closer = t < best[rows]
+                r = rows[closer]
+                best[r], kind[r], index[r] = t[closer], SPHERE, k[closer]
+            live, step, start = live[~done], step[~done], start[~done]
+            skipped[live] += step + REL32 * np.maximum(np.max(np.abs(start), axis=1), step)
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, t: np.ndarray, kind: np.ndarray,
                   index: np.ndarray, bary: np.ndarray) -> Hits:
@@ -126,14 +179,23 @@ class Intersector:
         """True where any surface lies on the ray at a distance in (0, t_max). Shape (N,), bool."""
         w = self.world
         blocked = np.zeros(len(origins), dtype=bool)
-        for k in range(len(w.spheres.radius)):
-            blocked |= sphere_t(origins, dirs, w.spheres.center[k], w.spheres.radius[k]) < t_max
         for k in range(len(w.planes.normal)):
             blocked |= plane_t(origins, dirs, w.planes.point[k], w.planes.normal[k]) < t_max
-        if self.triangle_index is not None:
-            open_ = np.flatnonzero(~blocked)
-            if len(open_):
-                blocked[open_] = self.triangle_index.occluded(origins[open_], dirs[open_], t_max[open_])
+        for k in self.direct_spheres:
+            blocked |= sphere_t(origins, dirs, w.spheres.center[k], w.spheres.radius[k]) < t_max
+        if self.bvh is None:
+            return blocked
+        open_ = np.flatnonzero(~blocked)
+        if len(self.proxied) == 0:  # triangles only: Embree's any-hit query answers directly
+            blocked[open_] = self.bvh.any_hit(origins[open_], dirs[open_], t_max[open_])
+            return blocked
+        best = np.where(blocked, -np.inf, t_max)  # a hit before t_max lowers best
+        kind = np.zeros(len(origins), dtype=np.int8)
+        index = np.full(len(origins), -1, dtype=np.int64)
+        bary = np.zeros((len(origins), 2))
+        sub = open_
+        self._walk(origins[sub], dirs[sub], best_view := best[sub], kind[sub], index[sub], bary[sub])
+        blocked[sub] = best_view < t_max[sub]
         return blocked
 
     def light_end_offset(self, light_points: np.ndarray, distance: np.ndarray) -> np.ndarray:

@@ -71,3 +71,27 @@ def triangle_hit(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.n
     total = np.where(over, u + v, 1.0)
     u, v = np.where(over, u / total, u), np.where(over, v / total, v)
     return np.where(ok, t, np.inf), u, v
+
+
+#: the eight faces of an octahedron with vertices ±x, ±y, ±z (indices into OCTA_VERTICES), wound outward
+OCTA_VERTICES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
+OCTA_FACES = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+FACES_PER_PROXY = len(OCTA_FACES)
+
+
+def sphere_proxy_half(radius: np.ndarray) -> np.ndarray:
+    """Half-diagonal of the octahedron around each sphere (before the float32 allowance)."""
+    return radius * np.sqrt(3.0) * (1.0 + 2.0**-12)
+
+
+def sphere_proxies(center: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Octahedra that contain the spheres, as triangle corners ``(8·S, 3, 3)``.
+
+    An octahedron of half-diagonal r·√3 has its faces at distance r from the
+    centre; it is enlarged a little more so that the float32 cast of its corners
+    can never cut into the sphere.  Any ray that meets a sphere crosses a face
+    of its proxy first (or starts inside it and crosses the way out).
+    """
+    half = sphere_proxy_half(radius) + 2.0**-18 * (np.max(np.abs(center), axis=1, initial=0.0) + radius * 2)
+    corners = center[:, None, :] + half[:, None, None] * OCTA_VERTICES[None, :, :]  # (S, 6, 3)
+    return corners[:, OCTA_FACES].reshape(-1, 3, 3)
