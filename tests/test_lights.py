@@ -11,6 +11,12 @@ from tracer.lights import build_emitters, illuminate
 ORIGIN = np.zeros(3)
 
 
+def lit(em, points):
+    """L, d and the intensity I = factor · color."""
+    L, d, factor = illuminate(em, points)
+    return L, d, factor[:, None] * em.color
+
+
 def emitters(*lights):
     scene = schemas.validate_scene({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
                                     "image": {"width": 1, "height": 1}, "lights": list(lights)})
@@ -19,7 +25,7 @@ def emitters(*lights):
 
 def test_directional_light_points_against_its_travel():
     (em,) = emitters({"type": "directional", "color": [1, 2, 3], "direction": [0, -2, 0]})
-    L, d, I = illuminate(em, np.zeros((2, 3)))
+    L, d, I = lit(em, np.zeros((2, 3)))
     np.testing.assert_allclose(L, [[0, 1, 0]] * 2)
     assert np.all(np.isinf(d))
     np.testing.assert_allclose(I, [[1, 2, 3]] * 2)
@@ -27,7 +33,7 @@ def test_directional_light_points_against_its_travel():
 
 def test_point_light_attenuation():
     (em,) = emitters({"type": "point", "color": 1, "position": [3, 4, 0], "attenuation": [1, 0.1, 0.01]})
-    L, d, I = illuminate(em, np.zeros((1, 3)))
+    L, d, I = lit(em, np.zeros((1, 3)))
     np.testing.assert_allclose(L, [[0.6, 0.8, 0]])
     np.testing.assert_allclose(d, [5])
     np.testing.assert_allclose(I, [[1 / 1.75] * 3])
@@ -35,7 +41,7 @@ def test_point_light_attenuation():
 
 def test_point_exactly_at_the_light_receives_nothing():
     (em,) = emitters({"type": "point", "color": 1, "position": [1, 1, 1], "attenuation": [0, 0, 1]})
-    L, d, I = illuminate(em, np.array([[1.0, 1, 1], [1, 1, 3]]))
+    L, d, I = lit(em, np.array([[1.0, 1, 1], [1, 1, 3]]))
     assert np.all(np.isfinite(L))
     np.testing.assert_allclose(I, [[0, 0, 0], [0.25] * 3])
 
@@ -43,7 +49,7 @@ def test_point_exactly_at_the_light_receives_nothing():
 def spot_intensity(x):
     (em,) = emitters({"type": "spot", "color": 1, "position": [0, 4, 0], "direction": [0, -1, 0],
                       "cutoff": 30, "inner_cutoff": 10, "exponent": 2})
-    return illuminate(em, np.array([[x, 0.0, 0]]))[2][0, 0]
+    return lit(em, np.array([[x, 0.0, 0]]))[2][0, 0]
 
 
 def test_spot_inside_inner_cone_is_s_to_the_exponent():

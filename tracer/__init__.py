@@ -1,7 +1,10 @@
 """The phongray tracer: ``render(scene)`` turns a validated scene into pixels."""
 
 from .image import decode_png, encode_png
+from .memory import tune_allocator
 from .render import RenderCancelled, Renderer, render
+
+tune_allocator()
 
 __all__ = ["RenderCancelled", "Renderer", "decode_png", "encode_png", "render", "render_png"]
 

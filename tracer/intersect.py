@@ -21,7 +21,7 @@ import numpy as np
 
 from .embree import Bvh
 from .shapes import FACES_PER_PROXY, plane_t, sphere_proxies, sphere_proxy_half, sphere_t, triangle_hit
-from .world import World, unit
+from .world import World, max_abs, unit
 
 #: kinds of surface in :attr:`Hits.kind`
 MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
@@ -32,6 +32,8 @@ REL32 = 2.0**-18
 MAX_PASSES = 256
 #: a sphere this many times larger than the median one is tested directly, not through the BVH
 BIG_SPHERE = 64.0
+#: geometry beyond this distance cannot go through float32 (spheres are then tested directly)
+FLOAT32_SAFE = 1e30
 
 
 @dataclass
@@ -61,7 +63,8 @@ class Intersector:
         self.has_triangles = self.n_triangles > 0
         self.has_spheres = len(spheres.radius) > 0
         radius = spheres.radius
-        big = radius > BIG_SPHERE * np.median(radius) if self.has_spheres else np.zeros(0, dtype=bool)
+        big = (radius > BIG_SPHERE * np.median(radius)) | (spheres.scale > FLOAT32_SAFE) if self.has_spheres \
+            else np.zeros(0, dtype=bool)
         self.direct_spheres = np.flatnonzero(big)
         self.proxied = np.flatnonzero(~big)
         self.margin = 2.01 * float(np.max(sphere_proxy_half(radius[self.proxied]), initial=0.0))
@@ -74,8 +77,12 @@ class Intersector:
             self.bvh = Bvh(corners)
 
     # -- closest hit -------------------------------------------------------
-    def closest(self, origins: np.ndarray, dirs: np.ndarray) -> Hits:
-        """First hit at t > 0 of rays ``origins (N, 3)`` + t·``dirs (N, 3)`` (unit)."""
+    def closest(self, origins: np.ndarray, dirs: np.ndarray, outside: bool = False) -> Hits:
+        """First hit at t > 0 of rays ``origins (N, 3)`` + t·``dirs (N, 3)`` (unit).
+
+        ``outside`` promises that no origin lies inside a sphere proxy, which lets
+        the walk stop at the first confirmed hit.
+        """
         n = len(origins)
         w = self.world
         best = np.full(n, np.inf)
@@ -91,21 +98,25 @@ class Intersector:
             closer = t < best
             best[closer], kind[closer], index[closer] = t[closer], SPHERE, k
         if self.bvh is not None:
-            self._walk(origins, dirs, best, kind, index, bary)
+            self._walk(origins, dirs, best, kind, index, bary, 0.0 if outside else self.margin)
         return self._describe(origins, dirs, best, kind, index, bary)
 
     def _walk(self, origins: np.ndarray, dirs: np.ndarray, best: np.ndarray, kind: np.ndarray,
-              index: np.ndarray, bary: np.ndarray) -> None:
+              index: np.ndarray, bary: np.ndarray, margin: float) -> None:
         """Visit Embree's candidates along each ray in order, updating the best hit in place."""
         assert self.bvh is not None
         live = np.arange(len(origins))
         skipped = np.zeros(len(origins))  # distance already walked along each ray
-        for _ in range(MAX_PASSES):
+        for walk in range(MAX_PASSES):
             if len(live) == 0:
                 break
-            o, d, s = origins[live], dirs[live], skipped[live]
-            start = o + s[:, None] * d if np.any(s) else o
-            prim, step = self.bvh.first_hit(start, d, best[live] + self.margin - s)
+            if walk == 0:
+                o, d, start = origins, dirs, origins
+                prim, step = self.bvh.first_hit(o, d, best + margin)
+            else:
+                o, d, s = origins[live], dirs[live], skipped[live]
+                start = o + s[:, None] * d
+                prim, step = self.bvh.first_hit(start, d, best[live] + margin - s)
             found = prim >= 0
             live, prim, step, o, d, start = live[found], prim[found], step[found], o[found], d[found], start[found]
             done = np.zeros(len(live), dtype=bool)
@@ -119,7 +130,7 @@ class Intersector:
                 r = rows[closer]
                 best[r], kind[r], index[r] = t[closer], TRIANGLE, p[closer]
                 bary[r, 0], bary[r, 1] = u[closer], v[closer]
-                if self.margin == 0:  # nothing can be nearer than a confirmed triangle
+                if margin == 0:  # nothing can be nearer than a confirmed triangle
                     done[tri[real]] = True
             sph = np.flatnonzero(prim >= self.n_triangles)
             if len(sph):
@@ -130,7 +141,7 @@ class Intersector:
                 r = rows[closer]
                 best[r], kind[r], index[r] = t[closer], SPHERE, k[closer]
             live, step, start = live[~done], step[~done], start[~done]
-            skipped[live] += step + REL32 * np.maximum(np.max(np.abs(start), axis=1), step)
+            skipped[live] += step + REL32 * np.maximum(max_abs(start), step)
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, t: np.ndarray, kind: np.ndarray,
                   index: np.ndarray, bary: np.ndarray) -> Hits:
@@ -146,18 +157,18 @@ class Intersector:
         if len(s):
             k = index[s]
             raw = origins[s] + t[s, None] * dirs[s]
-            nrm = unit(raw - w.spheres.center[k])
+            nrm = unit((raw - w.spheres.center[k]) / w.spheres.radius[k, None])
             point[s] = w.spheres.center[k] + w.spheres.radius[k, None] * nrm
             normal[s], material[s], scale[s] = nrm, w.spheres.material[k], w.spheres.scale[k]
 
-        q = np.flatnonzero(kind == PLANE)
-        if len(q):
-            k = index[q]
+        plane_hits = kind == PLANE
+        for k in range(len(w.planes.normal)) if np.any(plane_hits) else ():
+            q = np.flatnonzero(plane_hits & (index == k))
             raw = origins[q] + t[q, None] * dirs[q]
-            nrm = w.planes.normal[k]
-            point[q] = raw - np.einsum("ij,ij->i", raw - w.planes.point[k], nrm)[:, None] * nrm
+            nrm, p0 = w.planes.normal[k], w.planes.point[k]
+            point[q] = raw - ((raw - p0) @ nrm)[:, None] * nrm
             normal[q], material[q] = nrm, w.planes.material[k]
-            scale[q] = np.max(np.abs(w.planes.point[k]), axis=1)
+            scale[q] = np.max(np.abs(p0))
 
         r = np.flatnonzero(kind == TRIANGLE)
         if len(r):
@@ -167,7 +178,7 @@ class Intersector:
             normal[r], material[r] = tr.normal[k], tr.material[k]
             scale[r] = span32[r] = tr.span[k]
 
-        magnitude = np.max(np.abs(point), axis=1)
+        magnitude = max_abs(point)
         offset = REL64 * np.maximum(magnitude, scale)
         if self.has_triangles:
             offset = np.maximum(offset, REL32 * np.maximum(magnitude, span32))
@@ -194,10 +205,20 @@ class Intersector:
         index = np.full(len(origins), -1, dtype=np.int64)
         bary = np.zeros((len(origins), 2))
         sub = open_
-        self._walk(origins[sub], dirs[sub], best_view := best[sub], kind[sub], index[sub], bary[sub])
+        self._walk(origins[sub], dirs[sub], best_view := best[sub], kind[sub], index[sub], bary[sub],
+                   self.margin)
         blocked[sub] = best_view < t_max[sub]
         return blocked
 
     def light_end_offset(self, light_points: np.ndarray, distance: np.ndarray) -> np.ndarray:
         """How far before a light a shadow ray stops, so that a surface through the light does not block it."""
         return REL32 * np.maximum(np.max(np.abs(light_points), axis=-1), distance)
+
+    def outside_all_proxies(self, point: np.ndarray) -> bool:
+        """True when ``point (3,)`` lies outside every sphere proxy, so rays from it need no margin."""
+        if len(self.proxied) == 0:
+            return True
+        sp = self.world.spheres
+        l1 = np.sum(np.abs(sp.center[self.proxied] - point), axis=1)
+        return bool(np.all(l1 > 1.01 * sphere_proxy_half(sp.radius[self.proxied]) + 2.0**-17 * (
+            np.max(np.abs(sp.center[self.proxied]), axis=1) + 2 * sp.radius[self.proxied])))

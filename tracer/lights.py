@@ -71,15 +71,14 @@ def build_emitters(lights: Sequence[object], origin: np.ndarray) -> Emitters:
 
 
 def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Towards-light unit vectors L (N, 3), distances d (N,) and intensities I (N, 3).
+    """Towards-light unit vectors L (N, 3), distances d (N,) and factors f (N,): the intensity is ``f·color``.
 
-    I is zero wherever the light gives nothing: a point at the light's own
+    f is zero wherever the light gives nothing: a point at the light's own
     position, a zero attenuation denominator, or outside a spot's cone.
     """
     n = len(points)
     if em.kind == "directional":
-        return (np.broadcast_to(-em.direction, (n, 3)), np.full(n, np.inf),
-                np.broadcast_to(em.color, (n, 3)))
+        return np.broadcast_to(-em.direction, (n, 3)), np.full(n, np.inf), np.ones(n)
     v = em.position - points
     d = np.sqrt(np.einsum("ij,ij->i", v, v))
     safe_d = np.where(d > 0, d, 1.0)
@@ -89,7 +88,7 @@ def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     factor = np.where((d > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
     if em.is_spot:
         factor = factor * spot_factor(em, -L)
-    return L, d, factor[:, None] * em.color
+    return L, d, factor
 
 
 def spot_factor(em: Emitter, from_light: np.ndarray) -> np.ndarray:

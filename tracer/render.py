@@ -25,7 +25,7 @@ from .shading import mirror, phong, refract, resolve_material, shading_normal, s
 from .world import World, build_world, unit
 
 #: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory
-CHUNK_RAYS = 1 << 16
+CHUNK_RAYS = 1 << 14
 
 Progress = Callable[[int, int], None]
 
@@ -42,6 +42,8 @@ class Renderer:
         self.world: World = build_world(scene)
         self.intersector = Intersector(self.world)
         self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
+        # rays from an eye outside every sphere proxy can stop at their first confirmed hit
+        self.eye_outside = (not self.camera.orthographic) and self.intersector.outside_all_proxies(self.camera.eye)
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
@@ -98,9 +100,12 @@ class Renderer:
             weight = np.ones(len(origins))
             background = np.asarray(img.background, dtype=np.float64)
             for depth in range(img.max_depth + 1):
-                hits = self.intersector.closest(origins, dirs)
+                hits = self.intersector.closest(origins, dirs, outside=depth == 0 and self.eye_outside)
                 missed = hits.kind == MISS
-                _accumulate(colour, sample[missed], weight[missed, None] * background)
+                if depth == 0:
+                    colour[missed] = background
+                else:
+                    _accumulate(colour, sample[missed], weight[missed, None] * background)
                 rows = np.flatnonzero(~missed)
                 if len(rows) == 0:
                     break
@@ -108,7 +113,10 @@ class Renderer:
                 d, w, smp = dirs[rows], weight[rows], sample[rows]
                 mat = resolve_material(self.world, hit)
                 normal = shading_normal(self.world, hit, d)
-                _accumulate(colour, smp, w[:, None] * self.direct(hit, mat, normal, d))
+                if depth == 0:
+                    colour[rows] = self.direct(hit, mat, normal, d)
+                else:
+                    _accumulate(colour, smp, w[:, None] * self.direct(hit, mat, normal, d))
                 if depth == img.max_depth:
                     break
                 origins, dirs, sample, weight = self.secondary(hit, mat, normal, d, w, smp)
@@ -126,8 +134,10 @@ class Renderer:
         colour = m.ambient[mat] * self.world.ambient
         view = -dirs
         for em in self.world.emitters:
-            to_light, dist, intensity = illuminate(em, hit.point)
-            rows = np.flatnonzero((np.einsum("ij,ij->i", normal, to_light) > 0) & np.any(intensity > 0, axis=1))
+            if not np.any(em.color > 0):
+                continue
+            to_light, dist, factor = illuminate(em, hit.point)
+            rows = np.flatnonzero((np.einsum("ij,ij->i", normal, to_light) > 0) & (factor > 0))
             if len(rows) == 0:
                 continue
             if em.kind == "directional":
@@ -141,7 +151,8 @@ class Renderer:
                 shadow_dirs = unit(towards)
                 reach = span - self.intersector.light_end_offset(em.position, span)
             lit = rows[~self.intersector.occluded(starts, shadow_dirs, reach)]
-            colour[lit] += phong(self.world, mat[lit], normal[lit], view[lit], to_light[lit], intensity[lit])
+            intensity = factor[lit, None] * em.color
+            colour[lit] += phong(self.world, mat[lit], normal[lit], view[lit], to_light[lit], intensity)
         return colour
 
     def secondary(self, hit, mat, normal, dirs, weight, sample):

@@ -23,9 +23,19 @@ from .lights import Emitters, build_emitters
 F64 = np.float64
 
 
+def max_abs(v: np.ndarray) -> np.ndarray:
+    """Largest absolute component of each row of ``v (N, 3)``. Shape (N,)."""
+    a = np.abs(v)
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
+
+
 def unit(v: np.ndarray) -> np.ndarray:
     """Rows of ``v`` scaled to length 1 (zero rows stay zero), computed without overflow."""
     v = np.asarray(v, dtype=F64)
+    if v.ndim == 2:
+        squared = np.einsum("ij,ij->i", v, v)
+        if np.all((squared > 1e-280) & (squared < 1e280)):  # the usual case: no overflow or underflow possible
+            return v / np.sqrt(squared)[:, None]
     scale = np.max(np.abs(v), axis=-1, keepdims=True)
     scale = np.where(scale > 0, scale, 1.0)
     w = v / scale
@@ -169,7 +179,8 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
     local = world - origin
     e1, e2 = local[:, 1] - local[:, 0], local[:, 2] - local[:, 0]
     normal = unit(np.cross(unit(e1), unit(e2)))
-    keep = np.any(normal != 0, axis=1) & np.all(np.isfinite(local), axis=(1, 2))  # zero-area faces are never hit
+    # zero-area faces are never hit; nor are faces beyond float32's range (1e30 from the camera's target)
+    keep = np.any(normal != 0, axis=1) & np.all(np.abs(local) < 1e30, axis=(1, 2))
     vertex_normals = np.concatenate(normals) if normals else np.zeros((0, 3, 3))
     smooth_mask = np.concatenate(smooth) if smooth else np.zeros(0, dtype=bool)
     vertex_normals = np.where(smooth_mask[:, None, None], vertex_normals, normal[:, None, :])

@@ -1,0 +1,30 @@
+"""Keep freed NumPy buffers in the process instead of handing them back to the OS.
+
+A render allocates and frees the same large arrays chunk after chunk.  With
+glibc's defaults each one is a fresh ``mmap`` whose pages fault in one by one,
+which costs as much as the arithmetic.  Raising the mmap and trim thresholds
+lets the allocator reuse the memory.  Elsewhere (not glibc) this does nothing.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+
+M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_THRESHOLD = -1, -2, -3
+
+
+def tune_allocator() -> bool:
+    """Returns True when the allocator accepted the settings."""
+    name = ctypes.util.find_library("c")
+    if name is None:
+        return False
+    try:
+        libc = ctypes.CDLL(name)
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    ok = mallopt(M_MMAP_THRESHOLD, 256 << 20) == 1
+    ok &= mallopt(M_TRIM_THRESHOLD, 512 << 20) == 1
+    ok &= mallopt(M_TOP_PAD, 64 << 20) == 1
+    return bool(ok)
