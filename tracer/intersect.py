@@ -102,8 +102,12 @@ class Intersector:
         return self._describe(origins, dirs, best, kind, index, bary)
 
     def _walk(self, origins: np.ndarray, dirs: np.ndarray, best: np.ndarray, kind: np.ndarray,
-              index: np.ndarray, bary: np.ndarray, margin: float) -> None:
-        """Visit Embree's candidates along each ray in order, updating the best hit in place."""
+              index: np.ndarray, bary: np.ndarray, margin: float, any_hit: bool = False) -> None:
+        """Visit Embree's candidates along each ray in order, updating the best hit in place.
+
+        With ``any_hit`` a ray stops at the first hit nearer than its initial ``best``.
+        """
+        limit = best.copy() if any_hit else None
         assert self.bvh is not None
         live = np.arange(len(origins))
         skipped = np.zeros(len(origins))  # distance already walked along each ray
@@ -140,6 +144,8 @@ class Intersector:
                 closer = t < best[rows]
                 r = rows[closer]
                 best[r], kind[r], index[r] = t[closer], SPHERE, k[closer]
+            if limit is not None:
+                done |= best[live] < limit[live]
             live, step, start = live[~done], step[~done], start[~done]
             skipped[live] += step + REL32 * np.maximum(max_abs(start), step)
 
@@ -206,7 +212,7 @@ class Intersector:
         bary = np.zeros((len(origins), 2))
         sub = open_
         self._walk(origins[sub], dirs[sub], best_view := best[sub], kind[sub], index[sub], bary[sub],
-                   self.margin)
+                   self.margin, any_hit=True)
         blocked[sub] = best_view < t_max[sub]
         return blocked
 
