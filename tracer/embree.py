@@ -32,6 +32,8 @@ class Bvh:
 
     def __init__(self, corners: np.ndarray):
         self.count = len(corners)
+        #: when a list, every query is appended to it as (query, origins, dirs, far), for benchmarks to replay
+        self.record: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._scene = rtcore_scene.EmbreeScene()
         vertices = _f32(corners.reshape(-1, 3))
         TriangleMesh(self._scene, vertices, np.arange(len(vertices), dtype=np.int32).reshape(-1, 3))
@@ -42,7 +44,10 @@ class Bvh:
         """Nearest triangle before ``t_max`` per ray: index (−1 for none, int64) and float32 distance as float64."""
         if len(origins) == 0:
             return np.zeros(0, dtype=np.int64), np.zeros(0)
-        out = self._scene.run(_f32(origins), _f32(dirs), dists=_far(t_max), query="INTERSECT", output=1)
+        o, d, far = _f32(origins), _f32(dirs), _far(t_max)
+        if self.record is not None:
+            self.record.append(("INTERSECT", o, d, far.copy()))
+        out = self._scene.run(o, d, dists=far, query="INTERSECT", output=1)
         return out["primID"].astype(np.int64), out["tfar"].astype(np.float64)
 
     def any_hit(self, origins: np.ndarray, dirs: np.ndarray, t_max: np.ndarray) -> np.ndarray:
@@ -51,4 +56,14 @@ class Bvh:
             return np.zeros(0, dtype=bool)
         t = np.asarray(t_max, dtype=np.float64)
         far = _f32(np.where(np.isfinite(t), t, FAR))
-        return self._scene.run(_f32(origins), _f32(dirs), dists=far, query="OCCLUDED") != -1
+        o, d = _f32(origins), _f32(dirs)
+        if self.record is not None:
+            self.record.append(("OCCLUDED", o, d, far.copy()))
+        return self._scene.run(o, d, dists=far, query="OCCLUDED") != -1
+
+    def replay(self, query: str, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> None:
+        """Run one recorded query again, as Embree alone would (for benchmarks)."""
+        if query == "INTERSECT":
+            self._scene.run(origins, dirs, dists=far.copy(), query=query, output=1)
+        else:
+            self._scene.run(origins, dirs, dists=far.copy(), query=query)

@@ -206,6 +206,9 @@ class Intersector:
         if len(self.proxied) == 0:  # triangles only: Embree's any-hit query answers directly
             blocked[open_] = self.bvh.any_hit(origins[open_], dirs[open_], t_max[open_])
             return blocked
+        # broad phase: a ray that crosses no triangle and no proxy face within reach is clear
+        maybe = self.bvh.any_hit(origins[open_], dirs[open_], t_max[open_] + self.margin)
+        open_ = open_[maybe]
         best = np.where(blocked, -np.inf, t_max)  # a hit before t_max lowers best
         kind = np.zeros(len(origins), dtype=np.int8)
         index = np.full(len(origins), -1, dtype=np.int64)

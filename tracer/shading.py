@@ -66,17 +66,19 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
     return normal
 
 
-def phong(world: World, mat: np.ndarray, normal: np.ndarray, view: np.ndarray, to_light: np.ndarray,
-          intensity: np.ndarray) -> np.ndarray:
-    """``I ⊙ (k_d (N·L) + k_s max(0, R·V)^n)`` per point, zero where N·L ≤ 0. Shape (N, 3)."""
-    m = world.materials
-    nl = _dot(normal, to_light)
-    reflected = 2.0 * nl[:, None] * normal - to_light
-    rv = _dot(reflected, view)
+def phong(diffuse: np.ndarray, specular: np.ndarray, shininess: np.ndarray, nl: np.ndarray, rv: np.ndarray,
+          weight: np.ndarray) -> np.ndarray:
+    """``weight · (k_d (N·L) + k_s max(0, R·V)^n)`` per point. Shape (N, 3).
+
+    ``diffuse, specular (N, 3)`` and ``shininess (N,)`` are the hit points'
+    material values; ``nl = N·L`` and ``rv = R·V``; ``weight (N,)`` carries
+    the light's intensity factor and is zero where the light does not reach
+    (N·L ≤ 0, shadowed, outside a cone).  ``max(0, R·V)^n`` is 0 where
+    R·V ≤ 0, also for n = 0.
+    """
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        spec = np.where(rv > 0, np.power(np.maximum(rv, 0.0), m.shininess[mat]), 0.0)
-    response = m.diffuse[mat] * nl[:, None] + m.specular[mat] * spec[:, None]
-    return np.where((nl > 0)[:, None], intensity * response, 0.0)
+        spec = np.where(rv > 0, np.power(np.where(rv > 0, rv, 1.0), shininess), 0.0)
+    return (weight * nl)[:, None] * diffuse + (weight * spec)[:, None] * specular
 
 
 def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -1,0 +1,1 @@
+"""phongray's benchmark: speed against Embree and POV-Ray, and speed against error."""
