@@ -241,12 +241,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=_positive_int, default=1)
     p.set_defaults(func=cmd_serve)
 
+    sub.add_parser("bench", help="run the benchmark (speed, memory, HTTP, speed against error); "
+                                 "'phongray bench --help' for its options")
+
     p = sub.add_parser("schema", help="print the scene JSON Schema")
     p.set_defaults(func=cmd_schema)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["bench"]:  # the benchmark has its own options
+        from bench.run import main as bench_main
+
+        return bench_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -1,0 +1,333 @@
+"""``phongray bench``: speed against Embree and POV-Ray, memory, HTTP latency, speed against error.
+
+Everything is measured in one run on this machine and written to
+``OUT/report.md``, ``OUT/results.json`` and ``OUT/*.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import http.client
+import json
+import os
+import platform
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import schemas
+import tracer
+from tracer.render import Renderer
+
+from . import povray
+from .plot import plot
+from .scenes import example, speed_scenes, with_image
+
+CLI = [sys.executable, "-m", "service.cli"]
+
+
+def _validated(data: dict[str, Any]) -> schemas.Scene:
+    return schemas.validate_scene(json.loads(json.dumps(data)))
+
+
+def _best_of(runs: int, func: Any) -> float:
+    times = []
+    for _ in range(runs):
+        started = time.perf_counter()
+        func()
+        times.append(time.perf_counter() - started)
+    return min(times)
+
+
+# -- speed against Embree and POV-Ray ----------------------------------------
+def speed_row(name: str, data: dict[str, Any], work: Path, runs: int) -> dict[str, Any]:
+    scene = _validated(data)
+    counts: dict[str, int] = {}
+
+    def render_once() -> None:
+        r = Renderer(scene)
+        r.pixels()
+        counts.update(r.counts)
+
+    render_s = _best_of(runs, render_once)
+
+    recorder = Renderer(scene)  # the same rays again, recorded, then replayed on Embree alone
+    embree_s = None
+    if recorder.intersector.bvh is not None:
+        bvh = recorder.intersector.bvh
+        bvh.record = []
+        recorder.pixels()
+        records, bvh.record = bvh.record, None
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            embree_s = _best_of(runs, lambda: list(pool.map(lambda rec: bvh.replay(*rec), records)))
+        embree_rays = sum(len(rec[1]) for rec in records)
+    else:
+        embree_rays = 0
+
+    path = work / f"{name}.json"
+    path.write_text(json.dumps(data))
+    process_s = _best_of(runs, lambda: subprocess.run([*CLI, "render", str(path), "-o", str(work / f"{name}.png"),
+                                                      "-q"], check=True))
+    pov_s = None
+    if povray.available():
+        pov_file = work / f"{name}.pov"
+        pov_file.write_text(povray.to_pov(data))
+        cmd = povray.command(str(pov_file), str(work / f"{name}_pov.png"), data["image"]["width"],
+                             data["image"]["height"])
+        pov_s = _best_of(runs, lambda: subprocess.run(cmd, check=True, capture_output=True))
+    total = sum(counts.values())
+    return {
+        "scene": name, "size": f"{data['image']['width']}×{data['image']['height']}",
+        "render_s": render_s, "process_s": process_s, "povray_s": pov_s,
+        "rays": dict(counts), "rays_per_s": total / render_s,
+        "embree_queries": embree_rays, "embree_s": embree_s,
+        "render_over_embree": (render_s / embree_s) if embree_s else None,
+        "process_over_povray": (process_s / pov_s) if pov_s else None,
+    }
+
+
+# -- memory ------------------------------------------------------------------
+MEMORY_SCRIPT = """
+import json, resource, sys, time
+import schemas, tracer
+scene = schemas.validate_scene(json.load(open(sys.argv[1])))
+t = time.perf_counter()
+png = tracer.render_png(scene)
+print(json.dumps({"seconds": time.perf_counter() - t,
+                  "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def memory_4k(work: Path) -> dict[str, Any]:
+    path = work / "memory_4k.json"
+    path.write_text(json.dumps(with_image(example("01_three_spheres"), width=4096, height=4096)))
+    out = subprocess.run([sys.executable, "-c", MEMORY_SCRIPT, str(path)], check=True, capture_output=True, text=True)
+    return json.loads(out.stdout)
+
+
+# -- HTTP --------------------------------------------------------------------
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def http_latency(seconds: float, clients: int, workers: int) -> dict[str, Any]:
+    """Distinct 160×120 scenes (so the cache never answers) from ``clients`` keep-alive clients."""
+    port = _free_port()
+    env = {**os.environ, "PHONGRAY_RENDER_THREADS": "1", "PHONGRAY_MAX_CONCURRENT_RENDERS": "4"}
+    server = subprocess.Popen([*CLI, "serve", "--host", "127.0.0.1", "--port", str(port), "--workers", str(workers)],
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        for _ in range(200):
+            try:
+                conn = http.client.HTTPConnection("127.0.0.1", port, timeout=2)
+                conn.request("GET", "/healthz")
+                conn.getresponse().read()
+                conn.close()
+                break
+            except OSError:
+                time.sleep(0.05)
+        base = example("01_three_spheres")
+        latencies: list[float] = []
+        codes: dict[int, int] = {}
+        lock = threading.Lock()
+        counter = iter(range(10**9))
+        deadline = time.perf_counter() + seconds
+
+        def client() -> None:
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+            while time.perf_counter() < deadline:
+                k = next(counter)
+                data = with_image(base, background=[0.05 + 1e-6 * k, 0.07, 0.12])
+                body = json.dumps(data).encode()
+                started = time.perf_counter()
+                conn.request("POST", "/render", body, {"content-type": "application/json"})
+                res = conn.getresponse()
+                res.read()
+                elapsed = time.perf_counter() - started
+                with lock:
+                    codes[res.status] = codes.get(res.status, 0) + 1
+                    if res.status == 200:
+                        latencies.append(elapsed)
+            conn.close()
+
+        # warm up each worker process (imports, first allocation) before measuring
+        warm = time.perf_counter() + 1.0
+        while time.perf_counter() < warm:
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+            conn.request("POST", "/render", json.dumps(base).encode(), {"content-type": "application/json"})
+            conn.getresponse().read()
+            conn.close()
+        deadline = time.perf_counter() + seconds
+        threads = [threading.Thread(target=client) for _ in range(clients)]
+        started = time.perf_counter()
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        wall = time.perf_counter() - started
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+    latencies.sort()
+    return {
+        "clients": clients, "workers": workers, "seconds": wall, "requests": sum(codes.values()), "codes": codes,
+        "renders_per_s": len(latencies) / wall,
+        "median_ms": 1000 * statistics.median(latencies) if latencies else None,
+        "p99_ms": 1000 * latencies[int(0.99 * (len(latencies) - 1))] if latencies else None,
+    }
+
+
+# -- speed against error -------------------------------------------------------
+def _error(img: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
+    d = np.abs(img.astype(np.float64) - ref.astype(np.float64))
+    return float(d.mean()), float(np.mean(d.max(axis=2) > 2))
+
+
+def knob(label: str, base: dict[str, Any], values: list[Any], reference: Any, apply: Any,
+         runs: int) -> dict[str, Any]:
+    ref = tracer.render(_validated(apply(base, reference)))
+    rows = []
+    for value in values:
+        scene = _validated(apply(base, value))
+        img: list[np.ndarray] = []
+        seconds = _best_of(runs, lambda: img.append(tracer.render(scene)))
+        mae, off = _error(img[-1], ref)
+        rows.append({"value": value, "seconds": seconds, "mean_abs_error": mae, "fraction_off": off})
+    return {"knob": label, "reference": reference, "rows": rows}
+
+
+def quality(out: Path, runs: int) -> list[dict[str, Any]]:
+    def samples(s: dict[str, Any], n: int) -> dict[str, Any]:
+        return with_image(s, samples=n)
+
+    def grid(s: dict[str, Any], g: int) -> dict[str, Any]:
+        s = json.loads(json.dumps(s))
+        for light in s["lights"]:
+            if light["type"] == "area":
+                light["samples"] = [g, g]
+        return s
+
+    def depth(s: dict[str, Any], d: int) -> dict[str, Any]:
+        return with_image(s, max_depth=d)
+
+    knobs = [
+        knob("sub-samples n (n×n per pixel), 08_antialiased 320×240", example("08_antialiased", 320, 240),
+             [1, 2, 3, 4, 6], 12, samples, runs),
+        knob("area-light grid g×g, 03_soft_shadows 160×120", example("03_soft_shadows", 160, 120),
+             [1, 2, 4, 8, 16], 32, grid, runs),
+        knob("max_depth, 04_whitted 320×240", example("04_whitted", 320, 240), [0, 1, 2, 3, 4, 6], 12, depth, runs),
+    ]
+    for k, name in zip(knobs, ("samples", "area", "depth")):
+        plot([(k["knob"], [(r["seconds"], r["mean_abs_error"], str(r["value"])) for r in k["rows"]])],
+             f"render time against error: {k['knob']} (reference {k['reference']})",
+             "render seconds (log scale)", "mean abs error, 8-bit levels", str(out / f"error_{name}.png"))
+        k["plot"] = f"error_{name}.png"
+    return knobs
+
+
+# -- report ----------------------------------------------------------------------
+def _f(x: float | None, digits: int = 2) -> str:
+    return "—" if x is None else f"{x:.{digits}f}"
+
+
+def report(results: dict[str, Any]) -> str:
+    lines = [f"# phongray benchmark, {results['date']}", "",
+             f"Machine: {results['machine']}. Command: `{results['command']}`.", ""]
+    if results["povray"] is None:
+        lines += ["**POV-Ray is not installed** (`apt-get install povray`): its columns are empty.", ""]
+    else:
+        lines += [f"POV-Ray: `{results['povray']}`, run as `povray +WT2` on the same scene and size.", ""]
+    lines += ["## Speed", "",
+              "| scene | size | render s | rays (primary / shadow / secondary) | Mrays/s | Embree-only s | render ÷ Embree "
+              "| phongray process s | POV-Ray process s | phongray ÷ POV-Ray |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results["speed"]:
+        rays = r["rays"]
+        lines.append(f"| {r['scene']} | {r['size']} | {_f(r['render_s'])} | {rays['primary']:,} / {rays['shadow']:,} / "
+                     f"{rays['secondary']:,} | {r['rays_per_s'] / 1e6:.2f} | {_f(r['embree_s'], 3)} | "
+                     f"{_f(r['render_over_embree'], 1)} | {_f(r['process_s'])} | {_f(r['povray_s'])} | "
+                     f"{_f(r['process_over_povray'])} |")
+    speed = {r["scene"]: r for r in results["speed"]}
+    if "spheres_10_1080p" in speed and "spheres_10000_1080p" in speed:
+        ratio = speed["spheres_10000_1080p"]["render_s"] / speed["spheres_10_1080p"]["render_s"]
+        lines += ["", f"10,000 spheres take {ratio:.2f}× the time of 10 spheres (target ≤ 3×)."]
+    lines += ["", "Render s: best of the runs, in-process, all cores. Embree-only s: the same Embree queries "
+              "(recorded during a render) replayed on Embree alone, on all cores. Process s: the whole "
+              "`phongray render` command, start-up and PNG included.", ""]
+    if results.get("memory"):
+        m = results["memory"]
+        lines += ["## Memory", "", f"4096×4096 three spheres: peak resident {m['peak_mib']:.0f} MiB, "
+                  f"{m['seconds']:.1f} s (target < 2048 MiB).", ""]
+    if results.get("http"):
+        h = results["http"]
+        lines += ["## HTTP", "", f"160×120 renders of distinct scenes, {h['clients']} clients, {h['workers']} workers, "
+                  f"{h['seconds']:.1f} s: median {_f(h['median_ms'], 1)} ms, p99 {_f(h['p99_ms'], 1)} ms, "
+                  f"{h['renders_per_s']:.1f} renders/s; status codes {h['codes']} "
+                  "(targets: median < 30 ms, ≥ 50 renders/s).", ""]
+    lines += ["## Speed against error", ""]
+    for k in results["quality"]:
+        lines += [f"### {k['knob']}", "", f"Error against a reference rendered at {k['reference']}.", "",
+                  "| value | seconds | mean abs error (levels) | pixels off > 2 levels |", "|---|---|---|---|"]
+        for r in k["rows"]:
+            lines.append(f"| {r['value']} | {r['seconds']:.3f} | {r['mean_abs_error']:.3f} | "
+                         f"{100 * r['fraction_off']:.2f} % |")
+        lines += ["", f"![{k['knob']}]({k['plot']})", ""]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="phongray bench", description="Measure phongray's speed and accuracy.")
+    parser.add_argument("--out", default="bench/out", help="directory for report.md, results.json and plots")
+    parser.add_argument("--runs", type=int, default=2, help="runs per measurement; the best is kept")
+    parser.add_argument("--only", nargs="*", help="speed scenes to run (default: all)")
+    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "memory", "http", "quality"])
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    pov = povray.available()
+    if pov is None:
+        print("POV-Ray is not installed (apt-get install povray): the comparison columns will be empty.")
+    results: dict[str, Any] = {
+        "date": datetime.date.today().isoformat(),
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
+        "command": "phongray bench " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "povray": pov and subprocess.run(["povray", "--version"], capture_output=True, text=True).stderr.splitlines()[0]
+        if pov else None,
+        "speed": [], "memory": None, "http": None, "quality": [],
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        if "speed" not in args.skip:
+            for name, data in speed_scenes().items():
+                if args.only and name not in args.only:
+                    continue
+                row = speed_row(name, data, work, args.runs)
+                results["speed"].append(row)
+                print(f"{name}: render {row['render_s']:.2f} s, Embree {_f(row['embree_s'], 3)} s, "
+                      f"process {row['process_s']:.2f} s, POV-Ray {_f(row['povray_s'])} s", flush=True)
+        if "memory" not in args.skip:
+            results["memory"] = memory_4k(work)
+            print(f"memory 4096²: {results['memory']['peak_mib']:.0f} MiB", flush=True)
+    if "http" not in args.skip:
+        results["http"] = http_latency(seconds=5.0, clients=4, workers=2)
+        print(f"http: median {_f(results['http']['median_ms'], 1)} ms, "
+              f"{results['http']['renders_per_s']:.1f} renders/s", flush=True)
+    if "quality" not in args.skip:
+        results["quality"] = quality(out, args.runs)
+        print("speed against error: done", flush=True)
+    (out / "results.json").write_text(json.dumps(results, indent=2))
+    (out / "report.md").write_text(report(results))
+    print(f"wrote {out / 'report.md'}")
+    return 0
