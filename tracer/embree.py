@@ -32,6 +32,11 @@ class Bvh:
 
     def __init__(self, corners: np.ndarray):
         self.count = len(corners)
+        # each triangle's plane as Embree sees it (float32 corners), for stepping past a triangle in float64
+        seen = corners.astype(np.float32).astype(np.float64)
+        normal = np.cross(seen[:, 1] - seen[:, 0], seen[:, 2] - seen[:, 0])
+        self.plane_normal = normal
+        self.plane_offset = np.einsum("ij,ij->i", normal, seen[:, 0])
         #: when a list, every query is appended to it as (query, origins, dirs, far), for benchmarks to replay
         self.record: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._scene = rtcore_scene.EmbreeScene()
@@ -40,15 +45,14 @@ class Bvh:
         # commit now, on this thread, so that concurrent queries never race to commit
         self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
 
-    def first_hit(self, origins: np.ndarray, dirs: np.ndarray, t_max: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest triangle before ``t_max`` per ray: index (−1 for none, int64) and float32 distance as float64."""
+    def first_hit(self, origins: np.ndarray, dirs: np.ndarray, t_max: np.ndarray) -> np.ndarray:
+        """Index of the nearest triangle before ``t_max`` per ray, −1 for none. Shape (N,), int64."""
         if len(origins) == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros(0)
+            return np.zeros(0, dtype=np.int64)
         o, d, far = _f32(origins), _f32(dirs), _far(t_max)
         if self.record is not None:
             self.record.append(("INTERSECT", o, d, far.copy()))
-        out = self._scene.run(o, d, dists=far, query="INTERSECT", output=1)
-        return out["primID"].astype(np.int64), out["tfar"].astype(np.float64)
+        return self._scene.run(o, d, dists=far, query="INTERSECT").astype(np.int64)
 
     def any_hit(self, origins: np.ndarray, dirs: np.ndarray, t_max: np.ndarray) -> np.ndarray:
         """True where some triangle lies on the ray within (0, t_max). Shape (N,), bool."""
@@ -63,7 +67,11 @@ class Bvh:
 
     def replay(self, query: str, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> None:
         """Run one recorded query again, as Embree alone would (for benchmarks)."""
-        if query == "INTERSECT":
-            self._scene.run(origins, dirs, dists=far.copy(), query=query, output=1)
-        else:
-            self._scene.run(origins, dirs, dists=far.copy(), query=query)
+        self._scene.run(origins, dirs, dists=far.copy(), query=query)
+
+    def distance_to_plane(self, prim: np.ndarray, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Float64 distance along each ray to the plane of triangle ``prim`` (0 where the ray runs along it)."""
+        n = self.plane_normal[prim]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (self.plane_offset[prim] - np.einsum("ij,ij->i", n, origins)) / np.einsum("ij,ij->i", n, dirs)
+        return np.where(np.isfinite(t) & (t > 0), t, 0.0)

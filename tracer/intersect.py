@@ -116,13 +116,13 @@ class Intersector:
                 break
             if walk == 0:
                 o, d, start = origins, dirs, origins
-                prim, step = self.bvh.first_hit(o, d, best + margin)
+                prim = self.bvh.first_hit(o, d, best + margin)
             else:
                 o, d, s = origins[live], dirs[live], skipped[live]
                 start = o + s[:, None] * d
-                prim, step = self.bvh.first_hit(start, d, best[live] + margin - s)
+                prim = self.bvh.first_hit(start, d, best[live] + margin - s)
             found = prim >= 0
-            live, prim, step, o, d, start = live[found], prim[found], step[found], o[found], d[found], start[found]
+            live, prim, o, d, start = live[found], prim[found], o[found], d[found], start[found]
             done = np.zeros(len(live), dtype=bool)
             tri = np.flatnonzero(prim < self.n_triangles)
             if len(tri):
@@ -146,7 +146,8 @@ class Intersector:
                 best[r], kind[r], index[r] = t[closer], SPHERE, k[closer]
             if limit is not None:
                 done |= best[live] < limit[live]
-            live, step, start = live[~done], step[~done], start[~done]
+            live, prim, start, d = live[~done], prim[~done], start[~done], d[~done]
+            step = self.bvh.distance_to_plane(prim, start, d)
             skipped[live] += step + REL32 * np.maximum(max_abs(start), step)
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, t: np.ndarray, kind: np.ndarray,
