@@ -181,10 +181,9 @@ def cmd_grade(args: argparse.Namespace) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    import uvicorn
+    from .server import serve
 
-    uvicorn.run("service.app:create_app", factory=True, host=args.host, port=args.port, workers=args.workers,
-                log_level="info")
+    serve(args.host, args.port, args.workers)
     return 0
 
 

@@ -188,5 +188,5 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
         v0=local[keep, 0], e1=e1[keep], e2=e2[keep], normal=normal[keep],
         material=(np.concatenate(materials) if materials else np.zeros(0, dtype=np.int64))[keep].astype(np.int64),
         v0_world=world[keep, 0], vertex_normals=vertex_normals[keep], smooth=smooth_mask[keep],
-        span=np.max(np.einsum("tk,tck->tc", np.abs(normal[keep]), np.abs(local[keep])), axis=1, initial=0.0),
+        span=np.max(np.sum(np.abs(local[keep]) * np.abs(normal[keep])[:, None, :], axis=2), axis=1, initial=0.0),
     )
