@@ -38,7 +38,7 @@ def is_zero(v: Sequence[float]) -> bool:
 
 
 def _sub(a: Sequence[float], b: Sequence[float]) -> list[float]:
-    return [x - y for x, y in zip(a, b)]
+    return [x - y for x, y in zip(a, b)]  # Python floats overflow to inf quietly
 
 
 def check_scene(scene: Scene) -> list[Problem]:
@@ -47,8 +47,11 @@ def check_scene(scene: Scene) -> list[Problem]:
 
 def _camera(scene: Scene) -> Iterator[Problem]:
     cam = scene.camera
-    forward = _sub(cam.look_at, cam.position)
-    if is_zero(forward) or not np.all(np.isfinite(forward)):
+    with np.errstate(over="ignore", invalid="ignore"):
+        forward = np.subtract(cam.look_at, cam.position, dtype=np.float64)
+    if not np.all(np.isfinite(forward)):
+        yield "camera.look_at", "is too far from camera.position (look_at − position overflows)"
+    elif is_zero(forward):
         yield "camera.look_at", "must differ from camera.position"
     elif parallel(forward, cam.up):
         yield "camera.up", "must not be parallel to look_at − position"

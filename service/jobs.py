@@ -17,7 +17,7 @@ from schemas import Scene, parse_json, validate_scene
 from tracer import RenderCancelled, encode_png, render
 
 from .cache import RenderCache
-from .limits import check_raw, check_scene
+from .limits import check_body, check_raw, check_scene
 from .settings import Settings
 
 RENDERER_VERSION = "phongray-1"
@@ -43,6 +43,7 @@ class Job:
 
 def prepare(body: bytes | str, overrides: dict[str, int | None], settings: Settings) -> Job:
     """Parse, apply image overrides, validate and check limits. Raises SceneError or LimitError."""
+    check_body(body, settings)
     data = parse_json(body)
     check_raw(data, settings)
     if isinstance(data, dict) and isinstance(data.get("image"), dict):

@@ -17,6 +17,17 @@ class LimitError(ValueError):
         self.status = status
 
 
+def check_body(body: bytes | str, settings: Settings) -> None:
+    """Before parsing: every face, vertex and normal is a JSON array, so a body with far more
+    ``[`` than a scene within the limits can hold is refused without the cost of parsing it."""
+    raw = body.encode() if isinstance(body, str) else body
+    arrays = raw.count(b"[")
+    allowed = 2 * settings.max_triangles + 16 * settings.max_objects + 4 * settings.max_light_samples + 1024
+    if arrays > allowed:
+        raise LimitError(f"scene: {arrays} JSON arrays, more than a scene within max_triangles = "
+                         f"{settings.max_triangles} and max_objects = {settings.max_objects} can have")
+
+
 def check_raw(data: Any, settings: Settings) -> None:
     """Cheap counts on the parsed JSON, before validation spends time on a huge scene."""
     if not isinstance(data, dict):

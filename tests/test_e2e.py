@@ -3,10 +3,8 @@
 import json
 import os
 import shutil
-import socket
 import subprocess
 import sys
-import time
 import urllib.error
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
@@ -14,40 +12,18 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 
 from helpers import SCENES, scene_dict
+from server import running_server
 from service.client import ServerError, post_form, post_json
 
 SCENE = (SCENES / "01_three_spheres.json").read_bytes()
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    port = free_port()
-    env = {**os.environ, "PHONGRAY_MAX_CONCURRENT_RENDERS": "1", "PHONGRAY_MAX_BODY_BYTES": "200000",
-           "PHONGRAY_RENDER_THREADS": "1"}
-    log = open(tmp_path_factory.mktemp("server") / "log.txt", "w")
-    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(port)],
-                            env=env, stdout=log, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{port}"
-    for _ in range(100):
-        try:
-            with urllib.request.urlopen(url + "/healthz", timeout=1):
-                break
-        except OSError:
-            time.sleep(0.1)
-    else:
-        proc.kill()
-        raise RuntimeError("the server did not start")
-    yield url
-    proc.terminate()
-    proc.wait(timeout=10)
-    log.close()
+    with running_server(tmp_path_factory.mktemp("server"), max_concurrent_renders="1", max_body_bytes="200000",
+                        render_threads="1") as (url, _):
+        yield url
 
 
 def status_of(func, *args, **kwargs):
