@@ -15,6 +15,7 @@ from typing import Any
 
 from schemas import Scene, parse_json, validate_scene
 from tracer import RenderCancelled, encode_png, render
+from tracer.memory import release
 
 from .cache import RenderCache
 from .limits import check_body, check_raw, check_scene
@@ -90,6 +91,7 @@ class RenderService:
                 self.renders += 1
             finally:
                 self.slots.release()
+                release()  # give what the render freed back to the OS, so memory returns to its baseline
         self.cache.put(job.key, data)
         return data
 

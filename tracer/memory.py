@@ -14,15 +14,28 @@ import ctypes.util
 M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_THRESHOLD = -1, -2, -3
 
 
-def tune_allocator() -> bool:
-    """Returns True when the allocator accepted the settings."""
+def _libc() -> ctypes.CDLL | None:
     name = ctypes.util.find_library("c")
     if name is None:
-        return False
+        return None
     try:
-        libc = ctypes.CDLL(name)
-        mallopt = libc.mallopt
-    except (OSError, AttributeError):
+        return ctypes.CDLL(name)
+    except OSError:
+        return None
+
+
+def release() -> None:
+    """Hand the memory a finished render freed back to the OS (a long-running service calls this)."""
+    libc = _libc()
+    trim = getattr(libc, "malloc_trim", None)
+    if trim is not None:
+        trim(0)
+
+
+def tune_allocator() -> bool:
+    """Returns True when the allocator accepted the settings."""
+    mallopt = getattr(_libc(), "mallopt", None)
+    if mallopt is None:
         return False
     ok = mallopt(M_MMAP_THRESHOLD, 256 << 20) == 1
     ok &= mallopt(M_TRIM_THRESHOLD, 512 << 20) == 1
