@@ -22,7 +22,12 @@ def _ticks(lo: float, hi: float) -> list[float]:
 
 def plot(series: list[tuple[str, list[tuple[float, float, str]]]], title: str, xlabel: str, ylabel: str,
          path: str, size: tuple[int, int] = (720, 440)) -> None:
-    """``series``: (label, [(x, y, annotation), ...]); x is drawn on a log scale."""
+    """``series``: (label, [(x, y, annotation), ...]); x is drawn on a log scale.
+
+    Pillow's built-in font has no "×", so labels spell it "x".
+    """
+    title = title.replace("×", "x")
+    series = [(label.replace("×", "x"), pts) for label, pts in series]
     w, h = size
     left, right, top, bottom = 70, 20, 40, 50
     img = Image.new("RGB", size, "white")

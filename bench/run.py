@@ -98,13 +98,15 @@ def speed_row(name: str, data: dict[str, Any], work: Path, runs: int) -> dict[st
 
 # -- memory ------------------------------------------------------------------
 MEMORY_SCRIPT = """
-import json, resource, sys, time
+import json, sys, time
 import schemas, tracer
 scene = schemas.validate_scene(json.load(open(sys.argv[1])))
 t = time.perf_counter()
 png = tracer.render_png(scene)
-print(json.dumps({"seconds": time.perf_counter() - t,
-                  "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+seconds = time.perf_counter() - t
+# VmHWM, the peak resident size of this program (ru_maxrss would carry over the parent's across exec)
+peak = next(int(line.split()[1]) for line in open("/proc/self/status") if line.startswith("VmHWM:"))
+print(json.dumps({"seconds": seconds, "peak_mib": peak / 1024}))
 """
 
 

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any
 
-from pydantic import ValidationError
+# phongray uses no pydantic plugins; not looking for any saves scanning every installed package at start-up
+os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
+
+from pydantic import ValidationError  # noqa: E402
 
 from .checks import check_scene, parallel
 from .errors import SceneError, format_problem, parse_json, problems_from_validation
