@@ -159,13 +159,13 @@ async def grade(request: Request, format: Literal["json", "png"] = "json") -> Re
     tolerance = _number(form.get("tolerance"), "tolerance", grading.DEFAULT_TOLERANCE, 0, 255)
     max_fraction = _number(form.get("max_fraction"), "max_fraction", grading.DEFAULT_MAX_FRACTION, 0, 1)
     job = _prepare(scene_text, {}, service)
-    png = await _png(request, job)
-    reference = decode_png(png)
-    try:
-        submitted = grading.read_submission(image, (reference.shape[1], reference.shape[0]),
+    try:  # the submission is checked (and decoded) before any rendering is spent on it
+        submitted = grading.read_submission(image, (job.scene.image.width, job.scene.image.height),
                                             service.settings.max_image_bytes)
     except grading.ImageError as exc:
         raise HTTPProblem(422, f"image: {exc}") from None
+    png = await _png(request, job)
+    reference = decode_png(png)
     if format == "png":
         return Response(grading.heatmap(reference, submitted), media_type="image/png")
     result = grading.grade(reference, submitted, hashlib.sha256(png).hexdigest(), tolerance, max_fraction)

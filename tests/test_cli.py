@@ -64,3 +64,20 @@ def test_missing_file_and_unwritable_output(tmp_path):
 def test_render_from_stdin_to_stdout():
     result = run("render", "-", "-o", "-", "-q", stdin=(SCENES / "07_spotlights.json").read_bytes())
     assert result.returncode == 0 and result.stdout.startswith(b"\x89PNG")
+
+
+def test_progress_bar_draws_only_when_enabled_and_late(capsys):
+    from service.cli import ProgressBar
+
+    quiet = ProgressBar(delay=0.0)
+    quiet.enabled = False
+    quiet(5, 10)
+    bar = ProgressBar(delay=0.0)
+    bar.enabled = True  # as on a terminal
+    bar(5, 10)
+    bar.close()
+    late = ProgressBar(delay=3600.0)
+    late.enabled = True
+    late(5, 10)
+    err = capsys.readouterr().err
+    assert err.count("50.0%") == 1 and err.endswith("\n")
