@@ -70,10 +70,10 @@ def test_413_and_422(server):
 def test_burst_beyond_the_slot_count_gets_200_or_503_and_the_service_stays_healthy(server):
     data = scene_dict("03_soft_shadows")
     bodies = []
-    for k in range(12):  # distinct scenes, so the cache cannot answer for the renderer
+    for k in range(50):  # 50 concurrent, distinct scenes, so the cache cannot answer for the renderer
         data["image"]["background"] = [0.01 * k, 0, 0]
         bodies.append(json.dumps(data).encode())
-    with ThreadPoolExecutor(max_workers=12) as pool:
+    with ThreadPoolExecutor(max_workers=50) as pool:
         codes = list(pool.map(lambda b: status_of(post_json, server, "/render", b), bodies))
     assert set(codes) <= {200, 503}
     assert 503 in codes and 200 in codes
