@@ -86,7 +86,7 @@ def _server_call(func, *a, **kw):  # type: ignore[no-untyped-def]
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from tracer import encode_png, render
+    from tracer import ImageTooLarge, encode_png, render
 
     overrides = {"width": args.width, "height": args.height, "samples": args.samples}
     if args.server:
@@ -98,7 +98,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     scene = _load(args.scene, overrides)
     bar = ProgressBar()
     started = time.perf_counter()
-    pixels = render(scene, threads=args.threads, progress=bar)
+    try:
+        pixels = render(scene, threads=args.threads, progress=bar)
+    except ImageTooLarge as exc:
+        raise CliError(f"{args.scene}: {exc}") from None
     bar.close()
     data = encode_png(pixels)
     _write(args.output, data)
@@ -159,12 +162,15 @@ def cmd_grade(args: argparse.Namespace) -> int:
     else:
         import hashlib
 
-        from tracer import encode_png, render
+        from tracer import ImageTooLarge, encode_png, render
 
         from . import grading
 
         scene = _load(args.scene)
-        reference = render(scene)
+        try:
+            reference = render(scene)
+        except ImageTooLarge as exc:
+            raise CliError(f"{args.scene}: {exc}") from None
         try:
             submitted = grading.read_submission(image, (reference.shape[1], reference.shape[0]), 1 << 30)
         except grading.ImageError as exc:

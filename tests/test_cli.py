@@ -81,3 +81,12 @@ def test_progress_bar_draws_only_when_enabled_and_late(capsys):
     late(5, 10)
     err = capsys.readouterr().err
     assert err.count("50.0%") == 1 and err.endswith("\n")
+
+
+def test_absurd_image_size_is_refused_not_attempted(tmp_path):
+    data = json.loads((SCENES / "01_three_spheres.json").read_text())
+    data["image"]["width"] = 10**12
+    path = tmp_path / "huge.json"
+    path.write_text(json.dumps(data))
+    result = run("render", str(path), "-o", str(tmp_path / "x.png"))
+    assert result.returncode == 2 and b"more than phongray renders" in result.stderr

@@ -2,11 +2,11 @@
 
 from .image import decode_png, encode_png
 from .memory import tune_allocator
-from .render import RenderCancelled, Renderer, render
+from .render import ImageTooLarge, RenderCancelled, Renderer, render
 
 tune_allocator()
 
-__all__ = ["RenderCancelled", "Renderer", "decode_png", "encode_png", "render", "render_png"]
+__all__ = ["ImageTooLarge", "RenderCancelled", "Renderer", "decode_png", "encode_png", "render", "render_png"]
 
 
 def render_png(scene, **kwargs) -> bytes:  # type: ignore[no-untyped-def]

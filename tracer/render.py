@@ -31,6 +31,14 @@ CHUNK_RAYS = 1 << 14
 Progress = Callable[[int, int], None]
 
 
+#: the largest image the renderer will make (16384 × 16384): its pixels alone take 768 MiB
+MAX_PIXELS = 1 << 28
+
+
+class ImageTooLarge(ValueError):
+    """The image asked for is beyond :data:`MAX_PIXELS`."""
+
+
 class RenderCancelled(Exception):
     """Raised by :meth:`Renderer.pixels` when its ``cancel`` callback asked it to stop."""
 
@@ -42,6 +50,10 @@ class Renderer:
     """
 
     def __init__(self, scene: Scene):
+        img = scene.image
+        if img.width * img.height > MAX_PIXELS:
+            raise ImageTooLarge(f"image: {img.width}×{img.height} pixels is more than phongray renders "
+                                f"({MAX_PIXELS} pixels, 16384×16384)")
         self.scene = scene
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
