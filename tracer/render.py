@@ -33,6 +33,8 @@ Progress = Callable[[int, int], None]
 
 #: the largest image the renderer will make (16384 × 16384): its pixels alone take 768 MiB
 MAX_PIXELS = 1 << 28
+#: the most primary rays (pixels × sub-samples) one render will cast
+MAX_PRIMARY_RAYS = 1 << 32
 
 
 class ImageTooLarge(ValueError):
@@ -54,6 +56,9 @@ class Renderer:
         if img.width * img.height > MAX_PIXELS:
             raise ImageTooLarge(f"image: {img.width}×{img.height} pixels is more than phongray renders "
                                 f"({MAX_PIXELS} pixels, 16384×16384)")
+        if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
+            raise ImageTooLarge(f"image: {img.width}×{img.height} pixels × {img.samples}² sub-samples is more "
+                                f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})")
         self.scene = scene
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
