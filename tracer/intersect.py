@@ -111,6 +111,7 @@ class Intersector:
         assert self.bvh is not None
         live = np.arange(len(origins))
         skipped = np.zeros(len(origins))  # distance already walked along each ray
+        tested = np.full(len(origins), -1, dtype=np.int64)  # the sphere each ray tested last
         for walk in range(MAX_PASSES):
             if len(live) == 0:
                 break
@@ -138,8 +139,11 @@ class Intersector:
                     done[tri[real]] = True
             sph = np.flatnonzero(prim >= self.n_triangles)
             if len(sph):
-                rows = live[sph]
                 k = self.proxied[(prim[sph] - self.n_triangles) // FACES_PER_PROXY]
+                fresh = tested[live[sph]] != k  # leaving a proxy just entered: its sphere is already known
+                sph, k = sph[fresh], k[fresh]
+                rows = live[sph]
+                tested[rows] = k
                 t = sphere_t(o[sph], d[sph], self.world.spheres.center[k], self.world.spheres.radius[k])
                 closer = t < best[rows]
                 r = rows[closer]
@@ -229,6 +233,7 @@ class Intersector:
         if len(self.proxied) == 0:
             return True
         sp = self.world.spheres
-        l1 = np.sum(np.abs(sp.center[self.proxied] - point), axis=1)
-        return bool(np.all(l1 > 1.01 * sphere_proxy_half(sp.radius[self.proxied]) + 2.0**-17 * (
+        # outside the circumscribed sphere of every proxy (a conservative answer: "inside" only costs a margin)
+        distance = np.linalg.norm(sp.center[self.proxied] - point, axis=1)
+        return bool(np.all(distance > 1.01 * sphere_proxy_half(sp.radius[self.proxied]) + 2.0**-17 * (
             np.max(np.abs(sp.center[self.proxied]), axis=1) + 2 * sp.radius[self.proxied])))

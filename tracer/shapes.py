@@ -73,25 +73,45 @@ def triangle_hit(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.n
     return np.where(ok, t, np.inf), u, v
 
 
-#: the eight faces of an octahedron with vertices ±x, ±y, ±z (indices into OCTA_VERTICES), wound outward
-OCTA_VERTICES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
-OCTA_FACES = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
-FACES_PER_PROXY = len(OCTA_FACES)
+def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
+    """Unit-circumradius icosahedron: 12 vertices and its 20 triangular faces."""
+    phi = (1.0 + np.sqrt(5.0)) / 2.0
+    v = np.array([[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],
+                  [0, -1, -phi], [0, 1, -phi], [phi, 0, -1], [phi, 0, 1], [-phi, 0, -1], [-phi, 0, 1]], dtype=float)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    # faces: the vertex triples that are mutually at edge length
+    edge = np.min(np.linalg.norm(v[1:] - v[0], axis=1))
+    near = np.isclose(np.linalg.norm(v[:, None] - v[None, :], axis=2), edge)
+    faces = [(a, b, c) for a in range(12) for b in range(a + 1, 12) for c in range(b + 1, 12)
+             if near[a, b] and near[b, c] and near[a, c]]
+    return v, np.array(faces)
+
+
+#: proxies are icosahedra: tighter than a box or an octahedron, so fewer rays test a sphere they miss
+PROXY_VERTICES, PROXY_FACES = _icosahedron()
+FACES_PER_PROXY = len(PROXY_FACES)
+#: circumradius over inradius of the icosahedron: scaling it by this puts its faces at the sphere's radius
+PROXY_SCALE = 1.0 / float(np.min(np.abs(np.einsum("ij,ij->i", np.cross(
+    PROXY_VERTICES[PROXY_FACES[:, 1]] - PROXY_VERTICES[PROXY_FACES[:, 0]],
+    PROXY_VERTICES[PROXY_FACES[:, 2]] - PROXY_VERTICES[PROXY_FACES[:, 0]]) / np.linalg.norm(np.cross(
+        PROXY_VERTICES[PROXY_FACES[:, 1]] - PROXY_VERTICES[PROXY_FACES[:, 0]],
+        PROXY_VERTICES[PROXY_FACES[:, 2]] - PROXY_VERTICES[PROXY_FACES[:, 0]]), axis=1, keepdims=True),
+    PROXY_VERTICES[PROXY_FACES[:, 0]]))))
 
 
 def sphere_proxy_half(radius: np.ndarray) -> np.ndarray:
-    """Half-diagonal of the octahedron around each sphere (before the float32 allowance)."""
-    return radius * np.sqrt(3.0) * (1.0 + 2.0**-12)
+    """Circumradius of the icosahedron around each sphere (before the float32 allowance)."""
+    return radius * PROXY_SCALE * (1.0 + 2.0**-12)
 
 
 def sphere_proxies(center: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """Octahedra that contain the spheres, as triangle corners ``(8·S, 3, 3)``.
+    """Icosahedra that contain the spheres, as triangle corners ``(20·S, 3, 3)``.
 
-    An octahedron of half-diagonal r·√3 has its faces at distance r from the
-    centre; it is enlarged a little more so that the float32 cast of its corners
+    The faces of each lie at (slightly more than) the sphere's radius from its
+    centre, with a further allowance so that the float32 cast of the corners
     can never cut into the sphere.  Any ray that meets a sphere crosses a face
     of its proxy first (or starts inside it and crosses the way out).
     """
     half = sphere_proxy_half(radius) + 2.0**-18 * (np.max(np.abs(center), axis=1, initial=0.0) + radius * 2)
-    corners = center[:, None, :] + half[:, None, None] * OCTA_VERTICES[None, :, :]  # (S, 6, 3)
-    return corners[:, OCTA_FACES].reshape(-1, 3, 3)
+    corners = center[:, None, :] + half[:, None, None] * PROXY_VERTICES[None, :, :]  # (S, 12, 3)
+    return corners[:, PROXY_FACES].reshape(-1, 3, 3)
