@@ -3,7 +3,7 @@
 Planes, and spheres far larger than the rest (a planet under tiny objects),
 are tested exactly in float64 against every ray: a scene has few.  Triangles
 and the other spheres share one Embree BVH: triangles as themselves, spheres
-as enclosing octahedra (:func:`~tracer.shapes.sphere_proxies`).  Embree names
+as enclosing icosahedra (:func:`~tracer.shapes.sphere_proxies`).  Embree names
 the nearest candidate along the ray; a triangle is then recomputed in float64,
 a sphere tested exactly in float64, and the ray goes on past that candidate.
 It stops when no candidate is nearer than the best hit plus the largest proxy
