@@ -152,7 +152,11 @@ class Intersector:
                 done |= best[live] < limit[live]
             live, prim, start, d = live[~done], prim[~done], start[~done], d[~done]
             step = self.bvh.distance_to_plane(prim, start, d)
-            skipped[live] += step + REL32 * np.maximum(max_abs(start), step)
+            noise = np.maximum(max_abs(start), step)  # float32 error scale of this candidate, to step past it
+            is_tri = prim < self.n_triangles
+            if np.any(is_tri):
+                noise[is_tri] = np.maximum(noise[is_tri], self.world.triangles.span[prim[is_tri]])
+            skipped[live] += step + REL32 * noise
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, t: np.ndarray, kind: np.ndarray,
                   index: np.ndarray, bary: np.ndarray) -> Hits:
@@ -192,6 +196,8 @@ class Intersector:
         magnitude = max_abs(point)
         offset = REL64 * np.maximum(magnitude, scale)
         if self.has_triangles:
+            # clear of the triangle's own float32 noise inside Embree (which grows with its extent along
+            # its normal) and of coincident triangles; what noise remains, the walk's float64 check catches
             offset = np.maximum(offset, REL32 * np.maximum(magnitude, span32))
         return Hits(t=t, kind=kind, index=index, point=point, normal=normal, bary=bary,
                     material=material, offset=offset)
@@ -208,10 +214,8 @@ class Intersector:
         if self.bvh is None:
             return blocked
         open_ = np.flatnonzero(~blocked)
-        if len(self.proxied) == 0:  # triangles only: Embree's any-hit query answers directly
-            blocked[open_] = self.bvh.any_hit(origins[open_], dirs[open_], t_max[open_])
-            return blocked
-        # broad phase: a ray that crosses no triangle and no proxy face within reach is clear
+        # broad phase: a ray that crosses no triangle and no proxy face within reach is clear; the rest
+        # are walked exactly, so float32 noise in Embree (a false hit on the surface a ray leaves) never shadows
         maybe = self.bvh.any_hit(origins[open_], dirs[open_], t_max[open_] + self.margin)
         open_ = open_[maybe]
         best = np.where(blocked, -np.inf, t_max)  # a hit before t_max lowers best
