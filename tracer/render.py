@@ -62,11 +62,13 @@ class Renderer:
         self.scene = scene
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
-        self.world: World = build_world(scene)
-        self.intersector = Intersector(self.world)
-        self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
-        # rays from an eye outside every sphere proxy can stop at their first confirmed hit
-        self.eye_outside = (not self.camera.orthographic) and self.intersector.outside_all_proxies(self.camera.eye)
+        with np.errstate(all="ignore"):  # hostile magnitudes (1e300) overflow to inf here; the tracer copes
+            self.world: World = build_world(scene)
+            self.intersector = Intersector(self.world)
+            self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
+            # rays from an eye outside every sphere proxy can stop at their first confirmed hit
+            self.eye_outside = (not self.camera.orthographic) and self.intersector.outside_all_proxies(
+                self.camera.eye)
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
