@@ -200,11 +200,11 @@ class Renderer:
         m = self.world.materials
         kr, kt = m.reflectance[mat], m.transmittance[mat]
         parts = []
-        r = np.flatnonzero(kr > 0)
+        r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
         if len(r):
             out = mirror(dirs[r], normal[r])
             parts.append((spawn(hit, r, out), out, sample[r], weight[r] * kr[r]))
-        t = np.flatnonzero(kt > 0)
+        t = np.flatnonzero(weight * kt > 0)
         if len(t):
             out = refract(dirs[t], hit.normal[t], m.ior[mat[t]])
             parts.append((spawn(hit, t, out), out, sample[t], weight[t] * kt[t]))
