@@ -86,12 +86,15 @@ class Triangle(Strict):
     vertices: tuple[Vec3, Vec3, Vec3]
 
 
+#: a vertex index; beyond 2³¹ it could not be in range of any mesh that fits in memory
+FaceIndex = Annotated[StrictInt, Field(ge=0, lt=2**31)]
+
+
 class Mesh(Strict):
     type: Literal["mesh"]
     material: str
     vertices: list[Vec3]
-    faces: list[tuple[Annotated[StrictInt, Field(ge=0)], Annotated[StrictInt, Field(ge=0)],
-                      Annotated[StrictInt, Field(ge=0)]]]
+    faces: list[tuple[FaceIndex, FaceIndex, FaceIndex]]
     normals: list[Vec3] | None = None
 
 

@@ -14,7 +14,7 @@ from starlette.datastructures import UploadFile
 
 from schemas import SceneError, json_schema, parse_json, validate_scene
 from schemas.locate import line_for, value_lines
-from tracer import RenderCancelled, decode_png
+from tracer import ImageTooLarge, RenderCancelled, decode_png
 
 from . import grading
 from .jobs import Busy, Job, RenderService, TooSlow, prepare
@@ -107,6 +107,8 @@ async def _png(request: Request, job: Job) -> bytes:
                           headers={"Retry-After": str(service.settings.retry_after)}) from None
     except RenderCancelled:
         raise HTTPProblem(499, "client closed the request") from None
+    except ImageTooLarge as exc:  # only when the service's own limits are set above the renderer's
+        raise HTTPProblem(422, str(exc)) from None
     assert result is not None
     return result
 

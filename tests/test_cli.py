@@ -90,3 +90,12 @@ def test_absurd_image_size_is_refused_not_attempted(tmp_path):
     path.write_text(json.dumps(data))
     result = run("render", str(path), "-o", str(tmp_path / "x.png"))
     assert result.returncode == 2 and b"more than phongray renders" in result.stderr
+
+
+def test_absurd_area_light_grid_is_refused_not_attempted(tmp_path):
+    data = json.loads((SCENES / "03_soft_shadows.json").read_text())
+    data["lights"][1]["samples"] = [10**9, 10**9]
+    path = tmp_path / "huge.json"
+    path.write_text(json.dumps(data))
+    result = run("render", str(path), "-o", str(tmp_path / "x.png"))
+    assert result.returncode == 2 and b"light samples are more than phongray renders" in result.stderr

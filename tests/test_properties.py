@@ -75,7 +75,7 @@ def render_or_problems(data):
 def test_accepted_scenes_render_finite_pixels_and_rejected_ones_are_located(data):
     colour, problems = render_or_problems(data)
     if problems is None:
-        assert not np.any(np.isnan(colour))
+        assert not np.any(np.isnan(colour)), json.dumps(data)  # the scene, to reproduce a failure
         img = Renderer(schemas.validate_scene(data)).pixels(threads=1)
         assert img.shape == (data["image"]["height"], data["image"]["width"], 3)
     else:
@@ -122,7 +122,7 @@ def test_a_mutated_example_renders_or_names_the_mutated_place(name, data):
     parent[path[-1]] = replacement
     colour, problems = render_or_problems(doc)
     if problems is None:
-        assert not np.any(np.isnan(colour))
+        assert not np.any(np.isnan(colour)), json.dumps(doc)
     else:
         assert all(message for _, message in problems)
         assert any(p for p, _ in problems) or path[0] not in ("camera", "image")

@@ -181,3 +181,9 @@ def test_json_schema_describes_the_format():
     assert set(schema["required"]) == {"camera", "image"}
     assert schema["additionalProperties"] is False
     json.dumps(schema)
+
+
+def test_face_index_beyond_any_mesh_is_an_error_not_a_crash():
+    data = minimal(materials={"m": {}}, objects=[{"type": "mesh", "material": "m", "vertices": [[0, 0, 0]],
+                                                  "faces": [[0, 0, 2**63]]}])
+    assert any(p.startswith("objects[0].faces[0][2]: must be <") for p in problems(data))

@@ -37,8 +37,12 @@ MAX_PIXELS = 1 << 28
 MAX_PRIMARY_RAYS = 1 << 32
 
 
+#: the most point lights (lights plus area-light samples) one render will shade with
+MAX_LIGHT_SAMPLES = 1 << 20
+
+
 class ImageTooLarge(ValueError):
-    """The image asked for is beyond :data:`MAX_PIXELS`."""
+    """The render asked for is beyond what phongray does: too many pixels, rays or light samples."""
 
 
 class RenderCancelled(Exception):
@@ -59,6 +63,10 @@ class Renderer:
         if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
             raise ImageTooLarge(f"image: {img.width}×{img.height} pixels × {img.samples}² sub-samples is more "
                                 f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})")
+        lights = sum(light.samples[0] * light.samples[1] if light.type == "area" else 1 for light in scene.lights)
+        if lights > MAX_LIGHT_SAMPLES:
+            raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
+                                f"({MAX_LIGHT_SAMPLES})")
         self.scene = scene
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
