@@ -68,6 +68,7 @@ class Renderer:
             raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
                                 f"({MAX_LIGHT_SAMPLES})")
         self.scene = scene
+        self._cancel: Callable[[], bool] | None = None
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
         with np.errstate(all="ignore"):  # hostile magnitudes (1e300) overflow to inf here; the tracer copes
@@ -87,6 +88,7 @@ class Renderer:
         remaining chunks are skipped and :class:`RenderCancelled` is raised.
         """
         img = self.scene.image
+        self._cancel = cancel
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
@@ -181,6 +183,8 @@ class Renderer:
         lift = hit.offset[:, None] * hit.normal  # shadow rays start this far off the surface, on the light's side
         above, below = hit.point + lift, hit.point - lift
         for em in self.world.emitters:
+            if self._cancel is not None and self._cancel():  # a long chunk (many lights) stops early too
+                raise RenderCancelled("the render was cancelled")
             if not np.any(em.color > 0):
                 continue
             to_light, dist, factor = illuminate(em, hit.point)

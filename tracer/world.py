@@ -12,7 +12,7 @@ of non-zero area), M materials.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -57,10 +57,6 @@ class Materials:
     checker_size: np.ndarray  # (M,), 0 where the material has no checker
     checker_other: np.ndarray  # (M,) int, the material of odd cells (itself if none)
 
-    @property
-    def any_checker(self) -> bool:
-        return bool(np.any(self.checker_size > 0))
-
 
 @dataclass(frozen=True)
 class Spheres:
@@ -100,7 +96,6 @@ class World:
     triangles: Triangles
     ambient: np.ndarray  # (3,) sum of ambient light colours
     emitters: Emitters
-    names: dict[str, int] = field(default_factory=dict)
 
 
 def build_world(scene: Scene) -> World:
@@ -115,7 +110,6 @@ def build_world(scene: Scene) -> World:
         ambient=np.sum([light.color for light in scene.lights if light.type == "ambient"] or [[0.0] * 3],
                        axis=0, dtype=F64),
         emitters=build_emitters(scene.lights, origin),
-        names=names,
     )
 
 
