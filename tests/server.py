@@ -19,6 +19,15 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def rss_mib(pid: int) -> float:
+    """Resident memory of a process, in MiB."""
+    with open(f"/proc/{pid}/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    raise AssertionError("no VmRSS")
+
+
 @contextlib.contextmanager
 def running_server(log_dir: Path, workers: int = 1, **settings: str) -> Iterator[tuple[str, subprocess.Popen]]:
     """Yields the base URL and the server process; stops it afterwards."""

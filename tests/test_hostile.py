@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from helpers import SCENES, scene_dict
-from server import running_server
+from server import rss_mib, running_server
 
 SCENE = (SCENES / "01_three_spheres.json").read_bytes()
 
@@ -60,14 +60,6 @@ def post(url, path, body, content_type="application/json"):
     head = (f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: {content_type}\r\n"
             f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n").encode()
     return raw_request(url, head, [body])
-
-
-def rss_mib(proc) -> float:
-    with open(f"/proc/{proc.pid}/status") as status:
-        for line in status:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    raise AssertionError("no VmRSS")
 
 
 def test_100_mb_body_is_refused_from_its_header(server):
@@ -157,12 +149,12 @@ def test_wrong_content_types_are_415(server, path, kind):
 
 def test_memory_stays_bounded_through_the_barrage(server):
     url, proc = server
-    before = rss_mib(proc)
+    before = rss_mib(proc.pid)
     for _ in range(3):
         post(url, "/render", b"[" * 100_000)
         post(url, "/render", SCENE.replace(b'"fov": 42', b'"fov": NaN'))
         body, kind = multipart(SCENE, png_bomb())
         post(url, "/grade", body, kind)
-    assert rss_mib(proc) - before < 200
+    assert rss_mib(proc.pid) - before < 200
     status, _, _ = post(url, "/render", SCENE)
     assert status == 200
