@@ -1,16 +1,16 @@
-"""The BVH walk finds exactly what testing every surface would find."""
+"""The BVH walk finds exactly what testing every surface in float64 would find."""
 
 import numpy as np
 import pytest
 
 import schemas
-from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector
-from tracer.shapes import plane_t, sphere_t, triangle_hit
-from tracer.world import build_world
+from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector, _Best
+from tracer.shapes import plane_t, sphere_t, triangle_t
+from tracer.world import build_world, max_abs
 
 
-def scene_with(objects):
-    return schemas.validate_scene({"camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]},
+def scene_with(objects, camera=None):
+    return schemas.validate_scene({"camera": camera or {"position": [0, 0, 30], "look_at": [0, 0, 0]},
                                    "image": {"width": 1, "height": 1}, "materials": {"m": {}}, "objects": objects})
 
 
@@ -19,53 +19,129 @@ def random_field(rng, count, big=False):
              "radius": float(rng.uniform(0.05, 1.5))} for _ in range(count)]
     objs.append({"type": "plane", "material": "m", "point": [0, -4, 0], "normal": [0.1, 1, 0]})
     objs.append({"type": "triangle", "material": "m", "vertices": [[-6, -3, -6], [6, -2, -6], [0, 6, -5]]})
+    verts = rng.uniform(-5, 5, (30, 3))
+    objs.append({"type": "mesh", "material": "m", "vertices": verts.tolist(),
+                 "faces": rng.integers(0, 30, (40, 3)).tolist()})
     if big:
         objs.append({"type": "sphere", "material": "m", "center": [0, -1e6 - 4.5, 0], "radius": 1e6})
     return objs
 
 
-def brute_force(world, origins, dirs):
-    best = np.full(len(origins), np.inf)
-    kind = np.zeros(len(origins), dtype=np.int8)
-    for k in range(len(world.spheres.radius)):
-        t = sphere_t(origins, dirs, world.spheres.center[k], world.spheres.radius[k])
-        kind[t < best], best = SPHERE, np.minimum(best, t)
-    for k in range(len(world.planes.normal)):
-        t = plane_t(origins, dirs, world.planes.point[k], world.planes.normal[k])
-        kind[t < best], best = PLANE, np.minimum(best, t)
-    tr = world.triangles
+def brute_force(world, o, d, fk, fi, reach=None, ends=None):
+    """Every surface tested against every ray: best t, kind and index (the lowest kind and index on a tie)."""
+    n = len(o)
+    best = _Best(np.full(n, np.inf) if reach is None else reach)
+    mag_o = max_abs(o) + world.origin_mag
+    mag_e = None if ends is None else max_abs(ends) + world.origin_mag
+    rows = np.arange(n)
+    sp, pl, tr = world.spheres, world.planes, world.triangles
+    for k in range(len(sp.radius)):
+        t = sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k), ends, reach, mag_e)
+        best.offer(rows, t, SPHERE, np.full(n, k))
+    for k in range(len(pl.normal)):
+        t = plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], (fk == PLANE) & (fi == k), ends, mag_e)
+        best.offer(rows, t, PLANE, np.full(n, k))
     for k in range(len(tr.v0)):
-        n = len(origins)
-        v0, e1, e2 = (np.repeat(a[k:k + 1], n, 0) for a in (tr.v0, tr.e1, tr.e2))
-        t, u, v = triangle_hit(origins, dirs, v0, e1, e2)
-        on_plane = origins + np.where(np.isfinite(t), t, 0)[:, None] * dirs
-        clamped = v0 + u[:, None] * e1 + v[:, None] * e2  # differs from the plane point outside the triangle
-        t = np.where(np.linalg.norm(on_plane - clamped, axis=1) < 1e-9, t, np.inf)
-        kind[t < best], best = TRIANGLE, np.minimum(best, t)
-    return best, kind
+        t, u, v = triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
+                             (fk == TRIANGLE) & (fi == k), ends, mag_e)
+        best.offer(rows, t, TRIANGLE, np.full(n, k), u, v)
+    return best
+
+
+def check_agrees(world, o, d, rng):
+    """Closest hits, then rays leaving those hits (by identity) towards random points, against brute force."""
+    isect = Intersector(world)
+    none_k, none_i = np.zeros(len(o), np.int8), np.full(len(o), -1)
+    hits = isect.closest(o, d, none_k, none_i)
+    ref = brute_force(world, o, d, none_k, none_i)
+    np.testing.assert_array_equal(hits.t, np.where(ref.kind == MISS, np.inf, ref.t))
+    np.testing.assert_array_equal(hits.kind, ref.kind)
+    np.testing.assert_array_equal(hits.index, ref.index)
+    # secondary and shadow rays from the exact hit points
+    rows = np.flatnonzero(hits.kind != MISS)
+    p, fk, fi = hits.point[rows], hits.kind[rows], hits.index[rows]
+    target = rng.uniform(-6, 6, (len(rows), 3))
+    v = target - p
+    dist = np.linalg.norm(v, axis=1)
+    d2 = v / dist[:, None]
+    second = isect.closest(p, d2, fk, fi)
+    ref2 = brute_force(world, p, d2, fk, fi)
+    np.testing.assert_array_equal(second.kind, ref2.kind)
+    np.testing.assert_array_equal(second.index, ref2.index)
+    blocked = isect.occluded(p, d2, dist, fk, fi, target)
+    ref3 = brute_force(world, p, d2, fk, fi, dist, target)
+    np.testing.assert_array_equal(blocked, ref3.t < dist)
+    return hits
 
 
 @pytest.mark.parametrize("count, big", [(3, False), (60, False), (300, True)])
 def test_walk_agrees_with_brute_force_for_rays_from_anywhere(count, big):
     rng = np.random.default_rng(count)
     world = build_world(scene_with(random_field(rng, count, big)))
-    isect = Intersector(world)
-    origins = rng.uniform(-6, 6, (20_000, 3))  # many start inside spheres and inside proxies
-    dirs = rng.normal(size=(20_000, 3))
+    origins = rng.uniform(-6, 6, (3000, 3))  # many start inside spheres and inside proxies
+    dirs = rng.normal(size=(3000, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    hits = isect.closest(origins, dirs)
-    best, kind = brute_force(world, origins, dirs)
-    np.testing.assert_array_equal(np.isfinite(hits.t), np.isfinite(best))
-    finite = np.isfinite(best)
-    np.testing.assert_allclose(hits.t[finite], best[finite], rtol=1e-9)
-    t_max = np.where(finite, best, 1e3) * rng.uniform(0.5, 1.5, len(best))
-    np.testing.assert_array_equal(isect.occluded(origins, dirs, t_max), best < t_max)
+    check_agrees(world, origins, dirs, rng)
 
 
-def test_huge_sphere_is_tested_directly_not_through_the_bvh():
-    world = build_world(scene_with(random_field(np.random.default_rng(1), 10, big=True)))
-    isect = Intersector(world)
-    assert len(isect.direct_spheres) == 1 and len(isect.proxied) == 10
+def concentric(radii):
+    return [{"type": "sphere", "material": "m", "center": [0.3, 0.2, 0.1], "radius": r} for r in radii]
+
+
+HARD_FIELDS = {
+    "glass shell 1e-6 thick": concentric([1.0, 1.0 + 1e-6]),
+    "shells 1e-9 apart": concentric([1.0, 1.0 + 1e-9, 1.0 + 2e-9, 2.0]),
+    "column of 150 spheres": [{"type": "sphere", "material": "m", "center": [0, 0, -k * 0.1], "radius": 0.06}
+                              for k in range(150)],
+    "coplanar mesh floor": [{"type": "mesh", "material": "m",
+                             "vertices": [[x, 0, z] for z in range(5) for x in range(5)],
+                             "faces": [f for z in range(4) for x in range(4)
+                                       for f in ([z * 5 + x, z * 5 + x + 1, z * 5 + x + 6],
+                                                 [z * 5 + x, z * 5 + x + 6, z * 5 + x + 5])]},
+                            {"type": "triangle", "material": "m", "vertices": [[0, 0, 0], [4, 0, 0], [0, 0, 4]]}],
+    "closed box of 2e-5": [{"type": "mesh", "material": "m",
+                            "vertices": [[x * 2e-5, y * 2e-5, z * 2e-5] for x in (0, 1) for y in (0, 1) for z in (0, 1)],
+                            "faces": [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]},
+                           {"type": "sphere", "material": "m", "center": [1e-5, 1e-5, 1e-5], "radius": 5e-6}],
+}
+
+
+@pytest.mark.parametrize("name", sorted(HARD_FIELDS))
+def test_walk_agrees_with_brute_force_on_hard_geometry(name):
+    rng = np.random.default_rng(5)
+    objs = HARD_FIELDS[name]
+    world = build_world(scene_with(objs))
+    lo = np.min([np.min(np.asarray(o.get("vertices", [o.get("center", [0, 0, 0])]), float), axis=0) for o in objs], 0)
+    hi = np.max([np.max(np.asarray(o.get("vertices", [o.get("center", [0, 0, 0])]), float), axis=0) for o in objs], 0)
+    size = max(float(np.max(hi - lo)), 1e-5)
+    origins = (lo + hi) / 2 - world.origin + rng.uniform(-2, 2, (2000, 3)) * size
+    dirs = rng.normal(size=(2000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    # aim half the rays at the geometry itself: at corners and centres, give or take a little
+    marks = np.concatenate([np.asarray(o.get("vertices", [o.get("center")]), float) for o in objs])
+    jitter = min(float(np.min([o.get("radius", 0.1 * size) for o in objs])) * 1.5, 0.1 * size)
+    aim = marks[rng.integers(0, len(marks), 1000)] + rng.uniform(-jitter, jitter, (1000, 3)) - world.origin
+    aim -= origins[:1000]
+    dirs[:1000] = aim / np.linalg.norm(aim, axis=1, keepdims=True)
+    hits = check_agrees(world, origins, dirs, rng)
+    assert np.mean(hits.kind != MISS) > 0.2
+
+
+def test_orthographic_rays_along_a_column_of_spheres_hit_the_first():
+    objs = HARD_FIELDS["column of 150 spheres"]
+    world = build_world(scene_with(objs))
+    o = np.array([[0.0, 0.0, 5.0], [0.0, 0.0, -20.0]]) - world.origin
+    d = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
+    hits = Intersector(world).closest(o, d)
+    assert list(hits.index) == [0, 149]
+
+
+def test_huge_surfaces_are_tested_directly_not_through_the_bvh():
+    objs = random_field(np.random.default_rng(1), 10, big=True)
+    objs.append({"type": "triangle", "material": "m", "vertices": [[-1e5, -5, -1e5], [1e5, -5, -1e5], [0, -4, 1e5]]})
+    isect = Intersector(build_world(scene_with(objs)))
+    assert len(isect.direct_spheres) == 1 and len(isect.direct_triangles) == 1
 
 
 def test_no_bvh_without_triangles_or_small_spheres():
@@ -76,9 +152,9 @@ def test_no_bvh_without_triangles_or_small_spheres():
     assert list(hits.kind) == [PLANE, MISS]
 
 
-def test_spawn_offset_scales_with_the_point():
-    isect = Intersector(build_world(scene_with([{"type": "sphere", "material": "m", "center": [0, 0, 0],
-                                                 "radius": 1}, {"type": "sphere", "material": "m",
-                                                                "center": [1e5, 0, 0], "radius": 1}])))
-    hits = isect.closest(np.array([[0.0, 0, 30], [1e5, 0, 30]]), np.array([[0.0, 0, -1], [0, 0, -1]]))
-    assert hits.offset[1] > 1e4 * hits.offset[0] > 0
+def test_precision_does_not_depend_on_where_look_at_is():
+    objs = random_field(np.random.default_rng(2), 20)
+    near = build_world(scene_with(objs, {"position": [0, 0, 30], "look_at": [0, 0, 0]}))
+    far = build_world(scene_with(objs, {"position": [0, 0, 30], "look_at": [0, 0, -1e6]}))
+    assert np.array_equal(near.origin, far.origin)
+    assert np.array_equal(Intersector(near).proxies.vertices, Intersector(far).proxies.vertices)

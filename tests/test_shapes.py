@@ -1,8 +1,11 @@
-"""Exact ray tests: inside, grazing, behind the origin, huge radii."""
+"""Exact ray tests: inside, grazing, behind the origin, huge radii, leaving a surface by identity."""
 
 import numpy as np
 
-from tracer.shapes import plane_t, sphere_t, triangle_hit
+from tracer.shapes import plane_t, sphere_t, triangle_t
+
+UP = np.array([0, 1.0, 0])
+TRI = (np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
 
 
 def rays(origins, dirs):
@@ -10,55 +13,106 @@ def rays(origins, dirs):
     return np.asarray(origins, dtype=float), d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
+def sphere(o, d, center=np.zeros(3), radius=1.0, **kw):
+    mag = np.abs(o).max(axis=1)
+    return sphere_t(o, d, center, radius, mag, np.abs(center).max() + radius, **kw)
+
+
+def plane(o, d, **kw):
+    return plane_t(o, d, np.zeros(3), UP, np.abs(o).max(axis=1), 0.0, **kw)
+
+
+def triangle(o, d, **kw):
+    return triangle_t(o, d, *TRI, np.abs(o).max(axis=1), 1.0, **kw)
+
+
 def test_sphere_hit_from_outside_and_miss():
     o, d = rays([[0, 0, 5], [0, 3, 5]], [[0, 0, -1], [0, 0, -1]])
-    t = sphere_t(o, d, np.zeros(3), 1.0)
+    t = sphere(o, d)
     assert t[0] == 4.0 and np.isinf(t[1])
 
 
 def test_sphere_from_inside_hits_the_far_side():
     o, d = rays([[0, 0, 0.5]], [[0, 0, 1]])
-    assert sphere_t(o, d, np.zeros(3), 1.0)[0] == 0.5
+    assert sphere(o, d)[0] == 0.5
 
 
 def test_sphere_behind_the_origin_never_counts():
     o, d = rays([[0, 0, 5]], [[0, 0, 1]])
-    assert np.isinf(sphere_t(o, d, np.zeros(3), 1.0)[0])
+    assert np.isinf(sphere(o, d)[0])
 
 
 def test_grazing_ray_touches_the_sphere_once_and_is_finite():
     o, d = rays([[-5, 1, 0], [-5, 1 + 1e-12, 0]], [[1, 0, 0], [1, 0, 0]])
-    t = sphere_t(o, d, np.zeros(3), 1.0)
+    t = sphere(o, d)
     assert abs(t[0] - 5) < 1e-6 and np.isinf(t[1])
 
 
 def test_huge_sphere_is_exact_near_its_surface():
     r = 1e9
     o, d = rays([[0, 1.0, 0]], [[0, -1, 0]])
-    t = sphere_t(o, d, np.array([0, -r, 0]), r)
+    t = sphere(o, d, np.array([0, -r, 0]), r)
     assert abs(t[0] - 1.0) < 1e-6
 
 
-def test_ray_leaving_a_sphere_does_not_hit_it_again():
-    p = np.array([[0.6, 0.8, 0.0]])
-    offset = p * (1 + 2**-40)
-    o, d = rays(offset, [[0.6, 0.8, 0.0]])
-    assert np.isinf(sphere_t(o, d, np.zeros(3), 1.0)[0])
+def test_ray_leaving_a_sphere_outward_never_hits_it_inward_only_at_the_far_root():
+    p = np.array([[0.6, 0.8, 0.0], [0.6, 0.8, 0.0]])
+    o, d = rays(p, [[0.6, 0.8, 0.0], [-0.6, -0.8, 0.0]])
+    t = sphere(o, d, leaving=np.array([True, True]))
+    assert np.isinf(t[0]) and abs(t[1] - 2.0) < 1e-15
+
+
+def test_origin_on_a_sphere_by_rounding_is_treated_as_leaving_it():
+    p = np.array([[0.6, 0.8, 0.0]]) * (1 + 2**-50)
+    o, d = rays(p, [[0.6, 0.8, 0.0]])
+    assert np.isinf(sphere(o, d)[0])
+
+
+def test_thin_shell_is_resolved_from_its_outer_surface():
+    o, d = rays([[0, 0, 1.0 + 1e-6]], [[0, 0, -1]])
+    t = sphere(o, d, radius=1.0)
+    assert abs(t[0] - 1e-6) < 1e-15
+
+
+def test_light_on_a_sphere_is_not_blocked_by_it_but_its_far_side_blocks():
+    o, d = rays([[0, 3, 0], [0, -3, 0]], [[0, -1, 0], [0, 1, 0]])
+    ends = np.array([[0, 1.0, 0], [0, 1.0, 0]])
+    reach = np.array([2.0, 4.0])
+    t = sphere(o, d, ends=ends, reach=reach, mag_end=np.ones(2))
+    assert not t[0] < reach[0]  # from above: the light sits on the near side, the far side lies beyond it
+    assert t[1] < reach[1]  # from below: the sphere's lower half is in the way
 
 
 def test_plane_hit_parallel_and_behind():
     o, d = rays([[0, 1, 0], [0, 1, 0], [0, 1, 0]], [[0, -1, 0], [1, 0, 0], [0, 1, 0]])
-    t = plane_t(o, d, np.zeros(3), np.array([0, 1.0, 0]))
+    t = plane(o, d)
     assert t[0] == 1.0 and np.isinf(t[1]) and np.isinf(t[2])
 
 
-def test_triangle_refinement_gives_barycentrics_on_the_triangle():
+def test_ray_starting_on_a_plane_never_hits_it_nor_one_ending_on_it():
+    o, d = rays([[0, 0, 0], [0, 1, 0]], [[0, -1, 1], [0, -1, 1]])
+    assert np.all(np.isinf(plane(o, d, ends=np.array([[5.0, 0, 1], [0, 0, 1]]), mag_end=np.ones(2))))
+
+
+def test_triangle_hit_gives_barycentrics_on_the_triangle():
     o, d = rays([[0.25, 0.25, 1]], [[0, 0, -1]])
-    t, u, v = triangle_hit(o, d, np.zeros((1, 3)), np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+    t, u, v = triangle(o, d)
     assert t[0] == 1.0 and u[0] == 0.25 and v[0] == 0.25
+
+
+def test_triangle_edge_is_decided_in_float64_not_clamped():
+    o, d = rays([[0.5, -1e-12, 1], [0.5, 1e-12, 1]], [[0, 0, -1], [0, 0, -1]])
+    t, _, _ = triangle(o, d)
+    assert np.isinf(t[0]) and t[1] == 1.0
 
 
 def test_triangle_behind_or_parallel_is_no_hit():
     o, d = rays([[0.25, 0.25, 1], [0.25, 0.25, 0]], [[0, 0, 1], [1, 0, 0]])
-    t, u, v = triangle_hit(o, d, np.zeros((2, 3)), np.array([[1.0, 0, 0]] * 2), np.array([[0, 1.0, 0]] * 2))
+    t, u, v = triangle(o, d)
     assert np.all(np.isinf(t)) and np.all(np.isfinite(u)) and np.all(np.isfinite(v))
+
+
+def test_ray_leaving_a_triangle_or_lying_in_its_plane_misses_it():
+    o, d = rays([[0.2, 0.2, 0], [-1, 0.2, 0]], [[0, 0.1, -1], [1, 0, 0]])
+    t, _, _ = triangle(o, d)
+    assert np.all(np.isinf(t))

@@ -1,13 +1,18 @@
 """The only module that talks to embreex.
 
-Embree works in float32.  Callers hand in local (re-centred) float64 arrays;
-this module casts them, runs the query, and returns primitive indices and
-float32 distances, leaving the exact float64 work to :mod:`tracer.shapes`.
-``run()`` releases the GIL, so calls from several threads on one committed
-scene run in parallel.
+Embree works in float32.  Callers hand in local float64 arrays; this module
+moves them into the BVH's own frame (centred on the BVH's bounding box and
+scaled by a power of two to unit size, so precision depends on the geometry
+alone, never on where the scene sits or how large it is), casts them, runs
+the query, and returns face indices and float64 distances in local units.
+The scene is built in Embree's robust (watertight) mode: a ray that passes
+through a closed proxy always crosses its surface.  ``run()`` releases the
+GIL, so calls from several threads on one committed scene run in parallel.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from embreex import rtcore_scene
@@ -21,57 +26,57 @@ def _f32(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float32)
 
 
-def _far(t_max: np.ndarray) -> np.ndarray:
-    """float32 far distances, rounded up so that no float64 hit before ``t_max`` is cut off."""
-    t = np.asarray(t_max, dtype=np.float64)
-    return _f32(np.where(np.isfinite(t), np.minimum(t * (1.0 + 2.0**-20), FAR), FAR))
+def frame(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and half-size (a power of two) of the box ``lo..hi``."""
+    centre = (lo + hi) / 2.0
+    half = float(np.max(hi - lo)) / 2.0
+    if not np.isfinite(half) or half <= 0:
+        half = float(np.max(np.abs(centre), initial=0.0)) or 1.0
+    return centre, 2.0 ** math.ceil(math.log2(half))
 
 
 class Bvh:
-    """An Embree BVH over triangles given as corners ``(T, 3, 3)`` in local coordinates."""
+    """An Embree BVH over proxy triangles ``vertices (V, 3)`` (local) and ``faces (F, 3)``."""
 
-    def __init__(self, corners: np.ndarray):
-        self.count = len(corners)
-        # each triangle's plane as Embree sees it (float32 corners), for stepping past a triangle in float64
-        seen = corners.astype(np.float32).astype(np.float64)
-        normal = np.cross(seen[:, 1] - seen[:, 0], seen[:, 2] - seen[:, 0])
-        self.plane_normal = normal
-        self.plane_offset = np.einsum("ij,ij->i", normal, seen[:, 0])
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, centre: np.ndarray, half_size: float):
+        self.centre = centre
+        self.half_size = half_size
+        self.inv = 1.0 / half_size
+        self.count = len(faces)
         #: when a list, every query is appended to it as (query, origins, dirs, far), for benchmarks to replay
         self.record: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] | None = None
-        self._scene = rtcore_scene.EmbreeScene()
-        vertices = _f32(corners.reshape(-1, 3))
-        TriangleMesh(self._scene, vertices, np.arange(len(vertices), dtype=np.int32).reshape(-1, 3))
+        self._scene = rtcore_scene.EmbreeScene(robust=True)
+        TriangleMesh(self._scene, _f32((vertices - centre) * self.inv), np.ascontiguousarray(faces, dtype=np.int32))
         # commit now, on this thread, so that concurrent queries never race to commit
         self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
 
-    def first_hit(self, origins: np.ndarray, dirs: np.ndarray, t_max: np.ndarray) -> np.ndarray:
-        """Index of the nearest triangle before ``t_max`` per ray, −1 for none. Shape (N,), int64."""
-        if len(origins) == 0:
-            return np.zeros(0, dtype=np.int64)
-        o, d, far = _f32(origins), _f32(dirs), _far(t_max)
-        if self.record is not None:
-            self.record.append(("INTERSECT", o, d, far.copy()))
-        return self._scene.run(o, d, dists=far, query="INTERSECT").astype(np.int64)
+    def _rays(self, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> tuple[np.ndarray, ...]:
+        o = _f32((origins - self.centre) * self.inv)
+        d = _f32(dirs)
+        f = np.asarray(far, dtype=np.float64) * self.inv
+        f = _f32(np.where(np.isfinite(f), np.minimum(f * (1.0 + 2.0**-20) + 2.0**-20, FAR), FAR))
+        return o, d, f
 
-    def any_hit(self, origins: np.ndarray, dirs: np.ndarray, t_max: np.ndarray) -> np.ndarray:
-        """True where some triangle lies on the ray within (0, t_max). Shape (N,), bool."""
+    def nearest(self, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest proxy face crossed within ``far`` per ray: ``face`` (N,) int64, −1 for none, and its
+        distance (N,) float64 in local units (float32 accuracy)."""
+        if len(origins) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(0)
+        o, d, f = self._rays(origins, dirs, far)
+        if self.record is not None:
+            self.record.append(("INTERSECT", o, d, f.copy()))
+        out = self._scene.run(o, d, dists=f, query="INTERSECT", output=1)
+        return out["primID"].astype(np.int64), out["tfar"].astype(np.float64) * self.half_size
+
+    def any_hit(self, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> np.ndarray:
+        """True where some proxy face is crossed within ``far``. Shape (N,), bool."""
         if len(origins) == 0:
             return np.zeros(0, dtype=bool)
-        t = np.asarray(t_max, dtype=np.float64)
-        far = _f32(np.where(np.isfinite(t), t, FAR))
-        o, d = _f32(origins), _f32(dirs)
+        o, d, f = self._rays(origins, dirs, far)
         if self.record is not None:
-            self.record.append(("OCCLUDED", o, d, far.copy()))
-        return self._scene.run(o, d, dists=far, query="OCCLUDED") != -1
+            self.record.append(("OCCLUDED", o, d, f.copy()))
+        return self._scene.run(o, d, dists=f, query="OCCLUDED") != -1
 
     def replay(self, query: str, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> None:
         """Run one recorded query again, as Embree alone would (for benchmarks)."""
         self._scene.run(origins, dirs, dists=far.copy(), query=query)
-
-    def distance_to_plane(self, prim: np.ndarray, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-        """Float64 distance along each ray to the plane of triangle ``prim`` (0 where the ray runs along it)."""
-        n = self.plane_normal[prim]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (self.plane_offset[prim] - np.einsum("ij,ij->i", n, origins)) / np.einsum("ij,ij->i", n, dirs)
-        return np.where(np.isfinite(t) & (t > 0), t, 0.0)

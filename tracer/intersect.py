@@ -1,16 +1,23 @@
-"""Closest-hit and occlusion queries over every kind of surface a scene contains.
+"""Closest-hit and occlusion queries over every kind of surface a scene contains, decided in float64.
 
-Planes, and spheres far larger than the rest (a planet under tiny objects),
-are tested exactly in float64 against every ray: a scene has few.  Triangles
-and the other spheres share one Embree BVH: triangles as themselves, spheres
-as enclosing icosahedra (:func:`~tracer.shapes.sphere_proxies`).  Embree names
-the nearest candidate along the ray; a triangle is then recomputed in float64,
-a sphere tested exactly in float64, and the ray goes on past that candidate.
-It stops when no candidate is nearer than the best hit plus the largest proxy
-diameter: a ray that starts inside a proxy never crosses its entry face, but
-crosses its exit face within that margin of any hit on its sphere.  So a
-sphere costs about log n, not n, and is still exact.  With no triangles and no
-small spheres there is no Embree scene at all.
+Planes, and spheres or triangles far larger than the rest (a planet under
+tiny objects, a ground triangle reaching 10⁵ away), are tested exactly
+against every ray: a scene has few.  The other triangles and spheres share
+one Embree BVH of closed float32 proxies (:mod:`tracer.proxies`).  Embree
+names the nearest proxy crossing along a ray; that primitive and its
+neighbours are tested exactly in float64, and the ray steps on past the
+crossing.  The walk is bounded by distance (it ends at the best hit, plus the
+size of any sphere proxy that contains the ray's start, or at the BVH's
+bounding box), never by a count of candidates: every crossing is passed once.
+
+Rays leave surfaces by identity (``from_kind``, ``from_index``): they start
+at the exact float64 hit point and never hit that surface there (see
+:mod:`tracer.shapes`).  A ray that starts on a BVH primitive first tests that
+primitive's neighbours, which are all the proxies around its start, and walks
+from the edge of its proxy's box; any other ray starts its walk where its
+line enters the BVH's box, behind its origin if need be, so no proxy contains
+the start of a walk.  With no triangles and no small spheres there is no
+Embree scene at all.
 """
 
 from __future__ import annotations
@@ -19,21 +26,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .embree import Bvh
-from .shapes import FACES_PER_PROXY, plane_t, sphere_proxies, sphere_proxy_half, sphere_t, triangle_hit
+from .embree import Bvh, frame
+from .proxies import Proxies, TooManyOverlaps, build_proxies
+from .shapes import plane_t, sphere_t, triangle_t
 from .world import World, max_abs, unit
 
 #: kinds of surface in :attr:`Hits.kind`
 MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
-#: relative spawn offsets: float64 work, and float32 work inside Embree
-REL64 = 2.0**-44
-REL32 = 2.0**-18
-#: at most this many candidates are examined along one ray
-MAX_PASSES = 256
-#: a sphere this many times larger than the median one is tested directly, not through the BVH
-BIG_SPHERE = 64.0
-#: geometry beyond this distance cannot go through float32 (spheres are then tested directly)
-FLOAT32_SAFE = 1e30
+#: a sphere or triangle this many times larger than the median one is tested directly, not through the BVH
+BIG = 64.0
 
 
 @dataclass
@@ -47,126 +48,273 @@ class Hits:
     normal: np.ndarray  # (N, 3) unit geometric normal (outward for spheres)
     bary: np.ndarray  # (N, 2) barycentric u, v for triangles
     material: np.ndarray  # (N,) material id before the checker
-    offset: np.ndarray  # (N,) how far a ray leaving the point must start from it
 
     def take(self, rows: np.ndarray) -> "Hits":
         """The hits of the rays ``rows`` only, as contiguous arrays."""
         return Hits(self.t[rows], self.kind[rows], self.index[rows], self.point[rows], self.normal[rows],
-                    self.bary[rows], self.material[rows], self.offset[rows])
+                    self.bary[rows], self.material[rows])
+
+
+def slab(origins: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where each ray's line enters and leaves the box ``lo..hi`` (empty when enter > leave). Each (N,)."""
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        inv = 1.0 / dirs
+        t0 = (lo - origins) * inv
+        t1 = (hi - origins) * inv
+    zero = dirs == 0
+    inside = (origins >= lo) & (origins <= hi)
+    near = np.where(zero, np.where(inside, -np.inf, np.inf), np.minimum(t0, t1))
+    far = np.where(zero, np.where(inside, np.inf, -np.inf), np.maximum(t0, t1))
+    return near.max(axis=1), far.min(axis=1)
+
+
+class _Best:
+    """Running best hit per ray, updated so that the answer never depends on the order candidates come in."""
+
+    def __init__(self, limit: np.ndarray):
+        n = len(limit)
+        self.t = limit.astype(np.float64, copy=True)
+        self.key = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+        self.uv = np.zeros((n, 2))
+
+    def offer(self, rows: np.ndarray, t: np.ndarray, kind: int | np.ndarray, index: np.ndarray,
+              u: np.ndarray | None = None, v: np.ndarray | None = None) -> None:
+        """Offer hits ``t`` of surfaces (kind, index) to rays ``rows``; rows may repeat."""
+        hit = np.isfinite(t)
+        if not np.any(hit):
+            return
+        rows, t, index = rows[hit], t[hit], index[hit]
+        kind = np.broadcast_to(kind, hit.shape)[hit]
+        key = (kind.astype(np.int64) << 48) | index.astype(np.int64)
+        if len(rows) > 1:
+            order = np.lexsort((key, t, rows))
+            first = np.r_[True, rows[order][1:] != rows[order][:-1]]
+            pick = order[first]
+        else:
+            pick = np.arange(len(rows))
+        r, tt, kk = rows[pick], t[pick], key[pick]
+        better = (tt < self.t[r]) | ((tt == self.t[r]) & (kk < self.key[r]))
+        r, pick = r[better], pick[better]
+        self.t[r], self.key[r] = tt[better], kk[better]
+        if u is not None and v is not None:
+            self.uv[r, 0], self.uv[r, 1] = u[hit][pick], v[hit][pick]
+
+    @property
+    def kind(self) -> np.ndarray:
+        return np.where(self.key == np.iinfo(np.int64).max, MISS, self.key >> 48).astype(np.int8)
+
+    @property
+    def index(self) -> np.ndarray:
+        return np.where(self.key == np.iinfo(np.int64).max, -1, self.key & ((1 << 48) - 1))
 
 
 class Intersector:
     def __init__(self, world: World):
         self.world = world
         tris, spheres = world.triangles, world.spheres
-        self.n_triangles = len(tris.v0)
-        self.has_triangles = self.n_triangles > 0
-        self.has_spheres = len(spheres.radius) > 0
-        radius = spheres.radius
-        big = (radius > BIG_SPHERE * np.median(radius)) | (spheres.scale > FLOAT32_SAFE) if self.has_spheres \
-            else np.zeros(0, dtype=bool)
-        self.direct_spheres = np.flatnonzero(big)
-        self.proxied = np.flatnonzero(~big)
-        self.margin = 2.01 * float(np.max(sphere_proxy_half(radius[self.proxied]), initial=0.0))
+        tri_extent = np.max(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)), axis=(1, 2)) \
+            if len(tris.v0) else np.zeros(0)
+        extents = np.concatenate([2.0 * spheres.radius, tri_extent])
+        median = float(np.median(extents)) if len(extents) else 0.0
+        with np.errstate(over="ignore", invalid="ignore"):
+            big_sphere = ~(2.0 * spheres.radius <= BIG * median) | ~np.isfinite(spheres.mag)
+            big_tri = ~(tri_extent <= BIG * median)
+        self.direct_spheres = np.flatnonzero(big_sphere)
+        self.direct_triangles = np.flatnonzero(big_tri)
         self.bvh: Bvh | None = None
-        if self.has_triangles or len(self.proxied):
-            corners = np.concatenate([
-                np.stack([tris.v0, tris.v0 + tris.e1, tris.v0 + tris.e2], axis=1),
-                sphere_proxies(spheres.center[self.proxied], radius[self.proxied]),
-            ])
-            self.bvh = Bvh(corners)
+        self.proxies: Proxies | None = None
+        bvh_tris, bvh_spheres = np.flatnonzero(~big_tri), np.flatnonzero(~big_sphere)
+        try:
+            self._build(bvh_tris, bvh_spheres)
+        except TooManyOverlaps:  # nested spheres beyond counting: test them directly instead
+            self.direct_spheres = np.arange(len(spheres.radius))
+            self._build(bvh_tris, np.zeros(0, dtype=np.int64))
+
+    def _build(self, bvh_tris: np.ndarray, bvh_spheres: np.ndarray) -> None:
+        w = self.world
+        tris, spheres = w.triangles, w.spheres
+        self.n_tri = len(bvh_tris)
+        self.prim_kind = np.concatenate([np.full(len(bvh_tris), TRIANGLE), np.full(len(bvh_spheres), SPHERE)])
+        self.prim_index = np.concatenate([bvh_tris, bvh_spheres]).astype(np.int64)
+        self.tri_prim = np.full(len(tris.v0), -1, dtype=np.int64)
+        self.tri_prim[bvh_tris] = np.arange(len(bvh_tris))
+        self.sphere_prim = np.full(len(spheres.radius), -1, dtype=np.int64)
+        self.sphere_prim[bvh_spheres] = np.arange(len(bvh_spheres)) + len(bvh_tris)
+        if len(self.prim_index) == 0:
+            return
+        corners = np.concatenate([
+            np.stack([tris.v0[bvh_tris], tris.v0[bvh_tris] + tris.e1[bvh_tris], tris.v0[bvh_tris] + tris.e2[bvh_tris]],
+                     axis=1).reshape(-1, 3),
+            spheres.center[bvh_spheres] - spheres.radius[bvh_spheres, None],
+            spheres.center[bvh_spheres] + spheres.radius[bvh_spheres, None]])
+        centre, half = frame(corners.min(axis=0), corners.max(axis=0))
+        self.proxies = p = build_proxies(tris.v0[bvh_tris], tris.e1[bvh_tris], tris.e2[bvh_tris],
+                                         tris.normal[bvh_tris], spheres.center[bvh_spheres],
+                                         spheres.radius[bvh_spheres], half)
+        self.box_lo = p.lo.min(axis=0) - p.step * 4
+        self.box_hi = p.hi.max(axis=0) + p.step * 4
+        self.bvh = Bvh(p.vertices, p.faces, centre, half)
+        self.max_steps = len(p.faces) + 2  # a walk passes at least one crossing per step; a ray crosses a face once
 
     # -- closest hit -------------------------------------------------------
-    def closest(self, origins: np.ndarray, dirs: np.ndarray, outside: bool = False) -> Hits:
-        """First hit at t > 0 of rays ``origins (N, 3)`` + t·``dirs (N, 3)`` (unit).
+    def closest(self, origins: np.ndarray, dirs: np.ndarray, from_kind: np.ndarray | None = None,
+                from_index: np.ndarray | None = None) -> Hits:
+        """First hit at t > 0 of rays ``origins (N, 3)`` + t·``dirs (N, 3)`` (unit) that leave the surfaces
+        ``(from_kind, from_index)`` (MISS for none)."""
+        n = len(origins)
+        fk, fi = self._from(n, from_kind, from_index)
+        best = _Best(np.full(n, np.inf))
+        mag_o = max_abs(origins) + self.world.origin_mag
+        self._direct(best, origins, dirs, fk, fi, mag_o)
+        if self.bvh is not None:
+            self._walk(best, origins, dirs, fk, fi, mag_o)
+        return self._describe(origins, dirs, best)
 
-        ``outside`` promises that no origin lies inside a sphere proxy, which lets
-        the walk stop at the first confirmed hit.
+    # -- occlusion ---------------------------------------------------------
+    def occluded(self, origins: np.ndarray, dirs: np.ndarray, reach: np.ndarray,
+                 from_kind: np.ndarray | None = None, from_index: np.ndarray | None = None,
+                 ends: np.ndarray | None = None) -> np.ndarray:
+        """True where a surface lies on the ray at a distance in (0, reach). Shape (N,), bool.
+
+        ``ends (N, 3)``, when given, is the light each ray goes to (at distance
+        ``reach``): a surface through it does not block it.
         """
         n = len(origins)
-        w = self.world
-        best = np.full(n, np.inf)
-        kind = np.zeros(n, dtype=np.int8)
-        index = np.full(n, -1, dtype=np.int64)
-        bary = np.zeros((n, 2))
-        for k in range(len(w.planes.normal)):
-            t = plane_t(origins, dirs, w.planes.point[k], w.planes.normal[k])
-            closer = t < best
-            best[closer], kind[closer], index[closer] = t[closer], PLANE, k
-        for k in self.direct_spheres:
-            t = sphere_t(origins, dirs, w.spheres.center[k], w.spheres.radius[k])
-            closer = t < best
-            best[closer], kind[closer], index[closer] = t[closer], SPHERE, k
+        fk, fi = self._from(n, from_kind, from_index)
+        reach = np.asarray(reach, dtype=np.float64)
+        best = _Best(reach)
+        mag_o = max_abs(origins) + self.world.origin_mag
+        mag_e = None if ends is None else max_abs(ends) + self.world.origin_mag
+        self._direct(best, origins, dirs, fk, fi, mag_o, ends, reach, mag_e)
         if self.bvh is not None:
-            self._walk(origins, dirs, best, kind, index, bary, 0.0 if outside else self.margin)
-        return self._describe(origins, dirs, best, kind, index, bary)
+            open_ = np.flatnonzero(~(best.t < reach))
+            sub = _Best(reach[open_])
+            self._walk(sub, origins[open_], dirs[open_], fk[open_], fi[open_], mag_o[open_],
+                       None if ends is None else ends[open_], reach[open_],
+                       None if mag_e is None else mag_e[open_], any_hit=True)
+            best.t[open_] = sub.t
+        return best.t < reach
 
-    def _walk(self, origins: np.ndarray, dirs: np.ndarray, best: np.ndarray, kind: np.ndarray,
-              index: np.ndarray, bary: np.ndarray, margin: float, any_hit: bool = False) -> None:
-        """Visit Embree's candidates along each ray in order, updating the best hit in place.
+    # -- the parts -----------------------------------------------------------
+    @staticmethod
+    def _from(n: int, kind: np.ndarray | None, index: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        if kind is None or index is None:
+            return np.zeros(n, dtype=np.int8), np.full(n, -1, dtype=np.int64)
+        return kind, index
 
-        With ``any_hit`` a ray stops at the first hit nearer than its initial ``best``.
-        """
-        limit = best.copy() if any_hit else None
-        assert self.bvh is not None
-        live = np.arange(len(origins))
-        skipped = np.zeros(len(origins))  # distance already walked along each ray
-        tested = np.full(len(origins), -1, dtype=np.int64)  # the sphere each ray tested last
-        for walk in range(MAX_PASSES):
+    def _direct(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray,
+                mag_o: np.ndarray, ends: np.ndarray | None = None, reach: np.ndarray | None = None,
+                mag_e: np.ndarray | None = None) -> None:
+        """Planes and the surfaces too large for the BVH, against every ray."""
+        w = self.world
+        rows = np.arange(len(o))
+        for k in range(len(w.planes.normal)):
+            t = plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
+                        (fk == PLANE) & (fi == k), ends, mag_e)
+            best.offer(rows, t, PLANE, np.full(len(o), k))
+        sp = w.spheres
+        for k in self.direct_spheres:
+            t = sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
+                         ends, reach, mag_e)
+            best.offer(rows, t, SPHERE, np.full(len(o), k))
+        tr = w.triangles
+        for k in self.direct_triangles:
+            t, u, v = triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
+                                 (fk == TRIANGLE) & (fi == k), ends, mag_e)
+            best.offer(rows, t, TRIANGLE, np.full(len(o), k), u, v)
+
+    def _test(self, best: _Best, rows: np.ndarray, prims: np.ndarray, o: np.ndarray, d: np.ndarray,
+              from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
+              mag_e: np.ndarray | None, neighbours: bool = True) -> None:
+        """Test BVH primitives ``prims`` (and their neighbours) exactly against rays ``rows``."""
+        p = self.proxies
+        assert p is not None
+        if neighbours:
+            count = 1 + p.start[prims + 1] - p.start[prims]
+            rep = np.repeat(prims, count)
+            rows = np.repeat(rows, count)
+            k = np.arange(len(rep)) - np.repeat(np.cumsum(count) - count, count)
+            prims = np.where(k == 0, rep, p.neighbours[np.minimum(p.start[rep] + k - 1, len(p.neighbours) - 1)]
+                             if len(p.neighbours) else rep)
+        w = self.world
+        tri = prims < self.n_tri
+        for is_tri in (True, False):
+            sel = np.flatnonzero(tri == is_tri)
+            if len(sel) == 0:
+                continue
+            r, q = rows[sel], prims[sel]
+            k = self.prim_index[q]
+            leaving = from_prim[r] == q
+            e = None if ends is None else ends[r]
+            me = None if mag_e is None else mag_e[r]
+            if is_tri:
+                tr = w.triangles
+                t, u, v = triangle_t(o[r], d[r], tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o[r], tr.mag[k],
+                                     leaving, e, me)
+                best.offer(r, t, TRIANGLE, k, u, v)
+            else:
+                sp = w.spheres
+                t = sphere_t(o[r], d[r], sp.center[k], sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
+                             None if reach is None else reach[r], me)
+                best.offer(r, t, SPHERE, k)
+
+    def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
+              ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,
+              any_hit: bool = False) -> None:
+        """Visit every proxy crossing along each ray, nearest first, until nothing nearer can remain."""
+        p, bvh = self.proxies, self.bvh
+        assert p is not None and bvh is not None
+        n = len(o)
+        from_prim = np.full(n, -1, dtype=np.int64)
+        tri = fk == TRIANGLE
+        from_prim[tri] = self.tri_prim[fi[tri]]
+        sph = fk == SPHERE
+        from_prim[sph] = self.sphere_prim[fi[sph]]
+        limit = best.t.copy()
+        t_in, t_out = slab(o, d, self.box_lo, self.box_hi)
+        start = t_in.copy()
+        margin = np.zeros(n)
+        inside = np.flatnonzero(from_prim >= 0)
+        if len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
+            q = from_prim[inside]
+            self._test(best, inside, q, o, d, from_prim, mag_o, ends, reach, mag_e)
+            start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
+            margin[inside] = p.container[q]
+        last = from_prim.copy()  # the primitive each ray tested last (a prism's exit follows its entry)
+
+        def open_rows(rows: np.ndarray) -> np.ndarray:
+            if any_hit:
+                rows = rows[~(best.t[rows] < limit[rows])]
+            end = np.minimum(best.t[rows] + margin[rows], t_out[rows])
+            return rows[(start[rows] < end) & (end > 0)]
+
+        live = open_rows(np.arange(n))
+        if any_hit and len(live):  # broad phase: a ray that crosses no proxy at all is clear
+            s = start[live]
+            far = np.minimum(limit[live] + margin[live], t_out[live]) - s
+            live = live[bvh.any_hit(o[live] + s[:, None] * d[live], d[live], far)]
+        for _ in range(self.max_steps):
             if len(live) == 0:
                 break
-            if walk == 0:
-                o, d, start = origins, dirs, origins
-                prim = self.bvh.first_hit(o, d, best + margin)
-            else:
-                o, d, s = origins[live], dirs[live], skipped[live]
-                start = o + s[:, None] * d
-                prim = self.bvh.first_hit(start, d, best[live] + margin - s)
-            found = prim >= 0
-            live, prim, o, d, start = live[found], prim[found], o[found], d[found], start[found]
-            done = np.zeros(len(live), dtype=bool)
-            tri = np.flatnonzero(prim < self.n_triangles)
-            if len(tri):
-                rows, p = live[tri], prim[tri]
-                tr = self.world.triangles
-                t, u, v = triangle_hit(o[tri], d[tri], tr.v0[p], tr.e1[p], tr.e2[p])
-                real = np.isfinite(t)  # float64 confirms it; otherwise it was float32 noise: walk past it
-                closer = real & (t < best[rows])
-                r = rows[closer]
-                best[r], kind[r], index[r] = t[closer], TRIANGLE, p[closer]
-                bary[r, 0], bary[r, 1] = u[closer], v[closer]
-                if margin == 0:  # nothing can be nearer than a confirmed triangle
-                    done[tri[real]] = True
-            sph = np.flatnonzero(prim >= self.n_triangles)
-            if len(sph):
-                k = self.proxied[(prim[sph] - self.n_triangles) // FACES_PER_PROXY]
-                fresh = tested[live[sph]] != k  # leaving a proxy just entered: its sphere is already known
-                sph, k = sph[fresh], k[fresh]
-                rows = live[sph]
-                tested[rows] = k
-                t = sphere_t(o[sph], d[sph], self.world.spheres.center[k], self.world.spheres.radius[k])
-                closer = t < best[rows]
-                r = rows[closer]
-                best[r], kind[r], index[r] = t[closer], SPHERE, k[closer]
-            if limit is not None:
-                done |= best[live] < limit[live]
-            live, prim, start, d = live[~done], prim[~done], start[~done], d[~done]
-            step = self.bvh.distance_to_plane(prim, start, d)
-            noise = np.maximum(max_abs(start), step)  # float32 error scale of this candidate, to step past it
-            is_tri = prim < self.n_triangles
-            if np.any(is_tri):
-                noise[is_tri] = np.maximum(noise[is_tri], self.world.triangles.span[prim[is_tri]])
-            skipped[live] += step + REL32 * noise
+            s = start[live]
+            far = np.minimum(best.t[live] + margin[live], t_out[live]) - s
+            face, tau = bvh.nearest(o[live] + s[:, None] * d[live], d[live], far)
+            found = face >= 0
+            live, face, tau = live[found], face[found], tau[found]
+            prim = p.owner[face]
+            fresh = last[live] != prim
+            self._test(best, live[fresh], prim[fresh], o, d, from_prim, mag_o, ends, reach, mag_e)
+            last[live] = prim
+            start[live] += tau + p.step
+            live = open_rows(live)
 
-    def _describe(self, origins: np.ndarray, dirs: np.ndarray, t: np.ndarray, kind: np.ndarray,
-                  index: np.ndarray, bary: np.ndarray) -> Hits:
+    def _describe(self, origins: np.ndarray, dirs: np.ndarray, best: _Best) -> Hits:
         w = self.world
+        t, kind, index = best.t, best.kind, best.index
         n = len(t)
         point = np.zeros((n, 3))
         normal = np.zeros((n, 3))
         material = np.zeros(n, dtype=np.int64)
-        scale = np.zeros(n)
-        span32 = np.zeros(n)
 
         s = np.flatnonzero(kind == SPHERE)
         if len(s):
@@ -174,70 +322,21 @@ class Intersector:
             raw = origins[s] + t[s, None] * dirs[s]
             nrm = unit((raw - w.spheres.center[k]) / w.spheres.radius[k, None])
             point[s] = w.spheres.center[k] + w.spheres.radius[k, None] * nrm
-            normal[s], material[s], scale[s] = nrm, w.spheres.material[k], w.spheres.scale[k]
+            normal[s], material[s] = nrm, w.spheres.material[k]
 
-        plane_hits = kind == PLANE
-        for k in range(len(w.planes.normal)) if np.any(plane_hits) else ():
-            q = np.flatnonzero(plane_hits & (index == k))
+        q = np.flatnonzero(kind == PLANE)
+        if len(q):
+            k = index[q]
             raw = origins[q] + t[q, None] * dirs[q]
             nrm, p0 = w.planes.normal[k], w.planes.point[k]
-            point[q] = raw - ((raw - p0) @ nrm)[:, None] * nrm
+            point[q] = raw - np.einsum("ij,ij->i", raw - p0, nrm)[:, None] * nrm
             normal[q], material[q] = nrm, w.planes.material[k]
-            scale[q] = np.max(np.abs(p0))
 
         r = np.flatnonzero(kind == TRIANGLE)
         if len(r):
             k = index[r]
             tr = w.triangles
-            point[r] = tr.v0[k] + bary[r, :1] * tr.e1[k] + bary[r, 1:] * tr.e2[k]
+            point[r] = tr.v0[k] + best.uv[r, :1] * tr.e1[k] + best.uv[r, 1:] * tr.e2[k]
             normal[r], material[r] = tr.normal[k], tr.material[k]
-            scale[r] = span32[r] = tr.span[k]
-
-        magnitude = max_abs(point)
-        offset = REL64 * np.maximum(magnitude, scale)
-        if self.has_triangles:
-            # clear of the triangle's own float32 noise inside Embree (which grows with its extent along
-            # its normal) and of coincident triangles; what noise remains, the walk's float64 check catches
-            offset = np.maximum(offset, REL32 * np.maximum(magnitude, span32))
-        return Hits(t=t, kind=kind, index=index, point=point, normal=normal, bary=bary,
-                    material=material, offset=offset)
-
-    # -- occlusion -----------------------------------------------------------
-    def occluded(self, origins: np.ndarray, dirs: np.ndarray, t_max: np.ndarray) -> np.ndarray:
-        """True where any surface lies on the ray at a distance in (0, t_max). Shape (N,), bool."""
-        w = self.world
-        blocked = np.zeros(len(origins), dtype=bool)
-        for k in range(len(w.planes.normal)):
-            blocked |= plane_t(origins, dirs, w.planes.point[k], w.planes.normal[k]) < t_max
-        for k in self.direct_spheres:
-            blocked |= sphere_t(origins, dirs, w.spheres.center[k], w.spheres.radius[k]) < t_max
-        if self.bvh is None:
-            return blocked
-        open_ = np.flatnonzero(~blocked)
-        # broad phase: a ray that crosses no triangle and no proxy face within reach is clear; the rest
-        # are walked exactly, so float32 noise in Embree (a false hit on the surface a ray leaves) never shadows
-        maybe = self.bvh.any_hit(origins[open_], dirs[open_], t_max[open_] + self.margin)
-        open_ = open_[maybe]
-        best = np.where(blocked, -np.inf, t_max)  # a hit before t_max lowers best
-        kind = np.zeros(len(origins), dtype=np.int8)
-        index = np.full(len(origins), -1, dtype=np.int64)
-        bary = np.zeros((len(origins), 2))
-        sub = open_
-        self._walk(origins[sub], dirs[sub], best_view := best[sub], kind[sub], index[sub], bary[sub],
-                   self.margin, any_hit=True)
-        blocked[sub] = best_view < t_max[sub]
-        return blocked
-
-    def light_end_offset(self, light_points: np.ndarray, distance: np.ndarray) -> np.ndarray:
-        """How far before a light a shadow ray stops, so that a surface through the light does not block it."""
-        return REL32 * np.maximum(np.max(np.abs(light_points), axis=-1), distance)
-
-    def outside_all_proxies(self, point: np.ndarray) -> bool:
-        """True when ``point (3,)`` lies outside every sphere proxy, so rays from it need no margin."""
-        if len(self.proxied) == 0:
-            return True
-        sp = self.world.spheres
-        # outside the circumscribed sphere of every proxy (a conservative answer: "inside" only costs a margin)
-        distance = np.linalg.norm(sp.center[self.proxied] - point, axis=1)
-        return bool(np.all(distance > 1.01 * sphere_proxy_half(sp.radius[self.proxied]) + 2.0**-17 * (
-            np.max(np.abs(sp.center[self.proxied]), axis=1) + 2 * sp.radius[self.proxied])))
+        return Hits(t=np.where(kind == MISS, np.inf, t), kind=kind, index=index, point=point, normal=normal,
+                    bary=best.uv, material=material)

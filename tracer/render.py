@@ -22,7 +22,7 @@ from .camera import CameraRays
 from .image import quantize
 from .intersect import MISS, Intersector
 from .lights import illuminate
-from .shading import mirror, phong, refract, resolve_material, shading_normal, spawn
+from .shading import mirror, phong, refract, resolve_material, shading_normal
 from .world import World, build_world
 
 #: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory
@@ -75,9 +75,6 @@ class Renderer:
             self.world: World = build_world(scene)
             self.intersector = Intersector(self.world)
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
-            # rays from an eye outside every sphere proxy can stop at their first confirmed hit
-            self.eye_outside = (not self.camera.orthographic) and self.intersector.outside_all_proxies(
-                self.camera.eye)
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
@@ -134,9 +131,10 @@ class Renderer:
             colour = np.zeros((len(origins), 3))
             sample = np.arange(len(origins))
             weight = np.ones(len(origins))
+            from_kind, from_index = np.zeros(len(origins), dtype=np.int8), np.full(len(origins), -1)
             background = np.asarray(img.background, dtype=np.float64)
             for depth in range(img.max_depth + 1):
-                hits = self.intersector.closest(origins, dirs, outside=depth == 0 and self.eye_outside)
+                hits = self.intersector.closest(origins, dirs, from_kind, from_index)
                 missed = hits.kind == MISS
                 if depth == 0:
                     colour[missed] = background
@@ -155,7 +153,7 @@ class Renderer:
                     _accumulate(colour, smp, w[:, None] * self.direct(hit, mat, normal, d))
                 if depth == img.max_depth:
                     break
-                origins, dirs, sample, weight = self.secondary(hit, mat, normal, d, w, smp)
+                origins, dirs, sample, weight, from_kind, from_index = self.secondary(hit, mat, normal, d, w, smp)
                 self._count("secondary", len(origins))
                 if len(origins) == 0:
                     break
@@ -180,8 +178,6 @@ class Renderer:
         colour = m.ambient[mat] * self.world.ambient
         diffuse, specular, shininess = m.diffuse[mat], m.specular[mat], m.shininess[mat]
         nv = -np.einsum("ij,ij->i", normal, dirs)  # N·V, the same for every light
-        lift = hit.offset[:, None] * hit.normal  # shadow rays start this far off the surface, on the light's side
-        above, below = hit.point + lift, hit.point - lift
         for em in self.world.emitters:
             if self._cancel is not None and self._cancel():  # a long chunk (many lights) stops early too
                 raise RenderCancelled("the render was cancelled")
@@ -193,16 +189,16 @@ class Renderer:
             if len(rows) == 0:
                 continue
             shadow_dirs = np.ascontiguousarray(to_light[rows])
-            front = np.einsum("ij,ij->i", shadow_dirs, hit.normal[rows]) >= 0
-            starts = np.where(front[:, None], above[rows], below[rows])
+            # from the exact hit point, leaving its surface by identity, to the light itself
             if em.kind == "directional":
-                reach = np.full(len(rows), np.inf)
-            else:  # stop short of the light, by its own offset and by the start's
-                d = dist[rows]
-                reach = d - self.intersector.light_end_offset(em.position, d) - hit.offset[rows]
+                reach, ends = np.full(len(rows), np.inf), None
+            else:
+                reach, ends = dist[rows], np.broadcast_to(em.position, (len(rows), 3))
             self._count("shadow", len(rows))
             weight = np.zeros(len(nl))
-            weight[rows] = np.where(self.intersector.occluded(starts, shadow_dirs, reach), 0.0, factor[rows])
+            blocked = self.intersector.occluded(hit.point[rows], shadow_dirs, reach, hit.kind[rows], hit.index[rows],
+                                                ends)
+            weight[rows] = np.where(blocked, 0.0, factor[rows])
             rv = 2.0 * nl * nv + np.einsum("ij,ij->i", to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
             colour += em.color * phong(diffuse, specular, shininess, nl, rv, weight)
         return colour
@@ -213,15 +209,16 @@ class Renderer:
         kr, kt = m.reflectance[mat], m.transmittance[mat]
         parts = []
         r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
-        if len(r):
+        if len(r):  # secondary rays start at the exact hit point and leave its surface by identity
             out = mirror(dirs[r], normal[r])
-            parts.append((spawn(hit, r, out), out, sample[r], weight[r] * kr[r]))
+            parts.append((hit.point[r], out, sample[r], weight[r] * kr[r], hit.kind[r], hit.index[r]))
         t = np.flatnonzero(weight * kt > 0)
         if len(t):
             out = refract(dirs[t], hit.normal[t], m.ior[mat[t]])
-            parts.append((spawn(hit, t, out), out, sample[t], weight[t] * kt[t]))
+            parts.append((hit.point[t], out, sample[t], weight[t] * kt[t], hit.kind[t], hit.index[t]))
         if not parts:
-            return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0)
+            return (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0),
+                    np.zeros(0, dtype=np.int8), np.zeros(0, dtype=np.int64))
         return tuple(np.concatenate(p) for p in zip(*parts))
 
 

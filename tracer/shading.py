@@ -97,11 +97,3 @@ def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray) -> np.ndar
     through = eta[:, None] * dirs + (eta * c - root)[:, None] * w
     bounced = dirs - 2.0 * _dot(dirs, w)[:, None] * w
     return unit(np.where((k < 0)[:, None], bounced, through))
-
-
-def spawn(hits: Hits, rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-    """Origins of rays leaving hit points ``rows`` along ``dirs``: pushed off the surface,
-    on the side the ray goes, by the hit's own offset. Shape (len(rows), 3)."""
-    n = hits.normal[rows]
-    side = np.where(_dot(dirs, n) >= 0, 1.0, -1.0)
-    return hits.point[rows] + (side * hits.offset[rows])[:, None] * n

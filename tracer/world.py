@@ -1,10 +1,14 @@
-"""A validated scene turned into flat float64 arrays, re-centred on the camera's target.
+"""A validated scene turned into flat float64 arrays, re-centred on the scene itself.
 
 Every position the tracer works with is *local*: world position minus
-``World.origin``.  Moving a whole scene (camera and lights with it) therefore
-changes no local coordinate beyond the rounding of the input, so a scene far
-from the world origin is exactly as precise as one near it, both in float64 and
-after the float32 cast that Embree needs.
+``World.origin``, the centre of the bounding box of the eye, the lights and
+every bounded surface (never ``look_at``, which only sets a direction).
+Moving a whole scene (camera and lights with it) therefore changes no local
+coordinate beyond the rounding of the input, so a scene far from the world
+origin is exactly as precise as one near it.  Each surface also carries its
+world *magnitude* (largest absolute coordinate it was given with): the
+rounding of its numbers, which decides when a point lies on it
+(:func:`tracer.shapes.on_tolerance`).
 
 Array shapes: S spheres, Q planes, T triangles (lone triangles and mesh faces
 of non-zero area), M materials.
@@ -63,7 +67,7 @@ class Spheres:
     center: np.ndarray  # (S, 3) local
     radius: np.ndarray  # (S,)
     material: np.ndarray  # (S,) int
-    scale: np.ndarray  # (S,) magnitude that bounds the float64 error of a hit
+    mag: np.ndarray  # (S,) world magnitude: max |centre| + radius
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,7 @@ class Planes:
     normal: np.ndarray  # (Q, 3) unit
     material: np.ndarray  # (Q,) int
     point_world: np.ndarray  # (Q, 3) as given, for the checker projection
+    mag: np.ndarray  # (Q,) world magnitude of the plane's point
 
 
 @dataclass(frozen=True)
@@ -84,12 +89,13 @@ class Triangles:
     v0_world: np.ndarray  # (T, 3) first vertex as given, for the checker projection
     vertex_normals: np.ndarray  # (T, 3, 3) per-corner shading normals (face normal where none)
     smooth: np.ndarray  # (T,) bool: has per-vertex normals
-    span: np.ndarray  # (T,) float32 error scale of the triangle's plane: max over corners of Σ|n_k·v_k|
+    mag: np.ndarray  # (T,) world magnitude: largest absolute corner coordinate
 
 
 @dataclass(frozen=True)
 class World:
     origin: np.ndarray  # (3,) world position of the local origin
+    origin_mag: float  # its largest absolute coordinate (adds to every local point's magnitude)
     materials: Materials
     spheres: Spheres
     planes: Planes
@@ -98,11 +104,35 @@ class World:
     emitters: Emitters
 
 
+def scene_centre(scene: Scene) -> np.ndarray:
+    """Centre of the bounding box of the eye, the positioned lights and every bounded surface."""
+    points = [np.asarray(scene.camera.position, dtype=F64).reshape(1, 3)]
+    for obj in scene.objects:
+        if isinstance(obj, Sphere):
+            c = np.asarray(obj.center, dtype=F64)
+            points.append(np.stack([c - obj.radius, c + obj.radius]))
+        elif isinstance(obj, Triangle) or (isinstance(obj, Mesh) and obj.faces):
+            points.append(np.asarray(obj.vertices, dtype=F64).reshape(-1, 3))
+    for light in scene.lights:
+        for key in ("position", "corner"):
+            if hasattr(light, key):
+                points.append(np.asarray(getattr(light, key), dtype=F64).reshape(1, 3))
+        if light.type == "area":
+            corner = np.asarray(light.corner, dtype=F64)
+            points.append((corner + np.asarray(light.edge_u, dtype=F64) + np.asarray(light.edge_v, dtype=F64))[None])
+    every = np.concatenate(points)
+    every = every[np.all(np.isfinite(every), axis=1)]
+    with np.errstate(over="ignore", invalid="ignore"):
+        centre = every.min(axis=0) / 2.0 + every.max(axis=0) / 2.0
+    return np.where(np.isfinite(centre), centre, 0.0)
+
+
 def build_world(scene: Scene) -> World:
-    origin = np.asarray(scene.camera.look_at, dtype=F64)
+    origin = scene_centre(scene)
     names = {name: k for k, name in enumerate(scene.materials)}
     return World(
         origin=origin,
+        origin_mag=float(np.max(np.abs(origin))),
         materials=_materials(scene, names),
         spheres=_spheres(scene, names, origin),
         planes=_planes(scene, names, origin),
@@ -138,7 +168,7 @@ def _spheres(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Spheres
     radius = np.array([o.radius for o in objs], dtype=F64)
     return Spheres(center=center, radius=radius,
                    material=np.array([names[o.material] for o in objs], dtype=np.int64),
-                   scale=np.max(np.abs(center), axis=1, initial=0.0) + radius)
+                   mag=np.max(np.abs(center + origin), axis=1, initial=0.0) + radius)
 
 
 def _planes(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Planes:
@@ -147,7 +177,7 @@ def _planes(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Planes:
     return Planes(point=point_world - origin,
                   normal=unit(np.array([o.normal for o in objs], dtype=F64).reshape(-1, 3)),
                   material=np.array([names[o.material] for o in objs], dtype=np.int64),
-                  point_world=point_world)
+                  point_world=point_world, mag=np.max(np.abs(point_world), axis=1, initial=0.0))
 
 
 def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Triangles:
@@ -173,8 +203,7 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
     local = world - origin
     e1, e2 = local[:, 1] - local[:, 0], local[:, 2] - local[:, 0]
     normal = unit(np.cross(unit(e1), unit(e2)))
-    # zero-area faces are never hit; nor are faces beyond float32's range (1e30 from the camera's target)
-    keep = np.any(normal != 0, axis=1) & np.all(np.abs(local) < 1e30, axis=(1, 2))
+    keep = np.any(normal != 0, axis=1) & np.all(np.isfinite(local), axis=(1, 2))  # zero-area faces are never hit
     vertex_normals = np.concatenate(normals) if normals else np.zeros((0, 3, 3))
     smooth_mask = np.concatenate(smooth) if smooth else np.zeros(0, dtype=bool)
     vertex_normals = np.where(smooth_mask[:, None, None], vertex_normals, normal[:, None, :])
@@ -182,5 +211,5 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
         v0=local[keep, 0], e1=e1[keep], e2=e2[keep], normal=normal[keep],
         material=(np.concatenate(materials) if materials else np.zeros(0, dtype=np.int64))[keep].astype(np.int64),
         v0_world=world[keep, 0], vertex_normals=vertex_normals[keep], smooth=smooth_mask[keep],
-        span=np.max(np.sum(np.abs(local[keep]) * np.abs(normal[keep])[:, None, :], axis=2), axis=1, initial=0.0),
+        mag=np.max(np.abs(world[keep]), axis=(1, 2), initial=0.0),
     )

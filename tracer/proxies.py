@@ -1,0 +1,251 @@
+"""Closed float32 stand-ins for exact surfaces, and which of them lie close together.
+
+Embree works in float32, so it only *finds candidates*; every hit is then
+decided in float64 (:mod:`tracer.shapes`).  For that to be exact, a ray that
+hits a surface in float64 must hit its stand-in in float32.  Each triangle is
+therefore replaced by a closed prism (its own triangle grown by ``m`` in its
+plane, ``m`` thick on each side) and each sphere by a closed icosahedron whose
+faces lie ``m`` outside the sphere, where ``m`` is many times the float32
+rounding of the BVH's normalised coordinates.  Embree's watertight (robust)
+mode then cannot let a ray through a proxy's surface.
+
+Embree reports only the nearest crossing, and a walk that steps past it by
+float32 noise may step past other crossings within that noise.  Those belong
+to proxies that come within ``gap`` of the reported one: the *neighbours*,
+found here once per scene, are tested in float64 together with every
+candidate, so nothing is ever skipped.  Proxies of nested spheres whose
+surfaces stay apart are not neighbours; instead the inner one records the
+size of its containers (:attr:`Proxies.container`), which bounds how far past
+a hit a ray must still look.
+
+Primitive ids: triangles ``0..T-1``, then the proxied spheres ``T..T+S-1``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: proxy margin, neighbour gap and walk step, relative to the BVH's half-size
+MARGIN = 2.0**-17
+GAP = 2.0**-15
+STEP = 2.0**-19
+#: the most neighbour pairs a scene may have before its spheres leave the BVH
+PAIR_BUDGET = 20_000_000
+
+
+class TooManyOverlaps(ValueError):
+    """So many proxies overlap in one place that exact neighbour sets would not fit in memory."""
+
+
+def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
+    """Unit-circumradius icosahedron: 12 vertices and its 20 faces, wound outward."""
+    phi = (1.0 + np.sqrt(5.0)) / 2.0
+    v = np.array([[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],
+                  [0, -1, -phi], [0, 1, -phi], [phi, 0, -1], [phi, 0, 1], [-phi, 0, -1], [-phi, 0, 1]], dtype=float)
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    edge = np.min(np.linalg.norm(v[1:] - v[0], axis=1))
+    near = np.isclose(np.linalg.norm(v[:, None] - v[None, :], axis=2), edge)
+    faces = np.array([(a, b, c) for a in range(12) for b in range(a + 1, 12) for c in range(b + 1, 12)
+                      if near[a, b] and near[b, c] and near[a, c]])
+    return v, faces
+
+
+ICO_VERTICES, ICO_FACES = _icosahedron()
+_n = np.cross(ICO_VERTICES[ICO_FACES[:, 1]] - ICO_VERTICES[ICO_FACES[:, 0]],
+              ICO_VERTICES[ICO_FACES[:, 2]] - ICO_VERTICES[ICO_FACES[:, 0]])
+#: circumradius over inradius of the icosahedron
+ICO_SCALE = 1.0 / float(np.min(np.abs(np.einsum("ij,ij->i", _n / np.linalg.norm(_n, axis=1, keepdims=True),
+                                                  ICO_VERTICES[ICO_FACES[:, 0]]))))
+#: a prism over a triangle (bottom 0,1,2; top 3,4,5) and an oriented box (corner bits x,y,z)
+PRISM_FACES = np.array([[0, 2, 1], [3, 4, 5], [0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [2, 0, 3], [2, 3, 5]])
+BOX_FACES = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
+                      [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
+
+
+@dataclass
+class Proxies:
+    vertices: np.ndarray  # (V, 3) local float64
+    faces: np.ndarray  # (F, 3) int32 indices into vertices
+    owner: np.ndarray  # (F,) int64 primitive id of each face
+    lo: np.ndarray  # (P, 3) proxy bounding boxes
+    hi: np.ndarray  # (P, 3)
+    start: np.ndarray  # (P + 1,) neighbour lists: ids start[p]..start[p+1] of ``neighbours``
+    neighbours: np.ndarray  # (K,) int64
+    container: np.ndarray  # (P,) largest diameter of a sphere proxy that contains p's without being its neighbour
+    margin: float  # m
+    step: float  # how far a walk steps past a reported crossing
+
+
+def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray,
+                    m: float) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Closed proxies of triangles: ``(vertices (k, 3)), faces, owner`` lists, one item per shape kind."""
+    corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (T, 3, 3)
+    a = np.linalg.norm(corners[:, 1] - corners[:, 2], axis=1)
+    b = np.linalg.norm(corners[:, 2] - corners[:, 0], axis=1)
+    c = np.linalg.norm(corners[:, 0] - corners[:, 1], axis=1)
+    perimeter = a + b + c
+    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inradius = area2 / perimeter
+        grow = 1.0 + m / inradius
+    prism = np.isfinite(grow) & (grow < 4.0)
+    out_v, out_f, out_o = [], [], []
+    ids = np.flatnonzero(prism)
+    if len(ids):
+        cr = corners[ids]
+        incenter = (a[ids, None] * cr[:, 0] + b[ids, None] * cr[:, 1] + c[ids, None] * cr[:, 2]) / perimeter[ids, None]
+        wide = incenter[:, None] + grow[ids, None, None] * (cr - incenter[:, None])
+        lift = m * normal[ids][:, None, :]
+        verts = np.concatenate([wide - lift, wide + lift], axis=1)  # (k, 6, 3)
+        out_v.append(verts.reshape(-1, 3))
+        out_f.append((PRISM_FACES[None] + 6 * np.arange(len(ids))[:, None, None]).reshape(-1, 3))
+        out_o.append(np.repeat(ids, len(PRISM_FACES)))
+    ids = np.flatnonzero(~prism)  # slivers: an oriented box around the triangle
+    if len(ids):
+        cr, n = corners[ids], normal[ids]
+        edges = np.stack([cr[:, 1] - cr[:, 0], cr[:, 2] - cr[:, 1], cr[:, 0] - cr[:, 2]], axis=1)
+        longest = edges[np.arange(len(ids)), np.argmax(np.linalg.norm(edges, axis=2), axis=1)]
+        ax = longest / np.linalg.norm(longest, axis=1, keepdims=True)
+        ay = np.cross(n, ax)
+        rel = cr - cr[:, :1]
+        px, py = np.einsum("kij,kj->ki", rel, ax), np.einsum("kij,kj->ki", rel, ay)
+        xs = np.stack([px.min(1) - m, px.max(1) + m], 1)
+        ys = np.stack([py.min(1) - m, py.max(1) + m], 1)
+        zs = np.stack([-m * np.ones(len(ids)), m * np.ones(len(ids))], 1)
+        bits = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)])
+        verts = (cr[:, :1] + xs[:, bits[:, 0], None] * ax[:, None] + ys[:, bits[:, 1], None] * ay[:, None]
+                 + zs[:, bits[:, 2], None] * n[:, None])
+        out_v.append(verts.reshape(-1, 3))
+        out_f.append((BOX_FACES[None] + 8 * np.arange(len(ids))[:, None, None]).reshape(-1, 3))
+        out_o.append(np.repeat(ids, len(BOX_FACES)))
+    return out_v, out_f, out_o
+
+
+def sphere_icosahedra(center: np.ndarray, radius: np.ndarray, m: float) -> np.ndarray:
+    """Vertices ``(S, 12, 3)`` of icosahedra whose faces lie ``m`` outside each sphere."""
+    return center[:, None, :] + ((radius + m) * ICO_SCALE)[:, None, None] * ICO_VERTICES[None]
+
+
+def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, center: np.ndarray,
+                  radius: np.ndarray, half_size: float) -> Proxies:
+    """Proxies for ``T`` triangles and ``S`` spheres (local coordinates) in a BVH of half-size ``half_size``."""
+    m = MARGIN * half_size
+    gap = GAP * half_size
+    n_tri = len(v0)
+    verts, faces, owner = triangle_prisms(v0, e1, e2, normal, m)
+    ico = sphere_icosahedra(center, radius, m)
+    if len(radius):
+        verts.append(ico.reshape(-1, 3))
+        faces.append((ICO_FACES[None] + 12 * np.arange(len(radius))[:, None, None]).reshape(-1, 3))
+        owner.append(np.repeat(np.arange(len(radius)) + n_tri, len(ICO_FACES)))
+    base = np.cumsum([0] + [len(v) for v in verts])
+    all_faces = np.concatenate([f + base[k] for k, f in enumerate(faces)]) if faces else np.zeros((0, 3), np.int64)
+    all_verts = np.concatenate(verts) if verts else np.zeros((0, 3))
+    all_owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
+    count = n_tri + len(radius)
+    corner = all_verts[all_faces]  # (F, 3, 3)
+    lo = np.full((count, 3), np.inf)
+    hi = np.full((count, 3), -np.inf)
+    np.minimum.at(lo, all_owner, corner.min(axis=1))
+    np.maximum.at(hi, all_owner, corner.max(axis=1))
+    i, j = overlapping_pairs(lo - gap, hi + gap)
+    container = np.zeros(count)
+    if len(radius) and len(i):
+        i, j, container = _separate_nests(i, j, n_tri, center, radius, m, gap, container)
+    start, neighbours = _csr(count, i, j)
+    return Proxies(vertices=all_verts, faces=all_faces.astype(np.int32), owner=all_owner.astype(np.int64),
+                   lo=lo, hi=hi, start=start, neighbours=neighbours, container=container, margin=m,
+                   step=STEP * half_size)
+
+
+def _separate_nests(i: np.ndarray, j: np.ndarray, n_tri: int, center: np.ndarray, radius: np.ndarray, m: float,
+                    gap: float, container: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Drop sphere pairs nested with room to spare; the inner one remembers its container's size."""
+    both = (i >= n_tri) & (j >= n_tri)
+    a, b = i[both] - n_tri, j[both] - n_tri
+    d = np.linalg.norm(center[a] - center[b], axis=1)
+    outer = (radius + m) * ICO_SCALE  # circumradius of each proxy
+    inner = radius + m  # inradius
+    box = np.sqrt(3.0) * outer  # the proxy's bounding box lies within this of its centre
+    a_in_b = d + box[a] + gap <= inner[b]
+    b_in_a = d + box[b] + gap <= inner[a]
+    np.maximum.at(container, a[a_in_b] + n_tri, 2.0 * outer[b[a_in_b]])
+    np.maximum.at(container, b[b_in_a] + n_tri, 2.0 * outer[a[b_in_a]])
+    keep = np.ones(len(i), dtype=bool)
+    keep[np.flatnonzero(both)[a_in_b | b_in_a]] = False
+    return i[keep], j[keep], container
+
+
+def _csr(count: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    src = np.concatenate([i, j])
+    dst = np.concatenate([j, i])
+    order = np.lexsort((dst, src))
+    src, dst = src[order], dst[order]
+    start = np.zeros(count + 1, dtype=np.int64)
+    np.add.at(start, src + 1, 1)
+    return np.cumsum(start), dst.astype(np.int64)
+
+
+def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All pairs ``i < j`` of boxes that overlap, found through a uniform grid. Each (K,), int64.
+
+    Boxes much larger than the typical one are tested against every box
+    directly.  Raises :class:`TooManyOverlaps` past :data:`PAIR_BUDGET`.
+    """
+    n = len(lo)
+    if n < 2:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    extent = np.max(hi - lo, axis=1)
+    cell = float(np.median(extent))
+    if not np.isfinite(cell) or cell <= 0:
+        cell = float(np.max(extent)) or 1.0
+    origin = lo.min(axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        c_lo = np.floor((lo - origin) / cell)
+        c_hi = np.floor((hi - origin) / cell)
+    span = np.clip(c_hi - c_lo + 1, 1, 2**20)
+    cells = np.prod(span, axis=1)
+    big = ~(cells <= 27)
+    pairs_i, pairs_j = [], []
+    small = np.flatnonzero(~big)
+    if len(small):
+        sp = span[small].astype(np.int64)
+        per = cells[small].astype(np.int64)
+        box = np.repeat(small, per)
+        k = np.arange(len(box)) - np.repeat(np.cumsum(per) - per, per)
+        sy, sz = np.repeat(sp[:, 1], per), np.repeat(sp[:, 2], per)
+        kx, ky, kz = k // (sy * sz), (k // sz) % sy, k % sz
+        base = c_lo[box].astype(np.int64)
+        gx, gy, gz = base[:, 0] + kx, base[:, 1] + ky, base[:, 2] + kz
+        key = (gx * (1 << 21) + gy) * (1 << 21) + gz
+        order = np.argsort(key, kind="stable")
+        key, box = key[order], box[order]
+        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        size = np.diff(np.r_[first, len(key)])
+        group_end = np.repeat(first + size, size)
+        partners = group_end - np.arange(len(key)) - 1
+        total = int(partners.sum())
+        if total > PAIR_BUDGET:
+            raise TooManyOverlaps(f"{total} overlapping proxy pairs")
+        a = np.repeat(np.arange(len(key)), partners)
+        b = a + 1 + (np.arange(total) - np.repeat(np.cumsum(partners) - partners, partners))
+        pairs_i.append(box[a])
+        pairs_j.append(box[b])
+    big_ids = np.flatnonzero(big)
+    if len(big_ids) * n > PAIR_BUDGET:
+        raise TooManyOverlaps(f"{len(big_ids)} large proxies among {n}")
+    for g in big_ids:
+        hit = np.flatnonzero(np.all(lo <= hi[g], axis=1) & np.all(hi >= lo[g], axis=1))
+        hit = hit[hit != g]
+        pairs_i.append(np.full(len(hit), g))
+        pairs_j.append(hit)
+    if not pairs_i:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    i = np.concatenate(pairs_i)
+    j = np.concatenate(pairs_j)
+    i, j = np.minimum(i, j), np.maximum(i, j)
+    keep = (i != j) & np.all(lo[i] <= hi[j], axis=1) & np.all(lo[j] <= hi[i], axis=1)
+    code = np.unique(i[keep].astype(np.int64) * n + j[keep])
+    return code // n, code % n
