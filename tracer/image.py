@@ -8,10 +8,15 @@ import numpy as np
 from PIL import Image
 
 
+#: colours are summed in fixed point (:func:`tracer.render._accumulate`), a hair below their float value; a
+#: value that lies on a rounding boundary (a background of 0.3 is 76.5 levels) still rounds up, as in float
+NUDGE = 2.0**-22
+
+
 def quantize(colour: np.ndarray) -> np.ndarray:
     """Clamp to [0, 1] and store ``floor(255·v + 0.5)``; NaN becomes 0. Same shape, uint8."""
     v = np.clip(np.nan_to_num(colour, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
-    return np.floor(255.0 * v + 0.5).astype(np.uint8)
+    return np.floor(255.0 * v + (0.5 + NUDGE)).astype(np.uint8)
 
 
 def encode_png(pixels: np.ndarray) -> bytes:

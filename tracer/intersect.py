@@ -22,6 +22,7 @@ Embree scene at all.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,6 +56,10 @@ class Hits:
                     self.bary[rows], self.material[rows])
 
 
+def _nothing() -> None:
+    return None
+
+
 def slab(origins: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Where each ray's line enters and leaves the box ``lo..hi`` (empty when enter > leave). Each (N,)."""
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -78,20 +83,20 @@ class _Best:
         self.uv = np.zeros((n, 2))
 
     def offer(self, rows: np.ndarray, t: np.ndarray, kind: int | np.ndarray, index: np.ndarray,
-              u: np.ndarray | None = None, v: np.ndarray | None = None) -> None:
-        """Offer hits ``t`` of surfaces (kind, index) to rays ``rows``; rows may repeat."""
+              u: np.ndarray | None = None, v: np.ndarray | None = None, unique: bool = False) -> None:
+        """Offer hits ``t`` of surfaces (kind, index) to rays ``rows``; rows may repeat unless ``unique``."""
         hit = np.isfinite(t)
         if not np.any(hit):
             return
         rows, t, index = rows[hit], t[hit], index[hit]
         kind = np.broadcast_to(kind, hit.shape)[hit]
         key = (kind.astype(np.int64) << 48) | index.astype(np.int64)
-        if len(rows) > 1:
+        if unique or len(rows) <= 1:
+            pick = np.arange(len(rows))
+        else:
             order = np.lexsort((key, t, rows))
             first = np.r_[True, rows[order][1:] != rows[order][:-1]]
             pick = order[first]
-        else:
-            pick = np.arange(len(rows))
         r, tt, kk = rows[pick], t[pick], key[pick]
         better = (tt < self.t[r]) | ((tt == self.t[r]) & (kk < self.key[r]))
         r, pick = r[better], pick[better]
@@ -111,6 +116,8 @@ class _Best:
 class Intersector:
     def __init__(self, world: World):
         self.world = world
+        #: called between walk passes and every few direct surfaces; raises to stop a render
+        self.check: Callable[[], None] = _nothing
         tris, spheres = world.triangles, world.spheres
         tri_extent = np.max(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)), axis=(1, 2)) \
             if len(tris.v0) else np.zeros(0)
@@ -208,20 +215,46 @@ class Intersector:
         """Planes and the surfaces too large for the BVH, against every ray."""
         w = self.world
         rows = np.arange(len(o))
+        if ends is not None or reach is not None:  # occlusion: only whether something is nearer than the reach
+            blocked = self._direct_blocked(o, d, fk, fi, mag_o, ends, reach, mag_e)
+            best.t[blocked] = -np.inf
+            return
         for k in range(len(w.planes.normal)):
             t = plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
                         (fk == PLANE) & (fi == k), ends, mag_e)
-            best.offer(rows, t, PLANE, np.full(len(o), k))
+            best.offer(rows, t, PLANE, np.full(len(o), k), unique=True)
         sp = w.spheres
-        for k in self.direct_spheres:
+        for m, k in enumerate(self.direct_spheres):
+            if m % 64 == 63:
+                self.check()
             t = sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
                          ends, reach, mag_e)
-            best.offer(rows, t, SPHERE, np.full(len(o), k))
+            best.offer(rows, t, SPHERE, np.full(len(o), k), unique=True)
         tr = w.triangles
         for k in self.direct_triangles:
             t, u, v = triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
                                  (fk == TRIANGLE) & (fi == k), ends, mag_e)
-            best.offer(rows, t, TRIANGLE, np.full(len(o), k), u, v)
+            best.offer(rows, t, TRIANGLE, np.full(len(o), k), u, v, unique=True)
+
+    def _direct_blocked(self, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
+                        ends: np.ndarray | None, reach: np.ndarray | None, mag_e: np.ndarray | None) -> np.ndarray:
+        w = self.world
+        limit = np.full(len(o), np.inf) if reach is None else reach
+        blocked = np.zeros(len(o), dtype=bool)
+        for k in range(len(w.planes.normal)):
+            blocked |= plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
+                               (fk == PLANE) & (fi == k), ends, mag_e) < limit
+        sp = w.spheres
+        for m, k in enumerate(self.direct_spheres):
+            if m % 64 == 63:
+                self.check()
+            blocked |= sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
+                                ends, reach, mag_e) < limit
+        tr = w.triangles
+        for k in self.direct_triangles:
+            blocked |= triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
+                                  (fk == TRIANGLE) & (fi == k), ends, mag_e)[0] < limit
+        return blocked
 
     def _test(self, best: _Best, rows: np.ndarray, prims: np.ndarray, o: np.ndarray, d: np.ndarray,
               from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
@@ -258,6 +291,18 @@ class Intersector:
                              None if reach is None else reach[r], me)
                 best.offer(r, t, SPHERE, k)
 
+    def _nbrs(self, best: _Best, rows: np.ndarray, prims: np.ndarray, o: np.ndarray, d: np.ndarray,
+              from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
+              mag_e: np.ndarray | None) -> None:
+        """Test the neighbours of ``prims`` (not the primitives themselves) against rays ``rows``."""
+        p = self.proxies
+        assert p is not None
+        count = p.start[prims + 1] - p.start[prims]
+        rr = np.repeat(rows, count)
+        k = np.arange(len(rr)) - np.repeat(np.cumsum(count) - count, count)
+        self._test(best, rr, p.neighbours[np.repeat(p.start[prims], count) + k], o, d, from_prim, mag_o, ends,
+                   reach, mag_e, False)
+
     def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
               ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,
               any_hit: bool = False) -> None:
@@ -277,7 +322,13 @@ class Intersector:
         inside = np.flatnonzero(from_prim >= 0)
         if len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
             q = from_prim[inside]
-            self._test(best, inside, q, o, d, from_prim, mag_o, ends, reach, mag_e)
+            has = p.start[q + 1] > p.start[q]
+            sp = self.world.spheres
+            k = self.prim_index[q]
+            inward = (q >= self.n_tri) & (np.einsum("ij,ij->i", o[inside] - sp.center[np.where(
+                q >= self.n_tri, k, 0)], d[inside]) < 0) if len(sp.radius) else np.zeros(len(q), dtype=bool)
+            self._test(best, inside[inward], q[inward], o, d, from_prim, mag_o, ends, reach, mag_e, False)
+            self._nbrs(best, inside[has], q[has], o, d, from_prim, mag_o, ends, reach, mag_e)
             start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
             margin[inside] = p.container[q]
         last = from_prim.copy()  # the primitive each ray tested last (a prism's exit follows its entry)
@@ -296,6 +347,7 @@ class Intersector:
         for _ in range(self.max_steps):
             if len(live) == 0:
                 break
+            self.check()
             s = start[live]
             far = np.minimum(best.t[live] + margin[live], t_out[live]) - s
             face, tau = bvh.nearest(o[live] + s[:, None] * d[live], d[live], far)

@@ -145,11 +145,13 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
     all_verts = np.concatenate(verts) if verts else np.zeros((0, 3))
     all_owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
     count = n_tri + len(radius)
-    corner = all_verts[all_faces]  # (F, 3, 3)
     lo = np.full((count, 3), np.inf)
     hi = np.full((count, 3), -np.inf)
-    np.minimum.at(lo, all_owner, corner.min(axis=1))
-    np.maximum.at(hi, all_owner, corner.max(axis=1))
+    for v, f, o in zip(verts, faces, owner):  # each group holds proxies of one shape, vertices contiguous
+        ids = o[::len(f) // max(1, len(np.unique(o)))] if len(o) else o
+        per = len(v) // max(1, len(ids))
+        lo[ids] = v.reshape(len(ids), per, 3).min(axis=1)
+        hi[ids] = v.reshape(len(ids), per, 3).max(axis=1)
     i, j = overlapping_pairs(lo - gap, hi + gap)
     container = np.zeros(count)
     if len(radius) and len(i):
@@ -231,8 +233,12 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
             raise TooManyOverlaps(f"{total} overlapping proxy pairs")
         a = np.repeat(np.arange(len(key)), partners)
         b = a + 1 + (np.arange(total) - np.repeat(np.cumsum(partners) - partners, partners))
-        pairs_i.append(box[a])
-        pairs_j.append(box[b])
+        i, j = box[a], box[b]
+        # each overlapping pair shares many cells: keep it only in the cell of the larger of its two low corners
+        ref = np.maximum(c_lo[i], c_lo[j]).astype(np.int64)
+        own = key[a] == (ref[:, 0] * (1 << 21) + ref[:, 1]) * (1 << 21) + ref[:, 2]
+        pairs_i.append(i[own])
+        pairs_j.append(j[own])
     big_ids = np.flatnonzero(big)
     if len(big_ids) * n > PAIR_BUDGET:
         raise TooManyOverlaps(f"{len(big_ids)} large proxies among {n}")
@@ -243,9 +249,14 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         pairs_j.append(hit)
     if not pairs_i:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i = np.concatenate(pairs_i)
-    j = np.concatenate(pairs_j)
+    grid = len(pairs_i) - len(big_ids) if len(small) else 0
+    i = np.concatenate(pairs_i[:grid] or [np.zeros(0, np.int64)])
+    j = np.concatenate(pairs_j[:grid] or [np.zeros(0, np.int64)])
+    if len(big_ids):  # a pair of two large boxes is found from both ends
+        bi, bj = np.concatenate(pairs_i[grid:]), np.concatenate(pairs_j[grid:])
+        code = np.unique(np.minimum(bi, bj).astype(np.int64) * n + np.maximum(bi, bj))
+        i, j = np.concatenate([i, code // n]), np.concatenate([j, code % n])
     i, j = np.minimum(i, j), np.maximum(i, j)
     keep = (i != j) & np.all(lo[i] <= hi[j], axis=1) & np.all(lo[j] <= hi[i], axis=1)
-    code = np.unique(i[keep].astype(np.int64) * n + j[keep])
-    return code // n, code % n
+    order = np.lexsort((j[keep], i[keep]))
+    return i[keep][order], j[keep][order]

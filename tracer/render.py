@@ -9,6 +9,7 @@ pixels, so the result does not depend on the thread count or the chunk size.
 
 from __future__ import annotations
 
+import math
 import os
 import threading
 from collections.abc import Callable
@@ -29,6 +30,7 @@ from .world import World, build_world
 CHUNK_RAYS = 1 << 14
 
 Progress = Callable[[int, int], None]
+
 
 
 #: the largest image the renderer will make (16384 × 16384): its pixels alone take 768 MiB
@@ -69,6 +71,7 @@ class Renderer:
                                 f"({MAX_LIGHT_SAMPLES})")
         self.scene = scene
         self._cancel: Callable[[], bool] | None = None
+        self.slice_rays = CHUNK_RAYS
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
         with np.errstate(all="ignore"):  # hostile magnitudes (1e300) overflow to inf here; the tracer copes
@@ -86,6 +89,8 @@ class Renderer:
         """
         img = self.scene.image
         self._cancel = cancel
+        self.slice_rays = chunk_rays
+        self.intersector.check = self._check
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
@@ -122,46 +127,62 @@ class Renderer:
 
     # -- one chunk ---------------------------------------------------------
     def chunk(self, start: int, stop: int) -> np.ndarray:
-        """Linear colour of pixels ``start..stop`` (mean of their sub-samples). Shape (stop − start, 3)."""
+        """Linear colour of pixels ``start..stop`` (mean of their sub-samples). Shape (stop − start, 3).
+
+        The ray tree is traced depth-first in slices of at most ``slice_rays``
+        rays, so memory depends on the slice size and the depth, never on
+        2^depth.  Every contribution is added as a fixed-point integer, so the
+        sums, and the bytes of the image, do not depend on the order in which
+        slices, chunks or threads deliver them.
+        """
         img = self.scene.image
         s = img.samples * img.samples
         with np.errstate(all="ignore"):
             origins, dirs = self.camera.rays(start, stop)
-            self._count("primary", len(origins))
-            colour = np.zeros((len(origins), 3))
-            sample = np.arange(len(origins))
-            weight = np.ones(len(origins))
-            from_kind, from_index = np.zeros(len(origins), dtype=np.int8), np.full(len(origins), -1)
+            n = len(origins)
+            self._count("primary", n)
+            acc = np.zeros((n, 3), dtype=np.int64)
+            ceiling = float(2 * s)  # a sub-sample this bright saturates its pixel: sums are clamped there
+            # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum
+            fixed = 2.0 ** (48 - math.ceil(math.log2(ceiling)) - max(0, math.ceil(math.log2(self.slice_rays)) - 14))
             background = np.asarray(img.background, dtype=np.float64)
-            for depth in range(img.max_depth + 1):
-                hits = self.intersector.closest(origins, dirs, from_kind, from_index)
+            stack: list[tuple[np.ndarray, ...]] = [(origins, dirs, np.arange(n), np.ones(n),
+                                                    np.zeros(n, dtype=np.int8), np.full(n, -1, dtype=np.int64),
+                                                    np.zeros(1, dtype=np.int64))]
+            while stack:
+                o, d, smp, w, fk, fi, depth_box = stack.pop()
+                depth = int(depth_box[0])
+                if len(o) > self.slice_rays:  # split; the first slice goes on top, so it is traced first
+                    cut = range(0, len(o), self.slice_rays)
+                    for a in reversed(cut):
+                        stack.append((o[a:a + self.slice_rays], d[a:a + self.slice_rays],
+                                      smp[a:a + self.slice_rays], w[a:a + self.slice_rays],
+                                      fk[a:a + self.slice_rays], fi[a:a + self.slice_rays], depth_box))
+                    continue
+                self._check()
+                hits = self.intersector.closest(o, d, fk, fi)
                 missed = hits.kind == MISS
-                if depth == 0:
-                    colour[missed] = background
-                else:
-                    _accumulate(colour, sample[missed], weight[missed, None] * background)
+                _accumulate(acc, smp[missed], w[missed, None] * background, ceiling, fixed)
                 rows = np.flatnonzero(~missed)
                 if len(rows) == 0:
-                    break
+                    continue
                 hit = hits.take(rows)
-                d, w, smp = dirs[rows], weight[rows], sample[rows]
+                dd, ww, ss = d[rows], w[rows], smp[rows]
                 mat = resolve_material(self.world, hit)
-                normal = shading_normal(self.world, hit, d)
-                if depth == 0:
-                    colour[rows] = self.direct(hit, mat, normal, d)
-                else:
-                    _accumulate(colour, smp, w[:, None] * self.direct(hit, mat, normal, d))
+                normal = shading_normal(self.world, hit, dd)
+                _accumulate(acc, ss, ww[:, None] * self.direct(hit, mat, normal, dd), ceiling, fixed)
                 if depth == img.max_depth:
-                    break
-                origins, dirs, sample, weight, from_kind, from_index = self.secondary(hit, mat, normal, d, w, smp)
-                self._count("secondary", len(origins))
-                if len(origins) == 0:
-                    break
-            pixel = np.zeros((stop - start, 3))
-            per_pixel = colour.reshape(stop - start, s, 3)
-            for k in range(s):  # a fixed summation order
-                pixel += per_pixel[:, k]
-            return pixel / s
+                    continue
+                children = self.secondary(hit, mat, normal, dd, ww, ss)
+                self._count("secondary", len(children[0]))
+                if len(children[0]):
+                    stack.append((*children, np.array([depth + 1])))
+            per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
+            return per_pixel.astype(np.float64) / (fixed * s)
+
+    def _check(self) -> None:
+        if self._cancel is not None and self._cancel():
+            raise RenderCancelled("the render was cancelled")
 
     def _count(self, kind: str, n: int) -> None:
         with self._count_lock:
@@ -179,8 +200,7 @@ class Renderer:
         diffuse, specular, shininess = m.diffuse[mat], m.specular[mat], m.shininess[mat]
         nv = -np.einsum("ij,ij->i", normal, dirs)  # N·V, the same for every light
         for em in self.world.emitters:
-            if self._cancel is not None and self._cancel():  # a long chunk (many lights) stops early too
-                raise RenderCancelled("the render was cancelled")
+            self._check()  # a long chunk (many lights) stops early too
             if not np.any(em.color > 0):
                 continue
             to_light, dist, factor = illuminate(em, hit.point)
@@ -222,10 +242,18 @@ class Renderer:
         return tuple(np.concatenate(p) for p in zip(*parts))
 
 
-def _accumulate(colour: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
-    """``colour[index] += values``, with repeated indices summed in order."""
+def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling: float, fixed: float) -> None:
+    """``acc[index] += values`` in fixed point (units of ``1/fixed``); repeated indices are summed.
+
+    Contributions are never negative, so a sum at or above ``ceiling`` (twice
+    the sub-samples of a pixel) already saturates its pixel and is clamped
+    there; NaN counts as nothing.  Integer sums are exact, so their order
+    never shows in the image.
+    """
     if len(index):
-        np.add.at(colour, index, values)
+        v = np.clip(np.nan_to_num(values, nan=0.0, posinf=ceiling), 0.0, ceiling)
+        np.add.at(acc, index, np.rint(v * fixed).astype(np.int64))
+        np.minimum(acc, np.int64(ceiling * fixed), out=acc)
 
 
 def render(scene: Scene, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
