@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from schemas import AreaLight, Mesh, Scene, Triangle
+import math
+
+from schemas import AreaLight, Mesh, Plane, Scene, Sphere, Triangle
 
 from .settings import Settings
 
@@ -48,12 +50,35 @@ def light_samples(scene: Scene) -> int:
                for light in scene.lights if light.type != "ambient")
 
 
+def ray_tree_nodes(scene: Scene) -> float:
+    """Rays per sub-sample in the worst case: the ray tree doubles at every depth where a material both
+    reflects and transmits, grows by one where materials only reflect or only transmit."""
+    mats = scene.materials.values()
+    depth = scene.image.max_depth
+    if any(m.reflectance > 0 and m.transmittance > 0 for m in mats):
+        return 2.0 ** (depth + 1) - 1.0
+    if any(m.reflectance > 0 or m.transmittance > 0 for m in mats):
+        return depth + 1.0
+    return 1.0
+
+
+def per_ray_factor(scene: Scene) -> float:
+    """Relative cost of one ray from what it is tested against: planes (and spheres that would be tested
+    directly) cost per ray, BVH candidates about log n, and every sphere around the eye is crossed."""
+    spheres = [o for o in scene.objects if isinstance(o, Sphere)]
+    planes = sum(isinstance(o, Plane) for o in scene.objects)
+    bvh = len(spheres) + sum(1 if isinstance(o, Triangle) else len(o.faces) if isinstance(o, Mesh) else 0
+                             for o in scene.objects)
+    eye = scene.camera.position
+    around = sum(1 for o in spheres if math.dist(eye, o.center) < o.radius)  # (hypot: no overflow at 1e300)
+    return 1.0 + planes / 4.0 + math.log2(1.0 + bvh) / 8.0 + around / 2.0
+
+
 def estimated_cost(scene: Scene) -> float:
-    """Rays a render may cast, roughly: pixels × sub-samples × (1 + light samples) × depth levels."""
+    """Ray work of a render: pixels × samples² × worst-case ray tree × (1 + light samples) × per-ray factor."""
     img = scene.image
-    bounces = any(m.reflectance > 0 or m.transmittance > 0 for m in scene.materials.values())
-    levels = 1 + img.max_depth if bounces else 1
-    return float(img.width) * img.height * img.samples**2 * (1 + light_samples(scene)) * levels
+    return (float(img.width) * img.height * img.samples**2 * ray_tree_nodes(scene) * (1 + light_samples(scene))
+            * per_ray_factor(scene))
 
 
 def check_scene(scene: Scene, settings: Settings) -> None:
@@ -76,5 +101,6 @@ def check_scene(scene: Scene, settings: Settings) -> None:
                          f"max_light_samples = {settings.max_light_samples}")
     cost = estimated_cost(scene)
     if cost > settings.max_cost:
-        raise LimitError(f"scene: estimated cost {cost:.3g} (pixels × samples² × (1 + light samples) × depth levels) "
+        raise LimitError(f"scene: estimated cost {cost:.3g} (pixels × samples² × worst-case ray tree × "
+                         f"(1 + light samples) × per-ray factor) "
                          f"exceeds the limit max_cost = {settings.max_cost:.3g}")

@@ -20,7 +20,7 @@ class Settings:
     max_objects: int = 10_000
     max_triangles: int = 250_000
     max_light_samples: int = 1_024  # directional + point + spot lights + all area-light samples
-    max_cost: float = 2e8  # pixels × samples² × (1 + light samples) × (1 + max_depth)
+    max_cost: float = 1e8  # ray work, see service/limits.py estimated_cost (about 1e6 per second on 2 cores)
     max_concurrent_renders: int = 2  # renders at once per worker process; more get 503
     render_threads: int = 0  # threads per render; 0 means every core
     render_timeout: float = 120.0  # seconds; a longer render is stopped and answered with 503

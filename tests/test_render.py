@@ -129,3 +129,51 @@ def test_light_on_a_sphere_lights_the_floor_below():
     scene = HARD["light exactly on a sphere"]
     img = render_dict({**scene, "objects": [FLOOR, {**BALL, "center": [0, 1.5, 0]}]})
     assert img[-1].max() > 50
+
+
+def nested_glass_and_mirror(depth, size):
+    """Four nested spheres whose materials both reflect and transmit: the ray tree doubles at every bounce."""
+    mats = {"glass": {"reflectance": 0.2, "transmittance": 0.7}, "mirror": {"reflectance": 0.6, "transmittance": 0.3}}
+    objs = [{"type": "sphere", "material": ["glass", "mirror"][k % 2], "center": [0, 0, 0], "radius": 1.0 - 0.2 * k}
+            for k in range(4)]
+    return {"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]},
+            "image": {"width": size, "height": size, "max_depth": depth}, "materials": mats, "objects": objs,
+            "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}]}
+
+
+def test_doubling_ray_tree_gives_the_same_bytes_for_any_slice_thread_count():
+    scene = schemas.validate_scene(nested_glass_and_mirror(6, 24))
+    first = encode_png(Renderer(scene).pixels(threads=1))
+    assert encode_png(Renderer(scene).pixels(threads=2, chunk_rays=257)) == first
+    assert encode_png(Renderer(scene).pixels(threads=3, chunk_rays=4096)) == first
+
+
+MEMORY_SCRIPT = """
+import json, sys
+import schemas, tracer
+tracer.render(schemas.validate_scene(json.loads(sys.argv[1])))
+print(next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmHWM:")) // 1024)
+"""
+
+
+def test_deep_doubling_ray_tree_stays_within_bounded_memory():
+    import json
+    import subprocess
+    import sys
+    out = subprocess.run([sys.executable, "-c", MEMORY_SCRIPT, json.dumps(nested_glass_and_mirror(10, 48))],
+                         capture_output=True, text=True, check=True, timeout=300)
+    assert int(out.stdout) < 1024  # MiB: depth-first slices, not 2^10 rays per sample at once
+
+
+def test_cancel_stops_a_render_inside_a_single_long_chunk():
+    import time
+    from tracer import RenderCancelled
+    objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0 + k} for k in range(10_000)]
+    scene = schemas.validate_scene({"camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
+                                    "image": {"width": 32, "height": 32}, "materials": {"m": {}}, "objects": objs,
+                                    "lights": [{"type": "point", "color": 1, "position": [0.2, 0.2, 0.2]}]})
+    renderer = Renderer(scene)
+    started = time.perf_counter()
+    with pytest.raises(RenderCancelled):
+        renderer.pixels(threads=1, cancel=lambda: time.perf_counter() - started > 0.3)
+    assert time.perf_counter() - started < 2.0
