@@ -74,28 +74,65 @@ def _prepare(body: bytes | str, overrides: dict[str, int | None], service: Rende
         raise HTTPProblem(exc.status, str(exc)) from None
 
 
+class _Flight:
+    """One render in progress, shared by every request for the same scene: they wait on it without a thread."""
+
+    def __init__(self) -> None:
+        self.done = anyio.Event()
+        self.result: bytes | None = None
+        self.failure: Exception | None = None
+        self.waiting = 0  # requests still interested; the render stops when none is
+
+
 async def _png(request: Request, job: Job) -> bytes:
-    """Render (or fetch) off the event loop; stop rendering if the client goes away."""
+    """Render (or fetch) off the event loop; stop rendering once every client that wants it has gone."""
     service: RenderService = request.app.state.service
+    cached = service.cache.get(job.key)
+    if cached is not None:
+        return cached
+    flights: dict[str, _Flight] | None = getattr(request.app.state, "flights", None)
+    if flights is None:
+        flights = request.app.state.flights = {}
+    flight = flights.get(job.key)
+    leader = flight is None
+    if flight is None:
+        flight = flights[job.key] = _Flight()
+    flight.waiting += 1
     gone = anyio.Event()
-    result: bytes | None = None
 
     async def watch() -> None:
-        while not gone.is_set():
+        while not gone.is_set() and not flight.done.is_set():
             if await request.is_disconnected():
                 gone.set()
+                flight.waiting -= 1
                 return
             await anyio.sleep(0.05)
 
-    failure: Exception | None = None
+    async def run() -> None:
+        try:
+            flight.result = await anyio.to_thread.run_sync(service.png, job, lambda: flight.waiting <= 0)
+        except Exception as exc:  # shared with every waiter, re-raised below outside the task group
+            flight.failure = exc
+        finally:
+            flights.pop(job.key, None)
+            flight.done.set()
+
     async with anyio.create_task_group() as tasks:
         tasks.start_soon(watch)
-        try:
-            result = await anyio.to_thread.run_sync(service.png, job, gone.is_set)
-        except Exception as exc:  # re-raised below, outside the task group
-            failure = exc
-        finally:
-            tasks.cancel_scope.cancel()
+        if leader:
+            await run()
+        else:
+            with anyio.CancelScope() as scope:
+                async def stop_when_gone() -> None:
+                    await gone.wait()
+                    scope.cancel()
+                tasks.start_soon(stop_when_gone)
+                await flight.done.wait()
+        tasks.cancel_scope.cancel()
+    if not gone.is_set():
+        flight.waiting -= 1
+    failure = RenderCancelled("client closed the request") if gone.is_set() else flight.failure
+    result = flight.result
     try:
         if failure is not None:
             raise failure
@@ -120,7 +157,9 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
                        samples: Annotated[int | None, Query(ge=1)] = None) -> Response:
     _require_json(request)
     service: RenderService = request.app.state.service
-    job = _prepare(await request.body(), {"width": width, "height": height, "samples": samples}, service)
+    body = await request.body()
+    job = await anyio.to_thread.run_sync(_prepare, body, {"width": width, "height": height, "samples": samples},
+                                         service)
     headers = {"ETag": job.etag, "Cache-Control": "no-cache"}
     if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
         return Response(status_code=304, headers=headers)
@@ -160,7 +199,7 @@ async def grade(request: Request, format: Literal["json", "png"] = "json") -> Re
         await form.close()
     tolerance = _number(form.get("tolerance"), "tolerance", grading.DEFAULT_TOLERANCE, 0, 255)
     max_fraction = _number(form.get("max_fraction"), "max_fraction", grading.DEFAULT_MAX_FRACTION, 0, 1)
-    job = _prepare(scene_text, {}, service)
+    job = await anyio.to_thread.run_sync(_prepare, scene_text, {}, service)
     try:  # the submission is checked (and decoded) before any rendering is spent on it
         submitted = grading.read_submission(image, (job.scene.image.width, job.scene.image.height),
                                             service.settings.max_image_bytes)
@@ -202,5 +241,5 @@ def schema() -> dict[str, Any]:
 
 
 @router.get("/healthz", summary="Liveness and counters")
-def healthz(request: Request) -> dict[str, Any]:
+async def healthz(request: Request) -> dict[str, Any]:  # on the loop: never queued behind pool threads
     return {"status": "ok", **request.app.state.service.status()}

@@ -1,0 +1,72 @@
+"""Requests for a scene already being rendered wait without a thread, and share its outcome."""
+
+import http.client
+import json
+import threading
+import time
+
+from helpers import scene_dict
+from server import running_server
+
+
+def post_render(url: str, body: bytes, timeout: float = 60.0) -> int:
+    host, port = url.removeprefix("http://").split(":")
+    conn = http.client.HTTPConnection(host, int(port), timeout=timeout)
+    try:
+        conn.request("POST", "/render", body=body, headers={"content-type": "application/json"})
+        response = conn.getresponse()
+        response.read()
+        return response.status
+    finally:
+        conn.close()
+
+
+def health(url: str) -> dict:
+    host, port = url.removeprefix("http://").split(":")
+    conn = http.client.HTTPConnection(host, int(port), timeout=10)
+    try:
+        conn.request("GET", "/healthz")
+        return json.loads(conn.getresponse().read())
+    finally:
+        conn.close()
+
+
+def healthz_ms(url: str) -> float:
+    started = time.perf_counter()
+    health(url)
+    return 1000 * (time.perf_counter() - started)
+
+
+def slow_scene(size: int) -> bytes:
+    data = scene_dict("03_soft_shadows")
+    data["image"].update(width=size, height=size)
+    return json.dumps(data).encode()
+
+
+def burst(url: str, body: bytes, count: int) -> tuple[list[int], list[float]]:
+    statuses: list[int] = []
+    threads = [threading.Thread(target=lambda: statuses.append(post_render(url, body))) for _ in range(count)]
+    for t in threads:
+        t.start()
+    latencies = []
+    while any(t.is_alive() for t in threads):
+        latencies.append(healthz_ms(url))
+        time.sleep(0.05)
+    for t in threads:
+        t.join(timeout=60)
+    return statuses, latencies
+
+
+def test_identical_concurrent_requests_render_once_and_all_get_the_image(tmp_path):
+    with running_server(tmp_path, render_threads="1") as (url, _):
+        statuses, latencies = burst(url, slow_scene(200), 100)
+        assert statuses == [200] * 100
+        assert latencies  # /healthz answered throughout (its latency is reported, not yet bounded, here)
+        assert health(url)["renders"] == 1
+
+
+def test_a_timed_out_render_answers_all_its_waiters_once(tmp_path):
+    with running_server(tmp_path, render_threads="1", render_timeout="0.5") as (url, _):
+        statuses, _ = burst(url, slow_scene(400), 8)
+        assert statuses == [503] * 8
+        assert health(url)["renders"] == 0
