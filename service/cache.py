@@ -12,7 +12,6 @@ class RenderCache:
         self._items: OrderedDict[str, bytes] = OrderedDict()
         self._size = 0
         self._lock = threading.Lock()
-        self._key_locks: dict[str, threading.Lock] = {}
         self.hits = 0
         self.misses = 0
 
@@ -38,13 +37,6 @@ class RenderCache:
             while self._size > self.max_bytes:
                 _, evicted = self._items.popitem(last=False)
                 self._size -= len(evicted)
-
-    def key_lock(self, key: str) -> threading.Lock:
-        """One lock per key, so that concurrent requests for one scene render it once."""
-        with self._lock:
-            if len(self._key_locks) > 1024:  # drop locks nobody holds
-                self._key_locks = {k: v for k, v in self._key_locks.items() if v.locked()}
-            return self._key_locks.setdefault(key, threading.Lock())
 
     @property
     def size(self) -> int:

@@ -65,33 +65,32 @@ class RenderService:
         self.renders = 0
 
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:
-        """The PNG of a job, from the cache or rendered once. Raises Busy, TooSlow or RenderCancelled."""
+        """The PNG of a job, from the cache or rendered. Raises Busy, TooSlow or RenderCancelled.
+
+        Concurrent requests for one scene are joined before they get here (one flight per scene in
+        :mod:`service.routes`), so each scene is rendered once."""
         cached = self.cache.get(job.key)
         if cached is not None:
             return cached
-        with self.cache.key_lock(job.key):
-            cached = self.cache.get(job.key)
-            if cached is not None:
-                return cached
-            if not self.slots.acquire(blocking=False):
-                raise Busy()
+        if not self.slots.acquire(blocking=False):
+            raise Busy()
+        try:
+            deadline = time.monotonic() + self.settings.render_timeout
+
+            def stop() -> bool:
+                return cancelled() or time.monotonic() > deadline
+
             try:
-                deadline = time.monotonic() + self.settings.render_timeout
-
-                def stop() -> bool:
-                    return cancelled() or time.monotonic() > deadline
-
-                try:
-                    pixels = render(job.scene, threads=self.threads, cancel=stop)
-                except RenderCancelled:
-                    if time.monotonic() > deadline:
-                        raise TooSlow() from None
-                    raise
-                data = encode_png(pixels)
-                self.renders += 1
-            finally:
-                self.slots.release()
-                release()  # give what the render freed back to the OS, so memory returns to its baseline
+                pixels = render(job.scene, threads=self.threads, cancel=stop)
+            except RenderCancelled:
+                if time.monotonic() > deadline:
+                    raise TooSlow() from None
+                raise
+            data = encode_png(pixels)
+            self.renders += 1
+        finally:
+            self.slots.release()
+            release()  # give what the render freed back to the OS, so memory returns to its baseline
         self.cache.put(job.key, data)
         return data
 

@@ -99,12 +99,14 @@ async def _png(request: Request, job: Job) -> bytes:
         flight = flights[job.key] = _Flight()
     flight.waiting += 1
     gone = anyio.Event()
+    waiting = anyio.CancelScope()  # a follower stops waiting when its client goes; the leader waits for its thread
 
     async def watch() -> None:
         while not gone.is_set() and not flight.done.is_set():
             if await request.is_disconnected():
                 gone.set()
                 flight.waiting -= 1
+                waiting.cancel()
                 return
             await anyio.sleep(0.05)
 
@@ -122,11 +124,7 @@ async def _png(request: Request, job: Job) -> bytes:
         if leader:
             await run()
         else:
-            with anyio.CancelScope() as scope:
-                async def stop_when_gone() -> None:
-                    await gone.wait()
-                    scope.cancel()
-                tasks.start_soon(stop_when_gone)
+            with waiting:
                 await flight.done.wait()
         tasks.cancel_scope.cancel()
     if not gone.is_set():

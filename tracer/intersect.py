@@ -22,7 +22,7 @@ Embree scene at all.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -141,7 +141,6 @@ class Intersector:
         w = self.world
         tris, spheres = w.triangles, w.spheres
         self.n_tri = len(bvh_tris)
-        self.prim_kind = np.concatenate([np.full(len(bvh_tris), TRIANGLE), np.full(len(bvh_spheres), SPHERE)])
         self.prim_index = np.concatenate([bvh_tris, bvh_spheres]).astype(np.int64)
         self.tri_prim = np.full(len(tris.v0), -1, dtype=np.int64)
         self.tri_prim[bvh_tris] = np.arange(len(bvh_tris))
@@ -172,7 +171,9 @@ class Intersector:
         fk, fi = self._from(n, from_kind, from_index)
         best = _Best(np.full(n, np.inf))
         mag_o = max_abs(origins) + self.world.origin_mag
-        self._direct(best, origins, dirs, fk, fi, mag_o)
+        rows = np.arange(n)
+        for kind, k, t, u, v in self._direct(origins, dirs, fk, fi, mag_o):
+            best.offer(rows, t, kind, np.full(n, k), u, v, unique=True)
         if self.bvh is not None:
             self._walk(best, origins, dirs, fk, fi, mag_o)
         return self._describe(origins, dirs, best)
@@ -189,18 +190,19 @@ class Intersector:
         n = len(origins)
         fk, fi = self._from(n, from_kind, from_index)
         reach = np.asarray(reach, dtype=np.float64)
-        best = _Best(reach)
         mag_o = max_abs(origins) + self.world.origin_mag
         mag_e = None if ends is None else max_abs(ends) + self.world.origin_mag
-        self._direct(best, origins, dirs, fk, fi, mag_o, ends, reach, mag_e)
+        blocked = np.zeros(n, dtype=bool)
+        for _, _, t, _, _ in self._direct(origins, dirs, fk, fi, mag_o, ends, reach, mag_e):
+            blocked |= t < reach
         if self.bvh is not None:
-            open_ = np.flatnonzero(~(best.t < reach))
-            sub = _Best(reach[open_])
-            self._walk(sub, origins[open_], dirs[open_], fk[open_], fi[open_], mag_o[open_],
+            open_ = np.flatnonzero(~blocked)
+            best = _Best(reach[open_])
+            self._walk(best, origins[open_], dirs[open_], fk[open_], fi[open_], mag_o[open_],
                        None if ends is None else ends[open_], reach[open_],
                        None if mag_e is None else mag_e[open_], any_hit=True)
-            best.t[open_] = sub.t
-        return best.t < reach
+            blocked[open_] = best.t < reach[open_]
+        return blocked
 
     # -- the parts -----------------------------------------------------------
     @staticmethod
@@ -209,66 +211,42 @@ class Intersector:
             return np.zeros(n, dtype=np.int8), np.full(n, -1, dtype=np.int64)
         return kind, index
 
-    def _direct(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray,
-                mag_o: np.ndarray, ends: np.ndarray | None = None, reach: np.ndarray | None = None,
-                mag_e: np.ndarray | None = None) -> None:
-        """Planes and the surfaces too large for the BVH, against every ray."""
+    def _direct(self, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
+                ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None
+                ) -> Iterator[tuple[int, int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
+        """Planes and the surfaces too large for the BVH, against every ray: ``(kind, index, t, u, v)`` each."""
         w = self.world
-        rows = np.arange(len(o))
-        if ends is not None or reach is not None:  # occlusion: only whether something is nearer than the reach
-            blocked = self._direct_blocked(o, d, fk, fi, mag_o, ends, reach, mag_e)
-            best.t[blocked] = -np.inf
-            return
         for k in range(len(w.planes.normal)):
-            t = plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
-                        (fk == PLANE) & (fi == k), ends, mag_e)
-            best.offer(rows, t, PLANE, np.full(len(o), k), unique=True)
+            yield PLANE, k, plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
+                                    (fk == PLANE) & (fi == k), ends, mag_e), None, None
         sp = w.spheres
         for m, k in enumerate(self.direct_spheres):
             if m % 64 == 63:
                 self.check()
-            t = sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
-                         ends, reach, mag_e)
-            best.offer(rows, t, SPHERE, np.full(len(o), k), unique=True)
+            yield SPHERE, k, sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
+                                      ends, reach, mag_e), None, None
         tr = w.triangles
         for k in self.direct_triangles:
             t, u, v = triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
                                  (fk == TRIANGLE) & (fi == k), ends, mag_e)
-            best.offer(rows, t, TRIANGLE, np.full(len(o), k), u, v, unique=True)
+            yield TRIANGLE, k, t, u, v
 
-    def _direct_blocked(self, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
-                        ends: np.ndarray | None, reach: np.ndarray | None, mag_e: np.ndarray | None) -> np.ndarray:
-        w = self.world
-        limit = np.full(len(o), np.inf) if reach is None else reach
-        blocked = np.zeros(len(o), dtype=bool)
-        for k in range(len(w.planes.normal)):
-            blocked |= plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
-                               (fk == PLANE) & (fi == k), ends, mag_e) < limit
-        sp = w.spheres
-        for m, k in enumerate(self.direct_spheres):
-            if m % 64 == 63:
-                self.check()
-            blocked |= sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
-                                ends, reach, mag_e) < limit
-        tr = w.triangles
-        for k in self.direct_triangles:
-            blocked |= triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
-                                  (fk == TRIANGLE) & (fi == k), ends, mag_e)[0] < limit
-        return blocked
+    def _with_neighbours(self, rows: np.ndarray, prims: np.ndarray, itself: bool) -> tuple[np.ndarray, np.ndarray]:
+        """(ray, primitive) pairs for every neighbour of each of ``prims`` (and the primitive, with ``itself``)."""
+        p = self.proxies
+        assert p is not None
+        extra = int(itself)
+        count = extra + p.start[prims + 1] - p.start[prims]
+        rep = np.repeat(prims, count)
+        k = np.arange(len(rep)) - np.repeat(np.cumsum(count) - count, count) - extra  # −1: the primitive itself
+        if len(p.neighbours) == 0:
+            return np.repeat(rows, count), rep
+        return np.repeat(rows, count), np.where(k < 0, rep, p.neighbours[np.maximum(p.start[rep] + k, 0)])
 
     def _test(self, best: _Best, rows: np.ndarray, prims: np.ndarray, o: np.ndarray, d: np.ndarray,
               from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
-              mag_e: np.ndarray | None, neighbours: bool = True) -> None:
-        """Test BVH primitives ``prims`` (and their neighbours) exactly against rays ``rows``."""
-        p = self.proxies
-        assert p is not None
-        if neighbours:
-            count = 1 + p.start[prims + 1] - p.start[prims]
-            rep = np.repeat(prims, count)
-            rows = np.repeat(rows, count)
-            k = np.arange(len(rep)) - np.repeat(np.cumsum(count) - count, count)
-            prims = np.where(k == 0, rep, p.neighbours[np.minimum(p.start[rep] + k - 1, len(p.neighbours) - 1)]
-                             if len(p.neighbours) else rep)
+              mag_e: np.ndarray | None) -> None:
+        """Test BVH primitives ``prims`` exactly against rays ``rows`` (pairs; either may repeat)."""
         w = self.world
         tri = prims < self.n_tri
         for is_tri in (True, False):
@@ -291,18 +269,6 @@ class Intersector:
                              None if reach is None else reach[r], me)
                 best.offer(r, t, SPHERE, k)
 
-    def _nbrs(self, best: _Best, rows: np.ndarray, prims: np.ndarray, o: np.ndarray, d: np.ndarray,
-              from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
-              mag_e: np.ndarray | None) -> None:
-        """Test the neighbours of ``prims`` (not the primitives themselves) against rays ``rows``."""
-        p = self.proxies
-        assert p is not None
-        count = p.start[prims + 1] - p.start[prims]
-        rr = np.repeat(rows, count)
-        k = np.arange(len(rr)) - np.repeat(np.cumsum(count) - count, count)
-        self._test(best, rr, p.neighbours[np.repeat(p.start[prims], count) + k], o, d, from_prim, mag_o, ends,
-                   reach, mag_e, False)
-
     def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
               ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,
               any_hit: bool = False) -> None:
@@ -322,13 +288,12 @@ class Intersector:
         inside = np.flatnonzero(from_prim >= 0)
         if len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
             q = from_prim[inside]
-            has = p.start[q + 1] > p.start[q]
-            sp = self.world.spheres
-            k = self.prim_index[q]
-            inward = (q >= self.n_tri) & (np.einsum("ij,ij->i", o[inside] - sp.center[np.where(
-                q >= self.n_tri, k, 0)], d[inside]) < 0) if len(sp.radius) else np.zeros(len(q), dtype=bool)
-            self._test(best, inside[inward], q[inward], o, d, from_prim, mag_o, ends, reach, mag_e, False)
-            self._nbrs(best, inside[has], q[has], o, d, from_prim, mag_o, ends, reach, mag_e)
+            self._test(best, *self._with_neighbours(inside, q, itself=False), o, d, from_prim, mag_o, ends, reach,
+                       mag_e)
+            ball = np.flatnonzero(q >= self.n_tri)  # a sphere left inward is met again at its far side
+            centre = self.world.spheres.center[self.prim_index[q[ball]]]
+            inward = ball[np.einsum("ij,ij->i", o[inside[ball]] - centre, d[inside[ball]]) < 0]
+            self._test(best, inside[inward], q[inward], o, d, from_prim, mag_o, ends, reach, mag_e)
             start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
             margin[inside] = p.container[q]
         last = from_prim.copy()  # the primitive each ray tested last (a prism's exit follows its entry)
@@ -355,7 +320,8 @@ class Intersector:
             live, face, tau = live[found], face[found], tau[found]
             prim = p.owner[face]
             fresh = last[live] != prim
-            self._test(best, live[fresh], prim[fresh], o, d, from_prim, mag_o, ends, reach, mag_e)
+            self._test(best, *self._with_neighbours(live[fresh], prim[fresh], itself=True), o, d, from_prim, mag_o,
+                       ends, reach, mag_e)
             last[live] = prim
             start[live] += tau + p.step
             live = open_rows(live)

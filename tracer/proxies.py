@@ -64,6 +64,10 @@ BOX_FACES = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0,
                       [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
 
 
+#: proxies of one shape: primitive ids (k,), vertices (k, per, 3) and the faces of one proxy (f, 3)
+Group = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
 @dataclass
 class Proxies:
     vertices: np.ndarray  # (V, 3) local float64
@@ -79,8 +83,8 @@ class Proxies:
 
 
 def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray,
-                    m: float) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-    """Closed proxies of triangles: ``(vertices (k, 3)), faces, owner`` lists, one item per shape kind."""
+                    m: float) -> list[Group]:
+    """Closed proxies of triangles, one group per shape: prisms, and oriented boxes for slivers."""
     corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (T, 3, 3)
     a = np.linalg.norm(corners[:, 1] - corners[:, 2], axis=1)
     b = np.linalg.norm(corners[:, 2] - corners[:, 0], axis=1)
@@ -91,17 +95,14 @@ def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
         inradius = area2 / perimeter
         grow = 1.0 + m / inradius
     prism = np.isfinite(grow) & (grow < 4.0)
-    out_v, out_f, out_o = [], [], []
+    groups = []
     ids = np.flatnonzero(prism)
     if len(ids):
         cr = corners[ids]
         incenter = (a[ids, None] * cr[:, 0] + b[ids, None] * cr[:, 1] + c[ids, None] * cr[:, 2]) / perimeter[ids, None]
         wide = incenter[:, None] + grow[ids, None, None] * (cr - incenter[:, None])
         lift = m * normal[ids][:, None, :]
-        verts = np.concatenate([wide - lift, wide + lift], axis=1)  # (k, 6, 3)
-        out_v.append(verts.reshape(-1, 3))
-        out_f.append((PRISM_FACES[None] + 6 * np.arange(len(ids))[:, None, None]).reshape(-1, 3))
-        out_o.append(np.repeat(ids, len(PRISM_FACES)))
+        groups.append((ids, np.concatenate([wide - lift, wide + lift], axis=1), PRISM_FACES))
     ids = np.flatnonzero(~prism)  # slivers: an oriented box around the triangle
     if len(ids):
         cr, n = corners[ids], normal[ids]
@@ -117,10 +118,8 @@ def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
         bits = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)])
         verts = (cr[:, :1] + xs[:, bits[:, 0], None] * ax[:, None] + ys[:, bits[:, 1], None] * ay[:, None]
                  + zs[:, bits[:, 2], None] * n[:, None])
-        out_v.append(verts.reshape(-1, 3))
-        out_f.append((BOX_FACES[None] + 8 * np.arange(len(ids))[:, None, None]).reshape(-1, 3))
-        out_o.append(np.repeat(ids, len(BOX_FACES)))
-    return out_v, out_f, out_o
+        groups.append((ids, verts, BOX_FACES))
+    return groups
 
 
 def sphere_icosahedra(center: np.ndarray, radius: np.ndarray, m: float) -> np.ndarray:
@@ -134,24 +133,23 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
     m = MARGIN * half_size
     gap = GAP * half_size
     n_tri = len(v0)
-    verts, faces, owner = triangle_prisms(v0, e1, e2, normal, m)
-    ico = sphere_icosahedra(center, radius, m)
+    groups = triangle_prisms(v0, e1, e2, normal, m)
     if len(radius):
-        verts.append(ico.reshape(-1, 3))
-        faces.append((ICO_FACES[None] + 12 * np.arange(len(radius))[:, None, None]).reshape(-1, 3))
-        owner.append(np.repeat(np.arange(len(radius)) + n_tri, len(ICO_FACES)))
-    base = np.cumsum([0] + [len(v) for v in verts])
-    all_faces = np.concatenate([f + base[k] for k, f in enumerate(faces)]) if faces else np.zeros((0, 3), np.int64)
-    all_verts = np.concatenate(verts) if verts else np.zeros((0, 3))
-    all_owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
+        groups.append((np.arange(len(radius)) + n_tri, sphere_icosahedra(center, radius, m), ICO_FACES))
     count = n_tri + len(radius)
     lo = np.full((count, 3), np.inf)
     hi = np.full((count, 3), -np.inf)
-    for v, f, o in zip(verts, faces, owner):  # each group holds proxies of one shape, vertices contiguous
-        ids = o[::len(f) // max(1, len(np.unique(o)))] if len(o) else o
-        per = len(v) // max(1, len(ids))
-        lo[ids] = v.reshape(len(ids), per, 3).min(axis=1)
-        hi[ids] = v.reshape(len(ids), per, 3).max(axis=1)
+    verts, faces, owner, base = [], [], [], 0
+    for ids, v, template in groups:  # v: (k, vertices per proxy, 3)
+        k, per = v.shape[:2]
+        lo[ids], hi[ids] = v.min(axis=1), v.max(axis=1)
+        verts.append(v.reshape(-1, 3))
+        faces.append((template[None] + base + per * np.arange(k)[:, None, None]).reshape(-1, 3))
+        owner.append(np.repeat(ids, len(template)))
+        base += k * per
+    all_verts = np.concatenate(verts) if verts else np.zeros((0, 3))
+    all_faces = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
+    all_owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
     i, j = overlapping_pairs(lo - gap, hi + gap)
     container = np.zeros(count)
     if len(radius) and len(i):

@@ -32,7 +32,6 @@ CHUNK_RAYS = 1 << 14
 Progress = Callable[[int, int], None]
 
 
-
 #: the largest image the renderer will make (16384 × 16384): its pixels alone take 768 MiB
 MAX_PIXELS = 1 << 28
 #: the most primary rays (pixels × sub-samples) one render will cast
@@ -78,6 +77,7 @@ class Renderer:
             self.world: World = build_world(scene)
             self.intersector = Intersector(self.world)
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
+        self.intersector.check = self._check
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
@@ -90,7 +90,6 @@ class Renderer:
         img = self.scene.image
         self._cancel = cancel
         self.slice_rays = chunk_rays
-        self.intersector.check = self._check
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
@@ -146,19 +145,17 @@ class Renderer:
             # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum
             fixed = 2.0 ** (48 - math.ceil(math.log2(ceiling)) - max(0, math.ceil(math.log2(self.slice_rays)) - 14))
             background = np.asarray(img.background, dtype=np.float64)
-            stack: list[tuple[np.ndarray, ...]] = [(origins, dirs, np.arange(n), np.ones(n),
-                                                    np.zeros(n, dtype=np.int8), np.full(n, -1, dtype=np.int64),
-                                                    np.zeros(1, dtype=np.int64))]
+            # a batch: origins, dirs, sub-sample, weight, surface left (kind, index), and its depth
+            stack: list[tuple[tuple[np.ndarray, ...], int]] = [
+                ((origins, dirs, np.arange(n), np.ones(n), np.zeros(n, dtype=np.int8), np.full(n, -1)), 0)]
             while stack:
-                o, d, smp, w, fk, fi, depth_box = stack.pop()
-                depth = int(depth_box[0])
-                if len(o) > self.slice_rays:  # split; the first slice goes on top, so it is traced first
-                    cut = range(0, len(o), self.slice_rays)
-                    for a in reversed(cut):
-                        stack.append((o[a:a + self.slice_rays], d[a:a + self.slice_rays],
-                                      smp[a:a + self.slice_rays], w[a:a + self.slice_rays],
-                                      fk[a:a + self.slice_rays], fi[a:a + self.slice_rays], depth_box))
+                batch, depth = stack.pop()
+                size = self.slice_rays
+                if len(batch[0]) > size:  # split; the first slice goes on top, so it is traced first
+                    stack += [(tuple(a[k:k + size] for a in batch), depth)
+                              for k in reversed(range(0, len(batch[0]), size))]
                     continue
+                o, d, smp, w, fk, fi = batch
                 self._check()
                 hits = self.intersector.closest(o, d, fk, fi)
                 missed = hits.kind == MISS
@@ -176,7 +173,7 @@ class Renderer:
                 children = self.secondary(hit, mat, normal, dd, ww, ss)
                 self._count("secondary", len(children[0]))
                 if len(children[0]):
-                    stack.append((*children, np.array([depth + 1])))
+                    stack.append((children, depth + 1))
             per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
 
