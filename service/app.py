@@ -24,6 +24,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app = FastAPI(title="phongray", version="0.1.0", docs_url=None, redoc_url=None,
                   description="A reference Phong/Whitted ray tracer: render, validate and grade scenes.")
     app.state.service = RenderService(settings)
+    app.state.flights = {}  # scene key → the render in progress that requests for it wait on (service.routes)
     app.include_router(router)
 
     @app.exception_handler(HTTPProblem)

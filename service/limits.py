@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import math
+from typing import Any
 
 from schemas import AreaLight, Mesh, Plane, Scene, Sphere, Triangle
 
@@ -50,6 +49,10 @@ def light_samples(scene: Scene) -> int:
                for light in scene.lights if light.type != "ambient")
 
 
+def triangle_count(scene: Scene) -> int:
+    return sum(1 if isinstance(o, Triangle) else len(o.faces) if isinstance(o, Mesh) else 0 for o in scene.objects)
+
+
 def ray_tree_nodes(scene: Scene) -> float:
     """Rays per sub-sample in the worst case: the ray tree doubles at every depth where a material both
     reflects and transmits, grows by one where materials only reflect or only transmit."""
@@ -67,8 +70,7 @@ def per_ray_factor(scene: Scene) -> float:
     directly) cost per ray, BVH candidates about log n, and every sphere around the eye is crossed."""
     spheres = [o for o in scene.objects if isinstance(o, Sphere)]
     planes = sum(isinstance(o, Plane) for o in scene.objects)
-    bvh = len(spheres) + sum(1 if isinstance(o, Triangle) else len(o.faces) if isinstance(o, Mesh) else 0
-                             for o in scene.objects)
+    bvh = len(spheres) + triangle_count(scene)
     eye = scene.camera.position
     around = sum(1 for o in spheres if math.dist(eye, o.center) < o.radius)  # (hypot: no overflow at 1e300)
     return 1.0 + planes / 4.0 + math.log2(1.0 + bvh) / 8.0 + around / 2.0
@@ -91,8 +93,7 @@ def check_scene(scene: Scene, settings: Settings) -> None:
         raise LimitError(f"image.samples: {img.samples} exceeds the limit max_samples = {settings.max_samples}")
     if img.max_depth > settings.max_depth:
         raise LimitError(f"image.max_depth: {img.max_depth} exceeds the limit max_depth = {settings.max_depth}")
-    triangles = sum(1 if isinstance(o, Triangle) else len(o.faces) if isinstance(o, Mesh) else 0
-                    for o in scene.objects)
+    triangles = triangle_count(scene)
     if triangles > settings.max_triangles:
         raise LimitError(f"objects: {triangles} triangles exceed the limit max_triangles = {settings.max_triangles}")
     samples = light_samples(scene)

@@ -90,9 +90,7 @@ async def _png(request: Request, job: Job) -> bytes:
     cached = service.cache.get(job.key)
     if cached is not None:
         return cached
-    flights: dict[str, _Flight] | None = getattr(request.app.state, "flights", None)
-    if flights is None:
-        flights = request.app.state.flights = {}
+    flights: dict[str, _Flight] = request.app.state.flights
     flight = flights.get(job.key)
     leader = flight is None
     if flight is None:
@@ -110,19 +108,16 @@ async def _png(request: Request, job: Job) -> bytes:
                 return
             await anyio.sleep(0.05)
 
-    async def run() -> None:
-        try:
-            flight.result = await anyio.to_thread.run_sync(service.png, job, lambda: flight.waiting <= 0)
-        except Exception as exc:  # shared with every waiter, re-raised below outside the task group
-            flight.failure = exc
-        finally:
-            flights.pop(job.key, None)
-            flight.done.set()
-
     async with anyio.create_task_group() as tasks:
         tasks.start_soon(watch)
         if leader:
-            await run()
+            try:
+                flight.result = await anyio.to_thread.run_sync(service.png, job, lambda: flight.waiting <= 0)
+            except Exception as exc:  # shared with every waiter, re-raised below outside the task group
+                flight.failure = exc
+            finally:
+                flights.pop(job.key, None)
+                flight.done.set()
         else:
             with waiting:
                 await flight.done.wait()

@@ -1,12 +1,16 @@
 """Whole scenes: the reference images, translation invariance, determinism and hard cases."""
 
 import copy
+import json
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
 
 from helpers import EXAMPLES, differing, mean_abs, reference, render_dict, scaled, scene_dict, translated
-from tracer import Renderer, encode_png
+from tracer import RenderCancelled, Renderer, encode_png
 import schemas
 
 
@@ -157,17 +161,12 @@ print(next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith(
 
 
 def test_deep_doubling_ray_tree_stays_within_bounded_memory():
-    import json
-    import subprocess
-    import sys
     out = subprocess.run([sys.executable, "-c", MEMORY_SCRIPT, json.dumps(nested_glass_and_mirror(10, 48))],
                          capture_output=True, text=True, check=True, timeout=300)
     assert int(out.stdout) < 1024  # MiB: depth-first slices, not 2^10 rays per sample at once
 
 
 def test_cancel_stops_a_render_inside_a_single_long_chunk():
-    import time
-    from tracer import RenderCancelled
     objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0 + k} for k in range(10_000)]
     scene = schemas.validate_scene({"camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
                                     "image": {"width": 32, "height": 32}, "materials": {"m": {}}, "objects": objs,
