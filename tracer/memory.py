@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import os
 
-M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_THRESHOLD = -1, -2, -3
+M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -2, -3, -8
 
 
 def _libc() -> ctypes.CDLL | None:
@@ -40,4 +41,7 @@ def tune_allocator() -> bool:
     ok = mallopt(M_MMAP_THRESHOLD, 256 << 20) == 1
     ok &= mallopt(M_TRIM_THRESHOLD, 512 << 20) == 1
     ok &= mallopt(M_TOP_PAD, 64 << 20) == 1
+    # two arenas per core, not one per thread: the service validates and renders on pool threads, and each idle
+    # arena would keep its pages
+    ok &= mallopt(M_ARENA_MAX, 2 * (os.cpu_count() or 1)) == 1
     return bool(ok)
