@@ -8,34 +8,17 @@ from typing import Any
 # phongray uses no pydantic plugins; not looking for any saves scanning every installed package at start-up
 os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
-from pydantic import ValidationError  # noqa: E402
-
-from .checks import check_scene, parallel
-from .errors import SceneError, format_problem, parse_json, problems_from_validation
-from .scene import (AmbientLight, AreaLight, Camera, DirectionalLight, Image, Material, Mesh, Plane,
-                    PointLight, Scene, Sphere, SpotLight, Triangle)
+from .checks import parallel  # noqa: E402
+from .errors import SceneError, format_problem, parse_json  # noqa: E402
+from .scene import (AmbientLight, AreaLight, Camera, DirectionalLight, Image, Material, Mesh,  # noqa: E402
+                    Plane, PointLight, Scene, Sphere, SpotLight, Triangle)
+from .validation import validate_scene  # noqa: E402
 
 __all__ = [
     "AmbientLight", "AreaLight", "Camera", "DirectionalLight", "Image", "Material", "Mesh", "Plane",
     "PointLight", "Scene", "SceneError", "Sphere", "SpotLight", "Triangle", "format_problem",
     "json_schema", "load_scene", "parallel", "validate_scene",
 ]
-
-
-def validate_scene(data: Any) -> Scene:
-    """Validate a parsed JSON document; raise :class:`SceneError` listing every problem."""
-    if not isinstance(data, dict):
-        raise SceneError([("", "a scene must be a JSON object")])
-    try:
-        scene = Scene.model_validate(data)
-    except ValidationError as exc:
-        raise SceneError(problems_from_validation(exc)) from None
-    except RecursionError:
-        raise SceneError([("", "the document is nested too deeply")]) from None
-    problems = check_scene(scene)
-    if problems:
-        raise SceneError(problems)
-    return scene
 
 
 def load_scene(text: str | bytes) -> Scene:

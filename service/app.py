@@ -12,7 +12,7 @@ from schemas import Scene
 
 from .jobs import RenderService
 from .middleware import ApiKey, BodyLimit
-from .routes import HTTPProblem, problem_response, router
+from .routes import HTTPProblem, SafeJSONResponse, problem_response, router
 from .settings import Settings
 
 STATIC = Path(__file__).parent / "static"
@@ -35,7 +35,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def on_invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
         errors = [{"path": ".".join(str(p) for p in err["loc"]), "message": err["msg"], "line": None}
                   for err in exc.errors()]
-        return JSONResponse({"detail": "invalid request", "errors": errors}, status_code=422)
+        return SafeJSONResponse({"detail": "invalid request", "errors": errors}, status_code=422)
 
     @app.get("/", response_class=HTMLResponse, include_in_schema=False)
     def playground() -> str:
@@ -63,7 +63,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         extra = settings.max_image_bytes if path == "/grade" else 0
         return settings.max_body_bytes + extra
 
-    app.add_middleware(BodyLimit, limit=body_limit)
+    app.add_middleware(BodyLimit, limit=body_limit, grace=settings.body_timeout, min_rate=settings.body_min_rate)
     if settings.api_key:
         app.add_middleware(ApiKey, key=settings.api_key)
     return app

@@ -172,7 +172,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
         except ImageTooLarge as exc:
             raise CliError(f"{args.scene}: {exc}") from None
         try:
-            submitted = grading.read_submission(image, (reference.shape[1], reference.shape[0]), 1 << 30)
+            submitted = grading.read_submission(image, (reference.shape[1], reference.shape[0]))
         except grading.ImageError as exc:
             raise CliError(f"{args.image}: {exc}") from None
         sha = hashlib.sha256(encode_png(reference)).hexdigest()

@@ -45,10 +45,12 @@ class Grade:
         return asdict(self)
 
 
-def read_submission(data: bytes, expected: tuple[int, int], max_bytes: int) -> np.ndarray:
-    """Decode a submitted PNG of ``expected = (width, height)`` safely: the size is checked before decoding."""
-    if len(data) > max_bytes:
-        raise ImageError(f"image is {len(data)} bytes, more than the limit of {max_bytes}")
+def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
+    """Decode a submitted PNG of ``expected = (width, height)`` safely: the size is checked on the header,
+    before anything is decompressed, so the decoded pixels are bounded by the scene's size.
+
+    A submission must be opaque: an alpha channel is accepted only when every pixel's alpha is full (a
+    render has no transparent pixels, and what a transparent one should be compared as is a guess)."""
     if not data.startswith(b"\x89PNG\r\n\x1a\n"):
         raise ImageError("image is not a PNG")
     if len(data) < 24 or data[12:16] != b"IHDR":
@@ -64,6 +66,10 @@ def read_submission(data: bytes, expected: tuple[int, int], max_bytes: int) -> n
                 raise ImageError(f"image is {img.size[0]}×{img.size[1]} pixels, the scene is "
                                  f"{expected[0]}×{expected[1]}")
             img.load()
+            if "A" in img.getbands() or "transparency" in img.info:
+                rgba = np.asarray(img.convert("RGBA"))
+                _opaque(rgba[:, :, 3])
+                return np.ascontiguousarray(rgba[:, :, :3])
             return np.asarray(img.convert("RGB"))
     except ImageError:
         raise
@@ -71,42 +77,72 @@ def read_submission(data: bytes, expected: tuple[int, int], max_bytes: int) -> n
         raise ImageError(f"image is truncated or corrupt ({type(exc).__name__})") from None
 
 
+def _opaque(alpha: np.ndarray) -> None:
+    clear = alpha < 255
+    count = int(np.count_nonzero(clear))
+    if count:
+        y, x = (int(v) for v in np.argwhere(clear)[0])
+        raise ImageError(f"image has {count} pixels that are not fully opaque (the first at x = {x}, y = {y}); "
+                         f"submit an opaque PNG (no alpha channel, or alpha 255 everywhere)")
+
+
+#: rows compared at once, so that the temporaries of a 4096×4096 comparison stay a few tens of MiB
+BAND = 256
+
+
 def _difference(reference: np.ndarray, submitted: np.ndarray) -> np.ndarray:
     return np.abs(reference.astype(np.int16) - submitted.astype(np.int16)).max(axis=2)
 
 
-def _nearby_difference(reference: np.ndarray, submitted: np.ndarray) -> np.ndarray:
-    """Per pixel, the smallest largest-channel difference to any reference pixel in the 3×3 neighbourhood."""
+def _nearby_difference(reference: np.ndarray, submitted: np.ndarray, top: int, bottom: int) -> np.ndarray:
+    """For rows ``top:bottom``, per pixel the smallest largest-channel difference to any reference pixel
+    in its 3×3 neighbourhood (edges repeat)."""
     h, w, _ = reference.shape
-    padded = np.pad(reference.astype(np.int16), ((1, 1), (1, 1), (0, 0)), mode="edge")
-    sub = submitted.astype(np.int16)
-    best = np.full((h, w), 255, dtype=np.int16)
+    rows = np.clip(np.arange(top - 1, bottom + 1), 0, h - 1)
+    padded = np.pad(reference[rows].astype(np.int16), ((0, 0), (1, 1), (0, 0)), mode="edge")
+    sub = submitted[top:bottom].astype(np.int16)
+    n = bottom - top
+    best = np.full((n, w), 255, dtype=np.int16)
     for dy in range(3):
         for dx in range(3):
-            diff = np.abs(padded[dy:dy + h, dx:dx + w] - sub).max(axis=2)
+            diff = np.abs(padded[dy:dy + n, dx:dx + w] - sub).max(axis=2)
             np.minimum(best, diff, out=best)
     return best
 
 
 def grade(reference: np.ndarray, submitted: np.ndarray, reference_sha256: str,
           tolerance: float = DEFAULT_TOLERANCE, max_fraction: float = DEFAULT_MAX_FRACTION) -> Grade:
-    diff = _difference(reference, submitted)
-    channels = np.abs(reference.astype(np.float64) - submitted.astype(np.float64))
-    mse = float(np.mean(channels**2))
-    nearby = float(np.mean(_nearby_difference(reference, submitted) > tolerance))
+    h, w, _ = reference.shape
+    total_abs, total_sq, max_error, off, off_nearby = 0, 0, 0, 0, 0  # exact integer sums
+    for top in range(0, h, BAND):
+        bottom = min(top + BAND, h)
+        channels = np.abs(reference[top:bottom].astype(np.int32) - submitted[top:bottom].astype(np.int32))
+        total_abs += int(channels.sum(dtype=np.int64))
+        total_sq += int((channels * channels).sum(dtype=np.int64))
+        diff = channels.max(axis=2)
+        max_error = max(max_error, int(diff.max()))
+        off += int(np.count_nonzero(diff > tolerance))
+        off_nearby += int(np.count_nonzero(_nearby_difference(reference, submitted, top, bottom) > tolerance))
+    values, pixels = 3 * h * w, h * w
+    mse = total_sq / values
+    nearby = off_nearby / pixels
     return Grade(
         passed=nearby <= max_fraction,
         tolerance=tolerance, max_fraction=max_fraction,
-        mean_abs_error=float(np.mean(channels)), rmse=math.sqrt(mse),
+        mean_abs_error=total_abs / values, rmse=math.sqrt(mse),
         psnr=None if mse == 0 else 10 * math.log10(255.0**2 / mse),
-        max_error=int(diff.max()), fraction_off=float(np.mean(diff > tolerance)),
-        fraction_off_nearby=nearby, width=reference.shape[1], height=reference.shape[0],
+        max_error=max_error, fraction_off=off / pixels,
+        fraction_off_nearby=nearby, width=w, height=h,
         reference_sha256=reference_sha256,
     )
 
 
 def heatmap(reference: np.ndarray, submitted: np.ndarray) -> bytes:
     """A PNG of the per-pixel difference: black where equal, through red and yellow to white at 64+ levels."""
-    x = np.clip(_difference(reference, submitted) / 64.0, 0.0, 1.0)
-    rgb = np.stack([np.clip(3 * x, 0, 1), np.clip(3 * x - 1, 0, 1), np.clip(3 * x - 2, 0, 1)], axis=2)
-    return encode_png(np.floor(255 * rgb + 0.5).astype(np.uint8))
+    h, w, _ = reference.shape
+    out = np.empty((h, w, 3), dtype=np.uint8)
+    for top in range(0, h, BAND):
+        x = np.clip(_difference(reference[top:top + BAND], submitted[top:top + BAND]) / 64.0, 0.0, 1.0)
+        rgb = np.stack([np.clip(3 * x, 0, 1), np.clip(3 * x - 1, 0, 1), np.clip(3 * x - 2, 0, 1)], axis=2)
+        out[top:top + BAND] = np.floor(255 * rgb + 0.5)
+    return encode_png(out)

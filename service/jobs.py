@@ -13,7 +13,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from schemas import Scene, parse_json, validate_scene
+import anyio
+import numpy as np
+
+from schemas import Mesh, Scene, parse_json, validate_scene
 from tracer import RenderCancelled, encode_png, render
 from tracer.memory import release
 
@@ -42,18 +45,50 @@ class Job:
         return f'"{self.key}"'
 
 
-def prepare(body: bytes | str, overrides: dict[str, int | None], settings: Settings) -> Job:
-    """Parse, apply image overrides, validate and check limits. Raises SceneError or LimitError."""
+def parse_counted(body: bytes | str, settings: Settings) -> Any:
+    """Parse a body whose size in objects and arrays is within the limits. Raises SceneError or LimitError."""
     check_body(body, settings)
     data = parse_json(body)
     check_raw(data, settings)
+    return data
+
+
+def prepare(body: bytes | str, overrides: dict[str, int | None], settings: Settings) -> Job:
+    """Parse, apply image overrides, validate and check limits. Raises SceneError or LimitError."""
+    data = parse_counted(body, settings)
     if isinstance(data, dict) and isinstance(data.get("image"), dict):
         data["image"].update({k: v for k, v in overrides.items() if v is not None})
     scene = validate_scene(data)
     check_scene(scene, settings)
-    canonical = json.dumps([RENDERER_VERSION, scene.model_dump(mode="json")], sort_keys=True,
-                           separators=(",", ":"))
-    return Job(scene, hashlib.sha256(canonical.encode()).hexdigest())
+    return Job(scene, scene_key(scene))
+
+
+#: rows of a mesh array hashed at once (each hashing step is a short call)
+KEY_ROWS = 65_536
+
+
+def scene_key(scene: Scene) -> str:
+    """sha256 of the canonical scene: its JSON (keys sorted) piece by piece, each mesh array as float64 or
+    int64 bytes, so a large mesh is hashed in short steps."""
+    digest = hashlib.sha256(RENDERER_VERSION.encode())
+
+    def put(value: Any) -> None:
+        text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+        digest.update(b"%d:" % len(text) + text.encode("utf-8", "surrogatepass"))
+
+    put(scene.model_dump(mode="json", exclude={"objects"}))
+    put(len(scene.objects))
+    for obj in scene.objects:
+        if not isinstance(obj, Mesh):
+            put(obj.model_dump(mode="json"))
+            continue
+        put(obj.model_dump(mode="json", exclude={"vertices", "faces", "normals"}))
+        for name, dtype in (("vertices", np.float64), ("faces", np.int64), ("normals", np.float64)):
+            rows = getattr(obj, name)
+            put([name, None if rows is None else len(rows)])
+            for start in range(0, len(rows or ()), KEY_ROWS):
+                digest.update(np.asarray(rows[start:start + KEY_ROWS], dtype=dtype).tobytes())
+    return digest.hexdigest()
 
 
 class RenderService:
@@ -62,6 +97,7 @@ class RenderService:
         self.cache = RenderCache(settings.cache_bytes)
         self.slots = threading.BoundedSemaphore(settings.max_concurrent_renders)
         self.threads = settings.render_threads or os.cpu_count() or 1
+        self.grading = anyio.CapacityLimiter(settings.max_concurrent_renders)  # decoding and comparing images
         self.renders = 0
 
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:

@@ -18,29 +18,51 @@ class LimitError(ValueError):
         self.status = status
 
 
+def shown(n: int) -> str:
+    """An integer for a message: in full up to 15 digits, else its order of magnitude (Python refuses
+    to format integers of more than 4300 digits, and nobody wants to read them)."""
+    if abs(n) < 10**15:
+        return str(n)
+    return f"about 10^{int(abs(n).bit_length() * math.log10(2))}"
+
+
 def check_body(body: bytes | str, settings: Settings) -> None:
-    """Before parsing: every face, vertex and normal is a JSON array, so a body with far more
-    ``[`` than a scene within the limits can hold is refused without the cost of parsing it."""
-    raw = body.encode() if isinstance(body, str) else body
+    """Before parsing: every object, material and light is a JSON object and every face, vertex and
+    normal a JSON array, so a body with far more ``{`` or ``[`` than a scene within the limits can hold
+    is refused without the cost of parsing it (a count of brackets, so strings holding them count too)."""
+    raw = body.encode("utf-8", "surrogatepass") if isinstance(body, str) else body
+    braces = raw.count(b"{")
+    allowed = settings.max_objects + 2 * settings.max_materials + settings.max_lights + 16
+    if braces > allowed:
+        raise LimitError(f"scene: {braces} JSON objects ('{{'), more than a scene within max_objects = "
+                         f"{settings.max_objects}, max_materials = {settings.max_materials} and max_lights = "
+                         f"{settings.max_lights} can have", 413)
     arrays = raw.count(b"[")
-    allowed = 2 * settings.max_triangles + 16 * settings.max_objects + 4 * settings.max_light_samples + 1024
+    allowed = (settings.max_triangles + 2 * settings.max_vertices + 16 * settings.max_objects
+               + 8 * settings.max_lights + 1024)
     if arrays > allowed:
-        raise LimitError(f"scene: {arrays} JSON arrays, more than a scene within max_triangles = "
-                         f"{settings.max_triangles} and max_objects = {settings.max_objects} can have")
+        raise LimitError(f"scene: {arrays} JSON arrays ('['), more than a scene within max_triangles = "
+                         f"{settings.max_triangles}, max_vertices = {settings.max_vertices} and max_objects = "
+                         f"{settings.max_objects} can have", 413)
 
 
 def check_raw(data: Any, settings: Settings) -> None:
-    """Cheap counts on the parsed JSON, before validation spends time on a huge scene."""
+    """Counts on the parsed JSON, before validation spends time on a huge scene."""
     if not isinstance(data, dict):
         return
+    for name, limit in (("objects", "max_objects"), ("lights", "max_lights"), ("materials", "max_materials")):
+        part = data.get(name)
+        if isinstance(part, (list, dict)) and len(part) > getattr(settings, limit):
+            raise LimitError(f"{name}: {len(part)} entries exceed the limit {limit} = {getattr(settings, limit)}")
     objects = data.get("objects")
-    if isinstance(objects, list):
-        if len(objects) > settings.max_objects:
-            raise LimitError(f"objects: {len(objects)} objects exceed the limit max_objects = {settings.max_objects}")
-        faces = sum(len(o["faces"]) for o in objects
-                    if isinstance(o, dict) and isinstance(o.get("faces"), list))
-        if faces > settings.max_triangles:
-            raise LimitError(f"objects: {faces} faces exceed the limit max_triangles = {settings.max_triangles}")
+    if not isinstance(objects, list):
+        return
+    meshes = [o for o in objects if isinstance(o, dict)]
+    for key, limit in (("faces", "max_triangles"), ("vertices", "max_vertices"), ("normals", "max_vertices")):
+        count = sum(len(o[key]) for o in meshes if isinstance(o.get(key), list))
+        if count > getattr(settings, limit):
+            raise LimitError(f"objects: {count} {key} in all exceed the limit {limit} = "
+                             f"{getattr(settings, limit)}")
 
 
 def light_samples(scene: Scene) -> int:
@@ -87,18 +109,18 @@ def check_scene(scene: Scene, settings: Settings) -> None:
     img = scene.image
     pixels = img.width * img.height
     if pixels > settings.max_pixels:
-        raise LimitError(f"image: {img.width}×{img.height} = {pixels} pixels exceed the limit "
+        raise LimitError(f"image: {shown(img.width)}×{shown(img.height)} = {shown(pixels)} pixels exceed the limit "
                          f"max_pixels = {settings.max_pixels}")
     if img.samples > settings.max_samples:
-        raise LimitError(f"image.samples: {img.samples} exceeds the limit max_samples = {settings.max_samples}")
+        raise LimitError(f"image.samples: {shown(img.samples)} exceeds the limit max_samples = {settings.max_samples}")
     if img.max_depth > settings.max_depth:
-        raise LimitError(f"image.max_depth: {img.max_depth} exceeds the limit max_depth = {settings.max_depth}")
+        raise LimitError(f"image.max_depth: {shown(img.max_depth)} exceeds the limit max_depth = {settings.max_depth}")
     triangles = triangle_count(scene)
     if triangles > settings.max_triangles:
         raise LimitError(f"objects: {triangles} triangles exceed the limit max_triangles = {settings.max_triangles}")
     samples = light_samples(scene)
     if samples > settings.max_light_samples:
-        raise LimitError(f"lights: {samples} light samples exceed the limit "
+        raise LimitError(f"lights: {shown(samples)} light samples exceed the limit "
                          f"max_light_samples = {settings.max_light_samples}")
     cost = estimated_cost(scene)
     if cost > settings.max_cost:

@@ -1,33 +1,43 @@
-"""ASGI middleware: request body size limit and API key."""
+"""ASGI middleware: the request body (size limit and minimum rate) and the API key."""
 
 from __future__ import annotations
 
 import hmac
 import json
+import time
 from typing import Any, Callable
+
+import anyio
 
 Scope = dict[str, Any]
 ASGIApp = Callable[..., Any]
 
 
-async def _send_json(send: Callable[..., Any], status: int, detail: str, headers: list | None = None) -> None:
+async def _send_json(send: Callable[..., Any], status: int, detail: str, headers: list | None = None,
+                     close: bool = False) -> None:
+    """A JSON error; ``close`` when the rest of the request will not be read (the connection cannot be reused)."""
     body = json.dumps({"detail": detail}).encode()
+    extra = [(b"connection", b"close")] if close else []
     await send({"type": "http.response.start", "status": status,
                 "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
-                            *(headers or [])]})
+                            *extra, *(headers or [])]})
     await send({"type": "http.response.body", "body": body})
 
 
 class BodyLimit:
-    """Refuse bodies over ``limit(path)`` bytes with 413, before the app sees them.
+    """Read the request body before the app sees it, and refuse what is too large or too slow.
 
-    A declared Content-Length is checked at once; otherwise the body is read
-    up to the limit and then replayed to the app, so memory stays bounded.
+    A declared Content-Length over ``limit(path)`` bytes gets 413 at once; otherwise the body is read
+    up to the limit (413 beyond it) and then replayed to the app, so memory stays bounded.  The body
+    must have arrived ``grace`` seconds after it started plus one second per ``min_rate`` bytes (408
+    otherwise), so a client trickling a byte a second is cut off.  Both errors close the connection.
     """
 
-    def __init__(self, app: ASGIApp, limit: Callable[[str], int]):
+    def __init__(self, app: ASGIApp, limit: Callable[[str], int], grace: float = 10.0, min_rate: float = 65536):
         self.app = app
         self.limit = limit
+        self.grace = grace
+        self.min_rate = min_rate
 
     async def __call__(self, scope: Scope, receive: Callable[..., Any], send: Callable[..., Any]) -> None:
         if scope["type"] != "http":
@@ -40,22 +50,29 @@ class BodyLimit:
                 try:
                     declared = int(value)
                 except ValueError:
-                    await _send_json(send, 400, "invalid Content-Length")
+                    await _send_json(send, 400, "invalid Content-Length", close=True)
                     return
                 if declared > limit:
                     await _send_json(send, 413, f"request body of {declared} bytes exceeds the limit "
-                                                f"max_body_bytes = {limit}")
+                                                f"max_body_bytes = {limit}", close=True)
                     return
         chunks: list[bytes] = []
         size = 0
+        started = time.monotonic()
         while True:
-            message = await receive()
+            due = started + self.grace + size / self.min_rate
+            with anyio.move_on_after(max(due - time.monotonic(), 0.0)) as waiting:
+                message = await receive()
+            if waiting.cancelled_caught:
+                await _send_json(send, 408, f"the request body arrived too slowly (body_timeout = {self.grace:g} s, "
+                                            f"then body_min_rate = {self.min_rate:g} bytes per second)", close=True)
+                return
             if message["type"] != "http.request":
                 return  # the client went away before sending its body
             chunk = message.get("body", b"")
             size += len(chunk)
             if size > limit:
-                await _send_json(send, 413, too_large)
+                await _send_json(send, 413, too_large, close=True)
                 return
             chunks.append(chunk)
             if not message.get("more_body", False):
@@ -72,8 +89,25 @@ class BodyLimit:
         await self.app(scope, replay, send)
 
 
+def credential(headers: list[tuple[bytes, bytes]]) -> bytes | None:
+    """The one credential of a request: ``Authorization: Bearer KEY`` (one space, nothing after the key)
+    or ``X-API-Key: KEY``.  None when there is none, more than one, or another scheme."""
+    given = [value for name, value in headers if name in (b"authorization", b"x-api-key")]
+    if len(given) != 1:
+        return None
+    (name,) = [name for name, _ in headers if name in (b"authorization", b"x-api-key")]
+    value = given[0]
+    if name == b"authorization":
+        if value[:7].lower() != b"bearer ":
+            return None
+        value = value[7:]
+    if not value or any(c <= 0x20 or c == 0x7F for c in value):
+        return None
+    return value
+
+
 class ApiKey:
-    """When a key is configured, every path but /healthz needs ``Authorization: Bearer KEY`` or ``X-API-Key: KEY``."""
+    """When a key is configured, every path but /healthz needs exactly one credential with that key."""
 
     def __init__(self, app: ASGIApp, key: str):
         self.app = app
@@ -83,12 +117,9 @@ class ApiKey:
         if scope["type"] != "http" or not self.key or scope["path"] == "/healthz":
             await self.app(scope, receive, send)
             return
-        headers = dict(scope.get("headers", []))
-        given = headers.get(b"x-api-key", b"")
-        auth = headers.get(b"authorization", b"")
-        if auth.lower().startswith(b"bearer "):
-            given = auth[7:].strip()
-        if not hmac.compare_digest(given, self.key):
-            await _send_json(send, 401, "missing or wrong API key", [(b"www-authenticate", b"Bearer")])
+        given = credential(scope.get("headers", []))
+        if given is None or not hmac.compare_digest(given, self.key):
+            await _send_json(send, 401, "missing or wrong API key (send exactly one of 'Authorization: Bearer KEY' "
+                                        "and 'X-API-Key: KEY')", [(b"www-authenticate", b"Bearer")])
             return
         await self.app(scope, receive, send)

@@ -4,6 +4,7 @@ event loop, and turns outcomes into status codes; none of them knows any physics
 from __future__ import annotations
 
 import hashlib
+import json
 import time
 from typing import Annotated, Any, Literal
 
@@ -12,12 +13,12 @@ from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse
 from starlette.datastructures import UploadFile
 
-from schemas import SceneError, json_schema, parse_json, validate_scene
+from schemas import SceneError, json_schema, validate_scene
 from schemas.locate import line_for, value_lines
 from tracer import ImageTooLarge, RenderCancelled, decode_png
 
 from . import grading
-from .jobs import Busy, Job, RenderService, TooSlow, prepare
+from .jobs import Busy, Job, RenderService, TooSlow, parse_counted, prepare
 from .limits import LimitError
 
 router = APIRouter()
@@ -40,11 +41,25 @@ class HTTPProblem(Exception):
         self.status, self.detail, self.errors, self.headers = status, detail, errors, headers
 
 
+class SafeJSONResponse(JSONResponse):
+    """JSON that can always be sent: text that is not valid Unicode (a lone surrogate from a scene's
+    ``"\\ud800"``) goes out as a JSON escape instead of failing to encode."""
+
+    def render(self, content: Any) -> bytes:
+        try:
+            return super().render(content)
+        except UnicodeEncodeError:
+            return json.dumps(content, ensure_ascii=True, allow_nan=False, separators=(",", ":")).encode()
+
+
 def problem_response(exc: HTTPProblem) -> JSONResponse:
     body: dict[str, Any] = {"detail": exc.detail}
     if exc.errors is not None:
         body["errors"] = exc.errors
-    return JSONResponse(body, status_code=exc.status, headers=exc.headers)
+    headers = dict(exc.headers or {})
+    if exc.status in (408, 413):  # the rest of the body is not read: the connection cannot be reused
+        headers["Connection"] = "close"
+    return SafeJSONResponse(body, status_code=exc.status, headers=headers)
 
 
 def scene_errors(exc: SceneError, text: bytes | str) -> list[dict[str, Any]]:
@@ -60,7 +75,7 @@ def scene_errors(exc: SceneError, text: bytes | str) -> list[dict[str, Any]]:
 
 
 def _require_json(request: Request) -> None:
-    kind = request.headers.get("content-type", "application/json").split(";")[0].strip().lower()
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind != "application/json" and not kind.endswith("+json"):
         raise HTTPProblem(415, f"content type must be application/json, got {kind or 'none'}")
 
@@ -68,6 +83,15 @@ def _require_json(request: Request) -> None:
 def _prepare(body: bytes | str, overrides: dict[str, int | None], service: RenderService) -> Job:
     try:
         return prepare(body, overrides, service.settings)
+    except SceneError as exc:
+        raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
+    except LimitError as exc:
+        raise HTTPProblem(exc.status, str(exc)) from None
+
+
+def _validate(body: bytes, service: RenderService) -> None:
+    try:
+        validate_scene(parse_counted(body, service.settings))
     except SceneError as exc:
         raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
     except LimitError as exc:
@@ -167,10 +191,7 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
 async def validate(request: Request) -> dict[str, bool]:
     _require_json(request)
     body = await request.body()
-    try:
-        validate_scene(parse_json(body))
-    except SceneError as exc:
-        raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
+    await anyio.to_thread.run_sync(_validate, body, request.app.state.service)
     return {"valid": True}
 
 
@@ -192,13 +213,31 @@ async def grade(request: Request, format: Literal["json", "png"] = "json") -> Re
         await form.close()
     tolerance = _number(form.get("tolerance"), "tolerance", grading.DEFAULT_TOLERANCE, 0, 255)
     max_fraction = _number(form.get("max_fraction"), "max_fraction", grading.DEFAULT_MAX_FRACTION, 0, 1)
+    settings = service.settings
+    if len(scene_text) > settings.max_body_bytes:
+        raise HTTPProblem(413, f"scene: {len(scene_text)} bytes exceed the limit max_body_bytes = "
+                               f"{settings.max_body_bytes}")
+    if len(image) > settings.max_image_bytes:
+        raise HTTPProblem(413, f"image: {len(image)} bytes exceed the limit max_image_bytes = "
+                               f"{settings.max_image_bytes}")
     job = await anyio.to_thread.run_sync(_prepare, scene_text, {}, service)
-    try:  # the submission is checked (and decoded) before any rendering is spent on it
-        submitted = grading.read_submission(image, (job.scene.image.width, job.scene.image.height),
-                                            service.settings.max_image_bytes)
+    size = (job.scene.image.width, job.scene.image.height)
+    # the submission is checked (and decoded) before any rendering is spent on it; decoding and comparing
+    # run on pool threads, a bounded number at once
+    submitted = await anyio.to_thread.run_sync(_read_image, image, size, limiter=service.grading)
+    png = await _png(request, job)
+    return await anyio.to_thread.run_sync(_compare, png, submitted, format, tolerance, max_fraction,
+                                          limiter=service.grading)
+
+
+def _read_image(image: bytes, size: tuple[int, int]) -> Any:
+    try:
+        return grading.read_submission(image, size)
     except grading.ImageError as exc:
         raise HTTPProblem(422, f"image: {exc}") from None
-    png = await _png(request, job)
+
+
+def _compare(png: bytes, submitted: Any, format: str, tolerance: float, max_fraction: float) -> Response:
     reference = decode_png(png)
     if format == "png":
         return Response(grading.heatmap(reference, submitted), media_type="image/png")
@@ -211,9 +250,9 @@ async def _field(value: Any, name: str, text: bool = True) -> Any:
         raise HTTPProblem(422, f"{name}: required form field")
     if isinstance(value, UploadFile):
         value = await value.read()
-    if text:
-        return value.decode("utf-8", "replace") if isinstance(value, bytes) else value
-    return value.encode() if isinstance(value, str) else value
+    if text:  # a scene as a file part stays bytes (the JSON parser decodes it, and refuses what is not UTF-8)
+        return value
+    return value.encode("utf-8", "surrogateescape") if isinstance(value, str) else value
 
 
 def _number(value: Any, name: str, default: float, low: float, high: float) -> float:

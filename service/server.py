@@ -1,27 +1,71 @@
-"""Running the app under uvicorn, with TCP_NODELAY on every connection.
+"""Running the app under uvicorn: connections that cannot be held open for free.
 
-A response goes out as two writes (headers, then body).  On a kept-alive
-connection Nagle's algorithm holds the body back until the client acknowledges
-the headers, and a client that delays its acknowledgements adds about 40 ms to
-every request; turning Nagle off removes that wait.
+* TCP_NODELAY on every connection.  A response goes out as two writes
+  (headers, then body); on a kept-alive connection Nagle's algorithm holds the
+  body back until the client acknowledges the headers, and a client that delays
+  its acknowledgements adds about 40 ms to every request.
+* A deadline for the request line and headers (``header_timeout``): uvicorn
+  waits for them forever, so a client trickling a header byte a second would
+  hold its connection open for as long as it likes.  (The body's deadline is in
+  :class:`service.middleware.BodyLimit`; idle kept-alive connections are closed
+  by uvicorn after ``keep_alive``; ``max_connections`` is uvicorn's
+  ``limit_concurrency``.)
 """
 
 from __future__ import annotations
 
+import asyncio
 import socket
 
+import h11
 import uvicorn
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
+from .settings import Settings
 
-class NoDelayH11Protocol(H11Protocol):
+
+class Protocol(H11Protocol):
+    header_timeout = Settings.from_env().header_timeout
+    _headers_due: asyncio.TimerHandle | None = None
+
     def connection_made(self, transport) -> None:  # type: ignore[no-untyped-def]
         sock = transport.get_extra_info("socket")
         if sock is not None and sock.family in (socket.AF_INET, socket.AF_INET6):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         super().connection_made(transport)
+        self._await_headers()
+
+    def data_received(self, data: bytes) -> None:
+        super().data_received(data)
+        if self.conn.their_state is not h11.IDLE:  # the request line and headers are in
+            self._stop_waiting()
+
+    def on_response_complete(self) -> None:
+        super().on_response_complete()
+        if not self.transport.is_closing():
+            self._await_headers()  # of the next request on this connection
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._stop_waiting()
+        super().connection_lost(exc)
+
+    def _await_headers(self) -> None:
+        self._stop_waiting()
+        self._headers_due = self.loop.call_later(self.header_timeout, self._headers_late)
+
+    def _stop_waiting(self) -> None:
+        if self._headers_due is not None:
+            self._headers_due.cancel()
+            self._headers_due = None
+
+    def _headers_late(self) -> None:
+        self._headers_due = None
+        if self.conn.their_state is h11.IDLE and not self.transport.is_closing():
+            self.transport.close()
 
 
 def serve(host: str, port: int, workers: int) -> None:
+    settings = Settings.from_env()
     uvicorn.run("service.app:create_app", factory=True, host=host, port=port, workers=workers,
-                http=NoDelayH11Protocol, log_level="info")
+                http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,
+                limit_concurrency=settings.max_connections)

@@ -19,6 +19,9 @@ class Settings:
     max_depth: int = 16
     max_objects: int = 10_000
     max_triangles: int = 250_000
+    max_vertices: int = 200_000  # mesh vertices in all (and as many normals)
+    max_materials: int = 1_000
+    max_lights: int = 1_024  # entries of "lights", ambient ones included
     max_light_samples: int = 1_024  # directional + point + spot lights + all area-light samples
     max_cost: float = 1e8  # ray work, see service/limits.py estimated_cost (about 1e6 per second on 2 cores)
     max_concurrent_renders: int = 2  # renders at once per worker process; more get 503
@@ -27,6 +30,11 @@ class Settings:
     cache_bytes: int = 64 * 1024 * 1024  # reference renders kept for /grade and /render
     retry_after: int = 1  # seconds, in the Retry-After header of a 503
     api_key: str = ""  # when set, every endpoint but /healthz needs it
+    header_timeout: float = 10.0  # seconds a client has to send a request line and its headers
+    body_timeout: float = 10.0  # seconds of grace for a request body ...
+    body_min_rate: int = 65_536  # ... which must then keep arriving at this many bytes per second (else 408)
+    keep_alive: float = 5.0  # seconds an idle kept-alive connection stays open
+    max_connections: int = 1_000  # open connections per worker process; beyond it, 503
 
     @classmethod
     def from_env(cls, environ: dict[str, str] | None = None) -> "Settings":
