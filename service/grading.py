@@ -90,46 +90,65 @@ def _opaque(alpha: np.ndarray) -> None:
 BAND = 256
 
 
+def _planes(img: np.ndarray) -> np.ndarray:
+    """(h, w, 3) → (3, h, w), each channel contiguous: the comparisons run over whole rows of bytes."""
+    return np.ascontiguousarray(np.moveaxis(img, 2, 0))
+
+
+def _absdiff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.maximum(a, b) - np.minimum(a, b)  # |a − b| in uint8, without widening
+
+
+def _largest(ref: np.ndarray, sub: np.ndarray) -> np.ndarray:
+    """Per pixel, the largest channel difference of two (3, h, w) planes."""
+    return np.maximum(np.maximum(_absdiff(ref[0], sub[0]), _absdiff(ref[1], sub[1])), _absdiff(ref[2], sub[2]))
+
+
 def _difference(reference: np.ndarray, submitted: np.ndarray) -> np.ndarray:
-    return np.abs(reference.astype(np.int16) - submitted.astype(np.int16)).max(axis=2)
+    return _largest(_planes(reference), _planes(submitted))
 
 
-def _nearby_difference(reference: np.ndarray, submitted: np.ndarray, top: int, bottom: int) -> np.ndarray:
-    """For rows ``top:bottom``, per pixel the smallest largest-channel difference to any reference pixel
-    in its 3×3 neighbourhood (edges repeat)."""
+def _nearby_difference(reference: np.ndarray, sub: np.ndarray, top: int, bottom: int) -> np.ndarray:
+    """For rows ``top:bottom`` (``sub`` is their submitted planes), per pixel the smallest largest-channel
+    difference to any reference pixel in its 3×3 neighbourhood (edges repeat)."""
     h, w, _ = reference.shape
     rows = np.clip(np.arange(top - 1, bottom + 1), 0, h - 1)
-    padded = np.pad(reference[rows].astype(np.int16), ((0, 0), (1, 1), (0, 0)), mode="edge")
-    sub = submitted[top:bottom].astype(np.int16)
+    padded = _planes(np.pad(reference[rows], ((0, 0), (1, 1), (0, 0)), mode="edge"))
     n = bottom - top
-    best = np.full((n, w), 255, dtype=np.int16)
+    best = np.full((n, w), 255, dtype=np.uint8)
     for dy in range(3):
         for dx in range(3):
-            diff = np.abs(padded[dy:dy + n, dx:dx + w] - sub).max(axis=2)
-            np.minimum(best, diff, out=best)
+            np.minimum(best, _largest(padded[:, dy:dy + n, dx:dx + w], sub), out=best)
     return best
 
 
 def grade(reference: np.ndarray, submitted: np.ndarray, reference_sha256: str,
           tolerance: float = DEFAULT_TOLERANCE, max_fraction: float = DEFAULT_MAX_FRACTION) -> Grade:
     h, w, _ = reference.shape
-    total_abs, total_sq, max_error, off, off_nearby = 0, 0, 0, 0, 0  # exact integer sums
+    levels = np.arange(256, dtype=np.int64)
+    histogram = np.zeros(256, dtype=np.int64)  # of every channel difference: exact sums from it
+    max_error, off, off_nearby = 0, 0, 0
     for top in range(0, h, BAND):
         bottom = min(top + BAND, h)
-        channels = np.abs(reference[top:bottom].astype(np.int32) - submitted[top:bottom].astype(np.int32))
-        total_abs += int(channels.sum(dtype=np.int64))
-        total_sq += int((channels * channels).sum(dtype=np.int64))
-        diff = channels.max(axis=2)
-        max_error = max(max_error, int(diff.max()))
-        off += int(np.count_nonzero(diff > tolerance))
-        off_nearby += int(np.count_nonzero(_nearby_difference(reference, submitted, top, bottom) > tolerance))
+        ref, sub = _planes(reference[top:bottom]), _planes(submitted[top:bottom])
+        channels = [_absdiff(ref[c], sub[c]) for c in range(3)]
+        for c in channels:
+            histogram += np.bincount(c.ravel(), minlength=256)
+        diff = np.maximum(np.maximum(channels[0], channels[1]), channels[2])
+        band_off = int(np.count_nonzero(diff > tolerance))
+        if band_off:  # only then can a pixel be off even nearby (its own reference pixel is one of the nine)
+            off += band_off
+            max_error = max(max_error, int(diff.max()))
+            off_nearby += int(np.count_nonzero(_nearby_difference(reference, sub, top, bottom) > tolerance))
+        else:
+            max_error = max(max_error, int(diff.max()))
     values, pixels = 3 * h * w, h * w
-    mse = total_sq / values
+    mse = int(histogram @ (levels * levels)) / values
     nearby = off_nearby / pixels
     return Grade(
         passed=nearby <= max_fraction,
         tolerance=tolerance, max_fraction=max_fraction,
-        mean_abs_error=total_abs / values, rmse=math.sqrt(mse),
+        mean_abs_error=int(histogram @ levels) / values, rmse=math.sqrt(mse),
         psnr=None if mse == 0 else 10 * math.log10(255.0**2 / mse),
         max_error=max_error, fraction_off=off / pixels,
         fraction_off_nearby=nearby, width=w, height=h,

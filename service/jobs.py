@@ -131,5 +131,5 @@ class RenderService:
         return data
 
     def status(self) -> dict[str, Any]:
-        return {"cache_entries": len(self.cache), "cache_bytes": self.cache.size, "cache_hits": self.cache.hits,
+        return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size, "cache_hits": self.cache.hits,
                 "renders": self.renders}

@@ -16,12 +16,15 @@ from starlette.datastructures import UploadFile
 from schemas import SceneError, json_schema, validate_scene
 from schemas.locate import line_for, value_lines
 from tracer import ImageTooLarge, RenderCancelled, decode_png
+from tracer.memory import release
 
 from . import grading
 from .jobs import Busy, Job, RenderService, TooSlow, parse_counted, prepare
 from .limits import LimitError
 
 router = APIRouter()
+#: bodies from this size on leave enough garbage to be worth handing back to the OS at once
+LARGE_BODY = 1 << 20
 
 SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {"schema": {
     "$ref": "#/components/schemas/Scene"}}}}}
@@ -87,6 +90,9 @@ def _prepare(body: bytes | str, overrides: dict[str, int | None], service: Rende
         raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
     except LimitError as exc:
         raise HTTPProblem(exc.status, str(exc)) from None
+    finally:
+        if len(body) > LARGE_BODY:
+            release()  # the parsed document of a large body is garbage now
 
 
 def _validate(body: bytes, service: RenderService) -> None:
@@ -96,6 +102,9 @@ def _validate(body: bytes, service: RenderService) -> None:
         raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
     except LimitError as exc:
         raise HTTPProblem(exc.status, str(exc)) from None
+    finally:
+        if len(body) > LARGE_BODY:
+            release()
 
 
 class _Flight:
@@ -234,15 +243,20 @@ def _read_image(image: bytes, size: tuple[int, int]) -> Any:
     try:
         return grading.read_submission(image, size)
     except grading.ImageError as exc:
+        release()  # what a refused decode allocated goes back to the OS
         raise HTTPProblem(422, f"image: {exc}") from None
 
 
 def _compare(png: bytes, submitted: Any, format: str, tolerance: float, max_fraction: float) -> Response:
-    reference = decode_png(png)
-    if format == "png":
-        return Response(grading.heatmap(reference, submitted), media_type="image/png")
-    result = grading.grade(reference, submitted, hashlib.sha256(png).hexdigest(), tolerance, max_fraction)
-    return JSONResponse(result.as_dict())
+    try:
+        reference = decode_png(png)
+        if format == "png":
+            return Response(grading.heatmap(reference, submitted), media_type="image/png")
+        result = grading.grade(reference, submitted, hashlib.sha256(png).hexdigest(), tolerance, max_fraction)
+        return JSONResponse(result.as_dict())
+    finally:
+        del submitted
+        release()
 
 
 async def _field(value: Any, name: str, text: bool = True) -> Any:

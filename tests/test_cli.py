@@ -39,6 +39,16 @@ def test_validate_ok_and_errors(tmp_path, capsys):
     assert "objects[0].radius: must be > 0" in capsys.readouterr().out
 
 
+def test_validate_prints_names_that_are_not_valid_unicode(tmp_path):
+    data = json.loads((SCENES / "01_three_spheres.json").read_text())
+    data["objects"][0]["material"] = "\ud800"
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data))  # ASCII: the lone surrogate as the escape \ud800
+    result = run("validate", str(bad))
+    assert result.returncode == 1 and b"Traceback" not in result.stderr
+    assert b"unknown material '\\ud800'" in result.stdout
+
+
 def test_schema_prints_json(capsys):
     assert main(["schema"]) == 0
     assert json.loads(capsys.readouterr().out)["type"] == "object"
