@@ -98,6 +98,9 @@ class RenderService:
         self.slots = threading.BoundedSemaphore(settings.max_concurrent_renders)
         self.threads = settings.render_threads or os.cpu_count() or 1
         self.grading = anyio.CapacityLimiter(settings.max_concurrent_renders)  # decoding and comparing images
+        # parsing and validating: a thread per core at most, so that a burst of requests never has dozens of
+        # threads queueing for the interpreter in front of the event loop (the others wait without a thread)
+        self.parsing = anyio.CapacityLimiter(os.cpu_count() or 1)
         self.renders = 0
 
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:

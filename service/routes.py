@@ -185,7 +185,7 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
     service: RenderService = request.app.state.service
     body = await request.body()
     job = await anyio.to_thread.run_sync(_prepare, body, {"width": width, "height": height, "samples": samples},
-                                         service)
+                                         service, limiter=service.parsing)
     headers = {"ETag": job.etag, "Cache-Control": "no-cache"}
     if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
         return Response(status_code=304, headers=headers)
@@ -200,7 +200,8 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
 async def validate(request: Request) -> dict[str, bool]:
     _require_json(request)
     body = await request.body()
-    await anyio.to_thread.run_sync(_validate, body, request.app.state.service)
+    service: RenderService = request.app.state.service
+    await anyio.to_thread.run_sync(_validate, body, service, limiter=service.parsing)
     return {"valid": True}
 
 
@@ -229,7 +230,7 @@ async def grade(request: Request, format: Literal["json", "png"] = "json") -> Re
     if len(image) > settings.max_image_bytes:
         raise HTTPProblem(413, f"image: {len(image)} bytes exceed the limit max_image_bytes = "
                                f"{settings.max_image_bytes}")
-    job = await anyio.to_thread.run_sync(_prepare, scene_text, {}, service)
+    job = await anyio.to_thread.run_sync(_prepare, scene_text, {}, service, limiter=service.parsing)
     size = (job.scene.image.width, job.scene.image.height)
     # the submission is checked (and decoded) before any rendering is spent on it; decoding and comparing
     # run on pool threads, a bounded number at once

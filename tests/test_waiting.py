@@ -61,7 +61,7 @@ def test_identical_concurrent_requests_render_once_and_all_get_the_image(tmp_pat
     with running_server(tmp_path, render_threads="1") as (url, _):
         statuses, latencies = burst(url, slow_scene(200), 100)
         assert statuses == [200] * 100
-        assert latencies  # /healthz answered throughout (its latency is reported, not yet bounded, here)
+        assert latencies and max(latencies) < 100, sorted(latencies)[-5:]  # /healthz answered throughout, fast
         assert health(url)["renders"] == 1
 
 
