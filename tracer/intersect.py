@@ -296,7 +296,7 @@ class Intersector:
             self._test(best, inside[inward], q[inward], o, d, from_prim, mag_o, ends, reach, mag_e)
             start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
             margin[inside] = p.container[q]
-        last = from_prim.copy()  # the primitive each ray tested last (a prism's exit follows its entry)
+        last = from_prim.copy()  # the primitive each ray tested last (a proxy's exit follows its entry)
 
         def open_rows(rows: np.ndarray) -> np.ndarray:
             if any_hit:

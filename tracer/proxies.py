@@ -3,8 +3,10 @@
 Embree works in float32, so it only *finds candidates*; every hit is then
 decided in float64 (:mod:`tracer.shapes`).  For that to be exact, a ray that
 hits a surface in float64 must hit its stand-in in float32.  Each triangle is
-therefore replaced by a closed prism (its own triangle grown by ``m`` in its
-plane, ``m`` thick on each side) and each sphere by a closed icosahedron whose
+therefore replaced by a closed tetrahedron that contains the prism of its own
+triangle grown by ``m`` in its plane and ``m`` thick on each side (four faces
+where the prism has eight: Embree's build costs by the face), and each sphere
+by a closed icosahedron whose
 faces lie ``m`` outside the sphere, where ``m`` is many times the float32
 rounding of the BVH's normalised coordinates.  Embree's watertight (robust)
 mode then cannot let a ray through a proxy's surface.
@@ -58,8 +60,8 @@ _n = np.cross(ICO_VERTICES[ICO_FACES[:, 1]] - ICO_VERTICES[ICO_FACES[:, 0]],
 #: circumradius over inradius of the icosahedron
 ICO_SCALE = 1.0 / float(np.min(np.abs(np.einsum("ij,ij->i", _n / np.linalg.norm(_n, axis=1, keepdims=True),
                                                   ICO_VERTICES[ICO_FACES[:, 0]]))))
-#: a prism over a triangle (bottom 0,1,2; top 3,4,5) and an oriented box (corner bits x,y,z)
-PRISM_FACES = np.array([[0, 2, 1], [3, 4, 5], [0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4], [2, 0, 3], [2, 3, 5]])
+#: a tetrahedron over a triangle (base 0,1,2; apex 3) and an oriented box (corner bits x,y,z)
+TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
 BOX_FACES = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
                       [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
 
@@ -84,7 +86,11 @@ class Proxies:
 
 def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray,
                     m: float) -> list[Group]:
-    """Closed proxies of triangles, one group per shape: prisms, and oriented boxes for slivers."""
+    """Closed proxies of triangles, one group per shape: tetrahedra, and oriented boxes for slivers.
+
+    The tetrahedron's base lies ``m`` below the triangle's plane and its apex a quarter of the inradius
+    (at least ``4 m``) above the incentre; its base is grown about the incentre so that its section at
+    ``m`` above the plane is still the triangle grown by ``m``: it contains that whole prism."""
     corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (T, 3, 3)
     a = np.linalg.norm(corners[:, 1] - corners[:, 2], axis=1)
     b = np.linalg.norm(corners[:, 2] - corners[:, 0], axis=1)
@@ -100,9 +106,12 @@ def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     if len(ids):
         cr = corners[ids]
         incenter = (a[ids, None] * cr[:, 0] + b[ids, None] * cr[:, 1] + c[ids, None] * cr[:, 2]) / perimeter[ids, None]
-        wide = incenter[:, None] + grow[ids, None, None] * (cr - incenter[:, None])
-        lift = m * normal[ids][:, None, :]
-        groups.append((ids, np.concatenate([wide - lift, wide + lift], axis=1), PRISM_FACES))
+        height = np.maximum(inradius[ids] / 4.0, 4.0 * m)
+        base_grow = grow[ids] * (height + m) / (height - m)  # the section at +m shrinks by (h − m)/(h + m)
+        n = normal[ids]
+        base = incenter[:, None] + base_grow[:, None, None] * (cr - incenter[:, None]) - m * n[:, None, :]
+        apex = incenter + height[:, None] * n
+        groups.append((ids, np.concatenate([base, apex[:, None]], axis=1), TET_FACES))
     ids = np.flatnonzero(~prism)  # slivers: an oriented box around the triangle
     if len(ids):
         cr, n = corners[ids], normal[ids]
@@ -189,7 +198,8 @@ def _csr(count: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """All pairs ``i < j`` of boxes that overlap, found through a uniform grid. Each (K,), int64.
+    """All pairs ``i < j`` of boxes that overlap, found through a uniform grid. Each (K,), int64, in no
+    particular (but a deterministic) order.
 
     Boxes much larger than the typical one are tested against every box
     directly.  Raises :class:`TooManyOverlaps` past :data:`PAIR_BUDGET`.
@@ -208,6 +218,9 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     span = np.clip(c_hi - c_lo + 1, 1, 2**20)
     cells = np.prod(span, axis=1)
     big = ~(cells <= 27)
+    # the cell of each box's low corner, an axis per contiguous column
+    low = np.where(big[:, None], 0, c_lo).astype(np.int64)
+    lx, ly, lz = (np.ascontiguousarray(low[:, a]) for a in range(3))
     pairs_i, pairs_j = [], []
     small = np.flatnonzero(~big)
     if len(small):
@@ -217,9 +230,7 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         k = np.arange(len(box)) - np.repeat(np.cumsum(per) - per, per)
         sy, sz = np.repeat(sp[:, 1], per), np.repeat(sp[:, 2], per)
         kx, ky, kz = k // (sy * sz), (k // sz) % sy, k % sz
-        base = c_lo[box].astype(np.int64)
-        gx, gy, gz = base[:, 0] + kx, base[:, 1] + ky, base[:, 2] + kz
-        key = (gx * (1 << 21) + gy) * (1 << 21) + gz
+        key = ((lx[box] + kx) * (1 << 21) + ly[box] + ky) * (1 << 21) + lz[box] + kz
         order = np.argsort(key, kind="stable")
         key, box = key[order], box[order]
         first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
@@ -233,8 +244,8 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         b = a + 1 + (np.arange(total) - np.repeat(np.cumsum(partners) - partners, partners))
         i, j = box[a], box[b]
         # each overlapping pair shares many cells: keep it only in the cell of the larger of its two low corners
-        ref = np.maximum(c_lo[i], c_lo[j]).astype(np.int64)
-        own = key[a] == (ref[:, 0] * (1 << 21) + ref[:, 1]) * (1 << 21) + ref[:, 2]
+        own = key[a] == ((np.maximum(lx[i], lx[j]) * (1 << 21) + np.maximum(ly[i], ly[j])) * (1 << 21)
+                         + np.maximum(lz[i], lz[j]))
         pairs_i.append(i[own])
         pairs_j.append(j[own])
     big_ids = np.flatnonzero(big)
@@ -255,6 +266,8 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         code = np.unique(np.minimum(bi, bj).astype(np.int64) * n + np.maximum(bi, bj))
         i, j = np.concatenate([i, code // n]), np.concatenate([j, code % n])
     i, j = np.minimum(i, j), np.maximum(i, j)
-    keep = (i != j) & np.all(lo[i] <= hi[j], axis=1) & np.all(lo[j] <= hi[i], axis=1)
-    order = np.lexsort((j[keep], i[keep]))
-    return i[keep][order], j[keep][order]
+    keep = i != j
+    for axis in range(3):  # sharing a cell is not overlapping: test the boxes, an axis at a time
+        lo_a, hi_a = np.ascontiguousarray(lo[:, axis]), np.ascontiguousarray(hi[:, axis])
+        keep &= (lo_a[i] <= hi_a[j]) & (lo_a[j] <= hi_a[i])
+    return i[keep], j[keep]
