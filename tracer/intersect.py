@@ -61,16 +61,29 @@ def _nothing() -> None:
 
 
 def slab(origins: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Where each ray's line enters and leaves the box ``lo..hi`` (empty when enter > leave). Each (N,)."""
+    """Where each ray's line enters and leaves the box ``lo..hi`` (empty when enter > leave). Each (N,).
+
+    An axis at a time, on 1-D columns.  Along an axis the ray does not move on (a zero direction), the
+    slab is all of the line when the origin lies in it (closed) and none of it otherwise."""
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    near = far = None
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        inv = 1.0 / dirs
-        t0 = (lo - origins) * inv
-        t1 = (hi - origins) * inv
-    zero = dirs == 0
-    inside = (origins >= lo) & (origins <= hi)
-    near = np.where(zero, np.where(inside, -np.inf, np.inf), np.minimum(t0, t1))
-    far = np.where(zero, np.where(inside, np.inf, -np.inf), np.maximum(t0, t1))
-    return near.max(axis=1), far.min(axis=1)
+        for a in range(3):
+            o, d = origins[:, a], dirs[:, a]
+            la, ha = (lo[..., a], hi[..., a])
+            inv = 1.0 / d
+            t0 = (la - o) * inv
+            t1 = (ha - o) * inv
+            lo_t, hi_t = np.minimum(t0, t1), np.maximum(t0, t1)
+            flat = d == 0
+            if flat.any():
+                inside = (o >= la) & (o <= ha)
+                lo_t = np.where(flat, np.where(inside, -np.inf, np.inf), lo_t)
+                hi_t = np.where(flat, np.where(inside, np.inf, -np.inf), hi_t)
+            near = lo_t if near is None else np.maximum(near, lo_t)
+            far = hi_t if far is None else np.minimum(far, hi_t)
+    assert near is not None and far is not None
+    return near, far
 
 
 class _Best:
@@ -197,11 +210,14 @@ class Intersector:
             blocked |= t < reach
         if self.bvh is not None:
             open_ = np.flatnonzero(~blocked)
-            best = _Best(reach[open_])
-            self._walk(best, origins[open_], dirs[open_], fk[open_], fi[open_], mag_o[open_],
-                       None if ends is None else ends[open_], reach[open_],
-                       None if mag_e is None else mag_e[open_], any_hit=True)
-            blocked[open_] = best.t < reach[open_]
+
+            def pick(a: np.ndarray | None) -> np.ndarray | None:  # no copies when every ray is still open
+                return a if a is None or len(open_) == n else a[open_]
+
+            best = _Best(pick(reach))
+            self._walk(best, pick(origins), pick(dirs), pick(fk), pick(fi), pick(mag_o), pick(ends), pick(reach),
+                       pick(mag_e), any_hit=True)
+            blocked[open_] = best.t < pick(reach)
         return blocked
 
     # -- the parts -----------------------------------------------------------

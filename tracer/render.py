@@ -205,17 +205,25 @@ class Renderer:
             rows = np.flatnonzero((nl > 0) & (factor > 0))
             if len(rows) == 0:
                 continue
-            shadow_dirs = np.ascontiguousarray(to_light[rows])
+            every = len(rows) == len(nl)  # then no gathering: the rows are all of them, in order
+
+            def pick(a: np.ndarray) -> np.ndarray:
+                return a if every else a[rows]
+
+            shadow_dirs = np.ascontiguousarray(pick(to_light))
             # from the exact hit point, leaving its surface by identity, to the light itself
             if em.kind == "directional":
                 reach, ends = np.full(len(rows), np.inf), None
             else:
-                reach, ends = dist[rows], np.broadcast_to(em.position, (len(rows), 3))
+                reach, ends = pick(dist), np.broadcast_to(em.position, (len(rows), 3))
             self._count("shadow", len(rows))
-            weight = np.zeros(len(nl))
-            blocked = self.intersector.occluded(hit.point[rows], shadow_dirs, reach, hit.kind[rows], hit.index[rows],
+            blocked = self.intersector.occluded(pick(hit.point), shadow_dirs, reach, pick(hit.kind), pick(hit.index),
                                                 ends)
-            weight[rows] = np.where(blocked, 0.0, factor[rows])
+            if every:
+                weight = np.where(blocked, 0.0, factor)
+            else:
+                weight = np.zeros(len(nl))
+                weight[rows] = np.where(blocked, 0.0, factor[rows])
             rv = 2.0 * nl * nv + np.einsum("ij,ij->i", to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
             colour += em.color * phong(diffuse, specular, shininess, nl, rv, weight)
         return colour

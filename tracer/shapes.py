@@ -82,9 +82,14 @@ def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np
             mag_origin: np.ndarray, mag_plane: np.ndarray | float, leaving: np.ndarray | None = None,
             ends: np.ndarray | None = None, mag_end: np.ndarray | None = None) -> np.ndarray:
     """t > 0 where each ray meets a plane, ``inf`` where it does not (or starts or ends on it). Shape (N,)."""
-    normal = np.broadcast_to(normal, origins.shape)
-    dist = _dot(origins - point, normal)
-    denom = _dot(dirs, normal)
+    n = np.asarray(normal, dtype=np.float64)
+    if n.ndim == 1:  # one plane for all rays: three scaled columns, no broadcast copy
+        dist = (origins[:, 0] - point[0]) * n[0] + (origins[:, 1] - point[1]) * n[1] + (origins[:, 2] - point[2]) * n[2]
+        denom = dirs[:, 0] * n[0] + dirs[:, 1] * n[1] + dirs[:, 2] * n[2]
+    else:
+        dist = _dot(origins - point, n)
+        denom = _dot(dirs, n)
+    normal = n
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -dist / denom
     skip = np.abs(dist) <= on_tolerance(mag_origin, mag_plane)
@@ -92,7 +97,7 @@ def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np
         skip |= leaving
     if ends is not None:
         assert mag_end is not None
-        skip |= np.abs(_dot(ends - point, normal)) <= on_tolerance(mag_end, mag_plane)
+        skip |= np.abs(_dot(ends - point, np.broadcast_to(normal, ends.shape))) <= on_tolerance(mag_end, mag_plane)
     return np.where(~skip & (denom != 0) & (t > 0) & np.isfinite(t), t, np.inf)
 
 
