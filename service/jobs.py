@@ -126,6 +126,7 @@ class RenderService:
                     raise TooSlow() from None
                 raise
             data = encode_png(pixels)
+            del pixels  # before the release below, so that its pages go back too
             self.renders += 1
         finally:
             self.slots.release()

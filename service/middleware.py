@@ -9,7 +9,11 @@ from typing import Any, Callable
 
 import anyio
 
+from tracer.memory import release
+
 Scope = dict[str, Any]
+#: bodies from this size on leave enough garbage to be worth handing back to the OS at once
+LARGE_BODY = 1 << 20
 ASGIApp = Callable[..., Any]
 
 
@@ -73,6 +77,8 @@ class BodyLimit:
             size += len(chunk)
             if size > limit:
                 await _send_json(send, 413, too_large, close=True)
+                chunks.clear()
+                await anyio.to_thread.run_sync(release)
                 return
             chunks.append(chunk)
             if not message.get("more_body", False):
@@ -83,10 +89,17 @@ class BodyLimit:
             nonlocal replayed
             if not replayed:
                 replayed = True
-                return {"type": "http.request", "body": b"".join(chunks), "more_body": False}
+                body = b"".join(chunks)
+                chunks.clear()
+                return {"type": "http.request", "body": body, "more_body": False}
             return await receive()
 
-        await self.app(scope, replay, send)
+        try:
+            await self.app(scope, replay, send)
+        finally:
+            if size > LARGE_BODY:  # a large body leaves its copies, parsed document and more behind: hand them back
+                chunks.clear()
+                await anyio.to_thread.run_sync(release)
 
 
 def credential(headers: list[tuple[bytes, bytes]]) -> bytes | None:

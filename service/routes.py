@@ -23,8 +23,6 @@ from .jobs import Busy, Job, RenderService, TooSlow, parse_counted, prepare
 from .limits import LimitError
 
 router = APIRouter()
-#: bodies from this size on leave enough garbage to be worth handing back to the OS at once
-LARGE_BODY = 1 << 20
 
 SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {"schema": {
     "$ref": "#/components/schemas/Scene"}}}}}
@@ -90,9 +88,6 @@ def _prepare(body: bytes | str, overrides: dict[str, int | None], service: Rende
         raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
     except LimitError as exc:
         raise HTTPProblem(exc.status, str(exc)) from None
-    finally:
-        if len(body) > LARGE_BODY:
-            release()  # the parsed document of a large body is garbage now
 
 
 def _validate(body: bytes, service: RenderService) -> None:
@@ -102,9 +97,6 @@ def _validate(body: bytes, service: RenderService) -> None:
         raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
     except LimitError as exc:
         raise HTTPProblem(exc.status, str(exc)) from None
-    finally:
-        if len(body) > LARGE_BODY:
-            release()
 
 
 class _Flight:
@@ -234,9 +226,9 @@ async def grade(request: Request, format: Literal["json", "png"] = "json") -> Re
     size = (job.scene.image.width, job.scene.image.height)
     # the submission is checked (and decoded) before any rendering is spent on it; decoding and comparing
     # run on pool threads, a bounded number at once
-    submitted = await anyio.to_thread.run_sync(_read_image, image, size, limiter=service.grading)
+    decoded = [await anyio.to_thread.run_sync(_read_image, image, size, limiter=service.grading)]
     png = await _png(request, job)
-    return await anyio.to_thread.run_sync(_compare, png, submitted, format, tolerance, max_fraction,
+    return await anyio.to_thread.run_sync(_compare, png, decoded, format, tolerance, max_fraction,
                                           limiter=service.grading)
 
 
@@ -248,15 +240,18 @@ def _read_image(image: bytes, size: tuple[int, int]) -> Any:
         raise HTTPProblem(422, f"image: {exc}") from None
 
 
-def _compare(png: bytes, submitted: Any, format: str, tolerance: float, max_fraction: float) -> Response:
+def _compare(png: bytes, decoded: list[Any], format: str, tolerance: float, max_fraction: float) -> Response:
+    """Grade the submission in ``decoded`` (taken out of it, so that nothing else holds its pixels) and hand
+    the memory of both images back to the OS before answering."""
+    submitted = decoded.pop()
+    reference = decode_png(png)
     try:
-        reference = decode_png(png)
         if format == "png":
             return Response(grading.heatmap(reference, submitted), media_type="image/png")
         result = grading.grade(reference, submitted, hashlib.sha256(png).hexdigest(), tolerance, max_fraction)
         return JSONResponse(result.as_dict())
     finally:
-        del submitted
+        del submitted, reference
         release()
 
 
