@@ -52,19 +52,30 @@ def _lines(exc: Any) -> list[str]:
 class ProgressBar:
     """A one-line progress bar on stderr, shown only on a terminal and only after a second."""
 
-    def __init__(self, delay: float = 1.0):
+    def __init__(self, delay: float = 1.0, unit: str | None = None):
         self.start = time.monotonic()
         self.delay = delay
+        self.unit = unit  # when set, the line shows "done/total unit" and an ETA
         self.shown = False
         self.enabled = sys.stderr.isatty()
+        self.first: tuple[float, int] | None = None
 
     def __call__(self, done: int, total: int) -> None:
-        if not self.enabled or time.monotonic() - self.start < self.delay:
+        now = time.monotonic()
+        if self.first is None:
+            self.first = (now, done)
+        if not self.enabled or now - self.start < self.delay:
             return
         self.shown = True
         width = 30
         filled = int(width * done / max(total, 1))
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * done / max(total, 1):5.1f}%")
+        line = f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * done / max(total, 1):5.1f}%"
+        if self.unit:
+            t0, d0 = self.first
+            rate = (done - d0) / max(now - t0, 1e-9)
+            eta = f"{int((total - done) / rate) // 60}:{int((total - done) / rate) % 60:02d}" if rate > 0 else "?"
+            line += f" {done}/{total} {self.unit}, ETA {eta}  "
+        sys.stderr.write(line)
         sys.stderr.flush()
 
     def close(self) -> None:
@@ -186,6 +197,28 @@ def cmd_grade(args: argparse.Namespace) -> int:
     return 0 if result["passed"] else 1
 
 
+def cmd_grade_class(args: argparse.Namespace) -> int:
+    """Exit 0 when the batch ran (whatever the verdicts), 2 when its input is unusable."""
+    from .classgrade import ClassError, grade_class
+
+    if not 0 <= args.tolerance <= 255 or not 0 <= args.max_fraction <= 1:
+        raise CliError("--tolerance must be in 0..255 and --max-fraction in 0..1")
+    bar = ProgressBar(unit="pairs")
+    try:
+        outcome = grade_class(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
+                              args.max_fraction, jobs=args.jobs, server=args.server, progress=bar)
+    except ClassError as exc:
+        raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
+    finally:
+        bar.close()
+    for name in outcome.ignored:
+        print(f"ignored: {name}", file=sys.stderr)
+    print(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}")
+    return 0
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     from .server import serve
 
@@ -239,6 +272,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--heatmap", metavar="OUT.png", help="write the difference heat-map")
     p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
     p.set_defaults(func=cmd_grade)
+
+    p = sub.add_parser("grade-class", help="grade every student's images of every task; write a report",
+                       description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images "
+                                   "(a SUBMISSIONS/<student>/<task>.json is that student's own scene). Writes "
+                                   "report.json, report.csv, index.html, references and heat-maps into REPORT.")
+    p.add_argument("scenes", metavar="SCENES_DIR")
+    p.add_argument("submissions", metavar="SUBMISSIONS_DIR")
+    p.add_argument("-o", "--output", metavar="REPORT_DIR", required=True, help="where the report goes")
+    p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (default 2)")
+    p.add_argument("--max-fraction", type=float, default=0.001,
+                   help="fraction of pixels that may be off even against their 3×3 neighbourhood (default 0.001)")
+    p.add_argument("--jobs", type=_positive_int, help="processes (default: all cores; with --server, 4 requests)")
+    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
+    p.set_defaults(func=cmd_grade_class)
 
     p = sub.add_parser("serve", help="run the HTTP service")
     p.add_argument("--host", default="127.0.0.1")

@@ -12,9 +12,18 @@ from typing import Any
 class ServerError(Exception):
     """The server answered with an error, or could not be reached."""
 
-    def __init__(self, message: str, status: int = 0, body: Any = None):
+    def __init__(self, message: str, status: int = 0, body: Any = None, headers: dict[str, str] | None = None):
         super().__init__(message)
-        self.status, self.body = status, body
+        self.status, self.body, self.headers = status, body, headers or {}
+
+    @property
+    def retry_after(self) -> float | None:
+        """Seconds the server asked to wait (a 503's ``Retry-After``), or None."""
+        value = {k.lower(): v for k, v in self.headers.items()}.get("retry-after")
+        try:
+            return max(0.0, float(value)) if value is not None else None
+        except ValueError:
+            return None
 
 
 def _call(request: urllib.request.Request, timeout: float) -> tuple[int, bytes, dict[str, str]]:
@@ -29,7 +38,7 @@ def _call(request: urllib.request.Request, timeout: float) -> tuple[int, bytes, 
         except ValueError:
             body = raw.decode("utf-8", "replace")
         detail = body.get("detail", body) if isinstance(body, dict) else body
-        raise ServerError(f"server answered {exc.code}: {detail}", exc.code, body) from None
+        raise ServerError(f"server answered {exc.code}: {detail}", exc.code, body, dict(exc.headers or {})) from None
     except (urllib.error.URLError, OSError) as exc:
         reason = getattr(exc, "reason", exc)
         raise ServerError(f"cannot reach {request.full_url}: {reason}") from None
