@@ -1,4 +1,4 @@
-"""``phongray bench``: speed against Embree and POV-Ray, memory, HTTP latency, speed against error.
+"""``phongray bench``: speed against Embree and POV-Ray, memory, class grading, HTTP latency, speed against error.
 
 Everything is measured in one run on this machine and written to
 ``OUT/report.md``, ``OUT/results.json`` and ``OUT/*.png``.
@@ -30,6 +30,7 @@ import tracer
 from tracer.render import Renderer
 
 from . import povray
+from .classbench import class_rows
 from .plot import plot
 from .scenes import example, speed_scenes, with_image
 
@@ -291,6 +292,16 @@ def report(results: dict[str, Any]) -> str:
             lines.append(f"| {h['clients']} | {h['requests']} | {_f(h['median_ms'], 1)} | {_f(h['p99_ms'], 1)} | "
                          f"{h['renders_per_s']:.1f} | {h['codes']} |")
         lines.append("")
+    if results.get("class"):
+        lines += ["## Class grading", "", "40 students × 4 tasks at 320×240, one task randomised per student (43 "
+                  "distinct scenes), graded from scratch: every reference rendered, every pair compared, the report "
+                  "written. Local: `phongray grade-class` with a process per core. Server: `--server` against "
+                  "`phongray serve --workers 2` (one render thread per worker), 4 requests at a time.", "",
+                  "| mode | pairs | references rendered | seconds | pairs/s |", "|---|---|---|---|---|"]
+        for c in results["class"]:
+            lines.append(f"| {c['mode']} | {c['pairs']} | {c['references']} | {c['seconds']:.1f} | "
+                         f"{c['pairs_per_s']:.1f} |")
+        lines.append("")
     lines += ["## Speed against error", ""]
     for k in results["quality"]:
         lines += [f"### {k['knob']}", "", f"Error against a reference rendered at {k['reference']}.", "",
@@ -313,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="bench/out", help="directory for report.md, results.json and plots")
     parser.add_argument("--runs", type=int, default=2, help="runs per measurement; the best is kept")
     parser.add_argument("--only", nargs="*", help="speed scenes to run (default: all)")
-    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "memory", "http", "quality"])
+    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "memory", "http", "quality", "class"])
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -325,7 +336,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "command": "phongray bench " + " ".join(argv if argv is not None else sys.argv[1:]),
         "povray": _povray_version() if pov else None,
-        "speed": [], "memory": None, "http": None, "quality": [],
+        "speed": [], "memory": None, "http": None, "quality": [], "class": None,
     }
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -340,6 +351,11 @@ def main(argv: list[str] | None = None) -> int:
         if "memory" not in args.skip:
             results["memory"] = memory_4k(work)
             print(f"memory 4096²: {results['memory']['peak_mib']:.0f} MiB", flush=True)
+        if "class" not in args.skip:
+            results["class"] = class_rows(work, _free_port())
+            for c in results["class"]:
+                print(f"class grading, {c['mode']}: {c['pairs']} pairs in {c['seconds']:.1f} s, "
+                      f"{c['pairs_per_s']:.1f} pairs/s", flush=True)
     if "http" not in args.skip:
         results["http"] = [http_latency(seconds=5.0, clients=clients, workers=2) for clients in (2, 4)]
         for h in results["http"]:
