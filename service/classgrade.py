@@ -3,8 +3,9 @@
 Layout: ``SCENES/<task>.json`` are the tasks; ``SUBMISSIONS/<student>/<task>.png`` the images, and a
 ``SUBMISSIONS/<student>/<task>.json`` is that student's own scene for that task.  References are kept
 in ``REPORT/references/<scene key>.png`` (the service's canonical scene hash), so a re-run renders only
-what it does not have.  Renders and comparisons run in a pool of processes (every core), or on a
-running service with ``server``.  Every file of the report is written whole or not at all.
+what it does not have.  Renders and comparisons are tasks (bytes in, bytes out) run in a pool of
+processes (every core), on a Dask cluster with ``cluster``, or as requests to a running service with
+``server``.  Every file of the report is written here, whole or not at all.
 """
 
 from __future__ import annotations
@@ -81,42 +82,36 @@ def discover(scenes: Path, submissions: Path) -> Batch:
     return Batch(tasks, [p.name for p in student_dirs], pairs, ignored)
 
 
-# -- work done in the pool (module level, so that spawned processes can import it) --------------------------
+# -- the tasks: bytes in, bytes out, so that they run alike in a local pool and on Dask workers ---------------
 
-def _render_job(scene_path: str, out: str) -> str | None:
-    """Render a scene file to ``out`` (written whole); the reason when it cannot be rendered."""
+def render_task(scene: bytes) -> tuple[bytes | None, str]:
+    """The reference PNG of a scene's text, or (None, the reason it cannot be rendered)."""
     from schemas import load_scene
     from tracer import ImageTooLarge, encode_png, render
 
     try:
-        pixels = render(load_scene(Path(scene_path).read_bytes()), threads=1)
+        return encode_png(render(load_scene(scene), threads=1)), ""
     except ImageTooLarge as exc:
-        return f"{scene_path}: {exc}"
-    write_atomic(Path(out), encode_png(pixels))
-    return None
+        return None, str(exc)
 
 
-def _grade_job(reference: str, image: str, heatmap: str, copy: str, tolerance: float,
-               max_fraction: float) -> dict[str, Any]:
-    """Grade one submission against a reference PNG on disk; write its heat-map and a copy of it."""
+def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float) -> dict[str, Any]:
+    """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"``; or an
+    invalid row whose reason lacks only the file's name."""
     import hashlib
 
     from tracer import decode_png
 
     from . import grading
 
-    data = Path(image).read_bytes()
-    ref_png = Path(reference).read_bytes()
-    pixels = decode_png(ref_png)
+    pixels = decode_png(reference)
     try:
-        submitted = grading.read_submission(data, (pixels.shape[1], pixels.shape[0]))
+        submitted = grading.read_submission(image, (pixels.shape[1], pixels.shape[0]))
     except grading.ImageError as exc:
-        return {"status": "invalid", "reason": f"{image}: {exc}"}
-    result = grading.grade(pixels, submitted, hashlib.sha256(ref_png).hexdigest(), tolerance, max_fraction)
-    write_atomic(Path(heatmap), grading.heatmap(pixels, submitted))
-    write_atomic(Path(copy), data)
-    out = result.as_dict()
-    return {**out, "status": "pass" if result.passed else "fail", "reason": ""}
+        return {"status": "invalid", "reason": str(exc)}
+    result = grading.grade(pixels, submitted, hashlib.sha256(reference).hexdigest(), tolerance, max_fraction)
+    return {**result.as_dict(), "status": "pass" if result.passed else "fail", "reason": "",
+            "heatmap_png": grading.heatmap(pixels, submitted)}
 
 
 def write_atomic(path: Path, data: bytes) -> None:
@@ -172,8 +167,9 @@ def _keys(batch: Batch) -> dict[str, str]:
 
 
 def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float = 2.0, max_fraction: float = 0.001,
-                jobs: int | None = None, server: str | None = None,
+                jobs: int | None = None, server: str | None = None, cluster: str | None = None,
                 progress: Callable[[int, int], None] | None = None) -> Outcome:
+    """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away."""
     started = time.perf_counter()
     batch = discover(scenes, submissions)
     scene_of_key = _keys(batch)
@@ -184,12 +180,25 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     total = len(batch.pairs)
     if progress:
         progress(done, total)
+    def tick() -> None:
+        if progress:
+            progress(sum(bool(p.row) for p in batch.pairs), total)
+
     if server:
-        renders = _on_server(server, todo, needed, refs, report, tolerance, max_fraction, jobs or 4,
-                             lambda: progress(sum(bool(p.row) for p in batch.pairs), total) if progress else None)
+        renders = _on_server(server, todo, needed, refs, report, tolerance, max_fraction, jobs or 4, tick)
+    elif cluster:
+        from .cluster import connect
+
+        with connect(cluster) as client:
+            renders = _in_pool(client.get_executor(retries=2), todo, needed, refs, report, tolerance,
+                               max_fraction, tick)
+    elif todo or needed:
+        workers = max(1, min(jobs or os.cpu_count() or 1, len(todo) + len(needed)))
+        context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
+        with futures.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+            renders = _in_pool(pool, todo, needed, refs, report, tolerance, max_fraction, tick)
     else:
-        renders = _locally(todo, needed, refs, report, tolerance, max_fraction, jobs or os.cpu_count() or 1,
-                           lambda: progress(sum(bool(p.row) for p in batch.pairs), total) if progress else None)
+        renders = 0
     rows = [_row(p, refs, report) for p in batch.pairs]
     outcome = Outcome(rows, batch.ignored, renders, time.perf_counter() - started)
     write_report(report, outcome, batch)
@@ -200,45 +209,58 @@ def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
     return report / "heatmaps" / pair.student / f"{pair.task}.png", report / "submissions" / pair.student / f"{pair.task}.png"
 
 
-def _locally(todo: list[Pair], needed: dict[str, Path], refs: dict[str, Path], report: Path, tolerance: float,
-             max_fraction: float, jobs: int, tick: Callable[[], Any]) -> int:
-    """Render what is missing, then grade, in a pool of processes; a pair is graded as soon as its reference is in."""
-    if not todo and not needed:
-        return 0
+def _in_pool(pool: futures.Executor, todo: list[Pair], needed: dict[str, Path], refs: dict[str, Path],
+             report: Path, tolerance: float, max_fraction: float, tick: Callable[[], Any]) -> int:
+    """Render what is missing, then grade, on ``pool`` (processes here, or Dask workers); a pair is graded as soon
+    as its reference is in.  Files are written here, never by the tasks."""
     waiting: dict[str, list[Pair]] = {}
     for pair in todo:
         waiting.setdefault(pair.key or "", []).append(pair)
-    context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
-    with futures.ProcessPoolExecutor(max_workers=max(1, min(jobs, len(todo) + len(needed))), mp_context=context) as pool:
-        pending: dict[futures.Future, tuple[str, Any]] = {}
+    pending: dict[Any, tuple[str, Any]] = {}
+    references: dict[str, bytes] = {}
 
-        def grade(pairs: list[Pair]) -> None:
-            for pair in pairs:
-                heat, copy = _paths(pair, report)
-                fut = pool.submit(_grade_job, str(refs[pair.key or ""]), str(pair.image), str(heat), str(copy),
-                                  tolerance, max_fraction)
-                pending[fut] = ("grade", pair)
+    def grade(pairs: list[Pair]) -> None:
+        for pair in pairs:
+            assert pair.image is not None and pair.key is not None
+            if pair.key not in references:
+                references[pair.key] = refs[pair.key].read_bytes()
+            fut = pool.submit(grade_task, references[pair.key], pair.image.read_bytes(), tolerance, max_fraction)
+            pending[fut] = ("grade", pair)
 
-        for key, scene in needed.items():
-            pending[pool.submit(_render_job, str(scene), str(refs[key]))] = ("render", key)
-        for key, pairs in waiting.items():
-            if key not in needed:
-                grade(pairs)
-        while pending:
-            finished, _ = futures.wait(pending, return_when=futures.FIRST_COMPLETED)
-            for fut in finished:
-                kind, what = pending.pop(fut)
-                if kind == "render":
-                    failure = fut.result()
-                    if failure:
-                        for pair in waiting.get(what, []):
-                            pair.row = {"status": "invalid", "reason": failure}
-                    else:
-                        grade(waiting.get(what, []))
+    for key, scene in needed.items():
+        pending[pool.submit(render_task, scene.read_bytes())] = ("render", key)
+    for key, pairs in waiting.items():
+        if key not in needed:
+            grade(pairs)
+    while pending:
+        finished, _ = futures.wait(list(pending), return_when=futures.FIRST_COMPLETED)
+        for fut in finished:
+            kind, what = pending.pop(fut)
+            if kind == "render":
+                png, failure = fut.result()
+                if png is None:
+                    for pair in waiting.get(what, []):
+                        pair.row = {"status": "invalid", "reason": f"{needed[what]}: {failure}"}
                 else:
-                    what.row = fut.result()
-            tick()
+                    write_atomic(refs[what], png)
+                    references[what] = png
+                    grade(waiting.get(what, []))
+            else:
+                _graded(what, fut.result(), report)
+        tick()
     return len(needed)
+
+
+def _graded(pair: Pair, result: dict[str, Any], report: Path) -> None:
+    """Keep a grade task's row; write its heat-map and the copy of the submission."""
+    if result["status"] == "invalid":
+        pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
+        return
+    heat, copy = _paths(pair, report)
+    write_atomic(heat, result.pop("heatmap_png"))
+    assert pair.image is not None
+    write_atomic(copy, pair.image.read_bytes())
+    pair.row = result
 
 
 def _on_server(server: str, todo: list[Pair], needed: dict[str, Path], refs: dict[str, Path], report: Path,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -110,7 +111,18 @@ def cmd_render(args: argparse.Namespace) -> int:
     bar = ProgressBar()
     started = time.perf_counter()
     try:
-        pixels = render(scene, threads=args.threads, progress=bar)
+        if args.cluster:
+            from .cluster import ClusterError, connect
+            from .cluster import render as render_on
+
+            try:
+                with connect(args.cluster) as client:
+                    pixels = render_on(client, scene.model_dump_json().encode(), scene.image.width,
+                                       scene.image.height)
+            except ClusterError as exc:
+                raise CliError(str(exc)) from None
+        else:
+            pixels = render(scene, threads=args.threads, progress=bar)
     except ImageTooLarge as exc:
         raise CliError(f"{args.scene}: {exc}") from None
     bar.close()
@@ -203,11 +215,16 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
 
     if not 0 <= args.tolerance <= 255 or not 0 <= args.max_fraction <= 1:
         raise CliError("--tolerance must be in 0..255 and --max-fraction in 0..1")
+    from .cluster import ClusterError
+
+    if args.server and args.cluster:
+        raise CliError("--server and --cluster: choose one")
     bar = ProgressBar(unit="pairs")
     try:
         outcome = grade_class(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
-                              args.max_fraction, jobs=args.jobs, server=args.server, progress=bar)
-    except ClassError as exc:
+                              args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
+                              progress=bar)
+    except (ClassError, ClusterError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
         raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
@@ -256,6 +273,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=_positive_int, help="worker threads (default: all cores)")
     p.add_argument("-q", "--quiet", action="store_true")
     p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
+    p.add_argument("--cluster", metavar="tcp://HOST:PORT", default=os.environ.get("PHONGRAY_CLUSTER") or None,
+                   help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
+                        "needs 'phongray[cluster]')")
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("validate", help="check a scene; print every error with its place")
@@ -285,6 +305,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fraction of pixels that may be off even against their 3×3 neighbourhood (default 0.001)")
     p.add_argument("--jobs", type=_positive_int, help="processes (default: all cores; with --server, 4 requests)")
     p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
+    p.add_argument("--cluster", metavar="tcp://HOST:PORT", default=os.environ.get("PHONGRAY_CLUSTER") or None,
+                   help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
+                        "needs 'phongray[cluster]')")
     p.set_defaults(func=cmd_grade_class)
 
     p = sub.add_parser("serve", help="run the HTTP service")

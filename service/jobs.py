@@ -35,6 +35,10 @@ class TooSlow(Exception):
     """The render ran past the time limit."""
 
 
+class ClusterDown(Exception):
+    """The Dask cluster the renders go to cannot be reached."""
+
+
 @dataclass(frozen=True)
 class Job:
     scene: Scene
@@ -102,6 +106,8 @@ class RenderService:
         # threads queueing for the interpreter in front of the event loop (the others wait without a thread)
         self.parsing = anyio.CapacityLimiter(os.cpu_count() or 1)
         self.renders = 0
+        self._dask: Any = None
+        self._client_lock = threading.Lock()
 
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:
         """The PNG of a job, from the cache or rendered. Raises Busy, TooSlow or RenderCancelled.
@@ -120,7 +126,17 @@ class RenderService:
                 return cancelled() or time.monotonic() > deadline
 
             try:
-                pixels = render(job.scene, threads=self.threads, cancel=stop)
+                if self.settings.cluster:
+                    from .cluster import render as render_on
+
+                    try:
+                        client = self._client()
+                    except (OSError, TimeoutError) as exc:
+                        raise ClusterDown(str(exc)) from None
+                    pixels = render_on(client, job.scene.model_dump_json().encode(), job.scene.image.width,
+                                       job.scene.image.height, cancelled=stop)
+                else:
+                    pixels = render(job.scene, threads=self.threads, cancel=stop)
             except RenderCancelled:
                 if time.monotonic() > deadline:
                     raise TooSlow() from None
@@ -133,6 +149,15 @@ class RenderService:
             release()  # give what the render freed back to the OS, so memory returns to its baseline
         self.cache.put(job.key, data)
         return data
+
+    def _client(self) -> Any:
+        """The one Dask client of this process, made on first use (``settings.cluster``)."""
+        with self._client_lock:
+            if self._dask is None:
+                from .cluster import _distributed
+
+                self._dask = _distributed().Client(self.settings.cluster, timeout=10, set_as_default=False)
+            return self._dask
 
     def status(self) -> dict[str, Any]:
         return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size, "cache_hits": self.cache.hits,

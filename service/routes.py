@@ -19,7 +19,7 @@ from tracer import ImageTooLarge, RenderCancelled, decode_png
 from tracer.memory import release
 
 from . import grading
-from .jobs import Busy, Job, RenderService, TooSlow, parse_counted, prepare
+from .jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted, prepare
 from .limits import LimitError
 
 router = APIRouter()
@@ -159,6 +159,9 @@ async def _png(request: Request, job: Job) -> bytes:
                           headers={"Retry-After": str(service.settings.retry_after)}) from None
     except TooSlow:
         raise HTTPProblem(503, f"the render ran past the limit render_timeout = {service.settings.render_timeout:g} s",
+                          headers={"Retry-After": str(service.settings.retry_after)}) from None
+    except ClusterDown:
+        raise HTTPProblem(503, "the render cluster cannot be reached; try again shortly",
                           headers={"Retry-After": str(service.settings.retry_after)}) from None
     except RenderCancelled:
         raise HTTPProblem(499, "client closed the request") from None

@@ -35,6 +35,7 @@ class Settings:
     body_min_rate: int = 65_536  # ... which must then keep arriving at this many bytes per second (else 408)
     keep_alive: float = 5.0  # seconds an idle kept-alive connection stays open
     max_connections: int = 1_000  # open connections per worker process; beyond it, 503
+    cluster: str = ""  # a Dask scheduler (tcp://HOST:PORT): renders go to its workers instead of this process
 
     @classmethod
     def from_env(cls, environ: dict[str, str] | None = None) -> "Settings":

@@ -81,18 +81,25 @@ class Renderer:
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
-               progress: Progress | None = None, cancel: Callable[[], bool] | None = None) -> np.ndarray:
-        """The image as ``(H, W, 3) uint8``.
+               progress: Progress | None = None, cancel: Callable[[], bool] | None = None,
+               rows: tuple[int, int] | None = None) -> np.ndarray:
+        """The image as ``(H, W, 3) uint8``, or only its rows ``top..bottom`` with ``rows``.
 
-        ``cancel`` is polled before every chunk; once it returns True the
-        remaining chunks are skipped and :class:`RenderCancelled` is raised.
+        Every pixel is computed alone (its sums are exact integers), so a band of
+        rows is byte for byte the same rows of the whole image.  ``cancel`` is
+        polled before every chunk; once it returns True the remaining chunks are
+        skipped and :class:`RenderCancelled` is raised.
         """
         img = self.scene.image
         self._cancel = cancel
         self.slice_rays = chunk_rays
-        total = img.width * img.height
+        top, bottom = rows if rows is not None else (0, img.height)
+        if not 0 <= top <= bottom <= img.height:
+            raise ValueError(f"rows {top}..{bottom} are not within 0..{img.height}")
+        first, end = top * img.width, bottom * img.width
+        total = end - first
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
-        bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        bounds = [(a, min(a + per_chunk, end)) for a in range(first, end, per_chunk)]
         out = np.empty((total, 3), dtype=np.uint8)
         workers = threads or os.cpu_count() or 1
 
@@ -104,7 +111,7 @@ class Renderer:
             if stopped or (cancel is not None and cancel()):
                 stopped = True
                 return 0
-            out[a:b] = quantize(self.chunk(a, b))
+            out[a - first:b - first] = quantize(self.chunk(a, b))
             return b - a
 
         if workers == 1 or len(bounds) == 1:
@@ -122,7 +129,7 @@ class Renderer:
                         progress(done, total)
         if stopped:
             raise RenderCancelled("the render was cancelled")
-        return out.reshape(img.height, img.width, 3)
+        return out.reshape(bottom - top, img.width, 3)
 
     # -- one chunk ---------------------------------------------------------
     def chunk(self, start: int, stop: int) -> np.ndarray:

@@ -1,0 +1,79 @@
+"""The one module that talks to Dask distributed (the optional ``phongray[cluster]`` extra).
+
+Work goes to a cluster as ordinary tasks: a render is split into bands of rows
+(:func:`band_task`), each band rendered alone on some worker and the bands
+stacked in order.  Every pixel is computed on its own with exact integer sums,
+so the stacked image is byte for byte the local one.  Dask reschedules the
+tasks of a worker that dies; phongray adds nothing of its own on top.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+
+INSTALL = "--cluster needs Dask distributed: pip install 'phongray[cluster]'"
+#: pixels per band of a cluster render (a 3840×2160 image is 32 bands)
+BAND_PIXELS = 1 << 18
+
+
+class ClusterError(Exception):
+    """Dask is not installed, or the scheduler cannot be reached."""
+
+
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise ClusterError(INSTALL) from None
+    return distributed
+
+
+@contextlib.contextmanager
+def connect(address: str, timeout: float = 10.0) -> Iterator[Any]:
+    """A Dask client of the scheduler at ``address`` (``tcp://HOST:PORT``), closed afterwards."""
+    distributed = _distributed()
+    try:
+        client = distributed.Client(address, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def band_task(scene: bytes, top: int, bottom: int) -> np.ndarray:
+    """Rows ``top..bottom`` of a scene's image, ``(bottom − top, W, 3) uint8``."""
+    from schemas import load_scene
+    from tracer.render import Renderer
+
+    return Renderer(load_scene(scene)).pixels(threads=1, rows=(top, bottom))
+
+
+def bands(width: int, height: int) -> list[tuple[int, int]]:
+    rows = max(1, BAND_PIXELS // max(width, 1))
+    return [(top, min(top + rows, height)) for top in range(0, height, rows)]
+
+
+def render(client: Any, scene: bytes, width: int, height: int,
+           cancelled: Callable[[], bool] = lambda: False, poll: float = 0.05) -> np.ndarray:
+    """The image of a scene rendered band by band on the cluster; ``cancelled()`` is polled while waiting and,
+    once true, the bands still to come are cancelled and :class:`tracer.RenderCancelled` is raised."""
+    from tracer import RenderCancelled
+
+    data = client.scatter(scene, broadcast=False, hash=False)
+    parts = [client.submit(band_task, data, top, bottom, pure=False, retries=2) for top, bottom in bands(width, height)]
+    try:
+        while not all(f.done() for f in parts):
+            if cancelled():
+                client.cancel(parts)
+                raise RenderCancelled("the render was cancelled")
+            time.sleep(poll)
+        return np.concatenate(client.gather(parts), axis=0)
+    finally:
+        client.cancel([f for f in parts if not f.done()])
