@@ -1,19 +1,36 @@
-# phongray service: a slim image serving on port 8000 as a non-root user.
-FROM python:3.11-slim
+# phongray: the service, the command line and (with the cluster extra) Dask workers, in one image.
+#
+#   docker build -t phongray .                                   # from python:3.11-slim
+#   docker build --build-arg BASE=phongray-base:bookworm -t phongray .   # from a base made locally (docker/build.sh)
+#
+# Any Debian-like base with python3 (3.11 or newer) and its venv module will do.
+ARG BASE=python:3.11-slim
+FROM ${BASE}
 
-ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1
+ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PATH=/opt/venv/bin:$PATH
 WORKDIR /app
+
+# docker/ may hold pip-cert.pem, the CA bundle the building host's pip trusts (docker/build.sh puts it there)
+COPY docker/ /tmp/docker/
+RUN python3 -m venv /opt/venv
 
 # Dependencies first, so that code changes do not reinstall them: install the
 # project's metadata with empty packages, then replace them with the code.
 COPY pyproject.toml README.md ./
-RUN mkdir -p schemas tracer service && touch schemas/__init__.py tracer/__init__.py service/__init__.py \
-    && pip install . && pip uninstall -y phongray
+RUN mkdir -p schemas tracer service bench && touch schemas/__init__.py tracer/__init__.py service/__init__.py \
+        bench/__init__.py \
+    && if [ -f /tmp/docker/pip-cert.pem ]; then export PIP_CERT=/tmp/docker/pip-cert.pem; fi \
+    && pip install -q '.[cluster]' && pip uninstall -q -y phongray \
+    && rm -rf build ./*.egg-info schemas tracer service bench  # (the build of the empty packages must not be reused)
 
 COPY schemas ./schemas
 COPY tracer ./tracer
 COPY service ./service
-RUN pip install --no-deps . && useradd --create-home --uid 10001 phongray
+COPY bench ./bench
+COPY examples ./examples
+COPY tests/scenes ./tests/scenes
+RUN if [ -f /tmp/docker/pip-cert.pem ]; then export PIP_CERT=/tmp/docker/pip-cert.pem; fi \
+    && pip install -q --no-deps . && rm -rf /tmp/docker && useradd --create-home --uid 10001 phongray
 
 USER phongray
 EXPOSE 8000

@@ -79,3 +79,66 @@ def class_rows(work: Path, port: int) -> list[dict[str, Any]]:
         rows.append({"mode": mode, "pairs": len(outcome.rows), "references": outcome.renders, "seconds": seconds,
                      "pairs_per_s": len(outcome.rows) / seconds})
     return rows
+
+
+def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, Any]:
+    """The class and a 3840×2160 render on a 2-worker local Dask cluster (one thread each) against local runs,
+    and the cost per task they imply, for the estimate of larger classes."""
+    from distributed import LocalCluster
+
+    from service.cluster import connect
+    from service.cluster import render as render_on
+
+    scenes, subs = work / "class", work / "class" / "subs"
+    if not (scenes / "scenes").exists():
+        build(work / "class")
+    data = json.loads((EXAMPLES / "01_three_spheres.json").read_text())
+    data["image"].update(width=3840, height=2160)
+    scene = schemas.validate_scene(data)
+    started = time.perf_counter()
+    local_png = tracer.encode_png(tracer.render(scene))
+    local_4k = time.perf_counter() - started
+    if local_class is None:
+        started = time.perf_counter()
+        grade_class(scenes / "scenes", subs, work / "report-local-again")
+        local_class_s = time.perf_counter() - started
+    else:
+        local_class_s = local_class["seconds"]
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                      host="127.0.0.1") as lc:
+        with connect(lc.scheduler_address) as client:
+            client.run(lambda: None)  # workers up and importing
+            started = time.perf_counter()
+            pixels = render_on(client, scene.model_dump_json().encode(), 3840, 2160)
+            cluster_4k = time.perf_counter() - started
+            identical = tracer.encode_png(pixels) == local_png
+        started = time.perf_counter()
+        outcome = grade_class(scenes / "scenes", subs, work / "report-cluster", cluster=lc.scheduler_address)
+        cluster_class = time.perf_counter() - started
+    assert identical and outcome.count("pass") == len(outcome.rows)
+    pairs, refs = len(outcome.rows), outcome.renders
+    # per task on one worker: the local class run spends its time on `refs` renders and `pairs` comparisons with
+    # two processes; split it by the measured render-to-compare cost ratio of one of each
+    one = json.loads((scenes / "scenes" / "spheres.json").read_text())
+    started = time.perf_counter()
+    ref_png = tracer.encode_png(tracer.render(schemas.validate_scene(one), threads=1))
+    t_render = time.perf_counter() - started
+    from service.classgrade import grade_task
+
+    image = (subs / "student00" / "lights.png").read_bytes()
+    started = time.perf_counter()
+    grade_task((work / "report-cluster" / "references").iterdir().__next__().read_bytes(), image, 2.0, 0.001)
+    t_grade = time.perf_counter() - started
+
+    def estimate(students: int, tasks: int, workers: int) -> float:
+        n_pairs, n_refs = students * tasks, students * tasks  # worst case: every pair has its own scene
+        per_task_overhead = 0.002  # Dask scheduling, measured order of magnitude per task
+        return (n_refs * (t_render + per_task_overhead) + n_pairs * (t_grade + per_task_overhead)) / workers
+
+    return {"render_4k": {"local_s": local_4k, "cluster_s": cluster_4k, "ratio": cluster_4k / local_4k,
+                          "identical": identical},
+            "class": {"local_s": local_class_s, "cluster_s": cluster_class, "ratio": cluster_class / local_class_s,
+                      "pairs": pairs, "references": refs},
+            "per_task": {"render_s": t_render, "grade_s": t_grade, "png_bytes": len(ref_png),
+                         "scene_bytes": len(json.dumps(one))},
+            "estimate_500x10": {"workers_10_s": estimate(500, 10, 10), "workers_100_s": estimate(500, 10, 100)}}

@@ -30,7 +30,7 @@ import tracer
 from tracer.render import Renderer
 
 from . import povray
-from .classbench import class_rows
+from .classbench import class_rows, cluster_rows
 from .plot import plot
 from .scenes import example, speed_scenes, with_image
 
@@ -302,6 +302,24 @@ def report(results: dict[str, Any]) -> str:
             lines.append(f"| {c['mode']} | {c['pairs']} | {c['references']} | {c['seconds']:.1f} | "
                          f"{c['pairs_per_s']:.1f} |")
         lines.append("")
+    if results.get("cluster"):
+        c = results["cluster"]
+        r4, cl, pt, est = c["render_4k"], c["class"], c["per_task"], c["estimate_500x10"]
+        lines += ["## On a Dask cluster", "", "A local Dask cluster of two worker processes with one thread each, on "
+                  "the same 2 cores, against the local runs (which use both cores themselves). The cluster is not "
+                  "expected to win here; the ratio is its overhead (target ≤ 1.3). Below 1, its worker processes "
+                  "beat a local render's threads, which share one interpreter.", "",
+                  "| work | local s | cluster s | cluster ÷ local |", "|---|---|---|---|",
+                  f"| 3840×2160 three spheres (bands of rows; PNG identical: {r4['identical']}) | {r4['local_s']:.1f} | "
+                  f"{r4['cluster_s']:.1f} | {r4['ratio']:.2f} |",
+                  f"| class, {cl['pairs']} pairs, {cl['references']} references | {cl['local_s']:.1f} | "
+                  f"{cl['cluster_s']:.1f} | {cl['ratio']:.2f} |", "",
+                  f"Per task on one core: a 320×240 reference render {pt['render_s']:.3f} s (its scene "
+                  f"{pt['scene_bytes']:,} bytes in, its PNG {pt['png_bytes']:,} bytes out), a comparison "
+                  f"{pt['grade_s']:.3f} s. On paper, 500 students × 10 tasks with every pair its own scene "
+                  f"(5,000 renders and 5,000 comparisons, 2 ms of scheduling each): "
+                  f"{est['workers_10_s'] / 60:.1f} min on 10 workers, {est['workers_100_s'] / 60:.1f} min on 100 "
+                  "(the transfers, about 0.2 MB per pair, are small beside that on any cluster network).", ""]
     lines += ["## Speed against error", ""]
     for k in results["quality"]:
         lines += [f"### {k['knob']}", "", f"Error against a reference rendered at {k['reference']}.", "",
@@ -324,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="bench/out", help="directory for report.md, results.json and plots")
     parser.add_argument("--runs", type=int, default=2, help="runs per measurement; the best is kept")
     parser.add_argument("--only", nargs="*", help="speed scenes to run (default: all)")
-    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "memory", "http", "quality", "class"])
+    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "memory", "http", "quality", "class", "cluster"])
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -336,7 +354,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "command": "phongray bench " + " ".join(argv if argv is not None else sys.argv[1:]),
         "povray": _povray_version() if pov else None,
-        "speed": [], "memory": None, "http": None, "quality": [], "class": None,
+        "speed": [], "memory": None, "http": None, "quality": [], "class": None, "cluster": None,
     }
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -356,6 +374,12 @@ def main(argv: list[str] | None = None) -> int:
             for c in results["class"]:
                 print(f"class grading, {c['mode']}: {c['pairs']} pairs in {c['seconds']:.1f} s, "
                       f"{c['pairs_per_s']:.1f} pairs/s", flush=True)
+        if "cluster" not in args.skip:
+            local = next((c for c in results["class"] or [] if c["mode"] == "local"), None)
+            results["cluster"] = cluster_rows(work, local)
+            c = results["cluster"]
+            print(f"cluster: 3840×2160 {c['render_4k']['cluster_s']:.1f} s vs {c['render_4k']['local_s']:.1f} s local, "
+                  f"class {c['class']['cluster_s']:.1f} s vs {c['class']['local_s']:.1f} s local", flush=True)
     if "http" not in args.skip:
         results["http"] = [http_latency(seconds=5.0, clients=clients, workers=2) for clients in (2, 4)]
         for h in results["http"]:

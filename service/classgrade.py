@@ -256,6 +256,7 @@ def _graded(pair: Pair, result: dict[str, Any], report: Path) -> None:
     if result["status"] == "invalid":
         pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
         return
+    result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
     heat, copy = _paths(pair, report)
     write_atomic(heat, result.pop("heatmap_png"))
     assert pair.image is not None

@@ -91,7 +91,7 @@ def test_the_class_report_on_the_cluster_equals_the_local_one(dask, tmp_path):
     data["image"].update(width=48, height=36)
     (scenes / "balls.json").write_text(json.dumps(data))
     right = tracer.encode_png(tracer.render(schemas.validate_scene(json.loads(json.dumps(data)))))
-    for student, image in (("a", right), ("b", b"not a png"), ("c", right[:-40])):
+    for student, image in (("a", right), ("b", b"not a png"), ("c", right[:-40]), ("e", right)):
         (subs / student).mkdir(parents=True)
         (subs / student / "balls.png").write_bytes(image)
     (subs / "d").mkdir()
