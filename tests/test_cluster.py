@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -153,3 +154,23 @@ def test_without_dask_the_cli_says_what_to_install(monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if it were not installed
     code = main(["render", str(SCENES / "01_three_spheres.json"), "-o", "-", "--cluster", "tcp://127.0.0.1:1"])
     assert code == 2 and capsys.readouterr().err.strip() == f"phongray: {cluster.INSTALL}"
+
+
+def test_a_cluster_render_past_the_timeout_is_503_and_its_futures_are_cancelled(dask, tmp_path):
+    from distributed import Client
+
+    address, _ = dask
+    data = scene_dict("03_soft_shadows")
+    data["image"].update(width=400, height=300)
+    with running_server(tmp_path, cluster=address, render_timeout="0.5") as (url, _):
+        req = urllib.request.Request(url + "/render", json.dumps(data).encode(), {"content-type": "application/json"})
+        started = time.monotonic()
+        with pytest.raises(urllib.error.HTTPError) as answer:
+            urllib.request.urlopen(req, timeout=60)
+        answer.value.close()
+        assert answer.value.code == 503 and time.monotonic() - started < 5
+        with Client(address, timeout=10, set_as_default=False) as client:
+            deadline = time.monotonic() + 10
+            while any(client.processing().values()) and time.monotonic() < deadline:
+                time.sleep(0.1)
+            assert not any(client.processing().values())  # nothing of it left running on the workers
