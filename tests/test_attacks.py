@@ -267,29 +267,32 @@ def test_a_decompression_bomb_graded_against_a_cached_reference(server):
     assert row["status"] == 200 and row["seconds"] < 10
 
 
-def test_a_transparent_image_is_refused(server):
-    data = scene_dict("01_three_spheres")
-    body, kind = multipart({"scene": (json.dumps(data).encode(), None),
-                            "image": (png_rgba16(data["image"]["width"], data["image"]["height"], 0), "a.png")})
+def refused_form(server: Server, name: str, fields: dict, says: bytes) -> int:
+    """Post a /grade form as an attack; the answer must say ``says``; returns its status."""
+    body, kind = multipart(fields)
 
     def send():
         status, _, text = post(server, "/grade", body, kind)
-        assert b"not fully opaque" in text
+        assert says in text
         return status
-    assert attack(server, "fully transparent RGBA PNG → /grade", send)["status"] == 422
+    return attack(server, name, send)["status"]
+
+
+def test_a_transparent_image_is_refused(server):
+    data = scene_dict("01_three_spheres")
+    image = png_rgba16(data["image"]["width"], data["image"]["height"], 0)
+    assert refused_form(server, "fully transparent RGBA PNG → /grade", {"scene": (json.dumps(data).encode(), None),
+                                                                        "image": (image, "a.png")},
+                        b"not fully opaque") == 422
 
 
 def test_a_scene_file_part_counts_toward_the_body_limit(server):
     scene = scene_bytes()[:-1] + b"," + b" " * (9 * 1024 * 1024) + b'"x": 0}'
     buf = io.BytesIO()
     Image.new("RGB", (160, 120)).save(buf, format="PNG")
-    body, kind = multipart({"scene": (scene, "scene.json"), "image": (buf.getvalue(), "a.png")})
-
-    def send():
-        status, _, text = post(server, "/grade", body, kind)
-        assert b"max_body_bytes" in text
-        return status
-    assert attack(server, "9 MiB scene as a file part → /grade", send)["status"] == 413
+    assert refused_form(server, "9 MiB scene as a file part → /grade", {"scene": (scene, "scene.json"),
+                                                                        "image": (buf.getvalue(), "a.png")},
+                        b"max_body_bytes") == 413
 
 
 def test_an_endless_chunked_body_is_cut_and_the_connection_closed(server):

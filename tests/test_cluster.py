@@ -84,13 +84,19 @@ def test_a_banded_cluster_render_is_the_local_png_byte_for_byte(dask, tmp_path, 
     assert out.read_bytes() == local
 
 
+def one_task(root: Path, task: str, example: str, width: int, height: int) -> tuple[Path, Path, dict]:
+    """A class folder with one task scene (the example at that size) and no students yet."""
+    scenes, subs = root / "scenes", root / "subs"
+    scenes.mkdir()
+    data = scene_dict(example)
+    data["image"].update(width=width, height=height)
+    (scenes / f"{task}.json").write_text(json.dumps(data))
+    return scenes, subs, data
+
+
 def test_the_class_report_on_the_cluster_equals_the_local_one(dask, tmp_path):
     address, _ = dask
-    scenes, subs = tmp_path / "scenes", tmp_path / "subs"
-    scenes.mkdir()
-    data = scene_dict("01_three_spheres")
-    data["image"].update(width=48, height=36)
-    (scenes / "balls.json").write_text(json.dumps(data))
+    scenes, subs, data = one_task(tmp_path, "balls", "01_three_spheres", 48, 36)
     right = tracer.encode_png(tracer.render(schemas.validate_scene(json.loads(json.dumps(data)))))
     for student, image in (("a", right), ("b", b"not a png"), ("c", right[:-40]), ("e", right)):
         (subs / student).mkdir(parents=True)
@@ -104,11 +110,7 @@ def test_the_class_report_on_the_cluster_equals_the_local_one(dask, tmp_path):
 
 def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
     address, procs = dask
-    scenes, subs = tmp_path / "scenes", tmp_path / "subs"
-    scenes.mkdir()
-    data = scene_dict("03_soft_shadows")
-    data["image"].update(width=96, height=72)
-    (scenes / "soft.json").write_text(json.dumps(data))
+    scenes, subs, data = one_task(tmp_path, "soft", "03_soft_shadows", 96, 72)
     for k in range(16):  # every student has an own scene: 16 renders to share out
         own = json.loads(json.dumps(data))
         own["image"]["background"] = [0.01 * k, 0.02, 0.03]
