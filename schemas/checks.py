@@ -11,6 +11,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
+from .errors import suggestion
 from .scene import AreaLight, DirectionalLight, Mesh, Plane, PointLight, Scene, SpotLight, Triangle
 
 Problem = tuple[str, str]
@@ -45,6 +46,20 @@ def check_scene(scene: Scene) -> list[Problem]:
     return [*_camera(scene), *_materials(scene), *_objects(scene), *_lights(scene)]
 
 
+def unknown_material(name: str, known: object) -> str:
+    return f"unknown material '{name}'{suggestion(name, known)}"
+
+
+def out_of_range(where: str, bad: Sequence[tuple[int, int, int]], n: int, total: int | None = None
+                 ) -> Iterator[Problem]:
+    """The first face indices beyond a mesh's ``n`` vertices, as ``(face, corner, index)``; then how many more."""
+    total = len(bad) if total is None else total
+    for f, k, index in bad[:MAX_LISTED]:
+        yield f"{where}.faces[{f}][{k}]", f"index {index} out of range (the mesh has {n} vertices)"
+    if total > MAX_LISTED:
+        yield f"{where}.faces", f"{total - MAX_LISTED} more indices out of range"
+
+
 def _camera(scene: Scene) -> Iterator[Problem]:
     cam = scene.camera
     with np.errstate(over="ignore", invalid="ignore"):
@@ -64,7 +79,7 @@ def _materials(scene: Scene) -> Iterator[Problem]:
         other = scene.materials.get(mat.checker.material)
         where = f"materials.{name}.checker.material"
         if other is None:
-            yield where, f"unknown material '{mat.checker.material}'"
+            yield where, unknown_material(mat.checker.material, scene.materials)
         elif other.checker is not None:
             yield where, f"material '{mat.checker.material}' has a checker itself"
 
@@ -73,7 +88,7 @@ def _objects(scene: Scene) -> Iterator[Problem]:
     for i, obj in enumerate(scene.objects):
         where = f"objects[{i}]"
         if obj.material not in scene.materials:
-            yield f"{where}.material", f"unknown material '{obj.material}'"
+            yield f"{where}.material", unknown_material(obj.material, scene.materials)
         if isinstance(obj, Plane) and is_zero(obj.normal):
             yield f"{where}.normal", "must be non-zero"
         elif isinstance(obj, Triangle):
@@ -88,11 +103,8 @@ def _mesh(mesh: Mesh, where: str) -> Iterator[Problem]:
     n = len(mesh.vertices)
     if mesh.faces:
         faces = np.asarray(mesh.faces, dtype=np.int64)
-        bad = np.argwhere(faces >= n)
-        for f, k in bad[:MAX_LISTED]:
-            yield f"{where}.faces[{f}][{k}]", f"index {faces[f, k]} out of range (the mesh has {n} vertices)"
-        if len(bad) > MAX_LISTED:
-            yield f"{where}.faces", f"{len(bad) - MAX_LISTED} more indices out of range"
+        yield from out_of_range(where, [(f, k, faces[f, k]) for f, k in np.argwhere(faces >= n)[:MAX_LISTED + 1]],
+                                n, int(np.count_nonzero(faces >= n)))
     if mesh.normals is not None:
         if len(mesh.normals) != n:
             yield f"{where}.normals", f"must have one normal per vertex ({n}), got {len(mesh.normals)}"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import json
 from typing import Any
 
@@ -49,18 +50,53 @@ def path_of(loc: tuple[Any, ...]) -> str:
     return out
 
 
+def suggestion(name: Any, known: Any) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``known`` to a misspelt ``name``, or nothing."""
+    if not isinstance(name, str):
+        return ""
+    close = difflib.get_close_matches(name, [k for k in known if isinstance(k, str)], n=1, cutoff=0.6)
+    if not close and name.lower() in {str(k).lower() for k in known}:
+        close = [next(k for k in known if str(k).lower() == name.lower())]
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _model_at(loc: tuple[Any, ...]) -> Any:
+    """The model whose fields the location ``loc`` lies among (union tags included), or None."""
+    from . import scene as m
+
+    tagged = {"sphere": m.Sphere, "plane": m.Plane, "triangle": m.Triangle, "mesh": m.Mesh,
+              "ambient": m.AmbientLight, "directional": m.DirectionalLight, "point": m.PointLight,
+              "spot": m.SpotLight, "area": m.AreaLight}
+    parts = list(loc)
+    if not parts:
+        return m.Scene
+    head = parts[0]
+    if head in ("camera", "image") and len(parts) == 1:
+        return m.Camera if head == "camera" else m.Image
+    if head == "materials" and len(parts) == 2:
+        return m.Material
+    if head == "materials" and len(parts) == 3 and parts[2] == "checker":
+        return m.Checker
+    if head in ("objects", "lights") and len(parts) == 3 and isinstance(parts[1], int):
+        return tagged.get(parts[2])
+    return None
+
+
 def _message(err: dict[str, Any]) -> str:
     kind, ctx = err["type"], err.get("ctx") or {}
     if kind == "missing":
         return "required"
     if kind == "extra_forbidden":
-        return "unknown key"
+        model = _model_at(tuple(err["loc"][:-1]))
+        return "unknown key" + (suggestion(err["loc"][-1], model.model_fields) if model is not None else "")
     if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         op = {"greater_than": ">", "greater_than_equal": "≥", "less_than": "<", "less_than_equal": "≤"}[kind]
         bound = next(iter(ctx.values()))
         return f"must be {op} {bound:g}" if isinstance(bound, (int, float)) else err["msg"]
     if kind == "union_tag_invalid":
-        return f"unknown type {ctx.get('tag')!r} (expected one of {ctx.get('expected_tags')})"
+        expected = [t.strip().strip("'") for t in str(ctx.get("expected_tags", "")).split(",")]
+        return (f"unknown type {ctx.get('tag')!r}{suggestion(ctx.get('tag'), expected)} "
+                f"(expected one of {ctx.get('expected_tags')})")
     if kind == "union_tag_not_found":
         return "'type' is required"
     if kind in ("float_type", "float_parsing"):
@@ -69,8 +105,10 @@ def _message(err: dict[str, Any]) -> str:
         return "must be an integer"
     if kind == "finite_number":
         return "must be a finite number"
-    if kind in ("too_short", "too_long"):
-        return f"has the wrong length ({err['msg'].lower()})"
+    if kind == "too_long":
+        return f"{_has(ctx.get('actual_length'))}, expected {ctx.get('max_length')}"
+    if kind == "too_short":
+        return f"{_has(ctx.get('actual_length'))}, expected at least {ctx.get('min_length')}"
     if kind in ("tuple_type", "list_type"):
         return "must be an array"
     if kind in ("dict_type", "model_type", "model_attributes_type"):
@@ -80,6 +118,15 @@ def _message(err: dict[str, Any]) -> str:
     if kind == "string_type":
         return "must be a string"
     return err["msg"]
+
+
+def _has(count: Any) -> str:
+    return f"has {count} element" + ("" if count == 1 else "s")
+
+
+def _expected_length(loc: tuple[Any, ...]) -> int:
+    """How many elements the fixed-length array at ``loc`` has (3, but 2 for an area light's samples)."""
+    return 2 if loc and loc[-1] == "samples" else 3
 
 
 def _tuple_missing(err: dict[str, Any]) -> bool:
@@ -93,7 +140,9 @@ def problems_from_validation(exc: ValidationError) -> list[tuple[str, str]]:
     for err in exc.errors(include_url=False):
         loc = err["loc"]
         if _tuple_missing(err):  # a short array: report the array, once
-            problem = (path_of(loc[:-1]), "has too few elements")
+            given = err.get("input")
+            count = _has(len(given)) if isinstance(given, (list, tuple)) else "has too few elements"
+            problem = (path_of(loc[:-1]), f"{count}, expected {_expected_length(loc[:-1])}")
         elif err["type"].startswith("union_tag"):
             problem = (path_of((*loc, "type")), _message(err))
         else:

@@ -81,3 +81,34 @@ def line_for(lines: dict[str, int], path: str) -> int | None:
         cut = max(path.rfind("."), path.rfind("["))
         path = path[:cut] if cut > 0 else ""
     return None
+
+
+_SYNTAX_LINE = re.compile(r"^invalid JSON: .* at line (\d+) column \d+$")
+#: longer documents are not scanned for lines (a courtesy that must stay cheap)
+MAX_SCANNED = 1_000_000
+
+
+def located(problems: list[tuple[str, str]], text: bytes | str) -> list[dict[str, object]]:
+    """Every problem with its path, message and the line of the JSON text it concerns (None where unknown):
+    the line of the value for a path, the line the parser names for a syntax error."""
+    lines: dict[str, int] = {}
+    if len(text) <= MAX_SCANNED and any(path for path, _ in problems):
+        try:
+            lines = value_lines(text.decode("utf-8", "replace") if isinstance(text, bytes) else text)
+        except Exception:  # positions are a courtesy; a scanner failure must not hide the errors
+            lines = {}
+    out: list[dict[str, object]] = []
+    for path, message in problems:
+        syntax = None if path else _SYNTAX_LINE.match(message)
+        line = line_for(lines, path) if path else int(syntax.group(1)) if syntax else None
+        out.append({"path": path, "message": message, "line": line})
+    return out
+
+
+def as_lines(name: str, problems: list[tuple[str, str]], text: bytes | str) -> list[str]:
+    """``NAME:LINE: path: message`` per problem (``NAME: path: message`` where the line is unknown)."""
+    out = []
+    for e in located(problems, text):
+        what = f"{e['path']}: {e['message']}" if e["path"] else str(e["message"])
+        out.append(f"{name}:{e['line']}: {what}" if e["line"] else f"{name}: {what}")
+    return out

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import math
 from itertools import chain, islice
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
-from .checks import check_scene
+from .checks import check_scene, out_of_range, unknown_material
 from .errors import SceneError, problems_from_validation
 from .scene import Light, Material, Mesh, Object, Scene
 
@@ -87,6 +88,7 @@ def validate_scene(data: Any) -> Scene:
         raise SceneError([("", "a scene must be a JSON object")])
     problems = _Problems()
     arrays: dict[tuple[int, str], list | None] = {}  # long mesh arrays, checked apart (None: wrong)
+    original = data
     try:
         data = _bounded(data, "", problems, arrays)
         parts = {name: _in_pieces(data[name], name, adapter, problems)
@@ -95,10 +97,12 @@ def validate_scene(data: Any) -> Scene:
             head = Scene.model_validate({**data, **{name: type(part)() for name, part in parts.items()}})
         except ValidationError as exc:
             problems.extend(problems_from_validation(exc))
+            problems.extend(list(references(original)))
             raise problems.error() from None
     except RecursionError:
         raise SceneError([("", "the document is nested too deeply")]) from None
     if problems:
+        problems.extend(list(references(original)))
         raise problems.error()
     objects = parts.get("objects", [])
     wrong = {f"objects[{i}].{key}" for (i, key), rows in arrays.items() if rows is None}
@@ -112,6 +116,30 @@ def validate_scene(data: Any) -> Scene:
     if problems:
         raise problems.error()
     return scene
+
+
+def references(data: dict) -> Iterator[tuple[str, str]]:
+    """The checks between parts (material names, face indices) on the raw document, wherever the fields
+    themselves parsed, so that a scene with other errors gets them in the same answer."""
+    materials = data.get("materials")
+    names = materials if isinstance(materials, dict) else {}
+    for name, mat in names.items():
+        checker = mat.get("checker") if isinstance(mat, dict) else None
+        ref = checker.get("material") if isinstance(checker, dict) else None
+        if isinstance(ref, str) and ref not in names:
+            yield f"materials.{name}.checker.material", unknown_material(ref, names)
+    objects = data.get("objects")
+    for i, obj in enumerate(objects if isinstance(objects, list) else []):
+        if not isinstance(obj, dict):
+            continue
+        if isinstance(obj.get("material"), str) and obj["material"] not in names:
+            yield f"objects[{i}].material", unknown_material(obj["material"], names)
+        vertices, faces = obj.get("vertices"), obj.get("faces")
+        if obj.get("type") == "mesh" and isinstance(vertices, list) and isinstance(faces, list):
+            bad = [(f, k, x) for f, face in enumerate(faces) if isinstance(face, list)
+                   for k, x in enumerate(face[:3]) if isinstance(x, int) and not isinstance(x, bool) and
+                   x >= len(vertices)]
+            yield from out_of_range(f"objects[{i}]", bad, len(vertices))
 
 
 def _in_pieces(section: Any, name: str, adapter: TypeAdapter, problems: _Problems) -> Any:
@@ -215,10 +243,8 @@ def _report_rows(rows: list, where: str, integer: bool, problems: _Problems) -> 
         if not isinstance(row, list):
             problems.add((at, "must be an array"))
             continue
-        if len(row) < 3:
-            problems.add((at, "has too few elements"))
-        elif len(row) > 3:
-            problems.add((at, f"has the wrong length (expected 3 elements, got {len(row)})"))
+        if len(row) != 3:
+            problems.add((at, f"has {len(row)} element{'' if len(row) == 1 else 's'}, expected 3"))
         for k, x in enumerate(row[:3]):
             message = _entry_problem(x, integer)
             if message:

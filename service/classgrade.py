@@ -142,7 +142,8 @@ class Outcome:
 
 def _keys(batch: Batch) -> dict[str, str]:
     """Validate every scene once: scene file → canonical key; the pairs of invalid scenes become invalid rows."""
-    from schemas import SceneError, format_problem, load_scene
+    from schemas import SceneError, load_scene
+    from schemas.locate import as_lines
 
     from .jobs import scene_key
 
@@ -152,9 +153,10 @@ def _keys(batch: Batch) -> dict[str, str]:
         name = str(pair.scene)
         if name not in keys and name not in reasons:
             try:
-                keys[name] = scene_key(load_scene(pair.scene.read_bytes()))
+                text = pair.scene.read_bytes()
+                keys[name] = scene_key(load_scene(text))
             except SceneError as exc:
-                reasons[name] = f"{name}: " + "; ".join(format_problem(p) for p in exc.problems)
+                reasons[name] = "; ".join(as_lines(name, exc.problems, text))
             except OSError as exc:
                 reasons[name] = f"{name}: cannot read: {exc.strerror or exc}"
         if name in reasons:
@@ -168,7 +170,7 @@ def _keys(batch: Batch) -> dict[str, str]:
 
 def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float = 2.0, max_fraction: float = 0.001,
                 jobs: int | None = None, server: str | None = None, cluster: str | None = None,
-                progress: Callable[[int, int], None] | None = None) -> Outcome:
+                progress: Callable[[int, int], None] | None = None, api_key: str | None = None) -> Outcome:
     """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away."""
     started = time.perf_counter()
     batch = discover(scenes, submissions)
@@ -185,7 +187,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
             progress(sum(bool(p.row) for p in batch.pairs), total)
 
     if server:
-        renders = _on_server(server, todo, needed, refs, report, tolerance, max_fraction, jobs or 4, tick)
+        renders = _on_server(server, todo, needed, refs, report, tolerance, max_fraction, jobs or 4, tick, api_key)
     elif cluster:
         from .cluster import connect
 
@@ -265,7 +267,8 @@ def _graded(pair: Pair, result: dict[str, Any], report: Path) -> None:
 
 
 def _on_server(server: str, todo: list[Pair], needed: dict[str, Path], refs: dict[str, Path], report: Path,
-               tolerance: float, max_fraction: float, jobs: int, tick: Callable[[], Any]) -> int:
+               tolerance: float, max_fraction: float, jobs: int, tick: Callable[[], Any],
+               api_key: str | None = None) -> int:
     """The same work as requests to a running service: at most ``jobs`` at once, waiting out its 503s."""
     from .client import ServerError, post_form, post_json
 
@@ -273,7 +276,7 @@ def _on_server(server: str, todo: list[Pair], needed: dict[str, Path], refs: dic
         deadline = time.monotonic() + 600
         while True:
             try:
-                return func(server, *args, **kw)
+                return func(server, *args, api_key=api_key, **kw)
             except ServerError as exc:
                 if exc.status != 503 or time.monotonic() > deadline:
                     raise

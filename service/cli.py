@@ -35,19 +35,27 @@ def _read(path: str) -> bytes:
 def _load(path: str, overrides: dict[str, Any] | None = None):  # type: ignore[no-untyped-def]
     from schemas import SceneError, parse_json, validate_scene
 
+    text = _read(path)
     try:
-        data = parse_json(_read(path))
+        data = parse_json(text)
         if overrides and isinstance(data, dict) and isinstance(data.get("image"), dict):
             data["image"].update({k: v for k, v in overrides.items() if v is not None})
         return validate_scene(data)
     except SceneError as exc:
-        raise CliError(f"{path}: " + "; ".join(_lines(exc))) from None
+        raise CliError("; ".join(_lines(path, exc, text))) from None
 
 
-def _lines(exc: Any) -> list[str]:
-    from schemas import format_problem
+def _lines(name: str, exc: Any, text: bytes) -> list[str]:
+    """``FILE:LINE: path: message`` per problem (the line of the JSON text, as HTTP gives it, where known)."""
+    from schemas.locate import as_lines
 
-    return [format_problem(p) for p in exc.problems]
+    return as_lines(name, exc.problems, text)
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(seconds)
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else \
+        f"{seconds // 60}:{seconds % 60:02d}"
 
 
 class ProgressBar:
@@ -72,16 +80,22 @@ class ProgressBar:
         filled = int(width * done / max(total, 1))
         line = f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * done / max(total, 1):5.1f}%"
         if self.unit:
-            t0, d0 = self.first
-            rate = (done - d0) / max(now - t0, 1e-9)
-            eta = f"{int((total - done) / rate) // 60}:{int((total - done) / rate) % 60:02d}" if rate > 0 else "?"
-            line += f" {done}/{total} {self.unit}, ETA {eta}  "
+            line += f" {done}/{total} {self.unit}"
+        t0, d0 = self.first
+        rate = (done - d0) / max(now - t0, 1e-9)
+        eta = _clock((total - done) / rate) if rate > 0 else "?"
+        line += f", {_clock(now - self.start)} elapsed, ETA {eta}  "
+        ProgressBar.active = self
         sys.stderr.write(line)
         sys.stderr.flush()
 
+    #: the bar on screen, so that an interruption can finish its line first
+    active: "ProgressBar | None" = None
+
     def close(self) -> None:
-        if self.shown:
+        if self.shown and ProgressBar.active is self:
             sys.stderr.write("\n")
+        ProgressBar.active = None
 
 
 def _server_call(func, *a, **kw):  # type: ignore[no-untyped-def]
@@ -100,11 +114,12 @@ def _server_call(func, *a, **kw):  # type: ignore[no-untyped-def]
 def cmd_render(args: argparse.Namespace) -> int:
     from tracer import ImageTooLarge, encode_png, render
 
+    _png_name(args.output)
     overrides = {"width": args.width, "height": args.height, "samples": args.samples}
     if args.server:
         from .client import post_json
 
-        data = _server_call(post_json, args.server, "/render", _read(args.scene), overrides)
+        data = _server_call(post_json, args.server, "/render", _read(args.scene), overrides, api_key=args.api_key)
         _write(args.output, data)
         return 0
     scene = _load(args.scene, overrides)
@@ -151,37 +166,54 @@ def cmd_validate(args: argparse.Namespace) -> int:
         from .client import ServerError, post_json
 
         try:
-            post_json(args.server, "/validate", _read(args.scene))
+            post_json(args.server, "/validate", _read(args.scene), api_key=args.api_key)
         except ServerError as exc:
             if exc.status != 422 or not isinstance(exc.body, dict):
                 raise CliError(str(exc)) from None
             for e in exc.body.get("errors", []):
-                print(f"{args.scene}: {e['path']}: {e['message']}" if e.get("path") else f"{args.scene}: {e['message']}")
+                where = f"{args.scene}:{e['line']}" if e.get("line") else args.scene
+                print(f"{where}: {e['path']}: {e['message']}" if e.get("path") else f"{where}: {e['message']}")
             return 1
         print(f"{args.scene}: valid")
         return 0
 
+    text = _read(args.scene)
     try:
-        load_scene(_read(args.scene))
+        load_scene(text)
     except SceneError as exc:
-        for line in _lines(exc):
-            print(f"{args.scene}: {line}")
+        for line in _lines(args.scene, exc, text):
+            print(line)
         return 1
     print(f"{args.scene}: valid")
     return 0
 
 
+def _thresholds(args: argparse.Namespace) -> None:
+    """The grading thresholds, checked as HTTP checks them (and in the same words)."""
+    for name, value, high in (("tolerance", args.tolerance, 255), ("max_fraction", args.max_fraction, 1)):
+        if not 0 <= value <= high:
+            raise CliError(f"{name}: must be between 0 and {high:g}")
+
+
+def _png_name(path: str | None) -> None:
+    if path is not None and path != "-" and not path.lower().endswith(".png"):
+        raise CliError(f"{path}: phongray writes PNG images; name the output *.png (or - for standard output)")
+
+
 def cmd_grade(args: argparse.Namespace) -> int:
     """Exit 0 when the submission passes, 1 when it fails, 2 for bad input."""
+    _thresholds(args)
+    _png_name(args.heatmap)
     image = _read(args.image)
     if args.server:
         from .client import post_form
 
         fields = {"scene": _read(args.scene), "tolerance": str(args.tolerance), "max_fraction": str(args.max_fraction)}
         files = {"image": ("submission.png", image, "image/png")}
-        result = json.loads(_server_call(post_form, args.server, "/grade", fields, files))
+        result = json.loads(_server_call(post_form, args.server, "/grade", fields, files, api_key=args.api_key))
         if args.heatmap:
-            _write(args.heatmap, _server_call(post_form, args.server, "/grade", fields, files, {"format": "png"}))
+            _write(args.heatmap, _server_call(post_form, args.server, "/grade", fields, files, {"format": "png"},
+                                              api_key=args.api_key))
     else:
         import hashlib
 
@@ -213,8 +245,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     """Exit 0 when the batch ran (whatever the verdicts), 2 when its input is unusable."""
     from .classgrade import ClassError, grade_class
 
-    if not 0 <= args.tolerance <= 255 or not 0 <= args.max_fraction <= 1:
-        raise CliError("--tolerance must be in 0..255 and --max-fraction in 0..1")
+    _thresholds(args)
     from .cluster import ClusterError
 
     if args.server and args.cluster:
@@ -223,7 +254,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     try:
         outcome = grade_class(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
                               args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
-                              progress=bar)
+                              progress=bar, api_key=args.api_key)
     except (ClassError, ClusterError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
@@ -260,66 +291,98 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("phongray")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
+class _Help(argparse.HelpFormatter):
+    """Help that shows each option's default, unless it has none or its text already says it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if "(default" in text or action.default in (None, False, argparse.SUPPRESS) or not action.option_strings:
+            return text
+        return text + " (default: %(default)s)"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="phongray", description="A reference Phong/Whitted ray tracer.")
+    formatter = _Help
+    parser = argparse.ArgumentParser(prog="phongray", description="A reference Phong/Whitted ray tracer.",
+                                     formatter_class=formatter)
+    parser.add_argument("-V", "--version", action="version", version=f"phongray {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("render", help="render a scene to a PNG")
+    def command(name: str, help: str, **kw: Any) -> argparse.ArgumentParser:
+        return sub.add_parser(name, help=help, description=kw.pop("description", help[0].upper() + help[1:] + "."),
+                              formatter_class=formatter, **kw)
+
+    def remote(p: argparse.ArgumentParser, cluster: bool = False) -> None:
+        p.add_argument("--server", metavar="URL", help="send the work to a running phongray service "
+                                                       "(http:// is assumed when the URL has no scheme)")
+        p.add_argument("--api-key", metavar="KEY", default=None,
+                       help="the service's API key, for --server (default: $PHONGRAY_API_KEY)")
+        if cluster:
+            p.add_argument("--cluster", metavar="tcp://HOST:PORT", default=os.environ.get("PHONGRAY_CLUSTER") or None,
+                           help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
+                                "needs 'phongray[cluster]')")
+
+    def thresholds(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (0–255)")
+        p.add_argument("--max-fraction", type=float, default=0.001,
+                       help="fraction of pixels that may be off even against their 3×3 neighbourhood (0–1)")
+
+    p = command("render", "render a scene to a PNG")
     p.add_argument("scene", help="scene JSON file ('-' for stdin)")
-    p.add_argument("-o", "--output", required=True, help="output PNG ('-' for stdout)")
-    p.add_argument("--width", type=_positive_int)
-    p.add_argument("--height", type=_positive_int)
-    p.add_argument("--samples", type=_positive_int, help="n: an n×n grid of sub-samples per pixel")
+    p.add_argument("-o", "--output", required=True, help="output PNG, *.png ('-' for stdout)")
+    p.add_argument("--width", type=_positive_int, help="image width in pixels (default: the scene's)")
+    p.add_argument("--height", type=_positive_int, help="image height in pixels (default: the scene's)")
+    p.add_argument("--samples", type=_positive_int, help="n: an n×n grid of sub-samples per pixel "
+                                                         "(default: the scene's)")
     p.add_argument("--threads", type=_positive_int, help="worker threads (default: all cores)")
-    p.add_argument("-q", "--quiet", action="store_true")
-    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
-    p.add_argument("--cluster", metavar="tcp://HOST:PORT", default=os.environ.get("PHONGRAY_CLUSTER") or None,
-                   help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
-                        "needs 'phongray[cluster]')")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    remote(p, cluster=True)
     p.set_defaults(func=cmd_render)
 
-    p = sub.add_parser("validate", help="check a scene; print every error with its place")
-    p.add_argument("scene")
-    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
+    p = command("validate", "check a scene; print every error with its place and line")
+    p.add_argument("scene", help="scene JSON file ('-' for stdin)")
+    remote(p)
     p.set_defaults(func=cmd_validate)
 
-    p = sub.add_parser("grade", help="grade a submitted PNG against the scene's reference render")
-    p.add_argument("scene")
+    p = command("grade", "grade a submitted PNG against the scene's reference render")
+    p.add_argument("scene", help="scene JSON file")
     p.add_argument("image", help="the submitted PNG")
-    p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (default 2)")
-    p.add_argument("--max-fraction", type=float, default=0.001,
-                   help="fraction of pixels that may be off even against their 3×3 neighbourhood (default 0.001)")
-    p.add_argument("--heatmap", metavar="OUT.png", help="write the difference heat-map")
-    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
+    thresholds(p)
+    p.add_argument("--heatmap", metavar="OUT.png", help="write the difference heat-map here")
+    remote(p)
     p.set_defaults(func=cmd_grade)
 
-    p = sub.add_parser("grade-class", help="grade every student's images of every task; write a report",
-                       description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images "
-                                   "(a SUBMISSIONS/<student>/<task>.json is that student's own scene). Writes "
-                                   "report.json, report.csv, index.html, references and heat-maps into REPORT.")
-    p.add_argument("scenes", metavar="SCENES_DIR")
-    p.add_argument("submissions", metavar="SUBMISSIONS_DIR")
+    p = command("grade-class", "grade every student's images of every task; write a report",
+                description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images "
+                            "(a SUBMISSIONS/<student>/<task>.json is that student's own scene). Writes "
+                            "report.json, report.csv, index.html, references and heat-maps into REPORT.")
+    p.add_argument("scenes", metavar="SCENES_DIR", help="a <task>.json per task")
+    p.add_argument("submissions", metavar="SUBMISSIONS_DIR", help="a folder per student")
     p.add_argument("-o", "--output", metavar="REPORT_DIR", required=True, help="where the report goes")
-    p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (default 2)")
-    p.add_argument("--max-fraction", type=float, default=0.001,
-                   help="fraction of pixels that may be off even against their 3×3 neighbourhood (default 0.001)")
+    thresholds(p)
     p.add_argument("--jobs", type=_positive_int, help="processes (default: all cores; with --server, 4 requests)")
-    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service")
-    p.add_argument("--cluster", metavar="tcp://HOST:PORT", default=os.environ.get("PHONGRAY_CLUSTER") or None,
-                   help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
-                        "needs 'phongray[cluster]')")
+    remote(p, cluster=True)
     p.set_defaults(func=cmd_grade_class)
 
-    p = sub.add_parser("serve", help="run the HTTP service")
-    p.add_argument("--host", default="127.0.0.1")
-    p.add_argument("--port", type=int, default=8000)
-    p.add_argument("--workers", type=_positive_int, default=1)
+    p = command("serve", "run the HTTP service (settings from PHONGRAY_* variables, see the README)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on")
+    p.add_argument("--port", type=int, default=8000, help="port to listen on")
+    p.add_argument("--workers", type=_positive_int, default=1, help="worker processes")
     p.set_defaults(func=cmd_serve)
 
-    sub.add_parser("bench", help="run the benchmark (speed, memory, HTTP, speed against error); "
-                                 "'phongray bench --help' for its options")
+    sub.add_parser("bench", help="run the benchmark (speed, memory, class grading, cluster, HTTP, speed against "
+                                 "error); 'phongray bench --help' for its options")
 
-    p = sub.add_parser("schema", help="print the scene JSON Schema")
+    p = command("schema", "print the scene JSON Schema")
     p.set_defaults(func=cmd_schema)
     return parser
 
@@ -341,6 +404,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"phongray: {exc}", file=sys.stderr)
         return exc.code
     except KeyboardInterrupt:
+        if ProgressBar.active is not None:
+            ProgressBar.active.close()  # the message goes on a line of its own
         print("phongray: interrupted", file=sys.stderr)
         return 130
     except MemoryError:

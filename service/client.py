@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import urllib.error
 import urllib.request
 import uuid
@@ -26,7 +27,16 @@ class ServerError(Exception):
             return None
 
 
-def _call(request: urllib.request.Request, timeout: float) -> tuple[int, bytes, dict[str, str]]:
+def base_url(server: str) -> str:
+    """``localhost:8000`` → ``http://localhost:8000``; no trailing slash."""
+    server = server.strip()
+    return (server if "://" in server else f"http://{server}").rstrip("/")
+
+
+def _call(request: urllib.request.Request, timeout: float, api_key: str | None) -> tuple[int, bytes, dict[str, str]]:
+    key = api_key if api_key is not None else os.environ.get("PHONGRAY_API_KEY", "")
+    if key:
+        request.add_header("Authorization", f"Bearer {key}")
     try:
         with urllib.request.urlopen(request, timeout=timeout) as res:
             return res.status, res.read(), dict(res.headers)
@@ -45,15 +55,16 @@ def _call(request: urllib.request.Request, timeout: float) -> tuple[int, bytes, 
 
 
 def post_json(server: str, path: str, body: bytes, query: dict[str, Any] | None = None,
-              timeout: float = 600) -> bytes:
+              timeout: float = 600, api_key: str | None = None) -> bytes:
+    """POST a JSON body; ``api_key`` (default: ``$PHONGRAY_API_KEY``) goes as ``Authorization: Bearer``."""
     params = "&".join(f"{k}={v}" for k, v in (query or {}).items() if v is not None)
-    url = server.rstrip("/") + path + (f"?{params}" if params else "")
+    url = base_url(server) + path + (f"?{params}" if params else "")
     req = urllib.request.Request(url, data=body, method="POST", headers={"content-type": "application/json"})
-    return _call(req, timeout)[1]
+    return _call(req, timeout, api_key)[1]
 
 
 def post_form(server: str, path: str, fields: dict[str, bytes | str], files: dict[str, tuple[str, bytes, str]],
-              query: dict[str, Any] | None = None, timeout: float = 600) -> bytes:
+              query: dict[str, Any] | None = None, timeout: float = 600, api_key: str | None = None) -> bytes:
     boundary = uuid.uuid4().hex
     parts: list[bytes] = []
     for name, value in fields.items():
@@ -65,7 +76,7 @@ def post_form(server: str, path: str, fields: dict[str, bytes | str], files: dic
         parts.append(head.encode() + data + b"\r\n")
     body = b"".join(parts) + f"--{boundary}--\r\n".encode()
     params = "&".join(f"{k}={v}" for k, v in (query or {}).items() if v is not None)
-    url = server.rstrip("/") + path + (f"?{params}" if params else "")
+    url = base_url(server) + path + (f"?{params}" if params else "")
     req = urllib.request.Request(url, data=body, method="POST",
                                  headers={"content-type": f"multipart/form-data; boundary={boundary}"})
-    return _call(req, timeout)[1]
+    return _call(req, timeout, api_key)[1]

@@ -14,7 +14,7 @@ from fastapi.responses import JSONResponse
 from starlette.datastructures import UploadFile
 
 from schemas import SceneError, json_schema, validate_scene
-from schemas.locate import line_for, value_lines
+from schemas.locate import located
 from tracer import ImageTooLarge, RenderCancelled, decode_png
 from tracer.memory import release
 
@@ -65,14 +65,7 @@ def problem_response(exc: HTTPProblem) -> JSONResponse:
 
 def scene_errors(exc: SceneError, text: bytes | str) -> list[dict[str, Any]]:
     """Every problem with its path, message and (where found) the line of the JSON text."""
-    lines: dict[str, int] = {}
-    if len(text) <= 1_000_000 and any(path for path, _ in exc.problems):
-        try:
-            lines = value_lines(text.decode("utf-8", "replace") if isinstance(text, bytes) else text)
-        except Exception:  # positions are a courtesy; a scanner failure must not hide the errors
-            lines = {}
-    return [{"path": path, "message": message, "line": line_for(lines, path) if path else None}
-            for path, message in exc.problems]
+    return located(exc.problems, text)
 
 
 def _require_json(request: Request) -> None:

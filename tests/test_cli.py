@@ -109,3 +109,138 @@ def test_absurd_area_light_grid_is_refused_not_attempted(tmp_path):
     path.write_text(json.dumps(data))
     result = run("render", str(path), "-o", str(tmp_path / "x.png"))
     assert result.returncode == 2 and b"light samples are more than phongray renders" in result.stderr
+
+
+# -- the command line as a careful user expects it ---------------------------------------------------------
+
+import io  # noqa: E402
+import os  # noqa: E402
+from importlib.metadata import metadata, version  # noqa: E402
+
+from server import running_server  # noqa: E402
+from service import cli  # noqa: E402
+
+SUBCOMMANDS = ["render", "validate", "grade", "grade-class", "serve", "schema"]
+
+
+def test_version_from_the_package_metadata():
+    expected = f"phongray {version('phongray')}\n".encode()
+    for args in (["--version"], ["-V"]):
+        assert run(*args).stdout == expected
+    done = subprocess.run([sys.executable, "-m", "phongray", "-V"], capture_output=True, timeout=60)
+    assert done.stdout == expected
+
+
+def test_every_option_has_help_and_shows_its_default():
+    serve = run("serve", "--help").stdout.decode()
+    assert "port to listen on (default: 8000)" in serve and "(default: 127.0.0.1)" in serve
+    render = run("render", "--help").stdout.decode()
+    for option in ("--width", "--height", "--samples", "--threads", "--quiet", "--server", "--api-key", "--cluster"):
+        assert option in render
+    parser = cli.build_parser()
+    for name in SUBCOMMANDS:
+        sub = parser._subparsers._group_actions[0].choices[name]  # type: ignore[union-attr]
+        for action in sub._actions:
+            assert action.help, (name, action.dest)
+
+
+def test_validate_prints_the_json_line_of_every_problem(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"camera": {"position": [0, 0, 5],\n "look_At": [0, 0, 0]},\n "image": {"width": 4, "height": 3},\n'
+                   ' "materials": {"gold": {}},\n "objects": [{"type": "sphere", "material": "glod",\n'
+                   '   "center": [0, 0, 0], "radius": -1}]}\n')
+    assert main(["validate", str(bad)]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        f"{bad}:6: objects[0].radius: must be > 0",
+        f"{bad}:1: camera.look_at: required",
+        f"{bad}:2: camera.look_At: unknown key (did you mean 'look_at'?)",
+        f"{bad}:5: objects[0].material: unknown material 'glod' (did you mean 'gold'?)"]
+    syntax = tmp_path / "syntax.json"
+    syntax.write_text('{"camera": {\n  "x": 1,,\n}}')
+    assert main(["validate", str(syntax)]) == 1
+    assert capsys.readouterr().out.startswith(f"{syntax}:2: invalid JSON:")
+
+
+@pytest.mark.parametrize("option, value, says", [("--tolerance", "-1", "tolerance: must be between 0 and 255"),
+                                                 ("--max-fraction", "5", "max_fraction: must be between 0 and 1")])
+def test_grading_thresholds_are_checked_as_over_http(tmp_path, capsys, option, value, says):
+    scene = SCENES / "01_three_spheres.json"
+    image = tmp_path / "same.png"
+    image.write_bytes((SCENES / "01_three_spheres.png").read_bytes())
+    assert main(["grade", str(scene), str(image), option, value]) == 2
+    assert capsys.readouterr().err == f"phongray: {says}\n"
+
+
+def test_an_output_that_is_not_a_png_is_refused(tmp_path, capsys):
+    out = tmp_path / "x.jpg"
+    assert main(["render", str(SCENES / "01_three_spheres.json"), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == (f"phongray: {out}: phongray writes PNG images; name the output *.png "
+                                       "(or - for standard output)\n")
+    assert not out.exists()
+
+
+def test_server_urls_without_a_scheme_and_api_keys(tmp_path, capsys, monkeypatch):
+    scene = str(SCENES / "01_three_spheres.json")
+    with running_server(tmp_path, api_key="sesame") as (url, _):
+        bare = url.removeprefix("http://")
+        assert main(["validate", scene, "--server", bare, "--api-key", "sesame"]) == 0
+        assert main(["validate", scene, "--server", bare, "--api-key", "wrong"]) == 2
+        assert "401" in capsys.readouterr().err
+        monkeypatch.setenv("PHONGRAY_API_KEY", "sesame")
+        out = tmp_path / "a.png"
+        assert main(["render", scene, "-o", str(out), "--server", bare]) == 0
+        assert decode_png(out.read_bytes()).shape == (120, 160, 3)
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_the_progress_bar_shows_elapsed_time_and_eta_and_an_interruption_gets_its_own_line(monkeypatch):
+    err = _Terminal()
+    monkeypatch.setattr(sys, "stderr", err)
+    bar = cli.ProgressBar(delay=0.0)
+
+    def interrupted(args):
+        bar(0, 100)
+        bar(40, 100)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "build_parser", lambda: _parser_with(interrupted))
+    assert main(["schema"]) == 130
+    text = err.getvalue()
+    assert "40.0%" in text and "elapsed, ETA" in text
+    assert text.endswith("  \nphongray: interrupted\n")
+
+
+def _parser_with(func):
+    parser = cli.argparse.ArgumentParser(prog="phongray")
+    parser.add_argument("command")
+    parser.set_defaults(func=func)
+    return parser
+
+
+def test_licence_and_metadata():
+    assert (SCENES.parent.parent / "LICENSE").read_text().startswith("MIT License")
+    meta = metadata("phongray")
+    assert meta["License-Expression"] == "MIT" and meta["Author"] == "The phongray developers"
+
+
+def test_every_subcommand_runs_from_an_installed_wheel(tmp_path):
+    """A wheel, not the source tree: a module the package forgets to ship shows up here."""
+    root = SCENES.parent.parent
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path / "dist"), str(root)],
+                   check=True, capture_output=True, timeout=300)
+    (wheel,) = (tmp_path / "dist").glob("phongray-*.whl")
+    target = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(target), str(wheel)],
+                   check=True, capture_output=True, timeout=300)
+    env = {**os.environ, "PYTHONPATH": str(target)}
+    where = subprocess.run([sys.executable, "-c", "import service, bench, schemas, tracer; print(service.__file__)"],
+                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    assert where.stdout.startswith(str(target)), where.stderr
+    for name in [*SUBCOMMANDS, "bench"]:
+        done = subprocess.run([sys.executable, "-m", "phongray", name, "--help"], cwd=tmp_path, env=env,
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0 and "usage:" in done.stdout, (name, done.stderr[-500:])

@@ -47,7 +47,7 @@ def test_single_number_colour_means_grey():
     ({"objects": [{"type": "sphere", "material": "gold", "center": [0, 0, 0], "radius": 1}]},
      "objects[0].material: unknown material 'gold'"),
     ({"objects": [{"type": "cube", "material": "m"}]}, "objects[0].type: unknown type 'cube'"),
-    ({"objects": [{"type": "sphere", "material": "m", "center": [0, 0], "radius": 1}]}, "objects[0].center: has too few elements"),
+    ({"objects": [{"type": "sphere", "material": "m", "center": [0, 0], "radius": 1}]}, "objects[0].center: has 2 elements, expected 3"),
     ({"objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1, "colour": 1}]},
      "objects[0].colour: unknown key"),
     ({"objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 0, 0]}]},
@@ -131,10 +131,35 @@ def test_booleans_are_not_numbers():
 
 
 def test_every_problem_is_reported_not_just_the_first():
-    data = minimal(objects=[{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": -1},
-                            {"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": -2}])
+    data = minimal(materials={"m": {}}, objects=[{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": -1},
+                                                 {"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": -2}])
     data["image"]["width"] = 0
     assert len(problems(data)) == 3
+
+
+def test_cross_references_come_in_the_same_answer_as_field_errors():
+    data = minimal(materials={"gold": {}}, objects=[
+        {"type": "sphere", "material": "glod", "center": [0, 0, 0], "radius": -1},
+        {"type": "mesh", "material": "gold", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 7]]}])
+    assert problems(data) == ["objects[0].radius: must be > 0",
+                              "objects[0].material: unknown material 'glod' (did you mean 'gold'?)",
+                              "objects[1].faces[0][2]: index 7 out of range (the mesh has 3 vertices)"]
+
+
+@pytest.mark.parametrize("patch, expected", [
+    ({"camera": {"position": [0, 0, 5], "look_At": [0, 0, 0]}}, "camera.look_At: unknown key (did you mean 'look_at'?)"),
+    ({"objects": [{"type": "spher", "material": "m"}]},
+     "objects[0].type: unknown type 'spher' (did you mean 'sphere'?) (expected one of 'sphere', 'plane', 'triangle', "
+     "'mesh')"),
+    ({"lights": [{"type": "point", "colour": 1, "position": [0, 0, 0]}]},
+     "lights[0].colour: unknown key (did you mean 'color'?)"),
+    ({"camera": {"position": [0, 0], "look_at": [0, 0, 0]}}, "camera.position: has 2 elements, expected 3"),
+    ({"camera": {"position": [0, 0, 5, 1], "look_at": [0, 0, 0]}}, "camera.position: has 4 elements, expected 3"),
+    ({"lights": [{"type": "area", "color": 1, "corner": [0, 0, 0], "edge_u": [1, 0, 0], "edge_v": [0, 1, 0],
+                  "samples": [2]}]}, "lights[0].samples: has 1 element, expected 2"),
+])
+def test_misspellings_get_a_suggestion_and_counts_say_what_was_expected(patch, expected):
+    assert expected in problems(minimal(materials={"m": {}}, **patch))
 
 
 def test_cross_references_are_all_reported():

@@ -229,3 +229,9 @@ def test_api_key():
     assert api.get("/schema", headers={"authorization": "Bearer s3cret"}).status_code == 200
     assert api.get("/schema", headers={"x-api-key": "s3cret"}).status_code == 200
     assert api.get("/schema", headers={"x-api-key": "wrong"}).status_code == 401
+
+
+def test_a_syntax_error_is_marked_on_the_line_the_parser_names(api):
+    res = api.post("/validate", content=b'{"camera": {\n  "x": 1,,\n}}', headers=JSON)
+    (error,) = res.json()["errors"]
+    assert res.status_code == 422 and error["line"] == 2 and error["message"].startswith("invalid JSON")
