@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from fastapi import FastAPI, Request
+import fastapi_offline
+from fastapi import FastAPI, Request, Response
 from fastapi.exceptions import RequestValidationError
+from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
 
 from schemas import Scene
 
@@ -17,6 +20,10 @@ from .settings import Settings
 
 STATIC = Path(__file__).parent / "static"
 EXAMPLE = Path(__file__).parent / "static" / "example.json"
+DOCS_ASSETS = Path(fastapi_offline.__file__).parent / "static"
+#: the docs pages may load nothing from elsewhere: the browser does not even try
+SAME_ORIGIN = ("default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
+               "img-src 'self' data: blob:; worker-src 'self' blob:; connect-src 'self'")
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -42,9 +49,30 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         page = (STATIC / "playground.html").read_text()
         return page.replace("__EXAMPLE__", EXAMPLE.read_text().replace("</", "<\\/"))
 
-    @app.get("/docs", response_class=HTMLResponse, include_in_schema=False)
-    def docs() -> str:
-        return (STATIC / "docs.html").read_text()
+    # Swagger UI and ReDoc from the assets the fastapi-offline package ships (a maintained PyPI package: no
+    # npm build of ours, no CDN), so that the docs work with no internet access
+    app.mount("/docs-assets", StaticFiles(directory=DOCS_ASSETS), name="docs-assets")
+
+    @app.get("/docs", include_in_schema=False)
+    def docs() -> HTMLResponse:
+        page = get_swagger_ui_html(openapi_url="/openapi.json", title="phongray API",
+                                   swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+                                   swagger_css_url="/docs-assets/swagger-ui.css", swagger_favicon_url="/favicon.ico",
+                                   swagger_ui_parameters={"tryItOutEnabled": True, "persistAuthorization": True})
+        page.headers["Content-Security-Policy"] = SAME_ORIGIN
+        return page
+
+    @app.get("/redoc", include_in_schema=False)
+    def redoc() -> HTMLResponse:
+        page = get_redoc_html(openapi_url="/openapi.json", title="phongray API",
+                              redoc_js_url="/docs-assets/redoc.standalone.js", redoc_favicon_url="/favicon.ico",
+                              with_google_fonts=False)
+        page.headers["Content-Security-Policy"] = SAME_ORIGIN  # (ReDoc's sidebar logo would come from its CDN)
+        return page
+
+    @app.get("/favicon.ico", include_in_schema=False)
+    def favicon() -> Response:
+        return Response((STATIC / "favicon.svg").read_bytes(), media_type="image/svg+xml")
 
     original_openapi = app.openapi
 
@@ -53,7 +81,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             schema = original_openapi()
             scene_schema = Scene.model_json_schema(ref_template="#/components/schemas/{model}")
             defs = scene_schema.pop("$defs", {})
-            schema.setdefault("components", {}).setdefault("schemas", {}).update({**defs, "Scene": scene_schema})
+            components = schema.setdefault("components", {})
+            components.setdefault("schemas", {}).update({**defs, "Scene": scene_schema})
+            # Swagger UI's "Authorize": the key of a service that has one (PHONGRAY_API_KEY)
+            components["securitySchemes"] = {"apiKey": {"type": "http", "scheme": "bearer",
+                                                         "description": "needed when the service sets PHONGRAY_API_KEY"}}
+            schema["security"] = [{"apiKey": []}, {}]
             app.openapi_schema = schema
         return app.openapi_schema
 

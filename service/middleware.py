@@ -119,15 +119,19 @@ def credential(headers: list[tuple[bytes, bytes]]) -> bytes | None:
     return value
 
 
+#: what needs no key: liveness, and the API's own documentation (it holds no data; its "Authorize" takes the key)
+OPEN = {"/healthz", "/docs", "/redoc", "/openapi.json", "/favicon.ico"}
+
+
 class ApiKey:
-    """When a key is configured, every path but /healthz needs exactly one credential with that key."""
+    """When a key is configured, every path but :data:`OPEN` needs exactly one credential with that key."""
 
     def __init__(self, app: ASGIApp, key: str):
         self.app = app
         self.key = key.encode()
 
     async def __call__(self, scope: Scope, receive: Callable[..., Any], send: Callable[..., Any]) -> None:
-        if scope["type"] != "http" or not self.key or scope["path"] == "/healthz":
+        if scope["type"] != "http" or not self.key or scope["path"] in OPEN or scope["path"].startswith("/docs-assets/"):
             await self.app(scope, receive, send)
             return
         given = credential(scope.get("headers", []))

@@ -132,11 +132,66 @@ def test_playground_renders_and_shows_errors_by_line(server, browser):
     page.close()
 
 
-def test_docs_page_lists_the_endpoints_offline(server, browser):
-    page = browser.new_page()
+def offline_page(browser, server):
+    """A page that may reach the server only; any other request is stopped and remembered."""
+    page = browser.new_page(viewport={"width": 1400, "height": 900})
+    page.outside = []
+
+    def route(r):
+        if r.request.url.startswith(server):
+            r.continue_()
+        else:
+            page.outside.append(r.request.url)
+            r.abort()
+
+    page.route("**/*", route)
+    return page
+
+
+def try_out(page, operation: str):
+    """Open an operation in Swagger UI; return its locator (try-it-out is on from the start)."""
+    op = page.locator(f"#operations-default-{operation}")
+    op.locator(".opblock-summary").click()
+    op.locator("button.execute").wait_for(timeout=10_000)
+    return op
+
+
+def test_swagger_ui_works_offline_and_tries_render_validate_and_grade(server, browser, tmp_path):
+    page = offline_page(browser, server)
     page.goto(server + "/docs")
-    page.wait_for_selector(".op", timeout=20_000)
-    text = page.inner_text("#ops")
-    for path in ("/render", "/validate", "/grade", "/schema", "/healthz"):
-        assert path in text
+    page.wait_for_selector(".opblock", timeout=20_000)
+    assert page.locator(".opblock-summary-path").all_inner_texts() == ["/render", "/validate", "/grade", "/schema",
+                                                                        "/healthz"]
+    op = try_out(page, "render_scene_render_post")
+    op.locator("textarea.body-param__text").fill(SCENE.decode())
+    op.locator("button.execute").click()
+    image = op.locator(".live-responses-table img").first
+    image.wait_for(timeout=20_000)
+    assert image.evaluate("i => i.naturalWidth") == 160
+
+    op = try_out(page, "validate_validate_post")
+    op.locator("textarea.body-param__text").fill(SCENE.decode().replace('"radius": 0.9', '"radius": -0.9'))
+    op.locator("button.execute").click()
+    op.locator(".live-responses-table .response-col_status").first.wait_for(timeout=20_000)
+    assert "objects[2].radius" in op.locator(".live-responses-table").inner_text()
+
+    png = tmp_path / "reference.png"
+    png.write_bytes(post_json(server, "/render", SCENE))
+    op = try_out(page, "grade_grade_post")
+    op.locator("tr[data-property-name=scene] input").fill(SCENE.decode())  # the form's scene field, as text
+    op.locator("tr[data-property-name=image] input[type=file]").set_input_files(str(png))
+    op.locator("button.execute").click()
+    op.locator(".live-responses-table .response-col_status").first.wait_for(timeout=20_000)
+    assert '"passed": true' in op.locator(".live-responses-table").inner_text()
+    page.screenshot(path=str(tmp_path / "swagger.png"))
+    assert page.outside == []
+    page.close()
+
+
+def test_redoc_works_offline(server, browser):
+    page = offline_page(browser, server)
+    page.goto(server + "/redoc")
+    page.wait_for_selector("text=Render a scene to a PNG", timeout=20_000)
+    page.wait_for_timeout(500)
+    assert page.outside == []  # (its sidebar's logo from a CDN is stopped by the page's own policy, unasked)
     page.close()

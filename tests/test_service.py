@@ -2,6 +2,7 @@
 
 import io
 import json
+import re
 
 import numpy as np
 import pytest
@@ -212,10 +213,16 @@ def test_the_scene_is_rendered_once_for_many_gradings(reference_png):
 def test_schema_health_playground_docs(api):
     assert api.get("/schema").json()["required"] == ["camera", "image"]
     assert api.get("/healthz").json()["status"] == "ok"
-    for path in ("/", "/docs"):
-        page = api.get(path).text
-        assert "<script src=" not in page and "<link" not in page  # nothing is fetched from elsewhere
-    assert '"look_at"' in api.get("/").text
+    page = api.get("/").text
+    assert "<script src=" not in page and "<link" not in page  # nothing is fetched from elsewhere
+    assert '"look_at"' in page
+    for path in ("/docs", "/redoc"):
+        res = api.get(path)
+        sources = re.findall(r'(?:src|href)="([^"]+)"', res.text)
+        assert sources and all(u.startswith("/") for u in sources), sources  # the service's own assets only
+        assert "default-src 'self'" in res.headers["content-security-policy"]
+        for url in sources:
+            assert api.get(url).status_code == 200, url
     spec = api.get("/openapi.json").json()
     assert {"/render", "/validate", "/grade", "/schema", "/healthz"} <= set(spec["paths"])
     assert "Scene" in spec["components"]["schemas"]
@@ -229,6 +236,9 @@ def test_api_key():
     assert api.get("/schema", headers={"authorization": "Bearer s3cret"}).status_code == 200
     assert api.get("/schema", headers={"x-api-key": "s3cret"}).status_code == 200
     assert api.get("/schema", headers={"x-api-key": "wrong"}).status_code == 401
+    for path in ("/docs", "/redoc", "/openapi.json", "/docs-assets/swagger-ui.css"):  # the docs stay open
+        assert api.get(path).status_code == 200, path
+    assert api.get("/openapi.json").json()["components"]["securitySchemes"]["apiKey"]["scheme"] == "bearer"
 
 
 def test_a_syntax_error_is_marked_on_the_line_the_parser_names(api):
