@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import html
+import json
+import os
 from pathlib import Path
 
 import fastapi_offline
@@ -26,6 +29,18 @@ SAME_ORIGIN = ("default-src 'self'; script-src 'self' 'unsafe-inline'; style-src
                "img-src 'self' data: blob:; worker-src 'self' blob:; connect-src 'self'")
 
 
+def examples() -> dict[str, str]:
+    """The playground's examples: every scene of the project's examples/ folder ($PHONGRAY_EXAMPLES, the source
+    tree's, or ./examples as in the Docker image), else the one scene the package ships."""
+    for folder in (os.environ.get("PHONGRAY_EXAMPLES"), Path(__file__).parent.parent / "examples",
+                   Path.cwd() / "examples"):
+        if folder and Path(folder).is_dir():
+            found = {p.stem: p.read_text() for p in sorted(Path(folder).glob("*.json"))}
+            if found:
+                return found
+    return {"example": EXAMPLE.read_text()}
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings.from_env()
     app = FastAPI(title="phongray", version="0.1.0", docs_url=None, redoc_url=None,
@@ -44,10 +59,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                   for err in exc.errors()]
         return SafeJSONResponse({"detail": "invalid request", "errors": errors}, status_code=422)
 
-    @app.get("/", response_class=HTMLResponse, include_in_schema=False)
-    def playground() -> str:
+    @app.get("/", include_in_schema=False)
+    def playground() -> HTMLResponse:
+        scenes = examples()
+        first = next(iter(scenes.values()))
         page = (STATIC / "playground.html").read_text()
-        return page.replace("__EXAMPLE__", EXAMPLE.read_text().replace("</", "<\\/"))
+        page = page.replace("__EXAMPLES__", json.dumps(scenes).replace("</", "<\\/")).replace(
+            "__EXAMPLE__", html.escape(first, quote=False))
+        return HTMLResponse(page, headers={"Content-Security-Policy": SAME_ORIGIN})
 
     # Swagger UI and ReDoc from the assets the fastapi-offline package ships (a maintained PyPI package: no
     # npm build of ours, no CDN), so that the docs work with no internet access

@@ -119,8 +119,9 @@ def credential(headers: list[tuple[bytes, bytes]]) -> bytes | None:
     return value
 
 
-#: what needs no key: liveness, and the API's own documentation (it holds no data; its "Authorize" takes the key)
-OPEN = {"/healthz", "/docs", "/redoc", "/openapi.json", "/favicon.ico"}
+#: what needs no key: liveness, the playground and the API's documentation (pages without data, which take the
+#: key from the user and send it with their requests)
+OPEN = {"/healthz", "/", "/docs", "/redoc", "/openapi.json", "/favicon.ico"}
 
 
 class ApiKey:

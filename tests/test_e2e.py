@@ -8,6 +8,7 @@ import sys
 import urllib.error
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import pytest
 
@@ -115,21 +116,105 @@ def browser():
         b.close()
 
 
-def test_playground_renders_and_shows_errors_by_line(server, browser):
-    page = browser.new_page()
+SHOTS = os.environ.get("PHONGRAY_SCREENSHOTS")  # a folder: the playground tests leave their screenshots there
+
+
+def shot(page, name: str, tmp_path) -> None:
+    page.screenshot(path=str(Path(SHOTS) / name if SHOTS else tmp_path / name))
+
+
+def test_playground_picks_an_example_renders_it_and_offers_the_png(server, browser, tmp_path):
+    page = offline_page(browser, server)
     page.goto(server + "/")
-    page.click("#render")
-    page.wait_for_function("document.getElementById('image').naturalWidth > 0", timeout=20_000)
+    assert page.locator("h1").inner_text() == "phongray playground"
+    names = page.locator("#examples option").all_inner_texts()
+    assert names == sorted(p.stem for p in (SCENES.parent.parent / "examples").glob("*.json"))
+    page.select_option("#examples", "04_whitted")
+    assert '"reflectance"' in page.input_value("#scene")
+    page.keyboard.press("Control+Enter")
+    page.wait_for_function("() => document.getElementById('image').naturalWidth > 0", timeout=20_000)
     assert page.evaluate("document.getElementById('image').naturalWidth") == 160
-    text = page.input_value("#scene").replace('"radius": 0.9', '"radius": -0.9')
-    page.fill("#scene", text)
+    assert page.evaluate("document.getElementById('image').getBoundingClientRect().width") == 480  # 3× crisp
+    assert "160×120 px" in page.inner_text("#info") and page.locator("#download").count() == 1
+    shot(page, "playground.png", tmp_path)
+    assert page.outside == []
+    page.close()
+
+
+def test_playground_marks_an_error_beside_its_line_after_scrolling(server, browser):
+    page = offline_page(browser, server)
+    page.set_viewport_size({"width": 1400, "height": 700})
+    page.goto(server + "/")
+    page.select_option("#examples", "05_mesh")
+    lines = page.input_value("#scene").split("\n")
+    assert len(lines) > 130
+    target = max(i for i, l in enumerate(lines) if '"material"' in l)  # near the end
+    lines[target] = lines[target].replace('"material": "', '"material": "zz', 1)
+    page.fill("#scene", "\n".join(lines))
     page.click("#render")
     page.wait_for_selector("#errors li", timeout=20_000)
-    error = page.inner_text("#errors li")
-    line = next(i for i, l in enumerate(text.splitlines(), 1) if "-0.9" in l)
-    assert error == f"line {line}: objects[2].radius: must be > 0"
-    assert page.inner_text("#gutter .bad") == f"● {line}"
+    item = page.locator("#errors li").filter(has_text="unknown material")
+    assert item.inner_text().startswith(f"line {target + 1}: ")
+    item.click()
+    marker = page.locator(f"#gutter .bad[data-line='{target + 1}']")
+    box = marker.bounding_box()
+    editor = page.locator("#editor").bounding_box()
+    assert editor["y"] <= box["y"] and box["y"] + box["height"] <= editor["y"] + editor["height"]  # in view
+    area = page.locator("#scene").bounding_box()
+    line_height = 18
+    line_top = area["y"] + 6 + target * line_height  # the text's own line, where the scroll put it
+    assert abs(box["y"] - line_top) <= 2, (box, line_top)
     page.close()
+
+
+def test_playground_marks_a_syntax_error(server, browser):
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    text = page.input_value("#scene").replace('"width": 160,', '"width": 160,,', 1)
+    page.fill("#scene", text)
+    page.click("#render")
+    page.wait_for_selector("#gutter .bad", timeout=20_000)
+    line = next(i for i, l in enumerate(text.splitlines(), 1) if ",," in l)
+    assert page.locator("#gutter .bad").get_attribute("data-line") == str(line)
+    assert "stale" not in (page.get_attribute("#view", "class") or "")  # no image yet: nothing to mark stale
+    page.close()
+
+
+def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
+    right = tmp_path / "right.png"
+    right.write_bytes(post_json(server, "/render", SCENE))
+    wrong = tmp_path / "wrong.png"
+    data = json.loads(SCENE)
+    data["lights"] = data["lights"][:1]
+    wrong.write_bytes(post_json(server, "/render", json.dumps(data).encode()))
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    page.click("#tab-grade")
+    page.set_input_files("#upload", str(right))
+    page.wait_for_selector("#verdict.pass", timeout=20_000)
+    page.set_input_files("#upload", str(wrong))
+    page.wait_for_selector("#verdict.fail", timeout=20_000)
+    page.wait_for_function("() => { const i = document.getElementById('grade-heat-map'); "
+                           "return i && i.naturalWidth === 160; }", timeout=20_000)
+    assert "fraction_off_nearby" in page.inner_text("#numbers")
+    shot(page, "playground-grade.png", tmp_path)
+    assert page.outside == []
+    page.close()
+
+
+def test_playground_with_an_api_key(tmp_path, browser):
+    with running_server(tmp_path, api_key="opensesame") as (url, _):
+        page = browser.new_page()
+        page.goto(url + "/")
+        page.click("#render")
+        page.wait_for_function("() => document.getElementById('status').textContent.includes('API key')",
+                               timeout=20_000)
+        page.fill("#key", "opensesame")
+        page.click("#render")
+        page.wait_for_function("() => document.getElementById('image').naturalWidth > 0", timeout=20_000)
+        page.reload()
+        assert page.input_value("#key") == "opensesame"  # kept for the session
+        page.close()
 
 
 def offline_page(browser, server):

@@ -213,10 +213,8 @@ def test_the_scene_is_rendered_once_for_many_gradings(reference_png):
 def test_schema_health_playground_docs(api):
     assert api.get("/schema").json()["required"] == ["camera", "image"]
     assert api.get("/healthz").json()["status"] == "ok"
-    page = api.get("/").text
-    assert "<script src=" not in page and "<link" not in page  # nothing is fetched from elsewhere
-    assert '"look_at"' in page
-    for path in ("/docs", "/redoc"):
+    assert '"look_at"' in api.get("/").text
+    for path in ("/", "/docs", "/redoc"):
         res = api.get(path)
         sources = re.findall(r'(?:src|href)="([^"]+)"', res.text)
         assert sources and all(u.startswith("/") for u in sources), sources  # the service's own assets only
