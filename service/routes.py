@@ -23,6 +23,9 @@ from .jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted,
 from .limits import LimitError
 
 router = APIRouter()
+#: seconds between two looks at whether a waiting client is still there (each look is a turn of the event loop,
+#: and a hundred waiters look at once)
+DISCONNECT_POLL = 0.25
 
 SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {"schema": {
     "$ref": "#/components/schemas/Scene"}}}}}
@@ -124,7 +127,7 @@ async def _png(request: Request, job: Job) -> bytes:
                 flight.waiting -= 1
                 waiting.cancel()
                 return
-            await anyio.sleep(0.05)
+            await anyio.sleep(DISCONNECT_POLL)
 
     async with anyio.create_task_group() as tasks:
         tasks.start_soon(watch)
