@@ -8,8 +8,12 @@ from typing import Any
 
 from pydantic import ValidationError
 
-#: the tags of the tagged unions, which pydantic puts into error locations
-_UNION_TAGS = {"sphere", "plane", "triangle", "mesh", "ambient", "directional", "point", "spot", "area"}
+from . import scene as models
+
+#: the models of the tagged unions by tag (pydantic puts the tags into error locations)
+_TAGGED = {"sphere": models.Sphere, "plane": models.Plane, "triangle": models.Triangle, "mesh": models.Mesh,
+           "ambient": models.AmbientLight, "directional": models.DirectionalLight, "point": models.PointLight,
+           "spot": models.SpotLight, "area": models.AreaLight}
 
 
 class SceneError(ValueError):
@@ -42,7 +46,7 @@ def path_of(loc: tuple[Any, ...]) -> str:
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
-        elif isinstance(previous, int) and part in _UNION_TAGS:
+        elif isinstance(previous, int) and part in _TAGGED:
             pass  # the union branch chosen by "type" is not part of the user's path
         else:
             out += f".{part}" if out else str(part)
@@ -62,23 +66,18 @@ def suggestion(name: Any, known: Any) -> str:
 
 def _model_at(loc: tuple[Any, ...]) -> Any:
     """The model whose fields the location ``loc`` lies among (union tags included), or None."""
-    from . import scene as m
-
-    tagged = {"sphere": m.Sphere, "plane": m.Plane, "triangle": m.Triangle, "mesh": m.Mesh,
-              "ambient": m.AmbientLight, "directional": m.DirectionalLight, "point": m.PointLight,
-              "spot": m.SpotLight, "area": m.AreaLight}
     parts = list(loc)
     if not parts:
-        return m.Scene
+        return models.Scene
     head = parts[0]
     if head in ("camera", "image") and len(parts) == 1:
-        return m.Camera if head == "camera" else m.Image
+        return models.Camera if head == "camera" else models.Image
     if head == "materials" and len(parts) == 2:
-        return m.Material
+        return models.Material
     if head == "materials" and len(parts) == 3 and parts[2] == "checker":
-        return m.Checker
+        return models.Checker
     if head in ("objects", "lights") and len(parts) == 3 and isinstance(parts[1], int):
-        return tagged.get(parts[2])
+        return _TAGGED.get(parts[2])
     return None
 
 
@@ -134,10 +133,13 @@ def _tuple_missing(err: dict[str, Any]) -> bool:
     return err["type"] == "missing" and bool(loc) and isinstance(loc[-1], int)
 
 
-def problems_from_validation(exc: ValidationError) -> list[tuple[str, str]]:
+def problems_from_validation(errors: ValidationError | list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """``(path, message)`` per pydantic error (a ValidationError, or its errors with absolute locations)."""
+    if isinstance(errors, ValidationError):
+        errors = errors.errors(include_url=False)
     out: list[tuple[str, str]] = []
     seen: set[tuple[str, str]] = set()
-    for err in exc.errors(include_url=False):
+    for err in errors:
         loc = err["loc"]
         if _tuple_missing(err):  # a short array: report the array, once
             given = err.get("input")

@@ -155,26 +155,17 @@ def _in_pieces(section: Any, name: str, adapter: TypeAdapter, problems: _Problem
         try:
             valid = adapter.validate_python(dict(chunk) if is_dict else chunk)
         except ValidationError as exc:
-            for err in exc.errors(include_url=False):
+            errors = exc.errors(include_url=False)
+            for err in errors:
                 loc = err["loc"]
                 if not is_dict and loc and isinstance(loc[0], int):
                     loc = (loc[0] + start, *loc[1:])
                 err["loc"] = (name, *loc)
-                problems.extend(problems_from_validation(_Listed([err])))
+            problems.extend(problems_from_validation(errors))
         else:
             out.update(valid) if is_dict else out.extend(valid)
         start += len(chunk)
     return out
-
-
-class _Listed:
-    """Errors already taken out of a ValidationError, in the shape :func:`problems_from_validation` reads."""
-
-    def __init__(self, errors: list[dict[str, Any]]):
-        self._errors = errors
-
-    def errors(self, include_url: bool = False) -> list[dict[str, Any]]:
-        return self._errors
 
 
 def _bounded(data: dict, path: str, problems: _Problems, arrays: dict[tuple[int, str], list | None]) -> dict:

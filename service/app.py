@@ -59,13 +59,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                   for err in exc.errors()]
         return SafeJSONResponse({"detail": "invalid request", "errors": errors}, status_code=422)
 
+    scenes = examples()
+    page = (STATIC / "playground.html").read_text().replace(
+        "__EXAMPLES__", json.dumps(scenes).replace("</", "<\\/")).replace(
+        "__EXAMPLE__", html.escape(next(iter(scenes.values())), quote=False))
+
     @app.get("/", include_in_schema=False)
     def playground() -> HTMLResponse:
-        scenes = examples()
-        first = next(iter(scenes.values()))
-        page = (STATIC / "playground.html").read_text()
-        page = page.replace("__EXAMPLES__", json.dumps(scenes).replace("</", "<\\/")).replace(
-            "__EXAMPLE__", html.escape(first, quote=False))
         return HTMLResponse(page, headers={"Content-Security-Policy": SAME_ORIGIN})
 
     # Swagger UI and ReDoc from the assets the fastapi-offline package ships (a maintained PyPI package: no

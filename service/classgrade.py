@@ -282,12 +282,6 @@ def _on_server(server: str, todo: list[Pair], needed: dict[str, Path], refs: dic
                     raise
                 time.sleep(exc.retry_after if exc.retry_after is not None else 1.0)
 
-    def reason(exc: ServerError) -> str:
-        body = exc.body
-        if isinstance(body, dict) and body.get("errors"):
-            return "; ".join(f"{e['path']}: {e['message']}" if e.get("path") else e["message"] for e in body["errors"])
-        return str(body.get("detail", body)) if isinstance(body, dict) else str(exc)
-
     failed: dict[str, str] = {}
 
     def render(key: str) -> None:
@@ -296,30 +290,27 @@ def _on_server(server: str, todo: list[Pair], needed: dict[str, Path], refs: dic
         except ServerError as exc:
             if exc.status == 0:
                 raise
-            failed[key] = f"{needed[key]}: {reason(exc)}"
+            failed[key] = f"{needed[key]}: {exc.detail}"
 
     def grade(pair: Pair) -> None:
         if pair.key in failed:
             pair.row = {"status": "invalid", "reason": failed[pair.key or ""]}
             return
         assert pair.image is not None
-        data = pair.image.read_bytes()
         fields = {"scene": pair.scene.read_bytes(), "tolerance": str(tolerance), "max_fraction": str(max_fraction)}
-        files = {"image": (f"{pair.task}.png", data, "image/png")}
+        files = {"image": (f"{pair.task}.png", pair.image.read_bytes(), "image/png")}
         try:
             result = json.loads(call(post_form, "/grade", fields, files))
             heat = call(post_form, "/grade", fields, files, {"format": "png"})
         except ServerError as exc:
             if exc.status == 0:
                 raise
-            text = reason(exc)
+            text = exc.detail
             where = pair.image if text.startswith("image: ") else pair.scene
             pair.row = {"status": "invalid", "reason": f"{where}: {text.removeprefix('image: ')}"}
             return
-        heat_path, copy = _paths(pair, report)
-        write_atomic(heat_path, heat)
-        write_atomic(copy, data)
-        pair.row = {**result, "status": "pass" if result["passed"] else "fail", "reason": ""}
+        _graded(pair, {**result, "status": "pass" if result["passed"] else "fail", "reason": "", "heatmap_png": heat},
+                report)
 
     with futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
         for fut in futures.as_completed([pool.submit(render, k) for k in needed]):

@@ -104,10 +104,8 @@ def _server_call(func, *a, **kw):  # type: ignore[no-untyped-def]
     try:
         return func(*a, **kw)
     except ServerError as exc:
-        body = exc.body
-        if isinstance(body, dict) and body.get("errors"):
-            lines = [f"{e['path']}: {e['message']}" if e.get("path") else e["message"] for e in body["errors"]]
-            raise CliError("; ".join(lines), 1 if exc.status == 422 else EXIT_BAD_INPUT) from None
+        if exc.problems is not None:
+            raise CliError(exc.problems, 1 if exc.status == 422 else EXIT_BAD_INPUT) from None
         raise CliError(str(exc)) from None
 
 

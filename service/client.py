@@ -18,6 +18,21 @@ class ServerError(Exception):
         self.status, self.body, self.headers = status, body, headers or {}
 
     @property
+    def problems(self) -> str | None:
+        """The scene problems of a 422 answer as ``path: message; …``, or None when it lists none."""
+        body = self.body
+        if not (isinstance(body, dict) and body.get("errors")):
+            return None
+        return "; ".join(f"{e['path']}: {e['message']}" if e.get("path") else e["message"] for e in body["errors"])
+
+    @property
+    def detail(self) -> str:
+        """What the server said: its problems, its ``detail``, or the error itself."""
+        if self.problems is not None:
+            return self.problems
+        return str(self.body.get("detail", self.body)) if isinstance(self.body, dict) else str(self)
+
+    @property
     def retry_after(self) -> float | None:
         """Seconds the server asked to wait (a 503's ``Retry-After``), or None."""
         value = {k.lower(): v for k, v in self.headers.items()}.get("retry-after")

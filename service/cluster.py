@@ -33,18 +33,23 @@ def _distributed() -> Any:
     return distributed
 
 
-@contextlib.contextmanager
-def connect(address: str, timeout: float = 10.0) -> Iterator[Any]:
-    """A Dask client of the scheduler at ``address`` (``tcp://HOST:PORT``), closed afterwards."""
+def client(address: str, timeout: float = 10.0) -> Any:
+    """A Dask client of the scheduler at ``address`` (``tcp://HOST:PORT``)."""
     distributed = _distributed()
     try:
-        client = distributed.Client(address, timeout=timeout, set_as_default=False)
+        return distributed.Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+
+
+@contextlib.contextmanager
+def connect(address: str, timeout: float = 10.0) -> Iterator[Any]:
+    """:func:`client`, closed afterwards."""
+    client_ = client(address, timeout)
     try:
-        yield client
+        yield client_
     finally:
-        client.close()
+        client_.close()
 
 
 def band_task(scene: bytes, top: int, bottom: int) -> np.ndarray:

@@ -127,11 +127,12 @@ class RenderService:
 
             try:
                 if self.settings.cluster:
+                    from .cluster import ClusterError
                     from .cluster import render as render_on
 
                     try:
                         client = self._client()
-                    except (OSError, TimeoutError) as exc:
+                    except ClusterError as exc:
                         raise ClusterDown(str(exc)) from None
                     pixels = render_on(client, job.scene.model_dump_json().encode(), job.scene.image.width,
                                        job.scene.image.height, cancelled=stop)
@@ -154,9 +155,9 @@ class RenderService:
         """The one Dask client of this process, made on first use (``settings.cluster``)."""
         with self._client_lock:
             if self._dask is None:
-                from .cluster import _distributed
+                from .cluster import client
 
-                self._dask = _distributed().Client(self.settings.cluster, timeout=10, set_as_default=False)
+                self._dask = client(self.settings.cluster)
             return self._dask
 
     def status(self) -> dict[str, Any]:

@@ -105,11 +105,10 @@ class BodyLimit:
 def credential(headers: list[tuple[bytes, bytes]]) -> bytes | None:
     """The one credential of a request: ``Authorization: Bearer KEY`` (one space, nothing after the key)
     or ``X-API-Key: KEY``.  None when there is none, more than one, or another scheme."""
-    given = [value for name, value in headers if name in (b"authorization", b"x-api-key")]
+    given = [(name, value) for name, value in headers if name in (b"authorization", b"x-api-key")]
     if len(given) != 1:
         return None
-    (name,) = [name for name, _ in headers if name in (b"authorization", b"x-api-key")]
-    value = given[0]
+    ((name, value),) = given
     if name == b"authorization":
         if value[:7].lower() != b"bearer ":
             return None

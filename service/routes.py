@@ -6,7 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Callable, Literal, TypeVar
 
 import anyio
 from fastapi import APIRouter, Query, Request, Response
@@ -23,6 +23,7 @@ from .jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted,
 from .limits import LimitError
 
 router = APIRouter()
+T = TypeVar("T")
 #: seconds between two looks at whether a waiting client is still there (each look is a turn of the event loop,
 #: and a hundred waiters look at once)
 DISCONNECT_POLL = 0.25
@@ -77,22 +78,22 @@ def _require_json(request: Request) -> None:
         raise HTTPProblem(415, f"content type must be application/json, got {kind or 'none'}")
 
 
-def _prepare(body: bytes | str, overrides: dict[str, int | None], service: RenderService) -> Job:
+def _answering(work: Callable[[], T], body: bytes | str) -> T:
+    """``work()``, with scene problems as 422 (with their lines) and limits as their own status."""
     try:
-        return prepare(body, overrides, service.settings)
+        return work()
     except SceneError as exc:
         raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
     except LimitError as exc:
         raise HTTPProblem(exc.status, str(exc)) from None
+
+
+def _prepare(body: bytes | str, overrides: dict[str, int | None], service: RenderService) -> Job:
+    return _answering(lambda: prepare(body, overrides, service.settings), body)
 
 
 def _validate(body: bytes, service: RenderService) -> None:
-    try:
-        validate_scene(parse_counted(body, service.settings))
-    except SceneError as exc:
-        raise HTTPProblem(422, "invalid scene", scene_errors(exc, body)) from None
-    except LimitError as exc:
-        raise HTTPProblem(exc.status, str(exc)) from None
+    _answering(lambda: validate_scene(parse_counted(body, service.settings)), body)
 
 
 class _Flight:
