@@ -188,69 +188,74 @@ def _separate_nests(i: np.ndarray, j: np.ndarray, n_tri: int, center: np.ndarray
 
 
 def _csr(count: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    src = np.concatenate([i, j])
-    dst = np.concatenate([j, i])
-    order = np.lexsort((dst, src))
-    src, dst = src[order], dst[order]
+    src = np.concatenate([i, j]).astype(np.int64)
+    dst = np.concatenate([j, i]).astype(np.int64)
+    order = np.argsort(src * max(count, 1) + dst)  # keys are distinct: one order, whatever the sort
     start = np.zeros(count + 1, dtype=np.int64)
-    np.add.at(start, src + 1, 1)
-    return np.cumsum(start), dst.astype(np.int64)
+    start[1:] = np.cumsum(np.bincount(src, minlength=count))
+    return start, dst[order]
+
+
+#: the 13 cells after a cell in (x, y, z) order among its 26 neighbours: each adjacent pair of cells once
+_LATER = [(dx, dy, dz) for dx in (-1, 0, 1) for dy in (-1, 0, 1) for dz in (-1, 0, 1) if (dx, dy, dz) > (0, 0, 0)]
+_BITS = 21
+_LAST = (1 << (_BITS - 1)) - 1  # cell coordinates are clipped to 0.._LAST, so a neighbour's key never wraps
 
 
 def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """All pairs ``i < j`` of boxes that overlap, found through a uniform grid. Each (K,), int64, in no
-    particular (but a deterministic) order.
+    """All pairs ``i < j`` of boxes that overlap. Each (K,), int64, in no particular (but a deterministic) order.
 
-    Boxes much larger than the typical one are tested against every box
-    directly.  Raises :class:`TooManyOverlaps` past :data:`PAIR_BUDGET`.
+    Boxes up to four times the median size go into a uniform grid whose cell
+    is as large as the largest of them, each box into the one cell of its low
+    corner: two that overlap then sit in the same or adjacent cells.  The
+    larger boxes are tested against every box directly.  Raises
+    :class:`TooManyOverlaps` past :data:`PAIR_BUDGET`.
     """
     n = len(lo)
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     extent = np.max(hi - lo, axis=1)
-    cell = float(np.median(extent))
-    if not np.isfinite(cell) or cell <= 0:
-        cell = float(np.max(extent)) or 1.0
-    origin = lo.min(axis=0)
-    with np.errstate(over="ignore", invalid="ignore"):
-        c_lo = np.floor((lo - origin) / cell)
-        c_hi = np.floor((hi - origin) / cell)
-    span = np.clip(c_hi - c_lo + 1, 1, 2**20)
-    cells = np.prod(span, axis=1)
-    big = ~(cells <= 27)
-    # the cell of each box's low corner, an axis per contiguous column
-    low = np.where(big[:, None], 0, c_lo).astype(np.int64)
-    lx, ly, lz = (np.ascontiguousarray(low[:, a]) for a in range(3))
+    median = float(np.median(extent))
+    with np.errstate(invalid="ignore"):
+        is_small = (extent <= 4.0 * median) if np.isfinite(median) else np.zeros(n, dtype=bool)
+    small = np.flatnonzero(is_small)
     pairs_i, pairs_j = [], []
-    small = np.flatnonzero(~big)
     if len(small):
-        sp = span[small].astype(np.int64)
-        per = cells[small].astype(np.int64)
-        box = np.repeat(small, per)
-        k = np.arange(len(box)) - np.repeat(np.cumsum(per) - per, per)
-        sy, sz = np.repeat(sp[:, 1], per), np.repeat(sp[:, 2], per)
-        kx, ky, kz = k // (sy * sz), (k // sz) % sy, k % sz
-        key = ((lx[box] + kx) * (1 << 21) + ly[box] + ky) * (1 << 21) + lz[box] + kz
+        cell = float(np.max(extent[small])) * (1.0 + 2.0**-20)  # slack for the rounding of the cell coordinates
+        if not (np.isfinite(cell) and cell > 0):
+            cell = 1.0
+        origin = lo[small].min(axis=0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            c = np.clip(np.floor((lo[small] - origin) / cell), 0, _LAST).astype(np.int64)
+        key = (c[:, 0] << (2 * _BITS)) | (c[:, 1] << _BITS) | c[:, 2]
         order = np.argsort(key, kind="stable")
-        key, box = key[order], box[order]
-        first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-        size = np.diff(np.r_[first, len(key)])
-        group_end = np.repeat(first + size, size)
-        partners = group_end - np.arange(len(key)) - 1
-        total = int(partners.sum())
-        if total > PAIR_BUDGET:
-            raise TooManyOverlaps(f"{total} overlapping proxy pairs")
-        a = np.repeat(np.arange(len(key)), partners)
-        b = a + 1 + (np.arange(total) - np.repeat(np.cumsum(partners) - partners, partners))
-        i, j = box[a], box[b]
-        # each overlapping pair shares many cells: keep it only in the cell of the larger of its two low corners
-        own = key[a] == ((np.maximum(lx[i], lx[j]) * (1 << 21) + np.maximum(ly[i], ly[j])) * (1 << 21)
-                         + np.maximum(lz[i], lz[j]))
-        pairs_i.append(i[own])
-        pairs_j.append(j[own])
-    big_ids = np.flatnonzero(big)
+        key, box = key[order], small[order]
+        cells, first, members = np.unique(key, return_index=True, return_counts=True)
+        own = np.repeat(np.arange(len(cells)), members)  # each sorted box's cell
+        pos = np.arange(len(key))
+        found_i, found_j, total = [], [], 0
+        for dx, dy, dz in [(0, 0, 0), *_LATER]:
+            if (dx, dy, dz) == (0, 0, 0):  # the later boxes of its own cell
+                s, count = pos + 1, first[own] + members[own] - pos - 1
+            else:
+                target = cells + ((dx << (2 * _BITS)) + (dy << _BITS) + dz)
+                at = np.minimum(np.searchsorted(cells, target), len(cells) - 1)
+                there = cells[at] == target
+                s = first[at][own]
+                count = np.where(there, members[at], 0)[own]
+            total += int(count.sum())
+            if total > PAIR_BUDGET:
+                raise TooManyOverlaps(f"more than {PAIR_BUDGET} candidate proxy pairs")
+            a = np.repeat(pos, count)
+            b = np.repeat(s - np.cumsum(count) + count, count) + np.arange(len(a))
+            found_i.append(box[a])
+            found_j.append(box[b])
+        pairs_i += found_i
+        pairs_j += found_j
+    big_ids = np.flatnonzero(~is_small)
     if len(big_ids) * n > PAIR_BUDGET:
         raise TooManyOverlaps(f"{len(big_ids)} large proxies among {n}")
+    grid = len(pairs_i)
     for g in big_ids:
         hit = np.flatnonzero(np.all(lo <= hi[g], axis=1) & np.all(hi >= lo[g], axis=1))
         hit = hit[hit != g]
@@ -258,7 +263,6 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         pairs_j.append(hit)
     if not pairs_i:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    grid = len(pairs_i) - len(big_ids) if len(small) else 0
     i = np.concatenate(pairs_i[:grid] or [np.zeros(0, np.int64)])
     j = np.concatenate(pairs_j[:grid] or [np.zeros(0, np.int64)])
     if len(big_ids):  # a pair of two large boxes is found from both ends
@@ -267,7 +271,7 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         i, j = np.concatenate([i, code // n]), np.concatenate([j, code % n])
     i, j = np.minimum(i, j), np.maximum(i, j)
     keep = i != j
-    for axis in range(3):  # sharing a cell is not overlapping: test the boxes, an axis at a time
+    for axis in range(3):  # adjacent cells are not overlapping boxes: test the boxes, an axis at a time
         lo_a, hi_a = np.ascontiguousarray(lo[:, axis]), np.ascontiguousarray(hi[:, axis])
         keep &= (lo_a[i] <= hi_a[j]) & (lo_a[j] <= hi_a[i])
     return i[keep], j[keep]
