@@ -56,6 +56,14 @@ class Hits:
                     self.bary[rows], self.material[rows])
 
 
+def shared_rows(a: np.ndarray | None, rows: np.ndarray, n: int = -1) -> np.ndarray | None:
+    """``a[rows]``, except that a one-row ``a`` (one value shared by every ray) stays as it is, and so does
+    an ``a`` of ``n`` rows when ``rows`` is all ``n`` of them."""
+    if a is None or len(a) == 1 or len(rows) == n:
+        return a
+    return a[rows]
+
+
 def _nothing() -> None:
     return None
 
@@ -194,16 +202,20 @@ class Intersector:
     # -- occlusion ---------------------------------------------------------
     def occluded(self, origins: np.ndarray, dirs: np.ndarray, reach: np.ndarray,
                  from_kind: np.ndarray | None = None, from_index: np.ndarray | None = None,
-                 ends: np.ndarray | None = None) -> np.ndarray:
+                 ends: np.ndarray | None = None, mag_o: np.ndarray | None = None) -> np.ndarray:
         """True where a surface lies on the ray at a distance in (0, reach). Shape (N,), bool.
 
-        ``ends (N, 3)``, when given, is the light each ray goes to (at distance
-        ``reach``): a surface through it does not block it.
+        ``ends``, when given, is the light each ray goes to (at distance
+        ``reach``): ``(N, 3)``, or ``(1, 3)`` for one light shared by every ray.
+        A surface through it does not block it.  ``mag_o`` may bring
+        :func:`max_abs` of the origins (plus the world's origin) when the
+        caller has it already.
         """
         n = len(origins)
         fk, fi = self._from(n, from_kind, from_index)
         reach = np.asarray(reach, dtype=np.float64)
-        mag_o = max_abs(origins) + self.world.origin_mag
+        if mag_o is None:
+            mag_o = max_abs(origins) + self.world.origin_mag
         mag_e = None if ends is None else max_abs(ends) + self.world.origin_mag
         blocked = np.zeros(n, dtype=bool)
         for _, _, t, _, _ in self._direct(origins, dirs, fk, fi, mag_o, ends, reach, mag_e):
@@ -212,7 +224,7 @@ class Intersector:
             open_ = np.flatnonzero(~blocked)
 
             def pick(a: np.ndarray | None) -> np.ndarray | None:  # no copies when every ray is still open
-                return a if a is None or len(open_) == n else a[open_]
+                return shared_rows(a, open_, n)
 
             best = _Best(pick(reach))
             self._walk(best, pick(origins), pick(dirs), pick(fk), pick(fi), pick(mag_o), pick(ends), pick(reach),
@@ -272,8 +284,7 @@ class Intersector:
             r, q = rows[sel], prims[sel]
             k = self.prim_index[q]
             leaving = from_prim[r] == q
-            e = None if ends is None else ends[r]
-            me = None if mag_e is None else mag_e[r]
+            e, me = shared_rows(ends, r), shared_rows(mag_e, r)
             if is_tri:
                 tr = w.triangles
                 t, u, v = triangle_t(o[r], d[r], tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o[r], tr.mag[k],

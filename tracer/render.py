@@ -24,7 +24,7 @@ from .image import quantize
 from .intersect import MISS, Intersector
 from .lights import illuminate
 from .shading import mirror, phong, refract, resolve_material, shading_normal
-from .world import World, build_world
+from .world import World, build_world, max_abs
 
 #: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory
 CHUNK_RAYS = 1 << 14
@@ -203,6 +203,7 @@ class Renderer:
         colour = m.ambient[mat] * self.world.ambient
         diffuse, specular, shininess = m.diffuse[mat], m.specular[mat], m.shininess[mat]
         nv = -np.einsum("ij,ij->i", normal, dirs)  # N·V, the same for every light
+        mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
         for em in self.world.emitters:
             self._check()  # a long chunk (many lights) stops early too
             if not np.any(em.color > 0):
@@ -222,10 +223,10 @@ class Renderer:
             if em.kind == "directional":
                 reach, ends = np.full(len(rows), np.inf), None
             else:
-                reach, ends = pick(dist), np.broadcast_to(em.position, (len(rows), 3))
+                reach, ends = pick(dist), em.position[None]  # one light position for every ray
             self._count("shadow", len(rows))
             blocked = self.intersector.occluded(pick(hit.point), shadow_dirs, reach, pick(hit.kind), pick(hit.index),
-                                                ends)
+                                                ends, pick(mag_points))
             if every:
                 weight = np.where(blocked, 0.0, factor)
             else:

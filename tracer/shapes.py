@@ -97,7 +97,8 @@ def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np
         skip |= leaving
     if ends is not None:
         assert mag_end is not None
-        skip |= np.abs(_dot(ends - point, np.broadcast_to(normal, ends.shape))) <= on_tolerance(mag_end, mag_plane)
+        skip |= np.abs(_dot(*np.broadcast_arrays(ends - point, np.atleast_2d(normal)))) <= on_tolerance(mag_end,
+                                                                                                          mag_plane)
     return np.where(~skip & (denom != 0) & (t > 0) & np.isfinite(t), t, np.inf)
 
 
