@@ -298,6 +298,17 @@ def _version() -> str:
         return "unknown (not installed)"
 
 
+class _Version(argparse.Action):
+    """``--version``, looked up only when asked for (reading package metadata costs every command 30 ms)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, help: str | None = None):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, help=help)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: Any, values: Any, option: str | None = None) -> None:
+        print(f"phongray {_version()}")
+        parser.exit()
+
+
 class _Help(argparse.HelpFormatter):
     """Help that shows each option's default, unless it has none or its text already says it."""
 
@@ -312,7 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
     formatter = _Help
     parser = argparse.ArgumentParser(prog="phongray", description="A reference Phong/Whitted ray tracer.",
                                      formatter_class=formatter)
-    parser.add_argument("-V", "--version", action="version", version=f"phongray {_version()}")
+    parser.add_argument("-V", "--version", action=_Version, help="show the version and exit")
     sub = parser.add_subparsers(dest="command", required=True)
 
     def command(name: str, help: str, **kw: Any) -> argparse.ArgumentParser:

@@ -31,6 +31,7 @@ from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies
 from .shapes import plane_t, sphere_t, triangle_t
 from .world import World, max_abs, unit
+from .world import median as world_median
 
 #: kinds of surface in :attr:`Hits.kind`
 MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
@@ -143,7 +144,7 @@ class Intersector:
         tri_extent = np.max(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)), axis=(1, 2)) \
             if len(tris.v0) else np.zeros(0)
         extents = np.concatenate([2.0 * spheres.radius, tri_extent])
-        median = float(np.median(extents)) if len(extents) else 0.0
+        median = world_median(extents) if len(extents) else 0.0
         with np.errstate(over="ignore", invalid="ignore"):
             big_sphere = ~(2.0 * spheres.radius <= BIG * median) | ~np.isfinite(spheres.mag)
             big_tri = ~(tri_extent <= BIG * median)

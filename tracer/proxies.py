@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .world import median as middle
+
 #: proxy margin, neighbour gap and walk step, relative to the BVH's half-size
 MARGIN = 2.0**-17
 GAP = 2.0**-15
@@ -215,7 +217,7 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     extent = np.max(hi - lo, axis=1)
-    median = float(np.median(extent))
+    median = middle(extent)
     with np.errstate(invalid="ignore"):
         is_small = (extent <= 4.0 * median) if np.isfinite(median) else np.zeros(n, dtype=bool)
     small = np.flatnonzero(is_small)
