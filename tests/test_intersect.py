@@ -84,6 +84,22 @@ def test_walk_agrees_with_brute_force_for_rays_from_anywhere(count, big):
     check_agrees(world, origins, dirs, rng)
 
 
+def test_walk_agrees_with_brute_force_in_a_dense_soup_of_small_spheres_and_triangles():
+    # a walk ends early when its hit lies inside the box of the proxy it crossed last: here boxes overlap
+    # everywhere, so that rule meets many neighbours, touching and nested ones among them
+    rng = np.random.default_rng(11)
+    objs = [{"type": "sphere", "material": "m", "center": list(map(float, rng.uniform(-3, 3, 3))),
+             "radius": float(rng.uniform(0.05, 0.3))} for _ in range(1200)]
+    corners = rng.uniform(-3, 3, (400, 1, 3)) + rng.uniform(-0.3, 0.3, (400, 3, 3))
+    objs += [{"type": "triangle", "material": "m", "vertices": c.tolist()} for c in corners]
+    world = build_world(scene_with(objs))
+    origins = rng.uniform(-4, 4, (2500, 3)) - world.origin  # local coordinates
+    dirs = rng.normal(size=(2500, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    hits = check_agrees(world, origins, dirs, rng)
+    assert np.mean(hits.kind != MISS) > 0.3
+
+
 def concentric(radii):
     return [{"type": "sphere", "material": "m", "center": [0.3, 0.2, 0.1], "radius": r} for r in radii]
 

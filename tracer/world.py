@@ -114,11 +114,13 @@ class World:
 def scene_centre(scene: Scene) -> np.ndarray:
     """Centre of the bounding box of the eye, the positioned lights and every bounded surface."""
     points = [np.asarray(scene.camera.position, dtype=F64).reshape(1, 3)]
+    balls = [obj for obj in scene.objects if isinstance(obj, Sphere)]
+    if balls:  # all spheres at once: a scene may have thousands
+        c = np.array([b.center for b in balls], dtype=F64).reshape(-1, 3)
+        r = np.array([b.radius for b in balls], dtype=F64)[:, None]
+        points += [c - r, c + r]
     for obj in scene.objects:
-        if isinstance(obj, Sphere):
-            c = np.asarray(obj.center, dtype=F64)
-            points.append(np.stack([c - obj.radius, c + obj.radius]))
-        elif isinstance(obj, Triangle) or (isinstance(obj, Mesh) and obj.faces):
+        if isinstance(obj, Triangle) or (isinstance(obj, Mesh) and obj.faces):
             points.append(np.asarray(obj.vertices, dtype=F64).reshape(-1, 3))
     for light in scene.lights:
         for key in ("position", "corner"):
@@ -218,5 +220,5 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
         v0=local[keep, 0], e1=e1[keep], e2=e2[keep], normal=normal[keep],
         material=(np.concatenate(materials) if materials else np.zeros(0, dtype=np.int64))[keep].astype(np.int64),
         v0_world=world[keep, 0], vertex_normals=vertex_normals[keep], smooth=smooth_mask[keep],
-        mag=np.max(np.abs(world[keep]), axis=(1, 2), initial=0.0),
+        mag=np.abs(world[keep]).reshape(-1, 9).max(axis=1, initial=0.0),
     )
