@@ -97,6 +97,38 @@ def speed_row(name: str, data: dict[str, Any], work: Path, runs: int) -> dict[st
     }
 
 
+# -- PNG encoding --------------------------------------------------------------
+PNG_LEVELS = (1, 3, 6, 9)
+
+
+def png_rows(work: Path, names: list[str], runs: int) -> list[dict[str, Any]]:
+    """Encoding time and size of the speed rows' images at each zlib level, and Pillow's level 6 beside them."""
+    import io
+
+    from PIL import Image
+
+    rows = []
+    for name in names:
+        path = work / f"{name}.png"
+        if not path.exists():
+            continue
+        px = tracer.decode_png(path.read_bytes())
+        row: dict[str, Any] = {"scene": name, "size": f"{px.shape[1]}×{px.shape[0]}", "levels": {}}
+        for level in PNG_LEVELS:
+            data: list[bytes] = []
+            seconds = _best_of(runs + 1, lambda: data.append(tracer.encode_png(px, level)))
+            row["levels"][level] = {"ms": 1000 * seconds, "kib": len(data[-1]) / 1024}
+
+        def pillow() -> None:
+            buf = io.BytesIO()
+            Image.fromarray(px).save(buf, format="PNG", compress_level=6)
+            row["pillow_kib"] = len(buf.getvalue()) / 1024
+
+        row["pillow_ms"] = 1000 * _best_of(runs + 1, pillow)
+        rows.append(row)
+    return rows
+
+
 # -- memory ------------------------------------------------------------------
 MEMORY_SCRIPT = """
 import json, sys, time
@@ -272,14 +304,35 @@ def report(results: dict[str, Any]) -> str:
                      f"{_f(r['render_over_embree'], 1)} | {_f(r['process_s'])} | {_f(r['povray_s'])} | "
                      f"{_f(r['process_over_povray'])} |")
     speed = {r["scene"]: r for r in results["speed"]}
+    lines.append("")
     if "spheres_10_1080p" in speed and "spheres_10000_1080p" in speed:
-        ratio = speed["spheres_10000_1080p"]["render_s"] / speed["spheres_10_1080p"]["render_s"]
-        lines += ["", f"10,000 spheres take {ratio:.2f}× the time of 10 spheres (target ≤ 3×)."]
+        many, few = speed["spheres_10000_1080p"], speed["spheres_10_1080p"]
+        lines.append(f"* 10,000 spheres take {many['process_s'] / few['process_s']:.2f}× the whole-process time of 10 "
+                     f"(target ≤ 1.5×), {many['render_s'] / few['render_s']:.2f}× the render time.")
+    if "three_spheres_1080p" in speed:
+        r = speed["three_spheres_1080p"]
+        lines.append(f"* 1080p three spheres: whole process ÷ POV-Ray {_f(r['process_over_povray'])} (target ≤ 0.6), "
+                     f"render ÷ Embree {_f(r['render_over_embree'], 1)} (target ≤ 3).")
+    worst = max((r for r in results["speed"] if r["process_over_povray"]), key=lambda r: r["process_over_povray"],
+                default=None)
+    if worst:
+        lines.append(f"* Slowest row against POV-Ray: {worst['scene']}, {worst['process_over_povray']:.2f}× "
+                     "(target ≤ 1.0 on every row).")
     lines += ["", "Render s: best of the runs, in-process, all cores. Embree-only s: the same Embree queries "
               "(recorded during a render) replayed on Embree alone, on all cores. Process s: the whole "
               "`phongray render` command, start-up, validation and PNG included, best of one more run than the "
               "in-process timings. The mesh row's render includes building its 208k-triangle BVH and arrays, "
               "which Embree-only does not. This machine is a shared VM: repeated runs differ by up to ±30 %.", ""]
+    if results.get("png"):
+        head = " | ".join(f"level {lv} ms / KiB" for lv in PNG_LEVELS)
+        lines += ["## PNG encoding", "", "phongray writes unfiltered rows through zlib at level "
+                  f"{tracer.image.PNG_LEVEL}. Each speed row's image encoded again, best of the runs, beside Pillow's "
+                  "`save(compress_level=6)` (adaptive row filters), the encoder phongray used before.", "",
+                  f"| scene | size | {head} | Pillow 6 ms / KiB |", "|---|---|" + "---|" * (len(PNG_LEVELS) + 1)]
+        for r in results["png"]:
+            cells = " | ".join(f"{r['levels'][lv]['ms']:.0f} / {r['levels'][lv]['kib']:.0f}" for lv in PNG_LEVELS)
+            lines.append(f"| {r['scene']} | {r['size']} | {cells} | {r['pillow_ms']:.0f} / {r['pillow_kib']:.0f} |")
+        lines.append("")
     if results.get("memory"):
         m = results["memory"]
         lines += ["## Memory", "", f"4096×4096 three spheres: peak resident {m['peak_mib']:.0f} MiB, "
@@ -342,7 +395,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="bench/out", help="directory for report.md, results.json and plots")
     parser.add_argument("--runs", type=int, default=2, help="runs per measurement; the best is kept")
     parser.add_argument("--only", nargs="*", help="speed scenes to run (default: all)")
-    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "memory", "http", "quality", "class", "cluster"])
+    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "png", "memory", "http", "quality", "class", "cluster"])
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -354,7 +407,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "command": "phongray bench " + " ".join(argv if argv is not None else sys.argv[1:]),
         "povray": _povray_version() if pov else None,
-        "speed": [], "memory": None, "http": None, "quality": [], "class": None, "cluster": None,
+        "speed": [], "png": [], "memory": None, "http": None, "quality": [], "class": None, "cluster": None,
     }
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -366,6 +419,8 @@ def main(argv: list[str] | None = None) -> int:
                 results["speed"].append(row)
                 print(f"{name}: render {row['render_s']:.2f} s, Embree {_f(row['embree_s'], 3)} s, "
                       f"process {row['process_s']:.2f} s, POV-Ray {_f(row['povray_s'])} s", flush=True)
+            if "png" not in args.skip:
+                results["png"] = png_rows(work, [r["scene"] for r in results["speed"]], args.runs)
         if "memory" not in args.skip:
             results["memory"] = memory_4k(work)
             print(f"memory 4096²: {results['memory']['peak_mib']:.0f} MiB", flush=True)

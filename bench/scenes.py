@@ -80,6 +80,7 @@ def speed_scenes() -> dict[str, Scene]:
     """The fixed set of the speed table, by name."""
     return {
         "three_spheres_1080p": example("01_three_spheres", 1920, 1080),
+        "three_spheres_4k": example("01_three_spheres", 3840, 2160),
         "all_lights_640": example("02_all_lights", 640, 480),
         "whitted_640": example("04_whitted", 640, 480),
         "mesh_208k_640": mesh_scene(),

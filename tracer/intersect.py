@@ -30,6 +30,7 @@ import numpy as np
 from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies
 from .shapes import plane_t, sphere_t, triangle_t
+from .vec import along, divided, dot
 from .world import World, max_abs, unit
 from .world import median as world_median
 
@@ -320,7 +321,7 @@ class Intersector:
                        mag_e)
             ball = np.flatnonzero(q >= self.n_tri)  # a sphere left inward is met again at its far side
             centre = self.world.spheres.center[self.prim_index[q[ball]]]
-            inward = ball[np.einsum("ij,ij->i", o[inside[ball]] - centre, d[inside[ball]]) < 0]
+            inward = ball[dot(o[inside[ball]] - centre, d[inside[ball]]) < 0]
             self._test(best, inside[inward], q[inward], o, d, from_prim, mag_o, ends, reach, mag_e)
             start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
             margin[inside] = p.container[q]
@@ -336,14 +337,14 @@ class Intersector:
         if any_hit and len(live):  # broad phase: a ray that crosses no proxy at all is clear
             s = start[live]
             far = np.minimum(limit[live] + margin[live], t_out[live]) - s
-            live = live[bvh.any_hit(o[live] + s[:, None] * d[live], d[live], far)]
+            live = live[bvh.any_hit(along(o[live], s, d[live]), d[live], far)]
         for _ in range(self.max_steps):
             if len(live) == 0:
                 break
             self.check()
             s = start[live]
             far = np.minimum(best.t[live] + margin[live], t_out[live]) - s
-            face, tau = bvh.nearest(o[live] + s[:, None] * d[live], d[live], far)
+            face, tau = bvh.nearest(along(o[live], s, d[live]), d[live], far)
             found = face >= 0
             live, face, tau = live[found], face[found], tau[found]
             prim = p.owner[face]
@@ -384,24 +385,24 @@ class Intersector:
         s = np.flatnonzero(kind == SPHERE)
         if len(s):
             k = index[s]
-            raw = origins[s] + t[s, None] * dirs[s]
-            nrm = unit((raw - w.spheres.center[k]) / w.spheres.radius[k, None])
-            point[s] = w.spheres.center[k] + w.spheres.radius[k, None] * nrm
+            raw = along(origins[s], t[s], dirs[s])
+            nrm = unit(divided(raw - w.spheres.center[k], w.spheres.radius[k]))
+            point[s] = along(w.spheres.center[k], w.spheres.radius[k], nrm)
             normal[s], material[s] = nrm, w.spheres.material[k]
 
         q = np.flatnonzero(kind == PLANE)
         if len(q):
             k = index[q]
-            raw = origins[q] + t[q, None] * dirs[q]
+            raw = along(origins[q], t[q], dirs[q])
             nrm, p0 = w.planes.normal[k], w.planes.point[k]
-            point[q] = raw - np.einsum("ij,ij->i", raw - p0, nrm)[:, None] * nrm
+            point[q] = along(raw, -dot(raw - p0, nrm), nrm)
             normal[q], material[q] = nrm, w.planes.material[k]
 
         r = np.flatnonzero(kind == TRIANGLE)
         if len(r):
             k = index[r]
             tr = w.triangles
-            point[r] = tr.v0[k] + best.uv[r, :1] * tr.e1[k] + best.uv[r, 1:] * tr.e2[k]
+            point[r] = along(along(tr.v0[k], best.uv[r, 0], tr.e1[k]), best.uv[r, 1], tr.e2[k])
             normal[r], material[r] = tr.normal[k], tr.material[k]
         return Hits(t=np.where(kind == MISS, np.inf, t), kind=kind, index=index, point=point, normal=normal,
                     bary=best.uv, material=material)

@@ -15,6 +15,8 @@ import numpy as np
 
 from schemas.scene import AreaLight, DirectionalLight, PointLight, SpotLight
 
+from .vec import divided, dot
+
 F64 = np.float64
 
 
@@ -80,9 +82,9 @@ def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     if em.kind == "directional":
         return np.broadcast_to(-em.direction, (n, 3)), np.full(n, np.inf), np.ones(n)
     v = em.position - points
-    d = np.sqrt(np.einsum("ij,ij->i", v, v))
+    d = np.sqrt(dot(v, v))
     safe_d = np.where(d > 0, d, 1.0)
-    L = v / safe_d[:, None]
+    L = divided(v, safe_d)
     c, lin, q = em.attenuation
     denom = c + lin * d + q * d * d
     factor = np.where((d > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)

@@ -24,6 +24,7 @@ from .image import quantize
 from .intersect import MISS, Intersector
 from .lights import illuminate
 from .shading import mirror, phong, refract, resolve_material, shading_normal
+from .vec import dot, scaled
 from .world import World, build_world, max_abs
 
 #: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory
@@ -174,7 +175,7 @@ class Renderer:
                 dd, ww, ss = d[rows], w[rows], smp[rows]
                 mat = resolve_material(self.world, hit)
                 normal = shading_normal(self.world, hit, dd)
-                _accumulate(acc, ss, ww[:, None] * self.direct(hit, mat, normal, dd), ceiling, fixed)
+                _accumulate(acc, ss, scaled(self.direct(hit, mat, normal, dd), ww), ceiling, fixed)
                 if depth == img.max_depth:
                     continue
                 children = self.secondary(hit, mat, normal, dd, ww, ss)
@@ -202,14 +203,14 @@ class Renderer:
         m = self.world.materials
         colour = m.ambient[mat] * self.world.ambient
         diffuse, specular, shininess = m.diffuse[mat], m.specular[mat], m.shininess[mat]
-        nv = -np.einsum("ij,ij->i", normal, dirs)  # N·V, the same for every light
+        nv = -dot(normal, dirs)  # N·V, the same for every light
         mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
         for em in self.world.emitters:
             self._check()  # a long chunk (many lights) stops early too
             if not np.any(em.color > 0):
                 continue
             to_light, dist, factor = illuminate(em, hit.point)
-            nl = np.einsum("ij,ij->i", normal, to_light)
+            nl = dot(normal, to_light)
             rows = np.flatnonzero((nl > 0) & (factor > 0))
             if len(rows) == 0:
                 continue
@@ -232,7 +233,7 @@ class Renderer:
             else:
                 weight = np.zeros(len(nl))
                 weight[rows] = np.where(blocked, 0.0, factor[rows])
-            rv = 2.0 * nl * nv + np.einsum("ij,ij->i", to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
+            rv = 2.0 * nl * nv + dot(to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
             colour += em.color * phong(diffuse, specular, shininess, nl, rv, weight)
         return colour
 

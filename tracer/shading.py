@@ -8,11 +8,11 @@ from __future__ import annotations
 import numpy as np
 
 from .intersect import PLANE, TRIANGLE, Hits
+from .vec import along, dot, scaled
 from .world import World, unit
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
+_dot = dot
 
 
 def resolve_material(world: World, hits: Hits) -> np.ndarray:
@@ -78,12 +78,14 @@ def phong(diffuse: np.ndarray, specular: np.ndarray, shininess: np.ndarray, nl: 
     """
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         spec = np.where(rv > 0, np.power(np.where(rv > 0, rv, 1.0), shininess), 0.0)
-    return (weight * nl)[:, None] * diffuse + (weight * spec)[:, None] * specular
+    out = scaled(diffuse, weight * nl)
+    out += scaled(specular, weight * spec)
+    return out
 
 
 def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """``D − 2(D·N)N``. Shape (N, 3)."""
-    return unit(dirs - 2.0 * _dot(dirs, normal)[:, None] * normal)
+    return unit(along(dirs, -2.0 * _dot(dirs, normal), normal))
 
 
 def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray) -> np.ndarray:

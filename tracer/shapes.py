@@ -19,14 +19,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from .vec import along, dot
+
 #: relative resolution: points closer than this (times the magnitudes involved) are the same place
 TOL = 2.0**-46
 #: barycentric allowance, so that a ray through a shared mesh edge never slips between its faces
 UV_TOL = 2.0**-40
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
+_dot = dot
 
 
 def on_tolerance(point_magnitude: np.ndarray, surface_magnitude: np.ndarray) -> np.ndarray:
@@ -49,7 +50,7 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     """
     oc = origins - center
     b = _dot(oc, dirs)
-    perp = oc - b[:, None] * dirs
+    perp = along(oc, -b, dirs)  # oc − b·dirs
     h = np.sqrt(_dot(perp, perp))
     radius = np.broadcast_to(radius, b.shape)
     disc = (radius - h) * (radius + h)

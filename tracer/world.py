@@ -23,6 +23,7 @@ import numpy as np
 from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .lights import Emitters, build_emitters
+from .vec import divided, dot
 
 F64 = np.float64
 
@@ -44,9 +45,9 @@ def unit(v: np.ndarray) -> np.ndarray:
     """Rows of ``v`` scaled to length 1 (zero rows stay zero), computed without overflow."""
     v = np.asarray(v, dtype=F64)
     if v.ndim == 2:
-        squared = np.einsum("ij,ij->i", v, v)
+        squared = dot(v, v)
         if np.all((squared > 1e-280) & (squared < 1e280)):  # the usual case: no overflow or underflow possible
-            return v / np.sqrt(squared)[:, None]
+            return divided(v, np.sqrt(squared))
     scale = np.max(np.abs(v), axis=-1, keepdims=True)
     scale = np.where(scale > 0, scale, 1.0)
     w = v / scale
