@@ -221,6 +221,15 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     with np.errstate(invalid="ignore"):
         is_small = (extent <= 4.0 * median) if np.isfinite(median) else np.zeros(n, dtype=bool)
     small = np.flatnonzero(is_small)
+    lo_a = [np.ascontiguousarray(lo[:, axis]) for axis in range(3)]
+    hi_a = [np.ascontiguousarray(hi[:, axis]) for axis in range(3)]
+
+    def overlapping(i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        keep = i != j
+        for axis in range(3):  # adjacent cells are not overlapping boxes: test the boxes, an axis at a time
+            keep &= (lo_a[axis][i] <= hi_a[axis][j]) & (lo_a[axis][j] <= hi_a[axis][i])
+        return i[keep], j[keep]
+
     pairs_i, pairs_j = [], []
     if len(small):
         cell = float(np.max(extent[small])) * (1.0 + 2.0**-20)  # slack for the rounding of the cell coordinates
@@ -231,12 +240,14 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
             c = np.clip(np.floor((lo[small] - origin) / cell), 0, _LAST).astype(np.int64)
         key = (c[:, 0] << (2 * _BITS)) | (c[:, 1] << _BITS) | c[:, 2]
         order = np.argsort(key, kind="stable")
-        key, box = key[order], small[order]
+        index = np.int32 if n < 2**31 else np.int64  # half the memory of the candidate lists
+        key, box = key[order], small[order].astype(index)
         cells, first, members = np.unique(key, return_index=True, return_counts=True)
-        own = np.repeat(np.arange(len(cells)), members)  # each sorted box's cell
-        pos = np.arange(len(key))
-        found_i, found_j, total = [], [], 0
-        for dx, dy, dz in [(0, 0, 0), *_LATER]:
+        first, members = first.astype(index), members.astype(index)
+        own = np.repeat(np.arange(len(cells), dtype=index), members)  # each sorted box's cell
+        pos = np.arange(len(key), dtype=index)
+        total = 0
+        for dx, dy, dz in [(0, 0, 0), *_LATER]:  # candidates an offset at a time, tested at once: little memory
             if (dx, dy, dz) == (0, 0, 0):  # the later boxes of its own cell
                 s, count = pos + 1, first[own] + members[own] - pos - 1
             else:
@@ -245,35 +256,28 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
                 there = cells[at] == target
                 s = first[at][own]
                 count = np.where(there, members[at], 0)[own]
-            total += int(count.sum())
+            total += int(count.sum(dtype=np.int64))
             if total > PAIR_BUDGET:
                 raise TooManyOverlaps(f"more than {PAIR_BUDGET} candidate proxy pairs")
             a = np.repeat(pos, count)
-            b = np.repeat(s - np.cumsum(count) + count, count) + np.arange(len(a))
-            found_i.append(box[a])
-            found_j.append(box[b])
-        pairs_i += found_i
-        pairs_j += found_j
+            b = np.repeat(s - np.cumsum(count, dtype=index) + count, count) + np.arange(len(a), dtype=index)
+            i, j = overlapping(box[a], box[b])
+            pairs_i.append(i.astype(np.int64))
+            pairs_j.append(j.astype(np.int64))
     big_ids = np.flatnonzero(~is_small)
     if len(big_ids) * n > PAIR_BUDGET:
         raise TooManyOverlaps(f"{len(big_ids)} large proxies among {n}")
-    grid = len(pairs_i)
-    for g in big_ids:
-        hit = np.flatnonzero(np.all(lo <= hi[g], axis=1) & np.all(hi >= lo[g], axis=1))
-        hit = hit[hit != g]
-        pairs_i.append(np.full(len(hit), g))
-        pairs_j.append(hit)
+    if len(big_ids):
+        found = []
+        for g in big_ids:
+            hit = np.flatnonzero(np.all(lo <= hi[g], axis=1) & np.all(hi >= lo[g], axis=1))
+            found.append(np.stack([np.full(len(hit), g), hit]))
+        bi, bj = np.concatenate(found, axis=1)
+        bi, bj = overlapping(np.minimum(bi, bj), np.maximum(bi, bj))  # (drops g itself)
+        code = np.unique(bi * n + bj)  # a pair of two large boxes is found from both ends
+        pairs_i.append(code // n)
+        pairs_j.append(code % n)
     if not pairs_i:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i = np.concatenate(pairs_i[:grid] or [np.zeros(0, np.int64)])
-    j = np.concatenate(pairs_j[:grid] or [np.zeros(0, np.int64)])
-    if len(big_ids):  # a pair of two large boxes is found from both ends
-        bi, bj = np.concatenate(pairs_i[grid:]), np.concatenate(pairs_j[grid:])
-        code = np.unique(np.minimum(bi, bj).astype(np.int64) * n + np.maximum(bi, bj))
-        i, j = np.concatenate([i, code // n]), np.concatenate([j, code % n])
-    i, j = np.minimum(i, j), np.maximum(i, j)
-    keep = i != j
-    for axis in range(3):  # adjacent cells are not overlapping boxes: test the boxes, an axis at a time
-        lo_a, hi_a = np.ascontiguousarray(lo[:, axis]), np.ascontiguousarray(hi[:, axis])
-        keep &= (lo_a[i] <= hi_a[j]) & (lo_a[j] <= hi_a[i])
-    return i[keep], j[keep]
+    i, j = np.concatenate(pairs_i), np.concatenate(pairs_j)
+    return np.minimum(i, j), np.maximum(i, j)

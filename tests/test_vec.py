@@ -1,0 +1,32 @@
+"""Column-wise vector arithmetic (tracer/vec.py) against plain NumPy broadcasting."""
+
+import numpy as np
+
+from tracer.vec import along, divided, dot, scaled
+
+
+def test_each_operation_matches_numpy_broadcasting_bit_for_bit():
+    rng = np.random.default_rng(2)
+    a, b = rng.normal(size=(1000, 3)) * 1e3, rng.normal(size=(1000, 3))
+    s = rng.normal(size=1000)
+    assert np.array_equal(along(a, s, b), a + s[:, None] * b)
+    assert np.array_equal(scaled(a, s), a * s[:, None])
+    assert np.array_equal(divided(a, s), a / s[:, None])
+    assert np.array_equal(dot(a, b), (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2])
+    np.testing.assert_allclose(dot(a, b), np.einsum("ij,ij->i", a, b), rtol=1e-12, atol=1e-9)
+
+
+def test_one_shared_vector_broadcasts_over_the_rows():
+    rng = np.random.default_rng(3)
+    rows, one = rng.normal(size=(50, 3)), rng.normal(size=3)
+    s = rng.normal(size=50)
+    np.testing.assert_allclose(dot(rows, one), rows @ one, rtol=1e-13, atol=1e-15)
+    assert np.array_equal(along(one, s, rows), one + s[:, None] * rows)
+    assert np.array_equal(along(one[None], s, rows), one + s[:, None] * rows)
+    assert np.array_equal(scaled(one, s), s[:, None] * one)
+
+
+def test_empty_batches_stay_empty():
+    e = np.zeros((0, 3))
+    assert along(e, np.zeros(0), e).shape == (0, 3)
+    assert dot(e, e).shape == (0,)
