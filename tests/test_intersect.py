@@ -168,6 +168,17 @@ def test_no_bvh_without_triangles_or_small_spheres():
     assert list(hits.kind) == [PLANE, MISS]
 
 
+def test_two_spheres_are_tested_directly_and_three_go_into_the_bvh():
+    balls = [{"type": "sphere", "material": "m", "center": [x, 0, 0], "radius": 0.4} for x in (-1, 0, 1)]
+    two, three = (Intersector(build_world(scene_with(balls[:k]))) for k in (2, 3))
+    assert two.bvh is None and list(two.direct_spheres) == [0, 1]
+    assert three.bvh is not None and len(three.direct_spheres) == 0
+    o = np.array([[-1.0, 0, 5], [0.0, 0, 5], [3.0, 0, 5]])
+    d = np.array([[0.0, 0, -1]] * 3)
+    assert list(two.closest(o, d).kind) == [SPHERE, SPHERE, MISS]
+    assert list(three.closest(o, d).index) == [0, 1, -1]
+
+
 def test_precision_does_not_depend_on_where_look_at_is():
     objs = random_field(np.random.default_rng(2), 20)
     near = build_world(scene_with(objs, {"position": [0, 0, 30], "look_at": [0, 0, 0]}))
