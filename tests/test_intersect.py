@@ -175,8 +175,8 @@ def test_two_spheres_are_tested_directly_and_three_go_into_the_bvh():
     assert three.bvh is not None and len(three.direct_spheres) == 0
     o = np.array([[-1.0, 0, 5], [0.0, 0, 5], [3.0, 0, 5]])
     d = np.array([[0.0, 0, -1]] * 3)
-    assert list(two.closest(o, d).kind) == [SPHERE, SPHERE, MISS]
-    assert list(three.closest(o, d).index) == [0, 1, -1]
+    assert list(two.closest(o - two.world.origin, d).kind) == [SPHERE, SPHERE, MISS]
+    assert list(three.closest(o - three.world.origin, d).index) == [0, 1, -1]
 
 
 def test_precision_does_not_depend_on_where_look_at_is():
