@@ -27,8 +27,9 @@ from .shading import mirror, phong, refract, resolve_material, shading_normal
 from .vec import dot, scaled
 from .world import World, build_world, max_abs
 
-#: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory
-CHUNK_RAYS = 1 << 14
+#: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory (measured single-threaded:
+#: 2^15 is 5-15 % faster than 2^14 on the bench scenes, 2^16 no faster; a 4096² render peaks at 165 MiB)
+CHUNK_RAYS = 1 << 15
 
 Progress = Callable[[int, int], None]
 
