@@ -18,7 +18,7 @@ import numpy as np
 
 from schemas import Mesh, Scene, parse_json, validate_scene
 from tracer import RenderCancelled, encode_png, render
-from tracer.memory import release
+from tracer.memory import release_if_grown, resident
 
 from .cache import RenderCache
 from .limits import check_body, check_raw, check_scene
@@ -119,6 +119,7 @@ class RenderService:
             return cached
         if not self.slots.acquire(blocking=False):
             raise Busy()
+        size = resident()
         try:
             deadline = time.monotonic() + self.settings.render_timeout
 
@@ -147,7 +148,7 @@ class RenderService:
             self.renders += 1
         finally:
             self.slots.release()
-            release()  # give what the render freed back to the OS, so memory returns to its baseline
+            release_if_grown(size)  # a large render gives what it freed back to the OS: memory returns to its baseline
         self.cache.put(job.key, data)
         return data
 

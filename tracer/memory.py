@@ -1,9 +1,12 @@
-"""Keep freed NumPy buffers in the process instead of handing them back to the OS.
+"""Keep freed NumPy buffers in the process, and hand them back to the OS only when it pays.
 
 A render allocates and frees the same large arrays chunk after chunk.  With
 glibc's defaults each one is a fresh ``mmap`` whose pages fault in one by one,
-which costs as much as the arithmetic.  Raising the mmap and trim thresholds
-lets the allocator reuse the memory.  Elsewhere (not glibc) this does nothing.
+which costs as much as the arithmetic: :func:`tune_allocator` raises the mmap
+and trim thresholds so that the allocator reuses the memory.  A long-running
+service gives memory back only after a render that made the process grow
+(:func:`release_if_grown`): memory handed back must fault its pages in again
+on the next render.  Elsewhere (not glibc) this does nothing.
 """
 
 from __future__ import annotations
@@ -23,6 +26,30 @@ def _libc() -> ctypes.CDLL | None:
         return ctypes.CDLL(name)
     except OSError:
         return None
+
+
+#: a render that leaves the process this much larger hands its freed memory back (:func:`release_if_grown`)
+GROWTH = 16 << 20
+
+
+def resident() -> int | None:
+    """This process's resident size in bytes (Linux), or None where it cannot be read."""
+    try:
+        with open("/proc/self/statm", "rb") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def release_if_grown(before: int | None) -> None:
+    """:func:`release` when the process grew by :data:`GROWTH` since ``before`` (or its size is unknown).
+
+    Small renders leave their freed memory to the allocator, which hands it
+    to the next render: giving it back to the OS each time made every render
+    fault its pages in again (on a VM, 20 ms of a 50 ms request)."""
+    now = resident()
+    if before is None or now is None or now - before >= GROWTH:
+        release()
 
 
 def release() -> None:
