@@ -181,9 +181,13 @@ def _int(text: str) -> int:
 YIELDING_PARSE = 256 * 1024
 
 
-def parse_json(text: str | bytes) -> Any:
-    """Strict JSON: no NaN/Infinity tokens, no duplicate keys; errors as SceneError."""
-    numbers: dict[str, Any] = {"parse_float": _float, "parse_int": _int} if len(text) > YIELDING_PARSE else {}
+def parse_json(text: str | bytes, shared: bool = True) -> Any:
+    """Strict JSON: no NaN/Infinity tokens, no duplicate keys; errors as SceneError.
+
+    ``shared=False`` says that no other thread waits for the interpreter (a
+    command-line run): then even a long document parses at full speed."""
+    yielding = shared and len(text) > YIELDING_PARSE
+    numbers: dict[str, Any] = {"parse_float": _float, "parse_int": _int} if yielding else {}
     try:
         return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates, **numbers)
     except json.JSONDecodeError as exc:

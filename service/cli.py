@@ -37,7 +37,7 @@ def _load(path: str, overrides: dict[str, Any] | None = None):  # type: ignore[n
 
     text = _read(path)
     try:
-        data = parse_json(text)
+        data = parse_json(text, shared=False)
         if overrides and isinstance(data, dict) and isinstance(data.get("image"), dict):
             data["image"].update({k: v for k, v in overrides.items() if v is not None})
         return validate_scene(data)

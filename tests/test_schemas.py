@@ -212,3 +212,16 @@ def test_face_index_beyond_any_mesh_is_an_error_not_a_crash():
     data = minimal(materials={"m": {}}, objects=[{"type": "mesh", "material": "m", "vertices": [[0, 0, 0]],
                                                   "faces": [[0, 0, 2**63]]}])
     assert any(p.startswith("objects[0].faces[0][2]: must be <") for p in problems(data))
+
+
+def test_a_long_document_parses_the_same_with_and_without_sharing_the_interpreter():
+    from schemas.errors import YIELDING_PARSE
+
+    doc = {"vertices": [[k * 0.5, -k, 1e-3 * k] for k in range(YIELDING_PARSE // 16)], "n": 12345678901234567890}
+    text = json.dumps(doc)
+    assert len(text) > YIELDING_PARSE
+    assert schemas.parse_json(text) == schemas.parse_json(text, shared=False) == doc
+    for bad in (text[:-1] + ', "n": 1}', text.replace("0.5", "NaN", 1)):  # a duplicate key; a NaN token
+        for shared in (True, False):
+            with pytest.raises(schemas.SceneError):
+                schemas.parse_json(bad, shared=shared)
