@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from tracer.vec import along, divided, dot, scaled
+from tracer.vec import along, cross, divided, dot, scaled
 
 
 def test_each_operation_matches_numpy_broadcasting_bit_for_bit():
@@ -14,6 +14,8 @@ def test_each_operation_matches_numpy_broadcasting_bit_for_bit():
     assert np.array_equal(divided(a, s), a / s[:, None])
     assert np.array_equal(dot(a, b), (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2])
     np.testing.assert_allclose(dot(a, b), np.einsum("ij,ij->i", a, b), rtol=1e-12, atol=1e-9)
+    assert np.array_equal(cross(a, b), np.cross(a, b))
+    assert np.array_equal(cross(a, b[0]), np.cross(a, b[0]))
 
 
 def test_one_shared_vector_broadcasts_over_the_rows():

@@ -41,6 +41,8 @@ BIG = 64.0
 #: a scene with at most this many spheres and triangles tests them all directly, with no BVH: measured on
 #: the Whitted example (two spheres) a third faster; from three on the BVH's broad phase wins on shadow rays
 DIRECT_MAX = 2
+#: (ray, primitive) pairs tested exactly at a time
+PAIR_SLICE = 1 << 16
 
 
 @dataclass
@@ -282,26 +284,32 @@ class Intersector:
               from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
               mag_e: np.ndarray | None) -> None:
         """Test BVH primitives ``prims`` exactly against rays ``rows`` (pairs; either may repeat)."""
-        w = self.world
         tri = prims < self.n_tri
         for is_tri in (True, False):
-            sel = np.flatnonzero(tri == is_tri)
-            if len(sel) == 0:
-                continue
-            r, q = rows[sel], prims[sel]
-            k = self.prim_index[q]
-            leaving = from_prim[r] == q
-            e, me = shared_rows(ends, r), shared_rows(mag_e, r)
-            if is_tri:
-                tr = w.triangles
-                t, u, v = triangle_t(o[r], d[r], tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o[r], tr.mag[k],
-                                     leaving, e, me)
-                best.offer(r, t, TRIANGLE, k, u, v)
-            else:
-                sp = w.spheres
-                t = sphere_t(o[r], d[r], sp.center[k], sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
-                             None if reach is None else reach[r], me)
-                best.offer(r, t, SPHERE, k)
+            chosen = np.flatnonzero(tri == is_tri)
+            for at in range(0, len(chosen), PAIR_SLICE):  # bounded temporaries: a crossing brings ~14 neighbours
+                self._test_kind(best, is_tri, rows, prims, chosen[at:at + PAIR_SLICE], o, d, from_prim, mag_o,
+                                ends, reach, mag_e)
+
+    def _test_kind(self, best: _Best, is_tri: bool, rows: np.ndarray, prims: np.ndarray, sel: np.ndarray,
+                   o: np.ndarray, d: np.ndarray, from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None,
+                   reach: np.ndarray | None, mag_e: np.ndarray | None) -> None:
+        """The pairs ``sel`` of :meth:`_test`, all of one kind (triangles when ``is_tri``)."""
+        w = self.world
+        r, q = rows[sel], prims[sel]
+        k = self.prim_index[q]
+        leaving = from_prim[r] == q
+        e, me = shared_rows(ends, r), shared_rows(mag_e, r)
+        if is_tri:
+            tr = w.triangles
+            t, u, v = triangle_t(o[r], d[r], tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o[r], tr.mag[k],
+                                 leaving, e, me)
+            best.offer(r, t, TRIANGLE, k, u, v)
+        else:
+            sp = w.spheres
+            t = sphere_t(o[r], d[r], sp.center[k], sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
+                         None if reach is None else reach[r], me)
+            best.offer(r, t, SPHERE, k)
 
     def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
               ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,

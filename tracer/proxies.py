@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .vec import cross, dot
 from .world import median as middle
 
 #: proxy margin, neighbour gap and walk step, relative to the BVH's half-size
@@ -98,7 +99,8 @@ def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     b = np.linalg.norm(corners[:, 2] - corners[:, 0], axis=1)
     c = np.linalg.norm(corners[:, 0] - corners[:, 1], axis=1)
     perimeter = a + b + c
-    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+    twice = cross(e1, e2)
+    area2 = np.sqrt(dot(twice, twice))
     with np.errstate(divide="ignore", invalid="ignore"):
         inradius = area2 / perimeter
         grow = 1.0 + m / inradius

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .vec import along, dot
+from .vec import along, cross, dot
 
 #: relative resolution: points closer than this (times the magnitudes involved) are the same place
 TOL = 2.0**-46
@@ -114,10 +114,10 @@ def triangle_t(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.nda
     ``v0 + u·e1 + v·e2`` lies on it.
     """
     v0, e1, e2, normal = (np.broadcast_to(a, dirs.shape) for a in (v0, e1, e2, normal))
-    p = np.cross(dirs, e2)
+    p = cross(dirs, e2)
     det = _dot(e1, p)
     s = origins - v0
-    qv = np.cross(s, e1)
+    qv = cross(s, e1)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         inv = 1.0 / det
         u = _dot(s, p) * inv

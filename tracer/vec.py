@@ -41,3 +41,12 @@ def divided(v: np.ndarray, s: np.ndarray) -> np.ndarray:
     for k in range(3):
         np.divide(v[..., k], s, out=out[:, k])
     return out
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` per row, each component as ``a_i b_j − a_j b_i``, as ``np.cross`` computes it. Shape (N, 3)."""
+    n = max(len(a) if a.ndim == 2 else 1, len(b) if b.ndim == 2 else 1)
+    out = np.empty((n, 3))
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.subtract(a[..., i] * b[..., j], a[..., j] * b[..., i], out=out[:, k])
+    return out

@@ -23,7 +23,7 @@ import numpy as np
 from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .lights import Emitters, build_emitters
-from .vec import divided, dot
+from .vec import cross, divided, dot
 
 F64 = np.float64
 
@@ -212,7 +212,7 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
     world = np.concatenate(corners) if corners else np.zeros((0, 3, 3))
     local = world - origin
     e1, e2 = local[:, 1] - local[:, 0], local[:, 2] - local[:, 0]
-    normal = unit(np.cross(unit(e1), unit(e2)))
+    normal = unit(cross(unit(e1), unit(e2)))
     keep = np.any(normal != 0, axis=1) & np.all(np.isfinite(local), axis=(1, 2))  # zero-area faces are never hit
     vertex_normals = np.concatenate(normals) if normals else np.zeros((0, 3, 3))
     smooth_mask = np.concatenate(smooth) if smooth else np.zeros(0, dtype=bool)
