@@ -5,6 +5,7 @@ import pytest
 
 import schemas
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector, _Best
+from tracer.proxies import GAP
 from tracer.shapes import plane_t, sphere_t, triangle_t
 from tracer.world import build_world, max_abs
 
@@ -98,6 +99,32 @@ def test_walk_agrees_with_brute_force_in_a_dense_soup_of_small_spheres_and_trian
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     hits = check_agrees(world, origins, dirs, rng)
     assert np.mean(hits.kind != MISS) > 0.3
+
+
+def test_a_walk_resumes_where_it_leaves_a_box_and_passes_no_small_proxy_beyond_it():
+    # a ray through the proxy of sphere A, missing A itself, then meets sphere B: so small, and just far enough
+    # past the box of A's proxy, that B is not A's neighbour; a walk that resumed any later would step over B
+    off = 0.105  # outside A (radius 0.1) but inside its icosahedral proxy
+
+    def built(xb):
+        objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 0.1},
+                {"type": "sphere", "material": "m", "center": [xb, off, 0], "radius": 0.002},
+                {"type": "sphere", "material": "m", "center": [3, 0, 0], "radius": 0.1}]  # fixes the BVH's frame
+        return Intersector(build_world(scene_with(objs)))
+
+    trial = built(1.0)
+    p, a, b = trial.proxies, trial.sphere_prim[0], trial.sphere_prim[1]
+    gap = GAP * trial.bvh.half_size
+    isect = built(float(trial.world.origin[0] + p.hi[a, 0] + 8 * gap + (p.hi[b, 0] - p.lo[b, 0]) / 2))
+    assert isect.bvh.half_size == trial.bvh.half_size
+    q = isect.proxies
+    assert b not in q.neighbours[q.start[a]:q.start[a + 1]]
+    assert q.lo[b, 0] - q.hi[a, 0] < 16 * gap
+    o = np.array([[-1.0, off, 0.0]]) - isect.world.origin
+    d = np.array([[1.0, 0.0, 0.0]])
+    hits = isect.closest(o, d)
+    assert (hits.kind[0], hits.index[0]) == (SPHERE, 1)
+    assert isect.occluded(o, d, np.array([2.5]))[0]
 
 
 def concentric(radii):

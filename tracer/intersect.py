@@ -365,27 +365,14 @@ class Intersector:
             self._test(best, *self._with_neighbours(live[fresh], prim[fresh], itself=True), o, d, from_prim, mag_o,
                        ends, reach, mag_e)
             last[live] = prim
-            start[live] += tau + p.step
-            if not any_hit:  # a hit inside the box of the proxy just crossed ends the walk (see below)
-                live = live[~self._settled(best, live, prim, o, d, margin)]
+            # every crossing inside the box of the proxy just crossed belongs to it or a neighbour, all tested
+            # now: the walk goes on from where the ray leaves that box (or just past the crossing, if later)
+            leave = slab(o[live], d[live], p.lo[prim], p.hi[prim])[1]
+            start[live] = np.fmax(start[live] + tau + p.step, leave)
+            if not any_hit:  # and a hit before the ray leaves that box is the nearest there is
+                settled = np.isfinite(best.t[live]) & (margin[live] == 0) & (best.t[live] <= leave)
+                live = live[~settled]
             live = open_rows(live)
-
-    def _settled(self, best: _Best, rows: np.ndarray, prim: np.ndarray, o: np.ndarray, d: np.ndarray,
-                 margin: np.ndarray) -> np.ndarray:
-        """Rows whose best hit lies before the ray leaves the box of the proxy ``prim`` it has just crossed.
-
-        From that crossing to the hit the ray stays inside the box, and every
-        proxy that reaches into the box is a neighbour of ``prim``, already
-        tested: no crossing that remains can give a nearer hit.  Not for a
-        ray that started within a containing sphere (its ``margin``)."""
-        p = self.proxies
-        assert p is not None
-        candidates = np.flatnonzero(np.isfinite(best.t[rows]) & (margin[rows] == 0))
-        settled = np.zeros(len(rows), dtype=bool)
-        if len(candidates):
-            r, q = rows[candidates], prim[candidates]
-            settled[candidates] = best.t[r] <= slab(o[r], d[r], p.lo[q], p.hi[q])[1]
-        return settled
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, best: _Best) -> Hits:
         w = self.world
