@@ -29,7 +29,7 @@ import numpy as np
 
 from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies
-from .shapes import plane_t, sphere_t, triangle_t
+from .shapes import plane_separates, plane_t, sphere_t, triangle_t
 from .vec import along, divided, dot
 from .world import World, max_abs, unit
 from .world import median as world_median
@@ -227,7 +227,13 @@ class Intersector:
             mag_o = max_abs(origins) + self.world.origin_mag
         mag_e = None if ends is None else max_abs(ends) + self.world.origin_mag
         blocked = np.zeros(n, dtype=bool)
-        for _, _, t, _, _ in self._direct(origins, dirs, fk, fi, mag_o, ends, reach, mag_e):
+        w = self.world
+        towards_points = ends is not None and mag_e is not None
+        if towards_points:  # a plane blocks a segment to a light exactly when it separates its two ends
+            for k in range(len(w.planes.normal)):
+                blocked |= plane_separates(origins, ends, w.planes.point[k], w.planes.normal[k], mag_o, mag_e,
+                                           w.planes.mag[k], (fk == PLANE) & (fi == k))
+        for _, _, t, _, _ in self._direct(origins, dirs, fk, fi, mag_o, ends, reach, mag_e, planes=not towards_points):
             blocked |= t < reach
         if self.bvh is not None:
             open_ = np.flatnonzero(~blocked)
@@ -249,11 +255,12 @@ class Intersector:
         return kind, index
 
     def _direct(self, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
-                ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None
-                ) -> Iterator[tuple[int, int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
-        """Planes and the surfaces too large for the BVH, against every ray: ``(kind, index, t, u, v)`` each."""
+                ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,
+                planes: bool = True) -> Iterator[tuple[int, int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
+        """Planes (unless not ``planes``) and the surfaces too large for the BVH, against every ray:
+        ``(kind, index, t, u, v)`` each."""
         w = self.world
-        for k in range(len(w.planes.normal)):
+        for k in range(len(w.planes.normal) if planes else 0):
             yield PLANE, k, plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
                                     (fk == PLANE) & (fi == k), ends, mag_e), None, None
         sp = w.spheres

@@ -3,6 +3,8 @@
 Every test takes N rays and N surfaces (one surface per ray, broadcast where
 the same surface serves every ray) and returns the ray parameter ``t`` of the
 first hit with ``t > 0``, ``inf`` for none.  Directions are unit vectors.
+For a shadow segment towards a light, :func:`plane_separates` decides a
+plane by the sides of the segment's two ends instead.
 
 A ray leaves a surface by identity: ``on_origin`` says that the ray's origin
 lies on the surface (it starts from it, or from a surface coincident with it
@@ -101,6 +103,29 @@ def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np
         skip |= np.abs(_dot(*np.broadcast_arrays(ends - point, np.atleast_2d(normal)))) <= on_tolerance(mag_end,
                                                                                                           mag_plane)
     return np.where(~skip & (denom != 0) & (t > 0) & np.isfinite(t), t, np.inf)
+
+
+def plane_separates(origins: np.ndarray, ends: np.ndarray, point: np.ndarray, normal: np.ndarray,
+                    mag_origin: np.ndarray, mag_end: np.ndarray, mag_plane: float,
+                    leaving: np.ndarray | None = None) -> np.ndarray:
+    """True where the plane lies strictly between each origin and its end (a light): the segment between
+    them crosses it. Shape (N,), bool.
+
+    Decided by the signs of the two ends' distances from the plane, which is
+    exact where computing the crossing's ``t`` is not (a segment nearly
+    parallel to the plane).  An end on the plane (within :func:`on_tolerance`),
+    or an origin leaving it, is never blocked by it.  ``ends`` is ``(N, 3)``,
+    or ``(1, 3)`` for one light shared by every ray.
+    """
+    n = np.asarray(normal, dtype=np.float64)
+    side_o = (origins[:, 0] - point[0]) * n[0] + (origins[:, 1] - point[1]) * n[1] + (origins[:, 2] - point[2]) * n[2]
+    side_e = (ends[:, 0] - point[0]) * n[0] + (ends[:, 1] - point[1]) * n[1] + (ends[:, 2] - point[2]) * n[2]
+    out = (side_o > 0) != (side_e > 0)
+    out &= np.abs(side_o) > on_tolerance(mag_origin, mag_plane)
+    out &= np.abs(side_e) > on_tolerance(mag_end, mag_plane)
+    if leaving is not None:
+        out &= ~leaving
+    return out
 
 
 def triangle_t(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.ndarray, e2: np.ndarray,
