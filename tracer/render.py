@@ -168,7 +168,8 @@ class Renderer:
                 self._check()
                 hits = self.intersector.closest(o, d, fk, fi)
                 missed = hits.kind == MISS
-                _accumulate(acc, smp[missed], w[missed, None] * background, ceiling, fixed)
+                once = depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share one
+                _accumulate(acc, smp[missed], w[missed, None] * background, ceiling, fixed, once)
                 rows = np.flatnonzero(~missed)
                 if len(rows) == 0:
                     continue
@@ -176,7 +177,7 @@ class Renderer:
                 dd, ww, ss = d[rows], w[rows], smp[rows]
                 mat = resolve_material(self.world, hit)
                 normal = shading_normal(self.world, hit, dd)
-                _accumulate(acc, ss, scaled(self.direct(hit, mat, normal, dd), ww), ceiling, fixed)
+                _accumulate(acc, ss, scaled(self.direct(hit, mat, normal, dd), ww), ceiling, fixed, once)
                 if depth == img.max_depth:
                     continue
                 children = self.secondary(hit, mat, normal, dd, ww, ss)
@@ -257,18 +258,27 @@ class Renderer:
         return tuple(np.concatenate(p) for p in zip(*parts))
 
 
-def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling: float, fixed: float) -> None:
+def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling: float, fixed: float,
+                unique: bool = False) -> None:
     """``acc[index] += values`` in fixed point (units of ``1/fixed``); repeated indices are summed.
 
     Contributions are never negative, so a sum at or above ``ceiling`` (twice
     the sub-samples of a pixel) already saturates its pixel and is clamped
     there; NaN counts as nothing.  Integer sums are exact, so their order
-    never shows in the image.
+    never shows in the image.  ``unique`` says that no index repeats: the
+    sum is then a plain gather and scatter instead of ``np.add.at``.
     """
     if len(index):
         v = np.clip(np.nan_to_num(values, nan=0.0, posinf=ceiling), 0.0, ceiling)
-        np.add.at(acc, index, np.rint(v * fixed).astype(np.int64))
-        np.minimum(acc, np.int64(ceiling * fixed), out=acc)
+        units = np.rint(v * fixed).astype(np.int64)
+        cap = np.int64(ceiling * fixed)
+        if unique:
+            units += acc[index]
+            np.minimum(units, cap, out=units)
+            acc[index] = units
+        else:
+            np.add.at(acc, index, units)
+            np.minimum(acc, cap, out=acc)
 
 
 def render(scene: Scene, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
