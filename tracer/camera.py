@@ -6,6 +6,7 @@ import numpy as np
 
 from schemas import Camera, Image
 
+from .vec import along, scaled
 from .world import unit
 
 
@@ -40,7 +41,7 @@ class CameraRays:
         sy = (j[:, None] + b[None, :]).ravel() / H
         x = (2.0 * sx - 1.0) * (W / H) * self.h
         y = (1.0 - 2.0 * sy) * self.h
-        plane = x[:, None] * self.right + y[:, None] * self.up
+        plane = along(scaled(self.right, x), y, self.up)  # x·right + y·up
         if self.orthographic:
             return self.eye + plane, np.broadcast_to(self.forward, plane.shape).copy()
         return np.broadcast_to(self.eye, plane.shape).copy(), unit(self.forward + plane)
