@@ -194,7 +194,7 @@ def _separate_nests(i: np.ndarray, j: np.ndarray, n_tri: int, center: np.ndarray
 def _csr(count: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     src = np.concatenate([i, j]).astype(np.int64)
     dst = np.concatenate([j, i]).astype(np.int64)
-    order = np.argsort(src * max(count, 1) + dst)  # keys are distinct: one order, whatever the sort
+    order = np.argsort(src, kind="stable")  # stable: the order of the pairs decides, so it is deterministic
     start = np.zeros(count + 1, dtype=np.int64)
     start[1:] = np.cumsum(np.bincount(src, minlength=count))
     return start, dst[order]
