@@ -7,6 +7,8 @@ see them: ``objects[3].material``.  They run only on a structurally valid
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Iterator, Sequence
 
 import numpy as np
@@ -29,6 +31,8 @@ def parallel(a: Sequence[float], b: Sequence[float]) -> bool:
     sa, sb = np.abs(va).max(), np.abs(vb).max()
     if sa == 0 or sb == 0:
         return True
+    if not (np.isfinite(sa) and np.isfinite(sb)):  # callers reject overflowing vectors before asking
+        return False
     va, vb = va / sa, vb / sb
     cross = float(np.linalg.norm(np.cross(va, vb)))
     return cross <= 1e-12 * float(np.linalg.norm(va)) * float(np.linalg.norm(vb))
@@ -93,7 +97,10 @@ def _objects(scene: Scene) -> Iterator[Problem]:
             yield f"{where}.normal", "must be non-zero"
         elif isinstance(obj, Triangle):
             v0, v1, v2 = obj.vertices
-            if parallel(_sub(v1, v0), _sub(v2, v0)):
+            e1, e2 = _sub(v1, v0), _sub(v2, v0)
+            if not all(math.isfinite(c) for c in (*e1, *e2)):
+                yield f"{where}.vertices", "are too far apart (an edge, vertex minus vertex, overflows)"
+            elif parallel(e1, e2):
                 yield f"{where}.vertices", "must not be collinear (the triangle has zero area)"
         elif isinstance(obj, Mesh):
             yield from _mesh(obj, where)
