@@ -20,9 +20,9 @@ def quantize(colour: np.ndarray) -> np.ndarray:
     return np.floor(255.0 * v + (0.5 + NUDGE)).astype(np.uint8)
 
 
-#: zlib level, chosen from ``phongray bench``'s PNG table: unfiltered rows at level 6 encode 2-3x faster than
+#: zlib level, chosen from ``phongray bench``'s PNG table: unfiltered rows at level 6 encode 1.5-3.3x faster than
 #: Pillow's level 6 (adaptive row filters) on every bench image, and smaller on six of its eight; level 3 is
-#: 2-5x faster again but up to twice the size, level 9 barely smaller and slower
+#: 2-3x faster again but up to twice the size, level 9 barely smaller and slower
 PNG_LEVEL = 6
 #: rows compressed at a time, so that encoding needs no second copy of a large image
 PNG_BAND = 256
