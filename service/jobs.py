@@ -119,7 +119,7 @@ class RenderService:
             return cached
         if not self.slots.acquire(blocking=False):
             raise Busy()
-        size = resident()
+        before = resident()
         try:
             deadline = time.monotonic() + self.settings.render_timeout
 
@@ -148,7 +148,7 @@ class RenderService:
             self.renders += 1
         finally:
             self.slots.release()
-            release_if_grown(size)  # a large render gives what it freed back to the OS: memory returns to its baseline
+            release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to its baseline
         self.cache.put(job.key, data)
         return data
 

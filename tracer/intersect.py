@@ -31,8 +31,7 @@ from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies
 from .shapes import plane_separates, plane_t, sphere_t, triangle_t
 from .vec import along, divided, dot
-from .world import World, max_abs, unit
-from .world import median as world_median
+from .world import World, max_abs, median_of, unit
 
 #: kinds of surface in :attr:`Hits.kind`
 MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
@@ -150,7 +149,7 @@ class Intersector:
         tri_extent = np.max(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)), axis=(1, 2)) \
             if len(tris.v0) else np.zeros(0)
         extents = np.concatenate([2.0 * spheres.radius, tri_extent])
-        median = world_median(extents) if len(extents) else 0.0
+        median = median_of(extents) if len(extents) else 0.0
         with np.errstate(over="ignore", invalid="ignore"):
             big_sphere = ~(2.0 * spheres.radius <= BIG * median) | ~np.isfinite(spheres.mag)
             big_tri = ~(tri_extent <= BIG * median)
@@ -227,13 +226,12 @@ class Intersector:
             mag_o = max_abs(origins) + self.world.origin_mag
         mag_e = None if ends is None else max_abs(ends) + self.world.origin_mag
         blocked = np.zeros(n, dtype=bool)
-        w = self.world
-        towards_points = ends is not None and mag_e is not None
-        if towards_points:  # a plane blocks a segment to a light exactly when it separates its two ends
-            for k in range(len(w.planes.normal)):
-                blocked |= plane_separates(origins, ends, w.planes.point[k], w.planes.normal[k], mag_o, mag_e,
-                                           w.planes.mag[k], (fk == PLANE) & (fi == k))
-        for _, _, t, _, _ in self._direct(origins, dirs, fk, fi, mag_o, ends, reach, mag_e, planes=not towards_points):
+        if ends is not None and mag_e is not None:  # a plane blocks a segment exactly when it separates its ends
+            pl = self.world.planes
+            for k in range(len(pl.normal)):
+                blocked |= plane_separates(origins, ends, pl.point[k], pl.normal[k], mag_o, mag_e, pl.mag[k],
+                                           (fk == PLANE) & (fi == k))
+        for _, _, t, _, _ in self._direct(origins, dirs, fk, fi, mag_o, ends, reach, mag_e, planes=ends is None):
             blocked |= t < reach
         if self.bvh is not None:
             open_ = np.flatnonzero(~blocked)

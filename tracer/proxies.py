@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .vec import cross, dot
-from .world import median as middle
+from .world import median_of
 
 #: proxy margin, neighbour gap and walk step, relative to the BVH's half-size
 MARGIN = 2.0**-17
@@ -219,7 +219,7 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     extent = np.max(hi - lo, axis=1)
-    median = middle(extent)
+    median = median_of(extent)
     with np.errstate(invalid="ignore"):
         is_small = (extent <= 4.0 * median) if np.isfinite(median) else np.zeros(n, dtype=bool)
     small = np.flatnonzero(is_small)

@@ -12,9 +12,6 @@ from .vec import along, dot, scaled
 from .world import World, unit
 
 
-_dot = dot
-
-
 def resolve_material(world: World, hits: Hits) -> np.ndarray:
     """Material id after the checker, per hit. Shape (N,), int.
 
@@ -38,7 +35,7 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     tris = kind == TRIANGLE
     anchor[tris] = world.triangles.v0_world[hits.index[sel][tris]]
     flat = planes | tris
-    p[flat] -= _dot(p[flat] - anchor[flat], normal[flat])[:, None] * normal[flat]
+    p[flat] -= dot(p[flat] - anchor[flat], normal[flat])[:, None] * normal[flat]
     cells = np.sum(np.floor(p / size[sel, None]), axis=1)
     odd = np.mod(cells, 2.0) == 1.0
     out = mat.copy()
@@ -61,7 +58,7 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
             zero = ~np.any(blend != 0, axis=1)
             blend[zero] = normal[rows[zero]]
             normal[rows] = blend
-    flip = _dot(normal, dirs) > 0
+    flip = dot(normal, dirs) > 0
     normal[flip] *= -1.0
     return normal
 
@@ -85,17 +82,17 @@ def phong(diffuse: np.ndarray, specular: np.ndarray, shininess: np.ndarray, nl: 
 
 def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """``D − 2(D·N)N``. Shape (N, 3)."""
-    return unit(along(dirs, -2.0 * _dot(dirs, normal), normal))
+    return unit(along(dirs, -2.0 * dot(dirs, normal), normal))
 
 
 def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray) -> np.ndarray:
     """Refracted unit directions by the contract's rule (mirror direction on total internal reflection)."""
-    entering = _dot(dirs, geometric) < 0
+    entering = dot(dirs, geometric) < 0
     eta = np.where(entering, 1.0 / ior, ior)
     w = np.where(entering[:, None], geometric, -geometric)
-    c = -_dot(dirs, w)
+    c = -dot(dirs, w)
     k = 1.0 - eta * eta * (1.0 - c * c)
     root = np.sqrt(np.maximum(k, 0.0))
     through = eta[:, None] * dirs + (eta * c - root)[:, None] * w
-    bounced = dirs - 2.0 * _dot(dirs, w)[:, None] * w
+    bounced = dirs - 2.0 * dot(dirs, w)[:, None] * w
     return unit(np.where((k < 0)[:, None], bounced, through))

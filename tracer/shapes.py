@@ -29,9 +29,6 @@ TOL = 2.0**-46
 UV_TOL = 2.0**-40
 
 
-_dot = dot
-
-
 def on_tolerance(point_magnitude: np.ndarray, surface_magnitude: np.ndarray) -> np.ndarray:
     """How far from a surface a point may be and still lie on it: float64 rounding of both."""
     return TOL * (point_magnitude + surface_magnitude)
@@ -51,12 +48,12 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     one of radius 1.
     """
     oc = origins - center
-    b = _dot(oc, dirs)
+    b = dot(oc, dirs)
     perp = along(oc, -b, dirs)  # oc − b·dirs
-    h = np.sqrt(_dot(perp, perp))
+    h = np.sqrt(dot(perp, perp))
     radius = np.broadcast_to(radius, b.shape)
     disc = (radius - h) * (radius + h)
-    dist = np.sqrt(_dot(oc, oc))
+    dist = np.sqrt(dot(oc, oc))
     c = (dist - radius) * (dist + radius)
     root = np.sqrt(np.maximum(disc, 0.0))
     q = -b - np.where(b >= 0, root, -root)
@@ -73,7 +70,7 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     if ends is not None:
         assert reach is not None and mag_end is not None
         ec = ends - center
-        at_end = np.abs(np.sqrt(_dot(ec, ec)) - radius) <= on_tolerance(mag_end, mag_sphere)
+        at_end = np.abs(np.sqrt(dot(ec, ec)) - radius) <= on_tolerance(mag_end, mag_sphere)
         # the light is a root; the other root is c / reach (their product is c)
         with np.errstate(divide="ignore", invalid="ignore"):
             other = np.where(c > 0, c / reach, np.inf)
@@ -81,17 +78,20 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     return np.where(np.isfinite(t) & (t > 0), t, np.inf)
 
 
+def plane_side(points: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Signed distance ``(p − point)·normal`` of each of ``points (N, 3)`` from a plane (unit ``normal``),
+    a column at a time with no ``(N, 3)`` difference made. Shape (N,)."""
+    return ((points[..., 0] - point[..., 0]) * normal[..., 0] + (points[..., 1] - point[..., 1]) * normal[..., 1]
+            + (points[..., 2] - point[..., 2]) * normal[..., 2])
+
+
 def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np.ndarray,
             mag_origin: np.ndarray, mag_plane: np.ndarray | float, leaving: np.ndarray | None = None,
             ends: np.ndarray | None = None, mag_end: np.ndarray | None = None) -> np.ndarray:
     """t > 0 where each ray meets a plane, ``inf`` where it does not (or starts or ends on it). Shape (N,)."""
     n = np.asarray(normal, dtype=np.float64)
-    if n.ndim == 1:  # one plane for all rays: three scaled columns, no broadcast copy
-        dist = (origins[:, 0] - point[0]) * n[0] + (origins[:, 1] - point[1]) * n[1] + (origins[:, 2] - point[2]) * n[2]
-        denom = dirs[:, 0] * n[0] + dirs[:, 1] * n[1] + dirs[:, 2] * n[2]
-    else:
-        dist = _dot(origins - point, n)
-        denom = _dot(dirs, n)
+    dist = plane_side(origins, point, n)
+    denom = dot(dirs, n)
     normal = n
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -dist / denom
@@ -100,7 +100,7 @@ def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np
         skip |= leaving
     if ends is not None:
         assert mag_end is not None
-        skip |= np.abs(_dot(*np.broadcast_arrays(ends - point, np.atleast_2d(normal)))) <= on_tolerance(mag_end,
+        skip |= np.abs(dot(*np.broadcast_arrays(ends - point, np.atleast_2d(normal)))) <= on_tolerance(mag_end,
                                                                                                           mag_plane)
     return np.where(~skip & (denom != 0) & (t > 0) & np.isfinite(t), t, np.inf)
 
@@ -118,8 +118,7 @@ def plane_separates(origins: np.ndarray, ends: np.ndarray, point: np.ndarray, no
     or ``(1, 3)`` for one light shared by every ray.
     """
     n = np.asarray(normal, dtype=np.float64)
-    side_o = (origins[:, 0] - point[0]) * n[0] + (origins[:, 1] - point[1]) * n[1] + (origins[:, 2] - point[2]) * n[2]
-    side_e = (ends[:, 0] - point[0]) * n[0] + (ends[:, 1] - point[1]) * n[1] + (ends[:, 2] - point[2]) * n[2]
+    side_o, side_e = plane_side(origins, point, n), plane_side(ends, point, n)
     out = (side_o > 0) != (side_e > 0)
     out &= np.abs(side_o) > on_tolerance(mag_origin, mag_plane)
     out &= np.abs(side_e) > on_tolerance(mag_end, mag_plane)
@@ -140,21 +139,21 @@ def triangle_t(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.nda
     """
     v0, e1, e2, normal = (np.broadcast_to(a, dirs.shape) for a in (v0, e1, e2, normal))
     p = cross(dirs, e2)
-    det = _dot(e1, p)
+    det = dot(e1, p)
     s = origins - v0
     qv = cross(s, e1)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         inv = 1.0 / det
-        u = _dot(s, p) * inv
-        v = _dot(dirs, qv) * inv
-        t = _dot(e2, qv) * inv
+        u = dot(s, p) * inv
+        v = dot(dirs, qv) * inv
+        t = dot(e2, qv) * inv
     inside = (u >= -UV_TOL) & (v >= -UV_TOL) & (u + v <= 1.0 + UV_TOL)
-    skip = np.abs(_dot(s, normal)) <= on_tolerance(mag_origin, mag_triangle)
+    skip = np.abs(dot(s, normal)) <= on_tolerance(mag_origin, mag_triangle)
     if leaving is not None:
         skip |= leaving
     if ends is not None:
         assert mag_end is not None
-        skip |= np.abs(_dot(ends - v0, normal)) <= on_tolerance(mag_end, mag_triangle)
+        skip |= np.abs(dot(ends - v0, normal)) <= on_tolerance(mag_end, mag_triangle)
     ok = inside & ~skip & np.isfinite(t) & (t > 0)
     u = np.clip(np.nan_to_num(u), 0.0, 1.0)
     v = np.clip(np.nan_to_num(v), 0.0, 1.0)

@@ -34,7 +34,7 @@ def max_abs(v: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
 
 
-def median(v: np.ndarray) -> float:
+def median_of(v: np.ndarray) -> float:
     """``np.median`` of a non-empty 1-D array, without the import of ``numpy.ma`` that it makes on first use."""
     n = len(v)
     part = np.partition(v, [(n - 1) // 2, n // 2])
