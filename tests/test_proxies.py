@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tracer.proxies import _csr, overlapping_pairs
+from tracer.proxies import _csr, overlapping_pairs, stable_order
 
 
 def brute(lo, hi):
@@ -49,3 +49,10 @@ def test_csr_lists_each_neighbour_of_each_box_in_order():
     start, nb = _csr(5, i, j)
     lists = [nb[start[k]:start[k + 1]].tolist() for k in range(5)]
     assert [sorted(x) for x in lists] == [[1, 3], [0, 2], [1, 3], [0, 2], []]
+
+
+@pytest.mark.parametrize("bound", [1, 7, 1 << 16, (1 << 16) + 3, 5_000_000, 1 << 40])
+def test_stable_order_is_numpys_stable_argsort(bound):
+    keys = np.random.default_rng(bound % 97).integers(0, bound, 20_000)
+    keys[::7] = keys[0]  # many ties: their order must be kept
+    assert np.array_equal(stable_order(keys, bound), np.argsort(keys, kind="stable"))

@@ -191,10 +191,24 @@ def _separate_nests(i: np.ndarray, j: np.ndarray, n_tri: int, center: np.ndarray
     return i[keep], j[keep], container
 
 
+def stable_order(keys: np.ndarray, bound: int) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` for integer keys in ``0..bound-1``, by 16-bit digits: NumPy sorts
+    those by radix, two to three times faster than a comparison sort of the whole keys."""
+    order: np.ndarray | None = None
+    shift = 0
+    while True:
+        digit = ((keys if order is None else keys[order]) >> shift) & 0xFFFF
+        step = np.argsort(digit.astype(np.uint16), kind="stable")
+        order = step if order is None else order[step]
+        shift += 16
+        if bound <= 1 << shift:
+            return order
+
+
 def _csr(count: int, i: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     src = np.concatenate([i, j]).astype(np.int64)
     dst = np.concatenate([j, i]).astype(np.int64)
-    order = np.argsort(src, kind="stable")  # stable: the order of the pairs decides, so it is deterministic
+    order = stable_order(src, count)  # stable: the order of the pairs decides, so it is deterministic
     start = np.zeros(count + 1, dtype=np.int64)
     start[1:] = np.cumsum(np.bincount(src, minlength=count))
     return start, dst[order]
@@ -244,6 +258,9 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         order = np.argsort(key, kind="stable")
         index = np.int32 if n < 2**31 else np.int64  # half the memory of the candidate lists
         key, box = key[order], small[order].astype(index)
+        # the boxes in cell order: the candidates of one cell then lie together in memory
+        s_lo = [np.ascontiguousarray(a[box]) for a in lo_a]
+        s_hi = [np.ascontiguousarray(a[box]) for a in hi_a]
         cells, first, members = np.unique(key, return_index=True, return_counts=True)
         first, members = first.astype(index), members.astype(index)
         own = np.repeat(np.arange(len(cells), dtype=index), members)  # each sorted box's cell
@@ -263,7 +280,11 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
                 raise TooManyOverlaps(f"more than {PAIR_BUDGET} candidate proxy pairs")
             a = np.repeat(pos, count)
             b = np.repeat(s - np.cumsum(count, dtype=index) + count, count) + np.arange(len(a), dtype=index)
-            i, j = overlapping(box[a], box[b])
+            keep = (s_lo[0][a] <= s_hi[0][b]) & (s_lo[0][b] <= s_hi[0][a])  # x first: the test most boxes fail
+            a, b = a[keep], b[keep]
+            keep = ((s_lo[1][a] <= s_hi[1][b]) & (s_lo[1][b] <= s_hi[1][a])
+                    & (s_lo[2][a] <= s_hi[2][b]) & (s_lo[2][b] <= s_hi[2][a]))
+            i, j = box[a[keep]], box[b[keep]]
             pairs_i.append(i.astype(np.int64))
             pairs_j.append(j.astype(np.int64))
     big_ids = np.flatnonzero(~is_small)

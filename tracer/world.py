@@ -216,10 +216,14 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
     keep = np.any(normal != 0, axis=1) & np.all(np.isfinite(local), axis=(1, 2))  # zero-area faces are never hit
     vertex_normals = np.concatenate(normals) if normals else np.zeros((0, 3, 3))
     smooth_mask = np.concatenate(smooth) if smooth else np.zeros(0, dtype=bool)
-    vertex_normals = np.where(smooth_mask[:, None, None], vertex_normals, normal[:, None, :])
+    if not smooth_mask.all():
+        vertex_normals = np.where(smooth_mask[:, None, None], vertex_normals, normal[:, None, :])
+    material = np.concatenate(materials).astype(np.int64) if materials else np.zeros(0, dtype=np.int64)
+    if not keep.all():  # (when every face is kept, as usual, no copies)
+        local, world, e1, e2, normal = local[keep], world[keep], e1[keep], e2[keep], normal[keep]
+        material, vertex_normals, smooth_mask = material[keep], vertex_normals[keep], smooth_mask[keep]
     return Triangles(
-        v0=local[keep, 0], e1=e1[keep], e2=e2[keep], normal=normal[keep],
-        material=(np.concatenate(materials) if materials else np.zeros(0, dtype=np.int64))[keep].astype(np.int64),
-        v0_world=world[keep, 0], vertex_normals=vertex_normals[keep], smooth=smooth_mask[keep],
-        mag=np.abs(world[keep]).reshape(-1, 9).max(axis=1, initial=0.0),
+        v0=np.ascontiguousarray(local[:, 0]), e1=e1, e2=e2, normal=normal, material=material,
+        v0_world=np.ascontiguousarray(world[:, 0]), vertex_normals=vertex_normals, smooth=smooth_mask,
+        mag=np.abs(world).reshape(-1, 9).max(axis=1, initial=0.0),
     )
