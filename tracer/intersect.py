@@ -29,6 +29,7 @@ import numpy as np
 
 from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies
+from .sightlines import Sightlines, plain_triangles
 from .shapes import plane_separates, plane_t, sphere_t, triangle_t
 from .vec import along, divided, dot
 from .world import World, max_abs, median_of, unit
@@ -141,8 +142,12 @@ class _Best:
 
 
 class Intersector:
-    def __init__(self, world: World):
+    """Closest hits and occlusion for a world.  ``lines``, when given, promises that every ray cast will lie
+    on them (:mod:`tracer.sightlines`), which lets triangles go to Embree without proxies."""
+
+    def __init__(self, world: World, lines: Sightlines | None = None):
         self.world = world
+        self.lines = lines
         #: called between walk passes and every few direct surfaces; raises to stop a render
         self.check: Callable[[], None] = _nothing
         tris, spheres = world.triangles, world.spheres
@@ -183,11 +188,13 @@ class Intersector:
             spheres.center[bvh_spheres] - spheres.radius[bvh_spheres, None],
             spheres.center[bvh_spheres] + spheres.radius[bvh_spheres, None]])
         centre, half = frame(corners.min(axis=0), corners.max(axis=0))
-        self.proxies = p = build_proxies(tris.v0[bvh_tris], tris.e1[bvh_tris], tris.e2[bvh_tris],
-                                         tris.normal[bvh_tris], spheres.center[bvh_spheres],
-                                         spheres.radius[bvh_spheres], half)
-        self.box_lo = p.lo.min(axis=0) - p.step * 4
-        self.box_hi = p.hi.max(axis=0) + p.step * 4
+        v0, e1, e2, normal = tris.v0[bvh_tris], tris.e1[bvh_tris], tris.e2[bvh_tris], tris.normal[bvh_tris]
+        ids = tris.corner_ids[bvh_tris]
+        plain = None if self.lines is None else plain_triangles(v0, e1, e2, normal, ids, self.lines, half)
+        self.proxies = p = build_proxies(v0, e1, e2, normal, spheres.center[bvh_spheres],
+                                         spheres.radius[bvh_spheres], half, plain, ids)
+        self.box_lo = p.lo.min(axis=0) - p.step * 4 - p.slack
+        self.box_hi = p.hi.max(axis=0) + p.step * 4 + p.slack
         self.bvh = Bvh(p.vertices, p.faces, centre, half)
         self.max_steps = len(p.faces) + 2  # a walk passes at least one crossing per step; a ray crosses a face once
 
@@ -354,14 +361,15 @@ class Intersector:
         live = open_rows(np.arange(n))
         if any_hit and len(live):  # broad phase: a ray that crosses no proxy at all is clear
             s = start[live]
-            far = np.minimum(limit[live] + margin[live], t_out[live]) - s
+            far = np.minimum(limit[live] + margin[live] + p.slack, t_out[live]) - s
             live = live[bvh.any_hit(along(o[live], s, d[live]), d[live], far)]
         for _ in range(self.max_steps):
             if len(live) == 0:
                 break
             self.check()
             s = start[live]
-            far = np.minimum(best.t[live] + margin[live], t_out[live]) - s
+            # a plain triangle hit before best.t may be crossed in float32 up to p.slack after it
+            far = np.minimum(best.t[live] + margin[live] + p.slack, t_out[live]) - s
             face, tau = bvh.nearest(along(o[live], s, d[live]), d[live], far)
             found = face >= 0
             live, face, tau = live[found], face[found], tau[found]

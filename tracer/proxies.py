@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .sightlines import SLACK
 from .vec import cross, dot
 from .world import median_of
 
@@ -36,6 +37,9 @@ from .world import median_of
 MARGIN = 2.0**-17
 GAP = 2.0**-15
 STEP = 2.0**-19
+#: the margin of triangle proxies in a scene that also has plain triangles (:mod:`tracer.sightlines`): more than a
+#: plain triangle's float32 crossing may stray, so a ray that strays near a proxied triangle still enters its proxy
+TRIANGLE_MARGIN = 2.0**-14
 #: the most neighbour pairs a scene may have before its spheres leave the BVH
 PAIR_BUDGET = 20_000_000
 
@@ -85,6 +89,7 @@ class Proxies:
     container: np.ndarray  # (P,) largest diameter of a sphere proxy that contains p's without being its neighbour
     margin: float  # m
     step: float  # how far a walk steps past a reported crossing
+    slack: float = 0.0  # how far past a hit a plain triangle's float32 crossing may lie (0: none are plain)
 
 
 def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray,
@@ -141,18 +146,40 @@ def sphere_icosahedra(center: np.ndarray, radius: np.ndarray, m: float) -> np.nd
 
 
 def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, center: np.ndarray,
-                  radius: np.ndarray, half_size: float) -> Proxies:
-    """Proxies for ``T`` triangles and ``S`` spheres (local coordinates) in a BVH of half-size ``half_size``."""
+                  radius: np.ndarray, half_size: float, plain: np.ndarray | None = None,
+                  corner_ids: np.ndarray | None = None) -> Proxies:
+    """Proxies for ``T`` triangles and ``S`` spheres (local coordinates) in a BVH of half-size ``half_size``.
+
+    Triangles marked ``plain`` (:func:`tracer.sightlines.plain_triangles`) go in as themselves, each corner
+    shared through ``corner_ids``; the others get proxies."""
     m = MARGIN * half_size
     gap = GAP * half_size
     n_tri = len(v0)
-    groups = triangle_prisms(v0, e1, e2, normal, m)
-    if len(radius):
-        groups.append((np.arange(len(radius)) + n_tri, sphere_icosahedra(center, radius, m), ICO_FACES))
     count = n_tri + len(radius)
     lo = np.full((count, 3), np.inf)
     hi = np.full((count, 3), -np.inf)
     verts, faces, owner, base = [], [], [], 0
+    some_plain = plain is not None and corner_ids is not None and bool(plain.any())
+    proxied = np.arange(n_tri)
+    if some_plain:
+        assert plain is not None and corner_ids is not None
+        ids = np.flatnonzero(plain)
+        corners = np.stack([v0[ids], v0[ids] + e1[ids], v0[ids] + e2[ids]], axis=1)  # (k, 3, 3)
+        used, local_ids = np.unique(corner_ids[ids], return_inverse=True)
+        table = np.zeros((len(used), 3))
+        table[local_ids.reshape(-1)] = corners.reshape(-1, 3)  # one float32 corner per shared corner
+        lo[ids] = corners.min(axis=1) - m  # holds the float32 triangle and any crossing Embree reports on it
+        hi[ids] = corners.max(axis=1) + m
+        verts.append(table)
+        faces.append(local_ids.reshape(-1, 3))
+        owner.append(ids)
+        base = len(table)
+        proxied = np.flatnonzero(~plain)
+    tri_m = TRIANGLE_MARGIN * half_size if some_plain else m
+    groups = [(proxied[g], v, template) for g, v, template in
+              triangle_prisms(v0[proxied], e1[proxied], e2[proxied], normal[proxied], tri_m)]
+    if len(radius):
+        groups.append((np.arange(len(radius)) + n_tri, sphere_icosahedra(center, radius, m), ICO_FACES))
     for ids, v, template in groups:  # v: (k, vertices per proxy, 3)
         k, per = v.shape[:2]
         lo[ids], hi[ids] = v.min(axis=1), v.max(axis=1)
@@ -170,7 +197,7 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
     start, neighbours = _csr(count, i, j)
     return Proxies(vertices=all_verts, faces=all_faces.astype(np.int32), owner=all_owner.astype(np.int64),
                    lo=lo, hi=hi, start=start, neighbours=neighbours, container=container, margin=m,
-                   step=STEP * half_size)
+                   step=STEP * half_size, slack=SLACK * half_size if some_plain else 0.0)
 
 
 def _separate_nests(i: np.ndarray, j: np.ndarray, n_tri: int, center: np.ndarray, radius: np.ndarray, m: float,

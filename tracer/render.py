@@ -24,6 +24,7 @@ from .image import quantize
 from .intersect import MISS, Intersector
 from .lights import illuminate
 from .shading import mirror, phong, refract, resolve_material, shading_normal
+from .sightlines import scene_sightlines
 from .vec import dot, scaled
 from .world import World, build_world, max_abs
 
@@ -77,8 +78,10 @@ class Renderer:
         self._count_lock = threading.Lock()
         with np.errstate(all="ignore"):  # hostile magnitudes (1e300) overflow to inf here; the tracer copes
             self.world: World = build_world(scene)
-            self.intersector = Intersector(self.world)
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
+            lines = scene_sightlines(scene, self.world.origin, self.camera.eye, self.camera.forward,
+                                     self.camera.orthographic)
+            self.intersector = Intersector(self.world, lines)
         self.intersector.check = self._check
 
     # -- whole image -------------------------------------------------------

@@ -98,6 +98,7 @@ class Triangles:
     vertex_normals: np.ndarray  # (T, 3, 3) per-corner shading normals (face normal where none)
     smooth: np.ndarray  # (T,) bool: has per-vertex normals
     mag: np.ndarray  # (T,) world magnitude: largest absolute corner coordinate
+    corner_ids: np.ndarray  # (T, 3) int: the corner's index among its mesh's vertices (unique across meshes)
 
 
 @dataclass(frozen=True)
@@ -191,9 +192,12 @@ def _planes(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Planes:
 
 
 def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Triangles:
-    corners, materials, normals, smooth = [], [], [], []
+    corners, materials, normals, smooth, ids = [], [], [], [], []
+    count = 0  # corners numbered so far
     for obj in scene.objects:
         if isinstance(obj, Triangle):
+            ids.append(np.arange(count, count + 3).reshape(1, 3))
+            count += 3
             corners.append(np.array(obj.vertices, dtype=F64).reshape(1, 3, 3))
             materials.append(np.full(1, names[obj.material]))
             normals.append(np.zeros((1, 3, 3)))
@@ -201,6 +205,8 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
         elif isinstance(obj, Mesh) and obj.faces:
             verts = np.array(obj.vertices, dtype=F64).reshape(-1, 3)
             faces = np.array(obj.faces, dtype=np.int64).reshape(-1, 3)
+            ids.append(faces + count)
+            count += len(verts)
             corners.append(verts[faces])
             materials.append(np.full(len(faces), names[obj.material]))
             if obj.normals is not None:
@@ -219,11 +225,13 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
     if not smooth_mask.all():
         vertex_normals = np.where(smooth_mask[:, None, None], vertex_normals, normal[:, None, :])
     material = np.concatenate(materials).astype(np.int64) if materials else np.zeros(0, dtype=np.int64)
+    corner_ids = np.concatenate(ids) if ids else np.zeros((0, 3), dtype=np.int64)
     if not keep.all():  # (when every face is kept, as usual, no copies)
         local, world, e1, e2, normal = local[keep], world[keep], e1[keep], e2[keep], normal[keep]
         material, vertex_normals, smooth_mask = material[keep], vertex_normals[keep], smooth_mask[keep]
+        corner_ids = corner_ids[keep]
     return Triangles(
         v0=np.ascontiguousarray(local[:, 0]), e1=e1, e2=e2, normal=normal, material=material,
         v0_world=np.ascontiguousarray(world[:, 0]), vertex_normals=vertex_normals, smooth=smooth_mask,
-        mag=np.abs(world).reshape(-1, 9).max(axis=1, initial=0.0),
+        mag=np.abs(world).reshape(-1, 9).max(axis=1, initial=0.0), corner_ids=corner_ids,
     )

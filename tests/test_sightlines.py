@@ -1,0 +1,230 @@
+"""Plain triangles (tracer/sightlines.py): which go to Embree as themselves, and that nothing changes when they do.
+
+Every scene here is rendered twice: as the renderer does it (plain triangles
+where the scene's rays allow) and with every triangle behind a closed proxy.
+The images must be the same bytes, and the hits and shadows must agree with
+the float64 brute force of test_exactness.
+"""
+
+from unittest import mock
+
+import numpy as np
+import pytest
+
+import schemas
+from test_exactness import brute_blocked, brute_closest, point_lights, scene
+from tracer import Renderer, render
+from tracer.sightlines import Sightlines, plain_triangles, scene_sightlines
+from tracer.world import build_world
+
+
+def sphere_mesh(center, radius, level=3, material="m"):
+    """A closed mesh of ``8·4^level`` faces on a sphere (a subdivided octahedron), shared corners."""
+    verts = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+    faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    for _ in range(level):
+        index, out = {}, []
+
+        def middle(a, b):
+            key = (min(a, b), max(a, b))
+            if key not in index:
+                index[key] = len(verts)
+                verts.append([(verts[a][k] + verts[b][k]) / 2 for k in range(3)])
+            return index[key]
+        for a, b, c in faces:
+            ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
+            out += [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+        faces = out
+    v = np.array(verts, float)
+    v = np.asarray(center) + radius * v / np.linalg.norm(v, axis=1, keepdims=True)
+    return {"type": "mesh", "material": material, "vertices": v.tolist(), "faces": faces}
+
+
+def open_floor(size, n=6, y=0.0):
+    xs = np.linspace(-size, size, n + 1)
+    verts = [[float(x), y, float(z)] for z in xs for x in xs]
+    faces = [[j * (n + 1) + i, (j + 1) * (n + 1) + i + 1, j * (n + 1) + i + 1] for j in range(n) for i in range(n)]
+    faces += [[j * (n + 1) + i, (j + 1) * (n + 1) + i, (j + 1) * (n + 1) + i + 1] for j in range(n) for i in range(n)]
+    return {"type": "mesh", "material": "m", "vertices": verts, "faces": faces}
+
+
+def silhouette_edge(mesh, point):
+    """The midpoint of an edge of ``mesh`` whose two faces lie on one side of the plane through it and ``point``
+    (seen from there, the mesh folds away at that edge): the nearest such edge to the mesh's first vertex."""
+    v, point = np.array(mesh["vertices"], float), np.asarray(point, float)
+    edges = {}
+    for f in mesh["faces"]:
+        for k in range(3):
+            a, b = sorted((f[k], f[(k + 1) % 3]))
+            edges.setdefault((a, b), []).append(f[(k + 2) % 3])
+    best = None
+    for (a, b), opposite in edges.items():
+        if len(opposite) != 2:
+            continue
+        plane = np.cross(v[a] - point, v[b] - point)
+        s1, s2 = plane @ (v[opposite[0]] - point), plane @ (v[opposite[1]] - point)
+        if s1 * s2 > 0:
+            mid = (v[a] + v[b]) / 2
+            if best is None or np.linalg.norm(mid - v[0]) < np.linalg.norm(best - v[0]):
+                best = mid
+    return best
+
+
+def border_edge(mesh):
+    """The midpoint of an edge of ``mesh`` that only one face has (the first found)."""
+    v, faces = np.array(mesh["vertices"], float), mesh["faces"]
+    count = {}
+    for f in faces:
+        for k in range(3):
+            key = tuple(sorted((f[k], f[(k + 1) % 3])))
+            count[key] = count.get(key, 0) + 1
+    a, b = next(key for key, c in count.items() if c == 1)
+    return (v[a] + v[b]) / 2
+
+
+def on_floor(light, point):
+    """Where the line from ``light`` through ``point`` meets y = 0."""
+    light, point = np.asarray(light, float), np.asarray(point, float)
+    return light + (point - light) * (light[1] / (light[1] - point[1]))
+
+
+BALL = sphere_mesh([0, 0.6, 0], 0.6)
+FLOOR = open_floor(2.5)
+EYE_SIDE, LIGHT_TOP = [0.3, 0.7, 4], [0.4, 3, 0.2]
+CASES = {
+    "mesh ball and open floor, point light": scene(
+        [BALL, open_floor(2.5)], [{"type": "point", "color": 1, "position": [2, 3, 2]}],
+        {"position": [0, 1.5, 4], "look_at": [0, 0.5, 0], "fov": 40}),
+    "the ball's silhouette at a 1e-5 degree field of view": scene(
+        [BALL, FLOOR], [{"type": "point", "color": 1, "position": [-3, 2, 1]}],
+        {"position": EYE_SIDE, "look_at": silhouette_edge(BALL, EYE_SIDE).tolist(), "fov": 1e-5}),
+    "the floor's border at a 1e-5 degree field of view": scene(
+        [BALL, FLOOR], [{"type": "point", "color": 1, "position": [-3, 2, 1]}],
+        {"position": [0.1, 0.5, 4], "look_at": border_edge(FLOOR).tolist(), "fov": 1e-5}),
+    "the ball's shadow edge on the floor at a 1e-5 degree field of view": scene(
+        [BALL, FLOOR], [{"type": "point", "color": 1, "position": LIGHT_TOP}],
+        {"position": [0, 2, 3], "look_at": on_floor(LIGHT_TOP, silhouette_edge(BALL, LIGHT_TOP)).tolist(),
+         "fov": 1e-5}),
+    "light grazing the ball, eye far and off the origin": scene(
+        [sphere_mesh([1e4, 0.6, -1e4], 0.6), open_floor(2.5, y=0) | {"vertices": [
+            [x + 1e4, y, z - 1e4] for x, y, z in open_floor(2.5)["vertices"]]}],
+        [{"type": "point", "color": 1, "position": [1e4 + 3, 0.61, -1e4]}, {"type": "directional", "color": 0.5,
+                                                                            "direction": [1, -0.05, 0]}],
+        {"position": [1e4 + 1, 2, -1e4 + 4], "look_at": [1e4, 0.6, -1e4], "fov": 35}),
+    "orthographic camera, area light, two touching balls": scene(
+        [BALL, sphere_mesh([1.2, 0.6, 0], 0.6, level=2)],
+        [{"type": "area", "color": 1, "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
+          "samples": [2, 2]}],
+        {"type": "orthographic", "position": [0.6, 0.6, 5], "look_at": [0.6, 0.6, 0], "height": 1.5}),
+}
+
+
+def without_plain(data):
+    """Render with every triangle behind its proxy."""
+    with mock.patch("tracer.render.scene_sightlines", return_value=None):
+        return render(schemas.validate_scene(data))
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_plain_triangles_change_no_pixel(name):
+    data = CASES[name]
+    r = Renderer(schemas.validate_scene(data))
+    p = r.intersector.proxies
+    faces_of = np.bincount(p.owner, minlength=len(p.lo))[:r.intersector.n_tri]
+    assert p.slack > 0 and np.sum(faces_of == 1) > 0, "the scene should have plain triangles (one face each)"
+    assert np.sum(faces_of > 1) > 0, "and proxied ones"
+    assert np.array_equal(r.pixels(), without_plain(data))
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_plain_triangles_agree_with_the_brute_force(name):
+    data = CASES[name]
+    r = Renderer(schemas.validate_scene(data))
+    n = data["image"]["width"] * data["image"]["height"]
+    o, d = r.camera.rays(0, n)
+    none_k, none_i = np.zeros(n, np.int8), np.full(n, -1)
+    hits = r.intersector.closest(o, d, none_k, none_i)
+    _, kind, index = brute_closest(data, o + r.world.origin, d, none_k, none_i)
+    agree = (hits.kind == kind) & (hits.index == index)
+    assert np.mean(~agree) <= 0.001, f"{np.sum(~agree)} of {n} primary rays disagree"
+    rows = np.flatnonzero(agree & (kind != 0))
+    assert len(rows) > 0
+    point = hits.point[rows]
+    for light in point_lights(data):
+        local = light - r.world.origin
+        v = local - point
+        dist = np.linalg.norm(v, axis=1)
+        blocked = r.intersector.occluded(point, v / dist[:, None], dist, hits.kind[rows], hits.index[rows],
+                                         np.broadcast_to(local, point.shape))
+        expected = brute_blocked(data, point + r.world.origin, np.broadcast_to(light, point.shape), kind[rows],
+                                 index[rows])
+        assert np.mean(blocked != expected) <= 0.001, f"{np.sum(blocked != expected)} shadow rays disagree"
+
+
+def classify(objects, lights, camera, **image):
+    s = schemas.validate_scene(scene(objects, lights, camera, **image))
+    w = build_world(s)
+    eye = np.asarray(s.camera.position, float) - w.origin
+    fwd = np.asarray(s.camera.look_at, float) - w.origin - eye
+    lines = scene_sightlines(s, w.origin, eye, fwd / np.linalg.norm(fwd), s.camera.type == "orthographic")
+    if lines is None:
+        return None
+    t = w.triangles
+    return plain_triangles(t.v0, t.e1, t.e2, t.normal, t.corner_ids, lines, 4.0)
+
+
+EYE = {"position": [0, 0.6, 5], "look_at": [0, 0.6, 0], "fov": 40}
+
+
+def test_a_closed_mesh_is_plain_away_from_its_silhouette():
+    plain = classify([BALL], [{"type": "point", "color": 1, "position": [0, 0.6, 5]}], EYE)
+    w = build_world(schemas.validate_scene(scene([BALL], [], EYE)))
+    t = w.triangles
+    centre = t.v0 + (t.e1 + t.e2) / 3 + w.origin
+    facing = (centre - [0, 0.6, 0]) @ np.array([0, 0, 1.0]) / 0.6  # cosine towards the eye
+    assert plain[np.abs(facing) > 0.3].all()  # well inside the front or the back
+    assert not plain[np.abs(facing) < 0.02].any()  # seen edge-on
+
+
+def test_borders_lone_triangles_and_mirrors_keep_their_proxies():
+    tri = {"type": "triangle", "material": "m", "vertices": [[-1, -1, 0], [1, -1, 0], [0, 1, 0]]}
+    floor = open_floor(1.0, n=4)
+    plain = classify([tri, floor], [], {"position": [0, 3, 3], "look_at": [0, 0, 0]})
+    assert not plain[0]  # a lone triangle: all its edges are borders
+    n = 4
+    faces = floor["faces"]
+    border = [k for k, f in enumerate(faces) if sum(
+        1 for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))
+        if sum(1 for g in faces if a in g and b in g) == 1)]
+    assert not plain[1 + np.array(border)].any()
+    assert plain[1:].sum() == 2 * n * n - len(border)
+    cam = {"position": [0, 3, 3], "look_at": [0, 0, 0]}
+    args = np.zeros(3), np.zeros(3), np.array([0, 0, -1.0]), False
+    unused = schemas.validate_scene(scene([floor], [], cam))  # its materials include an unused mirror and glass
+    assert scene_sightlines(unused, *args) is not None
+    assert scene_sightlines(schemas.validate_scene(scene([floor | {"material": "mirror"}], [], cam)), *args) is None
+    flat = schemas.validate_scene(scene([floor | {"material": "mirror"}], [], cam, max_depth=0))
+    assert scene_sightlines(flat, *args) is not None  # no secondary rays at all
+
+
+def test_a_light_in_a_face_plane_or_beside_an_edge_makes_it_a_proxy():
+    floor = open_floor(1.0, n=4)
+    # a point light in the floor's plane sees every face edge-on
+    plain = classify([floor], [{"type": "point", "color": 1, "position": [3, 0, 0]}], EYE | {"position": [0, 3, 3]})
+    assert not plain.any()
+    # a directional light along the floor: the same
+    plain = classify([floor], [{"type": "directional", "color": 1, "direction": [1, 0, 0.2]}],
+                     EYE | {"position": [0, 3, 3]})
+    assert not plain.any()
+
+
+def test_sightlines_of_a_scene():
+    s = schemas.validate_scene(scene([BALL], [{"type": "ambient", "color": 0.1},
+                                              {"type": "directional", "color": 1, "direction": [0, -2, 0]},
+                                              {"type": "area", "color": 1, "corner": [0, 2, 0], "edge_u": [1, 0, 0],
+                                               "edge_v": [0, 0, 1], "samples": [2, 2]}], EYE))
+    lines = scene_sightlines(s, np.array([0, 1.0, 0]), np.array([0, 0, 5.0]), np.array([0, 0, -1.0]), False)
+    assert isinstance(lines, Sightlines)
+    assert len(lines.hulls) == 2 and lines.hulls[1].shape == (4, 3)  # the eye; the area light's corners
+    assert np.allclose(lines.hulls[1][0], [0, 1, 0])  # local: minus the origin
+    assert np.allclose(lines.directions[0], [0, -1, 0])

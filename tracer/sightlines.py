@@ -1,0 +1,165 @@
+"""The lines a scene's rays travel on, and the triangles Embree may see as they are.
+
+Embree meets triangles in float32 (:mod:`tracer.embree`): the ray and the
+corners are rounded by up to :data:`LINE_ERROR` (in the BVH's normalised
+units), which moves where a ray crosses a triangle's plane by that much over
+the sine of the angle between them.  A closed proxy (:mod:`tracer.proxies`)
+makes that harmless at any angle, at the price of four faces and four corners
+of its own.  But when every ray the scene casts passes through one of a few
+known points (the eye of a perspective camera, point lights, spots, the
+corners' hull of an area light) or runs along a known direction (an
+orthographic camera, a directional light), and no material sends rays
+elsewhere (no mirror, no glass), most triangles of a mesh can go to Embree
+as themselves, sharing the mesh's float32 corners, and still never be
+missed.  A triangle is *plain* when, for every such point or direction:
+
+* every ray meets its plane at a sine of at least :data:`MIN_SINE`, so the
+  float32 crossing lies within ``LINE_ERROR / MIN_SINE`` of the float64 hit;
+* each of its edges is shared by exactly one other face of its mesh (same
+  corner indices), and the two faces lie on opposite sides of the plane
+  through the edge and the point (or along the direction): a ray near the
+  edge then crosses one of the two, which Embree's watertight test keeps;
+* no point lies within :data:`NEAR` of it (a ray starting or ending there).
+
+Everything else (lone triangles, mesh borders, silhouettes, surfaces seen
+edge-on) keeps its proxy, whose margin covers that displacement (see
+:data:`tracer.proxies.TRIANGLE_MARGIN`), and the walk looks that far past a
+hit (:attr:`tracer.proxies.Proxies.slack`).  Without known lines every
+triangle keeps its proxy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .vec import cross, dot
+
+#: how far float32 rounding may move a ray or a corner, in units of the BVH's half-size
+LINE_ERROR = 2.0**-19
+#: the least sine of the angle at which a ray may meet a plain triangle
+MIN_SINE = 2.0**-4
+#: how far (relative to the BVH's half-size) a plain triangle's float32 crossing may lie from its float64 hit
+SLACK = LINE_ERROR / MIN_SINE
+#: a plain triangle keeps at least this far (relative to the BVH's half-size) from every known point
+NEAR = 4.0 * SLACK
+
+
+@dataclass
+class Sightlines:
+    """Every ray passes through a point of the hull of one of ``hulls`` or runs along one of ``directions``."""
+
+    hulls: list[np.ndarray] = field(default_factory=list)  # each (k, 3) local points
+    directions: list[np.ndarray] = field(default_factory=list)  # each (3,) unit
+    #: planes (point, unit normal) that rays start on along a direction (an orthographic camera's)
+    starts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+
+
+def scene_sightlines(scene, origin: np.ndarray, eye: np.ndarray, forward: np.ndarray,
+                     orthographic: bool) -> Sightlines | None:  # type: ignore[no-untyped-def]
+    """The lines of a validated scene's rays (local coordinates), or None when a mirror or glass may send
+    rays anywhere."""
+    used = {obj.material for obj in scene.objects}
+    used |= {scene.materials[name].checker.material for name in used if scene.materials[name].checker}
+    if scene.image.max_depth > 0 and any(scene.materials[name].reflectance > 0 or
+                                         scene.materials[name].transmittance > 0 for name in used):
+        return None
+    lines = Sightlines()
+    if orthographic:
+        lines.directions.append(forward)
+        lines.starts.append((eye, forward))
+    else:
+        lines.hulls.append(eye[None])
+    for light in scene.lights:
+        if light.type in ("point", "spot"):
+            lines.hulls.append(np.asarray(light.position, dtype=np.float64)[None] - origin)
+        elif light.type == "directional":
+            d = np.asarray(light.direction, dtype=np.float64)
+            d = d / np.max(np.abs(d))
+            lines.directions.append(d / np.linalg.norm(d))
+        elif light.type == "area":
+            c = np.asarray(light.corner, dtype=np.float64) - origin
+            u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
+            lines.hulls.append(np.stack([c, c + u, c + v, c + u + v]))
+    if not all(np.all(np.isfinite(h)) for h in lines.hulls) or \
+            not all(np.all(np.isfinite(d)) for d in lines.directions):
+        return None
+    return lines
+
+
+def _same_sign(values: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(all > 0, all < 0) over the list, per row."""
+    pos = np.ones(len(values[0]), dtype=bool)
+    neg = pos.copy()
+    for v in values:
+        pos &= v > 0
+        neg &= v < 0
+    return pos, neg
+
+
+def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, corner_ids: np.ndarray,
+                    lines: Sightlines, half_size: float) -> np.ndarray:
+    """Which triangles Embree may meet as they are, for rays on ``lines``. Shape (T,), bool.
+
+    ``corner_ids (T, 3)``: the index of each corner in its mesh's shared
+    corners (distinct across meshes; a lone triangle's corners are its own).
+    """
+    n_tri = len(v0)
+    if n_tri == 0:
+        return np.zeros(0, dtype=bool)
+    corners = (v0, v0 + e1, v0 + e2)
+    plain = np.ones(n_tri, dtype=bool)
+    # edges: slot s joins corners s and s+1; the corner opposite it is s+2
+    a_id = np.concatenate([corner_ids[:, 0], corner_ids[:, 1], corner_ids[:, 2]])
+    b_id = np.concatenate([corner_ids[:, 1], corner_ids[:, 2], corner_ids[:, 0]])
+    lo, hi = np.minimum(a_id, b_id), np.maximum(a_id, b_id)
+    key = lo * (int(corner_ids.max()) + 1) + hi
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    run_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    run_len = np.diff(np.r_[run_start, len(key)])
+    lonely = np.repeat(run_len != 2, run_len)  # a border (1 face) or a seam of three or more
+    plain[order[lonely] % n_tri] = False
+    first = order[run_start[run_len == 2]]
+    second = order[run_start[run_len == 2] + 1]
+    f1, f2 = first % n_tri, second % n_tri
+    slot = first // n_tri
+    stacked = np.stack(corners, axis=1)  # (T, 3, 3)
+    ea, eb = stacked[f1, slot], stacked[f1, (slot + 1) % 3]
+    c1 = stacked[f1, (slot + 2) % 3]
+    c2 = stacked[f2, (second // n_tri + 2) % 3]
+    lo_box = np.minimum(np.minimum(corners[0], corners[1]), corners[2])
+    hi_box = np.maximum(np.maximum(corners[0], corners[1]), corners[2])
+    near = NEAR * half_size
+    with np.errstate(all="ignore"):
+        for hull in lines.hulls:
+            dist = [dot(normal, p[None] - v0) for p in hull]
+            pos, neg = _same_sign(dist)
+            least = np.min(np.abs(np.stack(dist)), axis=0)
+            far = np.zeros(n_tri)
+            for p in hull:
+                for c in corners:
+                    w = c - p[None]
+                    far = np.maximum(far, np.sqrt(dot(w, w)))
+                gap = np.maximum(np.maximum(lo_box - p[None], p[None] - hi_box), 0.0)
+                plain &= ~(np.sqrt(dot(gap, gap)) <= near)
+            plain &= (pos | neg) & (least >= MIN_SINE * far)
+            side1 = [dot(cross(ea - p[None], eb - p[None]), c1 - p[None]) for p in hull]
+            side2 = [dot(cross(ea - p[None], eb - p[None]), c2 - p[None]) for p in hull]
+            p1, n1 = _same_sign(side1)
+            p2, n2 = _same_sign(side2)
+            fold = ~((p1 & n2) | (n1 & p2))  # not on opposite sides at every point: a silhouette
+            plain[f1[fold]] = False
+            plain[f2[fold]] = False
+        for d in lines.directions:
+            plain &= np.abs(normal @ d) >= MIN_SINE
+            through = cross(eb - ea, np.broadcast_to(d, ea.shape))
+            s1, s2 = dot(through, c1 - ea), dot(through, c2 - ea)
+            fold = ~(((s1 > 0) & (s2 < 0)) | ((s1 < 0) & (s2 > 0)))
+            plain[f1[fold]] = False
+            plain[f2[fold]] = False
+        for point, nrm in lines.starts:  # rays that start on a plane: keep a proxy on what lies near it
+            s = [dot(c - point[None], np.broadcast_to(nrm, c.shape)) for c in corners]
+            plain &= np.minimum(np.minimum(s[0], s[1]), s[2]) > near
+    return plain
