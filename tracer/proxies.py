@@ -97,7 +97,7 @@ def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     """Closed proxies of triangles, one group per shape: tetrahedra, and oriented boxes for slivers.
 
     The tetrahedron's base lies ``m`` below the triangle's plane and its apex a quarter of the inradius
-    (at least ``4 m``) above the incentre; its base is grown about the incentre so that its section at
+    (at least ``16 m``) above the incentre; its base is grown about the incentre so that its section at
     ``m`` above the plane is still the triangle grown by ``m``: it contains that whole prism."""
     corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (T, 3, 3)
     a = np.linalg.norm(corners[:, 1] - corners[:, 2], axis=1)
@@ -115,7 +115,7 @@ def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     if len(ids):
         cr = corners[ids]
         incenter = (a[ids, None] * cr[:, 0] + b[ids, None] * cr[:, 1] + c[ids, None] * cr[:, 2]) / perimeter[ids, None]
-        height = np.maximum(inradius[ids] / 4.0, 4.0 * m)
+        height = np.maximum(inradius[ids] / 4.0, 16.0 * m)  # (h + m)/(h − m) ≤ 17/15: a base not much grown
         base_grow = grow[ids] * (height + m) / (height - m)  # the section at +m shrinks by (h − m)/(h + m)
         n = normal[ids]
         base = incenter[:, None] + base_grow[:, None, None] * (cr - incenter[:, None]) - m * n[:, None, :]
@@ -165,13 +165,13 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
         assert plain is not None and corner_ids is not None
         ids = np.flatnonzero(plain)
         corners = np.stack([v0[ids], v0[ids] + e1[ids], v0[ids] + e2[ids]], axis=1)  # (k, 3, 3)
-        used, local_ids = np.unique(corner_ids[ids], return_inverse=True)
-        table = np.zeros((len(used), 3))
-        table[local_ids.reshape(-1)] = corners.reshape(-1, 3)  # one float32 corner per shared corner
+        shared = corner_ids[ids]
+        table = np.zeros((int(corner_ids.max()) + 1, 3))  # (rows no plain triangle uses stay unused)
+        table[shared.reshape(-1)] = corners.reshape(-1, 3)  # one float32 corner per shared corner
         lo[ids] = corners.min(axis=1) - m  # holds the float32 triangle and any crossing Embree reports on it
         hi[ids] = corners.max(axis=1) + m
         verts.append(table)
-        faces.append(local_ids.reshape(-1, 3))
+        faces.append(shared)
         owner.append(ids)
         base = len(table)
         proxied = np.flatnonzero(~plain)

@@ -145,8 +145,9 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
                 gap = np.maximum(np.maximum(lo_box - p[None], p[None] - hi_box), 0.0)
                 plain &= ~(np.sqrt(dot(gap, gap)) <= near)
             plain &= (pos | neg) & (least >= MIN_SINE * far)
-            side1 = [dot(cross(ea - p[None], eb - p[None]), c1 - p[None]) for p in hull]
-            side2 = [dot(cross(ea - p[None], eb - p[None]), c2 - p[None]) for p in hull]
+            planes = [(cross(ea - p[None], eb - p[None]), p[None]) for p in hull]  # through the edge and p
+            side1 = [dot(through, c1 - p) for through, p in planes]
+            side2 = [dot(through, c2 - p) for through, p in planes]
             p1, n1 = _same_sign(side1)
             p2, n2 = _same_sign(side2)
             fold = ~((p1 & n2) | (n1 & p2))  # not on opposite sides at every point: a silhouette
