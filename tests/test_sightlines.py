@@ -6,6 +6,7 @@ The images must be the same bytes, and the hits and shadows must agree with
 the float64 brute force of test_exactness.
 """
 
+import math
 from unittest import mock
 
 import numpy as np
@@ -90,6 +91,8 @@ def on_floor(light, point):
 
 BALL = sphere_mesh([0, 0.6, 0], 0.6)
 FLOOR = open_floor(2.5)
+ROUGH = open_floor(1.0, n=30) | {"vertices": [[x, 0.3 + 1e-8 * math.sin(7 * x + 3 * z), z]
+                                             for x, _, z in open_floor(1.0, n=30)["vertices"]]}
 EYE_SIDE, LIGHT_TOP = [0.3, 0.7, 4], [0.4, 3, 0.2]
 CASES = {
     "mesh ball and open floor, point light": scene(
@@ -105,6 +108,10 @@ CASES = {
         [BALL, FLOOR], [{"type": "point", "color": 1, "position": LIGHT_TOP}],
         {"position": [0, 2, 3], "look_at": on_floor(LIGHT_TOP, silhouette_edge(BALL, LIGHT_TOP)).tolist(),
          "fov": 1e-5}),
+    "a finely cut, slightly rough floor seen from 2e-6 above it, 1.5 away": scene(
+        [ROUGH, BALL | {"vertices": (np.array(BALL["vertices"]) * 0.3 + [0, -0.1, -0.5]).tolist()}],
+        [{"type": "point", "color": 1, "position": [0.5, 1, 1]}],
+        {"position": [0.01, 0.3 + 2e-6, 0.95], "look_at": [0.3, 0.3, -0.55], "fov": 1e-4}),
     "light grazing the ball, eye far and off the origin": scene(
         [sphere_mesh([1e4, 0.6, -1e4], 0.6), open_floor(2.5, y=0) | {"vertices": [
             [x + 1e4, y, z - 1e4] for x, y, z in open_floor(2.5)["vertices"]]}],
