@@ -9,7 +9,9 @@ where the prism has eight: Embree's build costs by the face), and each sphere
 by a closed icosahedron whose
 faces lie ``m`` outside the sphere, where ``m`` is many times the float32
 rounding of the BVH's normalised coordinates.  Embree's watertight (robust)
-mode then cannot let a ray through a proxy's surface.
+mode then cannot let a ray through a proxy's surface.  Mesh faces that the
+scene's rays can only meet squarely (:mod:`tracer.sightlines`) are the
+exception: they go in as themselves, and their box stands in for the proxy's.
 
 Embree reports only the nearest crossing, and a walk that steps past it by
 float32 noise may step past other crossings within that noise.  Those belong
