@@ -375,8 +375,12 @@ class Intersector:
             live, face, tau = live[found], face[found], tau[found]
             prim = p.owner[face]
             fresh = last[live] != prim
-            self._test(best, *self._with_neighbours(live[fresh], prim[fresh], itself=True), o, d, from_prim, mag_o,
-                       ends, reach, mag_e)
+            if any_hit:  # the primitive crossed first: a ray it blocks needs no neighbour
+                rows = live[fresh]
+                self._test(best, rows, prim[fresh], o, d, from_prim, mag_o, ends, reach, mag_e)
+                fresh[fresh] = ~(best.t[rows] < limit[rows])
+            self._test(best, *self._with_neighbours(live[fresh], prim[fresh], itself=not any_hit), o, d, from_prim,
+                       mag_o, ends, reach, mag_e)
             last[live] = prim
             # every crossing inside the box of the proxy just crossed belongs to it or a neighbour, all tested
             # now: the walk goes on from where the ray leaves that box (or just past the crossing, if later)
