@@ -11,9 +11,9 @@ from unittest import mock
 
 import numpy as np
 import pytest
+from test_exactness import agrees_with_brute_force, scene
 
 import schemas
-from test_exactness import brute_blocked, brute_closest, point_lights, scene
 from tracer import Renderer, render
 from tracer.sightlines import Sightlines, plain_triangles, scene_sightlines
 from tracer.world import build_world
@@ -23,17 +23,17 @@ def sphere_mesh(center, radius, level=3, material="m"):
     """A closed mesh of ``8·4^level`` faces on a sphere (a subdivided octahedron), shared corners."""
     verts = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
     faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    def middle(index, a, b):
+        key = (min(a, b), max(a, b))
+        if key not in index:
+            index[key] = len(verts)
+            verts.append([(verts[a][k] + verts[b][k]) / 2 for k in range(3)])
+        return index[key]
+
     for _ in range(level):
         index, out = {}, []
-
-        def middle(a, b):
-            key = (min(a, b), max(a, b))
-            if key not in index:
-                index[key] = len(verts)
-                verts.append([(verts[a][k] + verts[b][k]) / 2 for k in range(3)])
-            return index[key]
         for a, b, c in faces:
-            ab, bc, ca = middle(a, b), middle(b, c), middle(c, a)
+            ab, bc, ca = middle(index, a, b), middle(index, b, c), middle(index, c, a)
             out += [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
         faces = out
     v = np.array(verts, float)
@@ -145,27 +145,7 @@ def test_plain_triangles_change_no_pixel(name):
 
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_plain_triangles_agree_with_the_brute_force(name):
-    data = CASES[name]
-    r = Renderer(schemas.validate_scene(data))
-    n = data["image"]["width"] * data["image"]["height"]
-    o, d = r.camera.rays(0, n)
-    none_k, none_i = np.zeros(n, np.int8), np.full(n, -1)
-    hits = r.intersector.closest(o, d, none_k, none_i)
-    _, kind, index = brute_closest(data, o + r.world.origin, d, none_k, none_i)
-    agree = (hits.kind == kind) & (hits.index == index)
-    assert np.mean(~agree) <= 0.001, f"{np.sum(~agree)} of {n} primary rays disagree"
-    rows = np.flatnonzero(agree & (kind != 0))
-    assert len(rows) > 0
-    point = hits.point[rows]
-    for light in point_lights(data):
-        local = light - r.world.origin
-        v = local - point
-        dist = np.linalg.norm(v, axis=1)
-        blocked = r.intersector.occluded(point, v / dist[:, None], dist, hits.kind[rows], hits.index[rows],
-                                         np.broadcast_to(local, point.shape))
-        expected = brute_blocked(data, point + r.world.origin, np.broadcast_to(light, point.shape), kind[rows],
-                                 index[rows])
-        assert np.mean(blocked != expected) <= 0.001, f"{np.sum(blocked != expected)} shadow rays disagree"
+    agrees_with_brute_force(CASES[name])
 
 
 def classify(objects, lights, camera, **image):

@@ -29,8 +29,8 @@ import numpy as np
 
 from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies
-from .sightlines import Sightlines, plain_triangles
 from .shapes import plane_separates, plane_t, sphere_t, triangle_t
+from .sightlines import Sightlines, plain_triangles
 from .vec import along, divided, dot
 from .world import World, max_abs, median_of, unit
 
@@ -57,7 +57,7 @@ class Hits:
     bary: np.ndarray  # (N, 2) barycentric u, v for triangles
     material: np.ndarray  # (N,) material id before the checker
 
-    def take(self, rows: np.ndarray) -> "Hits":
+    def take(self, rows: np.ndarray) -> Hits:
         """The hits of the rays ``rows`` only, as contiguous arrays."""
         return Hits(self.t[rows], self.kind[rows], self.index[rows], self.point[rows], self.normal[rows],
                     self.bary[rows], self.material[rows])
