@@ -15,6 +15,7 @@ from test_exactness import agrees_with_brute_force, scene
 
 import schemas
 from tracer import Renderer, render
+from tracer.camera import CameraRays
 from tracer.sightlines import Sightlines, plain_triangles, scene_sightlines
 from tracer.world import build_world
 
@@ -148,12 +149,14 @@ def test_plain_triangles_agree_with_the_brute_force(name):
     agrees_with_brute_force(CASES[name])
 
 
+def lines_of(s, origin):
+    return scene_sightlines(s, origin, CameraRays(s.camera, s.image, origin))
+
+
 def classify(objects, lights, camera, **image):
     s = schemas.validate_scene(scene(objects, lights, camera, **image))
     w = build_world(s)
-    eye = np.asarray(s.camera.position, float) - w.origin
-    fwd = np.asarray(s.camera.look_at, float) - w.origin - eye
-    lines = scene_sightlines(s, w.origin, eye, fwd / np.linalg.norm(fwd), s.camera.type == "orthographic")
+    lines = lines_of(s, w.origin)
     if lines is None:
         return None
     t = w.triangles
@@ -186,12 +189,11 @@ def test_borders_lone_triangles_and_mirrors_keep_their_proxies():
     assert not plain[1 + np.array(border)].any()
     assert plain[1:].sum() == 2 * n * n - len(border)
     cam = {"position": [0, 3, 3], "look_at": [0, 0, 0]}
-    args = np.zeros(3), np.zeros(3), np.array([0, 0, -1.0]), False
     unused = schemas.validate_scene(scene([floor], [], cam))  # its materials include an unused mirror and glass
-    assert scene_sightlines(unused, *args) is not None
-    assert scene_sightlines(schemas.validate_scene(scene([floor | {"material": "mirror"}], [], cam)), *args) is None
+    assert lines_of(unused, np.zeros(3)) is not None
+    assert lines_of(schemas.validate_scene(scene([floor | {"material": "mirror"}], [], cam)), np.zeros(3)) is None
     flat = schemas.validate_scene(scene([floor | {"material": "mirror"}], [], cam, max_depth=0))
-    assert scene_sightlines(flat, *args) is not None  # no secondary rays at all
+    assert lines_of(flat, np.zeros(3)) is not None  # no secondary rays at all
 
 
 def test_a_light_in_a_face_plane_or_beside_an_edge_makes_it_a_proxy():
@@ -210,7 +212,7 @@ def test_sightlines_of_a_scene():
                                               {"type": "directional", "color": 1, "direction": [0, -2, 0]},
                                               {"type": "area", "color": 1, "corner": [0, 2, 0], "edge_u": [1, 0, 0],
                                                "edge_v": [0, 0, 1], "samples": [2, 2]}], EYE))
-    lines = scene_sightlines(s, np.array([0, 1.0, 0]), np.array([0, 0, 5.0]), np.array([0, 0, -1.0]), False)
+    lines = lines_of(s, np.array([0, 1.0, 0]))
     assert isinstance(lines, Sightlines)
     assert len(lines.hulls) == 2 and lines.hulls[1].shape == (4, 3)  # the eye; the area light's corners
     assert np.allclose(lines.hulls[1][0], [0, 1, 0])  # local: minus the origin

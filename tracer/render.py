@@ -79,9 +79,7 @@ class Renderer:
         with np.errstate(all="ignore"):  # hostile magnitudes (1e300) overflow to inf here; the tracer copes
             self.world: World = build_world(scene)
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
-            lines = scene_sightlines(scene, self.world.origin, self.camera.eye, self.camera.forward,
-                                     self.camera.orthographic)
-            self.intersector = Intersector(self.world, lines)
+            self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
         self.intersector.check = self._check
 
     # -- whole image -------------------------------------------------------

@@ -34,7 +34,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from schemas import Scene
+
+from .camera import CameraRays
 from .vec import cross, dot
+from .world import unit
 
 #: how far float32 rounding may move a ray or a corner, in units of the BVH's half-size
 LINE_ERROR = 2.0**-19
@@ -56,28 +60,25 @@ class Sightlines:
     starts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
-def scene_sightlines(scene, origin: np.ndarray, eye: np.ndarray, forward: np.ndarray,
-                     orthographic: bool) -> Sightlines | None:  # type: ignore[no-untyped-def]
-    """The lines of a validated scene's rays (local coordinates), or None when a mirror or glass may send
-    rays anywhere."""
+def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Sightlines | None:
+    """The lines of a validated scene's rays (local coordinates about ``origin``), or None when a mirror or
+    glass may send rays anywhere."""
     used = {obj.material for obj in scene.objects}
     used |= {scene.materials[name].checker.material for name in used if scene.materials[name].checker}
     if scene.image.max_depth > 0 and any(scene.materials[name].reflectance > 0 or
                                          scene.materials[name].transmittance > 0 for name in used):
         return None
     lines = Sightlines()
-    if orthographic:
-        lines.directions.append(forward)
-        lines.starts.append((eye, forward))
+    if camera.orthographic:
+        lines.directions.append(camera.forward)
+        lines.starts.append((camera.eye, camera.forward))
     else:
-        lines.hulls.append(eye[None])
+        lines.hulls.append(camera.eye[None])
     for light in scene.lights:
         if light.type in ("point", "spot"):
             lines.hulls.append(np.asarray(light.position, dtype=np.float64)[None] - origin)
         elif light.type == "directional":
-            d = np.asarray(light.direction, dtype=np.float64)
-            d = d / np.max(np.abs(d))
-            lines.directions.append(d / np.linalg.norm(d))
+            lines.directions.append(unit(light.direction))
         elif light.type == "area":
             c = np.asarray(light.corner, dtype=np.float64) - origin
             u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
@@ -98,6 +99,14 @@ def _same_sign(values: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return pos, neg
 
 
+def _folds(side1: list[np.ndarray], side2: list[np.ndarray]) -> np.ndarray:
+    """Where an edge's two opposite corners are not on opposite sides of every plane through it (each list
+    holds one corner's signed side per plane): a silhouette. Per edge, bool."""
+    p1, n1 = _same_sign(side1)
+    p2, n2 = _same_sign(side2)
+    return ~((p1 & n2) | (n1 & p2))
+
+
 def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, corner_ids: np.ndarray,
                     lines: Sightlines, half_size: float) -> np.ndarray:
     """Which triangles Embree may meet as they are, for rays on ``lines``. Shape (T,), bool.
@@ -108,7 +117,8 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     n_tri = len(v0)
     if n_tri == 0:
         return np.zeros(0, dtype=bool)
-    corners = (v0, v0 + e1, v0 + e2)
+    stacked = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (T, 3, 3)
+    corners = (stacked[:, 0], stacked[:, 1], stacked[:, 2])
     plain = np.ones(n_tri, dtype=bool)
     # edges: slot s joins corners s and s+1; the corner opposite it is s+2
     a_id = np.concatenate([corner_ids[:, 0], corner_ids[:, 1], corner_ids[:, 2]])
@@ -125,12 +135,10 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     second = order[run_start[run_len == 2] + 1]
     f1, f2 = first % n_tri, second % n_tri
     slot = first // n_tri
-    stacked = np.stack(corners, axis=1)  # (T, 3, 3)
     ea, eb = stacked[f1, slot], stacked[f1, (slot + 1) % 3]
     c1 = stacked[f1, (slot + 2) % 3]
     c2 = stacked[f2, (second // n_tri + 2) % 3]
-    lo_box = np.minimum(np.minimum(corners[0], corners[1]), corners[2])
-    hi_box = np.maximum(np.maximum(corners[0], corners[1]), corners[2])
+    lo_box, hi_box = stacked.min(axis=1), stacked.max(axis=1)
     near = NEAR * half_size
     with np.errstate(all="ignore"):
         for hull in lines.hulls:
@@ -146,18 +154,14 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
                 plain &= ~(np.sqrt(dot(gap, gap)) <= near)
             plain &= (pos | neg) & (least >= MIN_SINE * far)
             planes = [(cross(ea - p[None], eb - p[None]), p[None]) for p in hull]  # through the edge and p
-            side1 = [dot(through, c1 - p) for through, p in planes]
-            side2 = [dot(through, c2 - p) for through, p in planes]
-            p1, n1 = _same_sign(side1)
-            p2, n2 = _same_sign(side2)
-            fold = ~((p1 & n2) | (n1 & p2))  # not on opposite sides at every point: a silhouette
+            fold = _folds([dot(through, c1 - p) for through, p in planes],
+                          [dot(through, c2 - p) for through, p in planes])
             plain[f1[fold]] = False
             plain[f2[fold]] = False
         for d in lines.directions:
             plain &= np.abs(normal @ d) >= MIN_SINE
             through = cross(eb - ea, np.broadcast_to(d, ea.shape))
-            s1, s2 = dot(through, c1 - ea), dot(through, c2 - ea)
-            fold = ~(((s1 > 0) & (s2 < 0)) | ((s1 < 0) & (s2 > 0)))
+            fold = _folds([dot(through, c1 - ea)], [dot(through, c2 - ea)])
             plain[f1[fold]] = False
             plain[f2[fold]] = False
         for point, nrm in lines.starts:  # rays that start on a plane: keep a proxy on what lies near it
