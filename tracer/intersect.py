@@ -9,6 +9,10 @@ neighbours are tested exactly in float64, and the ray steps on past the
 crossing.  The walk is bounded by distance (it ends at the best hit, plus the
 size of any sphere proxy that contains the ray's start, or at the BVH's
 bounding box), never by a count of candidates: every crossing is passed once.
+A scene with plain mesh faces (:mod:`tracer.sightlines`) walks by cells
+instead (:mod:`tracer.cells`): at a crossing, every primitive registered in
+the crossing's cell is tested, and the ray steps on from where it leaves
+that cell; a ray that starts on a surface first tests its start's cell.
 
 Rays leave surfaces by identity (``from_kind``, ``from_index``): they start
 at the exact float64 hit point and never hit that surface there (see
@@ -27,11 +31,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .cells import Cells, build_cells
 from .embree import Bvh, frame
-from .proxies import Proxies, TooManyOverlaps, build_proxies
+from .proxies import Proxies, TooManyOverlaps, build_proxies, find_neighbours
 from .shapes import plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines, plain_triangles
-from .vec import along, divided, dot
+from .vec import along, divided, dot, highest, lowest, most
 from .world import World, max_abs, median_of, unit
 
 #: kinds of surface in :attr:`Hits.kind`
@@ -151,7 +156,7 @@ class Intersector:
         #: called between walk passes and every few direct surfaces; raises to stop a render
         self.check: Callable[[], None] = _nothing
         tris, spheres = world.triangles, world.spheres
-        tri_extent = np.max(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)), axis=(1, 2)) \
+        tri_extent = most(most(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)))) \
             if len(tris.v0) else np.zeros(0)
         extents = np.concatenate([2.0 * spheres.radius, tri_extent])
         median = median_of(extents) if len(extents) else 0.0
@@ -164,6 +169,7 @@ class Intersector:
         self.direct_triangles = np.flatnonzero(big_tri)
         self.bvh: Bvh | None = None
         self.proxies: Proxies | None = None
+        self.cells: Cells | None = None
         bvh_tris, bvh_spheres = np.flatnonzero(~big_tri), np.flatnonzero(~big_sphere)
         try:
             self._build(bvh_tris, bvh_spheres)
@@ -187,16 +193,23 @@ class Intersector:
                      axis=1).reshape(-1, 3),
             spheres.center[bvh_spheres] - spheres.radius[bvh_spheres, None],
             spheres.center[bvh_spheres] + spheres.radius[bvh_spheres, None]])
-        centre, half = frame(corners.min(axis=0), corners.max(axis=0))
+        centre, half = frame(lowest(corners), highest(corners))
         v0, e1, e2, normal = tris.v0[bvh_tris], tris.e1[bvh_tris], tris.e2[bvh_tris], tris.normal[bvh_tris]
         ids = tris.corner_ids[bvh_tris]
         plain = None if self.lines is None else plain_triangles(v0, e1, e2, normal, ids, self.lines, half)
-        self.proxies = p = build_proxies(v0, e1, e2, normal, spheres.center[bvh_spheres],
-                                         spheres.radius[bvh_spheres], half, plain, ids)
-        self.box_lo = p.lo.min(axis=0) - p.step * 4 - p.slack
-        self.box_hi = p.hi.max(axis=0) + p.step * 4 + p.slack
+        some_plain = plain is not None and bool(plain.any())
+        center, radius = spheres.center[bvh_spheres], spheres.radius[bvh_spheres]
+        self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids,
+                                         neighbours=not some_plain)
+        # plain faces come in meshes of many like-sized faces: cells are cheaper to build than neighbour pairs
+        self.cells = build_cells(p.lo, p.hi, 2.0 * p.gap) if some_plain else None
+        if some_plain and self.cells is None:
+            find_neighbours(p, len(v0), center, radius)
+        self.box_lo = lowest(p.lo) - p.step * 4 - p.slack
+        self.box_hi = highest(p.hi) + p.step * 4 + p.slack
         self.bvh = Bvh(p.vertices, p.faces, centre, half)
-        self.max_steps = len(p.faces) + 2  # a walk passes at least one crossing per step; a ray crosses a face once
+        # a walk passes at least one crossing per step, and with cells a new cell; a ray crosses a face once
+        self.max_steps = len(p.faces) + (0 if self.cells is None else len(self.cells.keys)) + 2
 
     # -- closest hit -------------------------------------------------------
     def closest(self, origins: np.ndarray, dirs: np.ndarray, from_kind: np.ndarray | None = None,
@@ -340,7 +353,16 @@ class Intersector:
         start = t_in.copy()
         margin = np.zeros(n)
         inside = np.flatnonzero(from_prim >= 0)
-        if len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
+        cells = self.cells
+        # the region each ray tested last: a primitive and its neighbours, or a cell (a proxy's exit follows
+        # its entry, and rounding may report a cell twice)
+        last = from_prim.copy() if cells is None else np.full(n, -2, dtype=np.int64)
+        if len(inside) and cells is not None:  # everything near a start lies in its cell: test it now
+            cell, lo, hi = cells.locate(o[inside])
+            self._test(best, *cells.pairs(inside, cell), o, d, from_prim, mag_o, ends, reach, mag_e)
+            start[inside] = slab(o[inside], d[inside], lo, hi)[1]
+            last[inside] = cell
+        elif len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
             q = from_prim[inside]
             self._test(best, *self._with_neighbours(inside, q, itself=False), o, d, from_prim, mag_o, ends, reach,
                        mag_e)
@@ -350,7 +372,6 @@ class Intersector:
             self._test(best, inside[inward], q[inward], o, d, from_prim, mag_o, ends, reach, mag_e)
             start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
             margin[inside] = p.container[q]
-        last = from_prim.copy()  # the primitive each ray tested last (a proxy's exit follows its entry)
 
         def open_rows(rows: np.ndarray) -> np.ndarray:
             if any_hit:
@@ -374,17 +395,25 @@ class Intersector:
             found = face >= 0
             live, face, tau = live[found], face[found], tau[found]
             prim = p.owner[face]
-            fresh = last[live] != prim
+            if cells is None:
+                region, lo, hi = prim, p.lo[prim], p.hi[prim]
+            else:
+                region, lo, hi = cells.locate(along(o[live], s[found] + tau, d[live]))
+            fresh = last[live] != region
             if any_hit:  # the primitive crossed first: a ray it blocks needs no neighbour
                 rows = live[fresh]
                 self._test(best, rows, prim[fresh], o, d, from_prim, mag_o, ends, reach, mag_e)
                 fresh[fresh] = ~(best.t[rows] < limit[rows])
-            self._test(best, *self._with_neighbours(live[fresh], prim[fresh], itself=not any_hit), o, d, from_prim,
-                       mag_o, ends, reach, mag_e)
-            last[live] = prim
-            # every crossing inside the box of the proxy just crossed belongs to it or a neighbour, all tested
-            # now: the walk goes on from where the ray leaves that box (or just past the crossing, if later)
-            leave = slab(o[live], d[live], p.lo[prim], p.hi[prim])[1]
+            if cells is None:
+                pairs = self._with_neighbours(live[fresh], prim[fresh], itself=not any_hit)
+            else:
+                pairs = cells.pairs(live[fresh], region[fresh])
+            self._test(best, *pairs, o, d, from_prim, mag_o, ends, reach, mag_e)
+            last[live] = region
+            # every crossing inside the box of the proxy just crossed belongs to it or a neighbour (inside the
+            # cell of the crossing, to a member of the cell), all tested now: the walk goes on from where the ray
+            # leaves that box (or just past the crossing, if later)
+            leave = slab(o[live], d[live], lo, hi)[1]
             start[live] = np.fmax(start[live] + tau + p.step, leave)
             if not any_hit:  # and a hit before the ray leaves that box is the nearest there is
                 settled = np.isfinite(best.t[live]) & (margin[live] == 0) & (best.t[live] <= leave)

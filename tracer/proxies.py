@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sightlines import SLACK
-from .vec import cross, dot
+from .vec import cross, dot, least, lowest, most
 from .world import median_of
 
 #: proxy margin, neighbour gap and walk step, relative to the BVH's half-size
@@ -90,6 +90,7 @@ class Proxies:
     neighbours: np.ndarray  # (K,) int64
     container: np.ndarray  # (P,) largest diameter of a sphere proxy that contains p's without being its neighbour
     margin: float  # m
+    gap: float  # how near two proxies' boxes come to be neighbours
     step: float  # how far a walk steps past a reported crossing
     slack: float = 0.0  # how far past a hit a plain triangle's float32 crossing may lie (0: none are plain)
 
@@ -149,11 +150,12 @@ def sphere_icosahedra(center: np.ndarray, radius: np.ndarray, m: float) -> np.nd
 
 def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, center: np.ndarray,
                   radius: np.ndarray, half_size: float, plain: np.ndarray | None = None,
-                  corner_ids: np.ndarray | None = None) -> Proxies:
+                  corner_ids: np.ndarray | None = None, neighbours: bool = True) -> Proxies:
     """Proxies for ``T`` triangles and ``S`` spheres (local coordinates) in a BVH of half-size ``half_size``.
 
     Triangles marked ``plain`` (:func:`tracer.sightlines.plain_triangles`) go in as themselves, each corner
-    shared through ``corner_ids``; the others get proxies."""
+    shared through ``corner_ids``; the others get proxies.  Without ``neighbours`` the neighbour lists are
+    left empty (:func:`find_neighbours` fills them in)."""
     m = MARGIN * half_size
     gap = GAP * half_size
     n_tri = len(v0)
@@ -170,8 +172,8 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
         shared = corner_ids[ids]
         table = np.zeros((int(corner_ids.max()) + 1, 3))  # (rows no plain triangle uses stay unused)
         table[shared.reshape(-1)] = corners.reshape(-1, 3)  # one float32 corner per shared corner
-        lo[ids] = corners.min(axis=1) - m  # holds the float32 triangle and any crossing Embree reports on it
-        hi[ids] = corners.max(axis=1) + m
+        lo[ids] = least(corners) - m  # holds the float32 triangle and any crossing Embree reports on it
+        hi[ids] = most(corners) + m
         verts.append(table)
         faces.append(shared)
         owner.append(ids)
@@ -184,7 +186,7 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
         groups.append((np.arange(len(radius)) + n_tri, sphere_icosahedra(center, radius, m), ICO_FACES))
     for ids, v, template in groups:  # v: (k, vertices per proxy, 3)
         k, per = v.shape[:2]
-        lo[ids], hi[ids] = v.min(axis=1), v.max(axis=1)
+        lo[ids], hi[ids] = least(v), most(v)
         verts.append(v.reshape(-1, 3))
         faces.append((template[None] + base + per * np.arange(k)[:, None, None]).reshape(-1, 3))
         owner.append(np.repeat(ids, len(template)))
@@ -192,14 +194,22 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
     all_verts = np.concatenate(verts) if verts else np.zeros((0, 3))
     all_faces = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
     all_owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
-    i, j = overlapping_pairs(lo - gap, hi + gap)
-    container = np.zeros(count)
+    p = Proxies(vertices=all_verts, faces=all_faces.astype(np.int32), owner=all_owner.astype(np.int64),
+                lo=lo, hi=hi, start=np.zeros(count + 1, np.int64), neighbours=np.zeros(0, np.int64),
+                container=np.zeros(count), margin=m, gap=gap, step=STEP * half_size,
+                slack=SLACK * half_size if some_plain else 0.0)
+    if neighbours:
+        find_neighbours(p, n_tri, center, radius)
+    return p
+
+
+def find_neighbours(p: Proxies, n_tri: int, center: np.ndarray, radius: np.ndarray) -> None:
+    """Fill in the neighbour lists (and containers) of proxies ``p`` of ``n_tri`` triangles and the spheres
+    ``center``, ``radius``."""
+    i, j = overlapping_pairs(p.lo - p.gap, p.hi + p.gap)
     if len(radius) and len(i):
-        i, j, container = _separate_nests(i, j, n_tri, center, radius, m, gap, container)
-    start, neighbours = _csr(count, i, j)
-    return Proxies(vertices=all_verts, faces=all_faces.astype(np.int32), owner=all_owner.astype(np.int64),
-                   lo=lo, hi=hi, start=start, neighbours=neighbours, container=container, margin=m,
-                   step=STEP * half_size, slack=SLACK * half_size if some_plain else 0.0)
+        i, j, p.container = _separate_nests(i, j, n_tri, center, radius, p.margin, p.gap, p.container)
+    p.start, p.neighbours = _csr(len(p.lo), i, j)
 
 
 def _separate_nests(i: np.ndarray, j: np.ndarray, n_tri: int, center: np.ndarray, radius: np.ndarray, m: float,
@@ -261,7 +271,7 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
     n = len(lo)
     if n < 2:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    extent = np.max(hi - lo, axis=1)
+    extent = most(hi - lo)
     median = median_of(extent)
     with np.errstate(invalid="ignore"):
         is_small = (extent <= 4.0 * median) if np.isfinite(median) else np.zeros(n, dtype=bool)
@@ -280,7 +290,7 @@ def overlapping_pairs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.nd
         cell = float(np.max(extent[small])) * (1.0 + 2.0**-20)  # slack for the rounding of the cell coordinates
         if not (np.isfinite(cell) and cell > 0):
             cell = 1.0
-        origin = lo[small].min(axis=0)
+        origin = lowest(lo[small])
         with np.errstate(over="ignore", invalid="ignore"):
             c = np.clip(np.floor((lo[small] - origin) / cell), 0, _LAST).astype(np.int64)
         key = (c[:, 0] << (2 * _BITS)) | (c[:, 1] << _BITS) | c[:, 2]

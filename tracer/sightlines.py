@@ -37,7 +37,6 @@ import numpy as np
 from schemas import Scene
 
 from .camera import CameraRays
-from .vec import cross, dot
 from .world import unit
 
 #: how far float32 rounding may move a ray or a corner, in units of the BVH's half-size
@@ -107,18 +106,41 @@ def _folds(side1: list[np.ndarray], side2: list[np.ndarray]) -> np.ndarray:
     return ~((p1 & n2) | (n1 & p2))
 
 
+#: one vector as its three columns: each a 1-D array of rows, or a float that every row shares
+Columns = tuple  # (x, y, z)
+
+
+def _minus(a: Columns, b: Columns) -> Columns:
+    return a[0] - b[0], a[1] - b[1], a[2] - b[2]
+
+
+def _dot(a: Columns, b: Columns) -> np.ndarray:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Columns, b: Columns) -> Columns:
+    return a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]
+
+
+def _columns(a: np.ndarray) -> Columns:
+    return tuple(np.ascontiguousarray(a[..., k]) for k in range(3))
+
+
 def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, corner_ids: np.ndarray,
                     lines: Sightlines, half_size: float) -> np.ndarray:
     """Which triangles Embree may meet as they are, for rays on ``lines``. Shape (T,), bool.
 
     ``corner_ids (T, 3)``: the index of each corner in its mesh's shared
     corners (distinct across meshes; a lone triangle's corners are its own).
+    The arithmetic runs on columns (1-D arrays), as :mod:`tracer.vec` explains.
     """
     n_tri = len(v0)
     if n_tri == 0:
         return np.zeros(0, dtype=bool)
     stacked = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (T, 3, 3)
-    corners = (stacked[:, 0], stacked[:, 1], stacked[:, 2])
+    flat = [np.ascontiguousarray(stacked[..., k]).reshape(-1) for k in range(3)]  # corner s of face f at 3 f + s
+    corners = [tuple(a[s::3] for a in flat) for s in range(3)]
+    nrm, base = _columns(normal), corners[0]
     plain = np.ones(n_tri, dtype=bool)
     # edges: slot s joins corners s and s+1; the corner opposite it is s+2
     a_id = np.concatenate([corner_ids[:, 0], corner_ids[:, 1], corner_ids[:, 2]])
@@ -135,36 +157,44 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     second = order[run_start[run_len == 2] + 1]
     f1, f2 = first % n_tri, second % n_tri
     slot = first // n_tri
-    ea, eb = stacked[f1, slot], stacked[f1, (slot + 1) % 3]
-    c1 = stacked[f1, (slot + 2) % 3]
-    c2 = stacked[f2, (second // n_tri + 2) % 3]
-    lo_box, hi_box = stacked.min(axis=1), stacked.max(axis=1)
+
+    def corner_of(face: np.ndarray, s: np.ndarray) -> Columns:
+        at = 3 * face + s
+        return tuple(a[at] for a in flat)
+
+    ea, eb = corner_of(f1, slot), corner_of(f1, (slot + 1) % 3)
+    c1, c2 = corner_of(f1, (slot + 2) % 3), corner_of(f2, (second // n_tri + 2) % 3)
+    lo_box = tuple(np.minimum(np.minimum(corners[0][k], corners[1][k]), corners[2][k]) for k in range(3))
+    hi_box = tuple(np.maximum(np.maximum(corners[0][k], corners[1][k]), corners[2][k]) for k in range(3))
     near = NEAR * half_size
     with np.errstate(all="ignore"):
         for hull in lines.hulls:
-            dist = [dot(normal, p[None] - v0) for p in hull]
+            points = [tuple(float(x) for x in p) for p in hull]
+            dist = [_dot(nrm, _minus(p, base)) for p in points]
             pos, neg = _same_sign(dist)
-            least = np.min(np.abs(np.stack(dist)), axis=0)
+            nearest = np.min(np.abs(np.stack(dist)), axis=0)
             far = np.zeros(n_tri)
-            for p in hull:
+            for p in points:
                 for c in corners:
-                    w = c - p[None]
-                    far = np.maximum(far, np.sqrt(dot(w, w)))
-                gap = np.maximum(np.maximum(lo_box - p[None], p[None] - hi_box), 0.0)
-                plain &= ~(np.sqrt(dot(gap, gap)) <= near)
-            plain &= (pos | neg) & (least >= MIN_SINE * far)
-            planes = [(cross(ea - p[None], eb - p[None]), p[None]) for p in hull]  # through the edge and p
-            fold = _folds([dot(through, c1 - p) for through, p in planes],
-                          [dot(through, c2 - p) for through, p in planes])
+                    w = _minus(c, p)
+                    far = np.maximum(far, np.sqrt(_dot(w, w)))
+                gap = tuple(np.maximum(np.maximum(lo_box[k] - p[k], p[k] - hi_box[k]), 0.0) for k in range(3))
+                plain &= ~(np.sqrt(_dot(gap, gap)) <= near)
+            plain &= (pos | neg) & (nearest >= MIN_SINE * far)
+            planes = [(_cross(_minus(ea, p), _minus(eb, p)), p) for p in points]  # through the edge and p
+            fold = _folds([_dot(through, _minus(c1, p)) for through, p in planes],
+                          [_dot(through, _minus(c2, p)) for through, p in planes])
             plain[f1[fold]] = False
             plain[f2[fold]] = False
         for d in lines.directions:
-            plain &= np.abs(normal @ d) >= MIN_SINE
-            through = cross(eb - ea, np.broadcast_to(d, ea.shape))
-            fold = _folds([dot(through, c1 - ea)], [dot(through, c2 - ea)])
+            direction = tuple(float(x) for x in d)
+            plain &= np.abs(_dot(nrm, direction)) >= MIN_SINE
+            through = _cross(_minus(eb, ea), direction)
+            fold = _folds([_dot(through, _minus(c1, ea))], [_dot(through, _minus(c2, ea))])
             plain[f1[fold]] = False
             plain[f2[fold]] = False
-        for point, nrm in lines.starts:  # rays that start on a plane: keep a proxy on what lies near it
-            s = [dot(c - point[None], np.broadcast_to(nrm, c.shape)) for c in corners]
+        for point, plane_normal in lines.starts:  # rays that start on a plane: keep a proxy on what lies near it
+            at, towards = tuple(float(x) for x in point), tuple(float(x) for x in plane_normal)
+            s = [_dot(_minus(c, at), towards) for c in corners]
             plain &= np.minimum(np.minimum(s[0], s[1]), s[2]) > near
     return plain

@@ -50,3 +50,31 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
         np.subtract(a[..., i] * b[..., j], a[..., j] * b[..., i], out=out[:, k])
     return out
+
+
+def least(a: np.ndarray) -> np.ndarray:
+    """The minimum over axis 1 of ``a (N, k, ...)``, one slice at a time: NumPy reduces a short middle or last
+    axis with a loop per row, three times slower on (N, 3, 3) corners. Shape (N, ...)."""
+    out = np.minimum(a[:, 0], a[:, 1])
+    for k in range(2, a.shape[1]):
+        np.minimum(out, a[:, k], out=out)
+    return out
+
+
+def most(a: np.ndarray) -> np.ndarray:
+    """The maximum over axis 1 of ``a (N, k, ...)``, as :func:`least`. Shape (N, ...)."""
+    out = np.maximum(a[:, 0], a[:, 1])
+    for k in range(2, a.shape[1]):
+        np.maximum(out, a[:, k], out=out)
+    return out
+
+
+def lowest(a: np.ndarray) -> np.ndarray:
+    """The minimum of each column of ``a (N, 3)``, a column at a time (ten times faster than ``min(axis=0)``
+    on a million rows). Shape (3,)."""
+    return np.array([a[:, k].min() for k in range(a.shape[1])])
+
+
+def highest(a: np.ndarray) -> np.ndarray:
+    """The maximum of each column of ``a (N, 3)``, as :func:`lowest`. Shape (3,)."""
+    return np.array([a[:, k].max() for k in range(a.shape[1])])

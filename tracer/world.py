@@ -23,7 +23,7 @@ import numpy as np
 from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .lights import Emitters, build_emitters
-from .vec import cross, divided, dot
+from .vec import cross, divided, dot, highest, lowest, most
 
 F64 = np.float64
 
@@ -134,7 +134,7 @@ def scene_centre(scene: Scene) -> np.ndarray:
     every = np.concatenate(points)
     every = every[np.all(np.isfinite(every), axis=1)]
     with np.errstate(over="ignore", invalid="ignore"):
-        centre = every.min(axis=0) / 2.0 + every.max(axis=0) / 2.0
+        centre = lowest(every) / 2.0 + highest(every) / 2.0
     return np.where(np.isfinite(centre), centre, 0.0)
 
 
@@ -233,5 +233,5 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
     return Triangles(
         v0=np.ascontiguousarray(local[:, 0]), e1=e1, e2=e2, normal=normal, material=material,
         v0_world=np.ascontiguousarray(world[:, 0]), vertex_normals=vertex_normals, smooth=smooth_mask,
-        mag=np.abs(world).reshape(-1, 9).max(axis=1, initial=0.0), corner_ids=corner_ids,
+        mag=most(np.abs(world).reshape(-1, 9)) if len(world) else np.zeros(0), corner_ids=corner_ids,
     )

@@ -1,0 +1,133 @@
+"""The walk's grid of cells (tracer/cells.py): what each cell holds, and that walking by cells changes nothing.
+
+Scenes with plain mesh faces walk by cells; every scene here is rendered
+that way and again with neighbour lists instead (as every other scene is
+walked), and the two must give the same bytes and agree with the float64
+brute force of test_exactness.
+"""
+
+from unittest import mock
+
+import numpy as np
+import pytest
+from test_exactness import agrees_with_brute_force, scene
+from test_sightlines import BALL, sphere_mesh
+
+import schemas
+from tracer import Renderer, render
+from tracer.cells import build_cells
+
+
+def random_boxes(n, seed=3, size=0.1):
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(-1, 1, (n, 3))
+    return lo, lo + rng.uniform(0.2, 1.0, (n, 3)) * size
+
+
+def test_every_box_is_in_every_cell_it_comes_near():
+    lo, hi = random_boxes(400)
+    reach = 0.01
+    cells = build_cells(lo, hi, reach)
+    assert cells is not None
+    rng = np.random.default_rng(5)
+    for b in range(0, 400, 7):  # points of the grown box, corners included: their cells hold the box
+        t = np.vstack([rng.uniform(0, 1, (50, 3)), [[0, 0, 0], [1, 1, 1], [0, 1, 0], [1, 0, 1]]])
+        points = lo[b] - reach + t * (hi[b] - lo[b] + 2 * reach)
+        cell, c_lo, c_hi = cells.locate(points)
+        assert np.all(cell >= 0)
+        assert np.all((c_lo <= points) & (points <= c_hi))
+        for c in cell:
+            assert b in cells.members[cells.start[c]:cells.start[c + 1]]
+
+
+def test_a_cell_holds_only_boxes_that_come_near_it():
+    lo, hi = random_boxes(300)
+    reach = 0.01
+    cells = build_cells(lo, hi, reach)
+    for c in range(0, len(cells.keys), 13):
+        members = cells.members[cells.start[c]:cells.start[c + 1]]
+        assert len(members) == len(set(members.tolist()))
+        k = np.array(np.unravel_index(cells.keys[c], cells.dims))
+        c_lo, c_hi = cells.origin + k * cells.size, cells.origin + (k + 1) * cells.size
+        near = np.all((lo[members] - reach <= c_hi + 1e-12) & (hi[members] + reach >= c_lo - 1e-12), axis=1)
+        assert near.all()
+
+
+def test_points_in_no_cell_and_pairs():
+    lo, hi = random_boxes(50)
+    cells = build_cells(lo, hi, 0.0)
+    cell, _, _ = cells.locate(np.array([[50.0, 0, 0], [np.nan, 0, 0], [-50.0, 3, 1]]))
+    assert np.all(cell == -1)
+    inside, _, _ = cells.locate((lo[:3] + hi[:3]) / 2)
+    rows, prims = cells.pairs(np.array([10, 11, 12, 13]), np.r_[inside, -1])
+    for r, c in zip((10, 11, 12), inside):
+        assert np.array_equal(prims[rows == r], cells.members[cells.start[c]:cells.start[c + 1]])
+    assert 13 not in rows
+
+
+def test_cells_give_way_to_neighbour_lists_past_their_budget():
+    lo, hi = random_boxes(200, size=0.01)
+    assert build_cells(lo, hi, 0.0) is not None
+    big_lo, big_hi = np.vstack([lo, [[-1, -1, -1]]]), np.vstack([hi, [[1, 1, 1]]])  # 10^6 cells for one box
+    assert build_cells(big_lo, big_hi, 0.0) is None
+    assert build_cells(np.zeros((0, 3)), np.zeros((0, 3)), 0.0) is None
+
+
+def spheres_about(center, radius, count, gap, seed=11):
+    """``count`` small spheres whose surfaces come within ``gap`` of the sphere (center, radius)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        r = float(rng.uniform(0.03, 0.08))
+        out.append({"type": "sphere", "material": "m", "radius": r,
+                    "center": (np.asarray(center) + d * (radius + r + gap)).tolist()})
+    return out
+
+
+INNER = sphere_mesh([0.9, 0.4, 0.1], 0.3, level=2)
+CASES = {
+    # spheres in the BVH beside a mesh: touching it, cutting through it, nested in each other
+    "mesh ball among small spheres": scene(
+        [BALL, *spheres_about([0, 0.6, 0], 0.6, 12, 1e-6),
+         {"type": "sphere", "material": "m", "center": [0.6, 0.6, 0], "radius": 0.1},
+         {"type": "sphere", "material": "m", "center": [-0.7, 0.3, 0.3], "radius": 0.2},
+         {"type": "sphere", "material": "m", "center": [-0.7, 0.3, 0.3], "radius": 0.05}],
+        [{"type": "point", "color": 1, "position": [2, 3, 2]}],
+        {"position": [0, 1.2, 3], "look_at": [0, 0.6, 0], "fov": 40}),
+    # two meshes 1e-6 apart, one inside the other's box, and faces of very different sizes
+    "nested meshes of mixed sizes": scene(
+        [BALL, INNER, sphere_mesh([0.9, 0.4, 0.1], 0.3 + 1e-6, level=1)],
+        [{"type": "point", "color": 1, "position": [-2, 3, 3]}],
+        {"position": [0.5, 1.0, 3], "look_at": [0.5, 0.5, 0], "fov": 45}),
+}
+
+
+def walked_by_neighbours(data):
+    with mock.patch("tracer.intersect.build_cells", return_value=None):
+        r = Renderer(schemas.validate_scene(data))
+        assert r.intersector.cells is None
+        return r.pixels()
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_walking_by_cells_changes_no_pixel(name):
+    data = CASES[name]
+    r = Renderer(schemas.validate_scene(data))
+    assert r.intersector.cells is not None, "the scene should walk by cells"
+    assert np.array_equal(r.pixels(), walked_by_neighbours(data))
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_walking_by_cells_agrees_with_the_brute_force(name):
+    agrees_with_brute_force(CASES[name])
+
+
+def test_a_scene_over_the_cells_budget_walks_by_neighbours():
+    data = CASES["mesh ball among small spheres"]
+    with mock.patch("tracer.cells.BUDGET_PER", -10**9):
+        r = Renderer(schemas.validate_scene(data))
+        assert r.intersector.cells is None and len(r.intersector.proxies.neighbours) > 0
+        pixels = r.pixels()
+    assert np.array_equal(pixels, render(schemas.validate_scene(data)))
