@@ -36,7 +36,7 @@ from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies, find_neighbours
 from .shapes import plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines, plain_triangles
-from .vec import along, divided, dot, highest, lowest, most
+from .vec import along, divided, dot, highest, lowest, most, rows_of
 from .world import World, max_abs, median_of, unit
 
 #: kinds of surface in :attr:`Hits.kind`
@@ -64,8 +64,8 @@ class Hits:
 
     def take(self, rows: np.ndarray) -> Hits:
         """The hits of the rays ``rows`` only, as contiguous arrays."""
-        return Hits(self.t[rows], self.kind[rows], self.index[rows], self.point[rows], self.normal[rows],
-                    self.bary[rows], self.material[rows])
+        return Hits(self.t[rows], self.kind[rows], self.index[rows], rows_of(self.point, rows),
+                    rows_of(self.normal, rows), rows_of(self.bary, rows), self.material[rows])
 
 
 def shared_rows(a: np.ndarray | None, rows: np.ndarray, n: int = -1) -> np.ndarray | None:
@@ -73,7 +73,7 @@ def shared_rows(a: np.ndarray | None, rows: np.ndarray, n: int = -1) -> np.ndarr
     an ``a`` of ``n`` rows when ``rows`` is all ``n`` of them."""
     if a is None or len(a) == 1 or len(rows) == n:
         return a
-    return a[rows]
+    return rows_of(a, rows)
 
 
 def _nothing() -> None:
@@ -327,12 +327,13 @@ class Intersector:
         e, me = shared_rows(ends, r), shared_rows(mag_e, r)
         if is_tri:
             tr = w.triangles
-            t, u, v = triangle_t(o[r], d[r], tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o[r], tr.mag[k],
+            t, u, v = triangle_t(rows_of(o, r), rows_of(d, r), rows_of(tr.v0, k), rows_of(tr.e1, k), rows_of(tr.e2, k),
+                                 rows_of(tr.normal, k), mag_o[r], tr.mag[k],
                                  leaving, e, me)
             best.offer(r, t, TRIANGLE, k, u, v)
         else:
             sp = w.spheres
-            t = sphere_t(o[r], d[r], sp.center[k], sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
+            t = sphere_t(rows_of(o, r), rows_of(d, r), rows_of(sp.center, k), sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
                          None if reach is None else reach[r], me)
             best.offer(r, t, SPHERE, k)
 
@@ -358,9 +359,9 @@ class Intersector:
         # its entry, and rounding may report a cell twice)
         last = from_prim.copy() if cells is None else np.full(n, -2, dtype=np.int64)
         if len(inside) and cells is not None:  # everything near a start lies in its cell: test it now
-            cell, lo, hi = cells.locate(o[inside])
+            cell, lo, hi = cells.locate(rows_of(o, inside))
             self._test(best, *cells.pairs(inside, cell), o, d, from_prim, mag_o, ends, reach, mag_e)
-            start[inside] = slab(o[inside], d[inside], lo, hi)[1]
+            start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             last[inside] = cell
         elif len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
             q = from_prim[inside]
@@ -383,7 +384,8 @@ class Intersector:
         if any_hit and len(live):  # broad phase: a ray that crosses no proxy at all is clear
             s = start[live]
             far = np.minimum(limit[live] + margin[live] + p.slack, t_out[live]) - s
-            live = live[bvh.any_hit(along(o[live], s, d[live]), d[live], far)]
+            o_l, d_l = rows_of(o, live), rows_of(d, live)
+            live = live[bvh.any_hit(along(o_l, s, d_l), d_l, far)]
         for _ in range(self.max_steps):
             if len(live) == 0:
                 break
@@ -391,14 +393,16 @@ class Intersector:
             s = start[live]
             # a plain triangle hit before best.t may be crossed in float32 up to p.slack after it
             far = np.minimum(best.t[live] + margin[live] + p.slack, t_out[live]) - s
-            face, tau = bvh.nearest(along(o[live], s, d[live]), d[live], far)
+            o_l, d_l = rows_of(o, live), rows_of(d, live)
+            face, tau = bvh.nearest(along(o_l, s, d_l), d_l, far)
             found = face >= 0
             live, face, tau = live[found], face[found], tau[found]
+            o_l, d_l = rows_of(o_l, np.flatnonzero(found)), rows_of(d_l, np.flatnonzero(found))
             prim = p.owner[face]
             if cells is None:
-                region, lo, hi = prim, p.lo[prim], p.hi[prim]
+                region, lo, hi = prim, rows_of(p.lo, prim), rows_of(p.hi, prim)
             else:
-                region, lo, hi = cells.locate(along(o[live], s[found] + tau, d[live]))
+                region, lo, hi = cells.locate(along(o_l, s[found] + tau, d_l))
             fresh = last[live] != region
             if any_hit:  # the primitive crossed first: a ray it blocks needs no neighbour
                 rows = live[fresh]
@@ -413,7 +417,7 @@ class Intersector:
             # every crossing inside the box of the proxy just crossed belongs to it or a neighbour (inside the
             # cell of the crossing, to a member of the cell), all tested now: the walk goes on from where the ray
             # leaves that box (or just past the crossing, if later)
-            leave = slab(o[live], d[live], lo, hi)[1]
+            leave = slab(o_l, d_l, lo, hi)[1]
             start[live] = np.fmax(start[live] + tau + p.step, leave)
             if not any_hit:  # and a hit before the ray leaves that box is the nearest there is
                 settled = np.isfinite(best.t[live]) & (margin[live] == 0) & (best.t[live] <= leave)
@@ -431,16 +435,17 @@ class Intersector:
         s = np.flatnonzero(kind == SPHERE)
         if len(s):
             k = index[s]
-            raw = along(origins[s], t[s], dirs[s])
-            nrm = unit(divided(raw - w.spheres.center[k], w.spheres.radius[k]))
-            point[s] = along(w.spheres.center[k], w.spheres.radius[k], nrm)
+            raw = along(rows_of(origins, s), t[s], rows_of(dirs, s))
+            centre = rows_of(w.spheres.center, k)
+            nrm = unit(divided(raw - centre, w.spheres.radius[k]))
+            point[s] = along(centre, w.spheres.radius[k], nrm)
             normal[s], material[s] = nrm, w.spheres.material[k]
 
         q = np.flatnonzero(kind == PLANE)
         if len(q):
             k = index[q]
-            raw = along(origins[q], t[q], dirs[q])
-            nrm, p0 = w.planes.normal[k], w.planes.point[k]
+            raw = along(rows_of(origins, q), t[q], rows_of(dirs, q))
+            nrm, p0 = rows_of(w.planes.normal, k), rows_of(w.planes.point, k)
             point[q] = along(raw, -dot(raw - p0, nrm), nrm)
             normal[q], material[q] = nrm, w.planes.material[k]
 
@@ -448,7 +453,7 @@ class Intersector:
         if len(r):
             k = index[r]
             tr = w.triangles
-            point[r] = along(along(tr.v0[k], best.uv[r, 0], tr.e1[k]), best.uv[r, 1], tr.e2[k])
-            normal[r], material[r] = tr.normal[k], tr.material[k]
+            point[r] = along(along(rows_of(tr.v0, k), best.uv[r, 0], rows_of(tr.e1, k)), best.uv[r, 1], rows_of(tr.e2, k))
+            normal[r], material[r] = rows_of(tr.normal, k), tr.material[k]
         return Hits(t=np.where(kind == MISS, np.inf, t), kind=kind, index=index, point=point, normal=normal,
                     bary=best.uv, material=material)

@@ -25,7 +25,7 @@ from .intersect import MISS, Intersector
 from .lights import illuminate
 from .shading import mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
-from .vec import dot, scaled
+from .vec import dot, rows_of, scaled
 from .world import World, build_world, max_abs
 
 #: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory (measured single-threaded:
@@ -175,7 +175,7 @@ class Renderer:
                 if len(rows) == 0:
                     continue
                 hit = hits.take(rows)
-                dd, ww, ss = d[rows], w[rows], smp[rows]
+                dd, ww, ss = rows_of(d, rows), w[rows], smp[rows]
                 mat = resolve_material(self.world, hit)
                 normal = shading_normal(self.world, hit, dd)
                 _accumulate(acc, ss, scaled(self.direct(hit, mat, normal, dd), ww), ceiling, fixed, once)
@@ -204,8 +204,8 @@ class Renderer:
         points with the unreached ones weighted zero (cheaper than gathering).
         """
         m = self.world.materials
-        colour = m.ambient[mat] * self.world.ambient
-        diffuse, specular, shininess = m.diffuse[mat], m.specular[mat], m.shininess[mat]
+        colour = rows_of(m.ambient, mat) * self.world.ambient
+        diffuse, specular, shininess = rows_of(m.diffuse, mat), rows_of(m.specular, mat), m.shininess[mat]
         nv = -dot(normal, dirs)  # N·V, the same for every light
         mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
         for em in self.world.emitters:
@@ -220,7 +220,7 @@ class Renderer:
             every = len(rows) == len(nl)  # then no gathering: the rows are all of them, in order
 
             def pick(a: np.ndarray) -> np.ndarray:
-                return a if every else a[rows]
+                return a if every else rows_of(a, rows)
 
             shadow_dirs = np.ascontiguousarray(pick(to_light))
             # from the exact hit point, leaving its surface by identity, to the light itself

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .intersect import PLANE, TRIANGLE, Hits
-from .vec import along, dot, scaled
+from .vec import along, dot, rows_of, scaled
 from .world import World, unit
 
 
@@ -53,7 +53,7 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
         if np.any(smooth):
             rows, k = tris[smooth], k[smooth]
             u, v = hits.bary[rows, 0:1], hits.bary[rows, 1:2]
-            vn = world.triangles.vertex_normals[k]
+            vn = rows_of(world.triangles.vertex_normals, k)
             blend = unit((1.0 - u - v) * vn[:, 0] + u * vn[:, 1] + v * vn[:, 2])
             zero = ~np.any(blend != 0, axis=1)
             blend[zero] = normal[rows[zero]]

@@ -155,8 +155,8 @@ def triangle_t(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.nda
         assert mag_end is not None
         skip |= np.abs(dot(ends - v0, normal)) <= on_tolerance(mag_end, mag_triangle)
     ok = inside & ~skip & np.isfinite(t) & (t > 0)
-    u = np.clip(np.nan_to_num(u), 0.0, 1.0)
-    v = np.clip(np.nan_to_num(v), 0.0, 1.0)
+    u = np.fmin(np.fmax(u, 0.0), 1.0)  # clipped into 0..1, NaN to 0 (fmax drops a NaN)
+    v = np.fmin(np.fmax(v, 0.0), 1.0)
     over = u + v > 1.0
     total = np.where(over, u + v, 1.0)
     return np.where(ok, t, np.inf), np.where(over, u / total, u), np.where(over, v / total, v)

@@ -16,6 +16,8 @@ of non-zero area), M materials.
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +25,7 @@ import numpy as np
 from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .lights import Emitters, build_emitters
-from .vec import cross, divided, dot, highest, lowest, most
+from .vec import cross, divided, dot, highest, lowest, most, rows_of
 
 F64 = np.float64
 
@@ -39,6 +41,13 @@ def median_of(v: np.ndarray) -> float:
     n = len(v)
     part = np.partition(v, [(n - 1) // 2, n // 2])
     return float((part[(n - 1) // 2] + part[n // 2]) / 2.0)
+
+
+def triples(values: Sequence[Sequence[float]], dtype: type) -> np.ndarray:
+    """A validated list of 3-sequences as an ``(N, 3)`` array, read as one flat stream (twice as fast as
+    ``np.array`` on the nested lists of a large mesh)."""
+    flat = np.fromiter(itertools.chain.from_iterable(values), dtype=dtype, count=3 * len(values))
+    return flat.reshape(-1, 3)
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -123,7 +132,7 @@ def scene_centre(scene: Scene) -> np.ndarray:
         points += [c - r, c + r]
     for obj in scene.objects:
         if isinstance(obj, Triangle) or (isinstance(obj, Mesh) and obj.faces):
-            points.append(np.asarray(obj.vertices, dtype=F64).reshape(-1, 3))
+            points.append(triples(obj.vertices, F64))
     for light in scene.lights:
         for key in ("position", "corner"):
             if hasattr(light, key):
@@ -203,14 +212,14 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
             normals.append(np.zeros((1, 3, 3)))
             smooth.append(np.zeros(1, dtype=bool))
         elif isinstance(obj, Mesh) and obj.faces:
-            verts = np.array(obj.vertices, dtype=F64).reshape(-1, 3)
-            faces = np.array(obj.faces, dtype=np.int64).reshape(-1, 3)
+            verts = triples(obj.vertices, F64)
+            faces = triples(obj.faces, np.int64)
             ids.append(faces + count)
             count += len(verts)
-            corners.append(verts[faces])
+            corners.append(rows_of(verts, faces))
             materials.append(np.full(len(faces), names[obj.material]))
             if obj.normals is not None:
-                normals.append(np.array(obj.normals, dtype=F64).reshape(-1, 3)[faces])
+                normals.append(rows_of(triples(obj.normals, F64), faces))
                 smooth.append(np.ones(len(faces), dtype=bool))
             else:
                 normals.append(np.zeros((len(faces), 3, 3)))
