@@ -62,13 +62,18 @@ class Cells:
     def _key(self, k: np.ndarray) -> np.ndarray:
         return (k[:, 0] * self.dims[1] + k[:, 1]) * self.dims[2] + k[:, 2]
 
-    def pairs(self, rows: np.ndarray, cell: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(ray, primitive) pairs: each of ``rows`` with every member of its ``cell`` (−1: none)."""
+    def pairs(self, rows: np.ndarray, cell: np.ndarray, but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(ray, primitive) pairs: each of ``rows`` with every member of its ``cell`` (−1: none), except the
+        primitive ``but`` names for that row (when given; −1 for none)."""
         some = cell >= 0
         first = np.where(some, self.start[np.maximum(cell, 0)], 0)
         count = np.where(some, self.start[np.maximum(cell, 0) + 1] - first, 0)
         offset = np.repeat(first - np.cumsum(count) + count, count)
-        return np.repeat(rows, count), self.members[offset + np.arange(len(offset))]
+        ray, prim = np.repeat(rows, count), self.members[offset + np.arange(len(offset))]
+        if but is None:
+            return ray, prim
+        keep = prim != np.repeat(but, count)
+        return ray[keep], prim[keep]
 
 
 def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells | None:

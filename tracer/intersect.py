@@ -360,7 +360,9 @@ class Intersector:
         last = from_prim.copy() if cells is None else np.full(n, -2, dtype=np.int64)
         if len(inside) and cells is not None:  # everything near a start lies in its cell: test it now
             cell, lo, hi = cells.locate(rows_of(o, inside))
-            self._test(best, *cells.pairs(inside, cell), o, d, from_prim, mag_o, ends, reach, mag_e)
+            q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
+            self._test(best, *cells.pairs(inside, cell, np.where(q < self.n_tri, q, -1)), o, d, from_prim, mag_o,
+                       ends, reach, mag_e)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             last[inside] = cell
         elif len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
@@ -411,7 +413,7 @@ class Intersector:
             if cells is None:
                 pairs = self._with_neighbours(live[fresh], prim[fresh], itself=not any_hit)
             else:
-                pairs = cells.pairs(live[fresh], region[fresh])
+                pairs = cells.pairs(live[fresh], region[fresh], prim[fresh] if any_hit else None)
             self._test(best, *pairs, o, d, from_prim, mag_o, ends, reach, mag_e)
             last[live] = region
             # every crossing inside the box of the proxy just crossed belongs to it or a neighbour (inside the
