@@ -26,6 +26,21 @@ def _f32(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float32)
 
 
+def _as_objects(corners: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The float32 corners and int32 faces as object arrays of Python floats and of 3-tuples.
+
+    embreex copies a mesh into Embree one value at a time through Python
+    indexing (``vertices[i, 0]``, ``indices[i][0]``).  On a numeric array each
+    access builds a NumPy scalar, or a row view and then a scalar; on an
+    object array it hands back the stored float or tuple.  Measured on the
+    bench mesh (194k corners, 275k faces): converting takes 0.1 s and the copy
+    0.1 s, against 0.3–0.45 s for the copy from numeric arrays.  The floats
+    hold float32 values exactly, so Embree receives the same corners.
+    """
+    a, b, c = faces.T.tolist()
+    return corners.astype(np.float64).astype(object), np.fromiter(zip(a, b, c), dtype=object, count=len(faces))
+
+
 def frame(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre and half-size (a power of two) of the box ``lo..hi``."""
     centre = (lo + hi) / 2.0
@@ -46,7 +61,12 @@ class Bvh:
         #: when a list, every query is appended to it as (query, origins, dirs, far), for benchmarks to replay
         self.record: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._scene = rtcore_scene.EmbreeScene(robust=True)
-        TriangleMesh(self._scene, _f32((vertices - centre) * self.inv), np.ascontiguousarray(faces, dtype=np.int32))
+        corners, faces = _f32((vertices - centre) * self.inv), np.ascontiguousarray(faces, dtype=np.int32)
+        try:
+            TriangleMesh(self._scene, *_as_objects(corners, faces))
+        except (TypeError, ValueError):  # an embreex that reads typed arrays instead: hand it those
+            self._scene = rtcore_scene.EmbreeScene(robust=True)
+            TriangleMesh(self._scene, corners, faces)
         # commit now, on this thread, so that concurrent queries never race to commit
         self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
 
