@@ -188,14 +188,16 @@ class Intersector:
         self.sphere_prim[bvh_spheres] = np.arange(len(bvh_spheres)) + len(bvh_tris)
         if len(self.prim_index) == 0:
             return
-        corners = np.concatenate([
-            np.stack([tris.v0[bvh_tris], tris.v0[bvh_tris] + tris.e1[bvh_tris], tris.v0[bvh_tris] + tris.e2[bvh_tris]],
-                     axis=1).reshape(-1, 3),
-            spheres.center[bvh_spheres] - spheres.radius[bvh_spheres, None],
-            spheres.center[bvh_spheres] + spheres.radius[bvh_spheres, None]])
-        centre, half = frame(lowest(corners), highest(corners))
-        v0, e1, e2, normal = tris.v0[bvh_tris], tris.e1[bvh_tris], tris.e2[bvh_tris], tris.normal[bvh_tris]
-        ids = tris.corner_ids[bvh_tris]
+        every = len(bvh_tris) == len(tris.v0)  # as usual: then no copies
+
+        def mine(a: np.ndarray) -> np.ndarray:
+            return a if every else rows_of(a, bvh_tris)
+
+        v0, e1, e2, normal, ids = mine(tris.v0), mine(tris.e1), mine(tris.e2), mine(tris.normal), mine(tris.corner_ids)
+        centre_s, radius_s = rows_of(spheres.center, bvh_spheres), spheres.radius[bvh_spheres, None]
+        parts = [v0, v0 + e1, v0 + e2, centre_s - radius_s, centre_s + radius_s]
+        centre, half = frame(np.min([lowest(a) for a in parts if len(a)], axis=0),
+                             np.max([highest(a) for a in parts if len(a)], axis=0))
         plain = None if self.lines is None else plain_triangles(v0, e1, e2, normal, ids, self.lines, half)
         some_plain = plain is not None and bool(plain.any())
         center, radius = spheres.center[bvh_spheres], spheres.radius[bvh_spheres]

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sightlines import SLACK
-from .vec import cross, dot, least, lowest, most
+from .vec import cross, dot, least, lowest, most, rows_of
 from .world import median_of
 
 #: proxy margin, neighbour gap and walk step, relative to the BVH's half-size
@@ -168,7 +168,8 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
     if some_plain:
         assert plain is not None and corner_ids is not None
         ids = np.flatnonzero(plain)
-        corners = np.stack([v0[ids], v0[ids] + e1[ids], v0[ids] + e2[ids]], axis=1)  # (k, 3, 3)
+        first = rows_of(v0, ids)
+        corners = np.stack([first, first + rows_of(e1, ids), first + rows_of(e2, ids)], axis=1)  # (k, 3, 3)
         shared = corner_ids[ids]
         table = np.zeros((int(corner_ids.max()) + 1, 3))  # (rows no plain triangle uses stay unused)
         table[shared.reshape(-1)] = corners.reshape(-1, 3)  # one float32 corner per shared corner
@@ -181,7 +182,7 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
         proxied = np.flatnonzero(~plain)
     tri_m = TRIANGLE_MARGIN * half_size if some_plain else m
     groups = [(proxied[g], v, template) for g, v, template in
-              triangle_prisms(v0[proxied], e1[proxied], e2[proxied], normal[proxied], tri_m)]
+              triangle_prisms(*(rows_of(a, proxied) for a in (v0, e1, e2, normal)), tri_m)]
     if len(radius):
         groups.append((np.arange(len(radius)) + n_tri, sphere_icosahedra(center, radius, m), ICO_FACES))
     for ids, v, template in groups:  # v: (k, vertices per proxy, 3)
