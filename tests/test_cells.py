@@ -15,7 +15,7 @@ from test_sightlines import BALL, sphere_mesh
 
 import schemas
 from tracer import Renderer, render
-from tracer.cells import build_cells
+from tracer.cells import SUB, build_cells
 
 
 def random_boxes(n, seed=3, size=0.1):
@@ -24,45 +24,50 @@ def random_boxes(n, seed=3, size=0.1):
     return lo, lo + rng.uniform(0.2, 1.0, (n, 3)) * size
 
 
-def test_every_box_is_in_every_cell_it_comes_near():
+def test_every_box_is_in_every_part_of_a_cell_it_comes_near():
     lo, hi = random_boxes(400)
     reach = 0.01
     cells = build_cells(lo, hi, reach)
     assert cells is not None
     rng = np.random.default_rng(5)
-    for b in range(0, 400, 7):  # points of the grown box, corners included: their cells hold the box
+    for b in range(0, 400, 7):  # points of the grown box, corners included: their parts hold the box
         t = np.vstack([rng.uniform(0, 1, (50, 3)), [[0, 0, 0], [1, 1, 1], [0, 1, 0], [1, 0, 1]]])
         points = lo[b] - reach + t * (hi[b] - lo[b] + 2 * reach)
-        cell, c_lo, c_hi = cells.locate(points)
-        assert np.all(cell >= 0)
-        assert np.all((c_lo <= points) & (points <= c_hi))
-        for c in cell:
-            assert b in cells.members[cells.start[c]:cells.start[c + 1]]
+        region, p_lo, p_hi = cells.locate(points)
+        assert np.all(region >= 0)
+        assert np.all((p_lo <= points) & (points <= p_hi))
+        assert np.allclose(p_hi - p_lo, cells.size / SUB)
+        rows, prims = cells.pairs(np.arange(len(points)), region)
+        assert set(rows[prims == b].tolist()) == set(range(len(points)))
 
 
-def test_a_cell_holds_only_boxes_that_come_near_it():
+def test_a_part_holds_only_boxes_that_come_near_it():
     lo, hi = random_boxes(300)
     reach = 0.01
     cells = build_cells(lo, hi, reach)
-    for c in range(0, len(cells.keys), 13):
-        members = cells.members[cells.start[c]:cells.start[c + 1]]
-        assert len(members) == len(set(members.tolist()))
-        k = np.array(np.unravel_index(cells.keys[c], cells.dims))
-        c_lo, c_hi = cells.origin + k * cells.size, cells.origin + (k + 1) * cells.size
-        near = np.all((lo[members] - reach <= c_hi + 1e-12) & (hi[members] + reach >= c_lo - 1e-12), axis=1)
-        assert near.all()
+    points = np.random.default_rng(8).uniform(-1, 1.1, (2000, 3))
+    region, p_lo, p_hi = cells.locate(points)
+    rows, prims = cells.pairs(np.arange(len(points)), region)
+    assert len(prims) > 100 and len(prims) == len(set(zip(rows.tolist(), prims.tolist())))
+    near = np.all((lo[prims] - reach <= p_hi[rows] + 1e-12) & (hi[prims] + reach >= p_lo[rows] - 1e-12), axis=1)
+    assert near.all()
+    whole = np.all((lo[prims] - reach <= p_lo[rows]) & (hi[prims] + reach >= p_hi[rows]), axis=1)
+    assert not whole.all()  # parts are finer than boxes: some boxes only graze the part they are in
 
 
 def test_points_in_no_cell_and_pairs():
     lo, hi = random_boxes(50)
     cells = build_cells(lo, hi, 0.0)
-    cell, _, _ = cells.locate(np.array([[50.0, 0, 0], [np.nan, 0, 0], [-50.0, 3, 1]]))
-    assert np.all(cell == -1)
+    region, _, _ = cells.locate(np.array([[50.0, 0, 0], [np.nan, 0, 0], [-50.0, 3, 1]]))
+    assert np.all(region == -1)
     inside, _, _ = cells.locate((lo[:3] + hi[:3]) / 2)
     rows, prims = cells.pairs(np.array([10, 11, 12, 13]), np.r_[inside, -1])
-    for r, c in zip((10, 11, 12), inside):
-        assert np.array_equal(prims[rows == r], cells.members[cells.start[c]:cells.start[c + 1]])
+    for r, b in zip((10, 11, 12), range(3)):
+        assert b in prims[rows == r]
     assert 13 not in rows
+    rows_but, prims_but = cells.pairs(np.array([10, 11, 12]), inside, np.array([0, -1, 2]))
+    assert 0 not in prims_but[rows_but == 10] and 2 not in prims_but[rows_but == 12]
+    assert np.array_equal(prims_but[rows_but == 11], prims[rows == 11])
 
 
 def test_cells_give_way_to_neighbour_lists_past_their_budget():

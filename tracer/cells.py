@@ -25,15 +25,35 @@ from dataclasses import dataclass
 import numpy as np
 
 from .proxies import stable_order
-from .vec import highest, lowest, most
+from .vec import highest, lowest, most, rows_of
 from .world import median_of
 
 #: the cell's edge over the largest box among those up to four times the median size
-CELL_SCALE = 0.5
+CELL_SCALE = 1.0
+#: each cell is cut into SUB × SUB × SUB parts; a member's bit mask says which parts its box comes near
+SUB = 4
 #: boxes over at most this many cells along every axis are registered an offset at a time
-SPAN = 3
+SPAN = 2
 #: the registrations a scene may have, per primitive (beyond a floor of 2^20), before cells give way to pairs
 BUDGET_PER = 32
+
+
+def _spans() -> np.ndarray:
+    """``(3, SUB, SUB)`` bit masks: for axis a and parts lo..hi along it, the bits of every part of the
+    cell whose index along a lies in lo..hi (part (i, j, k) is bit (i·SUB + j)·SUB + k)."""
+    out = np.zeros((3, SUB, SUB), dtype=np.uint64)
+    for axis in range(3):
+        for lo in range(SUB):
+            for hi in range(lo, SUB):
+                bits = 0
+                for part in np.ndindex(SUB, SUB, SUB):
+                    if lo <= part[axis] <= hi:
+                        bits |= 1 << ((part[0] * SUB + part[1]) * SUB + part[2])
+                out[axis, lo, hi] = bits
+    return out
+
+
+SPANS = _spans()
 
 
 @dataclass
@@ -44,35 +64,49 @@ class Cells:
     keys: np.ndarray  # (C,) int64 sorted keys of the cells that hold something
     start: np.ndarray  # (C + 1,) members of cell c: ``members[start[c]:start[c + 1]]``
     members: np.ndarray  # (R,) int64 primitive ids
+    parts: np.ndarray  # (R,) uint64 which parts of its cell each member's box comes near
 
     def locate(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """For points (N, 3): the index of each one's cell in :attr:`keys` (−1 for a cell that holds
-        nothing) and that cell's box, lo and hi (N, 3) each."""
+        """For points (N, 3): the part of a cell each lies in, as ``cell · SUB³ + part`` with the cell's index
+        in :attr:`keys` (−1 for a cell that holds nothing), and that part's box, lo and hi (N, 3) each."""
         with np.errstate(invalid="ignore", over="ignore"):
             k = np.floor((points - self.origin) / self.size)
         k = np.clip(np.nan_to_num(k, nan=-1.0), -1, self.dims).astype(np.int64)
-        lo = self.origin + k * self.size
-        hi = self.origin + (k + 1) * self.size
+        corner = self.origin + k * self.size
+        part = self._parts_of(points, corner)
+        step = self.size / SUB
+        lo = corner + part * step
+        hi = corner + (part + 1) * step
         inside = np.all((k >= 0) & (k < self.dims), axis=1)
         key = self._key(np.where(inside[:, None], k, 0))
         at = np.minimum(np.searchsorted(self.keys, key), len(self.keys) - 1)
         found = inside & (self.keys[at] == key)
-        return np.where(found, at, -1), lo, hi
+        return np.where(found, at * SUB**3 + (part[:, 0] * SUB + part[:, 1]) * SUB + part[:, 2], -1), lo, hi
+
+    def _parts_of(self, points: np.ndarray, corner: np.ndarray) -> np.ndarray:
+        """The part (i, j, k) of the cell with low corner ``corner`` that holds each point, clipped into it."""
+        with np.errstate(invalid="ignore", over="ignore"):
+            part = np.floor((points - corner) / (self.size / SUB))
+        return np.clip(np.nan_to_num(part, nan=0.0), 0, SUB - 1).astype(np.int64)
 
     def _key(self, k: np.ndarray) -> np.ndarray:
         return (k[:, 0] * self.dims[1] + k[:, 1]) * self.dims[2] + k[:, 2]
 
-    def pairs(self, rows: np.ndarray, cell: np.ndarray, but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(ray, primitive) pairs: each of ``rows`` with every member of its ``cell`` (−1: none), except the
-        primitive ``but`` names for that row (when given; −1 for none)."""
-        some = cell >= 0
-        first = np.where(some, self.start[np.maximum(cell, 0)], 0)
-        count = np.where(some, self.start[np.maximum(cell, 0) + 1] - first, 0)
+    def pairs(self, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(ray, primitive) pairs: each of ``rows`` with every member of its ``region`` (from :meth:`locate`;
+        −1: none) that comes near that part of the cell, except the primitive ``but`` names for that row (when
+        given; −1 for none)."""
+        some = region >= 0
+        cell = np.where(some, region // SUB**3, 0)
+        first = np.where(some, self.start[cell], 0)
+        count = np.where(some, self.start[cell + 1] - first, 0)
         offset = np.repeat(first - np.cumsum(count) + count, count)
-        ray, prim = np.repeat(rows, count), self.members[offset + np.arange(len(offset))]
-        if but is None:
-            return ray, prim
-        keep = prim != np.repeat(but, count)
+        at = offset + np.arange(len(offset))
+        bit = np.repeat((region % SUB**3).astype(np.uint64), count)
+        keep = ((self.parts[at] >> bit) & np.uint64(1)).astype(bool)
+        ray, prim = np.repeat(rows, count), self.members[at]
+        if but is not None:
+            keep &= prim != np.repeat(but, count)
         return ray[keep], prim[keep]
 
 
@@ -105,12 +139,24 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells | None:
     if total > BUDGET_PER * n + (1 << 20):
         return None
     cells = Cells(origin=origin, size=size, dims=dims, keys=np.zeros(0, np.int64), start=np.zeros(1, np.int64),
-                  members=np.zeros(0, np.int64))
+                  members=np.zeros(0, np.int64), parts=np.zeros(0, np.uint64))
+    # the parts each box's ends lie in, within the first and the last cell of its span along each axis
+    p_lo = cells._parts_of(lo, origin + k_lo * size)
+    p_hi = cells._parts_of(hi, origin + k_hi * size)
+    top_part = np.full(n, SUB - 1)
+
+    def along_axis(axis: int, offset: np.ndarray | int) -> np.ndarray:
+        """The mask of the parts a box comes near, along ``axis``, in the cell ``offset`` into its span."""
+        first = np.where(np.equal(offset, 0), p_lo[:, axis], 0)
+        last = np.where(np.equal(offset, span[:, axis] - 1), p_hi[:, axis], top_part)
+        return SPANS[axis, first, last]
+
+    owners, keys, parts = [], [], []
     base = cells._key(k_lo)
-    stride = np.array([dims[1] * dims[2], dims[2], 1])
-    owners, keys = [], []
+    stride = (dims[1] * dims[2], dims[2], 1)
     few = np.all(span <= SPAN, axis=1)
     reaches = [[span[:, axis] > o for o in range(SPAN)] for axis in range(3)]
+    masks = [[along_axis(axis, o) for o in range(SPAN)] for axis in range(3)]
     for dx in range(SPAN):  # the common boxes, an offset at a time
         in_x = few & reaches[0][dx]
         for dy in range(SPAN):
@@ -119,20 +165,29 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells | None:
                 sel = np.flatnonzero(in_xy & reaches[2][dz])
                 owners.append(sel)
                 keys.append(base[sel] + int(dx * stride[0] + dy * stride[1] + dz))
+                parts.append(masks[0][dx][sel] & masks[1][dy][sel] & masks[2][dz][sel])
     many = np.flatnonzero(~few)
     if len(many):  # boxes over more cells: registration r of box b is the r-th cell of its span, x, y, z order
         c = count[many]
         owner = np.repeat(many, c)
         r = np.arange(len(owner), dtype=np.int64) - np.repeat(np.cumsum(c) - c, c)
         sy, sz = span[owner, 1], span[owner, 2]
-        k = k_lo[owner] + np.stack([r // (sy * sz), (r // sz) % sy, r % sz], axis=1)
+        offset = np.stack([r // (sy * sz), (r // sz) % sy, r % sz], axis=1)
         owners.append(owner)
-        keys.append(cells._key(k))
-    owner, key = np.concatenate(owners), np.concatenate(keys)
+        keys.append(cells._key(rows_of(k_lo, owner) + offset))
+        mask = np.full(len(owner), ~np.uint64(0))
+        for axis in range(3):
+            o, sp = offset[:, axis], span[owner, axis]
+            first = np.where(o == 0, p_lo[owner, axis], 0)
+            last = np.where(o == sp - 1, p_hi[owner, axis], SUB - 1)
+            mask &= SPANS[axis, first, last]
+        parts.append(mask)
+    owner, key, part = np.concatenate(owners), np.concatenate(keys), np.concatenate(parts)
     order = stable_order(key, int(dims.prod()))  # stable: the same members in the same order on every run
-    key, members = key[order], owner[order]
+    key = key[order]
     first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     cells.keys = key[first]
     cells.start = np.r_[first, total].astype(np.int64)
-    cells.members = members
+    cells.members = owner[order]
+    cells.parts = part[order]
     return cells

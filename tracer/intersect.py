@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cells import Cells, build_cells
+from .cells import SUB, Cells, build_cells
 from .embree import Bvh, frame
 from .proxies import Proxies, TooManyOverlaps, build_proxies, find_neighbours
 from .shapes import plane_separates, plane_t, sphere_t, triangle_t
@@ -210,8 +210,9 @@ class Intersector:
         self.box_lo = lowest(p.lo) - p.step * 4 - p.slack
         self.box_hi = highest(p.hi) + p.step * 4 + p.slack
         self.bvh = Bvh(p.vertices, p.faces, centre, half)
-        # a walk passes at least one crossing per step, and with cells a new cell; a ray crosses a face once
-        self.max_steps = len(p.faces) + (0 if self.cells is None else len(self.cells.keys)) + 2
+        # a walk passes at least one crossing per step, and with cells a new part of a cell; a ray crosses a face
+        # once
+        self.max_steps = len(p.faces) + (0 if self.cells is None else len(self.cells.keys) * SUB**3) + 2
 
     # -- closest hit -------------------------------------------------------
     def closest(self, origins: np.ndarray, dirs: np.ndarray, from_kind: np.ndarray | None = None,
