@@ -71,12 +71,12 @@ class Cells:
         in :attr:`keys` (−1 for a cell that holds nothing), and that part's box, lo and hi (N, 3) each."""
         with np.errstate(invalid="ignore", over="ignore"):
             k = np.floor((points - self.origin) / self.size)
-        k = np.clip(np.nan_to_num(k, nan=-1.0), -1, self.dims).astype(np.int64)
+        k = np.clip(_finite(k, -1.0), -1, self.dims).astype(np.int64)
         corner = self.origin + k * self.size
         part = self._parts_of(points, corner)
         step = self.size / SUB
         lo = corner + part * step
-        hi = corner + (part + 1) * step
+        hi = lo + step
         inside = np.all((k >= 0) & (k < self.dims), axis=1)
         key = self._key(np.where(inside[:, None], k, 0))
         at = np.minimum(np.searchsorted(self.keys, key), len(self.keys) - 1)
@@ -87,7 +87,7 @@ class Cells:
         """The part (i, j, k) of the cell with low corner ``corner`` that holds each point, clipped into it."""
         with np.errstate(invalid="ignore", over="ignore"):
             part = np.floor((points - corner) / (self.size / SUB))
-        return np.clip(np.nan_to_num(part, nan=0.0), 0, SUB - 1).astype(np.int64)
+        return np.clip(_finite(part, 0.0), 0, SUB - 1).astype(np.int64)
 
     def _key(self, k: np.ndarray) -> np.ndarray:
         return (k[:, 0] * self.dims[1] + k[:, 1]) * self.dims[2] + k[:, 2]
@@ -96,18 +96,24 @@ class Cells:
         """(ray, primitive) pairs: each of ``rows`` with every member of its ``region`` (from :meth:`locate`;
         −1: none) that comes near that part of the cell, except the primitive ``but`` names for that row (when
         given; −1 for none)."""
-        some = region >= 0
-        cell = np.where(some, region // SUB**3, 0)
-        first = np.where(some, self.start[cell], 0)
-        count = np.where(some, self.start[cell + 1] - first, 0)
-        offset = np.repeat(first - np.cumsum(count) + count, count)
-        at = offset + np.arange(len(offset))
-        bit = np.repeat((region % SUB**3).astype(np.uint64), count)
-        keep = ((self.parts[at] >> bit) & np.uint64(1)).astype(bool)
-        ray, prim = np.repeat(rows, count), self.members[at]
+        some = np.flatnonzero(region >= 0)
+        if len(some) < len(region):
+            rows, region = rows[some], region[some]
+            but = None if but is None else but[some]
+        cell, bit = np.divmod(region, SUB**3)
+        first = self.start[cell]
+        count = self.start[cell + 1] - first
+        at = np.repeat(first - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
+        keep = ((self.parts[at] >> np.repeat(bit.astype(np.uint64), count)) & np.uint64(1)).astype(bool)
         if but is not None:
-            keep &= prim != np.repeat(but, count)
-        return ray[keep], prim[keep]
+            keep &= self.members[at] != np.repeat(but, count)
+        at = at[keep]
+        return np.repeat(rows, count)[keep], self.members[at]
+
+
+def _finite(a: np.ndarray, fill: float) -> np.ndarray:
+    """``a`` with NaN as ``fill`` (infinities are clipped by the caller); no copy when all is finite."""
+    return a if np.isfinite(a).all() else np.where(np.isnan(a), fill, a)
 
 
 def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells | None:
