@@ -201,12 +201,12 @@ def _rows(rows: list, where: str, integer: bool, problems: _Problems) -> list | 
         piece = rows[start:start + ROWS]
         try:
             lengths = set(map(len, piece))
-            kinds = set(map(type, chain.from_iterable(piece)))
+            flat = list(chain.from_iterable(piece))
         except TypeError:  # a row that is not an array
             break
+        kinds = set(map(type, flat))
         if lengths != {3} or not kinds <= ({int} if integer else {int, float}):
             break
-        flat = list(chain.from_iterable(piece))
         low, high = min(flat), max(flat)
         if integer and not (0 <= low and high < INDEX_END):
             break
