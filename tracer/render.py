@@ -28,9 +28,10 @@ from .sightlines import scene_sightlines
 from .vec import dot, rows_of, scaled
 from .world import World, build_world, max_abs
 
-#: rays per chunk: large enough for NumPy to be efficient, small enough to bound memory (measured single-threaded:
-#: 2^15 is 5-15 % faster than 2^14 on the bench scenes, 2^16 no faster; a 4096² render peaks at 165 MiB)
-CHUNK_RAYS = 1 << 15
+#: rays per chunk: large enough for NumPy to be efficient (and for its long loops, which let go of the GIL, to
+#: outweigh the interpreter's share), small enough to bound memory.  Measured on two threads: 2^16 is 12-25 %
+#: faster than 2^15 on the bench scenes, 2^17 no faster; a 4096² render then peaks at 221 MiB (168 MiB at 2^15)
+CHUNK_RAYS = 1 << 16
 
 Progress = Callable[[int, int], None]
 
