@@ -1,21 +1,21 @@
-"""A uniform grid over the BVH's primitives: for each cell, every primitive whose box comes near it.
+"""A uniform grid over the BVH's primitives: for each part of a cell, every primitive whose box comes near it.
 
 This is the walk's other way (besides :mod:`tracer.proxies`' neighbour
 lists) to know, after Embree reports a crossing, which primitives must be
-tested exactly before the walk may step on.  When Embree reports a crossing
-at a point ``x``, every primitive registered in the cell that holds ``x`` is
-tested in float64, and the walk goes on from where the ray leaves that cell:
-any surface the ray could meet inside the cell, or any proxy that contains
-the point where it goes on, has a box that comes near the cell, so it was
-tested.  A ray that starts on a surface does the same with the cell of its
-start.
+tested exactly before the walk may step on.  Each cell is cut into
+``SUB³`` parts, and each primitive registered in a cell carries a bit mask
+of the parts its box comes near.  When Embree reports a crossing at a point
+``x``, every member of the part that holds ``x`` is tested in float64, and
+the walk goes on from where the ray leaves that part: any surface the ray
+could meet inside the part, or any proxy that contains the point where it
+goes on, has a box that comes near the part, so it was tested.  A ray that
+starts on a surface does the same with the part of its start.
 
 The lists cost a sort of a few registrations per primitive, where neighbour
 pairs cost a box test of every pair of nearby primitives; a cell is about as
-large as a primitive, so a crossing tests about as many primitives either
-way.  :func:`build_cells` gives up (returns None) when the primitives'
-sizes are so mixed that the registrations would pass :data:`BUDGET_PER`
-per primitive.
+large as the largest ordinary primitive, so a part holds a few.
+:func:`build_cells` gives up (returns None) when the primitives' sizes are
+so mixed that the registrations would pass :data:`BUDGET_PER` per primitive.
 """
 
 from __future__ import annotations

@@ -11,8 +11,8 @@ size of any sphere proxy that contains the ray's start, or at the BVH's
 bounding box), never by a count of candidates: every crossing is passed once.
 A scene with plain mesh faces (:mod:`tracer.sightlines`) walks by cells
 instead (:mod:`tracer.cells`): at a crossing, every primitive registered in
-the crossing's cell is tested, and the ray steps on from where it leaves
-that cell; a ray that starts on a surface first tests its start's cell.
+the crossing's part of a cell is tested, and the ray steps on from where it
+leaves that part; a ray that starts on a surface first tests its start's.
 
 Rays leave surfaces by identity (``from_kind``, ``from_index``): they start
 at the exact float64 hit point and never hit that surface there (see
@@ -194,13 +194,12 @@ class Intersector:
             return a if every else rows_of(a, bvh_tris)
 
         v0, e1, e2, normal, ids = mine(tris.v0), mine(tris.e1), mine(tris.e2), mine(tris.normal), mine(tris.corner_ids)
-        centre_s, radius_s = rows_of(spheres.center, bvh_spheres), spheres.radius[bvh_spheres, None]
-        parts = [v0, v0 + e1, v0 + e2, centre_s - radius_s, centre_s + radius_s]
+        center, radius = rows_of(spheres.center, bvh_spheres), spheres.radius[bvh_spheres]
+        parts = [v0, v0 + e1, v0 + e2, center - radius[:, None], center + radius[:, None]]
         centre, half = frame(np.min([lowest(a) for a in parts if len(a)], axis=0),
                              np.max([highest(a) for a in parts if len(a)], axis=0))
         plain = None if self.lines is None else plain_triangles(v0, e1, e2, normal, ids, self.lines, half)
         some_plain = plain is not None and bool(plain.any())
-        center, radius = spheres.center[bvh_spheres], spheres.radius[bvh_spheres]
         self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids,
                                          neighbours=not some_plain)
         # plain faces come in meshes of many like-sized faces: cells are cheaper to build than neighbour pairs
@@ -358,10 +357,10 @@ class Intersector:
         margin = np.zeros(n)
         inside = np.flatnonzero(from_prim >= 0)
         cells = self.cells
-        # the region each ray tested last: a primitive and its neighbours, or a cell (a proxy's exit follows
-        # its entry, and rounding may report a cell twice)
+        # the region each ray tested last: a primitive and its neighbours, or a part of a cell (a proxy's exit
+        # follows its entry, and rounding may report a part twice)
         last = from_prim.copy() if cells is None else np.full(n, -2, dtype=np.int64)
-        if len(inside) and cells is not None:  # everything near a start lies in its cell: test it now
+        if len(inside) and cells is not None:  # everything near a start is in its part of a cell: test it now
             cell, lo, hi = cells.locate(rows_of(o, inside))
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
             self._test(best, *cells.pairs(inside, cell, np.where(q < self.n_tri, q, -1)), o, d, from_prim, mag_o,
@@ -400,14 +399,14 @@ class Intersector:
             far = np.minimum(best.t[live] + margin[live] + p.slack, t_out[live]) - s
             o_l, d_l = rows_of(o, live), rows_of(d, live)
             face, tau = bvh.nearest(along(o_l, s, d_l), d_l, far)
-            found = face >= 0
-            live, face, tau = live[found], face[found], tau[found]
-            o_l, d_l = rows_of(o_l, np.flatnonzero(found)), rows_of(d_l, np.flatnonzero(found))
+            found = np.flatnonzero(face >= 0)
+            live, face, tau, s = live[found], face[found], tau[found], s[found]
+            o_l, d_l = rows_of(o_l, found), rows_of(d_l, found)
             prim = p.owner[face]
             if cells is None:
                 region, lo, hi = prim, rows_of(p.lo, prim), rows_of(p.hi, prim)
             else:
-                region, lo, hi = cells.locate(along(o_l, s[found] + tau, d_l))
+                region, lo, hi = cells.locate(along(o_l, s + tau, d_l))
             fresh = last[live] != region
             if any_hit:  # the primitive crossed first: a ray it blocks needs no neighbour
                 rows = live[fresh]
@@ -420,8 +419,8 @@ class Intersector:
             self._test(best, *pairs, o, d, from_prim, mag_o, ends, reach, mag_e)
             last[live] = region
             # every crossing inside the box of the proxy just crossed belongs to it or a neighbour (inside the
-            # cell of the crossing, to a member of the cell), all tested now: the walk goes on from where the ray
-            # leaves that box (or just past the crossing, if later)
+            # crossing's part of a cell, to a member of that part), all tested now: the walk goes on from where
+            # the ray leaves that box or part (or just past the crossing, if later)
             leave = slab(o_l, d_l, lo, hi)[1]
             start[live] = np.fmax(start[live] + tau + p.step, leave)
             if not any_hit:  # and a hit before the ray leaves that box is the nearest there is
