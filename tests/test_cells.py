@@ -55,6 +55,24 @@ def test_a_part_holds_only_boxes_that_come_near_it():
     assert not whole.all()  # parts are finer than boxes: some boxes only graze the part they are in
 
 
+def test_a_whole_cell_holds_every_member_of_its_parts_and_its_box_holds_theirs():
+    lo, hi = random_boxes(300)
+    cells = build_cells(lo, hi, 0.01)
+    points = np.random.default_rng(9).uniform(-1, 1.1, (500, 3))
+    part, p_lo, p_hi = cells.locate(points)
+    cell, c_lo, c_hi = cells.locate(points, whole=True)
+    assert np.array_equal(part >= 0, cell >= 0) and np.all(cell[cell >= 0] >= cells.whole_base)
+    assert np.all((c_lo <= p_lo) & (p_hi <= c_hi + 1e-12))
+    assert np.allclose(c_hi - c_lo, cells.size)
+    by_part = set(zip(*(a.tolist() for a in cells.pairs(np.arange(500), part))))
+    by_cell = set(zip(*(a.tolist() for a in cells.pairs(np.arange(500), cell))))
+    assert by_part < by_cell  # every member of the part, and the members of the cell's other parts too
+    at = cell[cell >= 0] - cells.whole_base
+    members = {(r, m) for r, c in zip(np.flatnonzero(cell >= 0).tolist(), at.tolist())
+               for m in cells.members[cells.start[c]:cells.start[c + 1]].tolist()}
+    assert by_cell == members
+
+
 def test_points_in_no_cell_and_pairs():
     lo, hi = random_boxes(50)
     cells = build_cells(lo, hi, 0.0)

@@ -66,22 +66,32 @@ class Cells:
     members: np.ndarray  # (R,) int64 primitive ids
     parts: np.ndarray  # (R,) uint64 which parts of its cell each member's box comes near
 
-    def locate(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def locate(self, points: np.ndarray, whole: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For points (N, 3): the part of a cell each lies in, as ``cell · SUB³ + part`` with the cell's index
-        in :attr:`keys` (−1 for a cell that holds nothing), and that part's box, lo and hi (N, 3) each."""
+        in :attr:`keys` (−1 for a cell that holds nothing), and that part's box, lo and hi (N, 3) each.
+
+        With ``whole``, the region is the whole cell instead, numbered :attr:`whole_base` ``+ cell``, and the
+        box is the cell's: a coarser region (every member of every part), for rays that step far."""
         with np.errstate(invalid="ignore", over="ignore"):
             k = np.floor((points - self.origin) / self.size)
         k = np.clip(_finite(k, -1.0), -1, self.dims).astype(np.int64)
         corner = self.origin + k * self.size
-        part = self._parts_of(points, corner)
-        step = self.size / SUB
-        lo = corner + part * step
-        hi = lo + step
         inside = np.all((k >= 0) & (k < self.dims), axis=1)
         key = self._key(np.where(inside[:, None], k, 0))
         at = np.minimum(np.searchsorted(self.keys, key), len(self.keys) - 1)
         found = inside & (self.keys[at] == key)
+        if whole:
+            return np.where(found, self.whole_base + at, -1), corner, corner + self.size
+        part = self._parts_of(points, corner)
+        step = self.size / SUB
+        lo = corner + part * step
+        hi = lo + step
         return np.where(found, at * SUB**3 + (part[:, 0] * SUB + part[:, 1]) * SUB + part[:, 2], -1), lo, hi
+
+    @property
+    def whole_base(self) -> int:
+        """Region numbers from here on name whole cells (:meth:`locate` with ``whole``); below, parts."""
+        return len(self.keys) * SUB**3
 
     def _parts_of(self, points: np.ndarray, corner: np.ndarray) -> np.ndarray:
         """The part (i, j, k) of the cell with low corner ``corner`` that holds each point, clipped into it."""
@@ -94,17 +104,22 @@ class Cells:
 
     def pairs(self, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(ray, primitive) pairs: each of ``rows`` with every member of its ``region`` (from :meth:`locate`;
-        −1: none) that comes near that part of the cell, except the primitive ``but`` names for that row (when
-        given; −1 for none)."""
+        −1: none) that comes near that part of the cell (or, for a whole cell, every member), except the
+        primitive ``but`` names for that row (when given; −1 for none)."""
         some = np.flatnonzero(region >= 0)
         if len(some) < len(region):
             rows, region = rows[some], region[some]
             but = None if but is None else but[some]
+        whole = region >= self.whole_base
         cell, bit = np.divmod(region, SUB**3)
+        if whole.any():
+            cell = np.where(whole, region - self.whole_base, cell)
         first = self.start[cell]
         count = self.start[cell + 1] - first
         at = np.repeat(first - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
         keep = ((self.parts[at] >> np.repeat(bit.astype(np.uint64), count)) & np.uint64(1)).astype(bool)
+        if whole.any():
+            keep |= np.repeat(whole, count)
         if but is not None:
             keep &= self.members[at] != np.repeat(but, count)
         at = at[keep]

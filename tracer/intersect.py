@@ -390,7 +390,7 @@ class Intersector:
             far = np.minimum(limit[live] + margin[live] + p.slack, t_out[live]) - s
             o_l, d_l = rows_of(o, live), rows_of(d, live)
             live = live[bvh.any_hit(along(o_l, s, d_l), d_l, far)]
-        for _ in range(self.max_steps):
+        for step in range(self.max_steps):
             if len(live) == 0:
                 break
             self.check()
@@ -405,8 +405,8 @@ class Intersector:
             prim = p.owner[face]
             if cells is None:
                 region, lo, hi = prim, rows_of(p.lo, prim), rows_of(p.hi, prim)
-            else:
-                region, lo, hi = cells.locate(along(o_l, s + tau, d_l))
+            else:  # after the first pass, the few rays left (grazing a surface, say) step a whole cell at a time
+                region, lo, hi = cells.locate(along(o_l, s + tau, d_l), whole=step > 0)
             fresh = last[live] != region
             if any_hit:  # the primitive crossed first: a ray it blocks needs no neighbour
                 rows = live[fresh]
