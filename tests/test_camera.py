@@ -15,7 +15,7 @@ def camera(**cam):
 
 
 def test_perspective_subsample_directions():
-    origins, dirs = camera(fov=90).rays(np.arange(1))
+    origins, dirs = camera(fov=90).rays(0, 1)
     assert origins.shape == (4, 3) and np.all(origins == 0)
     # pixel (0, 0), sub-sample (a, b) = (1, 0): sx = 0.75/4, sy = 0.25/2
     sx, sy = 0.75 / 4, 0.25 / 2
@@ -25,13 +25,13 @@ def test_perspective_subsample_directions():
 
 
 def test_orthographic_rays_are_parallel_and_offset():
-    origins, dirs = camera(type="orthographic", height=4).rays(np.arange(7, 8))
+    origins, dirs = camera(type="orthographic", height=4).rays(7, 8)
     np.testing.assert_allclose(dirs, [[0, 0, -1]] * 4)
     # last pixel (3, 1), sub-sample (0, 0): sx = 3.25/4, sy = 1.25/2, h = 2
     np.testing.assert_allclose(origins[0], [(2 * 3.25 / 4 - 1) * 2 * 2, (1 - 2 * 1.25 / 2) * 2, 0])
 
 
 def test_up_vector_sets_the_roll():
-    origins, dirs = camera(up=[1, 0, 0], fov=90).rays(np.arange(1))
+    origins, dirs = camera(up=[1, 0, 0], fov=90).rays(0, 1)
     # with up = +x, screen-up is +x, so the top-left pixel looks towards +x
     assert np.all(dirs[:, 0] > 0)

@@ -214,7 +214,7 @@ def agrees_with_brute_force(data):
     hits agree with the brute force (within 0.1 % of the rays: exact ties may go either way)."""
     r = Renderer(schemas.validate_scene(data))
     n = data["image"]["width"] * data["image"]["height"]
-    o, d = r.camera.rays(np.arange(n))
+    o, d = r.camera.rays(0, n)
     none_k, none_i = np.zeros(n, np.int8), np.full(n, -1)
     hits = r.intersector.closest(o, d, none_k, none_i)
     world_o = o + r.world.origin

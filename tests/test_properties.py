@@ -67,7 +67,7 @@ def render_or_problems(data):
     img = accepted.image
     if img.width * img.height * img.samples**2 > 100_000:  # beyond a unit test's budget: valid, not rendered
         return np.zeros((1, 3)), None
-    return Renderer(accepted).chunk(np.arange(img.width * img.height)), None
+    return Renderer(accepted).chunk(0, img.width * img.height), None
 
 
 @settings(max_examples=EXAMPLES_PER_TEST, deadline=None, suppress_health_check=[HealthCheck.too_slow])

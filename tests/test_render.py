@@ -11,7 +11,6 @@ import pytest
 
 from helpers import EXAMPLES, differing, mean_abs, reference, render_dict, scaled, scene_dict, translated
 from tracer import RenderCancelled, Renderer, encode_png
-from tracer.render import Deal
 import schemas
 
 
@@ -117,7 +116,7 @@ HARD = {
 def test_hard_case_is_finite_and_deterministic(name):
     scene = schemas.validate_scene(HARD[name])
     image = scene.image
-    first = Renderer(scene).chunk(np.arange(image.width * image.height))
+    first = Renderer(scene).chunk(0, image.width * image.height)
     assert not np.any(np.isnan(first))
     if "infinite light" not in name:  # 1e300 × 1e300 is rightly +inf there (and clamps to white)
         assert np.all(np.isfinite(first))
@@ -177,23 +176,3 @@ def test_cancel_stops_a_render_inside_a_single_long_chunk():
     with pytest.raises(RenderCancelled):
         renderer.pixels(threads=1, cancel=lambda: time.perf_counter() - started > 0.3)
     assert time.perf_counter() - started < 2.0
-
-
-@pytest.mark.parametrize("total, width, per_chunk, workers", [
-    (640 * 480, 640, 65536, 2), (1920 * 1080, 1920, 65536, 2), (160 * 120, 160, 65536, 2), (300 * 7, 300, 64, 3),
-    (4096 * 3, 4096, 1000, 2), (1, 1, 1, 4), (0, 5, 10, 2)])
-def test_chunks_deal_every_pixel_once_within_the_chunk_size(total, width, per_chunk, workers):
-    deal = Deal.of(total, width, per_chunk, workers)
-    chunks = [deal.pixels(k) for k in range(deal.count)]
-    every = np.concatenate(chunks) if chunks else np.zeros(0, dtype=np.int64)
-    assert np.array_equal(np.sort(every), np.arange(total))
-    assert all(len(c) <= per_chunk for c in chunks) and all(np.all(np.diff(c) > 0) for c in chunks)
-    if deal.count > 1:  # no worker waits at the end on a chunk of its own
-        assert deal.count % workers == 0 or deal.count == -(-total // deal.run)
-
-
-def test_chunks_share_every_part_of_the_image():
-    deal = Deal.of(640 * 480, 640, 65536, 2)
-    assert deal.count == 6
-    rows = [np.unique(deal.pixels(k) // 640) for k in range(deal.count)]
-    assert all(len(r) == 80 and r.min() < 6 and r.max() >= 474 for r in rows)

@@ -26,7 +26,7 @@ def colour(lights, material=MAT, objects=(), at=(0, 0, 0), max_depth=4, backgrou
         "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]}, *objects],
         "lights": list(lights),
     })
-    return Renderer(scene).chunk(np.arange(1))[0]
+    return Renderer(scene).chunk(0, 1)[0]
 
 
 def test_ambient_only():

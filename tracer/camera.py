@@ -24,14 +24,14 @@ class CameraRays:
         self.h = camera.height / 2.0 if self.orthographic else float(np.tan(np.radians(camera.fov) / 2.0))
         self.width, self.height, self.n = image.width, image.height, image.samples
 
-    def rays(self, pixel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Origins and unit directions of the pixels ``pixel (P,)``, each ``(P·n², 3)``, pixel-major.
+    def rays(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """Origins and unit directions, each ``((stop − start)·n², 3)``, pixel-major.
 
         Pixels are numbered row by row from the top left; within a pixel,
         sub-sample ``(a, b)`` comes at position ``b·n + a``.
         """
         n, W, H = self.n, self.width, self.height
-        pixel = np.asarray(pixel, dtype=np.int64)
+        pixel = np.arange(start, stop, dtype=np.int64)
         i = (pixel % W).astype(np.float64)
         j = (pixel // W).astype(np.float64)
         offsets = (np.arange(n, dtype=np.float64) + 0.5) / n

@@ -14,7 +14,6 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -53,37 +52,6 @@ class ImageTooLarge(ValueError):
 
 class RenderCancelled(Exception):
     """Raised by :meth:`Renderer.pixels` when its ``cancel`` callback asked it to stop."""
-
-
-@dataclass(frozen=True)
-class Deal:
-    """How an image's pixels ``0..total-1`` are cut into chunks: runs of ``run`` consecutive pixels (a row, or a
-    piece of a long row), dealt round-robin, run ``j`` to chunk ``j mod count``.
-
-    Every chunk then holds an even share of every part of the image, so chunks cost about the same however
-    the work is spread over the picture (a mesh in the middle, sky at the top), and their count is a multiple
-    of the workers': none waits idle on one expensive band at the end.
-    """
-
-    total: int
-    run: int
-    count: int
-
-    @staticmethod
-    def of(total: int, width: int, per_chunk: int, workers: int) -> Deal:
-        """At most ``per_chunk`` pixels a chunk (rows kept whole where they fit), for ``workers`` threads."""
-        run = max(1, min(width, per_chunk))
-        runs = -(-total // run)
-        count = -(-runs // max(1, per_chunk // run))
-        if count > 1:
-            count = min(runs, -(-count // workers) * workers)
-        return Deal(total, run, count)  # (none for no pixels)
-
-    def pixels(self, k: int) -> np.ndarray:
-        """The pixels of chunk ``k``, ascending. Shape (P,), int64."""
-        runs = np.arange(k, -(-self.total // self.run), self.count, dtype=np.int64)
-        pixels = (runs[:, None] * self.run + np.arange(self.run, dtype=np.int64)).reshape(-1)
-        return pixels[pixels < self.total]
 
 
 class Renderer:
@@ -134,31 +102,32 @@ class Renderer:
             raise ValueError(f"rows {top}..{bottom} are not within 0..{img.height}")
         first, end = top * img.width, bottom * img.width
         total = end - first
+        per_chunk = max(1, chunk_rays // (img.samples * img.samples))
+        bounds = [(a, min(a + per_chunk, end)) for a in range(first, end, per_chunk)]
         out = np.empty((total, 3), dtype=np.uint8)
         workers = threads or os.cpu_count() or 1
-        deal = Deal.of(total, img.width, max(1, chunk_rays // (img.samples * img.samples)), workers)
 
         stopped = False
 
-        def work(k: int) -> int:
+        def work(bound: tuple[int, int]) -> int:
             nonlocal stopped
+            a, b = bound
             if stopped or (cancel is not None and cancel()):
                 stopped = True
                 return 0
-            mine = deal.pixels(k)
-            out[mine] = quantize(self.chunk(mine + first))
-            return len(mine)
+            out[a - first:b - first] = quantize(self.chunk(a, b))
+            return b - a
 
-        if workers == 1 or deal.count == 1:
+        if workers == 1 or len(bounds) == 1:
             done = 0
-            for k in range(deal.count):
-                done += work(k)
+            for bound in bounds:
+                done += work(bound)
                 if progress:
                     progress(done, total)
         else:
             with ThreadPoolExecutor(max_workers=workers) as pool:
                 done = 0
-                for count in pool.map(work, range(deal.count)):
+                for count in pool.map(work, bounds):
                     done += count
                     if progress:
                         progress(done, total)
@@ -167,8 +136,8 @@ class Renderer:
         return out.reshape(bottom - top, img.width, 3)
 
     # -- one chunk ---------------------------------------------------------
-    def chunk(self, pixels: np.ndarray) -> np.ndarray:
-        """Linear colour of the pixels ``pixels (P,)`` (mean of their sub-samples). Shape (P, 3).
+    def chunk(self, start: int, stop: int) -> np.ndarray:
+        """Linear colour of pixels ``start..stop`` (mean of their sub-samples). Shape (stop − start, 3).
 
         The ray tree is traced depth-first in slices of at most ``slice_rays``
         rays, so memory depends on the slice size and the depth, never on
@@ -179,7 +148,7 @@ class Renderer:
         img = self.scene.image
         s = img.samples * img.samples
         with np.errstate(all="ignore"):
-            origins, dirs = self.camera.rays(pixels)
+            origins, dirs = self.camera.rays(start, stop)
             n = len(origins)
             self._count("primary", n)
             acc = np.zeros((n, 3), dtype=np.int64)
@@ -217,7 +186,7 @@ class Renderer:
                 self._count("secondary", len(children[0]))
                 if len(children[0]):
                     stack.append((children, depth + 1))
-            per_pixel = acc.reshape(len(pixels), s, 3).sum(axis=1)  # integers: exact in any order
+            per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
 
     def _check(self) -> None:
