@@ -124,7 +124,7 @@ class _Best:
         rows, t, index = rows[hit], t[hit], index[hit]
         kind = np.broadcast_to(kind, hit.shape)[hit]
         key = (kind.astype(np.int64) << 48) | index.astype(np.int64)
-        if unique or len(rows) <= 1:
+        if unique or len(rows) <= 1 or bool(np.all(rows[1:] > rows[:-1])):  # one hit per ray (as usual)
             pick = np.arange(len(rows))
         else:
             order = np.lexsort((key, t, rows))
@@ -136,6 +136,12 @@ class _Best:
         self.t[r], self.key[r] = tt[better], kk[better]
         if u is not None and v is not None:
             self.uv[r, 0], self.uv[r, 1] = u[hit][pick], v[hit][pick]
+
+    def block(self, rows: np.ndarray, t: np.ndarray) -> None:
+        """For an any-hit walk, where only whether a ray's ``t`` falls below its limit matters: lower the
+        rays ``rows`` (which may repeat) to hits ``t`` nearer than they have."""
+        nearer = t < self.t[rows]
+        self.t[rows[nearer]] = t[nearer]  # (of a repeated row, any of its nearer hits: each blocks it)
 
     @property
     def kind(self) -> np.ndarray:
@@ -327,17 +333,23 @@ class Intersector:
         k = self.prim_index[q]
         leaving = from_prim[r] == q
         e, me = shared_rows(ends, r), shared_rows(mag_e, r)
+        any_hit = reach is not None  # a shadow walk: only whether something lies before the light matters
         if is_tri:
             tr = w.triangles
             t, u, v = triangle_t(rows_of(o, r), rows_of(d, r), rows_of(tr.v0, k), rows_of(tr.e1, k), rows_of(tr.e2, k),
-                                 rows_of(tr.normal, k), mag_o[r], tr.mag[k],
-                                 leaving, e, me)
-            best.offer(r, t, TRIANGLE, k, u, v)
+                                 rows_of(tr.normal, k), mag_o[r], tr.mag[k], leaving, e, me, uv=not any_hit)
+            if any_hit:
+                best.block(r, t)
+            else:
+                best.offer(r, t, TRIANGLE, k, u, v)
         else:
             sp = w.spheres
             t = sphere_t(rows_of(o, r), rows_of(d, r), rows_of(sp.center, k), sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
                          None if reach is None else reach[r], me)
-            best.offer(r, t, SPHERE, k)
+            if any_hit:
+                best.block(r, t)
+            else:
+                best.offer(r, t, SPHERE, k)
 
     def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
               ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,

@@ -130,14 +130,17 @@ def plane_separates(origins: np.ndarray, ends: np.ndarray, point: np.ndarray, no
 def triangle_t(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.ndarray, e2: np.ndarray,
                normal: np.ndarray, mag_origin: np.ndarray, mag_triangle: np.ndarray,
                leaving: np.ndarray | None = None, ends: np.ndarray | None = None,
-               mag_end: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               mag_end: np.ndarray | None = None, uv: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Float64 Möller–Trumbore with the barycentric test decided exactly: ``t, u, v``, each (N,).
 
     ``t`` is ``inf`` where the ray misses the triangle (``u, v`` are then
     meaningless); where it hits, ``u, v`` are clamped into the triangle so that
-    ``v0 + u·e1 + v·e2`` lies on it.
+    ``v0 + u·e1 + v·e2`` lies on it.  Without ``uv`` (a shadow ray needs only
+    ``t``) they are returned as they come, unclamped.  The triangles are given
+    per ray, ``(N, 3)`` each, or as one ``(3,)`` triangle for every ray.
     """
-    v0, e1, e2, normal = (np.broadcast_to(a, dirs.shape) for a in (v0, e1, e2, normal))
+    if v0.ndim == 1:
+        v0, e1, e2, normal = (np.broadcast_to(a, dirs.shape) for a in (v0, e1, e2, normal))
     p = cross(dirs, e2)
     det = dot(e1, p)
     s = origins - v0
@@ -155,8 +158,11 @@ def triangle_t(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.nda
         assert mag_end is not None
         skip |= np.abs(dot(ends - v0, normal)) <= on_tolerance(mag_end, mag_triangle)
     ok = inside & ~skip & np.isfinite(t) & (t > 0)
+    t = np.where(ok, t, np.inf)
+    if not uv:
+        return t, u, v
     u = np.fmin(np.fmax(u, 0.0), 1.0)  # clipped into 0..1, NaN to 0 (fmax drops a NaN)
     v = np.fmin(np.fmax(v, 0.0), 1.0)
     over = u + v > 1.0
     total = np.where(over, u + v, 1.0)
-    return np.where(ok, t, np.inf), np.where(over, u / total, u), np.where(over, v / total, v)
+    return t, np.where(over, u / total, u), np.where(over, v / total, v)
