@@ -16,6 +16,7 @@ from test_exactness import agrees_with_brute_force, scene
 import schemas
 from tracer import Renderer, render
 from tracer.camera import CameraRays
+from tracer.shapes import triangle_t
 from tracer.sightlines import Sightlines, plain_triangles, scene_sightlines
 from tracer.world import build_world
 
@@ -160,7 +161,7 @@ def classify(objects, lights, camera, **image):
     if lines is None:
         return None
     t = w.triangles
-    return plain_triangles(t.v0, t.e1, t.e2, t.normal, t.corner_ids, lines, 4.0)
+    return plain_triangles(t.v0, t.e1, t.e2, t.normal, t.corner_ids, lines, 4.0)[0]
 
 
 EYE = {"position": [0, 0.6, 5], "look_at": [0, 0.6, 0], "fov": 40}
@@ -217,3 +218,51 @@ def test_sightlines_of_a_scene():
     assert len(lines.hulls) == 2 and lines.hulls[1].shape == (4, 3)  # the eye; the area light's corners
     assert np.allclose(lines.hulls[1][0], [0, 1, 0])  # local: minus the origin
     assert np.allclose(lines.directions[0], [0, -1, 0])
+
+
+def test_a_shadow_ray_leaving_a_plain_face_never_meets_its_mates():
+    """The walk leaves out a plain face's mates (the faces across its edges) from a shadow ray's first tests:
+    checked here on a bumpy terrain, whose valleys hide faces from the lights, against every mate."""
+    rng = np.random.default_rng(11)
+    n = 16
+    terrain = open_floor(1.0, n=n)
+    terrain["vertices"] = [[x, float(rng.uniform(0, 0.15)), z] for x, _, z in terrain["vertices"]]
+    lights = [{"type": "point", "color": 1, "position": [1.5, 0.9, 0.2]},
+              {"type": "area", "color": 1, "corner": [-0.5, 1.2, -0.4], "edge_u": [0.6, 0, 0], "edge_v": [0, 0.1, 0.5],
+               "samples": [3, 3]}]
+    cam = {"position": [0, 2.5, 2.5], "look_at": [0, 0, 0]}
+    s = schemas.validate_scene(scene([terrain], lights, cam))
+    w = build_world(s)
+    t = w.triangles
+    plain, mates = plain_triangles(t.v0, t.e1, t.e2, t.normal, t.corner_ids, lines_of(s, w.origin), 4.0)
+    assert 0.2 < plain.mean() < 0.8 and np.all(mates[~plain] == -1)
+    f, k = np.nonzero(mates >= 0)
+    both = plain[mates[f, k]]  # a plain face's mate, when plain, names it back
+    assert both.any() and np.all(np.any(mates[mates[f, k][both]] == f[both, None], axis=1))
+    # points of the plain faces (edges and corners too) towards every light point, against every mate
+    targets = [np.asarray(lights[0]["position"], float)]
+    corner, eu, ev = (np.asarray(lights[1][key], float) for key in ("corner", "edge_u", "edge_v"))
+    targets += [corner + a * eu + b * ev for a in (0, 1 / 6, 0.5, 1) for b in (0, 0.5, 5 / 6, 1)]
+    uv = np.vstack([rng.uniform(0, 1, (6, 2)), [[0, 0], [1, 0], [0, 1], [0.5, 0], [0, 0.5], [0.5, 0.5]]])
+    uv[uv.sum(axis=1) > 1] = 1 - uv[uv.sum(axis=1) > 1][:, ::-1]
+    met_others = []
+    for light in targets:
+        end = light - w.origin
+        for a, b in uv:
+            p = t.v0[f] + a * t.e1[f] + b * t.e2[f]
+            d = end - p
+            reach = np.linalg.norm(d, axis=1)
+            d /= reach[:, None]
+            g = mates[f, k]
+            mag = np.abs(p).max(axis=1) + np.abs(w.origin).max()
+            hit, _, _ = triangle_t(p, d, t.v0[g], t.e1[g], t.e2[g], t.normal[g], mag, t.mag[g], ends=end[None],
+                                   mag_end=np.abs(light).max() + np.zeros(len(g)), uv=False)
+            assert not np.any(hit < reach)
+            if len(met_others) < len(uv):  # other faces of the terrain do stand in the way of some of these rays
+                rays, faces = np.meshgrid(np.arange(len(f)), np.arange(len(t.v0)), indexing="ij")
+                rays, faces = rays.ravel(), faces.ravel()
+                hit, _, _ = triangle_t(p[rays], d[rays], t.v0[faces], t.e1[faces], t.e2[faces], t.normal[faces],
+                                       mag[rays], t.mag[faces], faces == f[rays], end[None],
+                                       np.abs(light).max() + np.zeros(len(rays)), uv=False)
+                met_others.append(int(np.count_nonzero(hit < reach[rays])))
+    assert sum(met_others) > 0

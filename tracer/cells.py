@@ -105,7 +105,7 @@ class Cells:
     def pairs(self, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(ray, primitive) pairs: each of ``rows`` with every member of its ``region`` (from :meth:`locate`;
         −1: none) that comes near that part of the cell (or, for a whole cell, every member), except the
-        primitive ``but`` names for that row (when given; −1 for none)."""
+        primitives ``but`` names for that row (when given: ``(n,)`` or ``(n, k)``; −1 for none)."""
         some = np.flatnonzero(region >= 0)
         if len(some) < len(region):
             rows, region = rows[some], region[some]
@@ -116,14 +116,16 @@ class Cells:
             cell = np.where(whole, region - self.whole_base, cell)
         first = self.start[cell]
         count = self.start[cell + 1] - first
-        at = np.repeat(first - np.cumsum(count) + count, count) + np.arange(int(count.sum()))
-        keep = ((self.parts[at] >> np.repeat(bit.astype(np.uint64), count)) & np.uint64(1)).astype(bool)
+        own = np.repeat(np.arange(len(region)), count)  # each candidate's row; the rest are gathers by it
+        at = (first - np.cumsum(count) + count)[own] + np.arange(len(own))
+        keep = ((self.parts[at] >> bit.astype(np.uint64)[own]) & np.uint64(1)).astype(bool)
         if whole.any():
-            keep |= np.repeat(whole, count)
+            keep |= whole[own]
+        members = self.members[at]
         if but is not None:
-            keep &= self.members[at] != np.repeat(but, count)
-        at = at[keep]
-        return np.repeat(rows, count)[keep], self.members[at]
+            for column in (but[:, None] if but.ndim == 1 else but).T:
+                keep &= members != column[own]
+        return rows[own[keep]], members[keep]
 
 
 def _finite(a: np.ndarray, fill: float) -> np.ndarray:

@@ -204,8 +204,11 @@ class Intersector:
         parts = [v0, v0 + e1, v0 + e2, center - radius[:, None], center + radius[:, None]]
         centre, half = frame(np.min([lowest(a) for a in parts if len(a)], axis=0),
                              np.max([highest(a) for a in parts if len(a)], axis=0))
-        plain = None if self.lines is None else plain_triangles(v0, e1, e2, normal, ids, self.lines, half)
+        plain, mates = (None, None) if self.lines is None else \
+            plain_triangles(v0, e1, e2, normal, ids, self.lines, half)
         some_plain = plain is not None and bool(plain.any())
+        #: a plain triangle's faces across its edges, which a shadow ray leaving it never meets (n_tri, 3)
+        self.mates = mates if some_plain else None
         self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids,
                                          neighbours=not some_plain)
         # plain faces come in meshes of many like-sized faces: cells are cheaper to build than neighbour pairs
@@ -375,8 +378,11 @@ class Intersector:
         if len(inside) and cells is not None:  # everything near a start is in its part of a cell: test it now
             cell, lo, hi = cells.locate(rows_of(o, inside))
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
-            self._test(best, *cells.pairs(inside, cell, np.where(q < self.n_tri, q, -1)), o, d, from_prim, mag_o,
-                       ends, reach, mag_e)
+            but = np.where(q < self.n_tri, q, -1)
+            if any_hit and self.mates is not None:  # nor, on its way to a light, are a plain triangle's mates
+                mates = rows_of(self.mates, np.minimum(q, self.n_tri - 1))
+                but = np.column_stack([but, np.where((q < self.n_tri)[:, None], mates, -1)])
+            self._test(best, *cells.pairs(inside, cell, but), o, d, from_prim, mag_o, ends, reach, mag_e)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             last[inside] = cell
         elif len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now

@@ -127,8 +127,14 @@ def _columns(a: np.ndarray) -> Columns:
 
 
 def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, corner_ids: np.ndarray,
-                    lines: Sightlines, half_size: float) -> np.ndarray:
-    """Which triangles Embree may meet as they are, for rays on ``lines``. Shape (T,), bool.
+                    lines: Sightlines, half_size: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which triangles Embree may meet as they are, for rays on ``lines``: ``plain (T,)`` bool, and ``mates
+    (T, 3)``, a plain triangle's face across each of its edges (−1 for every edge of the others).
+
+    A ray that leaves a plain triangle from a point of it towards a point of ``lines`` (or along one of its
+    directions), as a shadow ray does, never meets a mate on the way: the plane through their shared edge
+    and that point (or along that direction) has the triangle's open side, where the ray runs until it
+    reaches the point, and the mate's closed side, which the mate never leaves.
 
     ``corner_ids (T, 3)``: the index of each corner in its mesh's shared
     corners (distinct across meshes; a lone triangle's corners are its own).
@@ -136,7 +142,7 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     """
     n_tri = len(v0)
     if n_tri == 0:
-        return np.zeros(0, dtype=bool)
+        return np.zeros(0, dtype=bool), np.zeros((0, 3), dtype=np.int64)
     stacked = np.stack([v0, v0 + e1, v0 + e2], axis=1)  # (T, 3, 3)
     flat = [np.ascontiguousarray(stacked[..., k]).reshape(-1) for k in range(3)]  # corner s of face f at 3 f + s
     corners = [tuple(a[s::3] for a in flat) for s in range(3)]
@@ -157,6 +163,9 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     second = order[run_start[run_len == 2] + 1]
     f1, f2 = first % n_tri, second % n_tri
     slot = first // n_tri
+    mates = np.full((n_tri, 3), -1, dtype=np.int64)
+    mates[f1, slot] = f2
+    mates[f2, second // n_tri] = f1
 
     def corner_of(face: np.ndarray, s: np.ndarray) -> Columns:
         at = 3 * face + s
@@ -197,4 +206,5 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
             at, towards = tuple(float(x) for x in point), tuple(float(x) for x in plane_normal)
             s = [_dot(_minus(c, at), towards) for c in corners]
             plain &= np.minimum(np.minimum(s[0], s[1]), s[2]) > near
-    return plain
+    mates[~plain] = -1
+    return plain, mates
