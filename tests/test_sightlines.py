@@ -220,9 +220,10 @@ def test_sightlines_of_a_scene():
     assert np.allclose(lines.directions[0], [0, -1, 0])
 
 
-def test_a_shadow_ray_leaving_a_plain_face_never_meets_its_mates():
-    """The walk leaves out a plain face's mates (the faces across its edges) from a shadow ray's first tests:
-    checked here on a bumpy terrain, whose valleys hide faces from the lights, against every mate."""
+def test_a_ray_from_a_plain_face_to_a_light_or_the_eye_never_meets_its_mates():
+    """The walk leaves out a plain face's mates (the faces across its edges) from a shadow ray's first tests,
+    and from a camera ray's tests where it hits the face well inside: checked here on a bumpy terrain, whose
+    valleys hide faces from the lights, against every mate."""
     rng = np.random.default_rng(11)
     n = 16
     terrain = open_floor(1.0, n=n)
@@ -266,3 +267,12 @@ def test_a_shadow_ray_leaving_a_plain_face_never_meets_its_mates():
                                        np.abs(light).max() + np.zeros(len(rays)), uv=False)
                 met_others.append(int(np.count_nonzero(hit < reach[rays])))
     assert sum(met_others) > 0
+    # and a camera ray through a point well inside a plain face meets no mate anywhere along its line
+    eye = np.asarray(cam["position"], float) - w.origin
+    for a, b in uv[(uv.min(axis=1) > 0) & (uv.sum(axis=1) < 1)]:
+        d = t.v0[f] + a * t.e1[f] + b * t.e2[f] - eye
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        g = mates[f, k]
+        hit, _, _ = triangle_t(eye + 0 * d, d, t.v0[g], t.e1[g], t.e2[g], t.normal[g], np.abs(eye).max() + 1.0,
+                               t.mag[g], uv=False)
+        assert not np.any(np.isfinite(hit))

@@ -48,6 +48,8 @@ BIG = 64.0
 DIRECT_MAX = 2
 #: (ray, primitive) pairs tested exactly at a time
 PAIR_SLICE = 1 << 16
+#: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
+INSIDE = 2.0**-24
 
 
 @dataclass
@@ -354,6 +356,26 @@ class Intersector:
             else:
                 best.offer(r, t, SPHERE, k)
 
+    def _tested(self, best: _Best, rows: np.ndarray, prims: np.ndarray, any_hit: bool) -> np.ndarray:
+        """What the rays ``rows``, having just tested the primitives ``prims`` they crossed, need not test again
+        at that crossing: ``(n, 4)`` primitive ids, −1 for none.
+
+        The primitive itself; and, for a camera ray that hits a plain triangle well inside it, the faces across
+        its edges (:func:`tracer.sightlines.plain_triangles`): the plane through such an edge and the eye (or
+        along the view) has the ray's line on the triangle's side, so the ray meets no mate anywhere.
+        """
+        out = np.full((len(rows), 4), -1, dtype=np.int64)
+        out[:, 0] = prims
+        if any_hit or self.mates is None or len(rows) == 0:
+            return out
+        tri = np.flatnonzero(prims < self.n_tri)
+        k = self.prim_index[prims[tri]]
+        u, v = best.uv[rows[tri], 0], best.uv[rows[tri], 1]
+        inside = (best.key[rows[tri]] == (TRIANGLE << 48) | k) & (u > INSIDE) & (v > INSIDE) & (1.0 - u - v > INSIDE)
+        tri = tri[inside]
+        out[tri, 1:] = rows_of(self.mates, prims[tri])
+        return out
+
     def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
               ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,
               any_hit: bool = False) -> None:
@@ -426,14 +448,17 @@ class Intersector:
             else:  # after the first pass, the few rays left (grazing a surface, say) step a whole cell at a time
                 region, lo, hi = cells.locate(along(o_l, s + tau, d_l), whole=step > 0)
             fresh = last[live] != region
-            if any_hit:  # the primitive crossed first: a ray it blocks needs no neighbour
+            first = any_hit or self.mates is not None
+            if first:  # the primitive crossed first: a ray it blocks needs no neighbour
                 rows = live[fresh]
                 self._test(best, rows, prim[fresh], o, d, from_prim, mag_o, ends, reach, mag_e)
-                fresh[fresh] = ~(best.t[rows] < limit[rows])
+                if any_hit:
+                    fresh[fresh] = ~(best.t[rows] < limit[rows])
             if cells is None:
-                pairs = self._with_neighbours(live[fresh], prim[fresh], itself=not any_hit)
+                pairs = self._with_neighbours(live[fresh], prim[fresh], itself=not first)
             else:
-                pairs = cells.pairs(live[fresh], region[fresh], prim[fresh] if any_hit else None)
+                pairs = cells.pairs(live[fresh], region[fresh], self._tested(best, live[fresh], prim[fresh], any_hit)
+                                    if first else None)
             self._test(best, *pairs, o, d, from_prim, mag_o, ends, reach, mag_e)
             last[live] = region
             # every crossing inside the box of the proxy just crossed belongs to it or a neighbour (inside the
