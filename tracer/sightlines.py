@@ -30,6 +30,10 @@ triangle keeps its proxy.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -126,6 +130,18 @@ def _columns(a: np.ndarray) -> Columns:
     return tuple(np.ascontiguousarray(a[..., k]) for k in range(3))
 
 
+@contextmanager
+def _side_by_side(tasks: int) -> Iterator[Callable[..., Future]]:
+    """``run(f, *args)`` starts ``f(*args)`` (with floating-point warnings off) on a pool of up to as many
+    threads as cores, and gives its future; every task has finished when the block ends."""
+    def quiet(f: Callable[..., np.ndarray], *args: object) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            return f(*args)
+
+    with ThreadPoolExecutor(max_workers=max(1, min(tasks, os.cpu_count() or 1))) as pool:
+        yield lambda f, *args: pool.submit(quiet, f, *args)
+
+
 def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, corner_ids: np.ndarray,
                     lines: Sightlines, half_size: float) -> tuple[np.ndarray, np.ndarray]:
     """Which triangles Embree may meet as they are, for rays on ``lines``: ``plain (T,)`` bool, and ``mates
@@ -147,64 +163,83 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
     flat = [np.ascontiguousarray(stacked[..., k]).reshape(-1) for k in range(3)]  # corner s of face f at 3 f + s
     corners = [tuple(a[s::3] for a in flat) for s in range(3)]
     nrm, base = _columns(normal), corners[0]
-    plain = np.ones(n_tri, dtype=bool)
-    # edges: slot s joins corners s and s+1; the corner opposite it is s+2
-    a_id = np.concatenate([corner_ids[:, 0], corner_ids[:, 1], corner_ids[:, 2]])
-    b_id = np.concatenate([corner_ids[:, 1], corner_ids[:, 2], corner_ids[:, 0]])
-    lo, hi = np.minimum(a_id, b_id), np.maximum(a_id, b_id)
-    key = lo * (int(corner_ids.max()) + 1) + hi
-    order = np.argsort(key, kind="stable")
-    key = key[order]
-    run_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    run_len = np.diff(np.r_[run_start, len(key)])
-    lonely = np.repeat(run_len != 2, run_len)  # a border (1 face) or a seam of three or more
-    plain[order[lonely] % n_tri] = False
-    first = order[run_start[run_len == 2]]
-    second = order[run_start[run_len == 2] + 1]
-    f1, f2 = first % n_tri, second % n_tri
-    slot = first // n_tri
-    mates = np.full((n_tri, 3), -1, dtype=np.int64)
-    mates[f1, slot] = f2
-    mates[f2, second // n_tri] = f1
-
-    def corner_of(face: np.ndarray, s: np.ndarray) -> Columns:
-        at = 3 * face + s
-        return tuple(a[at] for a in flat)
-
-    ea, eb = corner_of(f1, slot), corner_of(f1, (slot + 1) % 3)
-    c1, c2 = corner_of(f1, (slot + 2) % 3), corner_of(f2, (second // n_tri + 2) % 3)
+    near = NEAR * half_size
     lo_box = tuple(np.minimum(np.minimum(corners[0][k], corners[1][k]), corners[2][k]) for k in range(3))
     hi_box = tuple(np.maximum(np.maximum(corners[0][k], corners[1][k]), corners[2][k]) for k in range(3))
-    near = NEAR * half_size
-    with np.errstate(all="ignore"):
-        for hull in lines.hulls:
-            points = [tuple(float(x) for x in p) for p in hull]
-            dist = [_dot(nrm, _minus(p, base)) for p in points]
-            pos, neg = _same_sign(dist)
-            nearest = np.min(np.abs(np.stack(dist)), axis=0)
-            far = np.zeros(n_tri)
-            for p in points:
-                for c in corners:
-                    w = _minus(c, p)
-                    far = np.maximum(far, np.sqrt(_dot(w, w)))
-                gap = tuple(np.maximum(np.maximum(lo_box[k] - p[k], p[k] - hi_box[k]), 0.0) for k in range(3))
-                plain &= ~(np.sqrt(_dot(gap, gap)) <= near)
-            plain &= (pos | neg) & (nearest >= MIN_SINE * far)
+
+    # the tests of faces and of edges, each a mask of its own, run side by side (NumPy lets go of the GIL)
+    def seen_squarely(points: list[tuple[float, ...]]) -> np.ndarray:
+        """Faces every point sees at a sine of at least MIN_SINE, none of them near."""
+        dist = [_dot(nrm, _minus(p, base)) for p in points]
+        pos, neg = _same_sign(dist)
+        nearest = np.min(np.abs(np.stack(dist)), axis=0)
+        far = np.zeros(n_tri)
+        ok = pos | neg
+        for p in points:
+            for c in corners:
+                w = _minus(c, p)
+                far = np.maximum(far, np.sqrt(_dot(w, w)))
+            gap = tuple(np.maximum(np.maximum(lo_box[k] - p[k], p[k] - hi_box[k]), 0.0) for k in range(3))
+            ok &= ~(np.sqrt(_dot(gap, gap)) <= near)
+        return ok & (nearest >= MIN_SINE * far)
+
+    def seen_along(direction: tuple[float, ...]) -> np.ndarray:
+        return np.abs(_dot(nrm, direction)) >= MIN_SINE
+
+    def clear_of(point: tuple[float, ...], towards: tuple[float, ...]) -> np.ndarray:
+        s = [_dot(_minus(c, point), towards) for c in corners]
+        return np.minimum(np.minimum(s[0], s[1]), s[2]) > near
+
+    face_tests: list[tuple[Callable[..., np.ndarray], tuple]] = \
+        [(seen_squarely, ([tuple(float(x) for x in p) for p in hull],)) for hull in lines.hulls]
+    face_tests += [(seen_along, (tuple(float(x) for x in d),)) for d in lines.directions]
+    face_tests += [(clear_of, (tuple(float(x) for x in p), tuple(float(x) for x in n))) for p, n in lines.starts]
+    with _side_by_side(len(face_tests) + len(lines.hulls) + len(lines.directions)) as run:
+        face_masks = [run(test, *args) for test, args in face_tests]
+        plain = np.ones(n_tri, dtype=bool)
+        # edges: slot s joins corners s and s+1; the corner opposite it is s+2
+        a_id = np.concatenate([corner_ids[:, 0], corner_ids[:, 1], corner_ids[:, 2]])
+        b_id = np.concatenate([corner_ids[:, 1], corner_ids[:, 2], corner_ids[:, 0]])
+        lo, hi = np.minimum(a_id, b_id), np.maximum(a_id, b_id)
+        key = lo * (int(corner_ids.max()) + 1) + hi
+        order = np.argsort(key, kind="stable")
+        key = key[order]
+        run_start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        run_len = np.diff(np.r_[run_start, len(key)])
+        lonely = np.repeat(run_len != 2, run_len)  # a border (1 face) or a seam of three or more
+        plain[order[lonely] % n_tri] = False
+        first = order[run_start[run_len == 2]]
+        second = order[run_start[run_len == 2] + 1]
+        f1, f2 = first % n_tri, second % n_tri
+        slot = first // n_tri
+        mates = np.full((n_tri, 3), -1, dtype=np.int64)
+        mates[f1, slot] = f2
+        mates[f2, second // n_tri] = f1
+
+        def corner_of(face: np.ndarray, s: np.ndarray) -> Columns:
+            at = 3 * face + s
+            return tuple(a[at] for a in flat)
+
+        ea, eb = corner_of(f1, slot), corner_of(f1, (slot + 1) % 3)
+        c1, c2 = corner_of(f1, (slot + 2) % 3), corner_of(f2, (second // n_tri + 2) % 3)
+
+        def folds_seen_from(points: list[tuple[float, ...]]) -> np.ndarray:
+            """Edges where, seen from the points, the two faces lie on one side (a silhouette)."""
             planes = [(_cross(_minus(ea, p), _minus(eb, p)), p) for p in points]  # through the edge and p
-            fold = _folds([_dot(through, _minus(c1, p)) for through, p in planes],
+            return _folds([_dot(through, _minus(c1, p)) for through, p in planes],
                           [_dot(through, _minus(c2, p)) for through, p in planes])
-            plain[f1[fold]] = False
-            plain[f2[fold]] = False
-        for d in lines.directions:
-            direction = tuple(float(x) for x in d)
-            plain &= np.abs(_dot(nrm, direction)) >= MIN_SINE
+
+        def folds_along(direction: tuple[float, ...]) -> np.ndarray:
             through = _cross(_minus(eb, ea), direction)
-            fold = _folds([_dot(through, _minus(c1, ea))], [_dot(through, _minus(c2, ea))])
+            return _folds([_dot(through, _minus(c1, ea))], [_dot(through, _minus(c2, ea))])
+
+        edge_masks = [run(folds_seen_from, [tuple(float(x) for x in p) for p in hull]) for hull in lines.hulls]
+        edge_masks += [run(folds_along, tuple(float(x) for x in d)) for d in lines.directions]
+        for mask in face_masks:
+            plain &= mask.result()
+        for mask in edge_masks:
+            fold = mask.result()
             plain[f1[fold]] = False
             plain[f2[fold]] = False
-        for point, plane_normal in lines.starts:  # rays that start on a plane: keep a proxy on what lies near it
-            at, towards = tuple(float(x) for x in point), tuple(float(x) for x in plane_normal)
-            s = [_dot(_minus(c, at), towards) for c in corners]
-            plain &= np.minimum(np.minimum(s[0], s[1]), s[2]) > near
     mates[~plain] = -1
     return plain, mates
