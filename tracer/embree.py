@@ -53,7 +53,8 @@ def frame(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
 class Bvh:
     """An Embree BVH over proxy triangles ``vertices (V, 3)`` (local) and ``faces (F, 3)``."""
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, centre: np.ndarray, half_size: float):
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray, centre: np.ndarray, half_size: float,
+                 commit: bool = True):
         self.centre = centre
         self.half_size = half_size
         self.inv = 1.0 / half_size
@@ -67,7 +68,13 @@ class Bvh:
         except (TypeError, ValueError):  # an embreex that reads typed arrays instead: hand it those
             self._scene = rtcore_scene.EmbreeScene(robust=True)
             TriangleMesh(self._scene, corners, faces)
-        # commit now, on this thread, so that concurrent queries never race to commit
+        if commit:
+            self.commit()
+
+    def commit(self) -> None:
+        """Build Embree's tree now (the first query would), so that concurrent queries never race to do it.
+        Embree builds without the GIL: another thread may go on meanwhile, but must not query before this
+        returns."""
         self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
 
     def _rays(self, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> tuple[np.ndarray, ...]:

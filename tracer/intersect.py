@@ -27,6 +27,7 @@ than :data:`DIRECT_MAX` of them, there is no Embree scene at all.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -211,15 +212,17 @@ class Intersector:
         some_plain = plain is not None and bool(plain.any())
         #: a plain triangle's faces across its edges, which a shadow ray leaving it never meets (n_tri, 3)
         self.mates = mates if some_plain else None
-        self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids,
-                                         neighbours=not some_plain)
-        # plain faces come in meshes of many like-sized faces: cells are cheaper to build than neighbour pairs
-        self.cells = build_cells(p.lo, p.hi, 2.0 * p.gap) if some_plain else None
-        if some_plain and self.cells is None:
-            find_neighbours(p, len(v0), center, radius)
+        self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids, neighbours=False)
+        self.bvh = Bvh(p.vertices, p.faces, centre, half, commit=False)
+        with ThreadPoolExecutor(max_workers=1) as pool:  # Embree builds its tree while the walk's tables are made
+            committed = pool.submit(self.bvh.commit)
+            # plain faces come in meshes of many like-sized faces: cells are cheaper to build than neighbour pairs
+            self.cells = build_cells(p.lo, p.hi, 2.0 * p.gap) if some_plain else None
+            if self.cells is None:
+                find_neighbours(p, len(v0), center, radius)
+            committed.result()
         self.box_lo = lowest(p.lo) - p.step * 4 - p.slack
         self.box_hi = highest(p.hi) + p.step * 4 + p.slack
-        self.bvh = Bvh(p.vertices, p.faces, centre, half)
         # a walk passes at least one crossing per step, and with cells a new part of a cell; a ray crosses a face
         # once
         self.max_steps = len(p.faces) + (0 if self.cells is None else len(self.cells.keys) * SUB**3) + 2
