@@ -8,7 +8,7 @@ from typing import Any
 # phongray uses no pydantic plugins; not looking for any saves scanning every installed package at start-up
 os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
-from .checks import parallel, triples  # noqa: E402
+from .checks import parallel  # noqa: E402
 from .errors import SceneError, format_problem, parse_json  # noqa: E402
 from .scene import (AmbientLight, AreaLight, Camera, DirectionalLight, Image, Material, Mesh,  # noqa: E402
                     Plane, PointLight, Scene, Sphere, SpotLight, Triangle)
@@ -17,7 +17,7 @@ from .validation import validate_scene  # noqa: E402
 __all__ = [
     "AmbientLight", "AreaLight", "Camera", "DirectionalLight", "Image", "Material", "Mesh", "Plane",
     "PointLight", "Scene", "SceneError", "Sphere", "SpotLight", "Triangle", "format_problem",
-    "json_schema", "load_scene", "parallel", "triples", "validate_scene",
+    "json_schema", "load_scene", "parallel", "validate_scene",
 ]
 
 

@@ -7,8 +7,10 @@ checked afterwards by :mod:`schemas.checks`, which can name the exact place.
 
 from __future__ import annotations
 
+from itertools import chain
 from typing import Annotated, Any, Literal, Union
 
+import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictFloat, StrictInt
 
 Number = StrictFloat
@@ -96,6 +98,35 @@ class Mesh(Strict):
     vertices: list[Vec3]
     faces: list[tuple[FaceIndex, FaceIndex, FaceIndex]]
     normals: list[Vec3] | None = None
+    def rows(self, name: str) -> np.ndarray:
+        """``vertices``, ``faces`` or ``normals`` (not None) as an ``(N, 3)`` array, float64 or int64 for faces:
+        read once, then shared (read-only) by the checks and the tracer."""
+        rows = getattr(self, name)
+        read = self.__dict__.get("_read")
+        if read is None:  # kept beside the fields (a frozen model's fields cannot change)
+            read = _Read()
+            object.__setattr__(self, "_read", read)
+        kept = read.arrays.get(name)
+        if kept is None or kept[0] is not rows:  # (a copy with other lists reads its own)
+            out = np.fromiter(chain.from_iterable(rows), dtype=np.int64 if name == "faces" else np.float64,
+                              count=3 * len(rows)).reshape(-1, 3)
+            out.flags.writeable = False
+            kept = read.arrays[name] = (rows, out)
+        return kept[1]
+
+
+class _Read:
+    """The arrays :meth:`Mesh.rows` has read, each with the list it came from.  Not part of the mesh's value:
+    any two compare equal, so two meshes are equal when their fields are, read or not."""
+
+    __slots__ = ("arrays",)
+    __hash__ = None  # type: ignore[assignment]
+
+    def __init__(self) -> None:
+        self.arrays: dict[str, tuple[list, np.ndarray]] = {}
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _Read)
 
 
 Object = Annotated[Union[Sphere, Plane, Triangle, Mesh], Field(discriminator="type")]

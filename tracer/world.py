@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from schemas import Mesh, Plane, Scene, Sphere, Triangle, triples
+from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .lights import Emitters, build_emitters
 from .vec import cross, divided, dot, highest, lowest, most, rows_of
@@ -121,8 +121,10 @@ def scene_centre(scene: Scene) -> np.ndarray:
         r = np.array([b.radius for b in balls], dtype=F64)[:, None]
         points += [c - r, c + r]
     for obj in scene.objects:
-        if isinstance(obj, Triangle) or (isinstance(obj, Mesh) and obj.faces):
-            points.append(triples(obj.vertices, F64))
+        if isinstance(obj, Triangle):
+            points.append(np.asarray(obj.vertices, dtype=F64))
+        elif isinstance(obj, Mesh) and obj.faces:
+            points.append(obj.rows("vertices"))
     for light in scene.lights:
         for key in ("position", "corner"):
             if hasattr(light, key):
@@ -202,14 +204,13 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
             normals.append(np.zeros((1, 3, 3)))
             smooth.append(np.zeros(1, dtype=bool))
         elif isinstance(obj, Mesh) and obj.faces:
-            verts = triples(obj.vertices, F64)
-            faces = triples(obj.faces, np.int64)
+            verts, faces = obj.rows("vertices"), obj.rows("faces")
             ids.append(faces + count)
             count += len(verts)
             corners.append(rows_of(verts, faces))
             materials.append(np.full(len(faces), names[obj.material]))
             if obj.normals is not None:
-                normals.append(rows_of(triples(obj.normals, F64), faces))
+                normals.append(rows_of(obj.rows("normals"), faces))
                 smooth.append(np.ones(len(faces), dtype=bool))
             else:
                 normals.append(np.zeros((len(faces), 3, 3)))
