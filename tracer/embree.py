@@ -12,7 +12,10 @@ GIL, so calls from several threads on one committed scene run in parallel.
 
 from __future__ import annotations
 
+import gc
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 from embreex import rtcore_scene
@@ -41,6 +44,20 @@ def _as_objects(corners: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.
     return corners.astype(np.float64).astype(object), np.fromiter(zip(a, b, c), dtype=object, count=len(faces))
 
 
+@contextmanager
+def _collector_paused() -> Iterator[None]:
+    """No garbage collection inside the block (unless it was off already, when it stays off).  Python counts
+    every tuple :func:`_as_objects` makes towards its next collection, which would walk the whole heap
+    (a scene's own lists of tuples among it) many times over: 40 ms of a bench-mesh render."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
 def frame(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre and half-size (a power of two) of the box ``lo..hi``."""
     centre = (lo + hi) / 2.0
@@ -64,7 +81,8 @@ class Bvh:
         self._scene = rtcore_scene.EmbreeScene(robust=True)
         corners, faces = _f32((vertices - centre) * self.inv), np.ascontiguousarray(faces, dtype=np.int32)
         try:
-            TriangleMesh(self._scene, *_as_objects(corners, faces))
+            with _collector_paused():  # the copy's 10^5 tuples are dropped again before it ends: nothing to collect
+                TriangleMesh(self._scene, *_as_objects(corners, faces))
         except (TypeError, ValueError):  # an embreex that reads typed arrays instead: hand it those
             self._scene = rtcore_scene.EmbreeScene(robust=True)
             TriangleMesh(self._scene, corners, faces)
