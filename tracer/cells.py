@@ -121,11 +121,13 @@ class Cells:
         keep = ((self.parts[at] >> bit.astype(np.uint64)[own]) & np.uint64(1)).astype(bool)
         if whole.any():
             keep |= whole[own]
-        members = self.members[at]
-        if but is not None:
+        own, members = own[keep], self.members[at[keep]]
+        if but is not None:  # (on the few candidates the parts keep)
+            keep = np.ones(len(own), dtype=bool)
             for column in (but[:, None] if but.ndim == 1 else but).T:
                 keep &= members != column[own]
-        return rows[own[keep]], members[keep]
+            own, members = own[keep], members[keep]
+        return rows[own], members
 
 
 def _finite(a: np.ndarray, fill: float) -> np.ndarray:
