@@ -276,3 +276,35 @@ def test_a_ray_from_a_plain_face_to_a_light_or_the_eye_never_meets_its_mates():
         hit, _, _ = triangle_t(eye + 0 * d, d, t.v0[g], t.e1[g], t.e2[g], t.normal[g], np.abs(eye).max() + 1.0,
                                t.mag[g], uv=False)
         assert not np.any(np.isfinite(hit))
+
+
+def helicoid(turns=2, n=48, rings=6, pitch=0.15):
+    """A ramp winding ``turns`` times about the y axis: its sheets overlap seen from above, and each face's
+    mates are only its neighbours along the ramp."""
+    verts = []
+    for i in range(n * turns + 1):
+        a = 2 * math.pi * i / n
+        radii = np.linspace(0.2, 1.2, rings + 1).tolist()
+        verts += [[r * math.cos(a), 0.4 + pitch * i / n, r * math.sin(a)] for r in radii]
+    w = rings + 1
+    faces = []
+    for i in range(n * turns):
+        for j in range(rings):
+            a, b, c, d = i * w + j, i * w + j + 1, (i + 1) * w + j, (i + 1) * w + j + 1
+            faces += [[a, c, b], [b, c, d]]
+    return {"type": "mesh", "material": "m", "vertices": verts, "faces": faces}
+
+
+@pytest.mark.parametrize("camera", [[0.2, 3, 0.3], [2.5, 1.2, 2]])
+def test_a_ramp_over_itself_and_a_terrain_under_its_copy_agree_with_the_brute_force(camera):
+    rng = np.random.default_rng(3)
+    bumpy = open_floor(1.2, n=16)
+    bumpy["vertices"] = [[x, float(rng.uniform(0, 0.12)), z] for x, _, z in bumpy["vertices"]]
+    copy = bumpy | {"vertices": [[x, y + 1e-6, z] for x, y, z in bumpy["vertices"]]}
+    lights = [{"type": "point", "color": 1, "position": [0.3, 2.5, -0.2]},
+              {"type": "point", "color": 1, "position": [-1.8, 0.9, 0.5]}]
+    cam = {"position": camera, "look_at": [0, 0.5, 0]}
+    for objects in ([helicoid()], [bumpy, copy]):
+        data = scene(objects, lights, cam, width=80, height=60)
+        assert Renderer(schemas.validate_scene(data)).intersector.mates is not None  # plain faces, mates skipped
+        agrees_with_brute_force(data)
