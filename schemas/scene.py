@@ -98,6 +98,7 @@ class Mesh(Strict):
     vertices: list[Vec3]
     faces: list[tuple[FaceIndex, FaceIndex, FaceIndex]]
     normals: list[Vec3] | None = None
+
     def rows(self, name: str) -> np.ndarray:
         """``vertices``, ``faces`` or ``normals`` (not None) as an ``(N, 3)`` array, float64 or int64 for faces:
         read once, then shared (read-only) by the checks and the tracer."""

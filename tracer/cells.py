@@ -111,15 +111,16 @@ class Cells:
             rows, region = rows[some], region[some]
             but = None if but is None else but[some]
         whole = region >= self.whole_base
+        some_whole = bool(whole.any())
         cell, bit = np.divmod(region, SUB**3)
-        if whole.any():
+        if some_whole:
             cell = np.where(whole, region - self.whole_base, cell)
         first = self.start[cell]
         count = self.start[cell + 1] - first
         own = np.repeat(np.arange(len(region)), count)  # each candidate's row; the rest are gathers by it
         at = (first - np.cumsum(count) + count)[own] + np.arange(len(own))
         keep = ((self.parts[at] >> bit.astype(np.uint64)[own]) & np.uint64(1)).astype(bool)
-        if whole.any():
+        if some_whole:
             keep |= whole[own]
         own, members = own[keep], self.members[at[keep]]
         if but is not None:  # (on the few candidates the parts keep)

@@ -342,42 +342,48 @@ class Intersector:
         leaving = from_prim[r] == q
         e, me = shared_rows(ends, r), shared_rows(mag_e, r)
         any_hit = reach is not None  # a shadow walk: only whether something lies before the light matters
+        u = v = None
         if is_tri:
             tr = w.triangles
             t, u, v = triangle_t(rows_of(o, r), rows_of(d, r), rows_of(tr.v0, k), rows_of(tr.e1, k), rows_of(tr.e2, k),
                                  rows_of(tr.normal, k), mag_o[r], tr.mag[k], leaving, e, me, uv=not any_hit)
-            if any_hit:
-                best.block(r, t)
-            else:
-                best.offer(r, t, TRIANGLE, k, u, v)
         else:
             sp = w.spheres
             t = sphere_t(rows_of(o, r), rows_of(d, r), rows_of(sp.center, k), sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
                          None if reach is None else reach[r], me)
-            if any_hit:
-                best.block(r, t)
-            else:
-                best.offer(r, t, SPHERE, k)
+        if any_hit:
+            best.block(r, t)
+        else:
+            best.offer(r, t, TRIANGLE if is_tri else SPHERE, k, u, v)
+
+    def _with_mates(self, prims: np.ndarray, where: np.ndarray) -> np.ndarray:
+        """``prims (n,)`` (−1 for none) and, where ``where``, a plain triangle's mates (its faces across its
+        edges, :func:`tracer.sightlines.plain_triangles`): ``(n, 4)`` primitive ids, −1 for none, or ``(n, 1)``
+        in a scene without mates."""
+        if self.mates is None:
+            return prims[:, None]
+        out = np.full((len(prims), 4), -1, dtype=np.int64)
+        out[:, 0] = prims
+        tri = np.flatnonzero(where & (prims >= 0) & (prims < self.n_tri))
+        out[tri, 1:] = rows_of(self.mates, prims[tri])
+        return out
 
     def _tested(self, best: _Best, rows: np.ndarray, prims: np.ndarray, any_hit: bool) -> np.ndarray:
         """What the rays ``rows``, having just tested the primitives ``prims`` they crossed, need not test again
-        at that crossing: ``(n, 4)`` primitive ids, −1 for none.
+        at that crossing (as :meth:`_with_mates` gives it).
 
-        The primitive itself; and, for a camera ray that hits a plain triangle well inside it, the faces across
-        its edges (:func:`tracer.sightlines.plain_triangles`): the plane through such an edge and the eye (or
-        along the view) has the ray's line on the triangle's side, so the ray meets no mate anywhere.
+        The primitive itself; and, for a camera ray that hits a plain triangle well inside it, its mates: the
+        plane through a shared edge and the eye (or along the view) has the ray's line on the triangle's side,
+        so the ray meets no mate anywhere.
         """
-        out = np.full((len(rows), 4), -1, dtype=np.int64)
-        out[:, 0] = prims
-        if any_hit or self.mates is None or len(rows) == 0:
-            return out
-        tri = np.flatnonzero(prims < self.n_tri)
-        k = self.prim_index[prims[tri]]
-        u, v = best.uv[rows[tri], 0], best.uv[rows[tri], 1]
-        inside = (best.key[rows[tri]] == (TRIANGLE << 48) | k) & (u > INSIDE) & (v > INSIDE) & (1.0 - u - v > INSIDE)
-        tri = tri[inside]
-        out[tri, 1:] = rows_of(self.mates, prims[tri])
-        return out
+        inside = np.zeros(len(rows), dtype=bool)
+        if not any_hit and self.mates is not None:
+            tri = np.flatnonzero(prims < self.n_tri)
+            k = self.prim_index[prims[tri]]
+            u, v = best.uv[rows[tri], 0], best.uv[rows[tri], 1]
+            inside[tri] = ((best.key[rows[tri]] == (TRIANGLE << 48) | k) & (u > INSIDE) & (v > INSIDE)
+                           & (1.0 - u - v > INSIDE))
+        return self._with_mates(prims, inside)
 
     def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
               ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,
@@ -403,10 +409,8 @@ class Intersector:
         if len(inside) and cells is not None:  # everything near a start is in its part of a cell: test it now
             cell, lo, hi = cells.locate(rows_of(o, inside))
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
-            but = np.where(q < self.n_tri, q, -1)
-            if any_hit and self.mates is not None:  # nor, on its way to a light, are a plain triangle's mates
-                mates = rows_of(self.mates, np.minimum(q, self.n_tri - 1))
-                but = np.column_stack([but, np.where((q < self.n_tri)[:, None], mates, -1)])
+            # nor, on its way to a light, are a plain triangle's mates
+            but = self._with_mates(np.where(q < self.n_tri, q, -1), np.full(len(q), any_hit))
             self._test(best, *cells.pairs(inside, cell, but), o, d, from_prim, mag_o, ends, reach, mag_e)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             last[inside] = cell
@@ -433,6 +437,7 @@ class Intersector:
             far = np.minimum(limit[live] + margin[live] + p.slack, t_out[live]) - s
             o_l, d_l = rows_of(o, live), rows_of(d, live)
             live = live[bvh.any_hit(along(o_l, s, d_l), d_l, far)]
+        first = any_hit or self.mates is not None  # test the crossed primitive before the rest of its region
         for step in range(self.max_steps):
             if len(live) == 0:
                 break
@@ -451,7 +456,6 @@ class Intersector:
             else:  # after the first pass, the few rays left (grazing a surface, say) step a whole cell at a time
                 region, lo, hi = cells.locate(along(o_l, s + tau, d_l), whole=step > 0)
             fresh = last[live] != region
-            first = any_hit or self.mates is not None
             if first:  # the primitive crossed first: a ray it blocks needs no neighbour
                 rows = live[fresh]
                 self._test(best, rows, prim[fresh], o, d, from_prim, mag_o, ends, reach, mag_e)
