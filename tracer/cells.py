@@ -122,13 +122,15 @@ class Cells:
         keep = ((self.parts[at] >> bit.astype(np.uint64)[own]) & np.uint64(1)).astype(bool)
         if some_whole:
             keep |= whole[own]
-        own, members = own[keep], self.members[at[keep]]
+        kept = np.flatnonzero(keep)  # (a gather by index is several times faster than by a mask here)
+        own, members = np.take(own, kept), np.take(self.members, np.take(at, kept))
         if but is not None:  # (on the few candidates the parts keep)
             keep = np.ones(len(own), dtype=bool)
             for column in (but[:, None] if but.ndim == 1 else but).T:
-                keep &= members != column[own]
-            own, members = own[keep], members[keep]
-        return rows[own], members
+                keep &= members != np.take(column, own)
+            kept = np.flatnonzero(keep)
+            own, members = np.take(own, kept), np.take(members, kept)
+        return np.take(rows, own), members
 
 
 def _finite(a: np.ndarray, fill: float) -> np.ndarray:

@@ -83,6 +83,21 @@ def _nothing() -> None:
     return None
 
 
+def _gathered(*columns: np.ndarray) -> np.ndarray:
+    """``(N, k)`` and ``(N,)`` arrays side by side in one ``(N, Σk)`` array, so that the walk gathers a ray's
+    (or a primitive's) values with one row copy instead of one per array: pairs come in no spatial order, and
+    a gather's cost is its cache misses (measured on 150k random rows of 208k: 4 ms against 20 ms for four
+    ``(N, 3)`` arrays)."""
+    return np.concatenate([c if c.ndim == 2 else c[:, None] for c in columns], axis=1)
+
+
+def _columns_of(rows: np.ndarray) -> np.ndarray:
+    """Gathered rows ``(n, k)`` as ``(k, n)`` columns, each contiguous: ``out[0:3].T`` is then an ``(n, 3)``
+    view whose x, y and z (all :mod:`tracer.vec` reads) are contiguous, faster to compute on than the rows'
+    own strided columns (measured: a triangle test 4.7 ms against 11.4 ms on 100k pairs, 2.7 ms to copy)."""
+    return np.ascontiguousarray(rows.T)
+
+
 def slab(origins: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Where each ray's line enters and leaves the box ``lo..hi`` (empty when enter > leave). Each (N,).
 
@@ -197,6 +212,10 @@ class Intersector:
         self.sphere_prim[bvh_spheres] = np.arange(len(bvh_spheres)) + len(bvh_tris)
         if len(self.prim_index) == 0:
             return
+        #: each triangle's v0, e1, e2, normal and magnitude in one row (T, 13); each sphere's centre, radius and
+        #: magnitude (S, 5): what an exact test reads of it
+        self.tri_rows = _gathered(tris.v0, tris.e1, tris.e2, tris.normal, tris.mag)
+        self.sphere_rows = _gathered(spheres.center, spheres.radius, spheres.mag)
         every = len(bvh_tris) == len(tris.v0)  # as usual: then no copies
 
         def mine(a: np.ndarray) -> np.ndarray:
@@ -321,36 +340,42 @@ class Intersector:
             return np.repeat(rows, count), rep
         return np.repeat(rows, count), np.where(k < 0, rep, p.neighbours[np.maximum(p.start[rep] + k, 0)])
 
-    def _test(self, best: _Best, rows: np.ndarray, prims: np.ndarray, o: np.ndarray, d: np.ndarray,
-              from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
-              mag_e: np.ndarray | None) -> None:
-        """Test BVH primitives ``prims`` exactly against rays ``rows`` (pairs; either may repeat)."""
+    def _test(self, best: _Best, rows: np.ndarray, prims: np.ndarray, rays: np.ndarray, from_prim: np.ndarray,
+              ends: np.ndarray | None, reach: np.ndarray | None, mag_e: np.ndarray | None) -> None:
+        """Test BVH primitives ``prims`` exactly against rays ``rows`` (pairs; either may repeat) of ``rays``,
+        the walk's origin, direction and magnitude of each ray in one row (:meth:`_walk`)."""
         tri = prims < self.n_tri
-        for is_tri in (True, False):
-            chosen = np.flatnonzero(tri == is_tri)
-            for at in range(0, len(chosen), PAIR_SLICE):  # bounded temporaries: a crossing brings ~14 neighbours
-                self._test_kind(best, is_tri, rows, prims, chosen[at:at + PAIR_SLICE], o, d, from_prim, mag_o,
+        n_tri = int(np.count_nonzero(tri))
+        for is_tri, count in ((True, n_tri), (False, len(prims) - n_tri)):
+            if count == 0:
+                continue
+            if count < len(prims):
+                chosen = np.flatnonzero(tri == is_tri)
+                r, q = np.take(rows, chosen), np.take(prims, chosen)
+            else:  # (all of one kind, as in a mesh: no copies)
+                r, q = rows, prims
+            for at in range(0, count, PAIR_SLICE):  # bounded temporaries: a crossing brings ~14 neighbours
+                self._test_kind(best, is_tri, r[at:at + PAIR_SLICE], q[at:at + PAIR_SLICE], rays, from_prim,
                                 ends, reach, mag_e)
 
-    def _test_kind(self, best: _Best, is_tri: bool, rows: np.ndarray, prims: np.ndarray, sel: np.ndarray,
-                   o: np.ndarray, d: np.ndarray, from_prim: np.ndarray, mag_o: np.ndarray, ends: np.ndarray | None,
-                   reach: np.ndarray | None, mag_e: np.ndarray | None) -> None:
-        """The pairs ``sel`` of :meth:`_test`, all of one kind (triangles when ``is_tri``)."""
-        w = self.world
-        r, q = rows[sel], prims[sel]
-        k = self.prim_index[q]
-        leaving = from_prim[r] == q
+    def _test_kind(self, best: _Best, is_tri: bool, r: np.ndarray, q: np.ndarray, rays: np.ndarray,
+                   from_prim: np.ndarray, ends: np.ndarray | None, reach: np.ndarray | None,
+                   mag_e: np.ndarray | None) -> None:
+        """Rays ``r`` against primitives ``q`` of :meth:`_test`, all of one kind (triangles when ``is_tri``)."""
+        k = np.take(self.prim_index, q)
+        leaving = np.take(from_prim, r) == q
         e, me = shared_rows(ends, r), shared_rows(mag_e, r)
         any_hit = reach is not None  # a shadow walk: only whether something lies before the light matters
         u = v = None
+        ray = _columns_of(rows_of(rays, r))  # one gather per pair for the ray, one for the primitive (_gathered)
+        o, d, mag_o = ray[0:3].T, ray[3:6].T, ray[6]
         if is_tri:
-            tr = w.triangles
-            t, u, v = triangle_t(rows_of(o, r), rows_of(d, r), rows_of(tr.v0, k), rows_of(tr.e1, k), rows_of(tr.e2, k),
-                                 rows_of(tr.normal, k), mag_o[r], tr.mag[k], leaving, e, me, uv=not any_hit)
+            g = _columns_of(rows_of(self.tri_rows, k))
+            t, u, v = triangle_t(o, d, g[0:3].T, g[3:6].T, g[6:9].T, g[9:12].T, mag_o, g[12], leaving, e, me,
+                                 uv=not any_hit)
         else:
-            sp = w.spheres
-            t = sphere_t(rows_of(o, r), rows_of(d, r), rows_of(sp.center, k), sp.radius[k], mag_o[r], sp.mag[k], leaving, e,
-                         None if reach is None else reach[r], me)
+            g = _columns_of(rows_of(self.sphere_rows, k))
+            t = sphere_t(o, d, g[0:3].T, g[3], mag_o, g[4], leaving, e, None if reach is None else reach[r], me)
         if any_hit:
             best.block(r, t)
         else:
@@ -398,6 +423,7 @@ class Intersector:
         sph = fk == SPHERE
         from_prim[sph] = self.sphere_prim[fi[sph]]
         limit = best.t.copy()
+        rays = _gathered(o, d, mag_o)
         t_in, t_out = slab(o, d, self.box_lo, self.box_hi)
         start = t_in.copy()
         margin = np.zeros(n)
@@ -411,17 +437,16 @@ class Intersector:
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
             # nor, on its way to a light, are a plain triangle's mates
             but = self._with_mates(np.where(q < self.n_tri, q, -1), np.full(len(q), any_hit))
-            self._test(best, *cells.pairs(inside, cell, but), o, d, from_prim, mag_o, ends, reach, mag_e)
+            self._test(best, *cells.pairs(inside, cell, but), rays, from_prim, ends, reach, mag_e)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             last[inside] = cell
         elif len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
             q = from_prim[inside]
-            self._test(best, *self._with_neighbours(inside, q, itself=False), o, d, from_prim, mag_o, ends, reach,
-                       mag_e)
+            self._test(best, *self._with_neighbours(inside, q, itself=False), rays, from_prim, ends, reach, mag_e)
             ball = np.flatnonzero(q >= self.n_tri)  # a sphere left inward is met again at its far side
             centre = self.world.spheres.center[self.prim_index[q[ball]]]
             inward = ball[dot(o[inside[ball]] - centre, d[inside[ball]]) < 0]
-            self._test(best, inside[inward], q[inward], o, d, from_prim, mag_o, ends, reach, mag_e)
+            self._test(best, inside[inward], q[inward], rays, from_prim, ends, reach, mag_e)
             start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
             margin[inside] = p.container[q]
 
@@ -458,7 +483,7 @@ class Intersector:
             fresh = last[live] != region
             if first:  # the primitive crossed first: a ray it blocks needs no neighbour
                 rows = live[fresh]
-                self._test(best, rows, prim[fresh], o, d, from_prim, mag_o, ends, reach, mag_e)
+                self._test(best, rows, prim[fresh], rays, from_prim, ends, reach, mag_e)
                 if any_hit:
                     fresh[fresh] = ~(best.t[rows] < limit[rows])
             if cells is None:
@@ -466,7 +491,7 @@ class Intersector:
             else:
                 pairs = cells.pairs(live[fresh], region[fresh], self._tested(best, live[fresh], prim[fresh], any_hit)
                                     if first else None)
-            self._test(best, *pairs, o, d, from_prim, mag_o, ends, reach, mag_e)
+            self._test(best, *pairs, rays, from_prim, ends, reach, mag_e)
             last[live] = region
             # every crossing inside the box of the proxy just crossed belongs to it or a neighbour (inside the
             # crossing's part of a cell, to a member of that part), all tested now: the walk goes on from where
