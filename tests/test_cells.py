@@ -6,6 +6,7 @@ walked), and the two must give the same bytes and agree with the float64
 brute force of test_exactness.
 """
 
+from dataclasses import replace
 from unittest import mock
 
 import numpy as np
@@ -86,6 +87,20 @@ def test_points_in_no_cell_and_pairs():
     rows_but, prims_but = cells.pairs(np.array([10, 11, 12]), inside, np.array([0, -1, 2]))
     assert 0 not in prims_but[rows_but == 10] and 2 not in prims_but[rows_but == 12]
     assert np.array_equal(prims_but[rows_but == 11], prims[rows == 11])
+
+
+def test_a_grid_too_large_for_a_table_finds_the_same_cells_by_search():
+    lo, hi = random_boxes(300)
+    cells = build_cells(lo, hi, 0.01)
+    assert cells.table is not None  # a small grid: cells are found by a table
+    points = np.vstack([np.random.default_rng(4).uniform(-1.2, 1.3, (3000, 3)), (lo + hi) / 2,
+                        [[np.nan, 0, 0], [np.inf, 0, 0], [-np.inf, 1e300, 0]]])
+    searched = replace(cells, table=None)
+    for whole in (False, True):
+        by_table, by_search = cells.locate(points, whole), searched.locate(points, whole)
+        assert (by_table[0] >= 0).sum() > 300 and (by_table[0] < 0).sum() > 300
+        for a, b in zip(by_table, by_search):
+            assert np.array_equal(a, b, equal_nan=True)
 
 
 def test_cells_give_way_to_neighbour_lists_past_their_budget():

@@ -36,6 +36,8 @@ SUB = 4
 SPAN = 2
 #: the registrations a scene may have, per primitive (beyond a floor of 2^20), before cells give way to pairs
 BUDGET_PER = 32
+#: a grid of at most this many cells (or 4 per occupied cell) finds cells by a table, not a binary search
+TABLE_MAX = 1 << 22
 
 
 def _spans() -> np.ndarray:
@@ -65,6 +67,8 @@ class Cells:
     start: np.ndarray  # (C + 1,) members of cell c: ``members[start[c]:start[c + 1]]``
     members: np.ndarray  # (R,) int64 primitive ids
     parts: np.ndarray  # (R,) uint64 which parts of its cell each member's box comes near
+    #: (dims.prod(),) int32 each cell's index in :attr:`keys`, −1 for none; None for a grid too large for it
+    table: np.ndarray | None = None
 
     def locate(self, points: np.ndarray, whole: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For points (N, 3): the part of a cell each lies in, as ``cell · SUB³ + part`` with the cell's index
@@ -76,10 +80,15 @@ class Cells:
             k = np.floor((points - self.origin) / self.size)
         k = np.clip(_finite(k, -1.0), -1, self.dims).astype(np.int64)
         corner = self.origin + k * self.size
-        inside = np.all((k >= 0) & (k < self.dims), axis=1)
+        inside = (k[:, 0] >= 0) & (k[:, 1] >= 0) & (k[:, 2] >= 0)  # (a column at a time, see tracer.vec)
+        inside &= (k[:, 0] < self.dims[0]) & (k[:, 1] < self.dims[1]) & (k[:, 2] < self.dims[2])
         key = self._key(np.where(inside[:, None], k, 0))
-        at = np.minimum(np.searchsorted(self.keys, key), len(self.keys) - 1)
-        found = inside & (self.keys[at] == key)
+        if self.table is not None:
+            at = np.take(self.table, key).astype(np.int64)
+            found = inside & (at >= 0)
+        else:
+            at = np.minimum(np.searchsorted(self.keys, key), len(self.keys) - 1)
+            found = inside & (self.keys[at] == key)
         if whole:
             return np.where(found, self.whole_base + at, -1), corner, corner + self.size
         part = self._parts_of(points, corner)
@@ -216,6 +225,10 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells | None:
     first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     cells.keys = key[first]
     cells.start = np.r_[first, total].astype(np.int64)
+    grid = int(dims.prod())
+    if grid <= max(TABLE_MAX, 4 * len(cells.keys)) and grid < 1 << 31:
+        cells.table = np.full(grid, -1, dtype=np.int32)
+        cells.table[cells.keys] = np.arange(len(cells.keys), dtype=np.int32)
     cells.members = owner[order]
     cells.parts = part[order]
     return cells
