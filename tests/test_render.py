@@ -176,3 +176,24 @@ def test_cancel_stops_a_render_inside_a_single_long_chunk():
     with pytest.raises(RenderCancelled):
         renderer.pixels(threads=1, cancel=lambda: time.perf_counter() - started > 0.3)
     assert time.perf_counter() - started < 2.0
+
+
+@pytest.mark.parametrize("name", ["02_all_lights", "05_mesh"])
+def test_a_dropped_renderer_is_freed_at_once(name):
+    """No reference cycle keeps a finished render's arrays and BVH alive until the garbage collector runs: a
+    long-running service or a benchmark would otherwise hold several renders' memory at a time."""
+    import gc
+    import weakref
+
+    scene = schemas.validate_scene(scene_dict(name))
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        renderer = Renderer(scene)
+        renderer.pixels(threads=2, chunk_rays=4096, cancel=lambda: False)
+        alive = weakref.ref(renderer), weakref.ref(renderer.intersector), weakref.ref(renderer.intersector.bvh)
+        del renderer
+        assert [ref() is None for ref in alive] == [True, True, True]
+    finally:
+        if enabled:
+            gc.enable()

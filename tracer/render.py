@@ -54,6 +54,19 @@ class RenderCancelled(Exception):
     """Raised by :meth:`Renderer.pixels` when its ``cancel`` callback asked it to stop."""
 
 
+class _Stop:
+    """Raises :class:`RenderCancelled` when called once the caller's ``cancel`` returns True.  The renderer and
+    its intersector both poll it; it holds no reference back to the renderer, so that a renderer dropped by
+    its caller is freed at once (a cycle would keep its arrays and BVH until the garbage collector ran)."""
+
+    def __init__(self) -> None:
+        self.cancel: Callable[[], bool] | None = None
+
+    def __call__(self) -> None:
+        if self.cancel is not None and self.cancel():
+            raise RenderCancelled("the render was cancelled")
+
+
 class Renderer:
     """A scene prepared for tracing; :meth:`pixels` renders it.
 
@@ -73,7 +86,7 @@ class Renderer:
             raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
                                 f"({MAX_LIGHT_SAMPLES})")
         self.scene = scene
-        self._cancel: Callable[[], bool] | None = None
+        self._stop = _Stop()
         self.slice_rays = CHUNK_RAYS
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
@@ -81,7 +94,7 @@ class Renderer:
             self.world: World = build_world(scene)
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
-        self.intersector.check = self._check
+        self.intersector.check = self._stop
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
@@ -95,7 +108,7 @@ class Renderer:
         skipped and :class:`RenderCancelled` is raised.
         """
         img = self.scene.image
-        self._cancel = cancel
+        self._stop.cancel = cancel
         self.slice_rays = chunk_rays
         top, bottom = rows if rows is not None else (0, img.height)
         if not 0 <= top <= bottom <= img.height:
@@ -190,8 +203,7 @@ class Renderer:
             return per_pixel.astype(np.float64) / (fixed * s)
 
     def _check(self) -> None:
-        if self._cancel is not None and self._cancel():
-            raise RenderCancelled("the render was cancelled")
+        self._stop()
 
     def _count(self, kind: str, n: int) -> None:
         with self._count_lock:
