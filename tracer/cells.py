@@ -127,10 +127,10 @@ class Cells:
         first = self.start[cell]
         count = self.start[cell + 1] - first
         own = np.repeat(np.arange(len(region)), count)  # each candidate's row; the rest are gathers by it
-        at = (first - np.cumsum(count) + count)[own] + np.arange(len(own))
-        keep = ((self.parts[at] >> bit.astype(np.uint64)[own]) & np.uint64(1)).astype(bool)
+        at = np.take(first - np.cumsum(count) + count, own) + np.arange(len(own))
+        keep = ((np.take(self.parts, at) >> np.take(bit.astype(np.uint64), own)) & np.uint64(1)).astype(bool)
         if some_whole:
-            keep |= whole[own]
+            keep |= np.take(whole, own)
         kept = np.flatnonzero(keep)  # (a gather by index is several times faster than by a mask here)
         own, members = np.take(own, kept), np.take(self.members, np.take(at, kept))
         if but is not None:  # (on the few candidates the parts keep)
