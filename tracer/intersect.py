@@ -85,7 +85,7 @@ def _nothing() -> None:
 
 def _gathered(*columns: np.ndarray) -> np.ndarray:
     """``(N, k)`` and ``(N,)`` arrays side by side in one ``(N, Σk)`` array, so that the walk gathers a ray's
-    (or a primitive's) values with one row copy instead of one per array: pairs come in no spatial order, and
+    (or a primitive's) values with one row copy instead of one per array: pairs reach all over the tables, and
     a gather's cost is its cache misses (measured on 150k random rows of 208k: 4 ms against 20 ms for four
     ``(N, 3)`` arrays)."""
     return np.concatenate([c if c.ndim == 2 else c[:, None] for c in columns], axis=1)
