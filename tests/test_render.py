@@ -1,10 +1,12 @@
 """Whole scenes: the reference images, translation invariance, determinism and hard cases."""
 
 import copy
+import gc
 import json
 import subprocess
 import sys
 import time
+import weakref
 
 import numpy as np
 import pytest
@@ -182,9 +184,6 @@ def test_cancel_stops_a_render_inside_a_single_long_chunk():
 def test_a_dropped_renderer_is_freed_at_once(name):
     """No reference cycle keeps a finished render's arrays and BVH alive until the garbage collector runs: a
     long-running service or a benchmark would otherwise hold several renders' memory at a time."""
-    import gc
-    import weakref
-
     scene = schemas.validate_scene(scene_dict(name))
     enabled = gc.isenabled()
     gc.disable()

@@ -180,7 +180,7 @@ class Renderer:
                               for k in reversed(range(0, len(batch[0]), size))]
                     continue
                 o, d, smp, w, fk, fi = batch
-                self._check()
+                self._stop()
                 hits = self.intersector.closest(o, d, fk, fi)
                 missed = hits.kind == MISS
                 once = depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share one
@@ -202,9 +202,6 @@ class Renderer:
             per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
 
-    def _check(self) -> None:
-        self._stop()
-
     def _count(self, kind: str, n: int) -> None:
         with self._count_lock:
             self.counts[kind] += n
@@ -222,7 +219,7 @@ class Renderer:
         nv = -dot(normal, dirs)  # N·V, the same for every light
         mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
         for em in self.world.emitters:
-            self._check()  # a long chunk (many lights) stops early too
+            self._stop()  # a long chunk (many lights) stops early too
             if not np.any(em.color > 0):
                 continue
             to_light, dist, factor = illuminate(em, hit.point)
