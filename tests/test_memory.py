@@ -1,6 +1,8 @@
 """When memory goes back to the OS (tracer/memory.py)."""
 
 import mmap
+import subprocess
+import sys
 
 import numpy as np
 
@@ -28,3 +30,29 @@ def test_release_only_after_growth(monkeypatch):
     assert calls == [1]
     memory.release_if_grown(None)  # size unknown: handed back, to be safe
     assert calls == [1, 1]
+
+
+ONE_ARENA_PROBE = """
+import sys, threading
+import numpy as np
+from tracer import memory
+memory.tune_allocator(arenas=int(sys.argv[1]))
+before = memory.resident()
+def render_like():  # 90 MiB of chunk-sized arrays on a pool thread: more than one 64 MiB arena heap
+    arrays = [np.ones((65536, 3)) for _ in range(60)]
+    del arrays
+worker = threading.Thread(target=render_like)
+worker.start()
+worker.join()
+grown = memory.resident() - before
+memory.release()
+print(grown >> 20, (memory.resident() - before) >> 20)
+"""
+
+
+def test_with_one_arena_a_pool_threads_freed_memory_all_goes_back():
+    """The service's setting (service.app): what a render thread freed is handed back in full by release()."""
+    out = subprocess.run([sys.executable, "-c", ONE_ARENA_PROBE, "1"], capture_output=True, text=True, check=True)
+    grown, kept = map(int, out.stdout.split())
+    assert grown >= 80, out.stdout  # the arrays were resident ...
+    assert kept < 8, out.stdout  # ... and are not after the release

@@ -60,8 +60,14 @@ def release() -> None:
         trim(0)
 
 
-def tune_allocator() -> bool:
-    """Returns True when the allocator accepted the settings."""
+def tune_allocator(arenas: int = 0) -> bool:
+    """Returns True when the allocator accepted the settings.
+
+    ``arenas`` caps glibc's malloc arenas (0: two per core).  A process that
+    must hand memory back after each large render (the service) asks for
+    one, before it starts any thread: ``malloc_trim`` returns the free top of
+    the main heap but not always that of a thread's arena, which can keep up
+    to one 64 MiB heap per arena resident after the render that grew it."""
     mallopt = getattr(_libc(), "mallopt", None)
     if mallopt is None:
         return False
@@ -70,5 +76,5 @@ def tune_allocator() -> bool:
     ok &= mallopt(M_TOP_PAD, 64 << 20) == 1
     # two arenas per core, not one per thread: the service validates and renders on pool threads, and each idle
     # arena would keep its pages
-    ok &= mallopt(M_ARENA_MAX, 2 * (os.cpu_count() or 1)) == 1
+    ok &= mallopt(M_ARENA_MAX, arenas or 2 * (os.cpu_count() or 1)) == 1
     return bool(ok)
