@@ -15,7 +15,6 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from schemas import Scene
-from tracer.memory import tune_allocator
 
 from .jobs import RenderService
 from .middleware import ApiKey, BodyLimit
@@ -44,7 +43,6 @@ def examples() -> dict[str, str]:
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings.from_env()
-    tune_allocator(arenas=1)  # before any pool thread starts: see tune_allocator
     app = FastAPI(title="phongray", version="0.1.0", docs_url=None, redoc_url=None,
                   description="A reference Phong/Whitted ray tracer: render, validate and grade scenes.")
     app.state.service = RenderService(settings)

@@ -18,7 +18,7 @@ import numpy as np
 
 from schemas import Mesh, Scene, parse_json, validate_scene
 from tracer import RenderCancelled, encode_png, render
-from tracer.memory import release_if_grown, resident
+from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
 from .limits import check_body, check_raw, check_scene
@@ -97,6 +97,7 @@ def scene_key(scene: Scene) -> str:
 
 class RenderService:
     def __init__(self, settings: Settings):
+        tune_allocator(arenas=1)  # before any pool thread starts, so that release_if_grown hands back all it can
         self.settings = settings
         self.cache = RenderCache(settings.cache_bytes)
         self.slots = threading.BoundedSemaphore(settings.max_concurrent_renders)

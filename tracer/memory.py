@@ -74,7 +74,6 @@ def tune_allocator(arenas: int = 0) -> bool:
     ok = mallopt(M_MMAP_THRESHOLD, 256 << 20) == 1
     ok &= mallopt(M_TRIM_THRESHOLD, 512 << 20) == 1
     ok &= mallopt(M_TOP_PAD, 64 << 20) == 1
-    # two arenas per core, not one per thread: the service validates and renders on pool threads, and each idle
-    # arena would keep its pages
+    # by default two arenas per core, not one per thread: each idle arena would keep its pages
     ok &= mallopt(M_ARENA_MAX, arenas or 2 * (os.cpu_count() or 1)) == 1
     return bool(ok)
