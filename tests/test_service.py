@@ -3,6 +3,8 @@
 import io
 import json
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -243,3 +245,11 @@ def test_a_syntax_error_is_marked_on_the_line_the_parser_names(api):
     res = api.post("/validate", content=b'{"camera": {\n  "x": 1,,\n}}', headers=JSON)
     (error,) = res.json()["errors"]
     assert res.status_code == 422 and error["line"] == 2 and error["message"].startswith("invalid JSON")
+
+
+def test_a_server_worker_freezes_what_it_holds_after_start_up():
+    """service.server.worker_app: a full garbage collection walks only what requests made, not the ~60k objects
+    of the started app (which it would walk on the event loop's time)."""
+    probe = "import gc; from service.server import worker_app; worker_app(); print(gc.get_freeze_count())"
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    assert int(out) > 20_000
