@@ -14,7 +14,7 @@ starts on a surface does the same with the part of its start.
 The lists cost a sort of a few registrations per primitive, where neighbour
 pairs cost a box test of every pair of nearby primitives; a cell is about as
 large as the largest ordinary primitive, so a part holds a few.
-:func:`build_cells` gives up (returns None) when the primitives' sizes are
+:func:`build_cells` makes the cells coarser where the primitives' sizes are
 so mixed that the registrations would pass :data:`BUDGET_PER` per primitive.
 """
 
@@ -34,7 +34,7 @@ CELL_SCALE = 1.0
 SUB = 4
 #: boxes over at most this many cells along every axis are registered an offset at a time
 SPAN = 2
-#: the registrations a scene may have, per primitive (beyond a floor of 2^20), before cells give way to pairs
+#: the registrations a scene may have, per primitive (beyond a floor of 2^20), before cells grow coarser
 BUDGET_PER = 32
 #: a grid of at most this many cells (or 4 per occupied cell) finds cells by a table, not a binary search
 TABLE_MAX = 1 << 22
@@ -69,6 +69,14 @@ class Cells:
     parts: np.ndarray  # (R,) uint64 which parts of its cell each member's box comes near
     #: (dims.prod(),) int32 each cell's index in :attr:`keys`, −1 for none; None for a grid too large for it
     table: np.ndarray | None = None
+
+    def holds(self, points: np.ndarray) -> np.ndarray:
+        """Which of ``points (N, 3)`` lie in the grid's box (closed): every proxy box lies within it. Shape (N,)."""
+        top = self.origin + self.dims * self.size
+        out = np.ones(len(points), dtype=bool)
+        for a in range(3):
+            out &= (points[:, a] >= self.origin[a]) & (points[:, a] <= top[a])
+        return out
 
     def locate(self, points: np.ndarray, whole: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For points (N, 3): the part of a cell each lies in, as ``cell · SUB³ + part`` with the cell's index
@@ -147,34 +155,36 @@ def _finite(a: np.ndarray, fill: float) -> np.ndarray:
     return a if np.isfinite(a).all() else np.where(np.isnan(a), fill, a)
 
 
-def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells | None:
-    """Cells for primitives with boxes ``lo..hi (P, 3)``, each registered wherever it comes within
-    ``reach`` of a cell; None when that would take more than the budget."""
+def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells:
+    """Cells for primitives with boxes ``lo..hi (P, 3)`` (finite, P ≥ 1), each registered wherever it comes
+    within ``reach`` of a cell.
+
+    A cell is as large as the largest box among those up to four times the median size; where that would
+    make more than 2^20 cells along an axis, or more registrations than the budget (:data:`BUDGET_PER` per
+    primitive beyond a floor of 2^20, as when many boxes are far larger than the rest), cells double in size
+    until it does not.  Any size is correct (a box is registered in every cell it comes near); the size
+    only decides how many members a part holds."""
     n = len(lo)
-    if n == 0:
-        return None
     lo, hi = lo - reach, hi + reach
     extent = most(hi - lo)
     median = median_of(extent)
-    with np.errstate(invalid="ignore"):
-        ordinary = extent <= 4.0 * median
-    if not np.all(np.isfinite(extent)) or not ordinary.any():
-        return None
-    size = CELL_SCALE * float(np.max(extent[ordinary]))
-    if not size > 0:
-        return None
+    ordinary = extent <= 4.0 * median
     origin = lowest(lo)
-    top = np.floor((highest(hi) - origin) / size)
-    if not np.all(top < 2.0**20):  # keys must fit in 63 bits
-        return None
-    dims = top.astype(np.int64) + 1
-    k_lo = np.clip(np.floor((lo - origin) / size), 0, dims - 1).astype(np.int64)
-    k_hi = np.clip(np.floor((hi - origin) / size), 0, dims - 1).astype(np.int64)
-    span = k_hi - k_lo + 1
-    count = span[:, 0] * span[:, 1] * span[:, 2]
-    total = int(count.sum())
-    if total > BUDGET_PER * n + (1 << 20):
-        return None
+    span_all = float(np.max(highest(hi) - origin))
+    size = max(CELL_SCALE * float(np.max(extent[ordinary])), span_all * 2.0**-20, float(np.max(extent)) * 2.0**-20)
+    if not size > 0:
+        size = 1.0
+    while True:  # at most ~20 doublings: at a size of the whole span, every box has one registration
+        top = np.floor((highest(hi) - origin) / size)
+        dims = top.astype(np.int64) + 1
+        k_lo = np.clip(np.floor((lo - origin) / size), 0, dims - 1).astype(np.int64)
+        k_hi = np.clip(np.floor((hi - origin) / size), 0, dims - 1).astype(np.int64)
+        span = k_hi - k_lo + 1
+        count = span[:, 0] * span[:, 1] * span[:, 2]
+        total = int(count.sum())
+        if total <= BUDGET_PER * n + (1 << 20) or np.all(dims == 1):
+            break
+        size *= 2.0
     cells = Cells(origin=origin, size=size, dims=dims, keys=np.zeros(0, np.int64), start=np.zeros(1, np.int64),
                   members=np.zeros(0, np.int64), parts=np.zeros(0, np.uint64))
     # the parts each box's ends lie in, within the first and the last cell of its span along each axis

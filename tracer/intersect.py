@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cells import SUB, Cells, build_cells
+from .cells import Cells, build_cells
 from .embree import Bvh, frame
-from .proxies import Proxies, TooManyOverlaps, build_proxies, find_neighbours
+from .proxies import Proxies, build_proxies
 from .shapes import plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines, plain_triangles
 from .vec import along, divided, dot, highest, lowest, most, rows_of
@@ -51,6 +51,9 @@ DIRECT_MAX = 2
 PAIR_SLICE = 1 << 16
 #: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
 INSIDE = 2.0**-24
+#: how far (relative to the BVH's half-size) a primitive's box reaches into the cells it is registered in: far
+#: more than float32 rounding of a crossing and of a ray, and than the walk's step past a crossing
+REACH = 2.0**-14
 
 
 @dataclass
@@ -194,12 +197,7 @@ class Intersector:
         self.bvh: Bvh | None = None
         self.proxies: Proxies | None = None
         self.cells: Cells | None = None
-        bvh_tris, bvh_spheres = np.flatnonzero(~big_tri), np.flatnonzero(~big_sphere)
-        try:
-            self._build(bvh_tris, bvh_spheres)
-        except TooManyOverlaps:  # nested spheres beyond counting: test them directly instead
-            self.direct_spheres = np.arange(len(spheres.radius))
-            self._build(bvh_tris, np.zeros(0, dtype=np.int64))
+        self._build(np.flatnonzero(~big_tri), np.flatnonzero(~big_sphere))
 
     def _build(self, bvh_tris: np.ndarray, bvh_spheres: np.ndarray) -> None:
         w = self.world
@@ -233,18 +231,14 @@ class Intersector:
         self.mates = mates if some_plain else None
         self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids, neighbours=False)
         self.bvh = Bvh(p.vertices, p.faces, centre, half, commit=False)
-        with ThreadPoolExecutor(max_workers=1) as pool:  # Embree builds its tree while the walk's tables are made
+        with ThreadPoolExecutor(max_workers=1) as pool:  # Embree builds its tree while the walk's cells are made
             committed = pool.submit(self.bvh.commit)
-            # plain faces come in meshes of many like-sized faces: cells are cheaper to build than neighbour pairs
-            self.cells = build_cells(p.lo, p.hi, 2.0 * p.gap) if some_plain else None
-            if self.cells is None:
-                find_neighbours(p, len(v0), center, radius)
+            self.cells = build_cells(p.lo, p.hi, REACH * half)
             committed.result()
         self.box_lo = lowest(p.lo) - p.step * 4 - p.slack
         self.box_hi = highest(p.hi) + p.step * 4 + p.slack
-        # a walk passes at least one crossing per step, and with cells a new part of a cell; a ray crosses a face
-        # once
-        self.max_steps = len(p.faces) + (0 if self.cells is None else len(self.cells.keys) * SUB**3) + 2
+        # each pass of a walk consumes at least one proxy-face crossing (a ray crosses a face once)
+        self.max_steps = len(p.faces) + 2
 
     # -- closest hit -------------------------------------------------------
     def closest(self, origins: np.ndarray, dirs: np.ndarray, from_kind: np.ndarray | None = None,
@@ -328,18 +322,6 @@ class Intersector:
                                  (fk == TRIANGLE) & (fi == k), ends, mag_e)
             yield TRIANGLE, k, t, u, v
 
-    def _with_neighbours(self, rows: np.ndarray, prims: np.ndarray, itself: bool) -> tuple[np.ndarray, np.ndarray]:
-        """(ray, primitive) pairs for every neighbour of each of ``prims`` (and the primitive, with ``itself``)."""
-        p = self.proxies
-        assert p is not None
-        extra = int(itself)
-        count = extra + p.start[prims + 1] - p.start[prims]
-        rep = np.repeat(prims, count)
-        k = np.arange(len(rep)) - np.repeat(np.cumsum(count) - count, count) - extra  # −1: the primitive itself
-        if len(p.neighbours) == 0:
-            return np.repeat(rows, count), rep
-        return np.repeat(rows, count), np.where(k < 0, rep, p.neighbours[np.maximum(p.start[rep] + k, 0)])
-
     def _test(self, best: _Best, rows: np.ndarray, prims: np.ndarray, rays: np.ndarray, from_prim: np.ndarray,
               ends: np.ndarray | None, reach: np.ndarray | None, mag_e: np.ndarray | None) -> None:
         """Test BVH primitives ``prims`` exactly against rays ``rows`` (pairs; either may repeat) of ``rays``,
@@ -354,7 +336,9 @@ class Intersector:
                 r, q = np.take(rows, chosen), np.take(prims, chosen)
             else:  # (all of one kind, as in a mesh: no copies)
                 r, q = rows, prims
-            for at in range(0, count, PAIR_SLICE):  # bounded temporaries: a crossing brings ~14 neighbours
+            for at in range(0, count, PAIR_SLICE):  # bounded temporaries, and a render can stop between slices
+                if at:
+                    self.check()
                 self._test_kind(best, is_tri, r[at:at + PAIR_SLICE], q[at:at + PAIR_SLICE], rays, from_prim,
                                 ends, reach, mag_e)
 
@@ -413,9 +397,36 @@ class Intersector:
     def _walk(self, best: _Best, o: np.ndarray, d: np.ndarray, fk: np.ndarray, fi: np.ndarray, mag_o: np.ndarray,
               ends: np.ndarray | None = None, reach: np.ndarray | None = None, mag_e: np.ndarray | None = None,
               any_hit: bool = False) -> None:
-        """Visit every proxy crossing along each ray, nearest first, until nothing nearer can remain."""
-        p, bvh = self.proxies, self.bvh
-        assert p is not None and bvh is not None
+        """Test, exactly, every BVH primitive that a ray could hit before its best hit (or, ``any_hit``, until one
+        blocks it).
+
+        **Guarantee.**  At every point of a walk, with ``s`` its position along the ray: every primitive whose
+        proxy the ray (as Embree sees it, in float32) is inside anywhere in ``[s₀, s]`` has been tested, where
+        ``s₀`` is where the walk began.  A primitive the float64 ray hits at ``t`` has the ray inside its proxy
+        around ``t`` (a proxy holds its primitive grown by a margin far above float32 rounding), so every
+        primitive hit at ``t ≤ s`` has been tested.
+
+        **Start.**  A ray whose origin lies in the cells' grid first tests every member of the part of a cell
+        that holds its origin (a proxy that contains the origin has a box that meets that part) and starts at
+        the part's exit, at ``s₀ = 0``.  Any other ray starts where its line enters the BVH's box, where no proxy
+        lies.
+
+        **Step.**  From ``s``, Embree names the nearest proxy-face crossing: no proxy is entered or left before
+        it, so between ``s`` and the crossing the ray is inside only proxies it was inside at ``s`` (tested).  At
+        the crossing, every member of the crossing's part of a cell is tested: every proxy that meets the part
+        is one of them, and so (by the cells' reach, which is larger than the float32 rounding of the crossing
+        and of the ray and the walk's step) is every proxy crossed within that rounding of the part.  The walk
+        goes on from where the ray leaves the part (or a step past the crossing, when later).
+
+        **Stop.**  A closest-hit walk stops once its best hit lies at or before the exit of the part it just
+        tested (every primitive hit before that exit was tested: before the part's entry by the guarantee,
+        within the part as a member), or once no crossing is left before its best hit (plus the slack of a plain
+        triangle's float32 crossing) or the BVH box's exit.  An any-hit walk stops at the first blocker, or when
+        no crossing is left before the light.  Each pass consumes a crossing, so the walk ends; should it not
+        within :attr:`max_steps` passes, the rays still walking test every primitive (never silently wrong).
+        """
+        p, bvh, cells = self.proxies, self.bvh, self.cells
+        assert p is not None and bvh is not None and cells is not None
         n = len(o)
         from_prim = np.full(n, -1, dtype=np.int64)
         tri = fk == TRIANGLE
@@ -426,13 +437,10 @@ class Intersector:
         rays = _gathered(o, d, mag_o)
         t_in, t_out = slab(o, d, self.box_lo, self.box_hi)
         start = t_in.copy()
-        margin = np.zeros(n)
-        inside = np.flatnonzero(from_prim >= 0)
-        cells = self.cells
-        # the region each ray tested last: a primitive and its neighbours, or a part of a cell (a proxy's exit
-        # follows its entry, and rounding may report a part twice)
-        last = from_prim.copy() if cells is None else np.full(n, -2, dtype=np.int64)
-        if len(inside) and cells is not None:  # everything near a start is in its part of a cell: test it now
+        # the region each ray tested last (a part of a cell; rounding may report a part twice)
+        last = np.full(n, -2, dtype=np.int64)
+        inside = np.flatnonzero(cells.holds(o))
+        if len(inside):  # every proxy that contains an origin meets the origin's part of a cell: test them now
             cell, lo, hi = cells.locate(rows_of(o, inside))
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
             # nor, on its way to a light, are a plain triangle's mates
@@ -440,26 +448,20 @@ class Intersector:
             self._test(best, *cells.pairs(inside, cell, but), rays, from_prim, ends, reach, mag_e)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             last[inside] = cell
-        elif len(inside):  # the proxies around a start on a BVH primitive are its neighbours: test them now
-            q = from_prim[inside]
-            self._test(best, *self._with_neighbours(inside, q, itself=False), rays, from_prim, ends, reach, mag_e)
-            ball = np.flatnonzero(q >= self.n_tri)  # a sphere left inward is met again at its far side
-            centre = self.world.spheres.center[self.prim_index[q[ball]]]
-            inward = ball[dot(o[inside[ball]] - centre, d[inside[ball]]) < 0]
-            self._test(best, inside[inward], q[inward], rays, from_prim, ends, reach, mag_e)
-            start[inside] = slab(o[inside], d[inside], p.lo[q], p.hi[q])[1]
-            margin[inside] = p.container[q]
+            if not any_hit:  # a hit inside the origin's part is the nearest there is
+                settled = np.isfinite(best.t[inside]) & (best.t[inside] <= start[inside])
+                start[inside[settled]] = np.inf
 
         def open_rows(rows: np.ndarray) -> np.ndarray:
             if any_hit:
                 rows = rows[~(best.t[rows] < limit[rows])]
-            end = np.minimum(best.t[rows] + margin[rows], t_out[rows])
+            end = np.minimum(best.t[rows], t_out[rows])
             return rows[(start[rows] < end) & (end > 0)]
 
         live = open_rows(np.arange(n))
-        if any_hit and len(live):  # broad phase: a ray that crosses no proxy at all is clear
+        if any_hit and len(live):  # broad phase: a ray that crosses no proxy before its light is clear
             s = start[live]
-            far = np.minimum(limit[live] + margin[live] + p.slack, t_out[live]) - s
+            far = np.minimum(limit[live] + p.slack, t_out[live]) - s
             o_l, d_l = rows_of(o, live), rows_of(d, live)
             live = live[bvh.any_hit(along(o_l, s, d_l), d_l, far)]
         first = any_hit or self.mates is not None  # test the crossed primitive before the rest of its region
@@ -469,39 +471,35 @@ class Intersector:
             self.check()
             s = start[live]
             # a plain triangle hit before best.t may be crossed in float32 up to p.slack after it
-            far = np.minimum(best.t[live] + margin[live] + p.slack, t_out[live]) - s
+            far = np.minimum(best.t[live] + p.slack, t_out[live]) - s
             o_l, d_l = rows_of(o, live), rows_of(d, live)
             face, tau = bvh.nearest(along(o_l, s, d_l), d_l, far)
             found = np.flatnonzero(face >= 0)
             live, face, tau, s = live[found], face[found], tau[found], s[found]
             o_l, d_l = rows_of(o_l, found), rows_of(d_l, found)
             prim = p.owner[face]
-            if cells is None:
-                region, lo, hi = prim, rows_of(p.lo, prim), rows_of(p.hi, prim)
-            else:  # after the first pass, the few rays left (grazing a surface, say) step a whole cell at a time
-                region, lo, hi = cells.locate(along(o_l, s + tau, d_l), whole=step > 0)
+            # after the first pass, the few rays left (grazing a surface, say) step a whole cell at a time
+            region, lo, hi = cells.locate(along(o_l, s + tau, d_l), whole=step > 0)
             fresh = last[live] != region
-            if first:  # the primitive crossed first: a ray it blocks needs no neighbour
+            if first:  # the primitive crossed first: a ray it blocks needs no more
                 rows = live[fresh]
                 self._test(best, rows, prim[fresh], rays, from_prim, ends, reach, mag_e)
                 if any_hit:
                     fresh[fresh] = ~(best.t[rows] < limit[rows])
-            if cells is None:
-                pairs = self._with_neighbours(live[fresh], prim[fresh], itself=not first)
-            else:
-                pairs = cells.pairs(live[fresh], region[fresh], self._tested(best, live[fresh], prim[fresh], any_hit)
-                                    if first else None)
+            pairs = cells.pairs(live[fresh], region[fresh], self._tested(best, live[fresh], prim[fresh], any_hit)
+                                if first else None)
             self._test(best, *pairs, rays, from_prim, ends, reach, mag_e)
             last[live] = region
-            # every crossing inside the box of the proxy just crossed belongs to it or a neighbour (inside the
-            # crossing's part of a cell, to a member of that part), all tested now: the walk goes on from where
-            # the ray leaves that box or part (or just past the crossing, if later)
             leave = slab(o_l, d_l, lo, hi)[1]
             start[live] = np.fmax(start[live] + tau + p.step, leave)
-            if not any_hit:  # and a hit before the ray leaves that box is the nearest there is
-                settled = np.isfinite(best.t[live]) & (margin[live] == 0) & (best.t[live] <= leave)
+            if not any_hit:  # a hit before the ray leaves the part is the nearest there is
+                settled = np.isfinite(best.t[live]) & (best.t[live] <= leave)
                 live = live[~settled]
             live = open_rows(live)
+        if len(live):  # (not seen: each pass consumes a crossing) every primitive, rather than a wrong answer
+            every = np.arange(len(self.prim_index))
+            self._test(best, np.repeat(live, len(every)), np.tile(every, len(live)), rays, from_prim, ends, reach,
+                       mag_e)
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, best: _Best) -> Hits:
         w = self.world

@@ -8,8 +8,10 @@ from __future__ import annotations
 import numpy as np
 
 from .intersect import PLANE, TRIANGLE, Hits
+from .lights import Emitter
+from .shapes import TOL, on_tolerance
 from .vec import along, dot, rows_of, scaled
-from .world import World, unit
+from .world import World, max_abs, unit
 
 
 def resolve_material(world: World, hits: Hits) -> np.ndarray:
@@ -61,6 +63,29 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
     flip = dot(normal, dirs) > 0
     normal[flip] *= -1.0
     return normal
+
+
+def in_light_plane(world: World, hits: Hits, em: Emitter) -> np.ndarray:
+    """Where a hit lies on a flat surface (a plane, or a triangle without vertex normals) whose plane holds
+    the light: its position within rounding (:func:`tracer.shapes.on_tolerance`, the rule by which such a
+    surface does not block it), or, for a directional light, its direction within ``TOL``.  N·L is 0 there
+    and the light is skipped; computed, it would be rounding noise of either sign.  Shape (N,), bool."""
+    out = np.zeros(len(hits.t), dtype=bool)
+    kind, index = hits.kind, hits.index
+    tri = kind == TRIANGLE
+    if tri.any():
+        tri[tri] = ~world.triangles.smooth[index[tri]]
+    for rows, anchor, mag in ((np.flatnonzero(kind == PLANE), world.planes.point, world.planes.mag),
+                              (np.flatnonzero(tri), world.triangles.v0, world.triangles.mag)):
+        if len(rows) == 0:
+            continue
+        normal, k = rows_of(hits.normal, rows), index[rows]
+        if em.kind == "directional":
+            out[rows] = np.abs(dot(normal, em.direction)) <= TOL
+        else:
+            tol = on_tolerance(max_abs(em.position[None]) + world.origin_mag, mag[k])
+            out[rows] = np.abs(dot(em.position - rows_of(anchor, k), normal)) <= tol
+    return out
 
 
 def phong(diffuse: np.ndarray, specular: np.ndarray, shininess: np.ndarray, nl: np.ndarray, rv: np.ndarray,

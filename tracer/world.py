@@ -1,11 +1,11 @@
-"""A validated scene turned into flat float64 arrays, re-centred on the scene itself.
+"""A validated scene turned into flat float64 arrays, re-centred on the eye.
 
 Every position the tracer works with is *local*: world position minus
-``World.origin``, the centre of the bounding box of the eye, the lights and
-every bounded surface (never ``look_at``, which only sets a direction).
-Moving a whole scene (camera and lights with it) therefore changes no local
-coordinate beyond the rounding of the input, so a scene far from the world
-origin is exactly as precise as one near it.  Each surface also carries its
+``World.origin``, the camera's position (never ``look_at``, which only sets a
+direction; never the scene's bounds, which a far light or a planet would
+stretch).  Moving a whole scene (camera and lights with it) therefore changes
+no local coordinate beyond the rounding of the input, so a scene far from the
+world origin is exactly as precise as one near it.  Each surface also carries its
 world *magnitude* (largest absolute coordinate it was given with): the
 rounding of its numbers, which decides when a point lies on it
 (:func:`tracer.shapes.on_tolerance`).
@@ -23,7 +23,7 @@ import numpy as np
 from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .lights import Emitters, build_emitters
-from .vec import cross, divided, dot, highest, lowest, most, rows_of
+from .vec import cross, divided, dot, most, rows_of
 
 F64 = np.float64
 
@@ -75,6 +75,7 @@ class Spheres:
     radius: np.ndarray  # (S,)
     material: np.ndarray  # (S,) int
     mag: np.ndarray  # (S,) world magnitude: max |centre| + radius
+    object: np.ndarray  # (S,) int: the index in ``scene.objects``
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,7 @@ class Planes:
     material: np.ndarray  # (Q,) int
     point_world: np.ndarray  # (Q, 3) as given, for the checker projection
     mag: np.ndarray  # (Q,) world magnitude of the plane's point
+    object: np.ndarray  # (Q,) int: the index in ``scene.objects``
 
 
 @dataclass(frozen=True)
@@ -98,6 +100,8 @@ class Triangles:
     smooth: np.ndarray  # (T,) bool: has per-vertex normals
     mag: np.ndarray  # (T,) world magnitude: largest absolute corner coordinate
     corner_ids: np.ndarray  # (T, 3) int: the corner's index among its mesh's vertices (unique across meshes)
+    object: np.ndarray  # (T,) int: the index in ``scene.objects``
+    face: np.ndarray  # (T,) int: the face's index in its mesh (0 for a lone triangle)
 
 
 @dataclass(frozen=True)
@@ -113,30 +117,14 @@ class World:
 
 
 def scene_centre(scene: Scene) -> np.ndarray:
-    """Centre of the bounding box of the eye, the positioned lights and every bounded surface."""
-    points = [np.asarray(scene.camera.position, dtype=F64).reshape(1, 3)]
-    balls = [obj for obj in scene.objects if isinstance(obj, Sphere)]
-    if balls:  # all spheres at once: a scene may have thousands
-        c = np.array([b.center for b in balls], dtype=F64).reshape(-1, 3)
-        r = np.array([b.radius for b in balls], dtype=F64)[:, None]
-        points += [c - r, c + r]
-    for obj in scene.objects:
-        if isinstance(obj, Triangle):
-            points.append(np.asarray(obj.vertices, dtype=F64))
-        elif isinstance(obj, Mesh) and obj.faces:
-            points.append(obj.rows("vertices"))
-    for light in scene.lights:
-        for key in ("position", "corner"):
-            if hasattr(light, key):
-                points.append(np.asarray(getattr(light, key), dtype=F64).reshape(1, 3))
-        if light.type == "area":
-            corner = np.asarray(light.corner, dtype=F64)
-            points.append((corner + np.asarray(light.edge_u, dtype=F64) + np.asarray(light.edge_v, dtype=F64))[None])
-    every = np.concatenate(points)
-    every = every[np.all(np.isfinite(every), axis=1)]
-    with np.errstate(over="ignore", invalid="ignore"):
-        centre = lowest(every) / 2.0 + highest(every) / 2.0
-    return np.where(np.isfinite(centre), centre, 0.0)
+    """The local origin: the eye.
+
+    Precision then follows the viewer: every camera ray starts exactly at the origin (a perspective camera)
+    or in its view window, and the local coordinates of what it sees are as small as their distance from
+    it.  Something far away (a sun 10⁸ away, the centre of a planet) moves nothing here, where a centre of
+    the scene's bounds would move every local coordinate near the eye by that much and round it with it.
+    """
+    return np.asarray(scene.camera.position, dtype=F64).copy()
 
 
 def build_world(scene: Scene) -> World:
@@ -175,28 +163,34 @@ def _materials(scene: Scene, names: dict[str, int]) -> Materials:
 
 
 def _spheres(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Spheres:
-    objs = [o for o in scene.objects if isinstance(o, Sphere)]
+    index = [k for k, o in enumerate(scene.objects) if isinstance(o, Sphere)]
+    objs = [scene.objects[k] for k in index]
     center = np.array([o.center for o in objs], dtype=F64).reshape(-1, 3) - origin
     radius = np.array([o.radius for o in objs], dtype=F64)
     return Spheres(center=center, radius=radius,
                    material=np.array([names[o.material] for o in objs], dtype=np.int64),
-                   mag=np.max(np.abs(center + origin), axis=1, initial=0.0) + radius)
+                   mag=np.max(np.abs(center + origin), axis=1, initial=0.0) + radius,
+                   object=np.array(index, dtype=np.int64))
 
 
 def _planes(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Planes:
-    objs = [o for o in scene.objects if isinstance(o, Plane)]
+    index = [k for k, o in enumerate(scene.objects) if isinstance(o, Plane)]
+    objs = [scene.objects[k] for k in index]
     point_world = np.array([o.point for o in objs], dtype=F64).reshape(-1, 3)
     return Planes(point=point_world - origin,
                   normal=unit(np.array([o.normal for o in objs], dtype=F64).reshape(-1, 3)),
                   material=np.array([names[o.material] for o in objs], dtype=np.int64),
-                  point_world=point_world, mag=np.max(np.abs(point_world), axis=1, initial=0.0))
+                  point_world=point_world, mag=np.max(np.abs(point_world), axis=1, initial=0.0),
+                  object=np.array(index, dtype=np.int64))
 
 
 def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Triangles:
-    corners, materials, normals, smooth, ids = [], [], [], [], []
+    corners, materials, normals, smooth, ids, owners, faces_of = [], [], [], [], [], [], []
     count = 0  # corners numbered so far
-    for obj in scene.objects:
+    for k, obj in enumerate(scene.objects):
         if isinstance(obj, Triangle):
+            owners.append(np.full(1, k))
+            faces_of.append(np.zeros(1, dtype=np.int64))
             ids.append(np.arange(count, count + 3).reshape(1, 3))
             count += 3
             corners.append(np.array(obj.vertices, dtype=F64).reshape(1, 3, 3))
@@ -205,6 +199,8 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
             smooth.append(np.zeros(1, dtype=bool))
         elif isinstance(obj, Mesh) and obj.faces:
             verts, faces = obj.rows("vertices"), obj.rows("faces")
+            owners.append(np.full(len(faces), k))
+            faces_of.append(np.arange(len(faces)))
             ids.append(faces + count)
             count += len(verts)
             corners.append(rows_of(verts, faces))
@@ -226,12 +222,15 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
         vertex_normals = np.where(smooth_mask[:, None, None], vertex_normals, normal[:, None, :])
     material = np.concatenate(materials).astype(np.int64) if materials else np.zeros(0, dtype=np.int64)
     corner_ids = np.concatenate(ids) if ids else np.zeros((0, 3), dtype=np.int64)
+    owner = np.concatenate(owners).astype(np.int64) if owners else np.zeros(0, dtype=np.int64)
+    face = np.concatenate(faces_of).astype(np.int64) if faces_of else np.zeros(0, dtype=np.int64)
     if not keep.all():  # (when every face is kept, as usual, no copies)
         local, world, e1, e2, normal = local[keep], world[keep], e1[keep], e2[keep], normal[keep]
         material, vertex_normals, smooth_mask = material[keep], vertex_normals[keep], smooth_mask[keep]
-        corner_ids = corner_ids[keep]
+        corner_ids, owner, face = corner_ids[keep], owner[keep], face[keep]
     return Triangles(
         v0=np.ascontiguousarray(local[:, 0]), e1=e1, e2=e2, normal=normal, material=material,
         v0_world=np.ascontiguousarray(world[:, 0]), vertex_normals=vertex_normals, smooth=smooth_mask,
         mag=most(np.abs(world).reshape(-1, 9)) if len(world) else np.zeros(0), corner_ids=corner_ids,
+        object=owner, face=face,
     )

@@ -1,0 +1,212 @@
+"""Differential fuzzing: phongray against the brute force of :mod:`reference`, on scenes of :mod:`generator`.
+
+For each scene, three comparisons, each only where the brute force is clear:
+
+* every primary ray: hit or miss, the same surface, t to a relative tolerance;
+* every shadow decision from those hits: from the brute force's own hit point,
+  leaving its surface, towards every light and area-light sample that faces it;
+* every pixel: within one 8-bit level.
+
+As a soak::
+
+    python -m tests.fuzz --scenes 10000 --seed 0 --out fuzz-out
+
+prints the number of disagreements and writes each disagreeing scene (and what
+disagreed) to ``--out``.  ``tests/test_fuzz.py`` runs a bounded subset in CI.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+import generator  # noqa: E402
+import reference  # noqa: E402
+import schemas  # noqa: E402
+from tracer import Renderer  # noqa: E402
+from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
+
+#: t of a primary hit may differ by this much, relative (plus the brute force's own uncertainty)
+T_TOLERANCE = 2.0**-30
+#: pixels may differ by this many 8-bit levels (rounding at a level's boundary)
+LEVELS = 1
+
+
+@dataclass
+class Outcome:
+    """What one scene gave: how much was compared, what disagreed, and a few examples."""
+
+    seed: int
+    family: str
+    compared: Counter = field(default_factory=Counter)
+    disagreed: Counter = field(default_factory=Counter)
+    examples: list[str] = field(default_factory=list)
+    error: str | None = None
+
+    @property
+    def bad(self) -> bool:
+        return self.error is not None or sum(self.disagreed.values()) > 0
+
+    def note(self, kind: str, compared: int, bad: np.ndarray, describe: list[str]) -> None:
+        self.compared[kind] += compared
+        count = int(np.count_nonzero(bad))
+        if count:
+            self.disagreed[kind] += count
+            self.examples += describe[:3]
+
+
+def _surface_map(renderer: Renderer, surfaces: list[reference.Surface]) -> dict[tuple[int, int], int]:
+    """(phongray kind, index) → index in the brute force's surface list."""
+    w = renderer.world
+    by_owner = {(s.obj, s.face): k for k, s in enumerate(surfaces)}
+    out: dict[tuple[int, int], int] = {}
+    for kind, objects, faces in ((SPHERE, w.spheres.object, None), (PLANE, w.planes.object, None),
+                                 (TRIANGLE, w.triangles.object, w.triangles.face)):
+        for i, obj in enumerate(objects):
+            key = (int(obj), 0 if faces is None else int(faces[i]))
+            if key in by_owner:
+                out[(kind, i)] = by_owner[key]
+    return out
+
+
+def _identity(renderer: Renderer, surfaces: list[reference.Surface]) -> dict[int, tuple[int, int]]:
+    return {v: k for k, v in _surface_map(renderer, surfaces).items()}
+
+
+def compare(seed: int, data: dict[str, Any], family: str = "") -> Outcome:
+    """Render one scene both ways and compare what is clear."""
+    out = Outcome(seed, family)
+    scene = schemas.validate_scene(data)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        frame = reference.render(scene)
+        renderer = Renderer(scene)
+        image = renderer.pixels(threads=1)
+        _rays(out, scene, renderer)
+    clear = ~frame.unclear
+    diff = np.abs(image.astype(np.int16) - frame.pixels().astype(np.int16)).max(axis=2)
+    bad = clear & (diff > LEVELS)
+    where = np.argwhere(bad)
+    out.note("pixel", int(clear.sum()), bad,
+             [f"pixel (x={x}, y={y}): phongray {image[y, x].tolist()} brute force {frame.pixels()[y, x].tolist()}"
+              for y, x in where[:3]])
+    return out
+
+
+def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
+    surfaces = reference.surfaces_of(scene)
+    to_ref = _surface_map(renderer, surfaces)
+    to_phong = _identity(renderer, surfaces)
+    origin = renderer.world.origin
+    o, d, _ = reference.camera_rays(scene)
+    ref = reference.closest(surfaces, o, d, np.full(len(o), -1))
+    hits = renderer.intersector.closest(o - origin, d)
+    got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
+    clear = ~ref.unclear
+    with np.errstate(invalid="ignore"):
+        t_ok = (ref.surface < 0) | (np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + 64 * reference.ON * (
+            np.abs(o).max(axis=1) + ref.t))
+    bad = clear & ((got != ref.surface) | ~t_ok)
+    out.note("hit", int(clear.sum()), bad,
+             [f"primary ray {r}: phongray surface {got[r]} t={hits.t[r]!r}, brute force {ref.surface[r]} "
+              f"t={ref.t[r]!r}" for r in np.flatnonzero(bad)[:3]])
+    # shadow decisions from the brute force's own clear hits
+    ambient, emitters = reference.emitters_of(scene)
+    rows = np.flatnonzero(clear & (ref.surface >= 0) & (got == ref.surface))
+    for k in np.unique(ref.surface[rows]):
+        s = surfaces[k]
+        sel = rows[ref.surface[rows] == k]
+        p, _, shading = reference.surface_point(s, o[sel], d[sel], ref.t[sel], ref.u[sel], ref.w[sel])
+        kind, index = to_phong[int(k)]
+        for e_index, e in enumerate(emitters):
+            L, dist, f, unclear_f = reference.illuminate(e, p)
+            nl, unclear_nl = reference.n_dot_l(s, e, shading, L)
+            ask = np.flatnonzero((nl > 0) & (f > 0) & ~unclear_nl & ~unclear_f)
+            if len(ask) == 0:
+                continue
+            blk, unclear_b = reference.blocked(surfaces, p[ask], L[ask], dist[ask], np.full(len(ask), k),
+                                               e.position)
+            ends = None if e.position is None else (e.position - origin)[None]
+            mine = renderer.intersector.occluded(p[ask] - origin, np.ascontiguousarray(L[ask]), dist[ask],
+                                                 np.full(len(ask), kind, dtype=np.int8),
+                                                 np.full(len(ask), index, dtype=np.int64), ends)
+            bad = ~unclear_b & (mine != blk)
+            out.note("shadow", int(np.count_nonzero(~unclear_b)), bad,
+                     [f"shadow ray from surface {k} (object {s.obj} face {s.face}) at {p[ask][r].tolist()} to light "
+                      f"{e_index}: phongray {'blocked' if mine[r] else 'clear'}, brute force "
+                      f"{'blocked' if blk[r] else 'clear'}" for r in np.flatnonzero(bad)[:3]])
+
+
+def run_seed(seed: int, width: int = 20, height: int = 15) -> Outcome:
+    family, data = generator.scene(seed, width, height)
+    try:
+        return compare(seed, data, family)
+    except Exception as exc:  # a crash is a disagreement too
+        out = Outcome(seed, family)
+        out.error = f"{type(exc).__name__}: {exc}"
+        return out
+
+
+def write(out: Outcome, folder: Path, width: int, height: int) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    _, data = generator.scene(out.seed, width, height)
+    (folder / f"seed-{out.seed}.json").write_text(json.dumps(data, indent=1))
+    lines = [f"seed {out.seed} ({out.family})"]
+    if out.error:
+        lines.append(f"error: {out.error}")
+    lines += [f"{k}: {out.disagreed[k]} of {out.compared[k]} disagree" for k in sorted(out.disagreed)]
+    lines += out.examples
+    (folder / f"seed-{out.seed}.txt").write_text("\n".join(lines) + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tests.fuzz", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", type=int, default=1000, help="how many scenes (default 1000)")
+    ap.add_argument("--seed", type=int, default=0, help="the first seed (default 0)")
+    ap.add_argument("--out", type=Path, default=Path("fuzz-out"), help="where disagreeing scenes go")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="processes (default: every core)")
+    ap.add_argument("--size", default="20x15", help="image size WxH (default 20x15)")
+    args = ap.parse_args(argv)
+    width, height = (int(v) for v in args.size.split("x"))
+    seeds = range(args.seed, args.seed + args.scenes)
+    start = time.monotonic()
+    bad: list[Outcome] = []
+    compared: Counter = Counter()
+    disagreed: Counter = Counter()
+    families: Counter = Counter()
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        for done, out in enumerate(pool.map(run_seed, seeds, [width] * len(seeds), [height] * len(seeds),
+                                            chunksize=4), 1):
+            compared.update(out.compared)
+            disagreed.update(out.disagreed)
+            if out.bad:
+                bad.append(out)
+                families[out.family] += 1
+                write(out, args.out, width, height)
+            if done % 500 == 0:
+                print(f"{done} scenes, {len(bad)} disagreeing, {time.monotonic() - start:.0f} s", flush=True)
+    print(f"{len(seeds)} scenes (seeds {seeds.start}..{seeds.stop - 1}, {width}x{height}) in "
+          f"{time.monotonic() - start:.0f} s")
+    for kind in ("hit", "shadow", "pixel"):
+        print(f"  {kind}: {disagreed[kind]} disagreements in {compared[kind]} compared")
+    crashed = sum(1 for o in bad if o.error)
+    print(f"  crashes: {crashed}")
+    print(f"disagreeing scenes: {len(bad)}" + (f" (by family: {dict(families)}; written to {args.out})" if bad else ""))
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

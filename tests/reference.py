@@ -1,0 +1,563 @@
+"""A brute-force float64 tracer written straight from the scene format, for differential tests.
+
+It shares nothing with ``tracer/`` but the validated scene: every ray is
+tested against every surface in world coordinates, with no acceleration
+structure and no shortcut.  It is slow (a Python loop over the surfaces, NumPy
+over the rays) and meant for small images.
+
+Every decision also says whether it is *clear*: far enough from the
+numerical noise where two renderers that both follow the format may
+honestly differ.  Unclear are a hit that ties with another surface, a ray
+through a triangle's edge or grazing a sphere's outline, a ray origin or a
+light within rounding distance of a surface but not clearly on it, N·L, a
+spot's hard cone edge, a checker boundary or total internal reflection within
+noise of its threshold.  A differential test compares only what is clear;
+:func:`render` marks a pixel unclear when any ray of its tree met something
+unclear.
+
+The rules, as the format states them:
+
+* the first hit is the smallest t > 0; a ray leaves the surface it starts
+  from by identity (a plane or triangle is not hit again, a sphere left
+  inward only at its far root), and a surface that passes through the ray's
+  origin (within :data:`ON` of the magnitudes involved) is not hit there;
+* a shadow segment is blocked by a surface hit at a distance in (0, d); a
+  surface through the light's own position does not block it;
+* a light that lies in the plane of a flat surface (plane, triangle, a mesh
+  face without vertex normals) gives N·L = 0 there: it is skipped.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: a point within ON × (the magnitudes involved) of a surface lies on it
+ON = 2.0**-49
+#: a point beyond OFF × (the magnitudes involved) from a surface is clearly off it; in between is unclear
+OFF = 2.0**-41
+#: a dimensionless quantity (barycentric, cosine, relative gap) within GRAY of a threshold is unclear
+GRAY = 2.0**-34
+
+
+def _v(a) -> np.ndarray:  # noqa: ANN001
+    return np.asarray(a, dtype=np.float64)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.sum(a * b, axis=-1)
+
+
+def _norm(a: np.ndarray) -> np.ndarray:
+    return np.sqrt(_dot(a, a))
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    scale = np.max(np.abs(a), axis=-1, keepdims=True)
+    scale = np.where(scale > 0, scale, 1.0)
+    b = a / scale
+    n = _norm(b)[..., None]
+    return np.where(n > 0, b / np.where(n > 0, n, 1.0), 0.0)
+
+
+def _mag(a: np.ndarray) -> np.ndarray:
+    return np.max(np.abs(a), axis=-1)
+
+
+@dataclass
+class Surface:
+    """One surface: a sphere, a plane or a triangle (a lone one or a mesh face)."""
+
+    kind: str  # "sphere", "plane", "triangle"
+    obj: int  # index in scene.objects
+    face: int  # face index within a mesh, 0 otherwise
+    material: str
+    center: np.ndarray | None = None  # sphere
+    radius: float = 0.0
+    point: np.ndarray | None = None  # plane: its point; triangle: v0
+    normal: np.ndarray | None = None  # unit geometric normal (planes and triangles)
+    v: np.ndarray | None = None  # triangle corners (3, 3)
+    vn: np.ndarray | None = None  # triangle vertex normals (3, 3), or None
+    mag: float = 0.0  # largest magnitude of the numbers that define it
+
+    @property
+    def flat(self) -> bool:
+        return self.kind != "sphere" and self.vn is None
+
+
+def surfaces_of(scene) -> list[Surface]:  # noqa: ANN001
+    """The scene's surfaces in object order, mesh faces in face order; zero-area faces are left out."""
+    out: list[Surface] = []
+    for k, obj in enumerate(scene.objects):
+        if obj.type == "sphere":
+            c = _v(obj.center)
+            out.append(Surface("sphere", k, 0, obj.material, center=c, radius=float(obj.radius),
+                               mag=float(_mag(c)) + float(obj.radius)))
+        elif obj.type == "plane":
+            p = _v(obj.point)
+            out.append(Surface("plane", k, 0, obj.material, point=p, normal=_unit(_v(obj.normal)),
+                               mag=float(_mag(p))))
+        else:
+            verts = _v(obj.vertices)
+            faces = [(0, 1, 2)] if obj.type == "triangle" else obj.faces
+            normals = None if obj.type == "triangle" or obj.normals is None else _v(obj.normals)
+            for f, (i, j, m) in enumerate(faces):
+                v = verts[[i, j, m]]
+                n = _unit(np.cross(_unit(v[1] - v[0]), _unit(v[2] - v[0])))
+                if not np.any(n != 0):
+                    continue  # a face of zero area is never hit
+                out.append(Surface("triangle", k, f, obj.material, point=v[0], normal=n, v=v,
+                                   vn=None if normals is None else normals[[i, j, m]], mag=float(np.max(np.abs(v)))))
+    return out
+
+
+# -- one surface against many rays -------------------------------------------------------------------------------
+
+@dataclass
+class Test:
+    """One surface against N rays: the hit ``t`` (inf for none), whether that answer is unclear, and where an
+    unclear answer might put a hit instead (``maybe``: t itself for a hit, inf when no hit is possible)."""
+
+    t: np.ndarray
+    unclear: np.ndarray
+    sigma: np.ndarray  # how far t may be off, for ties
+    maybe: np.ndarray
+    u: np.ndarray | None = None
+    w: np.ndarray | None = None
+
+
+def _distance(s: Surface, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Signed distance of points p (N, 3) from the surface (its plane, for a triangle), and the magnitude that
+    scales its rounding."""
+    if s.kind == "sphere":
+        return _norm(p - s.center) - s.radius, _mag(p) + s.mag
+    return _dot(p - s.point, s.normal), _mag(p) + s.mag
+
+
+def _on(s: Surface, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(on, unclear) for points p: lies on the surface, or lies too near to say."""
+    dist, scale = _distance(s, p)
+    on = np.abs(dist) <= ON * scale
+    return on, ~on & (np.abs(dist) <= OFF * scale)
+
+
+def intersect(s: Surface, o: np.ndarray, d: np.ndarray, leaving: np.ndarray) -> Test:
+    """The first hit t > 0 of rays o + t d (unit d) with the surface; ``leaving`` marks rays that start on it."""
+    n = len(o)
+    on, near = _on(s, o)
+    on |= leaving
+    near &= ~leaving
+    scale = _mag(o) + s.mag
+    err = ON * 64 * scale  # how far a computed distance may be off, in world units
+    if s.kind == "sphere":
+        oc = o - s.center
+        b = _dot(oc, d)
+        perp = oc - b[:, None] * d
+        h = _norm(perp)
+        disc = (s.radius - h) * (s.radius + h)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        dist = _norm(oc)
+        c = (dist - s.radius) * (dist + s.radius)
+        q = -b - np.where(b >= 0, root, -root)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t2 = np.where(q != 0, c / q, 0.0)
+        lo, hi = np.minimum(q, t2), np.maximum(q, t2)
+        t = np.where(lo > 0, lo, np.where(hi > 0, hi, np.inf))
+        t = np.where(disc >= 0, t, np.inf)
+        t = np.where(on, np.where(b < 0, -2.0 * b, np.inf), t)  # from the surface: only the far root, inward
+        t = np.where(t > 0, t, np.inf)
+        grazing = np.abs(s.radius - h) <= GRAY * s.radius + err
+        turning = on & (np.abs(b) <= GRAY * s.radius + err)  # leaving along the tangent
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sigma = err * (1.0 + h / root)  # an error err in h moves the roots by h·err/root
+        maybe = np.where(np.isfinite(t), t, np.where(grazing & (b < 0), -b, np.inf))
+        maybe = np.where(near | turning, 0.0, maybe)
+        return Test(t, near | turning | (grazing & np.isfinite(maybe)), sigma, maybe)
+    denom = _dot(d, s.normal)
+    dist = _dot(o - s.point, s.normal)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -dist / denom
+        sigma = err / np.abs(denom)
+    crossing = (denom != 0) & (t > 0) & np.isfinite(t)
+    ok = ~on & crossing
+    maybe = np.where(near, 0.0, np.inf)
+    unclear = near.copy()
+    u = w = np.zeros(n)
+    if s.kind == "triangle":
+        assert s.v is not None
+        p = o + np.where(crossing, t, 0.0)[:, None] * d
+        e1, e2 = s.v[1] - s.v[0], s.v[2] - s.v[0]
+        rel = p - s.v[0]
+        # barycentrics of the crossing, from the two edges (least squares in the plane)
+        g11, g12, g22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
+        r1, r2 = _dot(rel, e1), _dot(rel, e2)
+        det = g11 * g22 - g12 * g12
+        u = (g22 * r1 - g12 * r2) / det
+        w = (g11 * r2 - g12 * r1) / det
+        edge = np.minimum(np.minimum(u, w), 1.0 - u - w)
+        size = math.sqrt(max(g11, g22))
+        slack = GRAY + err * (1.0 + np.where(np.isfinite(sigma), sigma, 0.0)) / max(size, 1e-300)
+        at_edge = ok & (np.abs(edge) <= slack)
+        unclear |= at_edge
+        maybe = np.where(at_edge, t, maybe)
+        ok &= edge >= 0
+    t = np.where(ok, t, np.inf)
+    maybe = np.where(ok, t, maybe)
+    return Test(t, unclear, sigma, maybe, u, w)
+
+
+# -- rays through the scene ------------------------------------------------------------------------------------
+
+@dataclass
+class Hits:
+    t: np.ndarray  # (N,)
+    surface: np.ndarray  # (N,) index into the surface list, -1 for a miss
+    unclear: np.ndarray  # (N,)
+    u: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    w: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+def closest(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.ndarray) -> Hits:
+    """First hits of rays that leave surfaces ``start`` (index, −1 for none)."""
+    n = len(o)
+    tests = [intersect(s, o, d, start == k) for k, s in enumerate(surfaces)]
+    if not tests:
+        return Hits(np.full(n, np.inf), np.full(n, -1), np.zeros(n, bool), np.zeros(n), np.zeros(n))
+    t = np.stack([x.t for x in tests])  # (S, N)
+    best = np.argmin(t, axis=0)
+    cols = np.arange(n)
+    bt = t[best, cols]
+    sig = np.stack([x.sigma for x in tests])
+    sig = np.where(np.isfinite(sig), sig, np.inf)
+    maybe = np.stack([x.maybe for x in tests])
+    unclear = np.stack([x.unclear for x in tests])
+    reach = np.where(np.isfinite(bt), bt + sig[best, cols] + GRAY * bt, np.inf)
+    # a rival: another surface whose hit, or possible hit, lies within noise of the best (or before it)
+    rival = (maybe <= reach[None] + np.where(np.isfinite(maybe), sig, 0.0)) & np.isfinite(maybe)
+    rival &= np.arange(len(tests))[:, None] != best[None]
+    rival &= unclear | np.isfinite(t)
+    amb = (unclear[best, cols] & np.isfinite(bt)) | np.any(rival, axis=0)
+    us = np.stack([x.u if x.u is not None else np.zeros(n) for x in tests])
+    ws = np.stack([x.w if x.w is not None else np.zeros(n) for x in tests])
+    surface = np.where(np.isfinite(bt), best, -1)
+    return Hits(bt, surface, amb, us[best, cols], ws[best, cols])
+
+
+def blocked(surfaces: list[Surface], p: np.ndarray, to: np.ndarray, reach: np.ndarray, start: np.ndarray,
+            light: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Shadow decisions from points p towards unit directions ``to`` over distances ``reach`` (inf for a
+    directional light), towards the light position ``light`` (3,) or None: (blocked, unclear)."""
+    n = len(p)
+    sure = np.zeros(n, dtype=bool)
+    amb = np.zeros(n, dtype=bool)
+    for k, s in enumerate(surfaces):
+        x = intersect(s, p, to, start == k)
+        t, unclear, maybe = x.t, x.unclear, x.maybe
+        if light is not None:
+            on_l, near_l = (a[0] for a in _on(s, light[None]))
+            if s.kind == "sphere" and (on_l or near_l):
+                # the light is a root; only the other one (their product is c) may block
+                oc = p - s.center
+                b = _dot(oc, to)
+                c = (_norm(oc) - s.radius) * (_norm(oc) + s.radius)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    other = np.where(reach > 0, c / reach, np.inf)
+                other = np.where(start == k, np.inf, other)  # from the sphere to a light on it: nothing between
+                other = np.where(other > 0, other, np.inf)
+                near_end = np.abs(other - reach) <= GRAY * reach + x.sigma
+                if on_l:
+                    t = np.where(near_end, np.inf, other)
+                    unclear = unclear | near_end
+                    maybe = np.where(near_end, reach, t)
+                else:
+                    unclear = unclear | np.isfinite(t)
+            elif on_l:  # a plane through the light meets the segment only there
+                t = np.full(n, np.inf)
+                unclear = unclear & (maybe < reach)
+                maybe = np.where(unclear, maybe, np.inf)
+            elif near_l:
+                unclear = unclear | np.isfinite(t)
+        with np.errstate(invalid="ignore"):
+            at_end = np.isfinite(t) & np.isfinite(reach) & (np.abs(t - reach) <= GRAY * reach + x.sigma)
+        sure |= (t < reach) & ~unclear & ~at_end
+        amb |= (unclear & (maybe < reach + x.sigma)) | at_end
+    return sure, amb & ~sure
+
+
+# -- lights -----------------------------------------------------------------------------------------------------
+
+@dataclass
+class Emitter:
+    kind: str  # "directional" or "point"
+    color: np.ndarray
+    position: np.ndarray | None
+    direction: np.ndarray | None  # the way light travels (directional, spot)
+    attenuation: tuple[float, float, float]
+    cos_outer: float | None = None
+    cos_inner: float | None = None
+    exponent: float = 0.0
+
+
+def emitters_of(scene) -> tuple[np.ndarray, list[Emitter]]:  # noqa: ANN001
+    ambient = np.zeros(3)
+    out: list[Emitter] = []
+    for light in scene.lights:
+        c = _v(light.color)
+        if light.type == "ambient":
+            ambient += c
+        elif light.type == "directional":
+            out.append(Emitter("directional", c, None, _unit(_v(light.direction)), (1.0, 0.0, 0.0)))
+        elif light.type == "point":
+            out.append(Emitter("point", c, _v(light.position), None, tuple(light.attenuation)))
+        elif light.type == "spot":
+            inner = light.cutoff if light.inner_cutoff is None else light.inner_cutoff
+            out.append(Emitter("point", c, _v(light.position), _unit(_v(light.direction)), tuple(light.attenuation),
+                               math.cos(math.radians(light.cutoff)), math.cos(math.radians(inner)),
+                               light.exponent))
+        else:
+            nu, nv = light.samples
+            corner, eu, ev = _v(light.corner), _v(light.edge_u), _v(light.edge_v)
+            for i in range(nu):
+                for j in range(nv):
+                    pos = corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev
+                    out.append(Emitter("point", c / (nu * nv), pos, None, tuple(light.attenuation)))
+    return ambient, out
+
+
+def illuminate(e: Emitter, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Towards-light L, distance d, intensity factor f (times colour) and whether f is unclear, at points p."""
+    n = len(p)
+    if e.kind == "directional":
+        assert e.direction is not None
+        return np.broadcast_to(-e.direction, (n, 3)), np.full(n, np.inf), np.ones(n), np.zeros(n, bool)
+    assert e.position is not None
+    v = e.position - p
+    dist = _norm(v)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        L = v / np.where(dist > 0, dist, 1.0)[:, None]
+    c, lin, q = e.attenuation
+    denom = c + lin * dist + q * dist * dist
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = np.where((dist > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
+    unclear = np.zeros(n, bool)
+    if e.cos_outer is not None:
+        assert e.direction is not None and e.cos_inner is not None
+        s = _dot(-L, e.direction)
+        span = e.cos_inner - e.cos_outer
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ramp = np.where(s >= e.cos_inner, 1.0, (s - e.cos_outer) / (span if span > 0 else 1.0))
+            powered = np.where(s > 0, np.power(np.maximum(s, 0.0), e.exponent), 0.0 if e.exponent > 0 else 1.0)
+        f = f * np.where(s < e.cos_outer, 0.0, powered * ramp)
+        if span <= 0:  # a hard edge: the factor jumps there
+            unclear |= np.abs(s - e.cos_outer) <= GRAY
+        if e.exponent == 0:
+            unclear |= np.abs(s) <= GRAY
+    return L, dist, f, unclear
+
+
+def n_dot_l(s: Surface, e: Emitter, normal: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """N·L for the facing shading normals, 0 where the light lies in a flat surface's plane, and unclear."""
+    nl = _dot(normal, L)
+    if s.flat:
+        if e.kind == "directional":
+            assert e.direction is not None
+            in_plane = abs(float(np.dot(e.direction, s.normal))) <= ON
+            near = not in_plane and abs(float(np.dot(e.direction, s.normal))) <= GRAY
+        else:
+            assert e.position is not None
+            on, unclear = _on(s, e.position[None])
+            in_plane, near = bool(on[0]), bool(unclear[0])
+        if in_plane:
+            return np.zeros(len(nl)), np.zeros(len(nl), bool)
+        return nl, np.full(len(nl), near) | (np.abs(nl) <= GRAY)
+    return nl, np.abs(nl) <= GRAY
+
+
+# -- the image --------------------------------------------------------------------------------------------------
+
+def camera_rays(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+    """Origins, directions and pixel index of every sub-sample, pixel-major, sub-sample (a, b) at b·n + a."""
+    cam, img = scene.camera, scene.image
+    eye = _v(cam.position)
+    f = _unit(_v(cam.look_at) - eye)
+    r = _unit(np.cross(f, _unit(_v(cam.up))))
+    u = np.cross(r, f)
+    W, H, n = img.width, img.height, img.samples
+    j, i, b, a = np.meshgrid(np.arange(H), np.arange(W), np.arange(n), np.arange(n), indexing="ij")
+    i, j, a, b = (np.transpose(x, (0, 1, 2, 3)).reshape(-1) for x in (i, j, a, b))
+    sx = (i + (a + 0.5) / n) / W
+    sy = (j + (b + 0.5) / n) / H
+    if cam.type == "orthographic":
+        h = cam.height / 2.0
+    else:
+        h = math.tan(math.radians(cam.fov) / 2.0)
+    x = (2.0 * sx - 1.0) * (W / H) * h
+    y = (1.0 - 2.0 * sy) * h
+    plane = x[:, None] * r + y[:, None] * u
+    if cam.type == "orthographic":
+        o = eye + plane
+        d = np.broadcast_to(f, o.shape).copy()
+    else:
+        o = np.broadcast_to(eye, plane.shape).copy()
+        d = _unit(f + plane)
+    return o, d, j * W + i
+
+
+@dataclass
+class Frame:
+    """What the brute force rendered: linear colour per pixel before clamping, and which pixels are unclear."""
+
+    colour: np.ndarray  # (H, W, 3)
+    unclear: np.ndarray  # (H, W) bool
+
+    def pixels(self) -> np.ndarray:
+        v = np.clip(np.nan_to_num(self.colour, nan=0.0), 0.0, 1.0)
+        return np.floor(255.0 * v + 0.5).astype(np.uint8)
+
+
+def _checker_material(scene, s: Surface, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """Per hit point: whether the checker's other material applies, and whether that is unclear."""
+    mat = scene.materials[s.material]
+    n = len(p)
+    if mat.checker is None:
+        return np.zeros(n, bool), np.zeros(n, bool)
+    size = mat.checker.size
+    q = p
+    if s.kind != "sphere":
+        q = p - _dot(p - s.point, s.normal)[:, None] * s.normal
+    cell = q / size
+    idx = np.floor(cell)
+    odd = np.mod(np.sum(idx, axis=1), 2.0) == 1.0
+    frac = np.abs(cell - np.round(cell))
+    exact_axis = np.zeros((n, 3), bool)
+    if s.kind != "sphere":
+        for k in range(3):  # a flat surface facing an axis lies exactly on its coordinate
+            if abs(s.normal[k]) == 1.0:
+                exact_axis[:, k] = True
+    near = (frac <= GRAY * (np.abs(cell) + 1.0) + OFF * _mag(p)[:, None] / size) & ~exact_axis
+    return odd, np.any(near, axis=1)
+
+
+def surface_point(s: Surface, o: np.ndarray, d: np.ndarray, t: np.ndarray, u: np.ndarray,
+                  w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Hit points on the surface (moved onto it), geometric normals, and shading normals facing the rays."""
+    if s.kind == "sphere":
+        assert s.center is not None
+        geo = _unit(o + t[:, None] * d - s.center)
+        p = s.center + s.radius * geo
+    elif s.kind == "plane":
+        assert s.point is not None and s.normal is not None
+        raw = o + t[:, None] * d
+        p = raw - _dot(raw - s.point, s.normal)[:, None] * s.normal
+        geo = np.broadcast_to(s.normal, p.shape)
+    else:
+        assert s.v is not None and s.normal is not None
+        p = s.v[0] + u[:, None] * (s.v[1] - s.v[0]) + w[:, None] * (s.v[2] - s.v[0])
+        geo = np.broadcast_to(s.normal, p.shape)
+    shading = np.array(geo, dtype=np.float64)
+    if s.vn is not None:
+        blend = _unit((1 - u - w)[:, None] * s.vn[0] + u[:, None] * s.vn[1] + w[:, None] * s.vn[2])
+        zero = ~np.any(blend != 0, axis=1)
+        shading = np.where(zero[:, None], geo, blend)
+    flip = _dot(shading, d) > 0
+    shading[flip] *= -1.0
+    return p, np.array(geo), shading
+
+
+def render(scene) -> Frame:  # noqa: ANN001
+    """The scene's image by brute force, with the pixels that met something unclear marked."""
+    img = scene.image
+    surfaces = surfaces_of(scene)
+    ambient, emitters = emitters_of(scene)
+    o, d, pixel = camera_rays(scene)
+    n_px = img.width * img.height
+    spp = img.samples * img.samples
+    colour = np.zeros((n_px, 3))
+    unclear_px = np.zeros(n_px, bool)
+    weight = np.ones(len(o))
+    start = np.full(len(o), -1)
+    background = _v(img.background)
+    for depth in range(img.max_depth + 1):
+        if len(o) == 0:
+            break
+        hits = closest(surfaces, o, d, start)
+        live = weight > 2.0**-24
+        np.logical_or.at(unclear_px, pixel[hits.unclear & live], True)
+        miss = hits.surface < 0
+        np.add.at(colour, pixel[miss], weight[miss, None] * background)
+        new_o, new_d, new_w, new_px, new_start = [], [], [], [], []
+        for k, s in enumerate(surfaces):
+            rows = np.flatnonzero(hits.surface == k)
+            if len(rows) == 0:
+                continue
+            ro, rd, rw, rp = o[rows], d[rows], weight[rows], pixel[rows]
+            p, geo, shading = surface_point(s, ro, rd, hits.t[rows], hits.u[rows], hits.w[rows])
+            unclear = np.zeros(len(rows), bool)
+            other, unclear_mat = _checker_material(scene, s, p)
+            unclear |= unclear_mat
+            mat_main = scene.materials[s.material]
+            mat_other = scene.materials[mat_main.checker.material] if mat_main.checker else mat_main
+
+            def pick(attr: str) -> np.ndarray:
+                a, b = _v(getattr(mat_main, attr)), _v(getattr(mat_other, attr))
+                return np.where(other[:, None] if a.ndim else other, b, a)
+
+            ka, kd, ks = pick("ambient"), pick("diffuse"), pick("specular")
+            shin, kr, kt, ior = pick("shininess"), pick("reflectance"), pick("transmittance"), pick("ior")
+            c = ka * ambient
+            view = -rd
+            leave = np.full(len(rows), k)
+            for e in emitters:
+                L, dist, f, unclear_f = illuminate(e, p)
+                nl, unclear_nl = n_dot_l(s, e, shading, L)
+                facing = (nl > 0) & (f > 0)
+                unclear |= unclear_nl & (f > 0)
+                unclear |= unclear_f
+                if not np.any(facing):
+                    continue
+                sel = np.flatnonzero(facing)
+                blk, unclear_b = blocked(surfaces, p[sel], L[sel], dist[sel], leave[sel], e.position)
+                unclear[sel] |= unclear_b
+                lit = np.zeros(len(rows), bool)
+                lit[sel] = ~blk
+                R = 2.0 * nl[:, None] * shading - L
+                rv = _dot(R, view)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    spec = np.where(rv > 0, np.power(np.where(rv > 0, rv, 1.0), shin), 0.0)
+                term = kd * nl[:, None] + ks * spec[:, None]
+                c += np.where(lit[:, None], e.color * f[:, None] * term, 0.0)
+            np.add.at(colour, rp, rw[:, None] * c)
+            np.logical_or.at(unclear_px, rp[unclear & (rw > 2.0**-24)], True)
+            if depth == img.max_depth:
+                continue
+            refl = np.flatnonzero(rw * kr > 0)
+            if len(refl):
+                dd = rd[refl]
+                nn = shading[refl]
+                out = _unit(dd - 2.0 * _dot(dd, nn)[:, None] * nn)
+                new_o.append(p[refl]), new_d.append(out), new_w.append(rw[refl] * kr[refl])
+                new_px.append(rp[refl]), new_start.append(np.full(len(refl), k))
+            trans = np.flatnonzero(rw * kt > 0)
+            if len(trans):
+                dd = rd[trans]
+                g = np.array(geo[trans])
+                entering = _dot(dd, g) < 0
+                eta = np.where(entering, 1.0 / ior[trans], ior[trans])
+                wn = np.where(entering[:, None], g, -g)
+                cc = -_dot(dd, wn)
+                kk = 1.0 - eta * eta * (1.0 - cc * cc)
+                through = eta[:, None] * dd + (eta * cc - np.sqrt(np.maximum(kk, 0.0)))[:, None] * wn
+                bounce = dd - 2.0 * _dot(dd, wn)[:, None] * wn
+                out = _unit(np.where((kk < 0)[:, None], bounce, through))
+                tir = np.abs(kk) <= GRAY
+                np.logical_or.at(unclear_px, rp[trans][tir & (rw[trans] > 2.0**-24)], True)
+                new_o.append(p[trans]), new_d.append(out), new_w.append(rw[trans] * kt[trans])
+                new_px.append(rp[trans]), new_start.append(np.full(len(trans), k))
+        if not new_o:
+            break
+        o, d = np.concatenate(new_o), np.concatenate(new_d)
+        weight, pixel, start = np.concatenate(new_w), np.concatenate(new_px), np.concatenate(new_start)
+    colour /= spp
+    return Frame(colour.reshape(img.height, img.width, 3), unclear_px.reshape(img.height, img.width))
