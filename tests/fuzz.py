@@ -124,30 +124,32 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
              [f"primary ray {r}: phongray surface {got[r]} t={hits.t[r]!r}, brute force {ref.surface[r]} "
               f"t={ref.t[r]!r}" for r in np.flatnonzero(bad)[:3]])
     # shadow decisions from the brute force's own clear hits
-    ambient, emitters = reference.emitters_of(scene)
     rows = np.flatnonzero(clear & (ref.surface >= 0) & (got == ref.surface))
-    for k in np.unique(ref.surface[rows]):
-        s = surfaces[k]
-        sel = rows[ref.surface[rows] == k]
-        p, _, shading = reference.surface_point(s, o[sel], d[sel], ref.t[sel], ref.u[sel], ref.w[sel])
-        kind, index = to_phong[int(k)]
-        for e_index, e in enumerate(emitters):
-            L, dist, f, unclear_f = reference.illuminate(e, p)
-            nl, unclear_nl = reference.n_dot_l(s, e, shading, L)
-            ask = np.flatnonzero((nl > 0) & (f > 0) & ~unclear_nl & ~unclear_f)
-            if len(ask) == 0:
-                continue
-            blk, unclear_b = reference.blocked(surfaces, p[ask], L[ask], dist[ask], np.full(len(ask), k),
-                                               e.position)
-            ends = None if e.position is None else (e.position - origin)[None]
-            mine = renderer.intersector.occluded(p[ask] - origin, np.ascontiguousarray(L[ask]), dist[ask],
-                                                 np.full(len(ask), kind, dtype=np.int8),
-                                                 np.full(len(ask), index, dtype=np.int64), ends)
-            bad = ~unclear_b & (mine != blk)
-            out.note("shadow", int(np.count_nonzero(~unclear_b)), bad,
-                     [f"shadow ray from surface {k} (object {s.obj} face {s.face}) at {p[ask][r].tolist()} to light "
-                      f"{e_index}: phongray {'blocked' if mine[r] else 'clear'}, brute force "
-                      f"{'blocked' if blk[r] else 'clear'}" for r in np.flatnonzero(bad)[:3]])
+    if len(rows) == 0:
+        return
+    which = ref.surface[rows]
+    p, shading = np.zeros((len(rows), 3)), np.zeros((len(rows), 3))
+    for k in np.unique(which):
+        sel = np.flatnonzero(which == k)
+        r = rows[sel]
+        p[sel], _, shading[sel] = reference.surface_point(surfaces[k], o[r], d[r], ref.t[r], ref.u[r], ref.w[r])
+    kinds = np.array([to_phong[int(k)][0] for k in which], dtype=np.int8)
+    indices = np.array([to_phong[int(k)][1] for k in which], dtype=np.int64)
+    for e_index, e in enumerate(reference.emitters_of(scene)[1]):
+        L, dist, f, unclear_f = reference.illuminate(e, p)
+        nl, unclear_nl = reference.n_dot_l(surfaces, which, e, shading, L)
+        ask = np.flatnonzero((nl > 0) & (f > 0) & ~unclear_nl & ~unclear_f)
+        if len(ask) == 0:
+            continue
+        blk, unclear_b = reference.blocked(surfaces, p[ask], L[ask], dist[ask], which[ask], e.position)
+        ends = None if e.position is None else (e.position - origin)[None]
+        mine = renderer.intersector.occluded(p[ask] - origin, np.ascontiguousarray(L[ask]), dist[ask], kinds[ask],
+                                             indices[ask], ends)
+        bad = ~unclear_b & (mine != blk)
+        out.note("shadow", int(np.count_nonzero(~unclear_b)), bad,
+                 [f"shadow ray from surface {which[ask][r]} at {p[ask][r].tolist()} to light {e_index}: phongray "
+                  f"{'blocked' if mine[r] else 'clear'}, brute force {'blocked' if blk[r] else 'clear'}"
+                  for r in np.flatnonzero(bad)[:3]])
 
 
 def run_seed(seed: int, width: int = 20, height: int = 15) -> Outcome:

@@ -58,8 +58,10 @@ def _materials(rng: Rng) -> dict[str, Any]:
 
     return {
         "matte": {"ambient": 0.2, "diffuse": colour(), "specular": 0.1, "shininess": 10.0},
-        "shiny": {"ambient": 0.1, "diffuse": colour(), "specular": 0.7, "shininess": float(rng.choice([5, 40, 200]))},
-        "mirror": {"ambient": 0.05, "diffuse": 0.1, "specular": 0.5, "reflectance": round(float(rng.uniform(0.5, 0.95)), 3)},
+        "shiny": {"ambient": 0.1, "diffuse": colour(), "specular": 0.7,
+                  "shininess": float(rng.choice([5, 40, 200]))},
+        "mirror": {"ambient": 0.05, "diffuse": 0.1, "specular": 0.5,
+                   "reflectance": round(float(rng.uniform(0.5, 0.95)), 3)},
         "glass": {"ambient": 0.02, "diffuse": 0.05, "specular": 0.6, "transmittance": round(float(rng.uniform(0.6, 0.95)), 3),
                   "reflectance": round(float(rng.uniform(0.0, 0.15)), 3),
                   "ior": float(rng.choice([1.33, 1.5, 1.9, 0.8]))},

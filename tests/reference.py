@@ -175,8 +175,21 @@ def intersect(s: Surface, o: np.ndarray, d: np.ndarray, leaving: np.ndarray) -> 
         maybe = np.where(np.isfinite(t), t, np.where(grazing & (b < 0), -b, np.inf))
         maybe = np.where(near | turning, 0.0, maybe)
         return Test(t, near | turning | (grazing & np.isfinite(maybe)), sigma, maybe)
-    denom = _dot(d, s.normal)
-    dist = _dot(o - s.point, s.normal)
+    return flat_tests([s], o, d, leaving[None])
+
+
+def flat_tests(flat: list[Surface], o: np.ndarray, d: np.ndarray, leaving: np.ndarray) -> Test:
+    """Planes and triangles ``flat`` (F of them) against N rays at once: a :class:`Test` of (F, N) arrays.
+    ``leaving (F, N)`` marks the rays that start on each surface."""
+    normal = np.stack([s.normal for s in flat])[:, None, :]  # (F, 1, 3)
+    point = np.stack([s.point for s in flat])[:, None, :]
+    mag = np.array([s.mag for s in flat])[:, None]
+    dist = _dot(o[None] - point, normal)  # (F, N)
+    scale = _mag(o)[None] + mag
+    on = (np.abs(dist) <= ON * scale) | leaving
+    near = ~on & (np.abs(dist) <= OFF * scale)
+    err = ON * 64 * scale
+    denom = _dot(d[None], normal)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -dist / denom
         sigma = err / np.abs(denom)
@@ -184,28 +197,54 @@ def intersect(s: Surface, o: np.ndarray, d: np.ndarray, leaving: np.ndarray) -> 
     ok = ~on & crossing
     maybe = np.where(near, 0.0, np.inf)
     unclear = near.copy()
-    u = w = np.zeros(n)
-    if s.kind == "triangle":
-        assert s.v is not None
-        p = o + np.where(crossing, t, 0.0)[:, None] * d
-        e1, e2 = s.v[1] - s.v[0], s.v[2] - s.v[0]
-        rel = p - s.v[0]
+    u = np.zeros(t.shape)
+    w = np.zeros(t.shape)
+    tri = np.array([s.kind == "triangle" for s in flat])
+    if tri.any():
+        v = np.stack([s.v for s in flat if s.kind == "triangle"])  # (T, 3, 3)
+        rows = np.flatnonzero(tri)
+        tt, cr = t[rows], crossing[rows]
+        p = o[None] + np.where(cr, tt, 0.0)[..., None] * d[None]  # (T, N, 3) the crossings
+        e1, e2 = (v[:, 1] - v[:, 0])[:, None], (v[:, 2] - v[:, 0])[:, None]
+        rel = p - v[:, None, 0]
         # barycentrics of the crossing, from the two edges (least squares in the plane)
         g11, g12, g22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
         r1, r2 = _dot(rel, e1), _dot(rel, e2)
         det = g11 * g22 - g12 * g12
-        u = (g22 * r1 - g12 * r2) / det
-        w = (g11 * r2 - g12 * r1) / det
-        edge = np.minimum(np.minimum(u, w), 1.0 - u - w)
-        size = math.sqrt(max(g11, g22))
-        slack = GRAY + err * (1.0 + np.where(np.isfinite(sigma), sigma, 0.0)) / max(size, 1e-300)
-        at_edge = ok & (np.abs(edge) <= slack)
-        unclear |= at_edge
-        maybe = np.where(at_edge, t, maybe)
-        ok &= edge >= 0
+        uu = (g22 * r1 - g12 * r2) / det
+        ww = (g11 * r2 - g12 * r1) / det
+        edge = np.minimum(np.minimum(uu, ww), 1.0 - uu - ww)
+        size = np.sqrt(np.maximum(g11, g22))
+        with np.errstate(invalid="ignore"):
+            slack = GRAY + (err[rows] + np.where(np.isfinite(sigma[rows]), sigma[rows], 0.0)) / size
+        at_edge = ok[rows] & (np.abs(edge) <= slack)
+        unclear[rows] |= at_edge
+        maybe[rows] = np.where(at_edge, tt, maybe[rows])
+        ok[rows] &= edge >= 0
+        u[rows], w[rows] = uu, ww
     t = np.where(ok, t, np.inf)
     maybe = np.where(ok, t, maybe)
     return Test(t, unclear, sigma, maybe, u, w)
+
+
+def tests_of(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.ndarray) -> Test:
+    """Every surface against every ray: a :class:`Test` of (S, N) arrays, in the order of ``surfaces``."""
+    n, count = len(o), len(surfaces)
+    out = Test(np.full((count, n), np.inf), np.zeros((count, n), bool), np.zeros((count, n)),
+               np.full((count, n), np.inf), np.zeros((count, n)), np.zeros((count, n)))
+    flat = [k for k, s in enumerate(surfaces) if s.kind != "sphere"]
+    for k, s in enumerate(surfaces):
+        if s.kind == "sphere":
+            x = intersect(s, o, d, start == k)
+            out.t[k], out.unclear[k], out.sigma[k], out.maybe[k] = x.t, x.unclear, x.sigma, x.maybe
+    step = max(1, (1 << 21) // max(n, 1))  # bounded temporaries: (surfaces, rays, 3) at a time
+    for a in range(0, len(flat), step):
+        rows = np.array(flat[a:a + step])
+        x = flat_tests([surfaces[k] for k in rows], o, d, start[None] == rows[:, None])
+        assert x.u is not None and x.w is not None
+        out.t[rows], out.unclear[rows], out.sigma[rows], out.maybe[rows] = x.t, x.unclear, x.sigma, x.maybe
+        out.u[rows], out.w[rows] = x.u, x.w  # type: ignore[index]
+    return out
 
 
 # -- rays through the scene ------------------------------------------------------------------------------------
@@ -222,25 +261,23 @@ class Hits:
 def closest(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.ndarray) -> Hits:
     """First hits of rays that leave surfaces ``start`` (index, −1 for none)."""
     n = len(o)
-    tests = [intersect(s, o, d, start == k) for k, s in enumerate(surfaces)]
-    if not tests:
+    if not surfaces:
         return Hits(np.full(n, np.inf), np.full(n, -1), np.zeros(n, bool), np.zeros(n), np.zeros(n))
-    t = np.stack([x.t for x in tests])  # (S, N)
+    x = tests_of(surfaces, o, d, start)
+    t = x.t  # (S, N)
     best = np.argmin(t, axis=0)
     cols = np.arange(n)
     bt = t[best, cols]
-    sig = np.stack([x.sigma for x in tests])
-    sig = np.where(np.isfinite(sig), sig, np.inf)
-    maybe = np.stack([x.maybe for x in tests])
-    unclear = np.stack([x.unclear for x in tests])
+    sig = np.where(np.isfinite(x.sigma), x.sigma, np.inf)
+    maybe, unclear = x.maybe, x.unclear
     reach = np.where(np.isfinite(bt), bt + sig[best, cols] + GRAY * bt, np.inf)
     # a rival: another surface whose hit, or possible hit, lies within noise of the best (or before it)
     rival = (maybe <= reach[None] + np.where(np.isfinite(maybe), sig, 0.0)) & np.isfinite(maybe)
-    rival &= np.arange(len(tests))[:, None] != best[None]
+    rival &= np.arange(len(surfaces))[:, None] != best[None]
     rival &= unclear | np.isfinite(t)
     amb = (unclear[best, cols] & np.isfinite(bt)) | np.any(rival, axis=0)
-    us = np.stack([x.u if x.u is not None else np.zeros(n) for x in tests])
-    ws = np.stack([x.w if x.w is not None else np.zeros(n) for x in tests])
+    assert x.u is not None and x.w is not None
+    us, ws = x.u, x.w
     surface = np.where(np.isfinite(bt), best, -1)
     return Hits(bt, surface, amb, us[best, cols], ws[best, cols])
 
@@ -250,39 +287,38 @@ def blocked(surfaces: list[Surface], p: np.ndarray, to: np.ndarray, reach: np.nd
     """Shadow decisions from points p towards unit directions ``to`` over distances ``reach`` (inf for a
     directional light), towards the light position ``light`` (3,) or None: (blocked, unclear)."""
     n = len(p)
-    sure = np.zeros(n, dtype=bool)
-    amb = np.zeros(n, dtype=bool)
-    for k, s in enumerate(surfaces):
-        x = intersect(s, p, to, start == k)
-        t, unclear, maybe = x.t, x.unclear, x.maybe
-        if light is not None:
-            on_l, near_l = (a[0] for a in _on(s, light[None]))
-            if s.kind == "sphere" and (on_l or near_l):
-                # the light is a root; only the other one (their product is c) may block
-                oc = p - s.center
-                b = _dot(oc, to)
-                c = (_norm(oc) - s.radius) * (_norm(oc) + s.radius)
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    other = np.where(reach > 0, c / reach, np.inf)
-                other = np.where(start == k, np.inf, other)  # from the sphere to a light on it: nothing between
-                other = np.where(other > 0, other, np.inf)
-                near_end = np.abs(other - reach) <= GRAY * reach + x.sigma
-                if on_l:
-                    t = np.where(near_end, np.inf, other)
-                    unclear = unclear | near_end
-                    maybe = np.where(near_end, reach, t)
-                else:
-                    unclear = unclear | np.isfinite(t)
-            elif on_l:  # a plane through the light meets the segment only there
-                t = np.full(n, np.inf)
-                unclear = unclear & (maybe < reach)
-                maybe = np.where(unclear, maybe, np.inf)
-            elif near_l:
-                unclear = unclear | np.isfinite(t)
-        with np.errstate(invalid="ignore"):
-            at_end = np.isfinite(t) & np.isfinite(reach) & (np.abs(t - reach) <= GRAY * reach + x.sigma)
-        sure |= (t < reach) & ~unclear & ~at_end
-        amb |= (unclear & (maybe < reach + x.sigma)) | at_end
+    if not surfaces:
+        return np.zeros(n, bool), np.zeros(n, bool)
+    x = tests_of(surfaces, p, to, start)
+    t, unclear, maybe, sigma = x.t, x.unclear, x.maybe, x.sigma
+    for k, s in enumerate(surfaces if light is not None else []):
+        assert light is not None
+        on_l, near_l = (a[0] for a in _on(s, light[None]))
+        if s.kind == "sphere" and (on_l or near_l):
+            # the light is a root; only the other one (their product is c) may block
+            oc = p - s.center
+            c = (_norm(oc) - s.radius) * (_norm(oc) + s.radius)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                other = np.where(reach > 0, c / reach, np.inf)
+            other = np.where(start == k, np.inf, other)  # from the sphere to a light on it: nothing between
+            other = np.where(other > 0, other, np.inf)
+            near_end = np.abs(other - reach) <= GRAY * reach + sigma[k]
+            if on_l:
+                t[k] = np.where(near_end, np.inf, other)
+                unclear[k] |= near_end
+                maybe[k] = np.where(near_end, reach, t[k])
+            else:
+                unclear[k] |= np.isfinite(t[k])
+        elif on_l:  # a plane through the light meets the segment only there (or holds all of it)
+            t[k] = np.inf
+            unclear[k] = _on(s, p)[1] & (start != k)  # unless the origin is too near the plane to say
+            maybe[k] = np.where(unclear[k], 0.0, np.inf)
+        elif near_l:
+            unclear[k] |= np.isfinite(t[k])
+    with np.errstate(invalid="ignore"):
+        at_end = np.isfinite(t) & np.isfinite(reach)[None] & (np.abs(t - reach[None]) <= GRAY * reach[None] + sigma)
+        sure = np.any((t < reach[None]) & ~unclear & ~at_end, axis=0)
+        amb = np.any((unclear & (maybe < reach[None] + sigma)) | at_end, axis=0)
     return sure, amb & ~sure
 
 
@@ -357,22 +393,27 @@ def illuminate(e: Emitter, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return L, dist, f, unclear
 
 
-def n_dot_l(s: Surface, e: Emitter, normal: np.ndarray, L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """N·L for the facing shading normals, 0 where the light lies in a flat surface's plane, and unclear."""
+def in_plane(s: Surface, e: Emitter) -> tuple[bool, bool]:
+    """Whether the light lies in a flat surface's plane (N·L is then 0 there), and whether that is unclear."""
+    if not s.flat:
+        return False, False
+    if e.kind == "directional":
+        assert e.direction is not None and s.normal is not None
+        cos = abs(float(np.dot(e.direction, s.normal)))
+        return cos <= ON, ON < cos <= GRAY
+    assert e.position is not None
+    on, unclear = _on(s, e.position[None])
+    return bool(on[0]), bool(unclear[0])
+
+
+def n_dot_l(surfaces: list[Surface], which: np.ndarray, e: Emitter, normal: np.ndarray,
+            L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """N·L at points on the surfaces ``which`` (index per point) for their facing shading normals: 0 where the
+    light lies in a flat surface's plane; and whether it is unclear."""
     nl = _dot(normal, L)
-    if s.flat:
-        if e.kind == "directional":
-            assert e.direction is not None
-            in_plane = abs(float(np.dot(e.direction, s.normal))) <= ON
-            near = not in_plane and abs(float(np.dot(e.direction, s.normal))) <= GRAY
-        else:
-            assert e.position is not None
-            on, unclear = _on(s, e.position[None])
-            in_plane, near = bool(on[0]), bool(unclear[0])
-        if in_plane:
-            return np.zeros(len(nl)), np.zeros(len(nl), bool)
-        return nl, np.full(len(nl), near) | (np.abs(nl) <= GRAY)
-    return nl, np.abs(nl) <= GRAY
+    flags = np.array([in_plane(surfaces[k], e) for k in range(len(surfaces))], dtype=bool).reshape(-1, 2)
+    planar, near = flags[which, 0], flags[which, 1]
+    return np.where(planar, 0.0, nl), ~planar & (near | (np.abs(nl) <= GRAY))
 
 
 # -- the image --------------------------------------------------------------------------------------------------
@@ -487,77 +528,68 @@ def render(scene) -> Frame:  # noqa: ANN001
         np.logical_or.at(unclear_px, pixel[hits.unclear & live], True)
         miss = hits.surface < 0
         np.add.at(colour, pixel[miss], weight[miss, None] * background)
-        new_o, new_d, new_w, new_px, new_start = [], [], [], [], []
-        for k, s in enumerate(surfaces):
-            rows = np.flatnonzero(hits.surface == k)
-            if len(rows) == 0:
-                continue
-            ro, rd, rw, rp = o[rows], d[rows], weight[rows], pixel[rows]
-            p, geo, shading = surface_point(s, ro, rd, hits.t[rows], hits.u[rows], hits.w[rows])
-            unclear = np.zeros(len(rows), bool)
-            other, unclear_mat = _checker_material(scene, s, p)
-            unclear |= unclear_mat
-            mat_main = scene.materials[s.material]
-            mat_other = scene.materials[mat_main.checker.material] if mat_main.checker else mat_main
-
-            def pick(attr: str) -> np.ndarray:
-                a, b = _v(getattr(mat_main, attr)), _v(getattr(mat_other, attr))
-                return np.where(other[:, None] if a.ndim else other, b, a)
-
-            ka, kd, ks = pick("ambient"), pick("diffuse"), pick("specular")
-            shin, kr, kt, ior = pick("shininess"), pick("reflectance"), pick("transmittance"), pick("ior")
-            c = ka * ambient
-            view = -rd
-            leave = np.full(len(rows), k)
-            for e in emitters:
-                L, dist, f, unclear_f = illuminate(e, p)
-                nl, unclear_nl = n_dot_l(s, e, shading, L)
-                facing = (nl > 0) & (f > 0)
-                unclear |= unclear_nl & (f > 0)
-                unclear |= unclear_f
-                if not np.any(facing):
-                    continue
-                sel = np.flatnonzero(facing)
-                blk, unclear_b = blocked(surfaces, p[sel], L[sel], dist[sel], leave[sel], e.position)
-                unclear[sel] |= unclear_b
-                lit = np.zeros(len(rows), bool)
-                lit[sel] = ~blk
-                R = 2.0 * nl[:, None] * shading - L
-                rv = _dot(R, view)
-                with np.errstate(over="ignore", invalid="ignore"):
-                    spec = np.where(rv > 0, np.power(np.where(rv > 0, rv, 1.0), shin), 0.0)
-                term = kd * nl[:, None] + ks * spec[:, None]
-                c += np.where(lit[:, None], e.color * f[:, None] * term, 0.0)
-            np.add.at(colour, rp, rw[:, None] * c)
-            np.logical_or.at(unclear_px, rp[unclear & (rw > 2.0**-24)], True)
-            if depth == img.max_depth:
-                continue
-            refl = np.flatnonzero(rw * kr > 0)
-            if len(refl):
-                dd = rd[refl]
-                nn = shading[refl]
-                out = _unit(dd - 2.0 * _dot(dd, nn)[:, None] * nn)
-                new_o.append(p[refl]), new_d.append(out), new_w.append(rw[refl] * kr[refl])
-                new_px.append(rp[refl]), new_start.append(np.full(len(refl), k))
-            trans = np.flatnonzero(rw * kt > 0)
-            if len(trans):
-                dd = rd[trans]
-                g = np.array(geo[trans])
-                entering = _dot(dd, g) < 0
-                eta = np.where(entering, 1.0 / ior[trans], ior[trans])
-                wn = np.where(entering[:, None], g, -g)
-                cc = -_dot(dd, wn)
-                kk = 1.0 - eta * eta * (1.0 - cc * cc)
-                through = eta[:, None] * dd + (eta * cc - np.sqrt(np.maximum(kk, 0.0)))[:, None] * wn
-                bounce = dd - 2.0 * _dot(dd, wn)[:, None] * wn
-                out = _unit(np.where((kk < 0)[:, None], bounce, through))
-                tir = np.abs(kk) <= GRAY
-                np.logical_or.at(unclear_px, rp[trans][tir & (rw[trans] > 2.0**-24)], True)
-                new_o.append(p[trans]), new_d.append(out), new_w.append(rw[trans] * kt[trans])
-                new_px.append(rp[trans]), new_start.append(np.full(len(trans), k))
-        if not new_o:
+        rows = np.flatnonzero(~miss)
+        if len(rows) == 0:
             break
-        o, d = np.concatenate(new_o), np.concatenate(new_d)
-        weight, pixel, start = np.concatenate(new_w), np.concatenate(new_px), np.concatenate(new_start)
+        which = hits.surface[rows]
+        rd, rw, rp = d[rows], weight[rows], pixel[rows]
+        p, geo, shading = np.zeros((len(rows), 3)), np.zeros((len(rows), 3)), np.zeros((len(rows), 3))
+        mats = {name: np.zeros((len(rows), 3)) for name in ("ambient", "diffuse", "specular")}
+        mats.update({name: np.zeros(len(rows)) for name in ("shininess", "reflectance", "transmittance", "ior")})
+        unclear = np.zeros(len(rows), bool)
+        for k in np.unique(which):  # the geometry and the material of each surface's hits
+            sel = np.flatnonzero(which == k)
+            s = surfaces[k]
+            r = rows[sel]
+            p[sel], geo[sel], shading[sel] = surface_point(s, o[r], d[r], hits.t[r], hits.u[r], hits.w[r])
+            other, unclear_mat = _checker_material(scene, s, p[sel])
+            unclear[sel] |= unclear_mat
+            main = scene.materials[s.material]
+            alt = scene.materials[main.checker.material] if main.checker else main
+            for name, a in mats.items():
+                a[sel] = np.where(other[:, None] if a.ndim == 2 else other, _v(getattr(alt, name)),
+                                  _v(getattr(main, name)))
+        c = mats["ambient"] * ambient
+        view = -rd
+        for e in emitters:  # every hit point's shadow ray to one light at once
+            L, dist, f, unclear_f = illuminate(e, p)
+            nl, unclear_nl = n_dot_l(surfaces, which, e, shading, L)
+            unclear |= (unclear_nl & (f > 0)) | unclear_f
+            sel = np.flatnonzero((nl > 0) & (f > 0))
+            if len(sel) == 0:
+                continue
+            blk, unclear_b = blocked(surfaces, p[sel], L[sel], dist[sel], which[sel], e.position)
+            unclear[sel] |= unclear_b
+            lit = np.zeros(len(rows), bool)
+            lit[sel] = ~blk
+            rv = _dot(2.0 * nl[:, None] * shading - L, view)  # R·V, R = 2(N·L)N − L
+            with np.errstate(over="ignore", invalid="ignore"):
+                spec = np.where(rv > 0, np.power(np.where(rv > 0, rv, 1.0), mats["shininess"]), 0.0)
+            term = mats["diffuse"] * nl[:, None] + mats["specular"] * spec[:, None]
+            c += np.where(lit[:, None], e.color * f[:, None] * term, 0.0)
+        np.add.at(colour, rp, rw[:, None] * c)
+        np.logical_or.at(unclear_px, rp[unclear & (rw > 2.0**-24)], True)
+        if depth == img.max_depth:
+            break
+        kr, kt, ior = mats["reflectance"], mats["transmittance"], mats["ior"]
+        refl = np.flatnonzero(rw * kr > 0)
+        dd, nn = rd[refl], shading[refl]
+        mirror = _unit(dd - 2.0 * _dot(dd, nn)[:, None] * nn)
+        trans = np.flatnonzero(rw * kt > 0)
+        dd, g = rd[trans], geo[trans]
+        entering = _dot(dd, g) < 0
+        eta = np.where(entering, 1.0 / ior[trans], ior[trans])
+        wn = np.where(entering[:, None], g, -g)
+        cc = -_dot(dd, wn)
+        kk = 1.0 - eta * eta * (1.0 - cc * cc)
+        through = eta[:, None] * dd + (eta * cc - np.sqrt(np.maximum(kk, 0.0)))[:, None] * wn
+        bounce = dd - 2.0 * _dot(dd, wn)[:, None] * wn
+        refracted = _unit(np.where((kk < 0)[:, None], bounce, through))
+        np.logical_or.at(unclear_px, rp[trans][(np.abs(kk) <= GRAY) & (rw[trans] > 2.0**-24)], True)
+        o = np.concatenate([p[refl], p[trans]])
+        d = np.concatenate([mirror, refracted])
+        weight = np.concatenate([rw[refl] * kr[refl], rw[trans] * kt[trans]])
+        pixel = np.concatenate([rp[refl], rp[trans]])
+        start = np.concatenate([which[refl], which[trans]])
     colour /= spp
     return Frame(colour.reshape(img.height, img.width, 3), unclear_px.reshape(img.height, img.width))

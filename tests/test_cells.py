@@ -1,9 +1,8 @@
-"""The walk's grid of cells (tracer/cells.py): what each cell holds, and that walking by cells changes nothing.
+"""The walk's grid of cells (tracer/cells.py): what each part of a cell holds, whatever the boxes' sizes.
 
-Scenes with plain mesh faces walk by cells; every scene here is rendered
-that way and again with neighbour lists instead (as every other scene is
-walked), and the two must give the same bytes and agree with the float64
-brute force of test_exactness.
+The walk's guarantee rests on one property: every box is registered in every
+part of a cell it comes within the reach of.  The scenes here walk among
+spheres and meshes of mixed sizes and must agree with the float64 brute force.
 """
 
 from dataclasses import replace
@@ -15,7 +14,7 @@ from test_exactness import agrees_with_brute_force, scene
 from test_sightlines import BALL, sphere_mesh
 
 import schemas
-from tracer import Renderer, render
+from tracer import render
 from tracer.cells import SUB, build_cells
 
 
@@ -103,12 +102,43 @@ def test_a_grid_too_large_for_a_table_finds_the_same_cells_by_search():
             assert np.array_equal(a, b, equal_nan=True)
 
 
-def test_cells_give_way_to_neighbour_lists_past_their_budget():
+def holds_every_box_in_every_part_it_comes_near(cells, lo, hi, reach, seed=5):
+    rng = np.random.default_rng(seed)
+    for b in range(0, len(lo), max(1, len(lo) // 60)):
+        t = np.vstack([rng.uniform(0, 1, (30, 3)), [[0, 0, 0], [1, 1, 1], [0, 1, 0], [1, 0, 1]]])
+        points = lo[b] - reach + t * (hi[b] - lo[b] + 2 * reach)
+        region, p_lo, p_hi = cells.locate(points)
+        assert np.all(region >= 0)
+        rows, prims = cells.pairs(np.arange(len(points)), region)
+        assert set(rows[prims == b].tolist()) == set(range(len(points)))
+
+
+def test_past_their_budget_cells_grow_coarser_and_still_hold_every_box():
     lo, hi = random_boxes(200, size=0.01)
-    assert build_cells(lo, hi, 0.0) is not None
-    big_lo, big_hi = np.vstack([lo, [[-1, -1, -1]]]), np.vstack([hi, [[1, 1, 1]]])  # 10^6 cells for one box
-    assert build_cells(big_lo, big_hi, 0.0) is None
-    assert build_cells(np.zeros((0, 3)), np.zeros((0, 3)), 0.0) is None
+    fine = build_cells(lo, hi, 0.0)
+    big_lo, big_hi = np.vstack([lo, [[-1, -1, -1]] * 3]), np.vstack([hi, [[1, 1, 1]] * 3])  # 10^6 cells each
+    coarse = build_cells(big_lo, big_hi, 0.0)
+    assert coarse.size > fine.size
+    assert len(coarse.members) <= 32 * len(big_lo) + (1 << 20)
+    holds_every_box_in_every_part_it_comes_near(coarse, big_lo, big_hi, 0.0)
+
+
+def test_boxes_far_apart_and_tiny_get_a_grid_that_fits_its_keys():
+    # a layout far wider than 2^20 cells of the boxes' own size: cells grow to fit, every box still held
+    lo = np.array([[0.0, 0, 0], [1e9, 0, 0], [0, -1e9, 3], [5e8, 5e8, 5e8]])
+    hi = lo + 1e-3
+    cells = build_cells(lo, hi, 1e-6)
+    assert np.all(cells.dims <= (1 << 20) + 1)
+    holds_every_box_in_every_part_it_comes_near(cells, lo, hi, 1e-6)
+
+
+def test_a_fan_of_slivers_round_one_vertex_gets_cells():
+    # thousands of long, thin boxes through one point: each part there holds them all, and that is allowed
+    angle = np.linspace(0, 2 * np.pi, 8001)[:-1]
+    tip = np.stack([np.cos(angle), np.zeros_like(angle), np.sin(angle)], axis=1)
+    lo, hi = np.minimum(tip, 0.0), np.maximum(tip, 0.0)
+    cells = build_cells(lo, hi, 1e-4)
+    holds_every_box_in_every_part_it_comes_near(cells, lo, hi, 1e-4)
 
 
 def spheres_about(center, radius, count, gap, seed=11):
@@ -142,30 +172,13 @@ CASES = {
 }
 
 
-def walked_by_neighbours(data):
-    with mock.patch("tracer.intersect.build_cells", return_value=None):
-        r = Renderer(schemas.validate_scene(data))
-        assert r.intersector.cells is None
-        return r.pixels()
-
-
-@pytest.mark.parametrize("name", sorted(CASES))
-def test_walking_by_cells_changes_no_pixel(name):
-    data = CASES[name]
-    r = Renderer(schemas.validate_scene(data))
-    assert r.intersector.cells is not None, "the scene should walk by cells"
-    assert np.array_equal(r.pixels(), walked_by_neighbours(data))
-
-
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_walking_by_cells_agrees_with_the_brute_force(name):
     agrees_with_brute_force(CASES[name])
 
 
-def test_a_scene_over_the_cells_budget_walks_by_neighbours():
+def test_a_scene_over_the_cells_budget_walks_coarser_cells_to_the_same_pixels():
     data = CASES["mesh ball among small spheres"]
     with mock.patch("tracer.cells.BUDGET_PER", -10**9):
-        r = Renderer(schemas.validate_scene(data))
-        assert r.intersector.cells is None and len(r.intersector.proxies.neighbours) > 0
-        pixels = r.pixels()
+        pixels = render(schemas.validate_scene(data))
     assert np.array_equal(pixels, render(schemas.validate_scene(data)))

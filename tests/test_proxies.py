@@ -1,54 +1,62 @@
-"""Neighbour finding and proxies (tracer/proxies.py) against brute force."""
+"""Proxies (tracer/proxies.py): each closed stand-in holds its surface grown by the margin, as the walk assumes."""
 
 import numpy as np
 import pytest
 
-from tracer.proxies import _csr, overlapping_pairs, stable_order
+from tracer.proxies import MARGIN, build_proxies, stable_order
+from tracer.vec import cross
 
 
-def brute(lo, hi):
-    over = np.all(lo[:, None] <= hi[None], axis=2) & np.all(lo[None] <= hi[:, None], axis=2)
-    i, j = np.nonzero(np.triu(over, 1))
-    return set(zip(i.tolist(), j.tolist()))
+def inside_convex(point, vertices, faces):
+    """Whether ``point`` lies inside the closed convex polyhedron (vertices, faces), by its face planes."""
+    centre = vertices.mean(axis=0)
+    for a, b, c in faces:
+        n = np.cross(vertices[b] - vertices[a], vertices[c] - vertices[a])
+        side = np.dot(point - vertices[a], n)
+        inner = np.dot(centre - vertices[a], n)
+        if side * inner < 0 and abs(side) > 1e-12 * np.linalg.norm(n):
+            return False
+    return True
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_overlapping_pairs_are_exactly_the_overlapping_boxes(seed):
+def proxy_of(p, k):
+    faces = p.faces[p.owner == k]
+    used = np.unique(faces)
+    return p.vertices[used], np.searchsorted(used, faces)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_every_point_within_the_margin_of_a_surface_lies_in_its_proxy(seed):
     rng = np.random.default_rng(seed)
-    n = 400
-    lo = rng.random((n, 3)) * [4, 1, 0.01 if seed % 2 else 4]  # some nearly flat layouts
-    size = rng.random((n, 3)) * 0.3
-    big = rng.random(n) < 0.05  # a few boxes far above the median size
-    size[big] *= 20
-    size[rng.random(n) < 0.05] = 0.0  # and some points
-    hi = lo + size
-    i, j = overlapping_pairs(lo, hi)
-    got = set(zip(i.tolist(), j.tolist()))
-    assert len(got) == len(i)  # no pair twice
-    assert np.all(i < j)
-    assert got == brute(lo, hi)
+    v0 = rng.uniform(-1, 1, (20, 3))
+    e1, e2 = rng.uniform(-0.5, 0.5, (20, 3)), rng.uniform(-0.5, 0.5, (20, 3))
+    e2[:4] = e1[:4] * 0.999 + 1e-4  # slivers get boxes of their own
+    normal = cross(e1, e2)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    center, radius = rng.uniform(-1, 1, (10, 3)), rng.uniform(0.01, 0.5, 10)
+    half = 2.0
+    p = build_proxies(v0, e1, e2, normal, center, radius, half)
+    m = MARGIN * half
+    for k in range(20):  # points of the triangle, moved by up to 0.99 m in any direction
+        verts, faces = proxy_of(p, k)
+        for _ in range(40):
+            u, v = rng.random(2)
+            if u + v > 1:
+                u, v = 1 - u, 1 - v
+            x = v0[k] + u * e1[k] + v * e2[k] + _ball(rng) * 0.99 * m
+            assert inside_convex(x, verts, faces)
+            assert np.all(p.lo[k] <= x) and np.all(x <= p.hi[k])
+    for k in range(10):
+        verts, faces = proxy_of(p, 20 + k)
+        for _ in range(40):
+            d = rng.normal(size=3)
+            x = center[k] + d / np.linalg.norm(d) * (radius[k] + rng.uniform(-0.99, 0.99) * m)
+            assert inside_convex(x, verts, faces)
 
 
-def test_touching_boxes_in_adjacent_cells_and_far_apart_coordinates():
-    # boxes that only touch, exactly a cell apart, and a layout far wider than 2^20 cells
-    lo = np.array([[0.0, 0, 0], [1.0, 0, 0], [1.0, 1.0, 1.0], [1e9, 0, 0], [1e9 + 0.5, 0.5, 0.5], [-3.0, 5.0, 2.0]])
-    hi = lo + 1.0
-    i, j = overlapping_pairs(lo, hi)
-    assert set(zip(i.tolist(), j.tolist())) == brute(lo, hi)
-
-
-def test_non_finite_boxes_overlap_nothing():
-    lo = np.array([[0.0, 0, 0], [0.5, 0.5, 0.5], [np.nan, 0, 0], [2.0, 2, 2]])
-    hi = lo + 1.0
-    i, j = overlapping_pairs(lo, hi)
-    assert set(zip(i.tolist(), j.tolist())) == {(0, 1)}
-
-
-def test_csr_lists_each_neighbour_of_each_box_in_order():
-    i, j = np.array([0, 2, 1, 0]), np.array([3, 3, 2, 1])
-    start, nb = _csr(5, i, j)
-    lists = [nb[start[k]:start[k + 1]].tolist() for k in range(5)]
-    assert [sorted(x) for x in lists] == [[1, 3], [0, 2], [1, 3], [0, 2], []]
+def _ball(rng):
+    d = rng.normal(size=3)
+    return d / np.linalg.norm(d) * rng.random() ** (1 / 3)
 
 
 @pytest.mark.parametrize("bound", [1, 7, 1 << 16, (1 << 16) + 3, 5_000_000, 1 << 40])

@@ -51,9 +51,7 @@ DIRECT_MAX = 2
 PAIR_SLICE = 1 << 16
 #: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
 INSIDE = 2.0**-24
-#: how far (relative to the BVH's half-size) a primitive's box reaches into the cells it is registered in: far
-#: more than float32 rounding of a crossing and of a ray, and than the walk's step past a crossing
-REACH = 2.0**-14
+
 
 
 @dataclass
@@ -229,11 +227,11 @@ class Intersector:
         some_plain = plain is not None and bool(plain.any())
         #: a plain triangle's faces across its edges, which a shadow ray leaving it never meets (n_tri, 3)
         self.mates = mates if some_plain else None
-        self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids, neighbours=False)
+        self.proxies = p = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids)
         self.bvh = Bvh(p.vertices, p.faces, centre, half, commit=False)
         with ThreadPoolExecutor(max_workers=1) as pool:  # Embree builds its tree while the walk's cells are made
             committed = pool.submit(self.bvh.commit)
-            self.cells = build_cells(p.lo, p.hi, REACH * half)
+            self.cells = build_cells(p.lo, p.hi, p.reach)
             committed.result()
         self.box_lo = lowest(p.lo) - p.step * 4 - p.slack
         self.box_hi = highest(p.hi) + p.step * 4 + p.slack

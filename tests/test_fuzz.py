@@ -1,0 +1,46 @@
+"""The differential fuzz test, CI's subset: generated scenes against the float64 brute force.
+
+A few hundred scenes of :mod:`generator` at tiny sizes, each compared ray by
+ray and pixel by pixel (:mod:`fuzz`), on every core.  A soak of thousands is
+``python -m tests.fuzz --scenes 10000``.
+"""
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+
+import pytest
+
+import fuzz
+import generator
+
+#: scenes per CI run, and the first seed: a fixed set, so that a failure reproduces
+SCENES = 240
+FIRST = 0
+
+
+@pytest.fixture(scope="module")
+def outcomes():
+    with ProcessPoolExecutor(max_workers=min(4, os.cpu_count() or 1)) as pool:
+        return list(pool.map(fuzz.run_seed, range(FIRST, FIRST + SCENES), chunksize=4))
+
+
+def test_every_family_is_in_the_subset(outcomes):
+    seen = {o.family.split("+")[0] for o in outcomes}
+    assert seen == set(generator.FAMILIES)
+    assert sum("+moved" in o.family for o in outcomes) > SCENES // 5
+
+
+def test_the_brute_force_is_clear_on_most_of_what_it_compares(outcomes):
+    # a check of the check: the comparisons below must not be vacuous
+    total = {k: sum(o.compared[k] for o in outcomes) for k in ("hit", "shadow", "pixel")}
+    assert total["hit"] > 0.9 * SCENES * 20 * 15
+    assert total["pixel"] > 0.8 * SCENES * 20 * 15
+    assert total["shadow"] > SCENES * 100
+
+
+def test_phongray_agrees_with_the_brute_force_on_every_generated_scene(outcomes):
+    bad = [o for o in outcomes if o.bad]
+    report = "\n".join(f"seed {o.seed} ({o.family}): {o.error or dict(o.disagreed)}; " + "; ".join(o.examples[:2])
+                       for o in bad[:10])
+    assert not bad, f"{len(bad)} of {SCENES} scenes disagree (rerun one with python -m tests.fuzz --scenes 1 " \
+                    f"--seed N):\n{report}"
