@@ -16,7 +16,9 @@ what breaks walks and careless numerics:
 * ``scales``: a planet under tiny spheres near the eye, lights far away, thin
   shells;
 * ``mesh``: terrains, icospheres (with and without vertex normals), fans of
-  slivers and boxes, lit from points on them.
+  slivers and boxes, lit from points on them;
+* ``dust``: specks 10⁻⁴ to 10⁻⁷ of the scene seen through a narrow field of
+  view, where float32 cannot tell their outlines (the proxies' margins).
 
 Any scene may then be moved by up to 10⁶ and scaled by a power of ten
 (attenuation scaled with it).  Coordinates are often on a grid of 1/8, so that
@@ -373,9 +375,32 @@ def mesh(rng: Rng) -> tuple[dict[str, Any], list, list]:
     return _camera(rng, eye, [0, 0.5, 0], height=6.0), objects, lights
 
 
+def dust(rng: Rng) -> tuple[dict[str, Any], list, list]:
+    """Specks far smaller than the scene, seen through a narrow field of view: float32 cannot tell where their
+    outlines lie, so every speck a ray grazes tests the proxies' margins and the cells' reach."""
+    objects: list[dict[str, Any]] = [sphere(rng.uniform(-1, 1, 3), float(rng.uniform(0.2, 0.5)), _opaque(rng))
+                                     for _ in range(2)]
+    size = 10.0 ** -float(rng.uniform(4, 7))
+    centre = rng.uniform(-0.5, 0.5, 3)
+    for _ in range(int(rng.integers(20, 50))):
+        c = centre + rng.normal(size=3) * size * 4
+        if rng.random() < 0.7:
+            objects.append(sphere(c, size * float(rng.uniform(0.3, 1.5)), _opaque(rng)))
+        else:
+            objects.append({"type": "triangle", "material": _opaque(rng),
+                            "vertices": [_vec(c + rng.normal(size=3) * size) for _ in range(3)]})
+    eye = centre + _unit(rng) * float(rng.uniform(0.3, 2.0))  # far beyond the cells' reach round the specks
+    cam = _camera(rng, eye, centre, height=size * 12)
+    if "fov" in cam:
+        cam["fov"] = float(np.degrees(2 * np.arctan(8 * size / np.linalg.norm(eye - centre))))
+    lights = [{"type": "ambient", "color": 0.1}, point(centre + _unit(rng) * size * 30, 1.0),
+              {"type": "directional", "color": 0.6, "direction": _vec(_unit(rng))}]
+    return cam, objects, lights
+
+
 FAMILIES: dict[str, Callable[[Rng], tuple[dict[str, Any], list, list]]] = {
     "room": room, "nested": nested, "overlap": overlap, "lights": lights_on, "cameras": cameras,
-    "scales": scales, "mesh": mesh,
+    "scales": scales, "mesh": mesh, "dust": dust,
 }
 
 

@@ -13,8 +13,9 @@ import pytest
 import fuzz
 import generator
 
-#: scenes per CI run, and the first seed: a fixed set, so that a failure reproduces
-SCENES = 240
+#: scenes per CI run (``PHONGRAY_FUZZ_SCENES`` may change it), and the first seed: a fixed set, so that a failure
+#: reproduces
+SCENES = int(os.environ.get("PHONGRAY_FUZZ_SCENES") or 800)
 FIRST = 0
 
 

@@ -1,0 +1,89 @@
+"""Does the fuzz test catch a weakened walk?  Each mutant weakens one stop rule or guarantee of the walk.
+
+    python -m tests.mutants [--scenes N]
+
+copies the tracer, applies one mutant, runs the walk's tests against it (the
+differential fuzz test on the CI subset's seeds, and the tests of the proxies'
+and the cells' guarantees), and prints whether it was caught.  Every mutant must be caught; the command
+exits 1 if one is not.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: (name, file under tracer/, text, replacement)
+MUTANTS = [
+    ("the origin's part of a cell is not tested", "intersect.py",
+     "            self._test(best, *cells.pairs(inside, cell, but), rays, from_prim, ends, reach, mag_e)\n",
+     "            pass\n"),
+    ("a hit anywhere settles a ray at its start", "intersect.py",
+     "settled = np.isfinite(best.t[inside]) & (best.t[inside] <= start[inside])",
+     "settled = np.isfinite(best.t[inside])"),
+    ("a hit anywhere settles a walking ray", "intersect.py",
+     "settled = np.isfinite(best.t[live]) & (best.t[live] <= leave)",
+     "settled = np.isfinite(best.t[live])"),
+    ("a crossing tests only the crossed primitive", "intersect.py",
+     "            self._test(best, *pairs, rays, from_prim, ends, reach, mag_e)\n",
+     "            self._test(best, live, prim, rays, from_prim, ends, reach, mag_e)\n"),
+    ("the walk jumps a part further than the part it tested", "intersect.py",
+     "start[live] = np.fmax(start[live] + tau + p.step, leave)",
+     "start[live] = np.fmax(start[live] + tau + p.step, 2 * leave - start[live] - tau)"),
+    ("the walk starts at the origin's part without testing what contains the origin", "intersect.py",
+     "        inside = np.flatnonzero(cells.holds(o))\n",
+     "        inside = np.flatnonzero(cells.holds(o))\n        start[inside] = 0.0\n        inside = inside[:0]\n"),
+    ("boxes are registered without reach", "proxies.py", "REACH = 2.0**-14", "REACH = 0.0"),
+    ("proxies have no margin", "proxies.py", "MARGIN = 2.0**-17", "MARGIN = 2.0**-40"),
+    ("a shadow walk stops before its light by a tenth", "intersect.py",
+     "            far = np.minimum(limit[live] + p.slack, t_out[live]) - s\n",
+     "            far = np.minimum(limit[live] * 0.9, t_out[live]) - s\n"),
+]
+
+
+def run(mutant: tuple[str, str, str, str] | None, scenes: int) -> bool:
+    """True when the fuzz subset passes against the (mutated) tracer."""
+    with tempfile.TemporaryDirectory() as tmp:
+        shutil.copytree(ROOT / "tracer", Path(tmp) / "tracer")
+        if mutant is not None:
+            _, name, old, new = mutant
+            path = Path(tmp) / "tracer" / name
+            text = path.read_text()
+            assert text.count(old) == 1, f"the mutant's text is not in {name} once: {old!r}"
+            path.write_text(text.replace(old, new))
+        env = {**os.environ, "PYTHONPATH": tmp}
+        if scenes:
+            env["PHONGRAY_FUZZ_SCENES"] = str(scenes)
+        tests = [str(ROOT / "tests" / name) for name in ("test_proxies.py", "test_cells.py", "test_fuzz.py")]
+        out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *tests],
+                             env=env, cwd=tmp, capture_output=True, text=True)
+        return out.returncode == 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m tests.mutants", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", type=int, default=0, help="scenes per run (default: the CI subset's)")
+    ap.add_argument("--only", default="", help="run only the mutants whose name holds this text")
+    args = ap.parse_args(argv)
+    chosen = [m for m in MUTANTS if args.only in m[0]]
+    if not run(None, args.scenes):
+        print("the fuzz subset fails on the tracer as it is: fix that first")
+        return 1
+    missed = 0
+    for mutant in chosen:
+        caught = not run(mutant, args.scenes)
+        missed += not caught
+        print(f"{'caught' if caught else 'MISSED'}: {mutant[0]}", flush=True)
+    print(f"{len(chosen) - missed} of {len(chosen)} mutants caught")
+    return 1 if missed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
