@@ -5,7 +5,6 @@ import pytest
 
 import schemas
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector, _Best
-from tracer.proxies import GAP
 from tracer.shapes import plane_t, sphere_t, triangle_t
 from tracer.world import build_world, max_abs
 
@@ -86,8 +85,8 @@ def test_walk_agrees_with_brute_force_for_rays_from_anywhere(count, big):
 
 
 def test_walk_agrees_with_brute_force_in_a_dense_soup_of_small_spheres_and_triangles():
-    # a walk ends early when its hit lies inside the box of the proxy it crossed last: here boxes overlap
-    # everywhere, so that rule meets many neighbours, touching and nested ones among them
+    # a walk ends early when its hit lies before the exit of the part of a cell it tested last: here boxes
+    # overlap everywhere, touching and nested ones among them
     rng = np.random.default_rng(11)
     objs = [{"type": "sphere", "material": "m", "center": list(map(float, rng.uniform(-3, 3, 3))),
              "radius": float(rng.uniform(0.05, 0.3))} for _ in range(1200)]
@@ -101,9 +100,10 @@ def test_walk_agrees_with_brute_force_in_a_dense_soup_of_small_spheres_and_trian
     assert np.mean(hits.kind != MISS) > 0.3
 
 
-def test_a_walk_resumes_where_it_leaves_a_box_and_passes_no_small_proxy_beyond_it():
-    # a ray through the proxy of sphere A, missing A itself, then meets sphere B: so small, and just far enough
-    # past the box of A's proxy, that B is not A's neighbour; a walk that resumed any later would step over B
+def test_a_walk_resumes_where_it_leaves_a_part_and_passes_no_small_proxy_beyond_it():
+    # a ray through the proxy of sphere A, missing A itself, then meets sphere B: so small, and just beyond the
+    # reach of A's box, that B is registered in other parts of cells than A; a walk that resumed any later than
+    # where the ray leaves the part it tested would step over B
     off = 0.105  # outside A (radius 0.1) but inside its icosahedral proxy
 
     def built(xb):
@@ -114,17 +114,14 @@ def test_a_walk_resumes_where_it_leaves_a_box_and_passes_no_small_proxy_beyond_i
 
     trial = built(1.0)
     p, a, b = trial.proxies, trial.sphere_prim[0], trial.sphere_prim[1]
-    gap = GAP * trial.bvh.half_size
-    isect = built(float(trial.world.origin[0] + p.hi[a, 0] + 8 * gap + (p.hi[b, 0] - p.lo[b, 0]) / 2))
-    assert isect.bvh.half_size == trial.bvh.half_size
-    q = isect.proxies
-    assert b not in q.neighbours[q.start[a]:q.start[a + 1]]
-    assert q.lo[b, 0] - q.hi[a, 0] < 16 * gap
-    o = np.array([[-1.0, off, 0.0]]) - isect.world.origin
-    d = np.array([[1.0, 0.0, 0.0]])
-    hits = isect.closest(o, d)
-    assert (hits.kind[0], hits.index[0]) == (SPHERE, 1)
-    assert isect.occluded(o, d, np.array([2.5]))[0]
+    for step in (2, 4, 8):
+        isect = built(float(trial.world.origin[0] + p.hi[a, 0] + step * p.reach + (p.hi[b, 0] - p.lo[b, 0]) / 2))
+        assert isect.bvh.half_size == trial.bvh.half_size
+        o = np.array([[-1.0, off, 0.0]]) - isect.world.origin
+        d = np.array([[1.0, 0.0, 0.0]])
+        hits = isect.closest(o, d)
+        assert (hits.kind[0], hits.index[0]) == (SPHERE, 1)
+        assert isect.occluded(o, d, np.array([2.5]))[0]
 
 
 def concentric(radii):

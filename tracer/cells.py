@@ -70,14 +70,6 @@ class Cells:
     #: (dims.prod(),) int32 each cell's index in :attr:`keys`, −1 for none; None for a grid too large for it
     table: np.ndarray | None = None
 
-    def holds(self, points: np.ndarray) -> np.ndarray:
-        """Which of ``points (N, 3)`` lie in the grid's box (closed): every proxy box lies within it. Shape (N,)."""
-        top = self.origin + self.dims * self.size
-        out = np.ones(len(points), dtype=bool)
-        for a in range(3):
-            out &= (points[:, a] >= self.origin[a]) & (points[:, a] <= top[a])
-        return out
-
     def locate(self, points: np.ndarray, whole: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For points (N, 3): the part of a cell each lies in, as ``cell · SUB³ + part`` with the cell's index
         in :attr:`keys` (−1 for a cell that holds nothing), and that part's box, lo and hi (N, 3) each.

@@ -404,10 +404,10 @@ class Intersector:
         around ``t`` (a proxy holds its primitive grown by a margin far above float32 rounding), so every
         primitive hit at ``t ≤ s`` has been tested.
 
-        **Start.**  A ray whose origin lies in the cells' grid first tests every member of the part of a cell
-        that holds its origin (a proxy that contains the origin has a box that meets that part) and starts at
-        the part's exit, at ``s₀ = 0``.  Any other ray starts where its line enters the BVH's box, where no proxy
-        lies.
+        **Start.**  A ray that leaves a BVH primitive first tests every member of the part of a cell that holds
+        its origin (a proxy that contains the origin has a box that meets that part) and starts at the part's
+        exit, with ``s₀ = 0``.  Any other ray starts where its line enters the BVH's box, behind its origin if
+        need be (hits at t ≤ 0 never count): no proxy lies there.
 
         **Step.**  From ``s``, Embree names the nearest proxy-face crossing: no proxy is entered or left before
         it, so between ``s`` and the crossing the ray is inside only proxies it was inside at ``s`` (tested).  At
@@ -437,7 +437,7 @@ class Intersector:
         start = t_in.copy()
         # the region each ray tested last (a part of a cell; rounding may report a part twice)
         last = np.full(n, -2, dtype=np.int64)
-        inside = np.flatnonzero(cells.holds(o))
+        inside = np.flatnonzero(from_prim >= 0)
         if len(inside):  # every proxy that contains an origin meets the origin's part of a cell: test them now
             cell, lo, hi = cells.locate(rows_of(o, inside))
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be

@@ -23,7 +23,7 @@ from .camera import CameraRays
 from .image import quantize
 from .intersect import MISS, Intersector
 from .lights import illuminate
-from .shading import in_light_plane, mirror, phong, refract, resolve_material, shading_normal
+from .shading import light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
 from .vec import dot, rows_of, scaled
 from .world import World, build_world, max_abs
@@ -223,7 +223,7 @@ class Renderer:
             if not np.any(em.color > 0):
                 continue
             to_light, dist, factor = illuminate(em, hit.point)
-            nl = np.where(in_light_plane(self.world, hit, em), 0.0, dot(normal, to_light))
+            nl = light_in_plane(self.world, hit, em, dot(normal, to_light), dist)
             rows = np.flatnonzero((nl > 0) & (factor > 0))
             if len(rows) == 0:
                 continue

@@ -65,26 +65,43 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
     return normal
 
 
-def in_light_plane(world: World, hits: Hits, em: Emitter) -> np.ndarray:
-    """Where a hit lies on a flat surface (a plane, or a triangle without vertex normals) whose plane holds
-    the light: its position within rounding (:func:`tracer.shapes.on_tolerance`, the rule by which such a
-    surface does not block it), or, for a directional light, its direction within ``TOL``.  N·L is 0 there
-    and the light is skipped; computed, it would be rounding noise of either sign.  Shape (N,), bool."""
-    out = np.zeros(len(hits.t), dtype=bool)
-    kind, index = hits.kind, hits.index
-    tri = kind == TRIANGLE
-    if tri.any():
-        tri[tri] = ~world.triangles.smooth[index[tri]]
-    for rows, anchor, mag in ((np.flatnonzero(kind == PLANE), world.planes.point, world.planes.mag),
-                              (np.flatnonzero(tri), world.triangles.v0, world.triangles.mag)):
-        if len(rows) == 0:
-            continue
-        normal, k = rows_of(hits.normal, rows), index[rows]
-        if em.kind == "directional":
-            out[rows] = np.abs(dot(normal, em.direction)) <= TOL
-        else:
-            tol = on_tolerance(max_abs(em.position[None]) + world.origin_mag, mag[k])
-            out[rows] = np.abs(dot(em.position - rows_of(anchor, k), normal)) <= tol
+def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """N·L as given (``nl``, with ``dist`` the distance to the light), but 0 where a hit lies on a flat
+    surface (a plane, or a triangle without vertex normals) whose plane holds the light: its position within
+    rounding (:func:`tracer.shapes.on_tolerance`, the rule by which such a surface does not block it), or, for
+    a directional light, its direction within ``TOL``.  Computed there, N·L would be rounding noise of
+    either sign, and a positive one lets the specular term glint.  Shape (N,).
+
+    Only hits whose light lies within twice that tolerance of their tangent plane (``|N·L|·d``, which every
+    light in the plane meets) are looked at."""
+    if em.kind == "directional":
+        near = np.abs(nl) <= 2.0 * TOL
+    else:
+        bound = on_tolerance(max_abs(em.position[None]) + world.origin_mag, world.flat_mag)
+        near = np.abs(nl) * dist <= 2.0 * bound
+    if not near.any():
+        return nl
+    rows = np.flatnonzero(near)
+    kind, index = hits.kind[rows], hits.index[rows]
+    flat = kind == PLANE
+    tri = np.flatnonzero(kind == TRIANGLE)
+    flat[tri] = ~world.triangles.smooth[index[tri]]
+    rows, kind, index = rows[flat], kind[flat], index[flat]
+    normal = rows_of(hits.normal, rows)
+    if em.kind == "directional":
+        inside = np.abs(dot(normal, em.direction)) <= TOL
+    else:
+        inside = np.zeros(len(rows), dtype=bool)
+        position_mag = max_abs(em.position[None]) + world.origin_mag
+        for code, anchor, mag in ((PLANE, world.planes.point, world.planes.mag),
+                                  (TRIANGLE, world.triangles.v0, world.triangles.mag)):
+            sel = np.flatnonzero(kind == code)
+            if len(sel):
+                k = index[sel]
+                tol = on_tolerance(position_mag, mag[k])
+                inside[sel] = np.abs(dot(em.position - rows_of(anchor, k), rows_of(normal, sel))) <= tol
+    out = nl.copy()
+    out[rows[inside]] = 0.0
     return out
 
 

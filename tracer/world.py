@@ -115,6 +115,11 @@ class World:
     ambient: np.ndarray  # (3,) sum of ambient light colours
     emitters: Emitters
 
+    @property
+    def flat_mag(self) -> float:
+        """The largest world magnitude of a plane or a triangle (0 without any)."""
+        return float(max(np.max(self.planes.mag, initial=0.0), np.max(self.triangles.mag, initial=0.0)))
+
 
 def scene_centre(scene: Scene) -> np.ndarray:
     """The local origin: the eye.
