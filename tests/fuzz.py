@@ -38,6 +38,7 @@ import reference  # noqa: E402
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
+from tracer.rays import Shadows  # noqa: E402
 
 #: t of a primary hit may differ by this much, relative (plus the brute force's own uncertainty)
 T_TOLERANCE = 2.0**-30
@@ -113,7 +114,8 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
     origin = renderer.world.origin
     o, d, _ = reference.camera_rays(scene)
     ref = reference.closest(surfaces, o, d, np.full(len(o), -1))
-    hits = renderer.intersector.closest(o - origin, d)
+    isect = renderer.intersector
+    hits = isect.closest(isect.rays(o - origin, d))
     got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
     clear = ~ref.unclear
     with np.errstate(invalid="ignore"):
@@ -143,8 +145,8 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
             continue
         blk, unclear_b = reference.blocked(surfaces, p[ask], L[ask], dist[ask], which[ask], e.position)
         ends = None if e.position is None else (e.position - origin)[None]
-        mine = renderer.intersector.occluded(p[ask] - origin, np.ascontiguousarray(L[ask]), dist[ask], kinds[ask],
-                                             indices[ask], ends)
+        rays = isect.rays(p[ask] - origin, np.ascontiguousarray(L[ask]), kinds[ask], indices[ask])
+        mine = isect.occluded(Shadows.towards(rays, dist[ask], ends, renderer.world.origin_mag))
         bad = ~unclear_b & (mine != blk)
         out.note("shadow", int(np.count_nonzero(~unclear_b)), bad,
                  [f"shadow ray from surface {which[ask][r]} at {p[ask][r].tolist()} to light {e_index}: phongray "

@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 import schemas
-from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector, _Best
+from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector
+from tracer.rays import Shadows
+from tracer.walk import Best
 from tracer.shapes import plane_t, sphere_t, triangle_t
 from tracer.world import build_world, max_abs
 
@@ -30,7 +32,7 @@ def random_field(rng, count, big=False):
 def brute_force(world, o, d, fk, fi, reach=None, ends=None):
     """Every surface tested against every ray: best t, kind and index (the lowest kind and index on a tie)."""
     n = len(o)
-    best = _Best(np.full(n, np.inf) if reach is None else reach)
+    best = Best(np.full(n, np.inf) if reach is None else reach)
     mag_o = max_abs(o) + world.origin_mag
     mag_e = None if ends is None else max_abs(ends) + world.origin_mag
     rows = np.arange(n)
@@ -52,7 +54,7 @@ def check_agrees(world, o, d, rng):
     """Closest hits, then rays leaving those hits (by identity) towards random points, against brute force."""
     isect = Intersector(world)
     none_k, none_i = np.zeros(len(o), np.int8), np.full(len(o), -1)
-    hits = isect.closest(o, d, none_k, none_i)
+    hits = isect.closest(isect.rays(o, d, none_k, none_i))
     ref = brute_force(world, o, d, none_k, none_i)
     np.testing.assert_array_equal(hits.t, np.where(ref.kind == MISS, np.inf, ref.t))
     np.testing.assert_array_equal(hits.kind, ref.kind)
@@ -64,11 +66,11 @@ def check_agrees(world, o, d, rng):
     v = target - p
     dist = np.linalg.norm(v, axis=1)
     d2 = v / dist[:, None]
-    second = isect.closest(p, d2, fk, fi)
+    second = isect.closest(isect.rays(p, d2, fk, fi))
     ref2 = brute_force(world, p, d2, fk, fi)
     np.testing.assert_array_equal(second.kind, ref2.kind)
     np.testing.assert_array_equal(second.index, ref2.index)
-    blocked = isect.occluded(p, d2, dist, fk, fi, target)
+    blocked = isect.occluded(Shadows.towards(isect.rays(p, d2, fk, fi), dist, target, world.origin_mag))
     ref3 = brute_force(world, p, d2, fk, fi, dist, target)
     np.testing.assert_array_equal(blocked, ref3.t < dist)
     return hits
@@ -113,15 +115,15 @@ def test_a_walk_resumes_where_it_leaves_a_part_and_passes_no_small_proxy_beyond_
         return Intersector(build_world(scene_with(objs)))
 
     trial = built(1.0)
-    p, a, b = trial.proxies, trial.sphere_prim[0], trial.sphere_prim[1]
+    p, a, b = trial.walker.proxies, trial.walker.sphere_prim[0], trial.walker.sphere_prim[1]
     for step in (2, 4, 8):
         isect = built(float(trial.world.origin[0] + p.hi[a, 0] + step * p.reach + (p.hi[b, 0] - p.lo[b, 0]) / 2))
         assert isect.bvh.half_size == trial.bvh.half_size
         o = np.array([[-1.0, off, 0.0]]) - isect.world.origin
         d = np.array([[1.0, 0.0, 0.0]])
-        hits = isect.closest(o, d)
+        hits = isect.closest(isect.rays(o, d))
         assert (hits.kind[0], hits.index[0]) == (SPHERE, 1)
-        assert isect.occluded(o, d, np.array([2.5]))[0]
+        assert isect.occluded(Shadows.towards(isect.rays(o, d), np.array([2.5]), None, 0.0))[0]
 
 
 def concentric(radii):
@@ -173,7 +175,8 @@ def test_orthographic_rays_along_a_column_of_spheres_hit_the_first():
     world = build_world(scene_with(objs))
     o = np.array([[0.0, 0.0, 5.0], [0.0, 0.0, -20.0]]) - world.origin
     d = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
-    hits = Intersector(world).closest(o, d)
+    isect = Intersector(world)
+    hits = isect.closest(isect.rays(o, d))
     assert list(hits.index) == [0, 149]
 
 
@@ -188,7 +191,7 @@ def test_no_bvh_without_triangles_or_small_spheres():
     isect = Intersector(build_world(scene_with([{"type": "plane", "material": "m", "point": [0, 0, 0],
                                                  "normal": [0, 1, 0]}])))
     assert isect.bvh is None
-    hits = isect.closest(np.array([[0.0, 1, 0], [0, 1, 0]]), np.array([[0.0, -1, 0], [0, 1, 0]]))
+    hits = isect.closest(isect.rays(np.array([[0.0, 1, 0], [0, 1, 0]]), np.array([[0.0, -1, 0], [0, 1, 0]])))
     assert list(hits.kind) == [PLANE, MISS]
 
 
@@ -199,8 +202,8 @@ def test_two_spheres_are_tested_directly_and_three_go_into_the_bvh():
     assert three.bvh is not None and len(three.direct_spheres) == 0
     o = np.array([[-1.0, 0, 5], [0.0, 0, 5], [3.0, 0, 5]])
     d = np.array([[0.0, 0, -1]] * 3)
-    assert list(two.closest(o - two.world.origin, d).kind) == [SPHERE, SPHERE, MISS]
-    assert list(three.closest(o - three.world.origin, d).index) == [0, 1, -1]
+    assert list(two.closest(two.rays(o - two.world.origin, d)).kind) == [SPHERE, SPHERE, MISS]
+    assert list(three.closest(three.rays(o - three.world.origin, d)).index) == [0, 1, -1]
 
 
 def test_precision_does_not_depend_on_where_look_at_is():
@@ -208,4 +211,4 @@ def test_precision_does_not_depend_on_where_look_at_is():
     near = build_world(scene_with(objs, {"position": [0, 0, 30], "look_at": [0, 0, 0]}))
     far = build_world(scene_with(objs, {"position": [0, 0, 30], "look_at": [0, 0, -1e6]}))
     assert np.array_equal(near.origin, far.origin)
-    assert np.array_equal(Intersector(near).proxies.vertices, Intersector(far).proxies.vertices)
+    assert np.array_equal(Intersector(near).walker.proxies.vertices, Intersector(far).walker.proxies.vertices)

@@ -138,8 +138,8 @@ def without_plain(data):
 def test_plain_triangles_change_no_pixel(name):
     data = CASES[name]
     r = Renderer(schemas.validate_scene(data))
-    p = r.intersector.proxies
-    faces_of = np.bincount(p.owner, minlength=len(p.lo))[:r.intersector.n_tri]
+    p = r.intersector.walker.proxies
+    faces_of = np.bincount(p.owner, minlength=len(p.lo))[:r.intersector.walker.n_tri]
     assert p.slack > 0 and np.sum(faces_of == 1) > 0, "the scene should have plain triangles (one face each)"
     assert np.sum(faces_of > 1) > 0, "and proxied ones"
     assert np.array_equal(r.pixels(), without_plain(data))
@@ -306,5 +306,5 @@ def test_a_ramp_over_itself_and_a_terrain_under_its_copy_agree_with_the_brute_fo
     cam = {"position": camera, "look_at": [0, 0.5, 0]}
     for objects in ([helicoid()], [bumpy, copy]):
         data = scene(objects, lights, cam, width=80, height=60)
-        assert Renderer(schemas.validate_scene(data)).intersector.mates is not None  # plain faces, mates skipped
+        assert Renderer(schemas.validate_scene(data)).intersector.walker.mates is not None  # plain faces, mates skipped
         agrees_with_brute_force(data)

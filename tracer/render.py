@@ -21,8 +21,9 @@ from schemas import Scene
 
 from .camera import CameraRays
 from .image import quantize
-from .intersect import MISS, Intersector
+from .intersect import MISS, Hits, Intersector
 from .lights import illuminate
+from .rays import Rays, Shadows, Work
 from .shading import light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
 from .vec import dot, rows_of, scaled
@@ -169,36 +170,33 @@ class Renderer:
             # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum
             fixed = 2.0 ** (48 - math.ceil(math.log2(ceiling)) - max(0, math.ceil(math.log2(self.slice_rays)) - 14))
             background = np.asarray(img.background, dtype=np.float64)
-            # a batch: origins, dirs, sub-sample, weight, surface left (kind, index), and its depth
-            stack: list[tuple[tuple[np.ndarray, ...], int]] = [
-                ((origins, dirs, np.arange(n), np.ones(n), np.zeros(n, dtype=np.int8), np.full(n, -1)), 0)]
+            camera = Work(self.intersector.rays(origins, dirs), np.arange(n), np.ones(n), 0)
+            stack: list[Work] = [camera]
             while stack:
-                batch, depth = stack.pop()
-                size = self.slice_rays
-                if len(batch[0]) > size:  # split; the first slice goes on top, so it is traced first
-                    stack += [(tuple(a[k:k + size] for a in batch), depth)
-                              for k in reversed(range(0, len(batch[0]), size))]
+                work = stack.pop()
+                if len(work) > self.slice_rays:  # split; the first slice goes on top, so it is traced first
+                    stack += reversed(work.slices(self.slice_rays))
                     continue
-                o, d, smp, w, fk, fi = batch
                 self._stop()
-                hits = self.intersector.closest(o, d, fk, fi)
+                hits = self.intersector.closest(work.rays)
                 missed = hits.kind == MISS
-                once = depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share one
-                _accumulate(acc, smp[missed], w[missed, None] * background, ceiling, fixed, once)
+                once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
+                _accumulate(acc, work.sample[missed], work.weight[missed, None] * background, ceiling, fixed, once)
                 rows = np.flatnonzero(~missed)
                 if len(rows) == 0:
                     continue
-                hit = hits.take(rows)
-                dd, ww, ss = rows_of(d, rows), w[rows], smp[rows]
+                hit, done = hits.take(rows), work.take(rows)
+                dd = done.rays.dirs
                 mat = resolve_material(self.world, hit)
                 normal = shading_normal(self.world, hit, dd)
-                _accumulate(acc, ss, scaled(self.direct(hit, mat, normal, dd), ww), ceiling, fixed, once)
-                if depth == img.max_depth:
+                _accumulate(acc, done.sample, scaled(self.direct(hit, mat, normal, dd), done.weight), ceiling, fixed,
+                            once)
+                if work.depth == img.max_depth:
                     continue
-                children = self.secondary(hit, mat, normal, dd, ww, ss)
-                self._count("secondary", len(children[0]))
-                if len(children[0]):
-                    stack.append((children, depth + 1))
+                children = self.secondary(hit, mat, normal, done)
+                self._count("secondary", len(children))
+                if len(children):
+                    stack.append(children)
             per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
 
@@ -206,7 +204,7 @@ class Renderer:
         with self._count_lock:
             self.counts[kind] += n
 
-    def direct(self, hit, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    def direct(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         """Ambient plus every light's Phong term where the light reaches the hit points. Shape (N, 3).
 
         Per light: L, d and the intensity factor at every point; one batch of
@@ -220,6 +218,7 @@ class Renderer:
         mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
         for em in self.world.emitters:
             self._stop()  # a long chunk (many lights) stops early too
+            mag_light = max_abs(em.position[None]) + self.world.origin_mag
             if not np.any(em.color > 0):
                 continue
             to_light, dist, factor = illuminate(em, hit.point)
@@ -234,13 +233,13 @@ class Renderer:
 
             shadow_dirs = np.ascontiguousarray(pick(to_light))
             # from the exact hit point, leaving its surface by identity, to the light itself
+            rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(mag_points))
             if em.kind == "directional":
-                reach, ends = np.full(len(rows), np.inf), None
+                shadows = Shadows(rays, np.full(len(rows), np.inf), None, None)
             else:
-                reach, ends = pick(dist), em.position[None]  # one light position for every ray
+                shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
             self._count("shadow", len(rows))
-            blocked = self.intersector.occluded(pick(hit.point), shadow_dirs, reach, pick(hit.kind), pick(hit.index),
-                                                ends, pick(mag_points))
+            blocked = self.intersector.occluded(shadows)
             if every:
                 weight = np.where(blocked, 0.0, factor)
             else:
@@ -250,23 +249,19 @@ class Renderer:
             colour += em.color * phong(diffuse, specular, shininess, nl, rv, weight)
         return colour
 
-    def secondary(self, hit, mat, normal, dirs, weight, sample):
-        """Mirror and refracted rays of the hits whose material asks for them."""
+    def secondary(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, work: Work) -> Work:
+        """Mirror and refracted rays of the hits whose material asks for them: the next depth's work."""
         m = self.world.materials
         kr, kt = m.reflectance[mat], m.transmittance[mat]
-        parts = []
+        dirs, weight = work.rays.dirs, work.weight
         r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
-        if len(r):  # secondary rays start at the exact hit point and leave its surface by identity
-            out = mirror(dirs[r], normal[r])
-            parts.append((hit.point[r], out, sample[r], weight[r] * kr[r], hit.kind[r], hit.index[r]))
         t = np.flatnonzero(weight * kt > 0)
-        if len(t):
-            out = refract(dirs[t], hit.normal[t], m.ior[mat[t]])
-            parts.append((hit.point[t], out, sample[t], weight[t] * kt[t], hit.kind[t], hit.index[t]))
-        if not parts:
-            return (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros(0),
-                    np.zeros(0, dtype=np.int8), np.zeros(0, dtype=np.int64))
-        return tuple(np.concatenate(p) for p in zip(*parts))
+        # secondary rays start at the exact hit point and leave its surface by identity
+        out = np.concatenate([mirror(dirs[r], normal[r]), refract(dirs[t], hit.normal[t], m.ior[mat[t]])])
+        both = np.concatenate([r, t])
+        points = rows_of(hit.point, both)
+        rays = Rays(points, out, hit.kind[both], hit.index[both], max_abs(points) + self.world.origin_mag)
+        return Work(rays, work.sample[both], np.concatenate([weight[r] * kr[r], weight[t] * kt[t]]), work.depth + 1)
 
 
 def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling: float, fixed: float,

@@ -23,6 +23,13 @@ import numpy as np
 
 from .vec import along, cross, dot
 
+#: the kinds of surface, in one list: what a hit is (``Hits.kind``) and what a ray leaves (``Rays.from_kind``);
+#: MISS is none.  Each has an exact test here, arrays in :mod:`tracer.world` and a place in :mod:`tracer.intersect`
+MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
+KINDS = {SPHERE: "sphere", PLANE: "plane", TRIANGLE: "triangle"}
+#: the kinds that lie in a plane (a triangle only without vertex normals, which the shading normal decides)
+FLAT = (PLANE, TRIANGLE)
+
 #: relative resolution: points closer than this (times the magnitudes involved) are the same place
 TOL = 2.0**-46
 #: barycentric allowance, so that a ray through a shared mesh edge never slips between its faces
