@@ -25,7 +25,9 @@ def _expand_grey(value: Any) -> Any:
     return value
 
 
-Colour = Annotated[tuple[NonNegative, NonNegative, NonNegative], BeforeValidator(_expand_grey)]
+#: a colour: an RGB triple, or one number k for [k, k, k] (both in the JSON Schema too)
+Colour = Annotated[tuple[NonNegative, NonNegative, NonNegative], BeforeValidator(
+    _expand_grey, json_schema_input_type=Union[NonNegative, tuple[NonNegative, NonNegative, NonNegative]])]
 Attenuation = tuple[NonNegative, NonNegative, NonNegative]
 
 

@@ -17,11 +17,12 @@ import anyio
 import numpy as np
 
 from schemas import Mesh, Scene, parse_json, validate_scene
-from tracer import RenderCancelled, encode_png, render
+from tracer import RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
 from .limits import check_body, check_raw, check_scene
+from .rendering import render_pixels
 from .settings import Settings
 
 RENDERER_VERSION = "phongray-1"
@@ -127,19 +128,9 @@ class RenderService:
             def stop() -> bool:
                 return cancelled() or time.monotonic() > deadline
 
+            client = self._client() if self.settings.cluster else None
             try:
-                if self.settings.cluster:
-                    from .cluster import ClusterError
-                    from .cluster import render as render_on
-
-                    try:
-                        client = self._client()
-                    except ClusterError as exc:
-                        raise ClusterDown(str(exc)) from None
-                    pixels = render_on(client, job.scene.model_dump_json().encode(), job.scene.image.width,
-                                       job.scene.image.height, cancelled=stop)
-                else:
-                    pixels = render(job.scene, threads=self.threads, cancel=stop)
+                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=stop)
             except RenderCancelled:
                 if time.monotonic() > deadline:
                     raise TooSlow() from None
@@ -154,13 +145,19 @@ class RenderService:
         return data
 
     def _client(self) -> Any:
-        """The one Dask client of this process, made on first use (``settings.cluster``)."""
-        with self._client_lock:
-            if self._dask is None:
-                from .cluster import client
+        """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the
+        scheduler cannot be reached or has no workers (the render would wait for one forever)."""
+        from .cluster import ClusterError, client, workers
 
-                self._dask = client(self.settings.cluster)
-            return self._dask
+        try:
+            with self._client_lock:
+                if self._dask is None:
+                    self._dask = client(self.settings.cluster)
+            if not workers(self._dask):
+                raise ClusterDown(f"the Dask scheduler at {self.settings.cluster} has no workers")
+        except ClusterError as exc:
+            raise ClusterDown(str(exc)) from None
+        return self._dask
 
     def status(self) -> dict[str, Any]:
         return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size, "cache_hits": self.cache.hits,
