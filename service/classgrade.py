@@ -26,10 +26,11 @@ from typing import Any
 
 from .report import COLUMNS, NUMBERS, STATUSES, summary, write_atomic, write_report
 from .settings import Settings
-from .submissions import Batch, ClassError, Pair, UntrustedFileError, discover, read_untrusted
+from .submissions import SCENE_IGNORED, Batch, ClassError, Pair, UntrustedFileError, discover, read_untrusted
 from .taskfile import TaskSettings, load_tasks
 
-__all__ = ["COLUMNS", "NUMBERS", "STATUSES", "ClassError", "Outcome", "grade_class", "grade_task", "render_task"]
+__all__ = ["COLUMNS", "NUMBERS", "SCENE_IGNORED", "STATUSES", "ClassError", "Outcome", "grade_class", "grade_task",
+           "render_task"]
 
 # -- the tasks: bytes in, bytes out, so that they run alike in a local pool and on Dask workers ---------------
 
@@ -87,7 +88,7 @@ def _server_grade(server: str, api_key: str | None, scene: bytes, reference: byt
     files = {"image": ("submission.png", image, "image/png")}
     try:
         result = json.loads(_patient(post_form, server, "/grade", fields, files, api_key=api_key))
-        heat = _patient(post_form, server, "/grade", fields, files, {"format": "png", "heatmap": "verdict"},
+        heat = _patient(post_form, server, "/grade", fields, files, {"format": "png", "heatmap": "verdict", "legend": "false"},
                         api_key=api_key)
     except ServerError as exc:
         if exc.status in (413, 422) and exc.part == "image":

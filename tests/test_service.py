@@ -161,7 +161,7 @@ def test_one_pixel_shift_is_forgiven_by_the_neighbourhood_measure(api, reference
 
 @pytest.mark.parametrize("image, says", [
     (png_of(np.zeros((10, 10, 3), np.uint8)), "10×10 pixels, the scene is 160×120"),
-    (b"GIF89a" + b"\0" * 100, "not a PNG"),
+    (b"GIF89a" + b"\0" * 100, "image is a GIF; PNG required"),
     (b"", "not a PNG"),
 ])
 def test_bad_submissions_are_422(api, image, says):
