@@ -36,13 +36,17 @@ def _distributed() -> Any:
 def client(address: str, timeout: float = 10.0) -> Any:
     """A Dask client of the scheduler at ``address`` (``tcp://HOST:PORT``)."""
     distributed = _distributed()
+    from distributed.comm import get_address_host_port
+
+    try:  # before a Client is made: a half-made one hangs in its finaliser for 20 s
+        get_address_host_port(address)
+    except (ValueError, TypeError) as exc:  # "missing port number", an unknown protocol, ...
+        raise ClusterError(f"--cluster {address}: not a Dask scheduler address ({exc}); "
+                           f"expected tcp://HOST:PORT") from None
     try:
         return distributed.Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
-    except (ValueError, TypeError) as exc:  # "missing port number", an unknown protocol, ...
-        raise ClusterError(f"--cluster {address}: not a Dask scheduler address ({exc}); "
-                           f"expected tcp://HOST:PORT") from None
 
 
 def workers(client_: Any) -> int:
