@@ -198,7 +198,7 @@ def test_grade_form_errors(api, reference_png):
 
 
 def test_heatmap(api, reference_png):
-    res = api.post("/grade?format=png", data={"scene": SCENE.decode()},
+    res = api.post("/grade?format=png&legend=false&heatmap=raw", data={"scene": SCENE.decode()},
                    files={"image": ("s.png", reference_png, "image/png")})
     assert res.status_code == 200 and res.headers["content-type"] == "image/png"
     heat = tracer.decode_png(res.content)
@@ -253,3 +253,53 @@ def test_a_server_worker_freezes_what_it_holds_after_start_up():
     probe = "import gc; from service.server import worker_app; worker_app(); print(gc.get_freeze_count())"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
     assert int(out) > 20_000
+
+
+# -- the OpenAPI document describes the format and the answers ---------------------------------------------
+
+from pathlib import Path  # noqa: E402
+
+from jsonschema import Draft202012Validator  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def component(spec, name):
+    """A validator of one of the OpenAPI document's component schemas (its $refs resolved within the document)."""
+    return Draft202012Validator({"$ref": f"#/components/schemas/{name}", "components": spec["components"]})
+
+
+def test_schema_and_openapi_accept_every_example(api):
+    assert api.get("/schema").json() == schemas.json_schema()
+    scene = component(api.get("/openapi.json").json(), "Scene")
+    for path in sorted(ROOT.glob("examples/*.json")):
+        assert scene.is_valid(json.loads(path.read_text())), path
+    assert not scene.is_valid({"camera": {}, "image": {"width": 1, "height": 1}})
+
+
+def test_try_it_out_sends_a_real_example_scene_that_renders(api):
+    spec = api.get("/openapi.json").json()
+    for path in ("/render", "/validate"):
+        example = spec["paths"][path]["post"]["requestBody"]["content"]["application/json"]["example"]
+        assert example == json.loads((ROOT / "examples" / "01_three_spheres.json").read_text())
+    res = api.post("/render", json=example)
+    assert res.status_code == 200 and res.content.startswith(b"\x89PNG")
+    form = spec["paths"]["/grade"]["post"]["requestBody"]["content"]["multipart/form-data"]["schema"]
+    assert json.loads(form["properties"]["scene"]["example"]) == example
+
+
+def test_grade_and_the_error_list_have_response_models(api, reference_png):
+    spec = api.get("/openapi.json").json()
+    grade_200 = spec["paths"]["/grade"]["post"]["responses"]["200"]["content"]
+    assert grade_200["application/json"]["schema"] == {"$ref": "#/components/schemas/GradeAnswer"}
+    assert "image/png" in grade_200
+    for path in ("/render", "/validate", "/grade"):
+        answer = spec["paths"][path]["post"]["responses"]["422"]["content"]["application/json"]["schema"]
+        assert answer == {"$ref": "#/components/schemas/ErrorAnswer"}, path
+    passed = grade(api, image=reference_png).json()
+    assert component(spec, "GradeAnswer").is_valid(passed) and passed["reason"] == ""
+    invalid = api.post("/validate", content=SCENE.replace(b'"radius": 0.7', b'"radius": -0.7'), headers=JSON).json()
+    assert component(spec, "ErrorAnswer").is_valid(invalid) and invalid["errors"][0]["line"]
+    image = grade(api, image=b"GIF89a").json()
+    assert component(spec, "ErrorAnswer").is_valid(image) and image["part"] == "image"
+    assert not component(spec, "ErrorAnswer").is_valid({"errors": []})
