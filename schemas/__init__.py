@@ -10,8 +10,21 @@ os.environ.setdefault("PYDANTIC_DISABLE_PLUGINS", "__all__")
 
 from .checks import parallel  # noqa: E402
 from .errors import SceneError, format_problem, parse_json  # noqa: E402
-from .scene import (AmbientLight, AreaLight, Camera, DirectionalLight, Image, Material, Mesh,  # noqa: E402
-                    Plane, PointLight, Scene, Sphere, SpotLight, Triangle)
+from .scene import (  # noqa: E402
+    AmbientLight,
+    AreaLight,
+    Camera,
+    DirectionalLight,
+    Image,
+    Material,
+    Mesh,
+    Plane,
+    PointLight,
+    Scene,
+    Sphere,
+    SpotLight,
+    Triangle,
+)
 from .validation import validate_scene  # noqa: E402
 
 __all__ = [

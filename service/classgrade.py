@@ -88,8 +88,8 @@ def _server_grade(server: str, api_key: str | None, scene: bytes, reference: byt
     files = {"image": ("submission.png", image, "image/png")}
     try:
         result = json.loads(_patient(post_form, server, "/grade", fields, files, api_key=api_key))
-        heat = _patient(post_form, server, "/grade", fields, files, {"format": "png", "heatmap": "verdict", "legend": "false"},
-                        api_key=api_key)
+        query = {"format": "png", "heatmap": "verdict", "legend": "false"}  # as grade_task draws it
+        heat = _patient(post_form, server, "/grade", fields, files, query, api_key=api_key)
     except ServerError as exc:
         if exc.status in (413, 422) and exc.part == "image":
             return {"status": "invalid", "reason": exc.detail.removeprefix("image: ")}

@@ -12,11 +12,14 @@ import json
 import os
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn, Sequence
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from .display import ProgressBar, describe
-from .settings import Settings, SettingsError
+
+if TYPE_CHECKING:
+    from .heatmap import Kind
 
 EXIT_BAD_INPUT = 2
 __all__ = ["ProgressBar", "build_parser", "main"]
@@ -188,12 +191,14 @@ def cmd_grade(args: argparse.Namespace) -> int:
 
     _thresholds(args)
     _png_name(args.heatmap)
-    kind = "raw" if args.raw_heatmap else "verdict"
+    kind: Kind = "raw" if args.raw_heatmap else "verdict"
+    heat: bytes | None = None
     text, image = _read(args.scene), _read(args.image)
     if args.server:
         from .client import post_form
 
-        fields = {"scene": text, "tolerance": repr(args.tolerance), "max_fraction": repr(args.max_fraction)}
+        fields: dict[str, bytes | str] = {"scene": text, "tolerance": repr(args.tolerance),
+                                          "max_fraction": repr(args.max_fraction)}
         files = {"image": ("submission.png", image, "image/png")}
         with _remote(args.scene, args.image):
             result = json.loads(post_form(args.server, "/grade", fields, files, api_key=args.api_key))
@@ -216,7 +221,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
         except grading.ImageError as exc:
             raise CliError(f"{args.image}: {exc}") from None
         result, heat = graded.as_dict(), graded.heatmap
-    if args.heatmap:
+    if args.heatmap and heat is not None:
         _write(args.heatmap, heat)
     return _verdict(args, result)
 
@@ -239,7 +244,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     graded = pipeline.compare(reference, submitted, args.tolerance, args.max_fraction,
                               ("raw" if args.raw_heatmap else "verdict") if args.heatmap else None, legend=True,
                               reference=pixels)
-    if args.heatmap:
+    if args.heatmap and graded.heatmap is not None:
         _write(args.heatmap, graded.heatmap)
     return _verdict(args, graded.as_dict())
 
@@ -353,8 +358,7 @@ def _seconds(text: str) -> float:
     return value
 
 
-def build_parser(settings: Settings | None = None) -> argparse.ArgumentParser:
-    settings = settings or Settings.from_env()
+def build_parser() -> argparse.ArgumentParser:
     formatter = _Help
     parser = argparse.ArgumentParser(prog="phongray", description="A reference Phong/Whitted ray tracer.",
                                      formatter_class=formatter)
@@ -371,11 +375,12 @@ def build_parser(settings: Settings | None = None) -> argparse.ArgumentParser:
         p.add_argument("--api-key", metavar="KEY", default=None,
                        help="the service's API key, for --server (default: $PHONGRAY_API_KEY)")
         if cluster:
-            p.add_argument("--cluster", metavar="tcp://HOST:PORT", default=settings.cluster or None,
+            p.add_argument("--cluster", metavar="tcp://HOST:PORT",
                            help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
                                 "needs 'phongray[cluster]')")
-            p.add_argument("--cluster-wait", metavar="SECONDS", type=_seconds, default=settings.cluster_wait,
-                           help="how long to wait for the cluster's first worker before giving up")
+            p.add_argument("--cluster-wait", metavar="SECONDS", type=_seconds,
+                           help="how long to wait for the cluster's first worker before giving up "
+                                "(default: $PHONGRAY_CLUSTER_WAIT, else 30)")
 
     def thresholds(p: argparse.ArgumentParser) -> None:
         p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (0–255)")
@@ -463,6 +468,31 @@ def _quiet_pipe() -> NoReturn:
     sys.exit(1)
 
 
+def parse(argv: Sequence[str]) -> argparse.Namespace:
+    """The arguments, with the defaults that come from the settings (``PHONGRAY_CLUSTER``, ...) filled in: read
+    only once the command is known, so that ``--version`` and ``--help`` cost no settings."""
+    args = build_parser().parse_args(argv)
+    if hasattr(args, "cluster_wait"):
+        from .settings import Settings
+
+        settings = Settings.from_env()
+        if args.cluster is None:
+            args.cluster = settings.cluster or None
+        if args.cluster_wait is None:
+            args.cluster_wait = settings.cluster_wait
+    return args
+
+
+def _settings_error(exc: ValueError) -> int:
+    """A PHONGRAY_* variable of the wrong type is one line and exit 2 (any other ValueError is a bug: raised)."""
+    from .settings import SettingsError
+
+    if not isinstance(exc, SettingsError):
+        raise exc
+    print(f"phongray: {exc}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["bench"]:  # the benchmark has its own options
@@ -470,11 +500,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return bench_main(argv[1:])
     try:
-        parser = build_parser()
-    except SettingsError as exc:
-        print(f"phongray: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    args = parser.parse_args(argv)
+        args = parse(argv)
+    except ValueError as exc:
+        return _settings_error(exc)
     for stream in (sys.stdout, sys.stderr):  # a scene's text may not be valid Unicode (a lone surrogate)
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
@@ -483,9 +511,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CliError as exc:
         print(f"phongray: {exc}", file=sys.stderr)
         return exc.code
-    except SettingsError as exc:
-        print(f"phongray: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    except ValueError as exc:
+        return _settings_error(exc)
     except BrokenPipeError:
         _quiet_pipe()
     except KeyboardInterrupt:

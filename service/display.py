@@ -6,7 +6,13 @@ import sys
 import time
 from typing import Any
 
-from .grading import percent
+
+def percent(fraction: float) -> str:
+    """``0.0123`` → ``1.23 %`` (small fractions keep two significant digits: ``0.0012 %``)."""
+    value = 100 * fraction
+    if value == 0 or value >= 0.01:
+        return f"{value:.2f} %"
+    return f"{value:.2g} %"
 
 
 def describe(result: dict[str, Any]) -> list[str]:
@@ -62,7 +68,7 @@ class ProgressBar:
         sys.stderr.flush()
 
     #: the bar on screen, so that an interruption can finish its line first
-    active: "ProgressBar | None" = None
+    active: ProgressBar | None = None
 
     def close(self) -> None:
         if self.shown and ProgressBar.active is self:

@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from PIL import Image
 
+from .display import percent
 
 DEFAULT_TOLERANCE = 2.0
 DEFAULT_MAX_FRACTION = 0.001
@@ -51,14 +52,6 @@ class Grade:
         return (f"{percent(self.fraction_off_nearby)} of the pixels are off even nearby (more than "
                 f"{self.tolerance:g} levels from every reference pixel around them); at most "
                 f"{percent(self.max_fraction)} may be")
-
-
-def percent(fraction: float) -> str:
-    """``0.0123`` → ``1.23 %`` (small fractions keep two significant digits: ``0.0012 %``)."""
-    value = 100 * fraction
-    if value == 0 or value >= 0.01:
-        return f"{value:.2f} %"
-    return f"{value:.2g} %"
 
 
 def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:

@@ -140,7 +140,7 @@ class RenderService:
             self.renders += 1
         finally:
             self.slots.release()
-            release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to its baseline
+            release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
         self.cache.put(job.key, data)
         return data
 
@@ -160,5 +160,6 @@ class RenderService:
         return self._dask
 
     def status(self) -> dict[str, Any]:
-        return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size, "cache_hits": self.cache.hits,
+        return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size,
+                "cache_hits": self.cache.hits,
                 "renders": self.renders}

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from .grading import percent
+from .display import percent
 from .heatmap import LEGEND
 from .taskfile import TaskSettings
 
@@ -106,8 +106,8 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
             numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
             details.append(f'<section class="pair" id="{anchor}"><h2>{esc(student)} · {esc(task)}: {label}</h2>'
                            f'<p>{esc(r["reason"])}</p><div class="images">{images}</div>{legend}'
-                           f'<table class="numbers">{numbers}</table><p><a href="#">close</a> (or the browser\'s back)</p>'
-                           f'</section>')
+                           f'<table class="numbers">{numbers}</table>'
+                           f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
         body.append(f"<tr><th>{esc(student)}</th>{''.join(cells)}</tr>")
     rates = []
     for task in tasks:

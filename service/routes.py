@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Callable, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 import anyio
 from fastapi import APIRouter, Query, Request, Response
@@ -245,8 +246,8 @@ async def grade(request: Request, format: Literal["json", "png"] = "json",
     # run on pool threads, a bounded number at once
     decoded = [await anyio.to_thread.run_sync(_read_image, image, size, limiter=service.grading)]
     png = await _png(request, job)
-    kind = heatmap if format == "png" else None
-    return await anyio.to_thread.run_sync(_compare, png, decoded, kind, legend, tolerance, max_fraction,
+    drawn = heatmap if format == "png" else None
+    return await anyio.to_thread.run_sync(_compare, png, decoded, drawn, legend, tolerance, max_fraction,
                                           limiter=service.grading)
 
 

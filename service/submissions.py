@@ -129,7 +129,7 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
     tasks = {e.name[:-5]: scenes / e.name for e in scene_files if e.name.endswith(".json")}
     if not tasks:
         raise ClassError(f"{scenes}: no task scenes (<task>.json)")
-    folded = {}
+    folded: dict[str, str] = {}
     for task in tasks:
         folded.setdefault(task.lower(), task)
     ignored = [(str(scenes / e.name), "not a task scene (<task>.json)") for e in scene_files

@@ -6,9 +6,10 @@ import sys
 
 import pytest
 
-from helpers import SCENES, reference
 from service.cli import main
 from tracer import decode_png
+
+from helpers import SCENES, reference
 
 
 def run(*args, stdin=None):
@@ -117,8 +118,9 @@ import io  # noqa: E402
 import os  # noqa: E402
 from importlib.metadata import metadata, version  # noqa: E402
 
-from server import running_server  # noqa: E402
 from service import cli  # noqa: E402
+
+from server import running_server  # noqa: E402
 
 SUBCOMMANDS = ["render", "validate", "grade", "grade-class", "serve", "schema"]
 
@@ -339,8 +341,9 @@ def test_grades_print_in_words_and_as_json(files, capsys):
     assert "PSNR identical images" in out and "None" not in out
     assert main(["grade", str(files / "good.json"), str(files / "dark.png")]) == 1
     first = capsys.readouterr().out.splitlines()[0]
-    assert first.startswith("FAIL: ") and first.endswith("% of the pixels are off even nearby (more than 2 levels "
-                                                          "from every reference pixel around them); at most 0.10 % may be")
+    assert first.startswith("FAIL: ") and first.endswith(
+        "% of the pixels are off even nearby (more than 2 levels from every reference pixel around them); at most "
+        "0.10 % may be")
     assert main(["grade", str(files / "good.json"), str(files / "dark.png"), "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
     assert result["passed"] is False and result["reason"].endswith("at most 0.10 % may be")
@@ -350,7 +353,8 @@ def test_grades_print_in_words_and_as_json(files, capsys):
 def test_compare_grades_two_images_without_a_scene(files, capsys, tmp_path):
     assert main(["compare", str(files / "right.png"), str(files / "right.png"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["max_error"] == 0
-    assert main(["compare", str(files / "right.png"), str(files / "dark.png"), "--heatmap", str(tmp_path / "h.png")]) == 1
+    heat = str(tmp_path / "h.png")
+    assert main(["compare", str(files / "right.png"), str(files / "dark.png"), "--heatmap", heat]) == 1
     assert capsys.readouterr().out.startswith("FAIL: ") and (tmp_path / "h.png").exists()
     for image, says in (("small.png", "small.png: image is 10×10 pixels, the reference is 160×120"),
                         ("photo.jpg", "photo.jpg: image is a JPEG; PNG required")):

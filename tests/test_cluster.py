@@ -16,10 +16,11 @@ import pytest
 
 import schemas
 import tracer
-from helpers import SCENES, scene_dict
-from server import free_port, running_server
 from service import classgrade, cluster
 from service.cli import main
+
+from helpers import SCENES, scene_dict
+from server import free_port, running_server
 
 DASK = [sys.executable, "-m", "distributed.cli.dask_worker"]
 

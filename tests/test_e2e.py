@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
+from service.client import ServerError, post_form, post_json
+
 from helpers import SCENES, scene_dict
 from server import running_server
-from service.client import ServerError, post_form, post_json
 
 SCENE = (SCENES / "01_three_spheres.json").read_bytes()
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -87,7 +88,8 @@ def test_burst_beyond_the_slot_count_gets_200_or_503_and_the_service_stays_healt
 def test_cli_talks_to_the_server(server, tmp_path):
     out = tmp_path / "s.png"
     run = [sys.executable, "-m", "service.cli"]
-    assert subprocess.run([*run, "render", str(SCENES / "07_spotlights.json"), "-o", str(out), "--server", server]).returncode == 0
+    spots = str(SCENES / "07_spotlights.json")
+    assert subprocess.run([*run, "render", spots, "-o", str(out), "--server", server]).returncode == 0
     assert subprocess.run([*run, "grade", str(SCENES / "07_spotlights.json"), str(out), "--server", server],
                           capture_output=True).returncode == 0
     assert subprocess.run([*run, "grade", str(SCENES / "01_three_spheres.json"), str(out), "--server", server],

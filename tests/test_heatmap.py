@@ -8,11 +8,12 @@ from fastapi.testclient import TestClient
 
 import schemas
 import tracer
-from helpers import SCENES, scene_dict
 from service import grading, heatmap
 from service.app import create_app
 from service.cli import main
 from service.settings import Settings
+
+from helpers import SCENES, scene_dict
 
 SCENE = (SCENES / "02_all_lights.json").read_bytes()
 

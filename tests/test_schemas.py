@@ -5,6 +5,7 @@ import json
 import pytest
 
 import schemas
+
 from helpers import EXAMPLES, scene_dict
 
 

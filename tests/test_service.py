@@ -13,9 +13,10 @@ from PIL import Image
 
 import schemas
 import tracer
-from helpers import SCENES, scene_dict
 from service.app import create_app
 from service.settings import Settings
+
+from helpers import SCENES, scene_dict
 
 JSON = {"content-type": "application/json"}
 SCENE = (SCENES / "01_three_spheres.json").read_bytes()

@@ -3,7 +3,7 @@
 import pytest
 from pydantic_settings import BaseSettings
 
-from service.cli import build_parser
+from service.cli import parse
 from service.settings import Settings, SettingsError
 
 
@@ -21,15 +21,16 @@ def test_a_wrong_value_names_its_variable(monkeypatch):
     monkeypatch.setenv("PHONGRAY_MAX_PIXELS", "lots")
     with pytest.raises(SettingsError) as info:
         Settings.from_env()
-    assert str(info.value).startswith("PHONGRAY_MAX_PIXELS: Input should be a valid integer") and "'lots'" in str(info.value)
+    said = str(info.value)
+    assert said.startswith("PHONGRAY_MAX_PIXELS: Input should be a valid integer") and "'lots'" in said
 
 
 def test_the_command_lines_defaults_come_from_the_settings(monkeypatch):
     monkeypatch.setenv("PHONGRAY_CLUSTER", "tcp://127.0.0.1:8786")
     monkeypatch.setenv("PHONGRAY_CLUSTER_WAIT", "5")
-    args = build_parser().parse_args(["grade-class", "s", "u", "-o", "r"])
+    args = parse(["grade-class", "s", "u", "-o", "r"])
     assert (args.cluster, args.cluster_wait) == ("tcp://127.0.0.1:8786", 5.0)
     monkeypatch.delenv("PHONGRAY_CLUSTER")
     monkeypatch.delenv("PHONGRAY_CLUSTER_WAIT")
-    args = build_parser().parse_args(["render", "s.json", "-o", "x.png"])
+    args = parse(["render", "s.json", "-o", "x.png"])
     assert (args.cluster, args.cluster_wait) == (None, 30.0)

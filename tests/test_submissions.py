@@ -10,9 +10,10 @@ from PIL import Image
 
 import schemas
 import tracer
-from helpers import scene_dict
 from service import classgrade
 from service.submissions import ClassError, UntrustedFileError, discover, read_untrusted
+
+from helpers import scene_dict
 
 
 @pytest.fixture(scope="module")
@@ -91,7 +92,7 @@ def test_what_cannot_be_graded_is_reported_with_its_reason(task, tmp_path):
     rows, ignored = rows_of(tmp_path, tmp_path)
     subs = tmp_path / "subs"
     assert rows["two"]["status"] == "invalid"
-    assert rows["two"]["reason"] == "2 files for Cornell: " + f"{subs}/two/a/Cornell.png, {subs}/two/b/Cornell.png; keep one"
+    assert rows["two"]["reason"] == f"2 files for Cornell: {subs}/two/a/Cornell.png, {subs}/two/b/Cornell.png; keep one"
     assert rows["both"]["status"] == "pass" and rows["both"]["file"] == "Cornell.png"
     assert rows["png-and-jpg"]["status"] == "pass" and rows["png-and-jpg"]["file"] == "Cornell.png"
     assert rows["deep"]["status"] == "missing"
