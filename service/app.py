@@ -17,6 +17,7 @@ from fastapi.staticfiles import StaticFiles
 
 from schemas import Scene
 
+from .heatmap import LEGEND
 from .jobs import RenderService
 from .middleware import ApiKey, BodyLimit
 from .routes import HTTPProblem, SafeJSONResponse, problem_response, router
@@ -63,6 +64,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     scenes = examples()
     page = (STATIC / "playground.html").read_text().replace(
         "__EXAMPLES__", json.dumps(scenes).replace("</", "<\\/")).replace(
+        "__LEGEND__", json.dumps(LEGEND)).replace(
         "__EXAMPLE__", html.escape(next(iter(scenes.values())), quote=False))
 
     @app.get("/", include_in_schema=False)

@@ -199,6 +199,9 @@ def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
     page.wait_for_function("() => { const i = document.getElementById('grade-heat-map'); "
                            "return i && i.naturalWidth === 160; }", timeout=20_000)
     assert "fraction_off_nearby" in page.inner_text("#numbers")
+    assert page.inner_text("#verdict").startswith("FAIL: ") and "off even nearby" in page.inner_text("#verdict")
+    legend = page.inner_text("#legend")
+    assert "brighter than the reference" in legend and "darker than the reference" in legend
     shot(page, "playground-grade.png", tmp_path)
     assert page.outside == []
     page.close()
