@@ -11,6 +11,7 @@ import html
 import io
 import json
 import os
+import re
 import threading
 from pathlib import Path
 from typing import Any
@@ -95,7 +96,7 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
             label = r["status"]
             # the cell shows the reason without the file it names (the detail shows it whole)
             note = (_percent(r["fraction_off_nearby"]) if r["status"] in ("pass", "fail")
-                    else esc(r["reason"].rsplit(".png: ", 1)[-1].rsplit(".json: ", 1)[-1])[:80])
+                    else esc(_without_file(r["reason"]))[:80])
             own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
             cells.append(f'<td class="{r["status"]}"><a href="#{anchor}">{label}{own}<small>{note}</small></a></td>')
             images = "".join(
@@ -148,6 +149,14 @@ figure {{ margin: 0; }} figure img {{ width: 320px; image-rendering: pixelated; 
 <h2>Ignored files</h2><ul>{skipped}</ul>
 </body></html>
 """
+
+
+#: the file a reason begins with (``subs/frank/mirror.jpg: ``), left out of a cell (its detail shows it whole)
+_FILE = re.compile(r"^.*?\.[A-Za-z0-9]{2,5}: ")
+
+
+def _without_file(reason: str) -> str:
+    return _FILE.sub("", reason, count=1)
 
 
 def _percent(x: float | None) -> str:
