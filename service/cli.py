@@ -40,6 +40,22 @@ def _read(path: str) -> bytes:
         raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
 
 
+def _read_image(path: str) -> bytes:
+    """An image file, read no further than the limit ``max_image_bytes`` (an image is a student's file: a file
+    without end, such as /dev/zero, must not be read whole), the same with and without ``--server``."""
+    from .settings import Settings
+
+    limit = Settings.from_env().max_image_bytes
+    try:
+        with open(path, "rb") as f:
+            data = f.read(limit + 1)
+    except OSError as exc:
+        raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise CliError(f"{path}: larger than the limit max_image_bytes = {limit} bytes (PHONGRAY_MAX_IMAGE_BYTES)")
+    return data
+
+
 def _write(path: str, data: bytes) -> None:
     try:
         if path == "-":
@@ -193,7 +209,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
     _png_name(args.heatmap)
     kind: Kind = "raw" if args.raw_heatmap else "verdict"
     heat: bytes | None = None
-    text, image = _read(args.scene), _read(args.image)
+    text, image = _read(args.scene), _read_image(args.image)
     if args.server:
         from .client import post_form
 
@@ -232,7 +248,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     _thresholds(args)
     _png_name(args.heatmap)
-    reference, image = _read(args.reference), _read(args.image)
+    reference, image = _read_image(args.reference), _read_image(args.image)
     try:
         pixels = pipeline.read_reference(reference)
     except grading.ImageError as exc:

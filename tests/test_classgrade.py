@@ -124,6 +124,14 @@ def test_a_scene_among_the_submissions_cannot_change_the_task(klass, tmp_path):
     assert "of the pixels are off even nearby" in cheat["reason"]
 
 
+def test_a_student_cannot_change_their_task_from_the_command_line(klass, tmp_path, capsys):
+    scenes, subs, _ = klass
+    assert main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")]) == 0
+    rows = by_pair(json.loads((tmp_path / "r" / "report.json").read_text()))
+    assert rows[("cheat", "balls")]["status"] == "fail" and rows[("cheat", "balls")]["scene"] == "shared"
+    assert f"ignored: {subs}/cheat/balls.json: {classgrade.SCENE_IGNORED}" in capsys.readouterr().err
+
+
 def test_fail_rows_give_their_reason(klass, tmp_path):
     rows = by_pair(grade(klass, tmp_path / "report").rows)
     bad = rows[("bad", "lamps")]
@@ -222,7 +230,7 @@ def test_an_invalid_task_scene_stops_the_run_before_any_grading(klass, tmp_path,
     next(o for o in data["objects"] if o["type"] == "sphere")["radius"] = -1
     (broken / "lamps.json").write_text(json.dumps(data, indent=1))
     line = next(i for i, t in enumerate((broken / "lamps.json").read_text().splitlines(), 1) if '"radius": -1' in t)
-    said = ta_fault(capsys, broken, subs, "-o", tmp_path / "r", "--student-scenes", own)
+    said = ta_fault(capsys, broken, subs, "-o", tmp_path / "r")
     assert said.startswith(f"{broken}/lamps.json:{line}: objects[") and ".radius: must be > 0" in said
     assert not (tmp_path / "r" / "report.json").exists() and not (tmp_path / "r" / "references").exists()
 
@@ -243,7 +251,7 @@ def test_an_invalid_student_scene_of_the_tas_stops_the_run(klass, tmp_path, caps
 def test_an_unusable_report_folder_stops_the_run(klass, tmp_path, capsys):
     scenes, subs, own = klass
     (tmp_path / "file").write_text("")
-    said = ta_fault(capsys, scenes, subs, "-o", tmp_path / "file" / "report", "--student-scenes", own)
+    said = ta_fault(capsys, scenes, subs, "-o", tmp_path / "file" / "report")
     assert said.startswith(f"{tmp_path}/file/report: cannot write the report there: ")
 
 
@@ -258,7 +266,7 @@ def test_unusable_input_exits_2_with_one_line(tmp_path, capsys):
 def test_a_wrong_or_missing_api_key_or_a_dead_server_stops_the_run(klass, tmp_path, capsys, monkeypatch):
     scenes, subs, own = klass
     monkeypatch.delenv("PHONGRAY_API_KEY", raising=False)
-    args = [scenes, subs, "-o", tmp_path / "r", "--student-scenes", own]
+    args = [scenes, subs, "-o", tmp_path / "r"]
     with running_server(tmp_path, api_key="sesame") as (url, _):
         for key in (["--api-key", "wrong"], []):
             said = ta_fault(capsys, *args, "--server", url, *key)

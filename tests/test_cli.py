@@ -350,6 +350,14 @@ def test_grades_print_in_words_and_as_json(files, capsys):
     assert result["fraction_off_nearby"] > 0.5 and result["psnr"] > 0
 
 
+def test_an_image_is_read_no_further_than_the_limit(files, service_url, capsys, monkeypatch):
+    monkeypatch.setenv("PHONGRAY_MAX_IMAGE_BYTES", "1000")
+    for extra in ([], ["--server", service_url]):
+        assert main(["grade", str(files / "good.json"), "/dev/zero", *extra]) == 2  # a file without end
+        assert capsys.readouterr().err == ("phongray: /dev/zero: larger than the limit max_image_bytes = 1000 bytes "
+                                           "(PHONGRAY_MAX_IMAGE_BYTES)\n")
+
+
 def test_compare_grades_two_images_without_a_scene(files, capsys, tmp_path):
     assert main(["compare", str(files / "right.png"), str(files / "right.png"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["max_error"] == 0
