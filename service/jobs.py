@@ -22,6 +22,7 @@ from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
 from .limits import check_body, check_raw, check_scene
+from .pipeline import with_overrides
 from .rendering import render_pixels
 from .settings import Settings
 
@@ -60,10 +61,7 @@ def parse_counted(body: bytes | str, settings: Settings) -> Any:
 
 def prepare(body: bytes | str, overrides: dict[str, int | None], settings: Settings) -> Job:
     """Parse, apply image overrides, validate and check limits. Raises SceneError or LimitError."""
-    data = parse_counted(body, settings)
-    if isinstance(data, dict) and isinstance(data.get("image"), dict):
-        data["image"].update({k: v for k, v in overrides.items() if v is not None})
-    scene = validate_scene(data)
+    scene = with_overrides(validate_scene(parse_counted(body, settings)), overrides)
     check_scene(scene, settings)
     return Job(scene, scene_key(scene))
 

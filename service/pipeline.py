@@ -12,8 +12,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from pydantic import ValidationError
 
-from schemas import Scene, SceneError, parse_json, validate_scene
+from schemas import Image, Scene, SceneError, parse_json, validate_scene
+from schemas.errors import problems_from_validation
 from schemas.locate import as_lines, format_located
 from tracer import decode_png
 
@@ -30,14 +32,25 @@ def scene_lines(name: str, errors: list[dict[str, Any]]) -> list[str]:
     return format_located(name, errors)
 
 
+def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
+    """The scene with values of its ``image`` replaced (``--width``, ``?samples=2``; None keeps the scene's).
+    Overrides apply to a valid scene: they neither complete nor mend one, so that a scene is accepted exactly
+    when its JSON Schema says so.  Raises :class:`SceneError` for an override out of range."""
+    given = {k: v for k, v in (overrides or {}).items() if v is not None}
+    if not given:
+        return scene
+    try:
+        image = Image.model_validate({**scene.image.model_dump(), **given})
+    except ValidationError as exc:
+        raise SceneError([(f"image.{path}", message) for path, message in problems_from_validation(exc)]) from None
+    return scene.model_copy(update={"image": image})
+
+
 def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, shared: bool = False) -> Scene:
     """The validated scene of a file's text, ``overrides`` applied to its ``image``; :class:`SceneError`
     (with ``.lines``) names every problem by file and line."""
     try:
-        data = parse_json(text, shared=shared)
-        if overrides and isinstance(data, dict) and isinstance(data.get("image"), dict):
-            data["image"].update({k: v for k, v in overrides.items() if v is not None})
-        return validate_scene(data)
+        return with_overrides(validate_scene(parse_json(text, shared=shared)), overrides)
     except SceneError as exc:
         exc.lines = as_lines(name, exc.problems, text)  # type: ignore[attr-defined]
         raise

@@ -65,6 +65,25 @@ def test_query_overrides(api):
     assert res.status_code == 422 and res.json()["errors"][0]["path"] == "query.width"
 
 
+def test_overrides_replace_values_but_neither_complete_nor_mend_a_scene(api):
+    """A body the JSON Schema refuses (no image.height, a samples that is no number) stays refused, whatever the
+    query says."""
+    data = json.loads(SCENE)
+    del data["image"]["height"]
+    res = api.post("/render?width=16&height=12", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and [e["path"] for e in res.json()["errors"]] == ["image.height"]
+    data = json.loads(SCENE)
+    data["image"]["samples"] = {}
+    res = api.post("/render?samples=1", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and [e["path"] for e in res.json()["errors"]] == ["image.samples"]
+    assert "samples" not in json.loads(SCENE)["image"]  # an optional key the scene lacks is set by the query
+    with_samples = json.loads(SCENE)
+    with_samples["image"]["samples"] = 2
+    by_query = api.post("/render?samples=2", content=SCENE, headers=JSON)
+    assert by_query.status_code == 200
+    assert by_query.content == api.post("/render", content=json.dumps(with_samples), headers=JSON).content
+
+
 def test_validate_valid_and_invalid_with_lines(api):
     assert api.post("/validate", content=SCENE, headers=JSON).json() == {"valid": True}
     bad = SCENE.replace(b'"radius": 0.7', b'"radius": -0.7')
