@@ -203,7 +203,23 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     batch = discover(scenes, submissions, student_scenes)
     tasks = load_tasks(tasks_file, batch.tasks)
     scene_of_key = _scene_keys(batch)
+    made = not report.exists()
     _writable(report)
+    try:
+        return _run(batch, tasks, scene_of_key, report, tolerance, max_fraction, jobs, server, cluster, progress,
+                    api_key, cluster_wait, started)
+    except Exception:
+        if made:  # a run stopped by a fault of the TA's leaves no empty report folder behind
+            with contextlib.suppress(OSError):
+                report.rmdir()
+        raise
+
+
+def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, Path], report: Path,
+         tolerance: float, max_fraction: float, jobs: int | None, server: str | None, cluster: str | None,
+         progress: Callable[[int, int], None] | None, api_key: str | None, cluster_wait: float,
+         started: float) -> Outcome:
+    """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report."""
     for pair in batch.pairs:
         if not pair.row and pair.image is None:
             pair.row = {"status": "missing", "reason": f"no {pair.task}.png"}

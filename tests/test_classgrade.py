@@ -275,7 +275,7 @@ def test_a_wrong_or_missing_api_key_or_a_dead_server_stops_the_run(klass, tmp_pa
         assert health["renders"] == 0  # nothing was rendered, let alone graded
     said = ta_fault(capsys, *args, "--server", url)  # the server is gone now
     assert said.startswith(f"--server {url}: cannot reach {url}/healthz: ")
-    assert not (tmp_path / "r" / "report.json").exists()
+    assert not (tmp_path / "r").exists()  # not even an empty report folder is left behind
 
 
 def test_a_tasks_file_gives_points_and_thresholds_per_task(klass, tmp_path):
