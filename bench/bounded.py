@@ -18,9 +18,10 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 SCENES = Path(__file__).resolve().parent.parent / "tests" / "scenes"
 
@@ -81,7 +82,7 @@ class _Watch:
             self.healthz_ms = max(self.healthz_ms, 1000 * (time.perf_counter() - started))
             time.sleep(0.02)
 
-    def __enter__(self) -> "_Watch":
+    def __enter__(self) -> _Watch:
         self.thread.start()
         return self
 

@@ -24,7 +24,8 @@ EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
 def build(root: Path) -> tuple[Path, Path]:
-    """The class on disk: shared scenes, each student's own 'spheres' scene, and a right image for every pair."""
+    """The class on disk: shared scenes, each student's own 'spheres' scene (in the TA's ``own/`` folder), and a
+    right image for every pair."""
     scenes, subs = root / "scenes", root / "subs"
     scenes.mkdir(parents=True)
     shared = {}
@@ -40,7 +41,8 @@ def build(root: Path) -> tuple[Path, Path]:
         for obj in own["objects"]:
             if obj["type"] == "sphere":
                 obj["center"][0] += 0.01 * (k + 1)
-        (folder / "spheres.json").write_text(json.dumps(own))
+        (root / "own" / folder.name).mkdir(parents=True)
+        (root / "own" / folder.name / "spheres.json").write_text(json.dumps(own))
         (folder / "spheres.png").write_bytes(tracer.encode_png(tracer.render(schemas.validate_scene(own))))
         for task in ("lights", "mirror", "spots"):
             (folder / f"{task}.png").write_bytes(shared[task])
@@ -69,7 +71,7 @@ def class_rows(work: Path, port: int) -> list[dict[str, Any]]:
         try:
             started = time.perf_counter()
             outcome = grade_class(scenes, subs, work / f"report-{mode}", server=f"http://127.0.0.1:{port}"
-                                  if proc else None)
+                                  if proc else None, student_scenes=work / "class" / "own")
             seconds = time.perf_counter() - started
         finally:
             if proc:
@@ -100,7 +102,7 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
     local_4k = time.perf_counter() - started
     if local_class is None:
         started = time.perf_counter()
-        grade_class(scenes / "scenes", subs, work / "report-local-again")
+        grade_class(scenes / "scenes", subs, work / "report-local-again", student_scenes=scenes / "own")
         local_class_s = time.perf_counter() - started
     else:
         local_class_s = local_class["seconds"]
@@ -113,7 +115,8 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
             cluster_4k = time.perf_counter() - started
             identical = tracer.encode_png(pixels) == local_png
         started = time.perf_counter()
-        outcome = grade_class(scenes / "scenes", subs, work / "report-cluster", cluster=lc.scheduler_address)
+        outcome = grade_class(scenes / "scenes", subs, work / "report-cluster", cluster=lc.scheduler_address,
+                              student_scenes=scenes / "own")
         cluster_class = time.perf_counter() - started
     assert identical and outcome.count("pass") == len(outcome.rows)
     pairs, refs = len(outcome.rows), outcome.renders

@@ -36,11 +36,13 @@ def _grey(c: Any) -> float:
 
 
 def _texture(mat: dict[str, Any], materials: dict[str, Any], ambient_light: float) -> str:
-    def plain(m: dict[str, Any]) -> str:
+    def plain(m: dict[str, Any]) -> tuple[str, str]:
         kd = m.get("diffuse", 0.5)
         kt = float(m.get("transmittance", 0))
-        finish = (f"finish {{ ambient {_c(m.get('ambient', 0.3))} diffuse 1 specular {_grey(m.get('specular', 0.8)):.4g} "
-                  f"roughness {1 / max(float(m.get('shininess', 100)), 1):.4g} reflection {float(m.get('reflectance', 0)):.4g} }}")
+        specular = _grey(m.get("specular", 0.8))
+        roughness = 1 / max(float(m.get("shininess", 100)), 1)
+        finish = (f"finish {{ ambient {_c(m.get('ambient', 0.3))} diffuse 1 specular {specular:.4g} "
+                  f"roughness {roughness:.4g} reflection {float(m.get('reflectance', 0)):.4g} }}")
         pigment = f"color {_c(kd)} transmit {kt:.4g}" if kt else f"color {_c(kd)}"
         return pigment, finish
 

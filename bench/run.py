@@ -117,10 +117,13 @@ def png_rows(work: Path, names: list[str], runs: int) -> list[dict[str, Any]]:
         row: dict[str, Any] = {"scene": name, "size": f"{px.shape[1]}×{px.shape[0]}", "levels": {}}
         for level in PNG_LEVELS:
             data: list[bytes] = []
-            seconds = _best_of(runs + 1, lambda: data.append(tracer.encode_png(px, level)))
+            def encode(data: list[bytes] = data, px: np.ndarray = px, level: int = level) -> None:
+                data.append(tracer.encode_png(px, level))
+
+            seconds = _best_of(runs + 1, encode)
             row["levels"][level] = {"ms": 1000 * seconds, "kib": len(data[-1]) / 1024}
 
-        def pillow() -> None:
+        def pillow(px: np.ndarray = px, row: dict[str, Any] = row) -> None:
             buf = io.BytesIO()
             Image.fromarray(px).save(buf, format="PNG", compress_level=6)
             row["pillow_kib"] = len(buf.getvalue()) / 1024
@@ -247,7 +250,7 @@ def knob(label: str, base: dict[str, Any], values: list[Any], reference: Any, ap
     for value in values:
         scene = _validated(apply(base, value))
         img: list[np.ndarray] = []
-        seconds = _best_of(runs, lambda: img.append(tracer.render(scene)))
+        seconds = _best_of(runs, lambda img=img, scene=scene: img.append(tracer.render(scene)))
         mae, off = _error(img[-1], ref)
         rows.append({"value": value, "seconds": seconds, "mean_abs_error": mae, "fraction_off": off})
     return {"knob": label, "reference": reference, "rows": rows}
@@ -295,7 +298,8 @@ def report(results: dict[str, Any]) -> str:
     else:
         lines += [f"POV-Ray: `{results['povray']}`, run as `povray +WT2` on the same scene and size.", ""]
     lines += ["## Speed", "",
-              "| scene | size | render s | rays (primary / shadow / secondary) | Mrays/s | Embree-only s | render ÷ Embree "
+              "| scene | size | render s | rays (primary / shadow / secondary) | Mrays/s | Embree-only s "
+              "| render ÷ Embree "
               "| phongray process s | POV-Ray process s | phongray ÷ POV-Ray |",
               "|---|---|---|---|---|---|---|---|---|---|"]
     for r in results["speed"]:
@@ -341,7 +345,8 @@ def report(results: dict[str, Any]) -> str:
     if results.get("http"):
         lines += ["## HTTP", "", "`phongray serve --workers 2` on loopback, one render thread per worker; each request "
                   "is a distinct 160×120 scene, so every one is rendered (targets: median < 30 ms, ≥ 50 renders/s).",
-                  "", "| clients | requests | median ms | p99 ms | renders/s | status codes |", "|---|---|---|---|---|---|"]
+                  "", "| clients | requests | median ms | p99 ms | renders/s | status codes |",
+                  "|---|---|---|---|---|---|"]
         for h in results["http"]:
             lines.append(f"| {h['clients']} | {h['requests']} | {_f(h['median_ms'], 1)} | {_f(h['p99_ms'], 1)} | "
                          f"{h['renders_per_s']:.1f} | {h['codes']} |")
@@ -364,7 +369,8 @@ def report(results: dict[str, Any]) -> str:
                   "expected to win here; the ratio is its overhead (target ≤ 1.3). Below 1, its worker processes "
                   "beat a local render's threads, which share one interpreter.", "",
                   "| work | local s | cluster s | cluster ÷ local |", "|---|---|---|---|",
-                  f"| 3840×2160 three spheres (bands of rows; PNG identical: {r4['identical']}) | {r4['local_s']:.1f} | "
+                  f"| 3840×2160 three spheres (bands of rows; PNG identical: {r4['identical']}) "
+                  f"| {r4['local_s']:.1f} | "
                   f"{r4['cluster_s']:.1f} | {r4['ratio']:.2f} |",
                   f"| class, {cl['pairs']} pairs, {cl['references']} references | {cl['local_s']:.1f} | "
                   f"{cl['cluster_s']:.1f} | {cl['ratio']:.2f} |", "",
@@ -396,7 +402,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="bench/out", help="directory for report.md, results.json and plots")
     parser.add_argument("--runs", type=int, default=2, help="runs per measurement; the best is kept")
     parser.add_argument("--only", nargs="*", help="speed scenes to run (default: all)")
-    parser.add_argument("--skip", nargs="*", default=[], choices=["speed", "png", "memory", "http", "quality", "class", "cluster"])
+    parser.add_argument("--skip", nargs="*", default=[],
+                        choices=["speed", "png", "memory", "http", "quality", "class", "cluster"])
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -29,7 +29,7 @@ Problem = tuple[str, str]
 MAX_LISTED = 10
 
 
-def parallel(a: Sequence[float], b: Sequence[float]) -> bool:
+def parallel(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray) -> bool:
     """The contract's test: ``|a × b| ≤ 1e-12 |a| |b|``; a zero vector is parallel to all.
 
     Both vectors are scaled to a largest component of 1 first, which changes
@@ -46,7 +46,7 @@ def parallel(a: Sequence[float], b: Sequence[float]) -> bool:
     return cross <= 1e-12 * float(np.linalg.norm(va)) * float(np.linalg.norm(vb))
 
 
-def is_zero(v: Sequence[float]) -> bool:
+def is_zero(v: Sequence[float] | np.ndarray) -> bool:
     return all(c == 0 for c in v)
 
 

@@ -133,13 +133,12 @@ def _tuple_missing(err: dict[str, Any]) -> bool:
     return err["type"] == "missing" and bool(loc) and isinstance(loc[-1], int)
 
 
-def problems_from_validation(errors: ValidationError | list[dict[str, Any]]) -> list[tuple[str, str]]:
+def problems_from_validation(errors: ValidationError | list[Any]) -> list[tuple[str, str]]:
     """``(path, message)`` per pydantic error (a ValidationError, or its errors with absolute locations)."""
-    if isinstance(errors, ValidationError):
-        errors = errors.errors(include_url=False)
+    items: list[Any] = errors.errors(include_url=False) if isinstance(errors, ValidationError) else errors
     out: list[tuple[str, str]] = []
     seen: set[tuple[str, str]] = set()
-    for err in errors:
+    for err in items:
         loc = err["loc"]
         if _tuple_missing(err):  # a short array: report the array, once
             given = err.get("input")

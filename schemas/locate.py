@@ -107,8 +107,14 @@ def located(problems: list[tuple[str, str]], text: bytes | str) -> list[dict[str
 
 def as_lines(name: str, problems: list[tuple[str, str]], text: bytes | str) -> list[str]:
     """``NAME:LINE: path: message`` per problem (``NAME: path: message`` where the line is unknown)."""
+    return format_located(name, located(problems, text))
+
+
+def format_located(name: str, errors: list[dict[str, object]]) -> list[str]:
+    """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as :func:`located`
+    and the service's answers give them)."""
     out = []
-    for e in located(problems, text):
-        what = f"{e['path']}: {e['message']}" if e["path"] else str(e["message"])
-        out.append(f"{name}:{e['line']}: {what}" if e["line"] else f"{name}: {what}")
+    for e in errors:
+        what = f"{e.get('path')}: {e.get('message')}" if e.get("path") else str(e.get("message"))
+        out.append(f"{name}:{e['line']}: {what}" if e.get("line") else f"{name}: {what}")
     return out

@@ -8,7 +8,7 @@ checked afterwards by :mod:`schemas.checks`, which can name the exact place.
 from __future__ import annotations
 
 from itertools import chain
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictFloat, StrictInt
@@ -25,7 +25,9 @@ def _expand_grey(value: Any) -> Any:
     return value
 
 
-Colour = Annotated[tuple[NonNegative, NonNegative, NonNegative], BeforeValidator(_expand_grey)]
+#: a colour: an RGB triple, or one number k for [k, k, k] (both in the JSON Schema too)
+Colour = Annotated[tuple[NonNegative, NonNegative, NonNegative], BeforeValidator(
+    _expand_grey, json_schema_input_type=NonNegative | tuple[NonNegative, NonNegative, NonNegative])]
 Attenuation = tuple[NonNegative, NonNegative, NonNegative]
 
 
@@ -130,7 +132,7 @@ class _Read:
         return isinstance(other, _Read)
 
 
-Object = Annotated[Union[Sphere, Plane, Triangle, Mesh], Field(discriminator="type")]
+Object = Annotated[Sphere | Plane | Triangle | Mesh, Field(discriminator="type")]
 
 
 class AmbientLight(Strict):
@@ -178,7 +180,7 @@ class AreaLight(Strict):
 
 
 Light = Annotated[
-    Union[AmbientLight, DirectionalLight, PointLight, SpotLight, AreaLight],
+    AmbientLight | DirectionalLight | PointLight | SpotLight | AreaLight,
     Field(discriminator="type"),
 ]
 

@@ -13,8 +13,8 @@ problems are listed up to :data:`MAX_LISTED` and counted up to
 from __future__ import annotations
 
 import math
-from itertools import chain, islice
 from collections.abc import Iterator
+from itertools import chain, islice
 from typing import Any
 
 import numpy as np

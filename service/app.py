@@ -6,6 +6,7 @@ import html
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import fastapi_offline
 from fastapi import FastAPI, Request, Response
@@ -16,6 +17,7 @@ from fastapi.staticfiles import StaticFiles
 
 from schemas import Scene
 
+from .heatmap import LEGEND
 from .jobs import RenderService
 from .middleware import ApiKey, BodyLimit
 from .routes import HTTPProblem, SafeJSONResponse, problem_response, router
@@ -62,6 +64,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     scenes = examples()
     page = (STATIC / "playground.html").read_text().replace(
         "__EXAMPLES__", json.dumps(scenes).replace("</", "<\\/")).replace(
+        "__LEGEND__", json.dumps(LEGEND)).replace(
         "__EXAMPLE__", html.escape(next(iter(scenes.values())), quote=False))
 
     @app.get("/", include_in_schema=False)
@@ -95,7 +98,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     original_openapi = app.openapi
 
-    def openapi() -> dict:  # type: ignore[type-arg]
+    def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
             schema = original_openapi()
             scene_schema = Scene.model_json_schema(ref_template="#/components/schemas/{model}")
@@ -103,8 +106,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             components = schema.setdefault("components", {})
             components.setdefault("schemas", {}).update({**defs, "Scene": scene_schema})
             # Swagger UI's "Authorize": the key of a service that has one (PHONGRAY_API_KEY)
-            components["securitySchemes"] = {"apiKey": {"type": "http", "scheme": "bearer",
-                                                         "description": "needed when the service sets PHONGRAY_API_KEY"}}
+            needed = "needed when the service sets PHONGRAY_API_KEY"
+            components["securitySchemes"] = {"apiKey": {"type": "http", "scheme": "bearer", "description": needed}}
             schema["security"] = [{"apiKey": []}, {}]
             app.openapi_schema = schema
         return app.openapi_schema

@@ -1,7 +1,8 @@
-"""The ``phongray`` command: render, validate, schema (and more as they land).
+"""The ``phongray`` command: render, validate, grade, compare, grade-class, serve, schema.
 
 Every failure a user can cause ends in a one-line message on stderr and a
-non-zero exit, never a traceback.
+non-zero exit, never a traceback; ``--server`` gives the same exit codes and
+the same messages as local work (both go through :mod:`service.pipeline`).
 """
 
 from __future__ import annotations
@@ -11,10 +12,17 @@ import json
 import os
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, NoReturn
+
+from .display import ProgressBar, describe
+
+if TYPE_CHECKING:
+    from .heatmap import Kind
 
 EXIT_BAD_INPUT = 2
+__all__ = ["ProgressBar", "build_parser", "main"]
 
 
 class CliError(Exception):
@@ -32,155 +40,141 @@ def _read(path: str) -> bytes:
         raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
 
 
-def _load(path: str, overrides: dict[str, Any] | None = None):  # type: ignore[no-untyped-def]
-    from schemas import SceneError, parse_json, validate_scene
+def _read_image(path: str) -> bytes:
+    """An image file, read no further than the limit ``max_image_bytes`` (an image is a student's file: a file
+    without end, such as /dev/zero, must not be read whole), the same with and without ``--server``."""
+    from .settings import Settings
 
-    text = _read(path)
+    limit = Settings.from_env().max_image_bytes
     try:
-        data = parse_json(text, shared=False)
-        if overrides and isinstance(data, dict) and isinstance(data.get("image"), dict):
-            data["image"].update({k: v for k, v in overrides.items() if v is not None})
-        return validate_scene(data)
-    except SceneError as exc:
-        raise CliError("; ".join(_lines(path, exc, text))) from None
-
-
-def _lines(name: str, exc: Any, text: bytes) -> list[str]:
-    """``FILE:LINE: path: message`` per problem (the line of the JSON text, as HTTP gives it, where known)."""
-    from schemas.locate import as_lines
-
-    return as_lines(name, exc.problems, text)
-
-
-def _clock(seconds: float) -> str:
-    seconds = int(seconds)
-    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else \
-        f"{seconds // 60}:{seconds % 60:02d}"
-
-
-class ProgressBar:
-    """A one-line progress bar on stderr, shown only on a terminal and only after a second."""
-
-    def __init__(self, delay: float = 1.0, unit: str | None = None):
-        self.start = time.monotonic()
-        self.delay = delay
-        self.unit = unit  # when set, the line shows "done/total unit" and an ETA
-        self.shown = False
-        self.enabled = sys.stderr.isatty()
-        self.first: tuple[float, int] | None = None
-
-    def __call__(self, done: int, total: int) -> None:
-        now = time.monotonic()
-        if self.first is None:
-            self.first = (now, done)
-        if not self.enabled or now - self.start < self.delay:
-            return
-        self.shown = True
-        width = 30
-        filled = int(width * done / max(total, 1))
-        line = f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * done / max(total, 1):5.1f}%"
-        if self.unit:
-            line += f" {done}/{total} {self.unit}"
-        t0, d0 = self.first
-        rate = (done - d0) / max(now - t0, 1e-9)
-        eta = _clock((total - done) / rate) if rate > 0 else "?"
-        line += f", {_clock(now - self.start)} elapsed, ETA {eta}  "
-        ProgressBar.active = self
-        sys.stderr.write(line)
-        sys.stderr.flush()
-
-    #: the bar on screen, so that an interruption can finish its line first
-    active: "ProgressBar | None" = None
-
-    def close(self) -> None:
-        if self.shown and ProgressBar.active is self:
-            sys.stderr.write("\n")
-        ProgressBar.active = None
-
-
-def _server_call(func, *a, **kw):  # type: ignore[no-untyped-def]
-    from .client import ServerError
-
-    try:
-        return func(*a, **kw)
-    except ServerError as exc:
-        if exc.problems is not None:
-            raise CliError(exc.problems, 1 if exc.status == 422 else EXIT_BAD_INPUT) from None
-        raise CliError(str(exc)) from None
-
-
-def cmd_render(args: argparse.Namespace) -> int:
-    from tracer import ImageTooLarge, encode_png, render
-
-    _png_name(args.output)
-    overrides = {"width": args.width, "height": args.height, "samples": args.samples}
-    if args.server:
-        from .client import post_json
-
-        data = _server_call(post_json, args.server, "/render", _read(args.scene), overrides, api_key=args.api_key)
-        _write(args.output, data)
-        return 0
-    scene = _load(args.scene, overrides)
-    bar = ProgressBar()
-    started = time.perf_counter()
-    try:
-        if args.cluster:
-            from .cluster import ClusterError, connect
-            from .cluster import render as render_on
-
-            try:
-                with connect(args.cluster) as client:
-                    pixels = render_on(client, scene.model_dump_json().encode(), scene.image.width,
-                                       scene.image.height)
-            except ClusterError as exc:
-                raise CliError(str(exc)) from None
-        else:
-            pixels = render(scene, threads=args.threads, progress=bar)
-    except ImageTooLarge as exc:
-        raise CliError(f"{args.scene}: {exc}") from None
-    bar.close()
-    data = encode_png(pixels)
-    _write(args.output, data)
-    if not args.quiet:
-        print(f"{args.output}: {pixels.shape[1]}×{pixels.shape[0]} in {time.perf_counter() - started:.3f} s",
-              file=sys.stderr)
-    return 0
+        with open(path, "rb") as f:
+            data = f.read(limit + 1)
+    except OSError as exc:
+        raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise CliError(f"{path}: larger than the limit max_image_bytes = {limit} bytes (PHONGRAY_MAX_IMAGE_BYTES)")
+    return data
 
 
 def _write(path: str, data: bytes) -> None:
     try:
         if path == "-":
             sys.stdout.buffer.write(data)
+            sys.stdout.flush()
         else:
             Path(path).write_bytes(data)
+    except BrokenPipeError:
+        raise
     except OSError as exc:
         raise CliError(f"{path}: cannot write: {exc.strerror or exc}") from None
 
 
-def cmd_validate(args: argparse.Namespace) -> int:
-    from schemas import SceneError, load_scene
+def _load(path: str, text: bytes, overrides: dict[str, Any] | None = None) -> Any:
+    from .pipeline import BadInput, scene_or_bad_input
 
+    try:
+        return scene_or_bad_input(path, text, overrides)
+    except BadInput as exc:
+        raise CliError(str(exc)) from None
+
+
+def _remote(scene: str, image: str | None = None) -> Any:
+    """A context that turns the service's error answers into the words (and exit codes) of local work: the
+    scene's problems as ``SCENE:LINE: path: message``, the image's as ``IMAGE: ...``."""
+    import contextlib
+
+    from .client import ServerError
+    from .pipeline import scene_lines
+
+    @contextlib.contextmanager
+    def translating() -> Any:
+        try:
+            yield
+        except ServerError as exc:
+            if exc.problems is not None:
+                raise CliError("; ".join(scene_lines(scene, exc.body["errors"]))) from None
+            if exc.part == "image" and image is not None:
+                raise CliError(f"{image}: {exc.detail.removeprefix('image: ')}") from None
+            if exc.status in (413, 422):  # a limit of the service's
+                raise CliError(f"{scene}: {exc.detail}") from None
+            raise CliError(str(exc)) from None
+
+    return translating()
+
+
+def _cluster(args: argparse.Namespace) -> Any:
+    from .cluster import connect
+
+    return connect(args.cluster, wait=args.cluster_wait)
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from tracer import ImageTooLarge, encode_png
+
+    from .cluster import ClusterError
+    from .rendering import render_pixels
+
+    _png_name(args.output)
+    if args.server and args.cluster:
+        raise CliError("--server and --cluster: choose one")
+    overrides = {"width": args.width, "height": args.height, "samples": args.samples}
+    text = _read(args.scene)
+    started = time.perf_counter()
+    if args.server:
+        from .client import post_json
+
+        with _remote(args.scene):
+            data = post_json(args.server, "/render", text, overrides, api_key=args.api_key)
+        _write(args.output, data)
+        return 0
+    scene = _load(args.scene, text, overrides)
+    bar = ProgressBar()
+    try:
+        if args.cluster:
+            with _cluster(args) as client:
+                pixels = render_pixels(scene, client)
+        else:
+            pixels = render_pixels(scene, threads=args.threads, progress=bar)
+    except ImageTooLarge as exc:
+        raise CliError(f"{args.scene}: {exc}") from None
+    except ClusterError as exc:
+        raise CliError(str(exc)) from None
+    finally:
+        bar.close()
+    _write(args.output, encode_png(pixels))
+    if not args.quiet:
+        print(f"{args.output}: {pixels.shape[1]}×{pixels.shape[0]} in {time.perf_counter() - started:.3f} s",
+              file=sys.stderr)
+    return 0
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from schemas import SceneError
+
+    from .pipeline import load_scene, scene_lines
+
+    text = _read(args.scene)
     if args.server:
         from .client import ServerError, post_json
 
         try:
-            post_json(args.server, "/validate", _read(args.scene), api_key=args.api_key)
+            post_json(args.server, "/validate", text, api_key=args.api_key)
         except ServerError as exc:
-            if exc.status != 422 or not isinstance(exc.body, dict):
-                raise CliError(str(exc)) from None
-            for e in exc.body.get("errors", []):
-                where = f"{args.scene}:{e['line']}" if e.get("line") else args.scene
-                print(f"{where}: {e['path']}: {e['message']}" if e.get("path") else f"{where}: {e['message']}")
-            return 1
-        print(f"{args.scene}: valid")
-        return 0
-
-    text = _read(args.scene)
-    try:
-        load_scene(text)
-    except SceneError as exc:
-        for line in _lines(args.scene, exc, text):
-            print(line)
+            if exc.problems is None:
+                with _remote(args.scene):
+                    raise
+            lines = scene_lines(args.scene, exc.body["errors"])
+        else:
+            lines = []
+    else:
+        try:
+            load_scene(args.scene, text)
+            lines = []
+        except SceneError as exc:
+            lines = exc.lines  # type: ignore[attr-defined]
+    for line in lines:
+        print(line)
+    if lines:
         return 1
     print(f"{args.scene}: valid")
     return 0
@@ -198,74 +192,115 @@ def _png_name(path: str | None) -> None:
         raise CliError(f"{path}: phongray writes PNG images; name the output *.png (or - for standard output)")
 
 
-def cmd_grade(args: argparse.Namespace) -> int:
-    """Exit 0 when the submission passes, 1 when it fails, 2 for bad input."""
-    _thresholds(args)
-    _png_name(args.heatmap)
-    image = _read(args.image)
-    if args.server:
-        from .client import post_form
-
-        fields = {"scene": _read(args.scene), "tolerance": str(args.tolerance), "max_fraction": str(args.max_fraction)}
-        files = {"image": ("submission.png", image, "image/png")}
-        result = json.loads(_server_call(post_form, args.server, "/grade", fields, files, api_key=args.api_key))
-        if args.heatmap:
-            _write(args.heatmap, _server_call(post_form, args.server, "/grade", fields, files, {"format": "png"},
-                                              api_key=args.api_key))
+def _verdict(args: argparse.Namespace, result: dict[str, Any]) -> int:
+    """Print a grade (in words, or as JSON with ``--json``); exit 0 for a pass, 1 for a fail."""
+    if args.json:
+        print(json.dumps(result, indent=1, ensure_ascii=False))
     else:
-        import hashlib
-
-        from tracer import ImageTooLarge, encode_png, render
-
-        from . import grading
-
-        scene = _load(args.scene)
-        try:
-            reference = render(scene)
-        except ImageTooLarge as exc:
-            raise CliError(f"{args.scene}: {exc}") from None
-        try:
-            submitted = grading.read_submission(image, (reference.shape[1], reference.shape[0]))
-        except grading.ImageError as exc:
-            raise CliError(f"{args.image}: {exc}") from None
-        sha = hashlib.sha256(encode_png(reference)).hexdigest()
-        result = grading.grade(reference, submitted, sha, args.tolerance, args.max_fraction).as_dict()
-        if args.heatmap:
-            _write(args.heatmap, grading.heatmap(reference, submitted))
-    print("PASS" if result["passed"] else "FAIL")
-    for key, value in result.items():
-        if key != "passed":
-            print(f"  {key}: {value}")
+        print("\n".join(describe(result)))
     return 0 if result["passed"] else 1
 
 
-def cmd_grade_class(args: argparse.Namespace) -> int:
-    """Exit 0 when the batch ran (whatever the verdicts), 2 when its input is unusable."""
-    from .classgrade import ClassError, grade_class
+def cmd_grade(args: argparse.Namespace) -> int:
+    """Exit 0 when the submission passes, 1 when it fails, 2 for bad input."""
+    from . import grading, pipeline
 
     _thresholds(args)
-    from .cluster import ClusterError
+    _png_name(args.heatmap)
+    kind: Kind = "raw" if args.raw_heatmap else "verdict"
+    heat: bytes | None = None
+    text, image = _read(args.scene), _read_image(args.image)
+    if args.server:
+        from .client import post_form
 
+        fields: dict[str, bytes | str] = {"scene": text, "tolerance": repr(args.tolerance),
+                                          "max_fraction": repr(args.max_fraction)}
+        files = {"image": ("submission.png", image, "image/png")}
+        with _remote(args.scene, args.image):
+            result = json.loads(post_form(args.server, "/grade", fields, files, api_key=args.api_key))
+            if args.heatmap:
+                heat = post_form(args.server, "/grade", fields, files, {"format": "png", "heatmap": kind},
+                                 api_key=args.api_key)
+    else:
+        from tracer import ImageTooLarge, encode_png
+
+        from .rendering import render_pixels
+
+        scene = _load(args.scene, text)
+        try:
+            reference = encode_png(render_pixels(scene))
+        except ImageTooLarge as exc:
+            raise CliError(f"{args.scene}: {exc}") from None
+        try:
+            graded = pipeline.grade_png(reference, image, args.tolerance, args.max_fraction,
+                                        kind if args.heatmap else None, legend=True)
+        except grading.ImageError as exc:
+            raise CliError(f"{args.image}: {exc}") from None
+        result, heat = graded.as_dict(), graded.heatmap
+    if args.heatmap and heat is not None:
+        _write(args.heatmap, heat)
+    return _verdict(args, result)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    """Two images graded without a scene: exit 0 pass, 1 fail, 2 bad input."""
+    from . import grading, pipeline
+
+    _thresholds(args)
+    _png_name(args.heatmap)
+    reference, image = _read_image(args.reference), _read_image(args.image)
+    try:
+        pixels = pipeline.read_reference(reference)
+    except grading.ImageError as exc:
+        raise CliError(f"{args.reference}: {exc}") from None
+    try:
+        submitted = pipeline.read_image(image, (pixels.shape[1], pixels.shape[0]))
+    except grading.ImageError as exc:
+        raise CliError(f"{args.image}: {str(exc).replace('the scene is', 'the reference is')}") from None
+    graded = pipeline.compare(reference, submitted, args.tolerance, args.max_fraction,
+                              ("raw" if args.raw_heatmap else "verdict") if args.heatmap else None, legend=True,
+                              reference=pixels)
+    if args.heatmap and graded.heatmap is not None:
+        _write(args.heatmap, graded.heatmap)
+    return _verdict(args, graded.as_dict())
+
+
+def cmd_grade_class(args: argparse.Namespace) -> int:
+    """Exit 0 when the batch ran (whatever the verdicts), 2 when the TA's input or set-up is unusable."""
+    from .classgrade import grade_class
+    from .cluster import ClusterError
+    from .submissions import ClassError
+
+    _thresholds(args)
     if args.server and args.cluster:
         raise CliError("--server and --cluster: choose one")
     bar = ProgressBar(unit="pairs")
     try:
         outcome = grade_class(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
                               args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
-                              progress=bar, api_key=args.api_key)
+                              progress=bar, api_key=args.api_key,
+                              student_scenes=Path(args.student_scenes) if args.student_scenes else None,
+                              tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait)
     except (ClassError, ClusterError) as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
         raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
     finally:
         bar.close()
-    for name in outcome.ignored:
-        print(f"ignored: {name}", file=sys.stderr)
+    for name, why in outcome.ignored:
+        print(f"ignored: {name}: {why}", file=sys.stderr)
     print(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}")
     return 0
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
+    import socket
+
+    try:  # a port that cannot be had is one line here, not uvicorn's traceback in a worker
+        with socket.create_server((args.host, args.port)):
+            pass
+    except OSError as exc:
+        raise CliError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
     from .server import serve
 
     serve(args.host, args.port, args.workers)
@@ -319,6 +354,26 @@ class _Help(argparse.HelpFormatter):
         return text + " (default: %(default)s)"
 
 
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{value} is not a TCP port (0–65535)")
+    return value
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value >= 0:
+        raise argparse.ArgumentTypeError("must be ≥ 0")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     formatter = _Help
     parser = argparse.ArgumentParser(prog="phongray", description="A reference Phong/Whitted ray tracer.",
@@ -336,14 +391,24 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--api-key", metavar="KEY", default=None,
                        help="the service's API key, for --server (default: $PHONGRAY_API_KEY)")
         if cluster:
-            p.add_argument("--cluster", metavar="tcp://HOST:PORT", default=os.environ.get("PHONGRAY_CLUSTER") or None,
+            p.add_argument("--cluster", metavar="tcp://HOST:PORT",
                            help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
                                 "needs 'phongray[cluster]')")
+            p.add_argument("--cluster-wait", metavar="SECONDS", type=_seconds,
+                           help="how long to wait for the cluster's first worker before giving up "
+                                "(default: $PHONGRAY_CLUSTER_WAIT, else 30)")
 
     def thresholds(p: argparse.ArgumentParser) -> None:
         p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (0–255)")
         p.add_argument("--max-fraction", type=float, default=0.001,
                        help="fraction of pixels that may be off even against their 3×3 neighbourhood (0–1)")
+
+    def verdict(p: argparse.ArgumentParser) -> None:
+        thresholds(p)
+        p.add_argument("--heatmap", metavar="OUT.png", help="write the heat-map here: the pixels that decided the "
+                                                            "verdict, brighter and darker, with a legend")
+        p.add_argument("--raw-heatmap", action="store_true", help="draw the plain difference in the heat-map instead")
+        p.add_argument("--json", action="store_true", help="print the grade as JSON (the numbers of /grade)")
 
     p = command("render", "render a scene to a PNG")
     p.add_argument("scene", help="scene JSON file ('-' for stdin)")
@@ -362,21 +427,37 @@ def build_parser() -> argparse.ArgumentParser:
     remote(p)
     p.set_defaults(func=cmd_validate)
 
-    p = command("grade", "grade a submitted PNG against the scene's reference render")
+    p = command("grade", "grade a submitted PNG against the scene's reference render",
+                description="Grade a submitted PNG against the scene's reference render. Exit 0 pass, 1 fail, "
+                            "2 bad input.")
     p.add_argument("scene", help="scene JSON file")
     p.add_argument("image", help="the submitted PNG")
-    thresholds(p)
-    p.add_argument("--heatmap", metavar="OUT.png", help="write the difference heat-map here")
+    verdict(p)
     remote(p)
     p.set_defaults(func=cmd_grade)
 
+    p = command("compare", "grade one PNG against another, without a scene",
+                description="Grade IMAGE against REFERENCE (two PNGs of one size) as 'grade' would against a "
+                            "render. Exit 0 pass, 1 fail, 2 bad input.")
+    p.add_argument("reference", help="the reference PNG")
+    p.add_argument("image", help="the PNG to grade")
+    verdict(p)
+    p.set_defaults(func=cmd_compare)
+
     p = command("grade-class", "grade every student's images of every task; write a report",
-                description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images "
-                            "(a SUBMISSIONS/<student>/<task>.json is that student's own scene). Writes "
-                            "report.json, report.csv, index.html, references and heat-maps into REPORT.")
+                description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images (any "
+                            "case of the name, or one folder deeper). A student's own scene comes from the TA's "
+                            "--student-scenes DIR/<student>/<task>.json, never from the submissions. Writes "
+                            "report.json, report.csv, index.html, gradescope/<student>/results.json, references "
+                            "and heat-maps into REPORT. Exit 0 when the batch ran, 2 when the TA's input or "
+                            "set-up is unusable (nothing is graded then).")
     p.add_argument("scenes", metavar="SCENES_DIR", help="a <task>.json per task")
     p.add_argument("submissions", metavar="SUBMISSIONS_DIR", help="a folder per student")
     p.add_argument("-o", "--output", metavar="REPORT_DIR", required=True, help="where the report goes")
+    p.add_argument("--student-scenes", metavar="DIR", help="the TA's folder of students' own scenes, "
+                                                           "<student>/<task>.json")
+    p.add_argument("--tasks", metavar="TASKS.json", help='per task its points and thresholds: {"spheres": '
+                                                         '{"points": 10, "tolerance": 3, "max_fraction": 0.002}}')
     thresholds(p)
     p.add_argument("--jobs", type=_positive_int, help="processes (default: all cores; with --server, 4 requests)")
     remote(p, cluster=True)
@@ -384,7 +465,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("serve", "run the HTTP service (settings from PHONGRAY_* variables, see the README)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on")
-    p.add_argument("--port", type=int, default=8000, help="port to listen on")
+    p.add_argument("--port", type=_port, default=8000, help="port to listen on")
     p.add_argument("--workers", type=_positive_int, default=1, help="worker processes")
     p.set_defaults(func=cmd_serve)
 
@@ -396,14 +477,48 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _quiet_pipe() -> NoReturn:
+    """Standard output was closed early (``phongray schema | head``): stop quietly, as other tools do."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's own final flush does not fail again
+    sys.exit(1)
+
+
+def parse(argv: Sequence[str]) -> argparse.Namespace:
+    """The arguments, with the defaults that come from the settings (``PHONGRAY_CLUSTER``, ...) filled in: read
+    only once the command is known, so that ``--version`` and ``--help`` cost no settings."""
+    args = build_parser().parse_args(argv)
+    if hasattr(args, "cluster_wait"):
+        from .settings import Settings
+
+        settings = Settings.from_env()
+        if args.cluster is None:
+            args.cluster = settings.cluster or None
+        if args.cluster_wait is None:
+            args.cluster_wait = settings.cluster_wait
+    return args
+
+
+def _settings_error(exc: ValueError) -> int:
+    """A PHONGRAY_* variable of the wrong type is one line and exit 2 (any other ValueError is a bug: raised)."""
+    from .settings import SettingsError
+
+    if not isinstance(exc, SettingsError):
+        raise exc
+    print(f"phongray: {exc}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["bench"]:  # the benchmark has its own options
         from bench.run import main as bench_main
 
         return bench_main(argv[1:])
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parse(argv)
+    except ValueError as exc:
+        return _settings_error(exc)
     for stream in (sys.stdout, sys.stderr):  # a scene's text may not be valid Unicode (a lone surrogate)
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
@@ -412,6 +527,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CliError as exc:
         print(f"phongray: {exc}", file=sys.stderr)
         return exc.code
+    except ValueError as exc:
+        return _settings_error(exc)
+    except BrokenPipeError:
+        _quiet_pipe()
     except KeyboardInterrupt:
         if ProgressBar.active is not None:
             ProgressBar.active.close()  # the message goes on a line of its own

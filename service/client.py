@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import http.client
 import json
 import os
 import urllib.error
@@ -26,11 +27,22 @@ class ServerError(Exception):
         return "; ".join(f"{e['path']}: {e['message']}" if e.get("path") else e["message"] for e in body["errors"])
 
     @property
+    def part(self) -> str | None:
+        """The form part a /grade error concerns (``"image"``), when the server says."""
+        return self.body.get("part") if isinstance(self.body, dict) else None
+
+    @property
     def detail(self) -> str:
         """What the server said: its problems, its ``detail``, or the error itself."""
         if self.problems is not None:
             return self.problems
         return str(self.body.get("detail", self.body)) if isinstance(self.body, dict) else str(self)
+
+    @property
+    def ta_side(self) -> bool:
+        """Whether the fault is the caller's, not the input's: the server cannot be reached, refuses the key
+        (401, 403), or failed itself (a 5xx other than a 503 to wait out)."""
+        return self.status in (0, 401, 403) or (self.status >= 500 and self.status != 503)
 
     @property
     def retry_after(self) -> float | None:
@@ -64,9 +76,20 @@ def _call(request: urllib.request.Request, timeout: float, api_key: str | None) 
             body = raw.decode("utf-8", "replace")
         detail = body.get("detail", body) if isinstance(body, dict) else body
         raise ServerError(f"server answered {exc.code}: {detail}", exc.code, body, dict(exc.headers or {})) from None
-    except (urllib.error.URLError, OSError) as exc:
-        reason = getattr(exc, "reason", exc)
-        raise ServerError(f"cannot reach {request.full_url}: {reason}") from None
+    except (urllib.error.URLError, OSError, http.client.HTTPException, ValueError) as exc:
+        reason = getattr(exc, "reason", exc)  # (ValueError: a URL urllib cannot use, such as port 99999)
+        raise ServerError(f"cannot reach {request.full_url}: {reason or type(exc).__name__}") from None
+
+
+def get(server: str, path: str, timeout: float = 30, api_key: str | None = None) -> bytes:
+    """GET a path of the service (with the key, as :func:`post_json`)."""
+    return _call(urllib.request.Request(base_url(server) + path), timeout, api_key)[1]
+
+
+def check(server: str, api_key: str | None = None) -> None:
+    """Before a batch: the service answers and takes the key (a ServerError with ``ta_side`` if not)."""
+    get(server, "/healthz", api_key=api_key)
+    get(server, "/schema", api_key=api_key)  # every endpoint but /healthz needs the key, when it has one
 
 
 def post_json(server: str, path: str, body: bytes, query: dict[str, Any] | None = None,

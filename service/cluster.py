@@ -36,17 +36,41 @@ def _distributed() -> Any:
 def client(address: str, timeout: float = 10.0) -> Any:
     """A Dask client of the scheduler at ``address`` (``tcp://HOST:PORT``)."""
     distributed = _distributed()
+    from distributed.comm import get_address_host_port
+
+    try:  # before a Client is made: a half-made one hangs in its finaliser for 20 s
+        get_address_host_port(address)
+    except (ValueError, TypeError) as exc:  # "missing port number", an unknown protocol, ...
+        raise ClusterError(f"--cluster {address}: not a Dask scheduler address ({exc}); "
+                           f"expected tcp://HOST:PORT") from None
     try:
         return distributed.Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
 
 
+def workers(client_: Any) -> int:
+    """How many workers the client's scheduler has now."""
+    return len(client_.scheduler_info().get("workers", {}))
+
+
+def wait_for_workers(client_: Any, address: str, wait: float) -> None:
+    """Return once the cluster has a worker; :class:`ClusterError` after ``wait`` seconds without one (work sent
+    to a cluster with no workers would wait forever)."""
+    try:
+        client_.wait_for_workers(1, timeout=max(wait, 0.001))
+    except (TimeoutError, OSError):
+        raise ClusterError(f"the Dask scheduler at {address} has no workers (none joined within {wait:g} s; "
+                           f"start some with 'dask worker {address}', or wait longer with --cluster-wait)") from None
+
+
 @contextlib.contextmanager
-def connect(address: str, timeout: float = 10.0) -> Iterator[Any]:
-    """:func:`client`, closed afterwards."""
+def connect(address: str, timeout: float = 10.0, wait: float | None = None) -> Iterator[Any]:
+    """:func:`client`, closed afterwards; with ``wait``, once it has a worker (:func:`wait_for_workers`)."""
     client_ = client(address, timeout)
     try:
+        if wait is not None:
+            wait_for_workers(client_, address, wait)
         yield client_
     finally:
         client_.close()

@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from PIL import Image
 
-from tracer.image import encode_png
+from .display import percent
 
 DEFAULT_TOLERANCE = 2.0
 DEFAULT_MAX_FRACTION = 0.001
@@ -44,6 +44,15 @@ class Grade:
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
 
+    @property
+    def reason(self) -> str:
+        """Why it failed, in words (empty when it passed)."""
+        if self.passed:
+            return ""
+        return (f"{percent(self.fraction_off_nearby)} of the pixels are off even nearby (more than "
+                f"{self.tolerance:g} levels from every reference pixel around them); at most "
+                f"{percent(self.max_fraction)} may be")
+
 
 def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
     """Decode a submitted PNG of ``expected = (width, height)`` safely: the size is checked on the header,
@@ -51,11 +60,7 @@ def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
 
     A submission must be opaque: an alpha channel is accepted only when every pixel's alpha is full (a
     render has no transparent pixels, and what a transparent one should be compared as is a guess)."""
-    if not data.startswith(b"\x89PNG\r\n\x1a\n"):
-        raise ImageError("image is not a PNG")
-    if len(data) < 24 or data[12:16] != b"IHDR":
-        raise ImageError("image is truncated or corrupt (no IHDR header)")
-    declared = (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"))
+    declared = declared_size(data)
     if declared != expected:  # checked on the header, before anything is decompressed
         raise ImageError(f"image is {declared[0]}×{declared[1]} pixels, the scene is {expected[0]}×{expected[1]}")
     try:
@@ -75,6 +80,35 @@ def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
         raise
     except Exception as exc:  # Pillow raises many kinds for broken files
         raise ImageError(f"image is truncated or corrupt ({type(exc).__name__})") from None
+
+
+def declared_size(data: bytes, max_pixels: int | None = None) -> tuple[int, int]:
+    """``(width, height)`` as a PNG's header declares it, before anything is decompressed; :class:`ImageError`
+    for what is not a PNG (naming the format it is, where known) or declares more than ``max_pixels``."""
+    if not data.startswith(b"\x89PNG\r\n\x1a\n"):
+        kind = sniff(data)
+        raise ImageError(f"image is {kind}; PNG required" if kind else "image is not a PNG")
+    if len(data) < 24 or data[12:16] != b"IHDR":
+        raise ImageError("image is truncated or corrupt (no IHDR header)")
+    size = (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"))
+    if max_pixels is not None and size[0] * size[1] > max_pixels:
+        raise ImageError(f"image is {size[0]}×{size[1]} pixels, more than the {max_pixels} phongray compares")
+    return size
+
+
+#: how other image formats begin, so that a submission in one of them is named as what it is
+SIGNATURES = ((b"\xff\xd8\xff", "a JPEG"), (b"GIF87a", "a GIF"), (b"GIF89a", "a GIF"), (b"BM", "a BMP"),
+              (b"II*\x00", "a TIFF"), (b"MM\x00*", "a TIFF"), (b"%PDF", "a PDF"),
+              (b"\x00\x00\x00\x0cjP  ", "a JPEG 2000"))
+
+
+def sniff(data: bytes) -> str | None:
+    """What kind of image other than PNG ``data`` is (``"a JPEG"``), from its first bytes; None if unknown."""
+    if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
+        return "a WebP"
+    if data[4:12] in (b"ftypheic", b"ftypheix", b"ftypmif1", b"ftypavif"):
+        return "a HEIF/AVIF"
+    return next((kind for head, kind in SIGNATURES if data.startswith(head)), None)
 
 
 def _opaque(alpha: np.ndarray) -> None:
@@ -154,14 +188,3 @@ def grade(reference: np.ndarray, submitted: np.ndarray, reference_sha256: str,
         fraction_off_nearby=nearby, width=w, height=h,
         reference_sha256=reference_sha256,
     )
-
-
-def heatmap(reference: np.ndarray, submitted: np.ndarray) -> bytes:
-    """A PNG of the per-pixel difference: black where equal, through red and yellow to white at 64+ levels."""
-    h, w, _ = reference.shape
-    out = np.empty((h, w, 3), dtype=np.uint8)
-    for top in range(0, h, BAND):
-        x = np.clip(_difference(reference[top:top + BAND], submitted[top:top + BAND]) / 64.0, 0.0, 1.0)
-        rgb = np.stack([np.clip(3 * x, 0, 1), np.clip(3 * x - 1, 0, 1), np.clip(3 * x - 2, 0, 1)], axis=2)
-        out[top:top + BAND] = np.floor(255 * rgb + 0.5)
-    return encode_png(out)

@@ -17,11 +17,13 @@ import anyio
 import numpy as np
 
 from schemas import Mesh, Scene, parse_json, validate_scene
-from tracer import RenderCancelled, encode_png, render
+from tracer import RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
 from .limits import check_body, check_raw, check_scene
+from .pipeline import with_overrides
+from .rendering import render_pixels
 from .settings import Settings
 
 RENDERER_VERSION = "phongray-1"
@@ -59,10 +61,7 @@ def parse_counted(body: bytes | str, settings: Settings) -> Any:
 
 def prepare(body: bytes | str, overrides: dict[str, int | None], settings: Settings) -> Job:
     """Parse, apply image overrides, validate and check limits. Raises SceneError or LimitError."""
-    data = parse_counted(body, settings)
-    if isinstance(data, dict) and isinstance(data.get("image"), dict):
-        data["image"].update({k: v for k, v in overrides.items() if v is not None})
-    scene = validate_scene(data)
+    scene = with_overrides(validate_scene(parse_counted(body, settings)), overrides)
     check_scene(scene, settings)
     return Job(scene, scene_key(scene))
 
@@ -127,19 +126,9 @@ class RenderService:
             def stop() -> bool:
                 return cancelled() or time.monotonic() > deadline
 
+            client = self._client() if self.settings.cluster else None
             try:
-                if self.settings.cluster:
-                    from .cluster import ClusterError
-                    from .cluster import render as render_on
-
-                    try:
-                        client = self._client()
-                    except ClusterError as exc:
-                        raise ClusterDown(str(exc)) from None
-                    pixels = render_on(client, job.scene.model_dump_json().encode(), job.scene.image.width,
-                                       job.scene.image.height, cancelled=stop)
-                else:
-                    pixels = render(job.scene, threads=self.threads, cancel=stop)
+                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=stop)
             except RenderCancelled:
                 if time.monotonic() > deadline:
                     raise TooSlow() from None
@@ -149,19 +138,26 @@ class RenderService:
             self.renders += 1
         finally:
             self.slots.release()
-            release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to its baseline
+            release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
         self.cache.put(job.key, data)
         return data
 
     def _client(self) -> Any:
-        """The one Dask client of this process, made on first use (``settings.cluster``)."""
-        with self._client_lock:
-            if self._dask is None:
-                from .cluster import client
+        """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the
+        scheduler cannot be reached or has no workers (the render would wait for one forever)."""
+        from .cluster import ClusterError, client, workers
 
-                self._dask = client(self.settings.cluster)
-            return self._dask
+        try:
+            with self._client_lock:
+                if self._dask is None:
+                    self._dask = client(self.settings.cluster)
+            if not workers(self._dask):
+                raise ClusterDown(f"the Dask scheduler at {self.settings.cluster} has no workers")
+        except ClusterError as exc:
+            raise ClusterDown(str(exc)) from None
+        return self._dask
 
     def status(self) -> dict[str, Any]:
-        return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size, "cache_hits": self.cache.hits,
+        return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size,
+                "cache_hits": self.cache.hits,
                 "renders": self.renders}

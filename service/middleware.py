@@ -5,7 +5,8 @@ from __future__ import annotations
 import hmac
 import json
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import anyio
 
@@ -131,7 +132,8 @@ class ApiKey:
         self.key = key.encode()
 
     async def __call__(self, scope: Scope, receive: Callable[..., Any], send: Callable[..., Any]) -> None:
-        if scope["type"] != "http" or not self.key or scope["path"] in OPEN or scope["path"].startswith("/docs-assets/"):
+        path = scope.get("path", "")
+        if scope["type"] != "http" or not self.key or path in OPEN or path.startswith("/docs-assets/"):
             await self.app(scope, receive, send)
             return
         given = credential(scope.get("headers", []))

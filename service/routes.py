@@ -3,10 +3,11 @@ event loop, and turns outcomes into status codes; none of them knows any physics
 
 from __future__ import annotations
 
-import hashlib
 import json
 import time
-from typing import Annotated, Any, Callable, Literal, TypeVar
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, Literal, TypeVar
 
 import anyio
 from fastapi import APIRouter, Query, Request, Response
@@ -15,12 +16,14 @@ from starlette.datastructures import UploadFile
 
 from schemas import SceneError, json_schema, validate_scene
 from schemas.locate import located
-from tracer import ImageTooLarge, RenderCancelled, decode_png
+from tracer import ImageTooLarge, RenderCancelled
 from tracer.memory import release
 
-from . import grading
+from . import grading, pipeline
+from .heatmap import Kind
 from .jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted, prepare
 from .limits import LimitError
+from .models import ErrorAnswer, GradeAnswer, ValidAnswer
 
 router = APIRouter()
 T = TypeVar("T")
@@ -28,22 +31,30 @@ T = TypeVar("T")
 #: and a hundred waiters look at once)
 DISCONNECT_POLL = 0.25
 
-SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {"schema": {
-    "$ref": "#/components/schemas/Scene"}}}}}
+#: the request example: a real scene of examples/ (the one the package ships), so that "Try it out" renders
+EXAMPLE_TEXT = (Path(__file__).parent / "static" / "example.json").read_text()
+SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {
+    "schema": {"$ref": "#/components/schemas/Scene"}, "example": json.loads(EXAMPLE_TEXT)}}}}
 GRADE_BODY = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
     "type": "object", "required": ["scene", "image"],
-    "properties": {"scene": {"type": "string", "description": "the scene, as JSON text or a JSON file"},
+    "properties": {"scene": {"type": "string", "description": "the scene, as JSON text or a JSON file",
+                             "example": EXAMPLE_TEXT},
                    "image": {"type": "string", "format": "binary", "description": "the submitted PNG"},
                    "tolerance": {"type": "number", "minimum": 0, "maximum": 255, "default": 2},
                    "max_fraction": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.001}}}}}}}
-ERRORS = {413: {"description": "a limit was exceeded"}, 415: {"description": "wrong content type"},
-          422: {"description": "invalid scene or image"}, 503: {"description": "every render slot is busy"}}
+ERRORS: dict[int | str, dict[str, Any]] = {
+    413: {"description": "a limit was exceeded", "model": ErrorAnswer},
+    415: {"description": "wrong content type", "model": ErrorAnswer},
+    422: {"description": "invalid scene or image, with every problem", "model": ErrorAnswer},
+    503: {"description": "every render slot is busy, or the render ran past its time", "model": ErrorAnswer}}
 
 
 class HTTPProblem(Exception):
+    """An error answer; ``part`` names the form part it concerns (``"image"``: the submission, not the scene)."""
+
     def __init__(self, status: int, detail: str, errors: list[dict[str, Any]] | None = None,
-                 headers: dict[str, str] | None = None):
-        self.status, self.detail, self.errors, self.headers = status, detail, errors, headers
+                 headers: dict[str, str] | None = None, part: str | None = None):
+        self.status, self.detail, self.errors, self.headers, self.part = status, detail, errors, headers, part
 
 
 class SafeJSONResponse(JSONResponse):
@@ -61,6 +72,8 @@ def problem_response(exc: HTTPProblem) -> JSONResponse:
     body: dict[str, Any] = {"detail": exc.detail}
     if exc.errors is not None:
         body["errors"] = exc.errors
+    if exc.part is not None:
+        body["part"] = exc.part
     headers = dict(exc.headers or {})
     if exc.status in (408, 413):  # the rest of the body is not read: the connection cannot be reused
         headers["Connection"] = "close"
@@ -188,7 +201,7 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
 
 
 @router.post("/validate", openapi_extra=SCENE_BODY, summary="Check a scene; list every error with its place",
-             responses={422: {"description": "the scene is invalid"}, 415: ERRORS[415]})
+             response_model=ValidAnswer, responses={413: ERRORS[413], 415: ERRORS[415], 422: ERRORS[422]})
 async def validate(request: Request) -> dict[str, bool]:
     _require_json(request)
     body = await request.body()
@@ -198,8 +211,13 @@ async def validate(request: Request) -> dict[str, bool]:
 
 
 @router.post("/grade", openapi_extra=GRADE_BODY, summary="Grade a submitted PNG against the reference render",
-             responses={200: {"content": {"application/json": {}, "image/png": {}}}, **ERRORS})
-async def grade(request: Request, format: Literal["json", "png"] = "json") -> Response:
+             response_model=None, responses={200: {"model": GradeAnswer, "content": {"image/png": {}}, "description":
+                                                   "the grade, or with format=png the heat-map"}, **ERRORS})
+async def grade(request: Request, format: Literal["json", "png"] = "json",
+                heatmap: Annotated[Kind, Query(description="verdict: the pixels that decided the grade, brighter "
+                                                           "and darker; raw: the plain difference")] = "verdict",
+                legend: Annotated[bool, Query(description="a band beneath the heat-map naming its colours")] = True,
+                ) -> Response:
     service: RenderService = request.app.state.service
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind not in ("multipart/form-data", "application/x-www-form-urlencoded"):
@@ -221,43 +239,44 @@ async def grade(request: Request, format: Literal["json", "png"] = "json") -> Re
                                f"{settings.max_body_bytes}")
     if len(image) > settings.max_image_bytes:
         raise HTTPProblem(413, f"image: {len(image)} bytes exceed the limit max_image_bytes = "
-                               f"{settings.max_image_bytes}")
+                               f"{settings.max_image_bytes}", part="image")
     job = await anyio.to_thread.run_sync(_prepare, scene_text, {}, service, limiter=service.parsing)
     size = (job.scene.image.width, job.scene.image.height)
     # the submission is checked (and decoded) before any rendering is spent on it; decoding and comparing
     # run on pool threads, a bounded number at once
     decoded = [await anyio.to_thread.run_sync(_read_image, image, size, limiter=service.grading)]
     png = await _png(request, job)
-    return await anyio.to_thread.run_sync(_compare, png, decoded, format, tolerance, max_fraction,
+    drawn = heatmap if format == "png" else None
+    return await anyio.to_thread.run_sync(_compare, png, decoded, drawn, legend, tolerance, max_fraction,
                                           limiter=service.grading)
 
 
 def _read_image(image: bytes, size: tuple[int, int]) -> Any:
     try:
-        return grading.read_submission(image, size)
+        return pipeline.read_image(image, size)
     except grading.ImageError as exc:
         release()  # what a refused decode allocated goes back to the OS
-        raise HTTPProblem(422, f"image: {exc}") from None
+        raise HTTPProblem(422, f"image: {exc}", part="image") from None
 
 
-def _compare(png: bytes, decoded: list[Any], format: str, tolerance: float, max_fraction: float) -> Response:
-    """Grade the submission in ``decoded`` (taken out of it, so that nothing else holds its pixels) and hand
-    the memory of both images back to the OS before answering."""
+def _compare(png: bytes, decoded: list[Any], heatmap: Kind | None, legend: bool, tolerance: float,
+             max_fraction: float) -> Response:
+    """Grade the submission in ``decoded`` (taken out of it, so that nothing else holds its pixels), or draw its
+    heat-map, and hand the memory of both images back to the OS before answering."""
     submitted = decoded.pop()
-    reference = decode_png(png)
     try:
-        if format == "png":
-            return Response(grading.heatmap(reference, submitted), media_type="image/png")
-        result = grading.grade(reference, submitted, hashlib.sha256(png).hexdigest(), tolerance, max_fraction)
-        return JSONResponse(result.as_dict())
+        graded = pipeline.compare(png, submitted, tolerance, max_fraction, heatmap, legend)
+        if graded.heatmap is not None:
+            return Response(graded.heatmap, media_type="image/png")
+        return JSONResponse(graded.as_dict())
     finally:
-        del submitted, reference
+        del submitted
         release()
 
 
 async def _field(value: Any, name: str, text: bool = True) -> Any:
     if value is None:
-        raise HTTPProblem(422, f"{name}: required form field")
+        raise HTTPProblem(422, f"{name}: required form field", part=name)
     if isinstance(value, UploadFile):
         value = await value.read()
     if text:  # a scene as a file part stays bytes (the JSON parser decodes it, and refuses what is not UTF-8)
@@ -277,7 +296,7 @@ def _number(value: Any, name: str, default: float, low: float, high: float) -> f
     return number
 
 
-@router.get("/schema", summary="The scene JSON Schema")
+@router.get("/schema", summary="The scene JSON Schema (Draft 2020-12)")
 def schema() -> dict[str, Any]:
     return json_schema()
 

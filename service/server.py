@@ -36,7 +36,7 @@ class Protocol(H11Protocol):
     header_timeout = Settings.from_env().header_timeout
     _headers_due: asyncio.TimerHandle | None = None
 
-    def connection_made(self, transport) -> None:  # type: ignore[no-untyped-def]
+    def connection_made(self, transport: Any) -> None:
         sock = transport.get_extra_info("socket")
         if sock is not None and sock.family in (socket.AF_INET, socket.AF_INET6):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -85,5 +85,5 @@ def worker_app() -> Any:
 def serve(host: str, port: int, workers: int) -> None:
     settings = Settings.from_env()
     uvicorn.run("service.server:worker_app", factory=True, host=host, port=port, workers=workers,
-                http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,
+                http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
                 limit_concurrency=settings.max_connections)

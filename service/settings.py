@@ -1,19 +1,27 @@
-"""Every limit and knob of the service, in one object read from the environment.
+"""Every limit and knob of phongray, in one object read from the environment (pydantic-settings).
 
 Each field can be set by an environment variable ``PHONGRAY_<NAME>`` (upper
-case), for example ``PHONGRAY_MAX_PIXELS=1000000``.
+case), for example ``PHONGRAY_MAX_PIXELS=1000000``.  The service reads all of
+them; the command line reads ``api_key`` and ``cluster`` (the defaults of
+``--api-key`` and ``--cluster``) and ``max_image_bytes`` (the most it reads of
+a submitted image).
 """
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass, fields
+from pydantic import ValidationError
+from pydantic_settings import BaseSettings, SettingsConfigDict
 
 
-@dataclass(frozen=True)
-class Settings:
+class SettingsError(ValueError):
+    """An environment variable that does not hold a value of its setting's type."""
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix="PHONGRAY_", frozen=True, extra="ignore")
+
     max_body_bytes: int = 8 * 1024 * 1024  # request body
-    max_image_bytes: int = 16 * 1024 * 1024  # submitted PNG in /grade
+    max_image_bytes: int = 16 * 1024 * 1024  # submitted PNG in /grade (and read by grade and grade-class)
     max_pixels: int = 4096 * 4096  # width × height
     max_samples: int = 8  # n of the n×n sub-sample grid
     max_depth: int = 16
@@ -29,25 +37,21 @@ class Settings:
     render_timeout: float = 120.0  # seconds; a longer render is stopped and answered with 503
     cache_bytes: int = 64 * 1024 * 1024  # reference renders kept for /grade and /render
     retry_after: int = 1  # seconds, in the Retry-After header of a 503
-    api_key: str = ""  # when set, every endpoint but /healthz needs it
+    api_key: str = ""  # when set, every endpoint but /healthz needs it (and --server sends it)
     header_timeout: float = 10.0  # seconds a client has to send a request line and its headers
     body_timeout: float = 10.0  # seconds of grace for a request body ...
     body_min_rate: int = 65_536  # ... which must then keep arriving at this many bytes per second (else 408)
     keep_alive: float = 5.0  # seconds an idle kept-alive connection stays open
     max_connections: int = 1_000  # open connections per worker process; beyond it, 503
     cluster: str = ""  # a Dask scheduler (tcp://HOST:PORT): renders go to its workers instead of this process
+    cluster_wait: float = 30.0  # seconds to wait for a cluster's first worker before giving up
 
     @classmethod
-    def from_env(cls, environ: dict[str, str] | None = None) -> "Settings":
-        env = os.environ if environ is None else environ
-        values: dict[str, object] = {}
-        for f in fields(cls):
-            raw = env.get(f"PHONGRAY_{f.name.upper()}")
-            if raw is None:
-                continue
-            kind = type(f.default)
-            try:
-                values[f.name] = kind(raw)
-            except ValueError:
-                raise ValueError(f"PHONGRAY_{f.name.upper()}: expected {kind.__name__}, got {raw!r}") from None
-        return cls(**values)  # type: ignore[arg-type]
+    def from_env(cls) -> Settings:
+        """The settings of the environment; a value of the wrong type is one :class:`SettingsError` line."""
+        try:
+            return cls()
+        except ValidationError as exc:
+            err = exc.errors(include_url=False)[0]
+            name = f"PHONGRAY_{str(err['loc'][0]).upper()}"
+            raise SettingsError(f"{name}: {err['msg']}, got {err.get('input')!r}") from None

@@ -3,16 +3,19 @@
 import csv
 import json
 import shutil
+import urllib.request
 
 import numpy as np
 import pytest
 
 import schemas
 import tracer
+from service import classgrade
+from service import report as report_module
+from service.cli import main
+
 from helpers import scene_dict
 from server import running_server
-from service import classgrade
-from service.cli import main
 
 
 def small(name: str, **image) -> dict:
@@ -32,9 +35,10 @@ def rendered(data: dict) -> np.ndarray:
 @pytest.fixture(scope="module")
 def klass(tmp_path_factory):
     """Two tasks; students: good, bad (a light missing), copycat (someone else's own scene), own (their own
-    scene, right), none (nothing), junk (not a PNG, wrong size), broken (an invalid own scene)."""
+    scene, from the TA's student-scenes folder, right), none (nothing), junk (not a PNG, wrong size), cheat (a
+    scene of their own among the submissions, and a black image)."""
     root = tmp_path_factory.mktemp("class")
-    scenes, subs = root / "scenes", root / "subs"
+    scenes, subs, own_scenes = root / "scenes", root / "subs", root / "own"
     scenes.mkdir()
     tasks = {"balls": small("01_three_spheres"), "lamps": small("02_all_lights")}
     for task, data in tasks.items():
@@ -42,9 +46,9 @@ def klass(tmp_path_factory):
     (scenes / "README.txt").write_text("not a task")
     right = {task: rendered(data) for task, data in tasks.items()}
 
-    def put(student, name, data):
-        (subs / student).mkdir(parents=True, exist_ok=True)
-        (subs / student / name).write_bytes(data if isinstance(data, bytes) else data.encode())
+    def put(student, name, data, folder=subs):
+        (folder / student).mkdir(parents=True, exist_ok=True)
+        (folder / student / name).write_bytes(data if isinstance(data, bytes) else data.encode())
 
     for task in tasks:
         put("good", f"{task}.png", png(right[task]))
@@ -57,7 +61,7 @@ def klass(tmp_path_factory):
         if obj["type"] == "sphere":
             obj["center"][0] += 0.4
     own_png = png(rendered(own))
-    put("own", "balls.json", json.dumps(own))
+    put("own", "balls.json", json.dumps(own), folder=own_scenes)
     put("own", "balls.png", own_png)
     put("own", "lamps.png", png(right["lamps"]))
     put("copycat", "balls.png", own_png)
@@ -66,12 +70,10 @@ def klass(tmp_path_factory):
     put("junk", "balls.png", b"GIF89a not a png")
     put("junk", "lamps.png", png(right["lamps"][:10, :10]))
     put("junk", "essay.docx", b"?")
-    broken = json.loads(json.dumps(tasks["lamps"]))
-    next(o for o in broken["objects"] if o["type"] == "sphere")["radius"] = -1
-    put("broken", "lamps.json", json.dumps(broken))
-    put("broken", "lamps.png", png(right["lamps"]))
-    put("broken", "balls.png", png(right["balls"]))
-    return scenes, subs, root
+    empty = {"camera": tasks["balls"]["camera"], "image": tasks["balls"]["image"]}  # nothing to see: all black
+    put("cheat", "balls.json", json.dumps(empty))
+    put("cheat", "balls.png", png(np.zeros_like(right["balls"])))
+    return scenes, subs, own_scenes
 
 
 def by_pair(rows):
@@ -86,33 +88,61 @@ def cli_reason(capsys, scene, image):
     return err.removeprefix("phongray: ")
 
 
+def grade(klass, report, **kw):
+    scenes, subs, own = klass
+    return classgrade.grade_class(scenes, subs, report, jobs=2, student_scenes=own, **kw)
+
+
 def test_every_status_and_reason(klass, tmp_path, capsys):
     scenes, subs, _ = klass
-    outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=2)
+    outcome = grade(klass, tmp_path / "report")
     rows = by_pair(outcome.rows)
     assert len(outcome.rows) == 7 * 2  # every (student, task) pair, exactly once
     assert {k: r["status"] for k, r in rows.items()} == {
-        ("bad", "balls"): "pass", ("bad", "lamps"): "fail", ("broken", "balls"): "pass",
-        ("broken", "lamps"): "invalid", ("copycat", "balls"): "fail", ("copycat", "lamps"): "pass",
+        ("bad", "balls"): "pass", ("bad", "lamps"): "fail", ("cheat", "balls"): "fail",
+        ("cheat", "lamps"): "missing", ("copycat", "balls"): "fail", ("copycat", "lamps"): "pass",
         ("good", "balls"): "pass", ("good", "lamps"): "pass", ("junk", "balls"): "invalid",
         ("junk", "lamps"): "invalid", ("none", "balls"): "missing", ("none", "lamps"): "missing",
         ("own", "balls"): "pass", ("own", "lamps"): "pass"}
     assert rows[("own", "balls")]["scene"] == "own" and rows[("copycat", "balls")]["scene"] == "shared"
     assert rows[("junk", "balls")]["reason"] == cli_reason(capsys, scenes / "balls.json", subs / "junk/balls.png")
     assert rows[("junk", "lamps")]["reason"] == cli_reason(capsys, scenes / "lamps.json", subs / "junk/lamps.png")
-    assert rows[("broken", "lamps")]["reason"] == cli_reason(capsys, subs / "broken/lamps.json",
-                                                            subs / "broken/lamps.png")
-    assert ".radius: must be > 0" in rows[("broken", "lamps")]["reason"]
+    assert rows[("junk", "balls")]["reason"].endswith("image is a GIF; PNG required")
     assert rows[("none", "lamps")]["reason"] == "no lamps.png"
-    assert sorted(outcome.ignored) == ["scenes/README.txt", "subs/junk/essay.docx"]
+    assert sorted(outcome.ignored) == [
+        (f"{scenes}/README.txt", "not a task scene (<task>.json)"),
+        (f"{subs}/cheat/balls.json", classgrade.SCENE_IGNORED), (f"{subs}/junk/essay.docx", "matches no task")]
     assert rows[("bad", "lamps")]["fraction_off_nearby"] > 0.01 and rows[("good", "lamps")]["max_error"] == 0
-    assert outcome.renders == 3  # two shared scenes and one student's own; the invalid one is not rendered
+    assert outcome.renders == 3  # two shared scenes and one student's own
+
+
+def test_a_scene_among_the_submissions_cannot_change_the_task(klass, tmp_path):
+    """A student's balls.json (an empty scene) and a black image: graded against the task's scene, it fails."""
+    rows = by_pair(grade(klass, tmp_path / "report").rows)
+    cheat = rows[("cheat", "balls")]
+    assert cheat["status"] == "fail" and cheat["scene"] == "shared" and cheat["fraction_off_nearby"] > 0.1
+    assert "of the pixels are off even nearby" in cheat["reason"]
+
+
+def test_a_student_cannot_change_their_task_from_the_command_line(klass, tmp_path, capsys):
+    scenes, subs, _ = klass
+    assert main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")]) == 0
+    rows = by_pair(json.loads((tmp_path / "r" / "report.json").read_text()))
+    assert rows[("cheat", "balls")]["status"] == "fail" and rows[("cheat", "balls")]["scene"] == "shared"
+    assert f"ignored: {subs}/cheat/balls.json: {classgrade.SCENE_IGNORED}" in capsys.readouterr().err
+
+
+def test_fail_rows_give_their_reason(klass, tmp_path):
+    rows = by_pair(grade(klass, tmp_path / "report").rows)
+    bad = rows[("bad", "lamps")]
+    assert bad["reason"].startswith(f"{100 * bad['fraction_off_nearby']:.2f} % of the pixels are off even nearby")
+    assert bad["reason"].endswith("at most 0.10 % may be")
+    assert rows[("good", "lamps")]["reason"] == ""
 
 
 def test_the_report_files_agree_and_link_what_exists(klass, tmp_path):
-    scenes, subs, _ = klass
     report = tmp_path / "report"
-    outcome = classgrade.grade_class(scenes, subs, report, jobs=2)
+    outcome = grade(klass, report)
     rows = json.loads((report / "report.json").read_text())
     assert rows == json.loads(json.dumps(outcome.rows))
     with open(report / "report.csv") as f:
@@ -126,26 +156,25 @@ def test_the_report_files_agree_and_link_what_exists(klass, tmp_path):
                 assert (report / r[key]).is_file()
         assert (r["heatmap"] is not None) == (r["status"] in ("pass", "fail"))
     page = (report / "index.html").read_text()
-    assert page.count('<td class="') == len(rows) and "4/7" in page and "3/7" in page
+    assert page.count('<td class="') == len(rows) and page.count("3/7") == 2
+    assert page.count('class="legend"') == sum(r["heatmap"] is not None for r in rows)  # beside each heat-map
     assert page.rstrip().endswith("</html>")
     assert "http" not in page.replace("http-equiv", "")  # nothing from the network
 
 
 def test_a_rerun_reuses_its_references_and_gives_the_same_report(klass, tmp_path):
-    scenes, subs, _ = klass
     report = tmp_path / "report"
-    first = classgrade.grade_class(scenes, subs, report, jobs=2)
+    first = grade(klass, report)
     before = (report / "report.json").read_bytes()
-    again = classgrade.grade_class(scenes, subs, report, jobs=2)
+    again = grade(klass, report)
     assert first.renders == 3 and again.renders == 0
     assert (report / "report.json").read_bytes() == before
 
 
 def test_an_interrupted_rerun_leaves_every_report_file_whole(klass, tmp_path, monkeypatch):
-    scenes, subs, _ = klass
     report = tmp_path / "report"
-    classgrade.grade_class(scenes, subs, report, jobs=2)
-    real = classgrade.os.replace
+    grade(klass, report)
+    real = report_module.os.replace
     calls = []
 
     def replace(src, dst):
@@ -154,9 +183,9 @@ def test_an_interrupted_rerun_leaves_every_report_file_whole(klass, tmp_path, mo
             raise KeyboardInterrupt  # Ctrl-C in the middle of writing the report
         real(src, dst)
 
-    monkeypatch.setattr(classgrade.os, "replace", replace)
+    monkeypatch.setattr(report_module.os, "replace", replace)
     with pytest.raises(KeyboardInterrupt):
-        classgrade.grade_class(scenes, subs, report, jobs=2)
+        grade(klass, report)
     monkeypatch.undo()
     assert len(json.loads((report / "report.json").read_text())) == 14
     with open(report / "report.csv") as f:
@@ -164,30 +193,126 @@ def test_an_interrupted_rerun_leaves_every_report_file_whole(klass, tmp_path, mo
     assert (report / "index.html").read_text().rstrip().endswith("</html>")
 
 
+def test_the_cli_prints_a_summary_and_exits_0_even_with_failures(klass, tmp_path, capsys):
+    scenes, subs, own = klass
+    assert main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--jobs", "2",
+                 "--student-scenes", str(own)]) == 0
+    out, err = capsys.readouterr()
+    assert "14 pairs: 6 passed, 3 failed, 3 missing, 2 invalid" in out
+    assert f"ignored: {subs}/cheat/balls.json: {classgrade.SCENE_IGNORED}" in err.splitlines()
+
+
+def test_the_same_report_through_a_running_service(klass, tmp_path):
+    """report.json byte for byte: the same rows, numbers, reasons, references and heat-maps."""
+    grade(klass, tmp_path / "local")
+    with running_server(tmp_path, max_concurrent_renders="1") as (url, _):
+        grade(klass, tmp_path / "remote", server=url)
+    assert (tmp_path / "remote" / "report.json").read_bytes() == (tmp_path / "local" / "report.json").read_bytes()
+    for name in ("heatmaps/bad/lamps.png", "heatmaps/copycat/balls.png", "gradescope/bad/results.json"):
+        assert (tmp_path / "remote" / name).read_bytes() == (tmp_path / "local" / name).read_bytes(), name
+
+
+# -- the teaching assistant's faults stop the run: exit 2, one line, nobody graded ----------------------------
+
+def ta_fault(capsys, *args):
+    """Run grade-class; it must stop with exit 2 and one line (returned), leaving no report."""
+    code = main(["grade-class", *map(str, args)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    return err.removeprefix("phongray: ").strip()
+
+
+def test_an_invalid_task_scene_stops_the_run_before_any_grading(klass, tmp_path, capsys):
+    scenes, subs, own = klass
+    broken = tmp_path / "scenes"
+    shutil.copytree(scenes, broken)
+    data = json.loads((broken / "lamps.json").read_text())
+    next(o for o in data["objects"] if o["type"] == "sphere")["radius"] = -1
+    (broken / "lamps.json").write_text(json.dumps(data, indent=1))
+    line = next(i for i, t in enumerate((broken / "lamps.json").read_text().splitlines(), 1) if '"radius": -1' in t)
+    said = ta_fault(capsys, broken, subs, "-o", tmp_path / "r")
+    assert said.startswith(f"{broken}/lamps.json:{line}: objects[") and ".radius: must be > 0" in said
+    assert not (tmp_path / "r" / "report.json").exists() and not (tmp_path / "r" / "references").exists()
+
+
+def test_an_invalid_student_scene_of_the_tas_stops_the_run(klass, tmp_path, capsys):
+    scenes, subs, own = klass
+    mine = tmp_path / "own"
+    shutil.copytree(own, mine)
+    (mine / "own" / "balls.json").write_text('{"camera": {}}')
+    said = ta_fault(capsys, scenes, subs, "-o", tmp_path / "r", "--student-scenes", mine)
+    assert said.startswith(f"{mine}/own/balls.json:1: camera.position: required")
+    (mine / "own" / "balls.json").unlink()
+    (mine / "own" / "ballz.json").write_text("{}")
+    assert ta_fault(capsys, scenes, subs, "-o", tmp_path / "r", "--student-scenes", mine) == (
+        f"{mine}/own/ballz.json: names no task (the tasks are balls, lamps)")
+
+
+def test_an_unusable_report_folder_stops_the_run(klass, tmp_path, capsys):
+    scenes, subs, own = klass
+    (tmp_path / "file").write_text("")
+    said = ta_fault(capsys, scenes, subs, "-o", tmp_path / "file" / "report")
+    assert said.startswith(f"{tmp_path}/file/report: cannot write the report there: ")
+
+
 def test_unusable_input_exits_2_with_one_line(tmp_path, capsys):
     (tmp_path / "scenes").mkdir()
     (tmp_path / "subs").mkdir()
-    assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(tmp_path / "r")]) == 2
-    assert capsys.readouterr().err.strip().count("\n") == 0
-    assert main(["grade-class", str(tmp_path / "nowhere"), str(tmp_path / "subs"), "-o", str(tmp_path / "r")]) == 2
-    assert "cannot read" in capsys.readouterr().err
+    assert ta_fault(capsys, tmp_path / "scenes", tmp_path / "subs", "-o", tmp_path / "r") == (
+        f"{tmp_path}/scenes: no task scenes (<task>.json)")
+    assert "cannot read" in ta_fault(capsys, tmp_path / "nowhere", tmp_path / "subs", "-o", tmp_path / "r")
 
 
-def test_the_cli_prints_a_summary_and_exits_0_even_with_failures(klass, tmp_path, capsys):
+def test_a_wrong_or_missing_api_key_or_a_dead_server_stops_the_run(klass, tmp_path, capsys, monkeypatch):
+    scenes, subs, own = klass
+    monkeypatch.delenv("PHONGRAY_API_KEY", raising=False)
+    args = [scenes, subs, "-o", tmp_path / "r"]
+    with running_server(tmp_path, api_key="sesame") as (url, _):
+        for key in (["--api-key", "wrong"], []):
+            said = ta_fault(capsys, *args, "--server", url, *key)
+            assert said.startswith(f"--server {url}: server answered 401: missing or wrong API key"), said
+        health = json.loads(urllib.request.urlopen(url + "/healthz").read())
+        assert health["renders"] == 0  # nothing was rendered, let alone graded
+    said = ta_fault(capsys, *args, "--server", url)  # the server is gone now
+    assert said.startswith(f"--server {url}: cannot reach {url}/healthz: ")
+    assert not (tmp_path / "r").exists()  # not even an empty report folder is left behind
+
+
+def test_a_tasks_file_gives_points_and_thresholds_per_task(klass, tmp_path):
+    tasks = tmp_path / "tasks.json"
+    tasks.write_text(json.dumps({"lamps": {"points": 4, "tolerance": 255}, "balls": {"visibility": "hidden"}}))
+    report = tmp_path / "r"
+    rows = by_pair(grade(klass, report, tasks_file=tasks).rows)
+    assert rows[("bad", "lamps")]["status"] == "pass" and rows[("bad", "lamps")]["tolerance"] == 255
+    assert rows[("bad", "balls")]["tolerance"] == 2 and rows[("bad", "lamps")]["score"] == 4
+    results = json.loads((report / "gradescope" / "bad" / "results.json").read_text())
+    assert results == {"score": 5.0, "visibility": "visible", "tests": [
+        {"name": "balls", "score": 1.0, "max_score": 1.0, "status": "passed", "visibility": "hidden",
+         "output": "passed: 0.00 % of the pixels off even nearby (at most 0.10 % may be)"},
+        {"name": "lamps", "score": 4.0, "max_score": 4.0, "status": "passed", "visibility": "visible",
+         "output": "passed: 0.00 % of the pixels off even nearby (at most 0.10 % may be)"}]}
+
+
+def test_gradescope_results_of_every_student(klass, tmp_path):
+    report = tmp_path / "r"
+    rows = grade(klass, report).rows
+    for student in {r["student"] for r in rows}:
+        results = json.loads((report / "gradescope" / student / "results.json").read_text())
+        mine = [r for r in rows if r["student"] == student]
+        assert results["score"] == sum(r["status"] == "pass" for r in mine)
+        for test, row in zip(results["tests"], mine, strict=True):
+            assert set(test) == {"name", "score", "max_score", "status", "output", "visibility"}
+            assert test["status"] == ("passed" if row["status"] == "pass" else "failed")
+            assert row["status"] == "pass" or test["output"] == f"{row['status']}: {row['reason']}"
+
+
+@pytest.mark.parametrize("content, says", [
+    ('{"lamps": {"points": -1}}', ":1: lamps.points: must be ≥ 0"),
+    ('{"lampz": {}}', ": no task lampz (the tasks are balls, lamps)"),
+    ('{"lamps": {"tolerence": 3}}', ":1: lamps.tolerence: unknown key"),
+])
+def test_a_bad_tasks_file_stops_the_run(klass, tmp_path, capsys, content, says):
     scenes, subs, _ = klass
-    assert main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--jobs", "2"]) == 0
-    out = capsys.readouterr().out
-    assert "14 pairs: 7 passed, 2 failed, 2 missing, 3 invalid" in out
-
-
-def test_the_same_grades_through_a_running_service(klass, tmp_path):
-    scenes, subs, _ = klass
-    local = by_pair(classgrade.grade_class(scenes, subs, tmp_path / "local", jobs=2).rows)
-    with running_server(tmp_path, max_concurrent_renders="1") as (url, _):
-        remote = classgrade.grade_class(scenes, subs, tmp_path / "remote", jobs=4, server=url)
-    for key, row in by_pair(remote.rows).items():
-        assert row["status"] == local[key]["status"], key
-        assert row["fraction_off_nearby"] == local[key]["fraction_off_nearby"], key
-        if row["status"] == "invalid":
-            assert row["reason"] == local[key]["reason"], key
-    shutil.rmtree(tmp_path / "remote")
+    (tmp_path / "t.json").write_text(content)
+    said = ta_fault(capsys, scenes, subs, "-o", tmp_path / "r", "--tasks", tmp_path / "t.json")
+    assert said.startswith(f"{tmp_path}/t.json{says}"), said

@@ -6,9 +6,10 @@ import sys
 
 import pytest
 
-from helpers import SCENES, reference
 from service.cli import main
 from tracer import decode_png
+
+from helpers import SCENES, reference
 
 
 def run(*args, stdin=None):
@@ -117,8 +118,9 @@ import io  # noqa: E402
 import os  # noqa: E402
 from importlib.metadata import metadata, version  # noqa: E402
 
-from server import running_server  # noqa: E402
 from service import cli  # noqa: E402
+
+from server import running_server  # noqa: E402
 
 SUBCOMMANDS = ["render", "validate", "grade", "grade-class", "serve", "schema"]
 
@@ -244,3 +246,179 @@ def test_every_subcommand_runs_from_an_installed_wheel(tmp_path):
         done = subprocess.run([sys.executable, "-m", "phongray", name, "--help"], cwd=tmp_path, env=env,
                               capture_output=True, text=True, timeout=120)
         assert done.returncode == 0 and "usage:" in done.stdout, (name, done.stderr[-500:])
+
+
+# -- the same answers with and without --server; no traceback anywhere ---------------------------------------
+
+import numpy as np  # noqa: E402
+from PIL import Image  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def service_url(tmp_path_factory):
+    with running_server(tmp_path_factory.mktemp("srv")) as (url, _):
+        yield url
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """Scenes and images every way they can be wrong, on lines of their own (so that lines are checked)."""
+    root = tmp_path_factory.mktemp("files")
+    data = json.loads((SCENES / "01_three_spheres.json").read_text())
+    (root / "good.json").write_text(json.dumps(data, indent=2))
+    bad = json.loads(json.dumps(data))
+    bad["objects"][1]["radius"] = -1
+    bad["objects"][2]["material"] = "glod"
+    (root / "bad.json").write_text(json.dumps(bad, indent=2))
+    (root / "syntax.json").write_text('{"camera": {\n  "x": 1,,\n}}')
+    right = tracer_render(data)
+    (root / "right.png").write_bytes(right)
+    pixels = decode_png(right)
+    (root / "dark.png").write_bytes(encode(pixels // 2))
+    (root / "small.png").write_bytes(encode(pixels[:10, :10]))
+    (root / "text.png").write_text("not an image")
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, format="JPEG")
+    (root / "photo.jpg").write_bytes(buf.getvalue())
+    return root
+
+
+def tracer_render(data):
+    import schemas
+    import tracer
+
+    return tracer.encode_png(tracer.render(schemas.validate_scene(data)))
+
+
+def encode(pixels):
+    import tracer
+
+    return tracer.encode_png(np.ascontiguousarray(pixels))
+
+
+BOTH_WAYS = [
+    ("render", "bad.json", "-o", "{tmp}/x.png", "-q"),
+    ("render", "syntax.json", "-o", "{tmp}/x.png", "-q"),
+    ("render", "missing.json", "-o", "{tmp}/x.png", "-q"),
+    ("render", "good.json", "-o", "{tmp}/x.png", "-q"),
+    ("validate", "bad.json"),
+    ("validate", "syntax.json"),
+    ("validate", "good.json"),
+    ("grade", "bad.json", "right.png"),
+    ("grade", "good.json", "right.png"),
+    ("grade", "good.json", "right.png", "--json"),
+    ("grade", "good.json", "dark.png"),
+    ("grade", "good.json", "dark.png", "--json"),
+    ("grade", "good.json", "small.png"),
+    ("grade", "good.json", "text.png"),
+    ("grade", "good.json", "photo.jpg"),
+    ("grade", "good.json", "missing.png"),
+    ("grade", "good.json", "right.png", "--tolerance", "300"),
+]
+
+
+@pytest.mark.parametrize("args", BOTH_WAYS, ids=lambda a: "-".join(a).replace("{tmp}/", ""))
+def test_the_same_exit_code_and_words_with_and_without_server(args, files, service_url, tmp_path, capsys):
+    argv = [str(files / a) if a.endswith((".json", ".png", ".jpg")) and "{tmp}" not in a else a.format(tmp=tmp_path)
+            for a in args]
+    local = (main(argv), *capsys.readouterr())
+    remote = (main([*argv, "--server", service_url]), *capsys.readouterr())
+    assert remote == local
+    assert "Traceback" not in local[2] and local[2].count("\n") <= 1
+
+
+def test_an_invalid_scene_is_bad_input_for_grade_exit_2_not_a_fail(files, service_url, capsys):
+    for extra in ([], ["--server", service_url]):
+        assert main(["grade", str(files / "bad.json"), str(files / "right.png"), *extra]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"phongray: {files}/bad.json:") and ": objects[1].radius: must be > 0" in err
+
+
+def test_grades_print_in_words_and_as_json(files, capsys):
+    assert main(["grade", str(files / "good.json"), str(files / "right.png")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("PASS\n  off even nearby: 0.00 % of the pixels (at most 0.10 % may be)\n")
+    assert "PSNR identical images" in out and "None" not in out
+    assert main(["grade", str(files / "good.json"), str(files / "dark.png")]) == 1
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first.startswith("FAIL: ") and first.endswith(
+        "% of the pixels are off even nearby (more than 2 levels from every reference pixel around them); at most "
+        "0.10 % may be")
+    assert main(["grade", str(files / "good.json"), str(files / "dark.png"), "--json"]) == 1
+    result = json.loads(capsys.readouterr().out)
+    assert result["passed"] is False and result["reason"].endswith("at most 0.10 % may be")
+    assert result["fraction_off_nearby"] > 0.5 and result["psnr"] > 0
+
+
+def test_an_image_is_read_no_further_than_the_limit(files, service_url, capsys, monkeypatch):
+    monkeypatch.setenv("PHONGRAY_MAX_IMAGE_BYTES", "1000")
+    for extra in ([], ["--server", service_url]):
+        assert main(["grade", str(files / "good.json"), "/dev/zero", *extra]) == 2  # a file without end
+        assert capsys.readouterr().err == ("phongray: /dev/zero: larger than the limit max_image_bytes = 1000 bytes "
+                                           "(PHONGRAY_MAX_IMAGE_BYTES)\n")
+
+
+def test_compare_grades_two_images_without_a_scene(files, capsys, tmp_path):
+    assert main(["compare", str(files / "right.png"), str(files / "right.png"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["max_error"] == 0
+    heat = str(tmp_path / "h.png")
+    assert main(["compare", str(files / "right.png"), str(files / "dark.png"), "--heatmap", heat]) == 1
+    assert capsys.readouterr().out.startswith("FAIL: ") and (tmp_path / "h.png").exists()
+    for image, says in (("small.png", "small.png: image is 10×10 pixels, the reference is 160×120"),
+                        ("photo.jpg", "photo.jpg: image is a JPEG; PNG required")):
+        assert main(["compare", str(files / "right.png"), str(files / image)]) == 2
+        assert capsys.readouterr().err == f"phongray: {files}/{says}\n"
+    assert main(["compare", str(files / "photo.jpg"), str(files / "right.png")]) == 2
+    assert capsys.readouterr().err == f"phongray: {files}/photo.jpg: image is a JPEG; PNG required\n"
+
+
+def test_no_traceback_for_a_closed_pipe(tmp_path):
+    read, write = os.pipe()
+    os.close(read)  # as `phongray schema | head` once head has exited
+    for args in (["schema"], ["render", str(SCENES / "01_three_spheres.json"), "-o", "-", "-q"]):
+        done = subprocess.run([sys.executable, "-m", "service.cli", *args], stdout=write, stderr=subprocess.PIPE,
+                              timeout=60)
+        assert b"Traceback" not in done.stderr and b"Error" not in done.stderr, done.stderr
+        assert done.returncode == 1
+    os.close(write)
+
+
+@pytest.mark.parametrize("args, says", [
+    (["serve", "--port", "99999"], b"99999 is not a TCP port (0-65535)".replace(b"-", "–".encode())),
+    (["validate", str(SCENES / "01_three_spheres.json"), "--server", "127.0.0.1:notaport"], b"cannot reach"),
+    (["validate", str(SCENES / "01_three_spheres.json"), "--server", "http://127.0.0.1:99999"], b"cannot reach"),
+    (["render", str(SCENES / "01_three_spheres.json"), "-o", "x.png", "--cluster", "garbage"],
+     b"not a Dask scheduler address"),
+])
+def test_bad_arguments_give_one_line_and_exit_2(args, says, tmp_path):
+    done = subprocess.run([sys.executable, "-m", "service.cli", *args], capture_output=True, timeout=60,
+                          cwd=tmp_path)
+    assert done.returncode == 2 and b"Traceback" not in done.stderr and says in done.stderr, done.stderr
+    assert done.stderr.count(b"\n") <= 2  # argparse adds its usage line
+
+
+def test_serve_on_a_port_in_use_is_one_line(tmp_path):
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = taken.getsockname()[1]
+        done = subprocess.run([sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
+                              capture_output=True, timeout=60)
+    assert done.returncode == 2 and done.stderr.startswith(f"phongray: cannot listen on 127.0.0.1:{port}: ".encode())
+    assert b"Traceback" not in done.stderr
+
+
+def test_a_wrong_setting_in_the_environment_is_one_line():
+    done = subprocess.run([sys.executable, "-m", "service.cli", "serve"], capture_output=True, timeout=60,
+                          env={**os.environ, "PHONGRAY_MAX_PIXELS": "lots"})
+    assert done.returncode == 2 and done.stderr.startswith(b"phongray: PHONGRAY_MAX_PIXELS: ")
+    assert done.stderr.count(b"\n") == 1
+
+
+def test_python_m_phongray_works_in_a_folder_with_a_students_modules(tmp_path):
+    for name in ("tracer.py", "service.py", "schemas.py"):
+        (tmp_path / name).write_text("raise SystemExit('a student module was imported')\n")
+    done = subprocess.run([sys.executable, "-m", "phongray", "render", str(SCENES / "07_spotlights.json"), "-o",
+                           "out.png", "-q"], cwd=tmp_path, capture_output=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert decode_png((tmp_path / "out.png").read_bytes()).shape == (120, 160, 3)

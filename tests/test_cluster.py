@@ -16,10 +16,11 @@ import pytest
 
 import schemas
 import tracer
-from helpers import SCENES, scene_dict
-from server import free_port, running_server
 from service import classgrade, cluster
 from service.cli import main
+
+from helpers import SCENES, scene_dict
+from server import free_port, running_server
 
 DASK = [sys.executable, "-m", "distributed.cli.dask_worker"]
 
@@ -53,11 +54,11 @@ def dask(tmp_path_factory):
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     procs = [_start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
-                     str(port), "--dashboard-address", ":0"], logs / "scheduler.log")]
+                     str(port), "--dashboard-address", "127.0.0.1:0"], logs / "scheduler.log")]
     try:
         for k in range(2):
             procs.append(_start([*DASK, address, "--nthreads", "1", "--no-nanny", "--host", "127.0.0.1",
-                                 "--dashboard-address", ":0", "--name", f"w{k}"], logs / f"worker{k}.log"))
+                                 "--dashboard-address", "127.0.0.1:0", "--name", f"w{k}"], logs / f"worker{k}.log"))
         deadline = time.monotonic() + 60
         while True:
             try:
@@ -115,7 +116,8 @@ def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
         own = json.loads(json.dumps(data))
         own["image"]["background"] = [0.01 * k, 0.02, 0.03]
         (subs / f"s{k:02d}").mkdir(parents=True)
-        (subs / f"s{k:02d}" / "soft.json").write_text(json.dumps(own))
+        (tmp_path / "own" / f"s{k:02d}").mkdir(parents=True)
+        (tmp_path / "own" / f"s{k:02d}" / "soft.json").write_text(json.dumps(own))
         (subs / f"s{k:02d}" / "soft.png").write_bytes(
             tracer.encode_png(tracer.render(schemas.validate_scene(json.loads(json.dumps(own))))))
     done = []
@@ -125,7 +127,8 @@ def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
         done.append(finished)
 
     thread = threading.Thread(target=lambda: outcome.setdefault(
-        "o", classgrade.grade_class(scenes, subs, tmp_path / "report", cluster=address, progress=progress)))
+        "o", classgrade.grade_class(scenes, subs, tmp_path / "report", cluster=address, progress=progress,
+                                    student_scenes=tmp_path / "own")))
     thread.start()
     deadline = time.monotonic() + 60
     while not any(d >= 2 for d in done) and time.monotonic() < deadline:
@@ -176,3 +179,81 @@ def test_a_cluster_render_past_the_timeout_is_503_and_its_futures_are_cancelled(
             while any(client.processing().values()) and time.monotonic() < deadline:
                 time.sleep(0.1)
             assert not any(client.processing().values())  # nothing of it left running on the workers
+
+
+@pytest.fixture(scope="module")
+def idle_scheduler(tmp_path_factory):
+    """A Dask scheduler on 127.0.0.1 with no workers at all."""
+    logs = tmp_path_factory.mktemp("idle")
+    port = free_port()
+    proc = _start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port),
+                   "--dashboard-address", "127.0.0.1:0"], logs / "scheduler.log")
+    address = f"tcp://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                _workers(address)
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise RuntimeError("the scheduler did not start") from None
+                time.sleep(0.3)
+        yield address
+    finally:
+        _stop(proc)
+
+
+@pytest.mark.parametrize("command", ["render", "grade-class"])
+def test_a_cluster_with_no_workers_stops_with_one_line_after_the_wait(idle_scheduler, tmp_path, command):
+    scenes, subs, data = one_task(tmp_path, "balls", "01_three_spheres", 16, 12)
+    (subs / "a").mkdir(parents=True)
+    (subs / "a" / "balls.png").write_bytes(b"")
+    args = (["render", str(scenes / "balls.json"), "-o", str(tmp_path / "x.png")] if command == "render" else
+            ["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")])
+    started = time.monotonic()
+    done = subprocess.run([sys.executable, "-m", "service.cli", *args, "--cluster", idle_scheduler,
+                           "--cluster-wait", "1"], capture_output=True, timeout=120)
+    assert done.returncode == 2 and b"Traceback" not in done.stderr, done.stderr
+    assert done.stderr.decode() == (f"phongray: the Dask scheduler at {idle_scheduler} has no workers (none joined "
+                                    f"within 1 s; start some with 'dask worker {idle_scheduler}', or wait longer "
+                                    f"with --cluster-wait)\n")
+    assert time.monotonic() - started < 30
+    assert not (tmp_path / "r" / "report.json").exists()
+
+
+def test_the_service_on_a_cluster_with_no_workers_answers_503_at_once(idle_scheduler, tmp_path):
+    with running_server(tmp_path, cluster=idle_scheduler) as (url, _):
+        req = urllib.request.Request(url + "/render", (SCENES / "01_three_spheres.json").read_bytes(),
+                                     {"content-type": "application/json"})
+        started = time.monotonic()
+        with pytest.raises(urllib.error.HTTPError) as answer:
+            urllib.request.urlopen(req, timeout=60)
+        answer.value.close()
+        assert answer.value.code == 503 and time.monotonic() - started < 15
+
+
+def test_a_class_graded_three_ways_gives_one_report(dask, tmp_path):
+    """Locally, through a running service and on the cluster: report.json byte for byte the same."""
+    address, _ = dask
+    scenes, subs, data = one_task(tmp_path, "balls", "01_three_spheres", 48, 36)
+    right = tracer.encode_png(tracer.render(schemas.validate_scene(json.loads(json.dumps(data)))))
+    dark = tracer.encode_png(tracer.decode_png(right) // 2)
+    own = json.loads(json.dumps(data))
+    own["image"]["background"] = [0.2, 0.1, 0.0]
+    (tmp_path / "own" / "d").mkdir(parents=True)
+    (tmp_path / "own" / "d" / "balls.json").write_text(json.dumps(own))
+    for student, name, image in (("a", "balls.png", right), ("b", "Balls.PNG", dark), ("c", "hw/balls.png", right),
+                                 ("d", "balls.png", right), ("e", "balls.jpg", b"\xff\xd8\xff\xe0 a JPEG")):
+        (subs / student / name).parent.mkdir(parents=True, exist_ok=True)
+        (subs / student / name).write_bytes(image)
+    kw = {"student_scenes": tmp_path / "own"}
+    classgrade.grade_class(scenes, subs, tmp_path / "local", jobs=2, **kw)
+    classgrade.grade_class(scenes, subs, tmp_path / "cluster", cluster=address, **kw)
+    with running_server(tmp_path) as (url, _):
+        classgrade.grade_class(scenes, subs, tmp_path / "server", server=url, **kw)
+    local = (tmp_path / "local" / "report.json").read_bytes()
+    statuses = [r["status"] for r in json.loads(local)]
+    assert statuses == ["pass", "fail", "pass", "fail", "invalid"]
+    assert (tmp_path / "cluster" / "report.json").read_bytes() == local
+    assert (tmp_path / "server" / "report.json").read_bytes() == local

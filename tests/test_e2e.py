@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
+from service.client import ServerError, post_form, post_json
+
 from helpers import SCENES, scene_dict
 from server import running_server
-from service.client import ServerError, post_form, post_json
 
 SCENE = (SCENES / "01_three_spheres.json").read_bytes()
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -87,7 +88,8 @@ def test_burst_beyond_the_slot_count_gets_200_or_503_and_the_service_stays_healt
 def test_cli_talks_to_the_server(server, tmp_path):
     out = tmp_path / "s.png"
     run = [sys.executable, "-m", "service.cli"]
-    assert subprocess.run([*run, "render", str(SCENES / "07_spotlights.json"), "-o", str(out), "--server", server]).returncode == 0
+    spots = str(SCENES / "07_spotlights.json")
+    assert subprocess.run([*run, "render", spots, "-o", str(out), "--server", server]).returncode == 0
     assert subprocess.run([*run, "grade", str(SCENES / "07_spotlights.json"), str(out), "--server", server],
                           capture_output=True).returncode == 0
     assert subprocess.run([*run, "grade", str(SCENES / "01_three_spheres.json"), str(out), "--server", server],
@@ -197,6 +199,9 @@ def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
     page.wait_for_function("() => { const i = document.getElementById('grade-heat-map'); "
                            "return i && i.naturalWidth === 160; }", timeout=20_000)
     assert "fraction_off_nearby" in page.inner_text("#numbers")
+    assert page.inner_text("#verdict").startswith("FAIL: ") and "off even nearby" in page.inner_text("#verdict")
+    legend = page.inner_text("#legend")
+    assert "brighter than the reference" in legend and "darker than the reference" in legend
     shot(page, "playground-grade.png", tmp_path)
     assert page.outside == []
     page.close()
@@ -248,7 +253,8 @@ def test_swagger_ui_works_offline_and_tries_render_validate_and_grade(server, br
     assert page.locator(".opblock-summary-path").all_inner_texts() == ["/render", "/validate", "/grade", "/schema",
                                                                         "/healthz"]
     op = try_out(page, "render_scene_render_post")
-    op.locator("textarea.body-param__text").fill(SCENE.decode())
+    stub = op.locator("textarea.body-param__text").input_value()  # what "Try it out" sends untouched
+    assert json.loads(stub) == json.loads(SCENE)
     op.locator("button.execute").click()
     image = op.locator(".live-responses-table img").first
     image.wait_for(timeout=20_000)

@@ -11,12 +11,12 @@ import schemathesis
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from schemathesis.specs.openapi.checks import positive_data_acceptance
-
 from starlette.testclient import TestClient
 
-from helpers import scene_dict
 from service.app import create_app
 from service.settings import Settings
+
+from helpers import scene_dict
 
 app = create_app(Settings(max_concurrent_renders=4, max_cost=2e6, render_timeout=5.0))
 schema = schemathesis.openapi.from_asgi("/openapi.json", app)

@@ -1,11 +1,11 @@
 """The cost model prices the real work: the worst-case ray tree, the lights and what each ray is tested against."""
 
 import pytest
+from test_render import nested_glass_and_mirror
 
 import schemas
 from service.limits import LimitError, check_scene, estimated_cost, ray_tree_nodes
 from service.settings import Settings
-from test_render import nested_glass_and_mirror
 
 
 def test_ray_tree_doubles_only_where_a_material_both_reflects_and_transmits():

@@ -92,7 +92,8 @@ def test_overload_gives_only_200_or_503_with_retry_after_and_memory_returns(serv
         assert res.status == 200
     time.sleep(0.5)
     after = rss_mib(proc.pid)
-    print(f"\nload: {len(stats['results'])} requests, {stats['throughput']:.1f} renders/s, p50 {stats['p50_ms']:.1f} ms, "
+    print(f"\nload: {len(stats['results'])} requests, {stats['throughput']:.1f} renders/s, "
+          f"p50 {stats['p50_ms']:.1f} ms, "
           f"p99 {stats['p99_ms']:.1f} ms, 503s {sum(c == 503 for c, _, _ in stats['results'])}, "
           f"RSS {baseline:.0f} → {after:.0f} MiB")
     assert after - baseline < 30

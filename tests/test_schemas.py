@@ -5,6 +5,7 @@ import json
 import pytest
 
 import schemas
+
 from helpers import EXAMPLES, scene_dict
 
 
@@ -228,3 +229,42 @@ def test_a_long_document_parses_the_same_with_and_without_sharing_the_interprete
         for shared in (True, False):
             with pytest.raises(schemas.SceneError):
                 schemas.parse_json(bad, shared=shared)
+
+
+# -- the JSON Schema states the format: every shipped scene is valid by a Draft 2020-12 validator --------------
+
+from pathlib import Path  # noqa: E402
+
+from jsonschema import Draft202012Validator  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+SHIPPED = sorted([*ROOT.glob("examples/*.json"), *ROOT.glob("examples/class/scenes/*.json"),
+                  *ROOT.glob("examples/class/student-scenes/*/*.json"), ROOT / "service/static/example.json"])
+
+
+def schema_validator() -> Draft202012Validator:
+    schema = schemas.json_schema()
+    assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
+    Draft202012Validator.check_schema(schema)
+    return Draft202012Validator(schema)
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: str(p.relative_to(ROOT)))
+def test_every_shipped_scene_is_valid_by_the_json_schema(path):
+    errors = [f"{'/'.join(map(str, e.absolute_path))}: {e.message}" for e in
+              schema_validator().iter_errors(json.loads(path.read_text()))]
+    assert errors == []
+
+
+def test_the_json_schema_allows_colour_shorthands_and_refuses_what_the_format_refuses():
+    validator = schema_validator()
+    grey = minimal(materials={"m": {"diffuse": 0.5, "specular": [1, 1, 1]}}, lights=[{"type": "ambient", "color": 1}])
+    assert validator.is_valid(grey)
+    schemas.validate_scene(grey)  # and so does the format
+    for wrong in (minimal(materials={"m": {"diffuse": -0.5}}), minimal(materials={"m": {"diffuse": [1, 1]}}),
+                  minimal(camera={"position": [0, 0, 5], "look_at": [0, 0, 0], "look_At": [0, 0, 0]}),
+                  minimal(lights=[{"type": "torch", "color": 1}]), {"camera": minimal()["camera"]},
+                  minimal(image={"width": 0, "height": 3})):
+        assert not validator.is_valid(wrong), wrong
+        with pytest.raises(schemas.SceneError):
+            schemas.validate_scene(wrong)

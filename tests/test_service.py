@@ -13,9 +13,10 @@ from PIL import Image
 
 import schemas
 import tracer
-from helpers import SCENES, scene_dict
 from service.app import create_app
 from service.settings import Settings
+
+from helpers import SCENES, scene_dict
 
 JSON = {"content-type": "application/json"}
 SCENE = (SCENES / "01_three_spheres.json").read_bytes()
@@ -62,6 +63,25 @@ def test_query_overrides(api):
     assert tracer.decode_png(res.content).shape == (24, 32, 3)
     res = api.post("/render?width=0", content=SCENE, headers=JSON)
     assert res.status_code == 422 and res.json()["errors"][0]["path"] == "query.width"
+
+
+def test_overrides_replace_values_but_neither_complete_nor_mend_a_scene(api):
+    """A body the JSON Schema refuses (no image.height, a samples that is no number) stays refused, whatever the
+    query says."""
+    data = json.loads(SCENE)
+    del data["image"]["height"]
+    res = api.post("/render?width=16&height=12", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and [e["path"] for e in res.json()["errors"]] == ["image.height"]
+    data = json.loads(SCENE)
+    data["image"]["samples"] = {}
+    res = api.post("/render?samples=1", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and [e["path"] for e in res.json()["errors"]] == ["image.samples"]
+    assert "samples" not in json.loads(SCENE)["image"]  # an optional key the scene lacks is set by the query
+    with_samples = json.loads(SCENE)
+    with_samples["image"]["samples"] = 2
+    by_query = api.post("/render?samples=2", content=SCENE, headers=JSON)
+    assert by_query.status_code == 200
+    assert by_query.content == api.post("/render", content=json.dumps(with_samples), headers=JSON).content
 
 
 def test_validate_valid_and_invalid_with_lines(api):
@@ -161,7 +181,7 @@ def test_one_pixel_shift_is_forgiven_by_the_neighbourhood_measure(api, reference
 
 @pytest.mark.parametrize("image, says", [
     (png_of(np.zeros((10, 10, 3), np.uint8)), "10×10 pixels, the scene is 160×120"),
-    (b"GIF89a" + b"\0" * 100, "not a PNG"),
+    (b"GIF89a" + b"\0" * 100, "image is a GIF; PNG required"),
     (b"", "not a PNG"),
 ])
 def test_bad_submissions_are_422(api, image, says):
@@ -198,7 +218,7 @@ def test_grade_form_errors(api, reference_png):
 
 
 def test_heatmap(api, reference_png):
-    res = api.post("/grade?format=png", data={"scene": SCENE.decode()},
+    res = api.post("/grade?format=png&legend=false&heatmap=raw", data={"scene": SCENE.decode()},
                    files={"image": ("s.png", reference_png, "image/png")})
     assert res.status_code == 200 and res.headers["content-type"] == "image/png"
     heat = tracer.decode_png(res.content)
@@ -253,3 +273,53 @@ def test_a_server_worker_freezes_what_it_holds_after_start_up():
     probe = "import gc; from service.server import worker_app; worker_app(); print(gc.get_freeze_count())"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
     assert int(out) > 20_000
+
+
+# -- the OpenAPI document describes the format and the answers ---------------------------------------------
+
+from pathlib import Path  # noqa: E402
+
+from jsonschema import Draft202012Validator  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def component(spec, name):
+    """A validator of one of the OpenAPI document's component schemas (its $refs resolved within the document)."""
+    return Draft202012Validator({"$ref": f"#/components/schemas/{name}", "components": spec["components"]})
+
+
+def test_schema_and_openapi_accept_every_example(api):
+    assert api.get("/schema").json() == schemas.json_schema()
+    scene = component(api.get("/openapi.json").json(), "Scene")
+    for path in sorted(ROOT.glob("examples/*.json")):
+        assert scene.is_valid(json.loads(path.read_text())), path
+    assert not scene.is_valid({"camera": {}, "image": {"width": 1, "height": 1}})
+
+
+def test_try_it_out_sends_a_real_example_scene_that_renders(api):
+    spec = api.get("/openapi.json").json()
+    for path in ("/render", "/validate"):
+        example = spec["paths"][path]["post"]["requestBody"]["content"]["application/json"]["example"]
+        assert example == json.loads((ROOT / "examples" / "01_three_spheres.json").read_text())
+    res = api.post("/render", json=example)
+    assert res.status_code == 200 and res.content.startswith(b"\x89PNG")
+    form = spec["paths"]["/grade"]["post"]["requestBody"]["content"]["multipart/form-data"]["schema"]
+    assert json.loads(form["properties"]["scene"]["example"]) == example
+
+
+def test_grade_and_the_error_list_have_response_models(api, reference_png):
+    spec = api.get("/openapi.json").json()
+    grade_200 = spec["paths"]["/grade"]["post"]["responses"]["200"]["content"]
+    assert grade_200["application/json"]["schema"] == {"$ref": "#/components/schemas/GradeAnswer"}
+    assert "image/png" in grade_200
+    for path in ("/render", "/validate", "/grade"):
+        answer = spec["paths"][path]["post"]["responses"]["422"]["content"]["application/json"]["schema"]
+        assert answer == {"$ref": "#/components/schemas/ErrorAnswer"}, path
+    passed = grade(api, image=reference_png).json()
+    assert component(spec, "GradeAnswer").is_valid(passed) and passed["reason"] == ""
+    invalid = api.post("/validate", content=SCENE.replace(b'"radius": 0.7', b'"radius": -0.7'), headers=JSON).json()
+    assert component(spec, "ErrorAnswer").is_valid(invalid) and invalid["errors"][0]["line"]
+    image = grade(api, image=b"GIF89a").json()
+    assert component(spec, "ErrorAnswer").is_valid(image) and image["part"] == "image"
+    assert not component(spec, "ErrorAnswer").is_valid({"errors": []})

@@ -4,14 +4,19 @@
 
 ada gets everything right; ben's lights image misses a light and his mirror image is shifted by a pixel
 (forgiven by the neighbourhood measure: a pass); chen sent a text file named .png and an image of the wrong size;
-dara has her own randomised spheres scene (and renders it right); eli sent nothing for two tasks.
+dara has her own randomised spheres scene, in the TA's student-scenes/ folder (and renders it right); eli sent
+nothing for two tasks, and a scene of his own (ignored: students cannot change their task); frank's files come
+as a learning-management system downloads them: Spheres.PNG, one folder deeper hw3/lights.png, and a JPEG
+mirror.jpg.  tasks.json gives each task its points.
 """
 
 import copy
+import io
 import json
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 import schemas
 import tracer
@@ -52,13 +57,23 @@ def main() -> None:
     for obj in own["objects"]:
         if obj["type"] == "sphere":
             obj["center"][0] += 0.35
-    (sub / "dara").mkdir(parents=True, exist_ok=True)
-    (sub / "dara" / "spheres.json").write_text(json.dumps(own, indent=2) + "\n")
+    (HERE / "student-scenes" / "dara").mkdir(parents=True, exist_ok=True)
+    (HERE / "student-scenes" / "dara" / "spheres.json").write_text(json.dumps(own, indent=2) + "\n")
     save(sub / "dara" / "spheres.png", render(own))
     save(sub / "dara" / "lights.png", right["lights"])
     save(sub / "dara" / "mirror.png", right["mirror"])
     save(sub / "eli" / "spheres.png", right["spheres"])
     (sub / "eli" / "notes.txt").write_text("I ran out of time.\n")
+    empty = {"camera": scenes["lights"]["camera"], "image": scenes["lights"]["image"]}
+    (sub / "eli" / "lights.json").write_text(json.dumps(empty, indent=2) + "\n")  # a task of his own: ignored
+    save(sub / "eli" / "lights.png", np.zeros_like(right["lights"]))
+    save(sub / "frank" / "Spheres.PNG", right["spheres"])
+    save(sub / "frank" / "hw3" / "lights.png", right["lights"])
+    buf = io.BytesIO()
+    Image.fromarray(right["mirror"]).save(buf, format="JPEG", quality=95)
+    (sub / "frank" / "mirror.jpg").write_bytes(buf.getvalue())
+    points = {"spheres": {"points": 2}, "lights": {"points": 3}, "mirror": {"points": 5, "tolerance": 3}}
+    (HERE / "tasks.json").write_text(json.dumps(points, indent=2) + "\n")
 
 
 if __name__ == "__main__":

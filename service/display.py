@@ -1,0 +1,76 @@
+"""What the command line shows: a grade in words (or JSON), and a progress bar."""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any
+
+
+def percent(fraction: float) -> str:
+    """``0.0123`` → ``1.23 %`` (small fractions keep two significant digits: ``0.0012 %``)."""
+    value = 100 * fraction
+    if value == 0 or value >= 0.01:
+        return f"{value:.2f} %"
+    return f"{value:.2g} %"
+
+
+def describe(result: dict[str, Any]) -> list[str]:
+    """A grade as lines for a person: the verdict (with its reason when it failed), then the numbers in units."""
+    lines = ["PASS" if result["passed"] else f"FAIL: {result['reason']}"]
+    psnr = "identical images" if result["psnr"] is None else f"{result['psnr']:.2f} dB"
+    lines += [
+        f"  off even nearby: {percent(result['fraction_off_nearby'])} of the pixels "
+        f"(at most {percent(result['max_fraction'])} may be)",
+        f"  off: {percent(result['fraction_off'])} of the pixels (by more than {result['tolerance']:g} levels)",
+        f"  mean absolute error: {result['mean_abs_error']:.3f} levels; RMSE {result['rmse']:.3f}; PSNR {psnr}",
+        f"  largest error: {result['max_error']} levels",
+        f"  size: {result['width']}×{result['height']}; reference sha256 {result['reference_sha256']}",
+    ]
+    return lines
+
+
+def _clock(seconds: float) -> str:
+    seconds = int(seconds)
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else \
+        f"{seconds // 60}:{seconds % 60:02d}"
+
+
+class ProgressBar:
+    """A one-line progress bar on stderr, shown only on a terminal and only after a second."""
+
+    def __init__(self, delay: float = 1.0, unit: str | None = None):
+        self.start = time.monotonic()
+        self.delay = delay
+        self.unit = unit  # when set, the line shows "done/total unit" and an ETA
+        self.shown = False
+        self.enabled = sys.stderr.isatty()
+        self.first: tuple[float, int] | None = None
+
+    def __call__(self, done: int, total: int) -> None:
+        now = time.monotonic()
+        if self.first is None:
+            self.first = (now, done)
+        if not self.enabled or now - self.start < self.delay:
+            return
+        self.shown = True
+        width = 30
+        filled = int(width * done / max(total, 1))
+        line = f"\r[{'#' * filled}{'.' * (width - filled)}] {100 * done / max(total, 1):5.1f}%"
+        if self.unit:
+            line += f" {done}/{total} {self.unit}"
+        t0, d0 = self.first
+        rate = (done - d0) / max(now - t0, 1e-9)
+        eta = _clock((total - done) / rate) if rate > 0 else "?"
+        line += f", {_clock(now - self.start)} elapsed, ETA {eta}  "
+        ProgressBar.active = self
+        sys.stderr.write(line)
+        sys.stderr.flush()
+
+    #: the bar on screen, so that an interruption can finish its line first
+    active: ProgressBar | None = None
+
+    def close(self) -> None:
+        if self.shown and ProgressBar.active is self:
+            sys.stderr.write("\n")
+        ProgressBar.active = None

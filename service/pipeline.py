@@ -1,0 +1,107 @@
+"""The grading pipeline, written once for the command line, the HTTP service and class grading.
+
+scene text → a validated scene (or every problem as ``FILE:LINE: path: message``); submitted bytes → pixels of
+the scene's size (or why not); reference PNG and pixels → the grade, its reason and its heat-map.  Whatever does
+the rendering (here, a cluster, a service), these steps and their words are the same.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydantic import ValidationError
+
+from schemas import Image, Scene, SceneError, parse_json, validate_scene
+from schemas.errors import problems_from_validation
+from schemas.locate import as_lines, format_located
+from tracer import decode_png
+
+from . import grading
+from .heatmap import Kind, heatmap_png
+
+
+class BadInput(ValueError):
+    """Input that cannot be used, as the one line to show (files named, problems joined by ``; ``)."""
+
+
+def scene_lines(name: str, errors: list[dict[str, Any]]) -> list[str]:
+    """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as /validate gives)."""
+    return format_located(name, errors)
+
+
+def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
+    """The scene with values of its ``image`` replaced (``--width``, ``?samples=2``; None keeps the scene's).
+    Overrides apply to a valid scene: they neither complete nor mend one, so that a scene is accepted exactly
+    when its JSON Schema says so.  Raises :class:`SceneError` for an override out of range."""
+    given = {k: v for k, v in (overrides or {}).items() if v is not None}
+    if not given:
+        return scene
+    try:
+        image = Image.model_validate({**scene.image.model_dump(), **given})
+    except ValidationError as exc:
+        raise SceneError([(f"image.{path}", message) for path, message in problems_from_validation(exc)]) from None
+    return scene.model_copy(update={"image": image})
+
+
+def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, shared: bool = False) -> Scene:
+    """The validated scene of a file's text, ``overrides`` applied to its ``image``; :class:`SceneError`
+    (with ``.lines``) names every problem by file and line."""
+    try:
+        return with_overrides(validate_scene(parse_json(text, shared=shared)), overrides)
+    except SceneError as exc:
+        exc.lines = as_lines(name, exc.problems, text)  # type: ignore[attr-defined]
+        raise
+
+
+def scene_or_bad_input(name: str, text: bytes, overrides: dict[str, Any] | None = None) -> Scene:
+    """:func:`load_scene`, its problems as one :class:`BadInput` line."""
+    try:
+        return load_scene(name, text, overrides)
+    except SceneError as exc:
+        raise BadInput("; ".join(exc.lines)) from None  # type: ignore[attr-defined]
+
+
+@dataclass(frozen=True)
+class Graded:
+    grade: grading.Grade
+    heatmap: bytes | None  # PNG, when one was asked for
+
+    def as_dict(self) -> dict[str, Any]:
+        """The grade's numbers and its ``reason`` (why it failed; empty when it passed)."""
+        return {**self.grade.as_dict(), "reason": self.grade.reason}
+
+
+def read_image(data: bytes, size: tuple[int, int]) -> np.ndarray:
+    """A submission's pixels, of ``size = (width, height)``; :class:`grading.ImageError` says why not."""
+    return grading.read_submission(data, size)
+
+
+def compare(reference_png: bytes, submitted: np.ndarray, tolerance: float, max_fraction: float,
+            heatmap: Kind | None = None, legend: bool = False, reference: np.ndarray | None = None) -> Graded:
+    """Grade ``submitted`` pixels against a reference PNG (decoded here unless its ``reference`` pixels are
+    given); with ``heatmap``, the heat-map of that kind too."""
+    pixels = decode_png(reference_png) if reference is None else reference
+    result = grading.grade(pixels, submitted, hashlib.sha256(reference_png).hexdigest(), tolerance, max_fraction)
+    heat = heatmap_png(pixels, submitted, tolerance, heatmap, legend) if heatmap else None
+    return Graded(result, heat)
+
+
+def grade_png(reference_png: bytes, image: bytes, tolerance: float, max_fraction: float,
+              heatmap: Kind | None = None, legend: bool = False) -> Graded:
+    """A submitted image's grade against a reference PNG; :class:`grading.ImageError` when it cannot be graded."""
+    pixels = decode_png(reference_png)
+    submitted = read_image(image, (pixels.shape[1], pixels.shape[0]))
+    return compare(reference_png, submitted, tolerance, max_fraction, heatmap, legend, reference=pixels)
+
+
+#: the largest reference ``phongray compare`` decodes (the service's default max_pixels)
+MAX_COMPARED_PIXELS = 4096 * 4096
+
+
+def read_reference(data: bytes) -> np.ndarray:
+    """The pixels of a reference PNG given as a file (``phongray compare``): opaque, at most
+    :data:`MAX_COMPARED_PIXELS`; :class:`grading.ImageError` says why not."""
+    return read_image(data, grading.declared_size(data, MAX_COMPARED_PIXELS))

@@ -1,0 +1,163 @@
+"""The files of a class report: report.json, report.csv, index.html and Gradescope's results.json per student.
+
+Every file is written whole or not at all (:func:`write_atomic`), so an interrupted run leaves the previous
+report readable.
+"""
+
+from __future__ import annotations
+
+import csv
+import html
+import io
+import json
+import os
+import re
+import threading
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+from .display import percent
+from .heatmap import LEGEND
+from .taskfile import TaskSettings
+
+#: the numbers of a graded pair, in report.csv's order
+NUMBERS = ["mean_abs_error", "rmse", "psnr", "max_error", "fraction_off", "fraction_off_nearby", "width", "height",
+           "reference_sha256"]
+#: the columns of report.csv (and the keys of each row of report.json), in order
+COLUMNS = ["student", "task", "status", "reason", "scene", "file", "passed", "points", "score", "tolerance",
+           "max_fraction", *NUMBERS, "reference", "submission", "heatmap"]
+STATUSES = ("pass", "fail", "missing", "invalid")
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write a file whole or not at all: a temporary file beside it, then one rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
+    counts = {s: sum(r["status"] == s for r in rows) for s in STATUSES}
+    return (f"{len(rows)} pairs: {counts['pass']} passed, {counts['fail']} failed, {counts['missing']} missing, "
+            f"{counts['invalid']} invalid; {renders} references rendered; {seconds:.1f} s")
+
+
+def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str],
+                 tasks: dict[str, TaskSettings], headline: str) -> None:
+    write_atomic(report / "report.json", (json.dumps(rows, indent=1, ensure_ascii=False) + "\n").encode())
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    write_atomic(report / "report.csv", buf.getvalue().encode())
+    for student in students:
+        mine = [r for r in rows if r["student"] == student]
+        write_atomic(report / "gradescope" / student / "results.json",
+                     (json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n").encode())
+    write_atomic(report / "index.html", render_html(rows, ignored, students, list(tasks), headline).encode())
+
+
+def test_output(row: dict[str, Any]) -> str:
+    """What a student reads of one task: the verdict and its reason or numbers."""
+    if row["status"] == "pass":
+        return (f"passed: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
+                f"(at most {percent(row['max_fraction'])} may be)")
+    return f"{row['status']}: {row['reason']}"
+
+
+def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> dict[str, Any]:
+    """One student's results in Gradescope's autograder format (``results.json``): the total ``score`` and a
+    test per task with its ``name``, ``score``, ``max_score``, ``status``, ``output`` and ``visibility``."""
+    tests = [{"name": r["task"], "score": r["score"], "max_score": r["points"],
+              "status": "passed" if r["status"] == "pass" else "failed", "output": test_output(r),
+              "visibility": tasks[r["task"]].visibility} for r in rows]
+    return {"score": sum(t["score"] for t in tests), "visibility": "visible", "tests": tests}
+
+
+def _legend() -> str:
+    items = "".join(f'<li><span class="swatch" style="background: rgb{colour}"></span>{html.escape(text)}</li>'
+                    for colour, text in LEGEND)
+    return f'<ul class="legend">{items}</ul>'
+
+
+def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str], tasks: list[str],
+                headline: str) -> str:
+    esc = html.escape
+    by = {(r["student"], r["task"]): r for r in rows}
+    head = "".join(f"<th>{esc(t)}</th>" for t in tasks)
+    body, details = [], []
+    for student in students:
+        cells = []
+        for task in tasks:
+            r = by[(student, task)]
+            anchor = f"p-{quote(student)}-{quote(task)}"
+            label = r["status"]
+            # the cell shows the reason without the file it names (the detail shows it whole)
+            note = (_percent(r["fraction_off_nearby"]) if r["status"] in ("pass", "fail")
+                    else esc(_without_file(r["reason"]))[:80])
+            own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
+            cells.append(f'<td class="{r["status"]}"><a href="#{anchor}">{label}{own}<small>{note}</small></a></td>')
+            images = "".join(
+                f'<figure><img src="{quote(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
+                if r[k] else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
+                for k in ("reference", "submission", "heatmap"))
+            legend = _legend() if r["heatmap"] else ""
+            numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
+            details.append(f'<section class="pair" id="{anchor}"><h2>{esc(student)} · {esc(task)}: {label}</h2>'
+                           f'<p>{esc(r["reason"])}</p><div class="images">{images}</div>{legend}'
+                           f'<table class="numbers">{numbers}</table>'
+                           f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
+        body.append(f"<tr><th>{esc(student)}</th>{''.join(cells)}</tr>")
+    rates = []
+    for task in tasks:
+        mine = [by[(s, task)] for s in students]
+        passed = sum(r["status"] == "pass" for r in mine)
+        rates.append(f"<td>{passed}/{len(mine)}<small>{_percent(passed / len(mine) if mine else None)}</small></td>")
+    skipped = "".join(f"<li>{esc(name)}: {esc(why)}</li>" for name, why in ignored) or "<li>none</li>"
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>phongray class report</title>
+<style>
+body {{ font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }}
+table.grid {{ border-collapse: collapse; }}
+.grid th, .grid td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: center; }}
+.grid td a {{ color: inherit; text-decoration: none; display: block; }}
+.grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow: hidden; }}
+td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
+td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
+.own {{ color: #36c; }}
+.pair {{ display: none; }}
+.pair:target {{ display: block; position: fixed; top: 4%; left: 4%; right: 4%; max-height: 88%; overflow: auto;
+               border: 1px solid #888; padding: 0 1.5em 1em; background: #fff; box-shadow: 0 4px 30px #0006; }}
+.images {{ display: flex; gap: 1em; flex-wrap: wrap; }}
+figure {{ margin: 0; }} figure img {{ width: 320px; image-rendering: pixelated; border: 1px solid #999; }}
+.none {{ width: 320px; height: 240px; display: flex; align-items: center; justify-content: center;
+         border: 1px dashed #999; color: #777; }}
+.legend {{ list-style: none; padding: 0; display: flex; flex-wrap: wrap; gap: 0.3em 1.5em; font-size: 12px; }}
+.swatch {{ display: inline-block; width: 12px; height: 12px; border: 1px solid #000; margin-right: 6px;
+           vertical-align: -2px; }}
+.numbers td {{ padding: 1px 10px 1px 0; }}
+</style></head><body>
+<h1>phongray class report</h1>
+<p>{esc(headline)}. Click a cell for the reference, the submission and the heat-map side by side;
+● marks a student's own scene.</p>
+<table class="grid"><thead><tr><th>student</th>{head}</tr></thead>
+<tbody>{''.join(body)}</tbody>
+<tfoot><tr><th>passed</th>{''.join(rates)}</tr></tfoot></table>
+{''.join(details)}
+<h2>Ignored files</h2><ul>{skipped}</ul>
+</body></html>
+"""
+
+
+#: the file a reason begins with (``subs/frank/mirror.jpg: ``), left out of a cell (its detail shows it whole)
+_FILE = re.compile(r"^.*?\.[A-Za-z0-9]{2,5}: ")
+
+
+def _without_file(reason: str) -> str:
+    return _FILE.sub("", reason, count=1)
+
+
+def _percent(x: float | None) -> str:
+    return "" if x is None else f"{100 * x:.2f} %"

@@ -1,0 +1,54 @@
+"""The optional tasks file of a class: per task, its points and its own grading thresholds.
+
+```json
+{"spheres": {"points": 10, "tolerance": 3}, "mirror": {"points": 5, "max_fraction": 0.002}}
+```
+
+A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
+teaching assistant's: a mistake in it stops the run (:class:`~service.submissions.ClassError`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+
+from schemas import SceneError, parse_json
+from schemas.errors import problems_from_validation
+from schemas.locate import as_lines
+
+from .submissions import ClassError
+
+
+class TaskSettings(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    points: Annotated[float, Field(ge=0)] = 1.0
+    tolerance: Annotated[float, Field(ge=0, le=255)] | None = None  # None: the command's --tolerance
+    max_fraction: Annotated[float, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
+    visibility: Literal["visible", "hidden", "after_due_date", "after_published"] = "visible"  # Gradescope's
+
+
+_FILE = TypeAdapter(dict[str, TaskSettings])
+
+
+def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSettings]:
+    """Every task's settings: from the file at ``path`` where it names the task, else the defaults."""
+    given: dict[str, TaskSettings] = {}
+    if path is not None:
+        try:
+            text = path.read_bytes()
+        except OSError as exc:
+            raise ClassError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        try:
+            given = _FILE.validate_python(parse_json(text, shared=False))
+        except SceneError as exc:
+            raise ClassError("; ".join(as_lines(str(path), exc.problems, text))) from None
+        except ValidationError as exc:
+            raise ClassError("; ".join(as_lines(str(path), problems_from_validation(exc), text))) from None
+        unknown = sorted(set(given) - set(tasks))
+        if unknown:
+            raise ClassError(f"{path}: no task {', '.join(unknown)} (the tasks are {', '.join(sorted(tasks))})")
+    return {task: given.get(task, TaskSettings()) for task in tasks}

@@ -1,0 +1,151 @@
+"""Students' folders as learning-management systems download them, and their files as untrusted input."""
+
+import io
+import json
+import os
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import schemas
+import tracer
+from service import classgrade
+from service.submissions import ClassError, UntrustedFileError, discover, read_untrusted
+
+from helpers import scene_dict
+
+
+@pytest.fixture(scope="module")
+def task(tmp_path_factory):
+    """One task, 'Cornell' (a capital letter, as TAs name things), and its right image."""
+    root = tmp_path_factory.mktemp("lms")
+    (root / "scenes").mkdir()
+    data = scene_dict("01_three_spheres")
+    data["image"].update(width=32, height=24)
+    (root / "scenes" / "Cornell.json").write_text(json.dumps(data))
+    return root, tracer.render_png(schemas.validate_scene(json.loads(json.dumps(data))))
+
+
+def put(root, relative, data):
+    path = root / "subs" / relative
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(data)
+    return path
+
+
+def rows_of(root, tmp_path):
+    outcome = classgrade.grade_class(root / "scenes", root / "subs", tmp_path / "report", jobs=1)
+    return {r["student"]: r for r in outcome.rows}, dict(outcome.ignored)
+
+
+def jpeg(png: bytes) -> bytes:
+    buf = io.BytesIO()
+    Image.open(io.BytesIO(png)).save(buf, format="JPEG")
+    return buf.getvalue()
+
+
+def test_extensions_and_names_match_regardless_of_case_and_one_folder_deeper(task, tmp_path):
+    right = task[1]
+    root = tmp_path / "class"
+    (root / "scenes").mkdir(parents=True)
+    (root / "scenes" / "Cornell.json").write_bytes((task[0] / "scenes" / "Cornell.json").read_bytes())
+    put(root, "ada/Cornell.PNG", right)
+    put(root, "ben/cornell.png", right)
+    put(root, "frank/hw3/Cornell.png", right)
+    rows, ignored = rows_of(root, tmp_path)
+    assert {s: (r["status"], r["file"]) for s, r in rows.items()} == {
+        "ada": ("pass", "Cornell.PNG"), "ben": ("pass", "cornell.png"), "frank": ("pass", "hw3/Cornell.png")}
+    assert ignored == {}
+
+
+def test_a_jpeg_is_invalid_not_missing(task, tmp_path):
+    root, right = task
+    root2 = tmp_path / "class"
+    (root2 / "scenes").mkdir(parents=True)
+    (root2 / "scenes" / "Cornell.json").write_bytes((root / "scenes" / "Cornell.json").read_bytes())
+    put(root2, "cal/Cornell.jpg", jpeg(right))
+    put(root2, "dee/Cornell.png", jpeg(right))  # a JPEG under a PNG's name
+    put(root2, "eve/Cornell.gif", b"GIF89a....")
+    rows, _ = rows_of(root2, tmp_path)
+    assert rows["cal"]["status"] == "invalid"
+    assert rows["cal"]["reason"] == f"{root2}/subs/cal/Cornell.jpg: image is a JPEG; PNG required"
+    assert rows["dee"]["reason"] == f"{root2}/subs/dee/Cornell.png: image is a JPEG; PNG required"
+    assert rows["eve"]["reason"].endswith("Cornell.gif: image is a GIF; PNG required")
+
+
+def test_what_cannot_be_graded_is_reported_with_its_reason(task, tmp_path):
+    root, right = task
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_bytes((root / "scenes" / "Cornell.json").read_bytes())
+    put(tmp_path, "two/a/Cornell.png", right)
+    put(tmp_path, "two/b/Cornell.png", right)
+    put(tmp_path, "both/Cornell.png", right)
+    put(tmp_path, "both/old/Cornell.png", right)
+    put(tmp_path, "png-and-jpg/Cornell.png", right)
+    put(tmp_path, "png-and-jpg/Cornell.jpg", jpeg(right))
+    put(tmp_path, "deep/hw/3/Cornell.png", right)
+    put(tmp_path, "__MACOSX/deep/._Cornell.png", b"")
+    put(tmp_path, "loose.png", right)
+    put(tmp_path, "lnk/x.png", right)
+    os.symlink(tmp_path / "subs" / "both" / "Cornell.png", tmp_path / "subs" / "lnk" / "Cornell.png")
+    rows, ignored = rows_of(tmp_path, tmp_path)
+    subs = tmp_path / "subs"
+    assert rows["two"]["status"] == "invalid"
+    assert rows["two"]["reason"] == f"2 files for Cornell: {subs}/two/a/Cornell.png, {subs}/two/b/Cornell.png; keep one"
+    assert rows["both"]["status"] == "pass" and rows["both"]["file"] == "Cornell.png"
+    assert rows["png-and-jpg"]["status"] == "pass" and rows["png-and-jpg"]["file"] == "Cornell.png"
+    assert rows["deep"]["status"] == "missing"
+    assert rows["lnk"]["status"] == "invalid"
+    assert rows["lnk"]["reason"] == f"{subs}/lnk/Cornell.png: a symbolic link; links in submissions are not followed"
+    assert "__MACOSX" not in rows
+    assert ignored == {
+        f"{subs}/__MACOSX": "not a student's folder",
+        f"{subs}/both/old/Cornell.png": f"another file for Cornell is graded: {subs}/both/Cornell.png",
+        f"{subs}/png-and-jpg/Cornell.jpg": f"another file for Cornell is graded: {subs}/png-and-jpg/Cornell.png",
+        f"{subs}/deep/hw/3": "a folder two levels down (phongray looks one folder deep)",
+        f"{subs}/loose.png": "not in a student's folder",
+        f"{subs}/lnk/x.png": "matches no task"}
+
+
+def test_untrusted_files_are_read_bounded_and_never_through_links(tmp_path):
+    (tmp_path / "big.png").write_bytes(b"x" * 101)
+    assert read_untrusted(tmp_path / "big.png", 101) == b"x" * 101
+    with pytest.raises(UntrustedFileError, match="larger than the limit max_image_bytes = 100 bytes"):
+        read_untrusted(tmp_path / "big.png", 100)
+    os.symlink(tmp_path / "big.png", tmp_path / "link.png")
+    with pytest.raises(UntrustedFileError, match="a symbolic link"):
+        read_untrusted(tmp_path / "link.png", 1000)
+    os.mkfifo(tmp_path / "fifo.png")  # would block a plain read forever
+    with pytest.raises(UntrustedFileError, match="not a regular file"):
+        read_untrusted(tmp_path / "fifo.png", 1000)
+
+
+def test_a_missing_folder_of_the_tas_is_a_class_error(tmp_path):
+    with pytest.raises(ClassError, match="cannot read"):
+        discover(tmp_path / "none", tmp_path)
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "t.json").write_text("{}")
+    with pytest.raises(ClassError, match="cannot read"):
+        discover(tmp_path / "scenes", tmp_path / "subs")
+
+
+def test_a_student_with_an_own_scene_and_no_folder_is_missing(tmp_path):
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "t.json").write_text("{}")
+    (tmp_path / "subs").mkdir()
+    (tmp_path / "own" / "zoe").mkdir(parents=True)
+    (tmp_path / "own" / "zoe" / "t.json").write_text("{}")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    (pair,) = batch.pairs
+    assert (pair.student, pair.own, pair.image, pair.scene) == ("zoe", True, None, tmp_path / "own" / "zoe" / "t.json")
+
+
+def test_the_pixels_of_a_nested_submission_are_graded(task, tmp_path):
+    """Found one folder deeper is graded, not just found: a wrong image there fails."""
+    root, right = task
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_bytes((root / "scenes" / "Cornell.json").read_bytes())
+    put(tmp_path, "gus/hw3/cornell.PNG", tracer.encode_png(np.zeros((24, 32, 3), np.uint8)))
+    rows, _ = rows_of(tmp_path, tmp_path)
+    assert rows["gus"]["status"] == "fail" and rows["gus"]["file"] == "hw3/cornell.PNG"
