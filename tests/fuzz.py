@@ -35,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 import generator  # noqa: E402
 import reference  # noqa: E402
+
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402

@@ -28,7 +28,8 @@ vertices, edge midpoints and planes meet lights and eyes exactly.
 from __future__ import annotations
 
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -64,7 +65,8 @@ def _materials(rng: Rng) -> dict[str, Any]:
                   "shininess": float(rng.choice([5, 40, 200]))},
         "mirror": {"ambient": 0.05, "diffuse": 0.1, "specular": 0.5,
                    "reflectance": round(float(rng.uniform(0.5, 0.95)), 3)},
-        "glass": {"ambient": 0.02, "diffuse": 0.05, "specular": 0.6, "transmittance": round(float(rng.uniform(0.6, 0.95)), 3),
+        "glass": {"ambient": 0.02, "diffuse": 0.05, "specular": 0.6,
+                  "transmittance": round(float(rng.uniform(0.6, 0.95)), 3),
                   "reflectance": round(float(rng.uniform(0.0, 0.15)), 3),
                   "ior": float(rng.choice([1.33, 1.5, 1.9, 0.8]))},
         "check": {"diffuse": colour(), "checker": {"size": float(rng.choice([0.25, 0.5, 1.0])), "material": "dark"}},
@@ -112,7 +114,7 @@ def icosphere(c: Any, r: float, mat: str, subdivisions: int, normals: bool) -> d
     for _ in range(subdivisions):
         mids: dict[tuple[int, int], int] = {}
 
-        def mid(a: int, b: int) -> int:
+        def mid(a: int, b: int, mids: dict[tuple[int, int], int] = mids) -> int:
             key = (min(a, b), max(a, b))
             if key not in mids:
                 m = verts[a] + verts[b]

@@ -145,7 +145,6 @@ def _on(s: Surface, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def intersect(s: Surface, o: np.ndarray, d: np.ndarray, leaving: np.ndarray) -> Test:
     """The first hit t > 0 of rays o + t d (unit d) with the surface; ``leaving`` marks rays that start on it."""
-    n = len(o)
     on, near = _on(s, o)
     on |= leaving
     near &= ~leaving

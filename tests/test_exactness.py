@@ -8,13 +8,14 @@ invariances the contract promises.
 
 import copy
 
+import fuzz
 import numpy as np
 import pytest
 
-import fuzz
 import schemas
-from helpers import differing, scaled, translated
 from tracer import Renderer, encode_png
+
+from helpers import differing, scaled, translated
 
 MATS = {"m": {"diffuse": 0.7}, "glass": {"transmittance": 0.9, "reflectance": 0.1, "ior": 1.5},
         "mirror": {"reflectance": 0.8}, "red": {"diffuse": [0.9, 0.1, 0.1], "specular": 0.9, "shininess": 20}}
@@ -159,8 +160,8 @@ HARD = {
          {"type": "sphere", "material": "glass", "center": [0, 0, 0], "radius": 1.0 - 1e-6},
          {"type": "sphere", "material": "red", "center": [0, 0, 0], "radius": 0.3},
          {"type": "plane", "material": "m", "point": [0, -1.2, 0], "normal": [0, 1, 0]}],
-        [{"type": "point", "color": 1, "position": [1e8, 1e8, 0.5e8]}], {"position": [0, 0.5, 3.5], "look_at": [0, 0, 0]},
-        max_depth=5),
+        [{"type": "point", "color": 1, "position": [1e8, 1e8, 0.5e8]}],
+        {"position": [0, 0.5, 3.5], "look_at": [0, 0, 0]}, max_depth=5),
     "camera on a sphere looking in": scene(
         [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
         [{"type": "point", "color": 1, "position": [0, 0.5, 0]}], {"position": [0, 0, 1], "look_at": [0, 0, 0]}),

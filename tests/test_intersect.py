@@ -6,8 +6,8 @@ import pytest
 import schemas
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector
 from tracer.rays import Shadows
-from tracer.walk import Best
 from tracer.shapes import plane_t, sphere_t, triangle_t
+from tracer.walk import Best
 from tracer.world import build_world, max_abs
 
 
@@ -142,7 +142,8 @@ HARD_FIELDS = {
                                                  [z * 5 + x, z * 5 + x + 6, z * 5 + x + 5])]},
                             {"type": "triangle", "material": "m", "vertices": [[0, 0, 0], [4, 0, 0], [0, 0, 4]]}],
     "closed box of 2e-5": [{"type": "mesh", "material": "m",
-                            "vertices": [[x * 2e-5, y * 2e-5, z * 2e-5] for x in (0, 1) for y in (0, 1) for z in (0, 1)],
+                            "vertices": [[x * 2e-5, y * 2e-5, z * 2e-5]
+                                         for x in (0, 1) for y in (0, 1) for z in (0, 1)],
                             "faces": [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                                       [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]},
                            {"type": "sphere", "material": "m", "center": [1e-5, 1e-5, 1e-5], "radius": 5e-6}],

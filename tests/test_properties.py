@@ -8,8 +8,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import schemas
-from helpers import EXAMPLES, scene_dict
 from tracer import Renderer
+
+from helpers import EXAMPLES, scene_dict
 
 #: examples per property; raise it for a longer hunt: PHONGRAY_PROPERTY_EXAMPLES=5000 pytest tests/test_properties.py
 EXAMPLES_PER_TEST = int(os.environ.get("PHONGRAY_PROPERTY_EXAMPLES", "200"))

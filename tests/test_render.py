@@ -11,9 +11,10 @@ import weakref
 import numpy as np
 import pytest
 
-from helpers import EXAMPLES, differing, mean_abs, reference, render_dict, scaled, scene_dict, translated
-from tracer import RenderCancelled, Renderer, encode_png
 import schemas
+from tracer import RenderCancelled, Renderer, encode_png
+
+from helpers import EXAMPLES, differing, mean_abs, reference, render_dict, scaled, scene_dict, translated
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +86,8 @@ HARD = {
     "camera inside a sphere": hard_scene([FLOOR, {**BALL, "radius": 10}], [LAMP, {"type": "ambient", "color": 0.2}]),
     "light exactly on the floor": hard_scene([FLOOR, BALL], [{**LAMP, "position": [1, 0, 1]}]),
     "light exactly on a sphere": hard_scene([FLOOR, BALL], [{**LAMP, "position": [0, 1, 0]}]),
-    "camera in the floor plane": hard_scene([FLOOR, BALL], [LAMP], camera={"position": [0, 0, 4], "look_at": [0, 0, 0]}),
+    "camera in the floor plane": hard_scene([FLOOR, BALL], [LAMP],
+                                            camera={"position": [0, 0, 4], "look_at": [0, 0, 0]}),
     "coplanar planes and triangle": hard_scene(
         [FLOOR, {**FLOOR, "material": "m"},
          {"type": "triangle", "material": "m", "vertices": [[-1, 0, -1], [1, 0, -1], [0, 0, 1]]}, BALL], [LAMP]),

@@ -13,7 +13,10 @@ def rays(origins, dirs):
     return np.asarray(origins, dtype=float), d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def sphere(o, d, center=np.zeros(3), radius=1.0, **kw):
+ORIGIN = np.zeros(3)
+
+
+def sphere(o, d, center=ORIGIN, radius=1.0, **kw):
     mag = np.abs(o).max(axis=1)
     return sphere_t(o, d, center, radius, mag, np.abs(center).max() + radius, **kw)
 

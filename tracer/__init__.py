@@ -1,5 +1,9 @@
 """The phongray tracer: ``render(scene)`` turns a validated scene into pixels."""
 
+from typing import Any
+
+from schemas import Scene
+
 from .image import decode_png, encode_png
 from .memory import tune_allocator
 from .render import ImageTooLarge, RenderCancelled, Renderer, render
@@ -9,6 +13,6 @@ tune_allocator()
 __all__ = ["ImageTooLarge", "RenderCancelled", "Renderer", "decode_png", "encode_png", "render", "render_png"]
 
 
-def render_png(scene, **kwargs) -> bytes:  # type: ignore[no-untyped-def]
+def render_png(scene: Scene, **kwargs: Any) -> bytes:
     """Render a validated scene straight to PNG bytes."""
     return encode_png(render(scene, **kwargs))

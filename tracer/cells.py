@@ -111,7 +111,8 @@ class Cells:
     def _key(self, k: np.ndarray) -> np.ndarray:
         return (k[:, 0] * self.dims[1] + k[:, 1]) * self.dims[2] + k[:, 2]
 
-    def pairs(self, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def pairs(self, rows: np.ndarray, region: np.ndarray,
+              but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(ray, primitive) pairs: each of ``rows`` with every member of its ``region`` (from :meth:`locate`;
         −1: none) that comes near that part of the cell (or, for a whole cell, every member), except the
         primitives ``but`` names for that row (when given: ``(n,)`` or ``(n, k)``; −1 for none)."""

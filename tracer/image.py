@@ -8,7 +8,6 @@ import zlib
 
 import numpy as np
 
-
 #: colours are summed in fixed point (:func:`tracer.render._accumulate`), a hair below their float value; a
 #: value that lies on a rounding boundary (a background of 0.3 is 76.5 levels) still rounds up, as in float
 NUDGE = 2.0**-22
@@ -51,7 +50,7 @@ def encode_png(pixels: np.ndarray, level: int = PNG_LEVEL) -> bytes:
         band = px[top:top + PNG_BAND]
         rows = np.zeros((len(band), 1 + 3 * w), dtype=np.uint8)  # a leading 0 per row: filter type none
         rows[:, 1:] = band.reshape(len(band), 3 * w)
-        parts.append(z.compress(rows))
+        parts.append(z.compress(rows.tobytes()))
     parts.append(z.flush())
     header = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)  # 8 bits per channel, RGB, deflate, no interlace
     return _SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", b"".join(parts)) + _chunk(b"IEND", b"")

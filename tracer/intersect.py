@@ -150,13 +150,13 @@ class Intersector:
             yield PLANE, k, plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
                                     (fk == PLANE) & (fi == k), ends, mag_e), None, None
         sp = w.spheres
-        for m, k in enumerate(self.direct_spheres):
+        for m, k in enumerate(self.direct_spheres.tolist()):
             if m % 64 == 63:
                 self.check()
             yield SPHERE, k, sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
                                       ends, reach, mag_e), None, None
         tr = w.triangles
-        for k in self.direct_triangles:
+        for k in self.direct_triangles.tolist():
             t, u, v = triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
                                  (fk == TRIANGLE) & (fi == k), ends, mag_e)
             yield TRIANGLE, k, t, u, v

@@ -8,8 +8,8 @@ directional light, a point light, a spot, or one sample of an area light
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 

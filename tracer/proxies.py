@@ -165,7 +165,8 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
         proxied = np.flatnonzero(~plain)
     tri_m = TRIANGLE_MARGIN * half_size if some_plain else m
     groups = [(proxied[g], v, template) for g, v, template in
-              triangle_prisms(*(rows_of(a, proxied) for a in (v0, e1, e2, normal)), tri_m)]
+              triangle_prisms(rows_of(v0, proxied), rows_of(e1, proxied), rows_of(e2, proxied),
+                              rows_of(normal, proxied), tri_m)]
     if len(radius):
         groups.append((np.arange(len(radius)) + n_tri, sphere_icosahedra(center, radius, m), ICO_FACES))
     for ids, v, template in groups:  # v: (k, vertices per proxy, 3)

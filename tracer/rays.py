@@ -77,7 +77,9 @@ class Shadows:
 
     def take(self, rows: np.ndarray) -> Shadows:
         n = len(self)
-        return Shadows(self.rays.take(rows), shared_rows(self.reach, rows, n), shared_rows(self.ends, rows, n),
+        reach = shared_rows(self.reach, rows, n)
+        assert reach is not None
+        return Shadows(self.rays.take(rows), reach, shared_rows(self.ends, rows, n),
                        shared_rows(self.mag_end, rows, n))
 
 

@@ -228,7 +228,7 @@ class Renderer:
                 continue
             every = len(rows) == len(nl)  # then no gathering: the rows are all of them, in order
 
-            def pick(a: np.ndarray) -> np.ndarray:
+            def pick(a: np.ndarray, every: bool = every, rows: np.ndarray = rows) -> np.ndarray:
                 return a if every else rows_of(a, rows)
 
             shadow_dirs = np.ascontiguousarray(pick(to_light))

@@ -36,9 +36,9 @@ TOL = 2.0**-46
 UV_TOL = 2.0**-40
 
 
-def on_tolerance(point_magnitude: np.ndarray, surface_magnitude: np.ndarray) -> np.ndarray:
+def on_tolerance(point_magnitude: np.ndarray | float, surface_magnitude: np.ndarray | float) -> np.ndarray:
     """How far from a surface a point may be and still lie on it: float64 rounding of both."""
-    return TOL * (point_magnitude + surface_magnitude)
+    return TOL * (np.asarray(point_magnitude) + surface_magnitude)
 
 
 def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: np.ndarray,

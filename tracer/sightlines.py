@@ -67,7 +67,7 @@ def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Si
     """The lines of a validated scene's rays (local coordinates about ``origin``), or None when a mirror or
     glass may send rays anywhere."""
     used = {obj.material for obj in scene.objects}
-    used |= {scene.materials[name].checker.material for name in used if scene.materials[name].checker}
+    used |= {checker.material for name in used if (checker := scene.materials[name].checker) is not None}
     if scene.image.max_depth > 0 and any(scene.materials[name].reflectance > 0 or
                                          scene.materials[name].transmittance > 0 for name in used):
         return None
@@ -81,7 +81,7 @@ def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Si
         if light.type in ("point", "spot"):
             lines.hulls.append(np.asarray(light.position, dtype=np.float64)[None] - origin)
         elif light.type == "directional":
-            lines.directions.append(unit(light.direction))
+            lines.directions.append(unit(np.asarray(light.direction, dtype=np.float64)))
         elif light.type == "area":
             c = np.asarray(light.corner, dtype=np.float64) - origin
             u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)

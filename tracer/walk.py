@@ -100,8 +100,8 @@ class Best:
         if not np.any(hit):
             return
         rows, t, index = rows[hit], t[hit], index[hit]
-        kind = np.broadcast_to(kind, hit.shape)[hit]
-        key = (kind.astype(np.int64) << 48) | index.astype(np.int64)
+        kinds = np.broadcast_to(kind, hit.shape)[hit]
+        key = (kinds.astype(np.int64) << 48) | index.astype(np.int64)
         if unique or len(rows) <= 1 or bool(np.all(rows[1:] > rows[:-1])):  # one hit per ray (as usual)
             pick = np.arange(len(rows))
         else:

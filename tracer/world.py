@@ -142,8 +142,8 @@ def build_world(scene: Scene) -> World:
         spheres=_spheres(scene, names, origin),
         planes=_planes(scene, names, origin),
         triangles=_triangles(scene, names, origin),
-        ambient=np.sum([light.color for light in scene.lights if light.type == "ambient"] or [[0.0] * 3],
-                       axis=0, dtype=F64),
+        ambient=np.sum(np.array([light.color for light in scene.lights if light.type == "ambient"],
+                                dtype=F64).reshape(-1, 3), axis=0),
         emitters=build_emitters(scene.lights, origin),
     )
 
@@ -169,7 +169,7 @@ def _materials(scene: Scene, names: dict[str, int]) -> Materials:
 
 def _spheres(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Spheres:
     index = [k for k, o in enumerate(scene.objects) if isinstance(o, Sphere)]
-    objs = [scene.objects[k] for k in index]
+    objs = [o for o in scene.objects if isinstance(o, Sphere)]
     center = np.array([o.center for o in objs], dtype=F64).reshape(-1, 3) - origin
     radius = np.array([o.radius for o in objs], dtype=F64)
     return Spheres(center=center, radius=radius,
@@ -180,7 +180,7 @@ def _spheres(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Spheres
 
 def _planes(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Planes:
     index = [k for k, o in enumerate(scene.objects) if isinstance(o, Plane)]
-    objs = [scene.objects[k] for k in index]
+    objs = [o for o in scene.objects if isinstance(o, Plane)]
     point_world = np.array([o.point for o in objs], dtype=F64).reshape(-1, 3)
     return Planes(point=point_world - origin,
                   normal=unit(np.array([o.normal for o in objs], dtype=F64).reshape(-1, 3)),
