@@ -3,17 +3,20 @@
 Every non-ambient light becomes one or more :class:`Emitter` records: a
 directional light, a point light, a spot, or one sample of an area light
 (a point light of ``color / (nu·nv)``).  Ambient light is summed separately.
+:data:`LIGHT_TYPES` is the one list of the light types: what each becomes,
+how many emitters, and where its shadow rays run (:mod:`tracer.sightlines`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from schemas.scene import AreaLight, DirectionalLight, PointLight, SpotLight
+from schemas.scene import AmbientLight, AreaLight, DirectionalLight, PointLight, SpotLight
 
 from .vec import divided, dot
 
@@ -45,31 +48,71 @@ def _unit3(v: Sequence[float]) -> np.ndarray:
     return a / np.linalg.norm(a)
 
 
+# -- the light types, in one list: what each becomes and where its shadow rays go ---------------------------
+
+def _directional(light: DirectionalLight, origin: np.ndarray) -> Emitters:
+    return [Emitter("directional", np.array(light.color, F64), np.zeros(3), _unit3(light.direction),
+                    np.array([1.0, 0, 0]))]
+
+
+def _point(light: PointLight, origin: np.ndarray) -> Emitters:
+    return [Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin, np.zeros(3),
+                    np.array(light.attenuation, F64))]
+
+
+def _spot(light: SpotLight, origin: np.ndarray) -> Emitters:
+    return [Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin,
+                    _unit3(light.direction), np.array(light.attenuation, F64),
+                    cos_outer=math.cos(math.radians(light.cutoff)), cos_inner=math.cos(math.radians(light.inner)),
+                    exponent=light.exponent)]
+
+
+def _area(light: AreaLight, origin: np.ndarray) -> Emitters:
+    nu, nv = light.samples
+    color = np.array(light.color, F64) / (nu * nv)
+    corner = np.array(light.corner, F64)
+    eu, ev = np.array(light.edge_u, F64), np.array(light.edge_v, F64)
+    return [Emitter("point", color, corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev - origin, np.zeros(3),
+                    np.array(light.attenuation, F64)) for i in range(nu) for j in range(nv)]
+
+
+def _position_hull(light: PointLight | SpotLight, origin: np.ndarray) -> np.ndarray:
+    return np.asarray(light.position, dtype=F64)[None] - origin
+
+
+def _area_hull(light: AreaLight, origin: np.ndarray) -> np.ndarray:
+    c = np.asarray(light.corner, dtype=F64) - origin
+    u, v = np.asarray(light.edge_u, dtype=F64), np.asarray(light.edge_v, dtype=F64)
+    return np.stack([c, c + u, c + v, c + u + v])
+
+
+@dataclass(frozen=True)
+class LightType:
+    """What one type of light becomes: its emitters (none for ambient light, summed apart), how many, and the
+    points (a hull: every shadow ray passes through a point of it) or the direction its shadow rays run on."""
+
+    emitters: Callable[[Any, np.ndarray], Emitters]
+    count: Callable[[Any], int]
+    hull: Callable[[Any, np.ndarray], np.ndarray] | None = None
+    direction: Callable[[Any], np.ndarray] | None = None
+
+
+LIGHT_TYPES: dict[type, LightType] = {
+    AmbientLight: LightType(lambda light, origin: [], lambda light: 0),
+    DirectionalLight: LightType(_directional, lambda light: 1, direction=lambda light: _unit3(light.direction)),
+    PointLight: LightType(_point, lambda light: 1, hull=_position_hull),
+    SpotLight: LightType(_spot, lambda light: 1, hull=_position_hull),
+    AreaLight: LightType(_area, lambda light: light.samples[0] * light.samples[1], hull=_area_hull),
+}
+
+
+def light_samples(lights: Sequence[object]) -> int:
+    """How many emitters (point lights, spots, directional lights and area-light samples) ``lights`` make."""
+    return sum(LIGHT_TYPES[type(light)].count(light) for light in lights)
+
+
 def build_emitters(lights: Sequence[object], origin: np.ndarray) -> Emitters:
-    out: Emitters = []
-    no_dir = np.zeros(3)
-    for light in lights:
-        if isinstance(light, DirectionalLight):
-            out.append(Emitter("directional", np.array(light.color, F64), no_dir, _unit3(light.direction),
-                               np.array([1.0, 0, 0])))
-        elif isinstance(light, SpotLight):
-            out.append(Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin,
-                               _unit3(light.direction), np.array(light.attenuation, F64),
-                               cos_outer=math.cos(math.radians(light.cutoff)),
-                               cos_inner=math.cos(math.radians(light.inner)), exponent=light.exponent))
-        elif isinstance(light, PointLight):
-            out.append(Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin,
-                               no_dir, np.array(light.attenuation, F64)))
-        elif isinstance(light, AreaLight):
-            nu, nv = light.samples
-            color = np.array(light.color, F64) / (nu * nv)
-            corner = np.array(light.corner, F64)
-            eu, ev = np.array(light.edge_u, F64), np.array(light.edge_v, F64)
-            for i in range(nu):
-                for j in range(nv):
-                    pos = corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev
-                    out.append(Emitter("point", color, pos - origin, no_dir, np.array(light.attenuation, F64)))
-    return out
+    return [em for light in lights for em in LIGHT_TYPES[type(light)].emitters(light, origin)]
 
 
 def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

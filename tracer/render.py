@@ -22,7 +22,7 @@ from schemas import Scene
 from .camera import CameraRays
 from .image import quantize
 from .intersect import MISS, Hits, Intersector
-from .lights import illuminate
+from .lights import illuminate, light_samples
 from .rays import Rays, Shadows, Work
 from .shading import light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
@@ -82,7 +82,7 @@ class Renderer:
         if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
             raise ImageTooLarge(f"image: {img.width}×{img.height} pixels × {img.samples}² sub-samples is more "
                                 f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})")
-        lights = sum(light.samples[0] * light.samples[1] if light.type == "area" else 1 for light in scene.lights)
+        lights = light_samples(scene.lights)
         if lights > MAX_LIGHT_SAMPLES:
             raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
                                 f"({MAX_LIGHT_SAMPLES})")

@@ -41,7 +41,7 @@ import numpy as np
 from schemas import Scene
 
 from .camera import CameraRays
-from .world import unit
+from .lights import LIGHT_TYPES
 
 #: how far float32 rounding may move a ray or a corner, in units of the BVH's half-size
 LINE_ERROR = 2.0**-19
@@ -78,14 +78,11 @@ def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Si
     else:
         lines.hulls.append(camera.eye[None])
     for light in scene.lights:
-        if light.type in ("point", "spot"):
-            lines.hulls.append(np.asarray(light.position, dtype=np.float64)[None] - origin)
-        elif light.type == "directional":
-            lines.directions.append(unit(np.asarray(light.direction, dtype=np.float64)))
-        elif light.type == "area":
-            c = np.asarray(light.corner, dtype=np.float64) - origin
-            u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
-            lines.hulls.append(np.stack([c, c + u, c + v, c + u + v]))
+        kind = LIGHT_TYPES[type(light)]
+        if kind.hull is not None:
+            lines.hulls.append(kind.hull(light, origin))
+        if kind.direction is not None:
+            lines.directions.append(kind.direction(light))
     if not all(np.all(np.isfinite(h)) for h in lines.hulls) or \
             not all(np.all(np.isfinite(d)) for d in lines.directions):
         return None
