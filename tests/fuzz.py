@@ -120,7 +120,7 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
     got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
     clear = ~ref.unclear
     with np.errstate(invalid="ignore"):
-        t_ok = (ref.surface < 0) | (np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + 64 * reference.ON * (
+        t_ok = (ref.surface < 0) | (np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + reference.ERR * (
             np.abs(o).max(axis=1) + ref.t))
     bad = clear & ((got != ref.surface) | ~t_ok)
     out.note("hit", int(clear.sum()), bad,

@@ -35,9 +35,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: a point within ON × (the magnitudes involved) of a surface lies on it
-ON = 2.0**-49
+ON = 2.0**-54
 #: a point beyond OFF × (the magnitudes involved) from a surface is clearly off it; in between is unclear
-OFF = 2.0**-41
+OFF = 2.0**-44
+#: how far a distance the brute force computes may be off, relative to the magnitudes involved
+ERR = 2.0**-43
 #: a dimensionless quantity (barycentric, cosine, relative gap) within GRAY of a threshold is unclear
 GRAY = 2.0**-34
 
@@ -149,7 +151,7 @@ def intersect(s: Surface, o: np.ndarray, d: np.ndarray, leaving: np.ndarray) -> 
     on |= leaving
     near &= ~leaving
     scale = _mag(o) + s.mag
-    err = ON * 64 * scale  # how far a computed distance may be off, in world units
+    err = ERR * scale  # how far a computed distance may be off, in world units
     if s.kind == "sphere":
         oc = o - s.center
         b = _dot(oc, d)
@@ -187,7 +189,7 @@ def flat_tests(flat: list[Surface], o: np.ndarray, d: np.ndarray, leaving: np.nd
     scale = _mag(o)[None] + mag
     on = (np.abs(dist) <= ON * scale) | leaving
     near = ~on & (np.abs(dist) <= OFF * scale)
-    err = ON * 64 * scale
+    err = ERR * scale
     denom = _dot(d[None], normal)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -dist / denom

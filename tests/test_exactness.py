@@ -249,3 +249,23 @@ def test_a_fan_of_8000_slivers_round_one_vertex_renders_and_agrees_with_the_brut
                  [{"type": "point", "color": 1, "position": [1, 3, 1]}],
                  {"position": [0.3, 2, 3], "look_at": [0, 0, 0]}, width=12, height=9)
     agrees_with_brute_force(data)
+
+
+def planet_and_speck(eye_height):
+    return {"camera": {"position": [0, eye_height, 0], "look_at": [0, 3e-7, -2e-6], "fov": 60},
+            "image": {"width": 24, "height": 18},
+            "materials": {"ground": {"diffuse": [0.2, 0.6, 0.2]}, "red": {"diffuse": [0.9, 0.1, 0.1]}},
+            "objects": [{"type": "sphere", "material": "ground", "center": [0, -1e9, 0], "radius": 1e9},
+                        {"type": "sphere", "material": "red", "center": [0, 3e-7, -2e-6], "radius": 3e-7}],
+            "lights": [{"type": "ambient", "color": 0.1}, {"type": "point", "color": 1, "position": [1e8, 1e8, 1e8]}]}
+
+
+def test_a_planet_under_a_speck_just_before_an_eye_1e6_above_it():
+    # the eye is 1e-6 above a sphere of radius 1e9 (float64 resolves 1.2e-7 there): it lies off the planet, so
+    # the planet is seen and lit, and the speck of 3e-7 before the eye shows in its own colour
+    img = render(planet_and_speck(1e-6))
+    lit = 96  # the ground's green, lit, as an eye 10 times higher sees it below the horizon
+    assert np.mean(render(planet_and_speck(1e-5))[12:, :, 1] == lit) > 0.9
+    assert np.mean(img[12:, :, 1] == lit) > 0.9
+    speck = (img[:, :, 0] > 2 * img[:, :, 1]) & (img[:, :, 0] > 20)
+    assert 1 <= speck.sum() < 0.2 * speck.size

@@ -9,7 +9,7 @@ import numpy as np
 
 from .intersect import PLANE, TRIANGLE, Hits
 from .lights import Emitter
-from .shapes import TOL, on_tolerance
+from .shapes import PARALLEL, on_tolerance
 from .vec import along, dot, rows_of, scaled
 from .world import World, max_abs, unit
 
@@ -69,13 +69,13 @@ def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: 
     """N·L as given (``nl``, with ``dist`` the distance to the light), but 0 where a hit lies on a flat
     surface (a plane, or a triangle without vertex normals) whose plane holds the light: its position within
     rounding (:func:`tracer.shapes.on_tolerance`, the rule by which such a surface does not block it), or, for
-    a directional light, its direction within ``TOL``.  Computed there, N·L would be rounding noise of
-    either sign, and a positive one lets the specular term glint.  Shape (N,).
+    a directional light, its direction within :data:`tracer.shapes.PARALLEL`.  Computed there, N·L would be
+    rounding noise of either sign, and a positive one lets the specular term glint.  Shape (N,).
 
     Only hits whose light lies within twice that tolerance of their tangent plane (``|N·L|·d``, which every
     light in the plane meets) are looked at."""
     if em.kind == "directional":
-        near = np.abs(nl) <= 2.0 * TOL
+        near = np.abs(nl) <= 2.0 * PARALLEL
     else:
         bound = on_tolerance(max_abs(em.position[None]) + world.origin_mag, world.flat_mag)
         near = np.abs(nl) * dist <= 2.0 * bound
@@ -89,7 +89,7 @@ def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: 
     rows, kind, index = rows[flat], kind[flat], index[flat]
     normal = rows_of(hits.normal, rows)
     if em.kind == "directional":
-        inside = np.abs(dot(normal, em.direction)) <= TOL
+        inside = np.abs(dot(normal, em.direction)) <= PARALLEL
     else:
         inside = np.zeros(len(rows), dtype=bool)
         position_mag = max_abs(em.position[None]) + world.origin_mag

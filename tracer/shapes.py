@@ -30,8 +30,16 @@ KINDS = {SPHERE: "sphere", PLANE: "plane", TRIANGLE: "triangle"}
 #: the kinds that lie in a plane (a triangle only without vertex normals, which the shading normal decides)
 FLAT = (PLANE, TRIANGLE)
 
-#: relative resolution: points closer than this (times the magnitudes involved) are the same place
-TOL = 2.0**-46
+#: relative resolution: points closer than this (times the magnitudes involved, the world's largest coordinates
+#: of the point and of the surface) are the same place.  Four units in the last place of half their sum: what
+#: the rounding of the input (a scene moved by 10⁶ rounds its coordinates) and of a hit point in the eye's
+#: frame leave, and no more, so that an eye 10⁻⁶ above a planet of radius 10⁹ (whose own numbers resolve
+#: 1.2·10⁻⁷ there) is not on it.  Coplanar and coincident surfaces, moved and scaled, keep to it
+#: (tests/test_exactness.py, tests/test_render.py, the fuzz test's moved scenes)
+TOL = 2.0**-52
+#: how near to 0 the cosine between a directional light and a flat surface's normal is parallel: a few
+#: roundings of two unit vectors
+PARALLEL = 2.0**-48
 #: barycentric allowance, so that a ray through a shared mesh edge never slips between its faces
 UV_TOL = 2.0**-40
 
