@@ -18,6 +18,7 @@ import numpy as np
 
 from schemas.scene import AmbientLight, AreaLight, DirectionalLight, PointLight, SpotLight
 
+from .variants import REFERENCE, Options
 from .vec import divided, dot
 
 F64 = np.float64
@@ -50,30 +51,35 @@ def _unit3(v: Sequence[float]) -> np.ndarray:
 
 # -- the light types, in one list: what each becomes and where its shadow rays go ---------------------------
 
-def _directional(light: DirectionalLight, origin: np.ndarray) -> Emitters:
+def _directional(light: DirectionalLight, origin: np.ndarray, options: Options) -> Emitters:
     return [Emitter("directional", np.array(light.color, F64), np.zeros(3), _unit3(light.direction),
                     np.array([1.0, 0, 0]))]
 
 
-def _point(light: PointLight, origin: np.ndarray) -> Emitters:
+def _attenuation(light: PointLight | SpotLight | AreaLight, options: Options) -> np.ndarray:
+    return np.array(light.attenuation if options.attenuation else (1.0, 0.0, 0.0), F64)
+
+
+def _point(light: PointLight, origin: np.ndarray, options: Options) -> Emitters:
     return [Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin, np.zeros(3),
-                    np.array(light.attenuation, F64))]
+                    _attenuation(light, options))]
 
 
-def _spot(light: SpotLight, origin: np.ndarray) -> Emitters:
+def _spot(light: SpotLight, origin: np.ndarray, options: Options) -> Emitters:
+    angle = math.radians if options.spot_degrees else float  # (a variant reads the cutoffs as radians)
     return [Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin,
-                    _unit3(light.direction), np.array(light.attenuation, F64),
-                    cos_outer=math.cos(math.radians(light.cutoff)), cos_inner=math.cos(math.radians(light.inner)),
+                    _unit3(light.direction), _attenuation(light, options),
+                    cos_outer=math.cos(angle(light.cutoff)), cos_inner=math.cos(angle(light.inner)),
                     exponent=light.exponent)]
 
 
-def _area(light: AreaLight, origin: np.ndarray) -> Emitters:
+def _area(light: AreaLight, origin: np.ndarray, options: Options) -> Emitters:
     nu, nv = light.samples
-    color = np.array(light.color, F64) / (nu * nv)
+    color = np.array(light.color, F64) / (nu * nv if options.area_divided else 1)
     corner = np.array(light.corner, F64)
     eu, ev = np.array(light.edge_u, F64), np.array(light.edge_v, F64)
     return [Emitter("point", color, corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev - origin, np.zeros(3),
-                    np.array(light.attenuation, F64)) for i in range(nu) for j in range(nv)]
+                    _attenuation(light, options)) for i in range(nu) for j in range(nv)]
 
 
 def _position_hull(light: PointLight | SpotLight, origin: np.ndarray) -> np.ndarray:
@@ -91,14 +97,14 @@ class LightType:
     """What one type of light becomes: its emitters (none for ambient light, summed apart), how many, and the
     points (a hull: every shadow ray passes through a point of it) or the direction its shadow rays run on."""
 
-    emitters: Callable[[Any, np.ndarray], Emitters]
+    emitters: Callable[[Any, np.ndarray, Options], Emitters]
     count: Callable[[Any], int]
     hull: Callable[[Any, np.ndarray], np.ndarray] | None = None
     direction: Callable[[Any], np.ndarray] | None = None
 
 
 LIGHT_TYPES: dict[type, LightType] = {
-    AmbientLight: LightType(lambda light, origin: [], lambda light: 0),
+    AmbientLight: LightType(lambda light, origin, options: [], lambda light: 0),
     DirectionalLight: LightType(_directional, lambda light: 1, direction=lambda light: _unit3(light.direction)),
     PointLight: LightType(_point, lambda light: 1, hull=_position_hull),
     SpotLight: LightType(_spot, lambda light: 1, hull=_position_hull),
@@ -111,8 +117,8 @@ def light_samples(lights: Sequence[object]) -> int:
     return sum(LIGHT_TYPES[type(light)].count(light) for light in lights)
 
 
-def build_emitters(lights: Sequence[object], origin: np.ndarray) -> Emitters:
-    return [em for light in lights for em in LIGHT_TYPES[type(light)].emitters(light, origin)]
+def build_emitters(lights: Sequence[object], origin: np.ndarray, options: Options = REFERENCE) -> Emitters:
+    return [em for light in lights for em in LIGHT_TYPES[type(light)].emitters(light, origin, options)]
 
 
 def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

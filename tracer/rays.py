@@ -91,12 +91,16 @@ class Work:
     sample: np.ndarray  # (N,) int64: index of the sub-sample in its chunk
     weight: np.ndarray  # (N,) product of the reflectances and transmittances on the way
     depth: int  # 0 for camera rays
+    #: (N,) int8, only when render passes are asked for: the branch of the ray tree from the first hit
+    #: (:mod:`tracer.passes`)
+    branch: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.rays)
 
     def take(self, rows: np.ndarray) -> Work:
-        return Work(self.rays.take(rows), self.sample[rows], self.weight[rows], self.depth)
+        return Work(self.rays.take(rows), self.sample[rows], self.weight[rows], self.depth,
+                    None if self.branch is None else self.branch[rows])
 
     def slices(self, size: int) -> list[Work]:
         """The batch cut into slices of at most ``size`` rays, in order."""

@@ -21,13 +21,15 @@ from schemas import Scene
 
 from .camera import CameraRays
 from .image import quantize
-from .intersect import MISS, Hits, Intersector
-from .lights import illuminate, light_samples
+from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
+from .lights import LIGHT_TYPES, Emitter, illuminate, light_samples
+from .passes import BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
 from .rays import Rays, Shadows, Work
 from .shading import light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
+from .variants import REFERENCE, Options
 from .vec import dot, rows_of, scaled
-from .world import World, build_world, max_abs
+from .world import World, build_world, max_abs, unit
 
 #: rays per chunk: large enough for NumPy to be efficient (and for its long loops, which let go of the GIL, to
 #: outweigh the interpreter's share), small enough to bound memory.  Measured on two threads: 2^16 is 12-25 %
@@ -74,7 +76,7 @@ class Renderer:
     ``counts`` tallies the rays cast so far by kind: primary, shadow, secondary.
     """
 
-    def __init__(self, scene: Scene):
+    def __init__(self, scene: Scene, options: Options = REFERENCE):
         img = scene.image
         if img.width * img.height > MAX_PIXELS:
             raise ImageTooLarge(f"image: {img.width}×{img.height} pixels is more than phongray renders "
@@ -91,9 +93,16 @@ class Renderer:
         self.slice_rays = CHUNK_RAYS
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self._count_lock = threading.Lock()
+        #: how this render departs from the format (a variant, :mod:`tracer.variants`); the reference by default
+        self.options = options
+        self.max_depth = max(0, img.max_depth + options.depth_offset)
+        #: the index in ``scene.lights`` of each emitter
+        self.emitter_light = np.repeat(np.arange(len(scene.lights)),
+                                       [LIGHT_TYPES[type(light)].count(light) for light in scene.lights])
         with np.errstate(all="ignore"):  # hostile magnitudes (1e300) overflow to inf here; the tracer copes
-            self.world: World = build_world(scene)
-            self.camera = CameraRays(scene.camera, scene.image, self.world.origin)
+            self.world: World = build_world(scene, options)
+            self.camera = CameraRays(scene.camera, scene.image, self.world.origin, options.half_pixel,
+                                     options.vertical_fov)
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
         self.intersector.check = self._stop
 
@@ -129,7 +138,9 @@ class Renderer:
             if stopped or (cancel is not None and cancel()):
                 stopped = True
                 return 0
-            out[a - first:b - first] = quantize(self.chunk(a, b))
+            colour = self.chunk(a, b)
+            out[a - first:b - first] = quantize(colour if not self.options.gamma else
+                                                np.clip(colour, 0.0, None) ** (1.0 / 2.2))
             return b - a
 
         if workers == 1 or len(bounds) == 1:
@@ -147,17 +158,48 @@ class Renderer:
                         progress(done, total)
         if stopped:
             raise RenderCancelled("the render was cancelled")
-        return out.reshape(bottom - top, img.width, 3)
+        image = out.reshape(bottom - top, img.width, 3)
+        return image[::-1] if self.options.flip_image else image
+
+    def passes(self, names: list[str], light: int | None = None, threads: int | None = None,
+               chunk_rays: int = CHUNK_RAYS) -> dict[str, np.ndarray]:
+        """Render passes (:mod:`tracer.passes`) by name: ``(H, W, 3)`` float64 for the additive ones and the
+        normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object."""
+        check_passes(names, light, len(self.scene.lights))
+        img = self.scene.image
+        self.slice_rays = chunk_rays
+        total = img.width * img.height
+        per_chunk = max(1, chunk_rays // (img.samples * img.samples))
+        bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        counted = int(np.count_nonzero(self.emitter_light == light)) if light is not None else len(self.emitter_light)
+
+        def work(bound: tuple[int, int]) -> dict[str, np.ndarray]:
+            a, b = bound
+            s = img.samples * img.samples
+            tally = Tally(tuple(names), (b - a) * s, s, light, self.emitter_light)
+            self.chunk(a, b, tally)
+            return tally.result((b - a, s), counted)
+
+        workers = threads or os.cpu_count() or 1
+        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(bounds)))) as pool:
+            parts = list(pool.map(work, bounds))
+        out = {}
+        for name in names:
+            whole = np.concatenate([p[name] for p in parts])
+            out[name] = whole.reshape(img.height, img.width, *whole.shape[1:])
+        return out
 
     # -- one chunk ---------------------------------------------------------
-    def chunk(self, start: int, stop: int) -> np.ndarray:
+    def chunk(self, start: int, stop: int, tally: Tally | None = None) -> np.ndarray:
         """Linear colour of pixels ``start..stop`` (mean of their sub-samples). Shape (stop − start, 3).
 
         The ray tree is traced depth-first in slices of at most ``slice_rays``
         rays, so memory depends on the slice size and the depth, never on
         2^depth.  Every contribution is added as a fixed-point integer, so the
         sums, and the bytes of the image, do not depend on the order in which
-        slices, chunks or threads deliver them.
+        slices, chunks or threads deliver them.  With a ``tally``, the passes
+        it asks for are added up too (each ray then carries the branch of the
+        ray tree it belongs to).
         """
         img = self.scene.image
         s = img.samples * img.samples
@@ -170,7 +212,8 @@ class Renderer:
             # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum
             fixed = 2.0 ** (48 - math.ceil(math.log2(ceiling)) - max(0, math.ceil(math.log2(self.slice_rays)) - 14))
             background = np.asarray(img.background, dtype=np.float64)
-            camera = Work(self.intersector.rays(origins, dirs), np.arange(n), np.ones(n), 0)
+            camera = Work(self.intersector.rays(origins, dirs), np.arange(n), np.ones(n), 0,
+                          None if tally is None else np.zeros(n, dtype=np.int8))
             stack: list[Work] = [camera]
             while stack:
                 work = stack.pop()
@@ -182,16 +225,20 @@ class Renderer:
                 missed = hits.kind == MISS
                 once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
                 _accumulate(acc, work.sample[missed], work.weight[missed, None] * background, ceiling, fixed, once)
+                if tally is not None:
+                    _tally_misses(tally, work, missed, background)
                 rows = np.flatnonzero(~missed)
                 if len(rows) == 0:
                     continue
                 hit, done = hits.take(rows), work.take(rows)
                 dd = done.rays.dirs
                 mat = resolve_material(self.world, hit)
-                normal = shading_normal(self.world, hit, dd)
-                _accumulate(acc, done.sample, scaled(self.direct(hit, mat, normal, dd), done.weight), ceiling, fixed,
-                            once)
-                if work.depth == img.max_depth:
+                normal = shading_normal(self.world, hit, dd, self.options.flip_normals)
+                if tally is not None and work.depth == 0:
+                    _tally_first_hits(tally, self.world, hit, done, normal)
+                _accumulate(acc, done.sample, scaled(self.direct(hit, mat, normal, dd, tally, done), done.weight),
+                            ceiling, fixed, once)
+                if work.depth == self.max_depth:
                     continue
                 children = self.secondary(hit, mat, normal, done)
                 self._count("secondary", len(children))
@@ -204,26 +251,38 @@ class Renderer:
         with self._count_lock:
             self.counts[kind] += n
 
-    def direct(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    def direct(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray,
+               tally: Tally | None = None, work: Work | None = None) -> np.ndarray:
         """Ambient plus every light's Phong term where the light reaches the hit points. Shape (N, 3).
 
         Per light: L, d and the intensity factor at every point; one batch of
         shadow rays for the points that face the light; then Phong over all
         points with the unreached ones weighted zero (cheaper than gathering).
+        With a ``tally`` (and the ``work`` the hits came from), the terms go to
+        their passes too.
         """
-        m = self.world.materials
+        m, opt = self.world.materials, self.options
         colour = rows_of(m.ambient, mat) * self.world.ambient
+        if not opt.ambient:
+            colour = np.zeros_like(colour)
         diffuse, specular, shininess = rows_of(m.diffuse, mat), rows_of(m.specular, mat), m.shininess[mat]
+        if not opt.specular:
+            specular = np.zeros_like(specular)
+        first = tally is not None and work is not None and work.depth == 0
+        if first:
+            assert tally is not None and work is not None
+            tally.add("ambient", work.sample, scaled(colour, work.weight))
         nv = -dot(normal, dirs)  # N·V, the same for every light
         mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
-        for em in self.world.emitters:
+        for e_index, em in enumerate(self.world.emitters):
             self._stop()  # a long chunk (many lights) stops early too
             mag_light = max_abs(em.position[None]) + self.world.origin_mag
             if not np.any(em.color > 0):
                 continue
             to_light, dist, factor = illuminate(em, hit.point)
             nl = light_in_plane(self.world, hit, em, dot(normal, to_light), dist)
-            rows = np.flatnonzero((nl > 0) & (factor > 0))
+            facing = nl > 0
+            rows = np.flatnonzero((facing | opt.specular_behind) & (factor > 0))
             if len(rows) == 0:
                 continue
             every = len(rows) == len(nl)  # then no gathering: the rows are all of them, in order
@@ -231,23 +290,51 @@ class Renderer:
             def pick(a: np.ndarray, every: bool = every, rows: np.ndarray = rows) -> np.ndarray:
                 return a if every else rows_of(a, rows)
 
-            shadow_dirs = np.ascontiguousarray(pick(to_light))
-            # from the exact hit point, leaving its surface by identity, to the light itself
-            rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(mag_points))
-            if em.kind == "directional":
-                shadows = Shadows(rays, np.full(len(rows), np.inf), None, None)
-            else:
-                shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
             self._count("shadow", len(rows))
-            blocked = self.intersector.occluded(shadows)
+            blocked = self._blocked(hit, pick, to_light, dist, em, mag_points, mag_light, normal, len(rows))
             if every:
                 weight = np.where(blocked, 0.0, factor)
             else:
                 weight = np.zeros(len(nl))
                 weight[rows] = np.where(blocked, 0.0, factor[rows])
-            rv = 2.0 * nl * nv + dot(to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
-            colour += em.color * phong(diffuse, specular, shininess, nl, rv, weight)
+            if opt.blinn:  # N·H with H = unit(L + V), V = −D
+                rv = dot(normal, unit(to_light - dirs))
+            else:
+                rv = 2.0 * nl * nv + dot(to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
+            d_term, s_term = phong(diffuse, specular, shininess, np.maximum(nl, 0.0) if opt.specular_behind
+                                   else nl, rv, weight)
+            colour += em.color * (d_term + s_term)
+            if first and tally is not None and work is not None and tally.counts(e_index):
+                tally.add("diffuse", work.sample, scaled(em.color * d_term, work.weight))
+                tally.add("specular", work.sample, scaled(em.color * s_term, work.weight))
+                if tally.visible is not None:
+                    np.add.at(tally.visible, work.sample, (weight > 0) & facing)
+        if tally is not None and work is not None and work.branch is not None and work.depth > 0:
+            for branch, name in BRANCH_PASS.items():
+                sel = np.flatnonzero(work.branch == branch)
+                if name is not None and len(sel):
+                    tally.add(name, work.sample[sel], scaled(colour[sel], work.weight[sel]))
         return colour
+
+    def _blocked(self, hit: Hits, pick: Callable[[np.ndarray], np.ndarray], to_light: np.ndarray,
+                 dist: np.ndarray, em: Emitter, mag_points: np.ndarray, mag_light: np.ndarray,
+                 normal: np.ndarray, n: int) -> np.ndarray:
+        """Whether a shadow ray from each picked hit point to the light ``em`` is blocked. Shape (n,)."""
+        opt = self.options
+        if not opt.shadows:
+            return np.zeros(n, dtype=bool)
+        shadow_dirs = np.ascontiguousarray(pick(to_light))
+        # from the exact hit point, leaving its surface by identity, to the light itself
+        rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(mag_points))
+        if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
+            below = ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
+            lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
+            rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
+        if em.kind == "directional":
+            shadows = Shadows(rays, np.full(n, np.inf), None, None)
+        else:
+            shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
+        return self.intersector.occluded(shadows)
 
     def secondary(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, work: Work) -> Work:
         """Mirror and refracted rays of the hits whose material asks for them: the next depth's work."""
@@ -257,11 +344,45 @@ class Renderer:
         r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
         t = np.flatnonzero(weight * kt > 0)
         # secondary rays start at the exact hit point and leave its surface by identity
-        out = np.concatenate([mirror(dirs[r], normal[r]), refract(dirs[t], hit.normal[t], m.ior[mat[t]])])
+        out = np.concatenate([mirror(dirs[r], normal[r]),
+                              refract(dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted)])
         both = np.concatenate([r, t])
         points = rows_of(hit.point, both)
         rays = Rays(points, out, hit.kind[both], hit.index[both], max_abs(points) + self.world.origin_mag)
-        return Work(rays, work.sample[both], np.concatenate([weight[r] * kr[r], weight[t] * kt[t]]), work.depth + 1)
+        branch = None
+        if work.branch is not None:  # the passes follow each branch of the tree from the first hit on
+            branch = work.branch[both] if work.depth > 0 else \
+                np.concatenate([np.full(len(r), REFLECTED), np.full(len(t), REFRACTED)]).astype(np.int8)
+        return Work(rays, work.sample[both], np.concatenate([weight[r] * kr[r], weight[t] * kt[t]]), work.depth + 1,
+                    branch)
+
+
+def _tally_misses(tally: Tally, work: Work, missed: np.ndarray, background: np.ndarray) -> None:
+    """The background that rays ``missed`` of ``work`` bring back, to its pass."""
+    rows = np.flatnonzero(missed)
+    if len(rows) == 0:
+        return
+    if work.depth == 0:
+        tally.add("background", work.sample[rows], work.weight[rows, None] * background)
+        return
+    assert work.branch is not None
+    for branch, name in BRANCH_PASS.items():
+        sel = rows[work.branch[rows] == branch]
+        if name is not None:
+            tally.add(name, work.sample[sel], work.weight[sel, None] * background)
+
+
+def _tally_first_hits(tally: Tally, world: World, hit: Hits, work: Work, normal: np.ndarray) -> None:
+    """The geometry of the first hits (camera rays), to the debugging passes."""
+    if tally.normal is not None:
+        tally.normal[work.sample] = normal
+    if tally.depth is not None:
+        tally.depth[work.sample] = hit.t
+    if tally.object is not None:
+        owners = {SPHERE: world.spheres.object, PLANE: world.planes.object, TRIANGLE: world.triangles.object}
+        for kind, owner in owners.items():
+            sel = np.flatnonzero(hit.kind == kind)
+            tally.object[work.sample[sel]] = owner[hit.index[sel]]
 
 
 def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling: float, fixed: float,

@@ -45,8 +45,9 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     return out
 
 
-def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
-    """Unit shading normal turned to face the ray (N·D ≤ 0). Shape (N, 3)."""
+def shading_normal(world: World, hits: Hits, dirs: np.ndarray, face_the_ray: bool = True) -> np.ndarray:
+    """Unit shading normal turned to face the ray (N·D ≤ 0; unless not ``face_the_ray``, a variant's
+    mistake). Shape (N, 3)."""
     normal = hits.normal.copy()
     tris = np.flatnonzero(hits.kind == TRIANGLE)
     if len(tris):
@@ -60,8 +61,9 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray) -> np.ndarray:
             zero = ~np.any(blend != 0, axis=1)
             blend[zero] = normal[rows[zero]]
             normal[rows] = blend
-    flip = dot(normal, dirs) > 0
-    normal[flip] *= -1.0
+    if face_the_ray:
+        flip = dot(normal, dirs) > 0
+        normal[flip] *= -1.0
     return normal
 
 
@@ -106,8 +108,9 @@ def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: 
 
 
 def phong(diffuse: np.ndarray, specular: np.ndarray, shininess: np.ndarray, nl: np.ndarray, rv: np.ndarray,
-          weight: np.ndarray) -> np.ndarray:
-    """``weight · (k_d (N·L) + k_s max(0, R·V)^n)`` per point. Shape (N, 3).
+          weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``weight · k_d (N·L)`` and ``weight · k_s max(0, R·V)^n`` per point, the diffuse and the specular
+    term: their sum is the Phong term. Each (N, 3).
 
     ``diffuse, specular (N, 3)`` and ``shininess (N,)`` are the hit points'
     material values; ``nl = N·L`` and ``rv = R·V``; ``weight (N,)`` carries
@@ -117,9 +120,7 @@ def phong(diffuse: np.ndarray, specular: np.ndarray, shininess: np.ndarray, nl: 
     """
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         spec = np.where(rv > 0, np.power(np.where(rv > 0, rv, 1.0), shininess), 0.0)
-    out = scaled(diffuse, weight * nl)
-    out += scaled(specular, weight * spec)
-    return out
+    return scaled(diffuse, weight * nl), scaled(specular, weight * spec)
 
 
 def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:
@@ -127,10 +128,11 @@ def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return unit(along(dirs, -2.0 * dot(dirs, normal), normal))
 
 
-def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray) -> np.ndarray:
-    """Refracted unit directions by the contract's rule (mirror direction on total internal reflection)."""
+def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray, inverted: bool = False) -> np.ndarray:
+    """Refracted unit directions by the contract's rule (mirror direction on total internal reflection); with
+    ``inverted`` (a variant's mistake) η is ior entering and 1/ior leaving."""
     entering = dot(dirs, geometric) < 0
-    eta = np.where(entering, 1.0 / ior, ior)
+    eta = np.where(entering != inverted, 1.0 / ior, ior)
     w = np.where(entering[:, None], geometric, -geometric)
     c = -dot(dirs, w)
     k = 1.0 - eta * eta * (1.0 - c * c)

@@ -23,6 +23,7 @@ import numpy as np
 from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .lights import Emitters, build_emitters
+from .variants import REFERENCE, Options
 from .vec import cross, divided, dot, most, rows_of
 
 F64 = np.float64
@@ -132,7 +133,7 @@ def scene_centre(scene: Scene) -> np.ndarray:
     return np.asarray(scene.camera.position, dtype=F64).copy()
 
 
-def build_world(scene: Scene) -> World:
+def build_world(scene: Scene, options: Options = REFERENCE) -> World:
     origin = scene_centre(scene)
     names = {name: k for k, name in enumerate(scene.materials)}
     return World(
@@ -144,7 +145,7 @@ def build_world(scene: Scene) -> World:
         triangles=_triangles(scene, names, origin),
         ambient=np.sum(np.array([light.color for light in scene.lights if light.type == "ambient"],
                                 dtype=F64).reshape(-1, 3), axis=0),
-        emitters=build_emitters(scene.lights, origin),
+        emitters=build_emitters(scene.lights, origin, options),
     )
 
 

@@ -1,0 +1,66 @@
+"""Variants (tracer/variants.py): a student's classic mistakes, as named options of a render."""
+
+import numpy as np
+import pytest
+
+import schemas
+from helpers import scene_dict
+from tracer import Renderer
+from tracer.image import quantize
+from tracer.variants import REFERENCE, VARIANTS, Options
+
+#: a scene where every mistake shows: glass, a mirror, every light type, a spot with a hard edge, a deep tree
+EVERYTHING = {
+    "camera": {"position": [0.5, 2.2, 5.5], "look_at": [0, 0.6, 0], "fov": 45},
+    "image": {"width": 48, "height": 36, "max_depth": 2},
+    "materials": {"m": {"diffuse": [0.6, 0.5, 0.4], "specular": 0.7, "shininess": 30},
+                  "glass": {"transmittance": 0.8, "reflectance": 0.1, "ior": 1.5},
+                  "mirror": {"reflectance": 0.7}},
+    "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]},
+                {"type": "sphere", "material": "glass", "center": [-0.9, 0.7, 0.5], "radius": 0.7},
+                {"type": "sphere", "material": "mirror", "center": [0.9, 0.7, -0.5], "radius": 0.7},
+                {"type": "sphere", "material": "m", "center": [0.2, 0.35, 1.4], "radius": 0.35},
+                {"type": "triangle", "material": "m", "vertices": [[-2, 0, -2], [2, 0, -2], [0, 2.5, -2.2]]}],
+    "lights": [{"type": "ambient", "color": 0.2},
+               {"type": "point", "color": 1.2, "position": [-3, 4, 3], "attenuation": [1, 0.05, 0.02]},
+               {"type": "spot", "color": 1, "position": [2, 3, 2], "direction": [-1, -1.5, -1], "cutoff": 25},
+               {"type": "area", "color": 0.8, "corner": [0, 3.5, -1], "edge_u": [1, 0, 0], "edge_v": [0, 0, 1],
+                "samples": [2, 2]},
+               {"type": "directional", "color": 0.3, "direction": [0.3, -1, 0.2]},
+               {"type": "point", "color": 0.6, "position": [0, 0.4, 3]},
+               {"type": "point", "color": 0.6, "position": [-1, -0.1, -3]}],  # under the floor: N·L < 0 there
+}
+
+
+def pixels(options=REFERENCE, data=EVERYTHING):
+    return Renderer(schemas.validate_scene(data), options).pixels()
+
+
+def test_the_reference_options_are_the_reference_render():
+    data = scene_dict("04_whitted")
+    assert np.array_equal(pixels(Options(), data), Renderer(schemas.validate_scene(data)).pixels())
+    assert REFERENCE.reference and not VARIANTS["gamma"][0].reference
+    assert VARIANTS["no-shadows"][0].changes() == ["shadows"]
+
+
+@pytest.mark.parametrize("name", sorted(VARIANTS))
+def test_every_variant_changes_the_image(name):
+    assert np.mean(np.any(pixels(VARIANTS[name][0]) != pixels(), axis=2)) > 0.001
+
+
+def test_variants_that_are_a_function_of_the_image():
+    ref = pixels()
+    assert np.array_equal(pixels(VARIANTS["image-flipped"][0]), ref[::-1])
+    r = Renderer(schemas.validate_scene(EVERYTHING))
+    img = EVERYTHING["image"]
+    lin = r.chunk(0, img["width"] * img["height"]).reshape(img["height"], img["width"], 3)
+    assert np.array_equal(pixels(VARIANTS["gamma"][0]), quantize(np.clip(lin, 0, None) ** (1 / 2.2)))
+
+
+def test_variants_that_only_add_or_only_take_light():
+    ref = pixels().astype(int)
+    assert np.all(pixels(VARIANTS["no-shadows"][0]) >= ref)
+    assert np.all(pixels(VARIANTS["no-ambient"][0]) <= ref)
+    assert np.all(pixels(VARIANTS["no-specular"][0]) <= ref)
+    assert np.all(pixels(VARIANTS["no-attenuation"][0]) >= ref)
+    assert np.all(pixels(VARIANTS["area-not-divided"][0]) >= ref)

@@ -1,0 +1,107 @@
+"""Render passes: the image taken apart, term by term, for a student who debugs a tracer stage by stage.
+
+The additive passes are linear colours, each the mean over a pixel's
+sub-samples before any clamp, and they sum to the image's linear value:
+
+* ``background``: camera rays that hit nothing;
+* ``ambient``, ``diffuse``, ``specular``: the Phong terms at the first hit
+  (with ``light=K``, diffuse and specular of the scene's light K alone);
+* ``reflection``, ``refraction``: everything the mirror ray and the
+  refracted ray of the first hit bring back, whole trees included.
+
+The others are for debugging: ``shadow``, the fraction of a light's samples
+(light K, or every light) that reach the first hit and face it; ``normal``,
+the facing shading normal there (each component in −1..1); ``depth``, the
+distance t along the camera ray (inf for a miss); ``object``, the index in
+``scene.objects`` of what the sub-sample nearest the pixel's centre hits
+(−1 for nothing).
+
+Sums are fixed-point integers, as the image's are (:func:`tracer.render`), so
+a pass does not depend on threads or chunks either; a pass saturates at
+:data:`CEILING` per pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+ADDITIVE = ("background", "ambient", "diffuse", "specular", "reflection", "refraction")
+DEBUG = ("shadow", "normal", "depth", "object")
+NAMES = ADDITIVE + DEBUG
+#: where an additive pass saturates, per pixel (the image itself saturates at 1)
+CEILING = 1024.0
+#: the ray-tree branches a contribution comes from: the first hit, its mirror ray, its refracted ray
+FIRST, REFLECTED, REFRACTED = 0, 1, 2
+BRANCH_PASS = {FIRST: None, REFLECTED: "reflection", REFRACTED: "refraction"}
+
+
+def check_passes(names: list[str], light: int | None, lights: int) -> None:
+    """Raises ValueError naming what is wrong with asking for passes ``names`` of light ``light`` (None for
+    every light) of a scene with ``lights`` lights."""
+    for name in names:
+        if name not in NAMES:
+            raise ValueError(f"pass: unknown pass '{name}' (one of {', '.join(NAMES)})")
+    if light is not None and not 0 <= light < lights:
+        raise ValueError(f"light: the scene has {lights} lights (0..{lights - 1}), not {light}")
+
+
+@dataclass
+class Tally:
+    """What one chunk adds up for the passes asked for: fixed-point sums per sub-sample."""
+
+    names: tuple[str, ...]
+    samples: int  # sub-samples in the chunk
+    per_pixel: int  # sub-samples per pixel
+    light: int | None  # the scene light the light-specific passes are of
+    emitter_light: np.ndarray  # (E,) int: the scene light each emitter comes from
+    fixed: float = 2.0**30
+    sums: dict[str, np.ndarray] = field(default_factory=dict)
+    visible: np.ndarray | None = None  # (samples,) reached-and-facing samples of the light(s)
+    normal: np.ndarray | None = None  # (samples, 3)
+    depth: np.ndarray | None = None  # (samples,)
+    object: np.ndarray | None = None  # (samples,) int
+
+    def __post_init__(self) -> None:
+        for name in self.names:
+            if name in ADDITIVE:
+                self.sums[name] = np.zeros((self.samples, 3), dtype=np.int64)
+        if "shadow" in self.names:
+            self.visible = np.zeros(self.samples)
+        if "normal" in self.names:
+            self.normal = np.zeros((self.samples, 3))
+        if "depth" in self.names:
+            self.depth = np.full(self.samples, np.inf)
+        if "object" in self.names:
+            self.object = np.full(self.samples, -1, dtype=np.int64)
+
+    def counts(self, emitter: int) -> bool:
+        """Whether the light-specific passes count this emitter."""
+        return self.light is None or int(self.emitter_light[emitter]) == self.light
+
+    def add(self, name: str, sample: np.ndarray, values: np.ndarray) -> None:
+        """Add linear colours ``values (n, 3)`` to pass ``name`` at sub-samples ``sample`` (may repeat)."""
+        acc = self.sums.get(name)
+        if acc is None or len(sample) == 0:
+            return
+        v = np.clip(np.nan_to_num(values, nan=0.0, posinf=CEILING), 0.0, CEILING * self.per_pixel)
+        np.add.at(acc, sample, np.rint(v * self.fixed).astype(np.int64))
+
+    def result(self, shape: tuple[int, int], samples_of_light: int) -> dict[str, np.ndarray]:
+        """Per pixel, over ``shape = (pixels, sub-samples per pixel)``: every pass asked for."""
+        n, s = shape
+        out: dict[str, np.ndarray] = {}
+        for name, acc in self.sums.items():
+            total = acc.reshape(n, s, 3).sum(axis=1).astype(np.float64) / (self.fixed * s)
+            out[name] = np.minimum(total, CEILING)
+        if self.visible is not None:
+            out["shadow"] = self.visible.reshape(n, s).mean(axis=1) / max(samples_of_light, 1)
+        if self.normal is not None:
+            out["normal"] = self.normal.reshape(n, s, 3).mean(axis=1)
+        if self.depth is not None:
+            out["depth"] = self.depth.reshape(n, s).mean(axis=1)
+        if self.object is not None:
+            side = int(round(s ** 0.5))
+            out["object"] = self.object.reshape(n, s)[:, (side // 2) * side + side // 2]
+        return out
