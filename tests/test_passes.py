@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 
 import schemas
-from helpers import scene_dict
 from tracer import Renderer
 from tracer.passes import ADDITIVE, NAMES
+
+from helpers import scene_dict
 
 
 def linear(renderer):

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 
 import schemas
-from helpers import scene_dict
 from tracer import Renderer
 from tracer.image import quantize
 from tracer.variants import REFERENCE, VARIANTS, Options
+
+from helpers import scene_dict
 
 #: a scene where every mistake shows: glass, a mirror, every light type, a spot with a hard edge, a deep tree
 EVERYTHING = {
