@@ -33,13 +33,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-import generator  # noqa: E402
-import reference  # noqa: E402
-
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
 from tracer.rays import Shadows  # noqa: E402
+
+import generator  # noqa: E402
+import reference  # noqa: E402
 
 #: t of a primary hit may differ by this much, relative (plus the brute force's own uncertainty)
 T_TOLERANCE = 2.0**-30

@@ -1,4 +1,5 @@
-"""Does the fuzz test catch a weakened walk?  Each mutant weakens one stop rule or guarantee of the walk.
+"""Does the fuzz test catch a weakened walk?  Each mutant weakens one stop rule or guarantee of the walk, or
+one of the proofs that spare an area light's shadow rays.
 
     python -m tests.mutants [--scenes N]
 
@@ -42,6 +43,10 @@ MUTANTS = [
      "        inside = np.flatnonzero(from_prim >= 0)\n        start[inside] = 0.0\n        inside = inside[:0]\n"),
     ("boxes are registered without reach", "proxies.py", "REACH = 2.0**-14", "REACH = 0.0"),
     ("proxies have no margin", "proxies.py", "MARGIN = 2.0**-17", "MARGIN = 2.0**-40"),
+    ("an area light is proven seen when one bound lies outside its pyramid", "culling.py",
+     "    seen = np.all(separated, axis=1) & ~flat", "    seen = np.any(separated, axis=1) & ~flat"),
+    ("an area light is proven hidden by a sphere that covers one corner", "culling.py",
+     "        for q in corners:\n", "        for q in corners[:1]:\n"),
     ("a shadow walk stops before its light by a tenth", "walk.py",
      "            far = np.minimum(limit[live] + p.slack, t_out[live]) - s\n",
      "            far = np.minimum(limit[live] * 0.9, t_out[live]) - s\n"),
@@ -61,7 +66,8 @@ def run(mutant: tuple[str, str, str, str] | None, scenes: int) -> bool:
         env = {**os.environ, "PYTHONPATH": tmp}
         if scenes:
             env["PHONGRAY_FUZZ_SCENES"] = str(scenes)
-        tests = [str(ROOT / "tests" / name) for name in ("test_proxies.py", "test_cells.py", "test_fuzz.py")]
+        tests = [str(ROOT / "tests" / name)
+                 for name in ("test_proxies.py", "test_cells.py", "test_culling.py", "test_fuzz.py")]
         out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *tests],
                              env=env, cwd=tmp, capture_output=True, text=True)
         return out.returncode == 0

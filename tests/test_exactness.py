@@ -8,13 +8,13 @@ invariances the contract promises.
 
 import copy
 
-import fuzz
 import numpy as np
 import pytest
 
 import schemas
 from tracer import Renderer, encode_png
 
+import fuzz
 from helpers import differing, scaled, translated
 
 MATS = {"m": {"diffuse": 0.7}, "glass": {"transmittance": 0.9, "reflectance": 0.1, "ior": 1.5},

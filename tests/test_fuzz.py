@@ -8,9 +8,10 @@ ray and pixel by pixel (:mod:`fuzz`), on every core.  A soak of thousands is
 import os
 from concurrent.futures import ProcessPoolExecutor
 
+import pytest
+
 import fuzz
 import generator
-import pytest
 
 #: scenes per CI run (``PHONGRAY_FUZZ_SCENES`` may change it), and the first seed: a fixed set, so that a failure
 #: reproduces

@@ -17,9 +17,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from schemas import Scene
+from schemas import AreaLight, Scene
 
 from .camera import CameraRays
+from .culling import MIXED, SEEN, bounds_of, classify
 from .image import quantize
 from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate, light_samples
@@ -104,7 +105,21 @@ class Renderer:
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin, options.half_pixel,
                                      options.vertical_fov)
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
+            #: each area light's parallelogram (local corners in order round it), by its first emitter
+            self.areas = self._areas(scene)
+            self.bounds = bounds_of(self.world) if self.areas and options.shadows and not options.acne else None
         self.intersector.check = self._stop
+
+    def _areas(self, scene: Scene) -> dict[int, tuple[int, np.ndarray]]:
+        out: dict[int, tuple[int, np.ndarray]] = {}
+        first = 0
+        for light, count in zip(scene.lights, (LIGHT_TYPES[type(lt)].count(lt) for lt in scene.lights)):
+            if isinstance(light, AreaLight):
+                c = np.asarray(light.corner, dtype=np.float64) - self.world.origin
+                u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
+                out[first] = (count, np.stack([c, c + u, c + u + v, c + v]))
+            first += count
+        return out
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
@@ -274,7 +289,15 @@ class Renderer:
             tally.add("ambient", work.sample, scaled(colour, work.weight))
         nv = -dot(normal, dirs)  # N·V, the same for every light
         mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
+        proven: np.ndarray | None = None  # the area light's points that see every sample, or none (culling)
+        group_end = 0
         for e_index, em in enumerate(self.world.emitters):
+            if e_index >= group_end:
+                proven, group_end = None, e_index + 1
+                area = self.areas.get(e_index)
+                if area is not None and self.bounds is not None and len(hit.t) > 0:
+                    group_end = e_index + area[0]
+                    proven = classify(self.bounds, hit.point, hit.kind, hit.index, normal, area[1])
             self._stop()  # a long chunk (many lights) stops early too
             mag_light = max_abs(em.position[None]) + self.world.origin_mag
             if not np.any(em.color > 0):
@@ -282,21 +305,28 @@ class Renderer:
             to_light, dist, factor = illuminate(em, hit.point)
             nl = light_in_plane(self.world, hit, em, dot(normal, to_light), dist)
             facing = nl > 0
-            rows = np.flatnonzero((facing | opt.specular_behind) & (factor > 0))
-            if len(rows) == 0:
+            lit = (facing | opt.specular_behind) & (factor > 0)
+            if proven is not None:  # by proof: every sample seen, or none; the rest cast their rays
+                weight = np.where(lit & (proven == SEEN), factor, 0.0)
+                lit &= proven == MIXED
+            rows = np.flatnonzero(lit)
+            if len(rows) == 0 and proven is None:
                 continue
             every = len(rows) == len(nl)  # then no gathering: the rows are all of them, in order
 
             def pick(a: np.ndarray, every: bool = every, rows: np.ndarray = rows) -> np.ndarray:
                 return a if every else rows_of(a, rows)
 
-            self._count("shadow", len(rows))
-            blocked = self._blocked(hit, pick, to_light, dist, em, mag_points, mag_light, normal, len(rows))
-            if every:
-                weight = np.where(blocked, 0.0, factor)
-            else:
-                weight = np.zeros(len(nl))
-                weight[rows] = np.where(blocked, 0.0, factor[rows])
+            if len(rows):
+                self._count("shadow", len(rows))
+                blocked = self._blocked(hit, pick, to_light, dist, em, mag_points, mag_light, normal, len(rows))
+                if proven is not None:
+                    weight[rows] = np.where(blocked, 0.0, factor[rows])
+                elif every:
+                    weight = np.where(blocked, 0.0, factor)
+                else:
+                    weight = np.zeros(len(nl))
+                    weight[rows] = np.where(blocked, 0.0, factor[rows])
             if opt.blinn:  # N·H with H = unit(L + V), V = −D
                 rv = dot(normal, unit(to_light - dirs))
             else:
