@@ -213,3 +213,17 @@ def test_precision_does_not_depend_on_where_look_at_is():
     far = build_world(scene_with(objs, {"position": [0, 0, 30], "look_at": [0, 0, -1e6]}))
     assert np.array_equal(near.origin, far.origin)
     assert np.array_equal(Intersector(near).walker.proxies.vertices, Intersector(far).walker.proxies.vertices)
+
+
+def test_slab_enters_and_leaves_a_box_along_every_axis_and_never_when_beside_it():
+    from tracer.walk import slab
+
+    o = np.array([[0.5, 2.0, 0.5], [0.5, 0.5, 0.5], [-1, 0.5, 0.5], [0.5, 0.5, -3], [2, 2, 2]])
+    d = np.array([[1.0, 0, 0], [0, 0, 1.0], [1, 0, 0], [0, 0, -1.0], [-1, -1, -1]])
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    near, far = slab(o, d, np.zeros(3), np.ones(3))
+    assert near[0] > far[0]  # beside the box along an axis it does not move on
+    assert (near[1], far[1]) == (-0.5, 0.5)
+    assert (near[2], far[2]) == (1.0, 2.0)
+    assert (near[3], far[3]) == (-4.0, -3.0)  # behind the origin
+    assert np.isclose(near[4], np.sqrt(3)) and np.isclose(far[4], 2 * np.sqrt(3))

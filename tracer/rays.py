@@ -43,8 +43,9 @@ class Rays:
         n = len(origins)
         if from_kind is None or from_index is None:
             from_kind, from_index = np.full(n, MISS, dtype=np.int8), np.full(n, -1, dtype=np.int64)
-        if mag is None:
-            mag = np.max(np.abs(origins), axis=1, initial=0.0) + origin_mag
+        if mag is None:  # (a column at a time: a reduction over a row of three is a loop per row in NumPy)
+            mag = np.maximum(np.maximum(np.abs(origins[:, 0]), np.abs(origins[:, 1])), np.abs(origins[:, 2]))
+            mag += origin_mag
         return Rays(origins, dirs, from_kind, from_index, mag)
 
     def __len__(self) -> int:

@@ -64,23 +64,25 @@ def slab(origins: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarray) 
     An axis at a time, on 1-D columns.  Along an axis the ray does not move on (a zero direction), the
     slab is all of the line when the origin lies in it (closed) and none of it otherwise."""
     lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-    near = far = None
+    n = len(origins)
+    near, far = np.full(n, -np.inf), np.full(n, np.inf)
+    t0, t1, inv = np.empty(n), np.empty(n), np.empty(n)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for a in range(3):
+        for a in range(3):  # in place: a few passes per axis and no temporaries
             o, d = origins[:, a], dirs[:, a]
             la, ha = (lo[..., a], hi[..., a])
-            inv = 1.0 / d
-            t0 = (la - o) * inv
-            t1 = (ha - o) * inv
-            lo_t, hi_t = np.minimum(t0, t1), np.maximum(t0, t1)
+            np.divide(1.0, d, out=inv)
+            np.subtract(la, o, out=t0)
+            t0 *= inv
+            np.subtract(ha, o, out=t1)
+            t1 *= inv
             flat = d == 0
             if flat.any():
                 inside = (o >= la) & (o <= ha)
-                lo_t = np.where(flat, np.where(inside, -np.inf, np.inf), lo_t)
-                hi_t = np.where(flat, np.where(inside, np.inf, -np.inf), hi_t)
-            near = lo_t if near is None else np.maximum(near, lo_t)
-            far = hi_t if far is None else np.minimum(far, hi_t)
-    assert near is not None and far is not None
+                t0[flat] = np.where(inside[flat], -np.inf, np.inf)  # outside: both inf, the slab is empty
+                t1[flat] = np.inf
+            np.maximum(near, np.minimum(t0, t1), out=near)
+            np.minimum(far, np.maximum(t0, t1), out=far)
     return near, far
 
 
