@@ -1,0 +1,246 @@
+"""What a failing submission most likely got wrong: named mistakes, terms out of scale, and where.
+
+Three kinds of evidence, each from renders of the reference scene:
+
+* **Variants.** The reference rendered with each classic mistake
+  (:data:`tracer.variants.VARIANTS`), graded against the submission with the
+  same measure as the grade itself.  A variant the submission passes against
+  is a likely cause; when none passes, one that comes far closer than the
+  reference does is named as the closest, and otherwise nothing fits.
+* **Terms.** A non-negative least-squares fit of the submission's linear
+  values against the reference's additive passes (background, ambient, each
+  light's diffuse and specular, reflection, refraction), on the pixels neither
+  image clips: a coefficient far from 1 says a term is too strong or too weak,
+  and by how much.
+* **Where.** The objects the failing pixels show (the object pass), and the
+  lights whose light falls on them.
+
+Everything here is pure: the renders come in through a :class:`Renders`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from tracer.variants import VARIANTS
+
+from .display import percent
+from .grading import Grade, grade
+
+#: a variant that is not passed against is still named when it leaves at most this share of the reference's
+#: failing pixels
+CLOSEST_SHARE = 0.25
+#: a fitted term is out of scale when its coefficient is further than this from 1
+TERM_SLACK = 0.15
+#: a term too faint to matter: less than this share of the image's light
+TERM_FLOOR = 0.02
+#: the residual (RMS, of 1) that rounding to 8 bits alone leaves: no term is freed below it
+ROUNDING = 1.0 / 255
+#: at most this many terms are freed
+MAX_TERMS = 3
+
+
+@dataclass(frozen=True)
+class Cause:
+    variant: str  # a name of tracer.variants.VARIANTS
+    mistake: str  # what the student did, in words
+    fraction_off_nearby: float  # the submission against the reference rendered with the mistake
+    passes: bool  # the submission passes against that render
+
+
+@dataclass(frozen=True)
+class Term:
+    name: str  # "ambient", "diffuse", "specular", ... ; light-specific ones name their light
+    light: int | None  # index in scene.lights, or None
+    scale: float  # the fitted coefficient: 1 is right
+
+
+@dataclass(frozen=True)
+class Share:
+    index: int  # index in scene.objects (or scene.lights)
+    kind: str  # the object's or light's type
+    share: float  # of the failing pixels
+
+
+@dataclass
+class Diagnosis:
+    causes: list[Cause] = field(default_factory=list)  # best first; empty when nothing fits
+    closest: bool = False  # the first cause is only the closest, not passed against
+    terms: list[Term] = field(default_factory=list)  # the terms out of scale
+    objects: list[Share] = field(default_factory=list)
+    lights: list[Share] = field(default_factory=list)
+
+    def sentence(self) -> str:
+        """One sentence for a person: the likely mistake and the evidence, or that nothing fits."""
+        if self.causes:
+            c = self.causes[0]
+            how = "matches" if not self.closest else "comes closest to"
+            return (f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake "
+                    f"({percent(c.fraction_off_nearby)} of pixels off)")
+        if self.terms:
+            t = self.terms[0]
+            what = t.name if t.light is None else f"{t.name} of light {t.light}"
+            return (f"Likely: the {what} term is {'too strong' if t.scale > 1 else 'too weak'} "
+                    f"(about ×{t.scale:.2f} of the reference's)")
+        return "No known mistake fits: compare the heat-map with the reference"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"sentence": self.sentence(), "closest": self.closest,
+                "causes": [asdict(c) for c in self.causes], "terms": [asdict(t) for t in self.terms],
+                "objects": [asdict(s) for s in self.objects], "lights": [asdict(s) for s in self.lights]}
+
+
+@dataclass
+class Renders:
+    """What a diagnosis needs rendered from the reference scene: each call may come from a cache."""
+
+    variant: Callable[[str], np.ndarray]  # name → (H, W, 3) uint8 pixels of the reference with that mistake
+    passes: Callable[[list[str], int | None], dict[str, np.ndarray]]  # names, light → tracer passes
+    lights: list[str]  # the scene's light types, in order
+    objects: list[str]  # the scene's object types, in order
+
+
+def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
+    """The likely causes of a failing grade ``verdict`` of ``submitted`` against ``reference`` (a passing
+    grade gets no diagnosis: an empty one)."""
+    out = Diagnosis()
+    if verdict.passed:
+        return out
+    scored = []
+    for name, (_, mistake) in VARIANTS.items():
+        image = renders.variant(name)
+        if np.array_equal(image, reference):  # the mistake changes nothing in this scene: no evidence
+            continue
+        g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
+        scored.append(Cause(name, mistake, g.fraction_off_nearby, g.passed))
+    scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
+    passing = [c for c in scored if c.passes]
+    if passing:
+        out.causes = passing
+    elif scored and scored[0].fraction_off_nearby <= CLOSEST_SHARE * verdict.fraction_off_nearby:
+        out.causes, out.closest = scored[:1], True
+    out.terms = fit_terms(submitted, renders)
+    out.objects, out.lights = where(reference, submitted, verdict, renders)
+    return out
+
+
+def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
+    """The additive terms out of scale, most out of scale first, by forward selection of least squares fits.
+
+    The submission's linear values ≈ Σ coefficient · pass over the reference's additive passes (background,
+    ambient, each light's diffuse and specular, reflection, refraction), on the pixels neither image clips.
+    Terms that look alike on those pixels (ambient light and a directional light on a flat floor) cannot be
+    told apart by one fit of every coefficient, so the coefficients start at 1 and are freed one at a time:
+    each round frees the term whose non-negative fit (with the terms freed before it) leaves the smallest
+    residual, and stops when that does not at least halve the residual or the residual is down to rounding.
+    """
+    columns: list[tuple[str, int | None, np.ndarray]] = []
+    base = renders.passes(["background", "ambient", "reflection", "refraction"], None)
+    for name in ("background", "ambient", "reflection", "refraction"):
+        columns.append((name, None, base[name]))
+    for k, kind in enumerate(renders.lights):
+        if kind == "ambient":
+            continue
+        own = renders.passes(["diffuse", "specular"], k)
+        columns += [("diffuse", k, own["diffuse"]), ("specular", k, own["specular"])]
+    total = sum(c for _, _, c in columns)
+    sub = submitted.astype(np.float64) / 255.0
+    use = (total < 1.0 - 1e-3) & (sub > 0) & (sub < 1)  # neither image clips there: the values are linear
+    if use.sum() < 16:
+        return []
+    energy = np.array([c[use].sum() for _, _, c in columns])
+    keep = [i for i, e in enumerate(energy) if e > TERM_FLOOR * energy.sum()]
+    a = np.stack([c[use] for _, _, c in columns], axis=1)
+    b = sub[use]
+
+    def fitted(free: list[int]) -> tuple[float, np.ndarray]:
+        fixed = [i for i in range(len(columns)) if i not in free]
+        rest = b - a[:, fixed].sum(axis=1)
+        coef = nnls(a[:, free], rest)
+        return float(np.sqrt(np.mean((a[:, free] @ coef - rest) ** 2))), coef
+
+    free: list[int] = []
+    coef = np.zeros(0)
+    residual = float(np.sqrt(np.mean((a.sum(axis=1) - b) ** 2)))
+    while residual > ROUNDING and len(free) < MAX_TERMS:
+        tries = [(fitted(free + [i]), i) for i in keep if i not in free]
+        if not tries:
+            break
+        (best, best_coef), i = min(tries, key=lambda t: t[0][0])
+        if best > 0.5 * residual:
+            break
+        free, coef, residual = free + [i], best_coef, best
+    terms = [Term(columns[i][0], columns[i][1], float(c)) for i, c in zip(free, coef)
+             if abs(c - 1.0) > TERM_SLACK]
+    return sorted(terms, key=lambda t: -abs(t.scale - 1.0))
+
+
+def nnls(a: np.ndarray, b: np.ndarray, rounds: int = 200) -> np.ndarray:
+    """min ‖a x − b‖ over x ≥ 0, by the Lawson–Hanson active-set method. ``a (m, n)``, ``b (m,)``."""
+    m, n = a.shape
+    x = np.zeros(n)
+    free = np.zeros(n, dtype=bool)
+    for _ in range(rounds):
+        w = a.T @ (b - a @ x)
+        if free.all() or np.max(np.where(free, -np.inf, w)) <= 1e-12:
+            break
+        free[int(np.argmax(np.where(free, -np.inf, w)))] = True
+        for _ in range(rounds):
+            z = np.zeros(n)
+            z[free] = np.linalg.lstsq(a[:, free], b, rcond=None)[0]
+            if np.all(z[free] > 0):
+                x = z
+                break
+            bad = free & (z <= 0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                alpha = np.min(np.where(bad, x / (x - z), np.inf))
+            x = x + alpha * (z - x)
+            free &= x > 1e-12
+    return x
+
+
+def where(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
+          renders: Renders) -> tuple[list[Share], list[Share]]:
+    """The objects the failing pixels show and the lights that fall on them, each with its share."""
+    diff = np.max(np.abs(reference.astype(np.int16) - submitted.astype(np.int16)), axis=2) > verdict.tolerance
+    count = int(diff.sum())
+    if count == 0:
+        return [], []
+    found = renders.passes(["object"], None)["object"][diff]
+    objects = [Share(int(k), renders.objects[int(k)] if k >= 0 else "background", float(np.mean(found == k)))
+               for k in np.unique(found)]
+    lights = []
+    for k, kind in enumerate(renders.lights):
+        if kind == "ambient":
+            continue
+        own = renders.passes(["diffuse", "specular"], k)
+        lit = (own["diffuse"] + own["specular"]).max(axis=2)[diff] > 1.0 / 255
+        if lit.any():
+            lights.append(Share(k, kind, float(lit.mean())))
+    return (sorted(objects, key=lambda s: -s.share), sorted(lights, key=lambda s: -s.share))
+
+
+def renders_of(scene: Any, threads: int | None = None) -> Renders:
+    """:class:`Renders` of a validated scene, rendered here (each variant and each light's passes once)."""
+    from tracer import Renderer
+    from tracer.variants import VARIANTS as named
+
+    variants: dict[str, np.ndarray] = {}
+    passes: dict[int | None, dict[str, np.ndarray]] = {}
+
+    def variant(name: str) -> np.ndarray:
+        if name not in variants:
+            variants[name] = Renderer(scene, named[name][0]).pixels(threads=threads)
+        return variants[name]
+
+    def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
+        if light not in passes:
+            every = ["background", "ambient", "reflection", "refraction", "object"] if light is None else []
+            passes[light] = Renderer(scene).passes(every + ["diffuse", "specular"], light, threads=threads)
+        return {name: passes[light][name] for name in names}
+
+    return Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects])

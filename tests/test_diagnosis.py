@@ -1,0 +1,70 @@
+"""Diagnosis (service/diagnosis.py): a failing submission's likely mistake, terms out of scale, and where."""
+
+import numpy as np
+import pytest
+from test_variants import EVERYTHING
+
+import schemas
+from service.diagnosis import diagnose, nnls, renders_of
+from service.grading import grade
+from tracer import Renderer
+from tracer.image import quantize
+from tracer.passes import ADDITIVE
+from tracer.variants import VARIANTS
+
+
+@pytest.fixture(scope="module")
+def setting():
+    scene = schemas.validate_scene(EVERYTHING)
+    reference = Renderer(scene).pixels()
+    return scene, reference, renders_of(scene)
+
+
+@pytest.mark.parametrize("name", ["no-shadows", "blinn-phong", "gamma", "no-attenuation", "image-flipped",
+                                  "area-not-divided", "spot-radians", "no-ambient"])
+def test_a_students_mistake_is_named_first(setting, name):
+    scene, reference, renders = setting
+    student = Renderer(scene, VARIANTS[name][0]).pixels()
+    verdict = grade(reference, student, "")
+    assert not verdict.passed
+    found = diagnose(reference, student, verdict, renders)
+    assert found.causes[0].variant == name and not found.closest
+    assert found.sentence().startswith(f"Likely: {VARIANTS[name][1]}")
+
+
+def test_a_term_too_weak_is_measured(setting):
+    scene, reference, renders = setting
+    p = Renderer(scene).passes(list(ADDITIVE), None)
+    lights = [Renderer(scene).passes(["diffuse"], k)["diffuse"] for k in (1, 2)]
+    linear = sum(p[k] for k in ADDITIVE) - 0.5 * lights[0]  # light 1's diffuse at half strength
+    student = quantize(linear)
+    verdict = grade(reference, student, "")
+    found = diagnose(reference, student, verdict, renders)
+    first = found.terms[0]
+    assert (first.name, first.light) == ("diffuse", 1) and abs(first.scale - 0.5) < 0.05
+
+
+def test_a_pass_gets_no_diagnosis_and_noise_fits_nothing(setting):
+    scene, reference, renders = setting
+    assert diagnose(reference, reference, grade(reference, reference, ""), renders).causes == []
+    noise = np.random.default_rng(1).integers(0, 256, reference.shape, dtype=np.uint8)
+    found = diagnose(reference, noise, grade(reference, noise, ""), renders)
+    assert found.causes == [] and found.sentence().startswith(("No known mistake fits", "Likely: the"))
+
+
+def test_where_names_the_objects_the_failing_pixels_show(setting):
+    scene, reference, renders = setting
+    student = reference.copy()
+    obj = Renderer(scene).passes(["object"])["object"]
+    student[obj == 3] = 0  # the small ball black
+    found = diagnose(reference, student, grade(reference, student, ""), renders)
+    assert found.objects[0].index == 3 and found.objects[0].kind == "sphere" and found.objects[0].share > 0.9
+
+
+def test_nnls_is_non_negative_and_exact_where_it_can_be():
+    rng = np.random.default_rng(2)
+    a = rng.random((200, 5))
+    x = np.array([0.5, 0.0, 2.0, 1.0, 0.0])
+    assert np.allclose(nnls(a, a @ x), x, atol=1e-9)
+    y = nnls(a, a @ np.array([1.0, -1.0, 0, 0, 0]))
+    assert np.all(y >= 0)
