@@ -214,7 +214,8 @@ def cmd_grade(args: argparse.Namespace) -> int:
         from .client import post_form
 
         fields: dict[str, bytes | str] = {"scene": text, "tolerance": repr(args.tolerance),
-                                          "max_fraction": repr(args.max_fraction)}
+                                          "max_fraction": repr(args.max_fraction),
+                                          "diagnose": "false" if args.no_diagnosis else "true"}
         files = {"image": ("submission.png", image, "image/png")}
         with _remote(args.scene, args.image):
             result = json.loads(post_form(args.server, "/grade", fields, files, api_key=args.api_key))
@@ -233,7 +234,8 @@ def cmd_grade(args: argparse.Namespace) -> int:
             raise CliError(f"{args.scene}: {exc}") from None
         try:
             graded = pipeline.grade_png(reference, image, args.tolerance, args.max_fraction,
-                                        kind if args.heatmap else None, legend=True)
+                                        kind if args.heatmap else None, legend=True,
+                                        scene=None if args.no_diagnosis else scene)
         except grading.ImageError as exc:
             raise CliError(f"{args.image}: {exc}") from None
         result, heat = graded.as_dict(), graded.heatmap
@@ -433,6 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene JSON file")
     p.add_argument("image", help="the submitted PNG")
     verdict(p)
+    p.add_argument("--no-diagnosis", action="store_true",
+                   help="skip naming the likely mistake of a failing image (it renders the scene once per "
+                        "classic mistake)")
     remote(p)
     p.set_defaults(func=cmd_grade)
 

@@ -102,6 +102,12 @@ class Renders:
     passes: Callable[[list[str], int | None], dict[str, np.ndarray]]  # names, light → tracer passes
     lights: list[str]  # the scene's light types, in order
     objects: list[str]  # the scene's object types, in order
+    cancel: Callable[[], bool] | None = None  # the current diagnosis's: true stops its renders
+
+
+def unavailable(why: str) -> dict[str, Any]:
+    """A diagnosis (as :meth:`Diagnosis.as_dict`) that could not be made, and why."""
+    return {**Diagnosis().as_dict(), "sentence": f"No diagnosis: {why}"}
 
 
 def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
@@ -225,7 +231,8 @@ def where(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
 
 
 def renders_of(scene: Any, threads: int | None = None) -> Renders:
-    """:class:`Renders` of a validated scene, rendered here (each variant and each light's passes once)."""
+    """:class:`Renders` of a validated scene, rendered here when first asked for (each variant, and each
+    light's passes, once); its ``cancel()`` true stops a render with :class:`tracer.RenderCancelled`."""
     from tracer import Renderer
     from tracer.variants import VARIANTS as named
 
@@ -234,13 +241,56 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
 
     def variant(name: str) -> np.ndarray:
         if name not in variants:
-            variants[name] = Renderer(scene, named[name][0]).pixels(threads=threads)
+            variants[name] = Renderer(scene, named[name][0]).pixels(threads=threads, cancel=out.cancel)
         return variants[name]
 
     def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
         if light not in passes:
+            if out.cancel is not None and out.cancel():
+                from tracer import RenderCancelled
+
+                raise RenderCancelled("diagnosis cancelled")
             every = ["background", "ambient", "reflection", "refraction", "object"] if light is None else []
             passes[light] = Renderer(scene).passes(every + ["diffuse", "specular"], light, threads=threads)
         return {name: passes[light][name] for name in names}
 
-    return Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects])
+    out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects])
+    return out
+
+
+#: renders a diagnosis may need: every variant, and the passes once for the scene and once per light
+def renders_needed(scene: Any) -> int:
+    return len(VARIANTS) + 1 + sum(light.type != "ambient" for light in scene.lights)
+
+
+#: the largest image whose diagnosis renders are kept for the next pair of the same scene
+CACHED_PIXELS = 640 * 480
+
+
+class Cached:
+    """The :class:`Renders` of the last few scenes diagnosed, by canonical scene key: a class's failing pairs
+    of one task (or a student's resubmissions) share one set of variant renders."""
+
+    def __init__(self, scenes: int = 4):
+        self.scenes = scenes
+        self.held: dict[str, Renders] = {}
+        self.made = 0  # Renders built (a miss each)
+
+    def get(self, key: str, make: Callable[[], Renders], pixels: int = 0) -> Renders:
+        """The renders of scene ``key``, made by ``make()`` unless held; a scene of more than
+        :data:`CACHED_PIXELS` pixels is not held (its variants would crowd out everything else)."""
+        if key in self.held:
+            self.held[key] = self.held.pop(key)  # most recently used last
+            return self.held[key]
+        self.made += 1
+        renders = make()
+        if pixels > CACHED_PIXELS:
+            return renders
+        self.held[key] = renders
+        while len(self.held) > self.scenes:
+            self.held.pop(next(iter(self.held)))
+        return renders
+
+
+#: this process's renders for diagnosis (the CLI, each class worker, each service worker)
+CACHE = Cached()

@@ -27,7 +27,32 @@ def describe(result: dict[str, Any]) -> list[str]:
         f"  largest error: {result['max_error']} levels",
         f"  size: {result['width']}×{result['height']}; reference sha256 {result['reference_sha256']}",
     ]
+    return lines + explained(result.get("diagnosis"))
+
+
+def explained(diagnosis: dict[str, Any] | None) -> list[str]:
+    """A diagnosis (:meth:`service.diagnosis.Diagnosis.as_dict`) as lines: its sentence, then the evidence."""
+    if not diagnosis:
+        return []
+    lines = [diagnosis["sentence"]]
+    others = diagnosis["causes"][1:4]
+    if others:
+        lines.append("  also close: " + "; ".join(f"{c['mistake']} ({percent(c['fraction_off_nearby'])} off)"
+                                                  for c in others))
+    for t in diagnosis["terms"][:3]:
+        what = t["name"] if t["light"] is None else f"{t['name']} of light {t['light']}"
+        lines.append(f"  term: {what} ×{t['scale']:.2f} of the reference's")
+    if diagnosis["objects"]:
+        lines.append("  failing pixels show: " + ", ".join(
+            f"{_shown(s)} {percent(s['share'])}" for s in diagnosis["objects"][:4]))
+    if diagnosis["lights"]:
+        lines.append("  lit there by: " + ", ".join(f"lights[{s['index']}] ({s['kind']}) {percent(s['share'])}"
+                                                    for s in diagnosis["lights"][:4]))
     return lines
+
+
+def _shown(share: dict[str, Any]) -> str:
+    return "the background" if share["index"] < 0 else f"objects[{share['index']}] ({share['kind']})"
 
 
 def _clock(seconds: float) -> str:

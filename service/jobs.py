@@ -10,7 +10,7 @@ import os
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import anyio
@@ -21,8 +21,9 @@ from tracer import RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
+from .diagnosis import unavailable
 from .limits import check_body, check_raw, check_scene
-from .pipeline import with_overrides
+from .pipeline import Graded, explain, with_overrides
 from .rendering import render_pixels
 from .settings import Settings
 
@@ -141,6 +142,25 @@ class RenderService:
             release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
         self.cache.put(job.key, data)
         return data
+
+    def explain(self, job: Job, graded: Graded, reference: np.ndarray, submitted: np.ndarray) -> Graded:
+        """``graded`` with the diagnosis of a failing grade, rendered in one of this worker's render slots
+        within ``render_timeout``; when no slot is free or time runs out, a diagnosis that says so."""
+        if graded.grade.passed:
+            return graded
+        if not self.slots.acquire(blocking=False):
+            return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
+        before = resident()
+        deadline = time.monotonic() + self.settings.render_timeout
+        try:
+            return explain(job.scene, graded, reference, submitted, self.threads,
+                           cancel=lambda: time.monotonic() > deadline)
+        except RenderCancelled:
+            return replace(graded, diagnosis=unavailable(
+                f"its renders ran past the limit render_timeout = {self.settings.render_timeout:g} s"))
+        finally:
+            self.slots.release()
+            release_if_grown(before)
 
     def _client(self) -> Any:
         """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the

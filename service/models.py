@@ -42,3 +42,35 @@ class GradeAnswer(BaseModel):
     height: int
     reference_sha256: str
     reason: str = Field(description="why it failed, in words; empty when it passed")
+    diagnosis: Diagnosis | None = Field(description="what the student most likely got wrong; null when it "
+                                                    "passed or diagnose=false")
+
+
+class Cause(BaseModel):
+    variant: str = Field(examples=["no-shadows"], description="a classic mistake's name")
+    mistake: str = Field(examples=["no shadow rays"])
+    fraction_off_nearby: float = Field(description="the submission graded against the reference rendered with "
+                                                   "the mistake")
+    passes: bool = Field(description="the submission passes against that render")
+
+
+class Term(BaseModel):
+    name: Literal["background", "ambient", "diffuse", "specular", "reflection", "refraction"]
+    light: int | None = Field(description="the index in lights of a light's own term")
+    scale: float = Field(description="the fitted coefficient against the reference's term: 1 is right")
+
+
+class Share(BaseModel):
+    index: int = Field(description="the index in objects (or lights); -1 for the background")
+    kind: str
+    share: float = Field(description="of the failing pixels")
+
+
+class Diagnosis(BaseModel):
+    sentence: str = Field(examples=["Likely: no shadow rays — the submission matches the reference rendered "
+                                    "with that mistake (0.02 % of pixels off)"])
+    closest: bool = Field(description="the first cause is only the closest, not passed against")
+    causes: list[Cause] = Field(description="the mistakes whose render the submission matches, best first")
+    terms: list[Term] = Field(description="the additive terms out of scale, most first")
+    objects: list[Share] = Field(description="what the failing pixels show")
+    lights: list[Share] = Field(description="the lights that fall on the failing pixels")

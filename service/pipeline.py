@@ -8,6 +8,7 @@ the rendering (here, a cluster, a service), these steps and their words are the 
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -68,10 +69,28 @@ def scene_or_bad_input(name: str, text: bytes, overrides: dict[str, Any] | None 
 class Graded:
     grade: grading.Grade
     heatmap: bytes | None  # PNG, when one was asked for
+    diagnosis: dict[str, Any] | None = None  # of a failing grade, when one was asked for (Diagnosis.as_dict)
 
     def as_dict(self) -> dict[str, Any]:
-        """The grade's numbers and its ``reason`` (why it failed; empty when it passed)."""
-        return {**self.grade.as_dict(), "reason": self.grade.reason}
+        """The grade's numbers, its ``reason`` (why it failed; empty when it passed) and its ``diagnosis``
+        (what the student most likely got wrong; null when it passed or none was asked for)."""
+        return {**self.grade.as_dict(), "reason": self.grade.reason, "diagnosis": self.diagnosis}
+
+
+def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
+            threads: int | None = None, cancel: Callable[[], bool] | None = None) -> Graded:
+    """``graded`` with the diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene
+    rendered with each classic mistake and its passes, cached by canonical scene, compared with the
+    submission.  A passing grade comes back as it is."""
+    if graded.grade.passed:
+        return graded
+    from .diagnosis import CACHE, diagnose, renders_of
+    from .jobs import scene_key
+
+    renders = CACHE.get(scene_key(scene), lambda: renders_of(scene, threads), scene.image.width * scene.image.height)
+    renders.cancel = cancel
+    found = diagnose(reference, submitted, graded.grade, renders)
+    return Graded(graded.grade, graded.heatmap, found.as_dict())
 
 
 def read_image(data: bytes, size: tuple[int, int]) -> np.ndarray:
@@ -90,11 +109,14 @@ def compare(reference_png: bytes, submitted: np.ndarray, tolerance: float, max_f
 
 
 def grade_png(reference_png: bytes, image: bytes, tolerance: float, max_fraction: float,
-              heatmap: Kind | None = None, legend: bool = False) -> Graded:
-    """A submitted image's grade against a reference PNG; :class:`grading.ImageError` when it cannot be graded."""
+              heatmap: Kind | None = None, legend: bool = False, scene: Scene | None = None,
+              threads: int | None = None) -> Graded:
+    """A submitted image's grade against a reference PNG, diagnosed when it fails and the reference's
+    ``scene`` is given; :class:`grading.ImageError` when it cannot be graded."""
     pixels = decode_png(reference_png)
     submitted = read_image(image, (pixels.shape[1], pixels.shape[0]))
-    return compare(reference_png, submitted, tolerance, max_fraction, heatmap, legend, reference=pixels)
+    graded = compare(reference_png, submitted, tolerance, max_fraction, heatmap, legend, reference=pixels)
+    return graded if scene is None else explain(scene, graded, pixels, submitted, threads)
 
 
 #: the largest reference ``phongray compare`` decodes (the service's default max_pixels)

@@ -16,7 +16,7 @@ from starlette.datastructures import UploadFile
 
 from schemas import SceneError, json_schema, validate_scene
 from schemas.locate import located
-from tracer import ImageTooLarge, RenderCancelled
+from tracer import ImageTooLarge, RenderCancelled, decode_png
 from tracer.memory import release
 
 from . import grading, pipeline
@@ -41,7 +41,10 @@ GRADE_BODY = {"requestBody": {"required": True, "content": {"multipart/form-data
                              "example": EXAMPLE_TEXT},
                    "image": {"type": "string", "format": "binary", "description": "the submitted PNG"},
                    "tolerance": {"type": "number", "minimum": 0, "maximum": 255, "default": 2},
-                   "max_fraction": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.001}}}}}}}
+                   "max_fraction": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.001},
+                   "diagnose": {"type": "boolean", "default": True,
+                                "description": "name the likely mistake of a failing image (renders the scene "
+                                               "once per classic mistake, in a render slot)"}}}}}}}
 ERRORS: dict[int | str, dict[str, Any]] = {
     413: {"description": "a limit was exceeded", "model": ErrorAnswer},
     415: {"description": "wrong content type", "model": ErrorAnswer},
@@ -233,6 +236,7 @@ async def grade(request: Request, format: Literal["json", "png"] = "json",
         await form.close()
     tolerance = _number(form.get("tolerance"), "tolerance", grading.DEFAULT_TOLERANCE, 0, 255)
     max_fraction = _number(form.get("max_fraction"), "max_fraction", grading.DEFAULT_MAX_FRACTION, 0, 1)
+    diagnose = _flag(form.get("diagnose"), "diagnose", True)
     settings = service.settings
     if len(scene_text) > settings.max_body_bytes:
         raise HTTPProblem(413, f"scene: {len(scene_text)} bytes exceed the limit max_body_bytes = "
@@ -247,8 +251,9 @@ async def grade(request: Request, format: Literal["json", "png"] = "json",
     decoded = [await anyio.to_thread.run_sync(_read_image, image, size, limiter=service.grading)]
     png = await _png(request, job)
     drawn = heatmap if format == "png" else None
+    explain = job if diagnose and format == "json" else None
     return await anyio.to_thread.run_sync(_compare, png, decoded, drawn, legend, tolerance, max_fraction,
-                                          limiter=service.grading)
+                                          service, explain, limiter=service.grading)
 
 
 def _read_image(image: bytes, size: tuple[int, int]) -> Any:
@@ -260,12 +265,16 @@ def _read_image(image: bytes, size: tuple[int, int]) -> Any:
 
 
 def _compare(png: bytes, decoded: list[Any], heatmap: Kind | None, legend: bool, tolerance: float,
-             max_fraction: float) -> Response:
+             max_fraction: float, service: RenderService, explain: Job | None) -> Response:
     """Grade the submission in ``decoded`` (taken out of it, so that nothing else holds its pixels), or draw its
-    heat-map, and hand the memory of both images back to the OS before answering."""
+    heat-map, diagnose a failing grade of ``explain``'s scene, and hand the memory of the images back to the OS
+    before answering."""
     submitted = decoded.pop()
     try:
-        graded = pipeline.compare(png, submitted, tolerance, max_fraction, heatmap, legend)
+        reference = decode_png(png)
+        graded = pipeline.compare(png, submitted, tolerance, max_fraction, heatmap, legend, reference=reference)
+        if explain is not None:
+            graded = service.explain(explain, graded, reference, submitted)
         if graded.heatmap is not None:
             return Response(graded.heatmap, media_type="image/png")
         return JSONResponse(graded.as_dict())
@@ -282,6 +291,17 @@ async def _field(value: Any, name: str, text: bool = True) -> Any:
     if text:  # a scene as a file part stays bytes (the JSON parser decodes it, and refuses what is not UTF-8)
         return value
     return value.encode("utf-8", "surrogateescape") if isinstance(value, str) else value
+
+
+def _flag(value: Any, name: str, default: bool) -> bool:
+    if value is None or value == "":
+        return default
+    text = value.lower() if isinstance(value, str) else value
+    if text in ("true", "1", "yes", "on"):
+        return True
+    if text in ("false", "0", "no", "off"):
+        return False
+    raise HTTPProblem(422, f"{name}: must be true or false")
 
 
 def _number(value: Any, name: str, default: float, low: float, high: float) -> float:

@@ -275,6 +275,7 @@ def files(tmp_path_factory):
     (root / "right.png").write_bytes(right)
     pixels = decode_png(right)
     (root / "dark.png").write_bytes(encode(pixels // 2))
+    (root / "unshadowed.png").write_bytes(variant_render(data, "no-shadows"))
     (root / "small.png").write_bytes(encode(pixels[:10, :10]))
     (root / "text.png").write_text("not an image")
     buf = io.BytesIO()
@@ -288,6 +289,14 @@ def tracer_render(data):
     import tracer
 
     return tracer.encode_png(tracer.render(schemas.validate_scene(data)))
+
+
+def variant_render(data, name):
+    import schemas
+    import tracer
+    from tracer.variants import VARIANTS
+
+    return tracer.encode_png(tracer.Renderer(schemas.validate_scene(data), VARIANTS[name][0]).pixels())
 
 
 def encode(pixels):
@@ -309,6 +318,9 @@ BOTH_WAYS = [
     ("grade", "good.json", "right.png", "--json"),
     ("grade", "good.json", "dark.png"),
     ("grade", "good.json", "dark.png", "--json"),
+    ("grade", "good.json", "unshadowed.png"),
+    ("grade", "good.json", "unshadowed.png", "--json"),
+    ("grade", "good.json", "unshadowed.png", "--no-diagnosis"),
     ("grade", "good.json", "small.png"),
     ("grade", "good.json", "text.png"),
     ("grade", "good.json", "photo.jpg"),
@@ -348,6 +360,22 @@ def test_grades_print_in_words_and_as_json(files, capsys):
     result = json.loads(capsys.readouterr().out)
     assert result["passed"] is False and result["reason"].endswith("at most 0.10 % may be")
     assert result["fraction_off_nearby"] > 0.5 and result["psnr"] > 0
+
+
+def test_a_failing_grade_names_the_likely_mistake_and_a_pass_gets_none(files, service_url, capsys):
+    for extra in ([], ["--server", service_url]):
+        assert main(["grade", str(files / "good.json"), str(files / "unshadowed.png"), *extra]) == 1
+        lines = capsys.readouterr().out.splitlines()
+        assert lines[6].startswith("Likely: no shadow rays — the submission matches the reference rendered with "
+                                   "that mistake (0.00 % of pixels off)")
+        assert main(["grade", str(files / "good.json"), str(files / "unshadowed.png"), "--json", *extra]) == 1
+        found = json.loads(capsys.readouterr().out)["diagnosis"]
+        assert found["causes"][0]["variant"] == "no-shadows" and found["causes"][0]["passes"] is True
+        assert main(["grade", str(files / "good.json"), str(files / "right.png"), "--json", *extra]) == 0
+        assert json.loads(capsys.readouterr().out)["diagnosis"] is None
+        assert main(["grade", str(files / "good.json"), str(files / "unshadowed.png"), "--no-diagnosis",
+                     *extra]) == 1
+        assert "Likely" not in capsys.readouterr().out
 
 
 def test_an_image_is_read_no_further_than_the_limit(files, service_url, capsys, monkeypatch):

@@ -173,6 +173,36 @@ def test_grading_an_image_with_a_light_removed_fails(api):
     assert body["fraction_off_nearby"] > 0.001 and body["psnr"] > 0
 
 
+def test_a_failing_grade_comes_with_its_diagnosis_and_a_pass_without(api, reference_png):
+    from tracer.variants import VARIANTS
+
+    spec = api.get("/openapi.json").json()
+    scene = schemas.load_scene(SCENE)
+    gamma = tracer.encode_png(tracer.Renderer(scene, VARIANTS["gamma"][0]).pixels())
+    body = grade(api, image=gamma).json()
+    assert body["passed"] is False and component(spec, "GradeAnswer").is_valid(body)
+    assert body["diagnosis"]["causes"][0]["variant"] == "gamma"
+    assert body["diagnosis"]["sentence"].startswith("Likely: gamma 1/2.2 applied to the output")
+    assert grade(api, image=gamma, diagnose="false").json()["diagnosis"] is None
+    assert grade(api, image=reference_png).json()["diagnosis"] is None
+    assert grade(api, image=gamma, diagnose="maybe").status_code == 422
+
+
+def test_a_diagnosis_past_the_render_timeout_says_so():
+    from service.jobs import scene_key
+    from tracer.variants import VARIANTS
+
+    api = client(render_timeout=0.0)
+    text = SCENE.replace(b'"background": [0.05, 0.07, 0.12]', b'"background": [0.05, 0.07, 0.13]')
+    scene = schemas.load_scene(text)
+    assert scene.image.background[2] == 0.13  # a scene no other test diagnoses
+    api.app.state.service.cache.put(scene_key(scene), tracer.render_png(scene))  # only the diagnosis renders
+    gamma = tracer.encode_png(tracer.Renderer(scene, VARIANTS["gamma"][0]).pixels())
+    body = grade(api, scene=text, image=gamma).json()
+    assert body["passed"] is False
+    assert body["diagnosis"]["sentence"] == "No diagnosis: its renders ran past the limit render_timeout = 0 s"
+
+
 def test_one_pixel_shift_is_forgiven_by_the_neighbourhood_measure(api, reference_png):
     shifted = np.roll(tracer.decode_png(reference_png), 1, axis=1)
     body = grade(api, image=png_of(shifted)).json()
