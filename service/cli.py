@@ -18,6 +18,10 @@ from typing import TYPE_CHECKING, Any, NoReturn
 
 from .display import ProgressBar, describe
 
+#: tracer.passes.NAMES, here so that the parser needs no tracer import (a test keeps them equal)
+PASS_NAMES = ("background", "ambient", "diffuse", "specular", "reflection", "refraction", "shadow", "normal",
+              "depth", "object")
+
 if TYPE_CHECKING:
     from .heatmap import Kind
 
@@ -114,9 +118,11 @@ def cmd_render(args: argparse.Namespace) -> int:
     from .cluster import ClusterError
     from .rendering import render_pixels
 
-    _png_name(args.output)
     if args.server and args.cluster:
         raise CliError("--server and --cluster: choose one")
+    if args.pass_ is not None or args.light is not None:
+        return _render_pass(args)
+    _png_name(args.output)
     overrides = {"width": args.width, "height": args.height, "samples": args.samples}
     text = _read(args.scene)
     started = time.perf_counter()
@@ -145,6 +151,39 @@ def cmd_render(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"{args.output}: {pixels.shape[1]}×{pixels.shape[0]} in {time.perf_counter() - started:.3f} s",
               file=sys.stderr)
+    return 0
+
+
+def _render_pass(args: argparse.Namespace) -> int:
+    """``render --pass NAME [--light K]``: one pass as a PNG, or its values as ``.npy`` (by the output's name)."""
+    from tracer import RenderCancelled
+
+    from . import passes
+
+    if args.pass_ is None:
+        raise CliError("--light: only with --pass (the light whose diffuse, specular or shadow is shown)")
+    if args.cluster:
+        raise CliError("--pass: renders here or on a --server, not on a cluster")
+    fmt: passes.Format = "npy" if args.output.lower().endswith(".npy") else "png"
+    if fmt == "png":
+        _png_name(args.output)
+    overrides = {"width": args.width, "height": args.height, "samples": args.samples}
+    text = _read(args.scene)
+    if args.server:
+        from .client import post_json
+
+        query = {**overrides, "pass": args.pass_, "light": args.light, "format": fmt}
+        with _remote(args.scene):
+            data = post_json(args.server, "/render", text, query, api_key=args.api_key)
+    else:
+        scene = _load(args.scene, text, overrides)
+        try:
+            data = passes.encoded(args.pass_, passes.values(scene, args.pass_, args.light, args.threads), fmt)
+        except ValueError as exc:
+            raise CliError(f"{args.scene}: {exc}") from None
+        except RenderCancelled:  # pragma: no cover - nothing cancels a local pass
+            raise CliError(f"{args.scene}: cancelled") from None
+    _write(args.output, data)
     return 0
 
 
@@ -356,6 +395,16 @@ class _Help(argparse.HelpFormatter):
         return text + " (default: %(default)s)"
 
 
+def _index(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an index (0, 1, ...), got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an index (0, 1, ...), got {text!r}")
+    return value
+
+
 def _port(text: str) -> int:
     try:
         value = int(text)
@@ -414,12 +463,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("render", "render a scene to a PNG")
     p.add_argument("scene", help="scene JSON file ('-' for stdin)")
-    p.add_argument("-o", "--output", required=True, help="output PNG, *.png ('-' for stdout)")
+    p.add_argument("-o", "--output", required=True, help="output PNG, *.png ('-' for stdout); with --pass, "
+                                                          "*.npy writes the pass's values as a NumPy array")
     p.add_argument("--width", type=_positive_int, help="image width in pixels (default: the scene's)")
     p.add_argument("--height", type=_positive_int, help="image height in pixels (default: the scene's)")
     p.add_argument("--samples", type=_positive_int, help="n: an n×n grid of sub-samples per pixel "
                                                          "(default: the scene's)")
     p.add_argument("--threads", type=_positive_int, help="worker threads (default: all cores)")
+    p.add_argument("--pass", dest="pass_", metavar="NAME", choices=PASS_NAMES,
+                   help="render one pass instead: " + ", ".join(PASS_NAMES) + " (the first six are the image's "
+                        "additive terms)")
+    p.add_argument("--light", type=_index, metavar="K", help="with --pass: light K alone (its index in lights)")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     remote(p, cluster=True)
     p.set_defaults(func=cmd_render)

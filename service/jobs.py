@@ -23,6 +23,7 @@ from tracer.memory import release_if_grown, resident, tune_allocator
 from .cache import RenderCache
 from .diagnosis import unavailable
 from .limits import check_body, check_raw, check_scene
+from .passes import Format
 from .pipeline import Graded, explain, with_overrides
 from .rendering import render_pixels
 from .settings import Settings
@@ -141,6 +142,32 @@ class RenderService:
             self.slots.release()
             release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
         self.cache.put(job.key, data)
+        return data
+
+    def pass_file(self, job: Job, name: str, light: int | None, fmt: Format) -> bytes:
+        """Render pass ``name`` of a job (of light ``light``) as a PNG or ``.npy`` file (:mod:`service.passes`),
+        from the cache or rendered in a render slot within ``render_timeout``.  Raises Busy, TooSlow, or
+        ValueError for a pass or light the scene does not have."""
+        from . import passes
+
+        key = f"{job.key}/pass={name}/light={light}.{fmt}"
+        cached = self.cache.get(key)
+        if cached is not None:
+            return cached
+        passes.pixels(name, np.zeros((1, 1, 3)))  # an unknown name: before any slot is taken
+        if not self.slots.acquire(blocking=False):
+            raise Busy()
+        before = resident()
+        deadline = time.monotonic() + self.settings.render_timeout
+        try:
+            data = passes.encoded(name, passes.values(job.scene, name, light, self.threads,
+                                                      cancel=lambda: time.monotonic() > deadline), fmt)
+        except RenderCancelled:
+            raise TooSlow() from None
+        finally:
+            self.slots.release()
+            release_if_grown(before)
+        self.cache.put(key, data)
         return data
 
     def explain(self, job: Job, graded: Graded, reference: np.ndarray, submitted: np.ndarray) -> Graded:

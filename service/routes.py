@@ -52,6 +52,13 @@ ERRORS: dict[int | str, dict[str, Any]] = {
     503: {"description": "every render slot is busy, or the render ran past its time", "model": ErrorAnswer}}
 
 
+PassName = Literal["background", "ambient", "diffuse", "specular", "reflection", "refraction", "shadow", "normal",
+                   "depth", "object"]
+PASS_HELP = ("render one pass instead of the image: an additive term (background, ambient, diffuse, specular, "
+             "reflection, refraction; they sum to the image's linear value), a light's visibility (shadow), or "
+             "normal, depth, object for debugging")
+
+
 class HTTPProblem(Exception):
     """An error answer; ``part`` names the form part it concerns (``"image"``: the submission, not the scene)."""
 
@@ -184,16 +191,26 @@ async def _png(request: Request, job: Job) -> bytes:
     return result
 
 
-@router.post("/render", openapi_extra=SCENE_BODY, responses={200: {"content": {"image/png": {}}}, 304: {}, **ERRORS},
+@router.post("/render", openapi_extra=SCENE_BODY, responses={
+    200: {"content": {"image/png": {}, "application/x-npy": {}},
+          "description": "the image (or with pass, the pass as a PNG or a .npy array)"}, 304: {}, **ERRORS},
              response_class=Response, summary="Render a scene to a PNG")
 async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1)] = None,
                        height: Annotated[int | None, Query(ge=1)] = None,
-                       samples: Annotated[int | None, Query(ge=1)] = None) -> Response:
+                       samples: Annotated[int | None, Query(ge=1)] = None,
+                       pass_: Annotated[PassName | None, Query(alias="pass", description=PASS_HELP)] = None,
+                       light: Annotated[int | None, Query(ge=0, description="with pass: the index in lights of "
+                                                          "the one light whose diffuse, specular or shadow is "
+                                                          "shown (default: every light)")] = None,
+                       format: Annotated[Literal["png", "npy"], Query(description="with pass: a PNG to look "
+                                         "at, or the values as a NumPy .npy array")] = "png") -> Response:
     _require_json(request)
     service: RenderService = request.app.state.service
     body = await request.body()
     job = await anyio.to_thread.run_sync(_prepare, body, {"width": width, "height": height, "samples": samples},
                                          service, limiter=service.parsing)
+    if pass_ is not None:
+        return await _pass(service, job, pass_, light, format)
     headers = {"ETag": job.etag, "Cache-Control": "no-cache"}
     if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
         return Response(status_code=304, headers=headers)
@@ -201,6 +218,22 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
     data = await _png(request, job)
     headers["X-Render-Seconds"] = f"{time.perf_counter() - started:.4f}"
     return Response(data, media_type="image/png", headers=headers)
+
+
+async def _pass(service: RenderService, job: Job, name: str, light: int | None, fmt: Literal["png", "npy"]
+                ) -> Response:
+    try:
+        data = await anyio.to_thread.run_sync(service.pass_file, job, name, light, fmt, limiter=service.grading)
+    except ValueError as exc:  # a light the scene does not have
+        raise HTTPProblem(422, str(exc)) from None
+    except Busy:
+        raise HTTPProblem(503, "every render slot is busy; try again shortly",
+                          headers={"Retry-After": str(service.settings.retry_after)}) from None
+    except TooSlow:
+        raise HTTPProblem(503, f"the render ran past the limit render_timeout = {service.settings.render_timeout:g} s",
+                          headers={"Retry-After": str(service.settings.retry_after)}) from None
+    media = "application/x-npy" if fmt == "npy" else "image/png"
+    return Response(data, media_type=media, headers={"Cache-Control": "no-cache"})
 
 
 @router.post("/validate", openapi_extra=SCENE_BODY, summary="Check a scene; list every error with its place",

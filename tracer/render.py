@@ -177,9 +177,10 @@ class Renderer:
         return image[::-1] if self.options.flip_image else image
 
     def passes(self, names: list[str], light: int | None = None, threads: int | None = None,
-               chunk_rays: int = CHUNK_RAYS) -> dict[str, np.ndarray]:
+               chunk_rays: int = CHUNK_RAYS, cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
         """Render passes (:mod:`tracer.passes`) by name: ``(H, W, 3)`` float64 for the additive ones and the
-        normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object."""
+        normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object.  ``cancel`` is polled before
+        every chunk, as :meth:`pixels` polls it."""
         check_passes(names, light, len(self.scene.lights))
         img = self.scene.image
         self.slice_rays = chunk_rays
@@ -190,6 +191,8 @@ class Renderer:
 
         def work(bound: tuple[int, int]) -> dict[str, np.ndarray]:
             a, b = bound
+            if cancel is not None and cancel():
+                raise RenderCancelled("render cancelled")
             s = img.samples * img.samples
             tally = Tally(tuple(names), (b - a) * s, s, light, self.emitter_light)
             self.chunk(a, b, tally)
