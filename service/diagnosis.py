@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from tracer.variants import VARIANTS
+from tracer.variants import BOUNDS, VARIANTS
 
 from .display import percent
 from .grading import Grade, grade
@@ -34,8 +34,12 @@ from .grading import Grade, grade
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
 #: failing pixels
 CLOSEST_SHARE = 0.25
+#: how much, on average, a speckled mistake's reach towards its far end changes from a pixel to the next
+SPECKLE = 0.2
 #: a fitted term is out of scale when its coefficient is further than this from 1
 TERM_SLACK = 0.15
+#: a term fitted below this is missing, not just too weak
+MISSING = 0.05
 #: a term too faint to matter: less than this share of the image's light
 TERM_FLOOR = 0.02
 #: the residual (RMS, of 1) that rounding to 8 bits alone leaves: no term is freed below it
@@ -84,6 +88,8 @@ class Diagnosis:
         if self.terms:
             t = self.terms[0]
             what = t.name if t.light is None else f"{t.name} of light {t.light}"
+            if t.scale < MISSING:
+                return f"Likely: the {what} term is missing (about ×{t.scale:.2f} of the reference's)"
             return (f"Likely: the {what} term is {'too strong' if t.scale > 1 else 'too weak'} "
                     f"(about ×{t.scale:.2f} of the reference's)")
         return "No known mistake fits: compare the heat-map with the reference"
@@ -102,6 +108,7 @@ class Renders:
     passes: Callable[[list[str], int | None], dict[str, np.ndarray]]  # names, light → tracer passes
     lights: list[str]  # the scene's light types, in order
     objects: list[str]  # the scene's object types, in order
+    bound: Callable[[str], np.ndarray] | None = None  # name of BOUNDS → pixels of the mistake's far end
     cancel: Callable[[], bool] | None = None  # the current diagnosis's: true stops its renders
 
 
@@ -123,15 +130,47 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
             continue
         g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
         scored.append(Cause(name, mistake, g.fraction_off_nearby, g.passed))
+    for name in BOUNDS if renders.bound is not None else ():
+        assert renders.bound is not None
+        outside = speckled(reference, renders.bound(name), submitted, verdict.tolerance)
+        if outside is not None:
+            scored = [c for c in scored if c.variant != name]
+            scored.append(Cause(name, VARIANTS[name][1], outside, outside <= verdict.max_fraction))
     scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
     passing = [c for c in scored if c.passes]
     if passing:
         out.causes = passing
     elif scored and scored[0].fraction_off_nearby <= CLOSEST_SHARE * verdict.fraction_off_nearby:
         out.causes, out.closest = scored[:1], True
-    out.terms = fit_terms(submitted, renders)
+    if not passing:  # a mistake that explains the image leaves no term to fit
+        out.terms = fit_terms(submitted, renders)
     out.objects, out.lights = where(reference, submitted, verdict, renders)
     return out
+
+
+def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, tolerance: float) -> float | None:
+    """For a mistake that varies from point to point: the share of pixels that do not lie between the
+    reference and the mistake's far end ``bound`` (within the tolerance, every channel), when the submission
+    departs from the reference towards it in speckles; None when it does not.
+
+    Speckles: where the submission departs, how far it goes towards the bound (0 at the reference, 1 at the
+    bound) changes from one pixel to the next by at least :data:`SPECKLE` on average.  A smooth departure
+    (a light missing, a term too weak) changes slowly, and is not this mistake."""
+    ref, low, sub = (a.astype(np.int16) for a in (reference, bound, submitted))
+    outside = np.any((sub < np.minimum(ref, low) - tolerance) | (sub > np.maximum(ref, low) + tolerance), axis=2)
+    gap = (low - ref).astype(np.float64)
+    channel = np.argmax(np.abs(gap), axis=2)[..., None]
+    span = np.take_along_axis(gap, channel, axis=2)[..., 0]
+    moved = np.take_along_axis((sub - ref).astype(np.float64), channel, axis=2)[..., 0]
+    can = np.abs(span) > tolerance
+    departs = can & (np.abs(moved) > tolerance)
+    if departs.sum() < 16:
+        return None
+    share = np.where(can, moved / np.where(can, span, 1.0), 0.0)
+    pairs = can[:, 1:] & can[:, :-1]
+    if not pairs.any() or float(np.abs(np.diff(share, axis=1))[pairs].mean()) < SPECKLE:
+        return None
+    return float(outside.mean())
 
 
 def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
@@ -237,12 +276,18 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     from tracer.variants import VARIANTS as named
 
     variants: dict[str, np.ndarray] = {}
+    bounds: dict[str, np.ndarray] = {}
     passes: dict[int | None, dict[str, np.ndarray]] = {}
 
     def variant(name: str) -> np.ndarray:
         if name not in variants:
             variants[name] = Renderer(scene, named[name][0]).pixels(threads=threads, cancel=out.cancel)
         return variants[name]
+
+    def bound(name: str) -> np.ndarray:
+        if name not in bounds:
+            bounds[name] = Renderer(scene, BOUNDS[name]).pixels(threads=threads, cancel=out.cancel)
+        return bounds[name]
 
     def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
         if light not in passes:
@@ -254,13 +299,13 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
             passes[light] = Renderer(scene).passes(every + ["diffuse", "specular"], light, threads=threads)
         return {name: passes[light][name] for name in names}
 
-    out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects])
+    out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects], bound)
     return out
 
 
 #: renders a diagnosis may need: every variant, and the passes once for the scene and once per light
 def renders_needed(scene: Any) -> int:
-    return len(VARIANTS) + 1 + sum(light.type != "ambient" for light in scene.lights)
+    return len(VARIANTS) + len(BOUNDS) + 1 + sum(light.type != "ambient" for light in scene.lights)
 
 
 #: the largest image whose diagnosis renders are kept for the next pair of the same scene

@@ -1,7 +1,10 @@
 """Diagnosis (service/diagnosis.py): a failing submission's likely mistake, terms out of scale, and where."""
 
+import copy
+
 import numpy as np
 import pytest
+import student
 from test_variants import EVERYTHING
 
 import schemas
@@ -68,3 +71,58 @@ def test_nnls_is_non_negative_and_exact_where_it_can_be():
     assert np.allclose(nnls(a, a @ x), x, atol=1e-9)
     y = nnls(a, a @ np.array([1.0, -1.0, 0, 0, 0]))
     assert np.all(y >= 0)
+
+
+# -- a student's renderer (tests/student.py), each mistake made the student's way ---------------------------
+
+def classroom() -> dict[str, dict]:
+    """Three scenes that every mistake of the list changes: anti-aliased, every light type, glass and a mirror."""
+    a = copy.deepcopy(EVERYTHING)
+    a["image"] = {"width": 64, "height": 48, "max_depth": 2, "samples": 2}
+    b = copy.deepcopy(a)
+    b["camera"] = {"position": [-2.5, 1.5, 4.5], "look_at": [0.3, 0.5, 0], "fov": 50}
+    b["lights"][1]["position"] = [2, 5, 2]
+    c = copy.deepcopy(a)
+    c["camera"] = {"position": [1.5, 3.5, 4], "look_at": [-0.2, 0.4, 0], "fov": 40}
+    c["materials"]["m"]["checker"] = {"size": 0.5, "material": "dark"}
+    c["materials"]["dark"] = {"diffuse": [0.1, 0.1, 0.3], "specular": 0.5, "shininess": 10}
+    return {"front": a, "side": b, "checker": c}
+
+
+@pytest.fixture(scope="module", params=sorted(classroom()))
+def room(request):
+    scene = schemas.validate_scene(classroom()[request.param])
+    return scene, Renderer(scene).pixels(), renders_of(scene)
+
+
+def test_the_students_correct_image_passes_and_gets_no_diagnosis(room):
+    scene, reference, renders = room
+    right = student.render(scene)
+    verdict = grade(reference, right, "")
+    assert verdict.passed and diagnose(reference, right, verdict, renders).causes == []
+
+
+@pytest.mark.parametrize("mistake", student.MISTAKES)
+def test_each_of_the_students_mistakes_is_named_first(room, mistake):
+    scene, reference, renders = room
+    wrong = student.render(scene, [mistake])
+    verdict = grade(reference, wrong, "")
+    assert not verdict.passed
+    found = diagnose(reference, wrong, verdict, renders)
+    assert found.causes and found.causes[0].variant == mistake and not found.closest, found.causes[:3]
+
+
+def test_a_light_left_out_is_no_named_mistake_but_a_term(room):
+    scene, reference, renders = room
+    dim = scene.model_copy(update={"lights": [light for k, light in enumerate(scene.lights) if k != 1]})
+    wrong = student.render(dim)
+    found = diagnose(reference, wrong, grade(reference, wrong, ""), renders)
+    assert not found.causes or found.closest
+    assert (found.terms[0].name, found.terms[0].light) in (("diffuse", 1), ("specular", 1))
+    assert found.terms[0].scale < 0.15
+    assert found.sentence().startswith(("Likely: the diffuse of light 1 term is missing",
+                                        "Likely: the specular of light 1 term is missing")) or found.closest
+
+
+def test_the_mistakes_are_the_variants():
+    assert set(student.MISTAKES) == set(VARIANTS)

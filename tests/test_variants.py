@@ -65,3 +65,11 @@ def test_variants_that_only_add_or_only_take_light():
     assert np.all(pixels(VARIANTS["no-specular"][0]) <= ref)
     assert np.all(pixels(VARIANTS["no-attenuation"][0]) >= ref)
     assert np.all(pixels(VARIANTS["area-not-divided"][0]) >= ref)
+
+
+def test_the_far_end_of_acne_is_darker_than_acne_wherever_acne_shows():
+    from tracer.variants import BOUNDS
+
+    ref, acne, far = (pixels(o).astype(int) for o in (REFERENCE, VARIANTS["shadow-acne"][0], BOUNDS["shadow-acne"]))
+    assert np.all(far <= acne) and np.all(acne <= ref)
+    assert np.mean(np.any(far < acne, axis=2)) > 0.05  # the far end shadows what acne leaves lit

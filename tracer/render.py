@@ -360,7 +360,8 @@ class Renderer:
         # from the exact hit point, leaving its surface by identity, to the light itself
         rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(mag_points))
         if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
-            below = ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
+            below = np.ones(n, dtype=bool) if opt.acne_everywhere else \
+                ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
             lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
         if em.kind == "directional":

@@ -17,6 +17,7 @@ class Options:
 
     shadows: bool = True  # cast shadow rays
     acne: bool = False  # shadow rays start on the surface without leaving it, so it shadows itself in speckles
+    acne_everywhere: bool = False  # with acne: every point a hair below its surface (acne's far end, a bound)
     blinn: bool = False  # the Blinn–Phong half vector (N·H)^n instead of (R·V)^n
     specular_behind: bool = False  # specular light also where N·L ≤ 0
     gamma: bool = False  # each channel raised to 1/2.2 before it is stored
@@ -63,3 +64,8 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "depth-minus-one": (Options(depth_offset=-1), "max_depth off by one (one bounce too few)"),
     "ior-inverted": (Options(ior_inverted=True), "the index of refraction inverted"),
 }
+
+#: mistakes whose effect varies from point to point (a student's acne speckles in its own pattern): name →
+#: the options of the mistake's far end.  An image with the mistake lies between the reference and that
+#: render, pixel by pixel, and departs from the reference in speckles.
+BOUNDS: dict[str, Options] = {"shadow-acne": Options(acne=True, acne_everywhere=True)}

@@ -1,0 +1,191 @@
+"""A student's ray tracer, for the diagnosis tests: written from the scene format, each classic mistake a switch.
+
+It is what a course's student writes: a camera, the lights, the Phong model,
+shadow rays and the ray tree, in float64, one depth at a time.  Finding what
+a ray hits is taken from the brute force (:mod:`reference`), so that the
+student's image differs from the reference only where a mistake is switched
+on.  The switches are named as :data:`tracer.variants.VARIANTS` names them,
+but nothing here comes from ``tracer/``: the mistakes are made the way a
+student makes them, not the way the tracer's variants imitate them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+import reference as ref
+
+MISTAKES = ("no-shadows", "shadow-acne", "blinn-phong", "specular-behind", "gamma", "no-attenuation",
+            "no-ambient", "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel",
+            "horizontal-fov", "area-not-divided", "spot-radians", "depth-plus-one", "depth-minus-one",
+            "ior-inverted")
+
+
+def _unit(a: np.ndarray) -> np.ndarray:
+    return a / np.linalg.norm(a, axis=-1, keepdims=True)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", a, b)
+
+
+@dataclass
+class Lamp:
+    """One light the student loops over (an area light is nu·nv of them)."""
+
+    color: np.ndarray
+    position: np.ndarray | None  # None: directional
+    direction: np.ndarray | None  # the way the light travels (directional, spot)
+    attenuation: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    cone: tuple[float, float, float] | None = None  # spot: cos(outer), cos(inner), exponent
+
+
+def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN001
+    ambient, out = np.zeros(3), []
+    for light in scene.lights:
+        color = np.array(light.color, dtype=np.float64)
+        atten = (1.0, 0.0, 0.0) if "no-attenuation" in wrong else tuple(getattr(light, "attenuation", (1, 0, 0)))
+        if light.type == "ambient":
+            ambient += color
+        elif light.type == "directional":
+            out.append(Lamp(color, None, _unit(np.array(light.direction, dtype=np.float64))))
+        elif light.type == "point":
+            out.append(Lamp(color, np.array(light.position, dtype=np.float64), None, atten))
+        elif light.type == "spot":
+            angle = float if "spot-radians" in wrong else math.radians
+            inner = light.cutoff if light.inner_cutoff is None else light.inner_cutoff
+            out.append(Lamp(color, np.array(light.position, dtype=np.float64),
+                            _unit(np.array(light.direction, dtype=np.float64)), atten,
+                            (math.cos(angle(light.cutoff)), math.cos(angle(inner)), light.exponent)))
+        else:
+            nu, nv = light.samples
+            corner, eu, ev = (np.array(v, dtype=np.float64) for v in (light.corner, light.edge_u, light.edge_v))
+            share = color if "area-not-divided" in wrong else color / (nu * nv)
+            out += [Lamp(share, corner + (i + 0.5) / nu * eu + (j + 0.5) / nv * ev, None, atten)
+                    for i in range(nu) for j in range(nv)]
+    return ambient, out
+
+
+def shine(lamp: Lamp, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Towards the light, its distance and its strength (times its colour) at points p."""
+    if lamp.position is None:
+        assert lamp.direction is not None
+        return np.broadcast_to(-lamp.direction, p.shape), np.full(len(p), np.inf), np.ones(len(p))
+    v = lamp.position - p
+    d = np.linalg.norm(v, axis=1)
+    c, lin, q = lamp.attenuation
+    strength = 1.0 / (c + lin * d + q * d * d)
+    to = v / d[:, None]
+    if lamp.cone is not None:
+        assert lamp.direction is not None
+        outer, inner, exponent = lamp.cone
+        s = _dot(-to, np.broadcast_to(lamp.direction, to.shape))
+        ramp = np.clip((s - outer) / (inner - outer), 0.0, 1.0) if inner > outer else (s >= outer) * 1.0
+        strength = strength * np.where(s >= outer, ramp * np.maximum(s, 0.0) ** exponent, 0.0)
+    return to, d, strength
+
+
+def eye_rays(scene, wrong: set[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+    cam, img = scene.camera, scene.image
+    W, H, n = img.width, img.height, img.samples
+    eye = np.array(cam.position, dtype=np.float64)
+    forward = _unit(np.array(cam.look_at, dtype=np.float64) - eye)
+    right = _unit(np.cross(forward, np.array(cam.up, dtype=np.float64)))
+    up = np.cross(right, forward)
+    half = cam.height / 2 if cam.type == "orthographic" else math.tan(math.radians(cam.fov) / 2)
+    across, down = (half, half * H / W) if "horizontal-fov" in wrong else (half * W / H, half)
+    centre = 0.0 if "no-half-pixel" in wrong else 0.5
+    rows, cols, sub_rows, sub_cols = np.meshgrid(np.arange(H), np.arange(W), np.arange(n), np.arange(n),
+                                                 indexing="ij")
+    x = ((cols + (sub_cols + centre) / n) / W * 2 - 1).ravel() * across
+    y = (1 - (rows + (sub_rows + centre) / n) / H * 2).ravel() * down
+    offset = x[:, None] * right + y[:, None] * up
+    if cam.type == "orthographic":
+        return eye + offset, np.broadcast_to(forward, offset.shape).copy(), (rows * W + cols).ravel()
+    return np.broadcast_to(eye, offset.shape).copy(), _unit(forward + offset), (rows * W + cols).ravel()
+
+
+def render(scene, mistakes: tuple[str, ...] | list[str] = ()) -> np.ndarray:  # noqa: ANN001, C901
+    """The student's ``(H, W, 3) uint8`` image of a validated scene, with the named mistakes made."""
+    wrong = set(mistakes)
+    assert wrong <= set(MISTAKES), wrong - set(MISTAKES)
+    img = scene.image
+    surfaces = ref.surfaces_of(scene)
+    ambient, lights = lamps(scene, wrong)
+    o, d, pixel = eye_rays(scene, wrong)
+    weight, start = np.ones(len(o)), np.full(len(o), -1)
+    total = np.zeros((img.width * img.height, 3))
+    depth_limit = img.max_depth + ("depth-plus-one" in wrong) - ("depth-minus-one" in wrong)
+    for depth in range(max(depth_limit, 0) + 1):
+        hit = ref.closest(surfaces, o, d, start)
+        missed = hit.surface < 0
+        np.add.at(total, pixel[missed], weight[missed, None] * np.array(img.background, dtype=np.float64))
+        keep = np.flatnonzero(~missed)
+        if len(keep) == 0:
+            break
+        o, d, weight, pixel, which = o[keep], d[keep], weight[keep], pixel[keep], hit.surface[keep]
+        p, outward, n = np.zeros_like(o), np.zeros_like(o), np.zeros_like(o)
+        ka, kd, ks = np.zeros_like(o), np.zeros_like(o), np.zeros_like(o)
+        shininess, kr, kt, ior = (np.zeros(len(o)) for _ in range(4))
+        for k in np.unique(which):
+            at = which == k
+            surface = surfaces[k]
+            p[at], outward[at], n[at] = ref.surface_point(surface, o[at], d[at], hit.t[keep][at], hit.u[keep][at],
+                                                          hit.w[keep][at])
+            if "normals-not-flipped" in wrong:
+                n[at] = outward[at]
+            other, _ = ref._checker_material(scene, surface, p[at])
+            main = scene.materials[surface.material]
+            alt = scene.materials[main.checker.material] if main.checker else main
+            for array, name in ((ka, "ambient"), (kd, "diffuse"), (ks, "specular")):
+                array[at] = np.where(other[:, None], np.array(getattr(alt, name)), np.array(getattr(main, name)))
+            for array, name in ((shininess, "shininess"), (kr, "reflectance"), (kt, "transmittance"),
+                                (ior, "ior")):
+                array[at] = np.where(other, getattr(alt, name), getattr(main, name))
+        colour = np.zeros_like(o) if "no-ambient" in wrong else ka * ambient
+        view = -d
+        for lamp in lights:
+            to, dist, strength = shine(lamp, p)
+            nl = _dot(n, to)
+            gets = (strength > 0) & ((nl > 0) | ("specular-behind" in wrong))
+            if "no-shadows" not in wrong and gets.any():
+                rows = np.flatnonzero(gets)
+                origin, leaving = p[rows], which[rows]
+                if "shadow-acne" in wrong:  # the ray starts where the hit was computed, and may hit its surface
+                    speck = (np.floor(np.abs(origin).sum(axis=1) * 977.0) % 2 == 1)[:, None]
+                    origin = origin - np.where(speck, 1e-7, 0.0) * n[rows]
+                    leaving = np.full(len(rows), -1)
+                shadowed, _ = ref.blocked(surfaces, origin, to[rows], dist[rows], leaving, lamp.position)
+                gets[rows[shadowed]] = False
+            if "blinn-phong" in wrong:
+                rv = _dot(n, _unit(to + view))
+            else:
+                rv = _dot(2 * nl[:, None] * n - to, view)
+            spec = np.where(rv > 0, np.abs(rv) ** shininess, 0.0)
+            diffuse = kd * np.maximum(nl, 0.0)[:, None]
+            specular = np.zeros_like(ks) if "no-specular" in wrong else ks * spec[:, None]
+            colour += np.where(gets[:, None], lamp.color * strength[:, None] * (diffuse + specular), 0.0)
+        np.add.at(total, pixel, weight[:, None] * colour)
+        if depth == depth_limit:
+            break
+        r, t = np.flatnonzero(weight * kr > 0), np.flatnonzero(weight * kt > 0)
+        mirror = _unit(d[r] - 2 * _dot(d[r], n[r])[:, None] * n[r])
+        into = _dot(d[t], outward[t]) < 0
+        eta = np.where(into != ("ior-inverted" in wrong), 1 / ior[t], ior[t])
+        facing = np.where(into[:, None], outward[t], -outward[t])
+        cos_in = -_dot(d[t], facing)
+        k = 1 - eta * eta * (1 - cos_in * cos_in)
+        bent = eta[:, None] * d[t] + (eta * cos_in - np.sqrt(np.maximum(k, 0)))[:, None] * facing
+        bounced = d[t] - 2 * _dot(d[t], facing)[:, None] * facing
+        o = np.concatenate([p[r], p[t]])
+        d = np.concatenate([mirror, _unit(np.where((k < 0)[:, None], bounced, bent))])
+        weight = np.concatenate([weight[r] * kr[r], weight[t] * kt[t]])
+        pixel, start = np.concatenate([pixel[r], pixel[t]]), np.concatenate([which[r], which[t]])
+    linear = np.clip(total / img.samples**2, 0.0, 1.0).reshape(img.height, img.width, 3)
+    if "gamma" in wrong:
+        linear = linear ** (1 / 2.2)
+    image = np.floor(255 * linear + 0.5).astype(np.uint8)
+    return image[::-1].copy() if "image-flipped" in wrong else image
