@@ -32,6 +32,7 @@ from tracer.render import Renderer
 
 from . import povray
 from .classbench import class_rows, cluster_rows
+from .diagnosisbench import diagnosis_rows, report_lines
 from .plot import plot
 from .scenes import example, speed_scenes, with_image
 
@@ -380,6 +381,8 @@ def report(results: dict[str, Any]) -> str:
                   f"(5,000 renders and 5,000 comparisons, 2 ms of scheduling each): "
                   f"{est['workers_10_s'] / 60:.1f} min on 10 workers, {est['workers_100_s'] / 60:.1f} min on 100 "
                   "(the transfers, about 0.2 MB per pair, are small beside that on any cluster network).", ""]
+    if results.get("diagnosis"):
+        lines += report_lines(results["diagnosis"])
     lines += ["## Speed against error", ""]
     for k in results["quality"]:
         lines += [f"### {k['knob']}", "", f"Error against a reference rendered at {k['reference']}.", "",
@@ -403,7 +406,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=2, help="runs per measurement; the best is kept")
     parser.add_argument("--only", nargs="*", help="speed scenes to run (default: all)")
     parser.add_argument("--skip", nargs="*", default=[],
-                        choices=["speed", "png", "memory", "http", "quality", "class", "cluster"])
+                        choices=["speed", "png", "memory", "http", "quality", "class", "cluster", "diagnosis"])
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -416,6 +419,7 @@ def main(argv: list[str] | None = None) -> int:
         "command": "phongray bench " + " ".join(argv if argv is not None else sys.argv[1:]),
         "povray": _povray_version() if pov else None,
         "speed": [], "png": [], "memory": None, "http": None, "quality": [], "class": None, "cluster": None,
+        "diagnosis": None,
     }
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -449,6 +453,11 @@ def main(argv: list[str] | None = None) -> int:
             c = results["cluster"]
             print(f"cluster: 3840×2160 {c['render_4k']['cluster_s']:.1f} s vs {c['render_4k']['local_s']:.1f} s local, "
                   f"class {c['class']['cluster_s']:.1f} s vs {c['class']['local_s']:.1f} s local", flush=True)
+    if "diagnosis" not in args.skip:
+        results["diagnosis"] = diagnosis_rows()
+        for d in results["diagnosis"]:
+            print(f"diagnosis {d['scene']}: cold {d['cold_s']:.2f} s ({d['cold_over_render']:.1f}× its render), "
+                  f"warm {d['warm_s']:.3f} s, named {d['named']}", flush=True)
     if "http" not in args.skip:
         results["http"] = [http_latency(seconds=5.0, clients=clients, workers=2) for clients in (2, 4)]
         for h in results["http"]:
