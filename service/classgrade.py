@@ -24,6 +24,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from .diagnosis import headline
 from .report import COLUMNS, NUMBERS, STATUSES, summary, write_atomic, write_report
 from .settings import Settings
 from .submissions import SCENE_IGNORED, Batch, ClassError, Pair, UntrustedFileError, discover, read_untrusted
@@ -46,13 +47,18 @@ def render_task(scene: bytes) -> tuple[bytes | None, str]:
         return None, str(exc)
 
 
-def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float) -> dict[str, Any]:
-    """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"``; or an
-    invalid row whose reason lacks only the file's name."""
+def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float,
+               scene: bytes | None = None) -> dict[str, Any]:
+    """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"`` and,
+    given the reference's ``scene`` text, the likely mistake of a failing one; or an invalid row whose reason
+    lacks only the file's name."""
+    from schemas import load_scene
+
     from . import grading, pipeline
 
     try:
-        graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict")
+        graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict",
+                                    scene=None if scene is None else load_scene(scene), threads=1)
     except grading.ImageError as exc:
         return {"status": "invalid", "reason": str(exc)}
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
@@ -60,9 +66,9 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
 
 def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float
                  ) -> dict[str, Any]:
-    """:func:`grade_task` with the scene's text first, as the service's grade task takes it (unused here: the
-    reference is already rendered)."""
-    return grade_task(reference, image, tolerance, max_fraction)
+    """:func:`grade_task` with the scene's text first, as the service's grade task takes it (the reference is
+    already rendered: the scene is for the diagnosis of a failing pair)."""
+    return grade_task(reference, image, tolerance, max_fraction, scene)
 
 
 def _server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes | None, str]:
@@ -301,6 +307,7 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path) -> N
         pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
         return
     result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
+    result["likely"] = headline(result.pop("diagnosis", None))
     heat, copy = _paths(pair, report)
     write_atomic(heat, result.pop("heatmap_png"))
     write_atomic(copy, image)

@@ -86,12 +86,7 @@ class Diagnosis:
             return (f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake "
                     f"({percent(c.fraction_off_nearby)} of pixels off)")
         if self.terms:
-            t = self.terms[0]
-            what = t.name if t.light is None else f"{t.name} of light {t.light}"
-            if t.scale < MISSING:
-                return f"Likely: the {what} term is missing (about ×{t.scale:.2f} of the reference's)"
-            return (f"Likely: the {what} term is {'too strong' if t.scale > 1 else 'too weak'} "
-                    f"(about ×{t.scale:.2f} of the reference's)")
+            return f"Likely: {term_words(asdict(self.terms[0]))} (about ×{self.terms[0].scale:.2f} of the reference's)"
         return "No known mistake fits: compare the heat-map with the reference"
 
     def as_dict(self) -> dict[str, Any]:
@@ -110,6 +105,26 @@ class Renders:
     objects: list[str]  # the scene's object types, in order
     bound: Callable[[str], np.ndarray] | None = None  # name of BOUNDS → pixels of the mistake's far end
     cancel: Callable[[], bool] | None = None  # the current diagnosis's: true stops its renders
+
+
+def term_words(term: dict[str, Any]) -> str:
+    """``the diffuse of light 1 term is missing`` for a term (as :meth:`Diagnosis.as_dict` lists it)."""
+    what = term["name"] if term["light"] is None else f"{term['name']} of light {term['light']}"
+    how = "missing" if term["scale"] < MISSING else "too strong" if term["scale"] > 1 else "too weak"
+    return f"the {what} term is {how}"
+
+
+def headline(found: dict[str, Any] | None) -> str:
+    """A diagnosis (as :meth:`Diagnosis.as_dict`) in a few words, for a report's cell: the likely mistake,
+    the term out of scale, or that nothing fits; empty for none (a pass)."""
+    if not found:
+        return ""
+    if found["causes"]:
+        return found["causes"][0]["mistake"] + (" (closest)" if found["closest"] else "")
+    if found["terms"]:
+        return f"{term_words(found['terms'][0])} (×{found['terms'][0]['scale']:.2f})"
+    sentence: str = found["sentence"]
+    return sentence if sentence.startswith("No diagnosis") else "no known mistake fits"
 
 
 def unavailable(why: str) -> dict[str, Any]:

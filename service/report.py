@@ -25,7 +25,7 @@ from .taskfile import TaskSettings
 NUMBERS = ["mean_abs_error", "rmse", "psnr", "max_error", "fraction_off", "fraction_off_nearby", "width", "height",
            "reference_sha256"]
 #: the columns of report.csv (and the keys of each row of report.json), in order
-COLUMNS = ["student", "task", "status", "reason", "scene", "file", "passed", "points", "score", "tolerance",
+COLUMNS = ["student", "task", "status", "reason", "likely", "scene", "file", "passed", "points", "score", "tolerance",
            "max_fraction", *NUMBERS, "reference", "submission", "heatmap"]
 STATUSES = ("pass", "fail", "missing", "invalid")
 
@@ -60,11 +60,24 @@ def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[s
 
 
 def test_output(row: dict[str, Any]) -> str:
-    """What a student reads of one task: the verdict and its reason or numbers."""
+    """What a student reads of one task: the verdict and its reason or numbers, and the likely mistake."""
     if row["status"] == "pass":
         return (f"passed: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
                 f"(at most {percent(row['max_fraction'])} may be)")
-    return f"{row['status']}: {row['reason']}"
+    likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
+    return f"{row['status']}: {row['reason']}{likely}"
+
+
+def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
+    """Per task, its failing pairs' likely mistakes, most common first: (mistake, pairs, failing pairs)."""
+    out: dict[str, list[tuple[str, int, int]]] = {}
+    for task in tasks:
+        failing = [r for r in rows if r["task"] == task and r["status"] == "fail"]
+        counts: dict[str, int] = {}
+        for r in failing:
+            counts[r["likely"] or "not diagnosed"] = counts.get(r["likely"] or "not diagnosed", 0) + 1
+        out[task] = [(m, n, len(failing)) for m, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))]
+    return out
 
 
 def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> dict[str, Any]:
@@ -95,8 +108,9 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
             anchor = f"p-{quote(student)}-{quote(task)}"
             label = r["status"]
             # the cell shows the reason without the file it names (the detail shows it whole)
-            note = (_percent(r["fraction_off_nearby"]) if r["status"] in ("pass", "fail")
-                    else esc(_without_file(r["reason"]))[:80])
+            note = (_percent(r["fraction_off_nearby"]) if r["status"] == "pass"
+                    else esc((r.get("likely") or "")[:60]) or _percent(r["fraction_off_nearby"])
+                    if r["status"] == "fail" else esc(_without_file(r["reason"]))[:80])
             own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
             cells.append(f'<td class="{r["status"]}"><a href="#{anchor}">{label}{own}<small>{note}</small></a></td>')
             images = "".join(
@@ -105,8 +119,9 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
                 for k in ("reference", "submission", "heatmap"))
             legend = _legend() if r["heatmap"] else ""
             numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
+            likely = f'<p class="likely">Likely: {esc(r["likely"])}</p>' if r.get("likely") else ""
             details.append(f'<section class="pair" id="{anchor}"><h2>{esc(student)} · {esc(task)}: {label}</h2>'
-                           f'<p>{esc(r["reason"])}</p><div class="images">{images}</div>{legend}'
+                           f'<p>{esc(r["reason"])}</p>{likely}<div class="images">{images}</div>{legend}'
                            f'<table class="numbers">{numbers}</table>'
                            f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
         body.append(f"<tr><th>{esc(student)}</th>{''.join(cells)}</tr>")
@@ -115,6 +130,10 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
         mine = [by[(s, task)] for s in students]
         passed = sum(r["status"] == "pass" for r in mine)
         rates.append(f"<td>{passed}/{len(mine)}<small>{_percent(passed / len(mine) if mine else None)}</small></td>")
+    common = []
+    for found in likely_by_task(rows, tasks).values():
+        lines = "".join(f"<li>{n} of {failing}: {esc(m)}</li>" for m, n, failing in found[:3])
+        common.append(f'<td><ul class="likely">{lines}</ul></td>' if lines else "<td></td>")
     skipped = "".join(f"<li>{esc(name)}: {esc(why)}</li>" for name, why in ignored) or "<li>none</li>"
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>phongray class report</title>
@@ -138,13 +157,16 @@ figure {{ margin: 0; }} figure img {{ width: 320px; image-rendering: pixelated; 
 .swatch {{ display: inline-block; width: 12px; height: 12px; border: 1px solid #000; margin-right: 6px;
            vertical-align: -2px; }}
 .numbers td {{ padding: 1px 10px 1px 0; }}
+ul.likely {{ margin: 0; padding-left: 1.1em; text-align: left; font-size: 12px; max-width: 16em; }}
+p.likely {{ background: #fff7e0; border-left: 4px solid #d89b00; padding: 4px 10px; font-weight: bold; }}
 </style></head><body>
 <h1>phongray class report</h1>
 <p>{esc(headline)}. Click a cell for the reference, the submission and the heat-map side by side;
 ● marks a student's own scene.</p>
 <table class="grid"><thead><tr><th>student</th>{head}</tr></thead>
 <tbody>{''.join(body)}</tbody>
-<tfoot><tr><th>passed</th>{''.join(rates)}</tr></tfoot></table>
+<tfoot><tr><th>passed</th>{''.join(rates)}</tr>
+<tr><th>likely mistakes<small>of the failing pairs</small></th>{''.join(common)}</tr></tfoot></table>
 {''.join(details)}
 <h2>Ignored files</h2><ul>{skipped}</ul>
 </body></html>

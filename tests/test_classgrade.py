@@ -303,7 +303,37 @@ def test_gradescope_results_of_every_student(klass, tmp_path):
         for test, row in zip(results["tests"], mine, strict=True):
             assert set(test) == {"name", "score", "max_score", "status", "output", "visibility"}
             assert test["status"] == ("passed" if row["status"] == "pass" else "failed")
-            assert row["status"] == "pass" or test["output"] == f"{row['status']}: {row['reason']}"
+            likely = f"\nLikely: {row['likely']}" if row["likely"] else ""
+            assert row["status"] == "pass" or test["output"] == f"{row['status']}: {row['reason']}{likely}"
+
+
+def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_path):
+    from tracer.variants import VARIANTS
+
+    scenes, subs = tmp_path / "scenes", tmp_path / "subs"
+    scenes.mkdir()
+    data = small("02_all_lights")
+    (scenes / "lamps.json").write_text(json.dumps(data))
+    scene = schemas.validate_scene(data)
+    for student, mistake in (("ada", None), ("bob", "no-attenuation"), ("cy", "no-attenuation"),
+                             ("dee", "image-flipped")):
+        (subs / student).mkdir(parents=True)
+        options = VARIANTS[mistake][0] if mistake else None
+        pixels = tracer.Renderer(scene, options).pixels() if options else tracer.render(scene)
+        (subs / student / "lamps.png").write_bytes(png(pixels))
+    report = tmp_path / "r"
+    rows = by_pair(grade((scenes, subs, None), report).rows)
+    assert rows[("ada", "lamps")]["status"] == "pass" and rows[("ada", "lamps")]["likely"] == ""
+    for student in ("bob", "cy"):
+        assert rows[(student, "lamps")]["likely"] == "no attenuation of point, spot and area lights"
+    assert rows[("dee", "lamps")]["likely"] == "the image flipped vertically"
+    page = (report / "index.html").read_text()
+    assert "<li>2 of 3: no attenuation of point, spot and area lights</li>" in page
+    assert "<li>1 of 3: the image flipped vertically</li>" in page
+    with open(report / "report.csv", newline="") as f:
+        assert {r["student"]: r["likely"] for r in csv.DictReader(f)}["bob"].startswith("no attenuation")
+    results = json.loads((report / "gradescope" / "dee" / "results.json").read_text())
+    assert results["tests"][0]["output"].endswith("\nLikely: the image flipped vertically")
 
 
 @pytest.mark.parametrize("content, says", [

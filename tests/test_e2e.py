@@ -182,6 +182,14 @@ def test_playground_marks_a_syntax_error(server, browser):
     page.close()
 
 
+def variant_png(text: bytes, name: str) -> bytes:
+    import schemas
+    import tracer
+    from tracer.variants import VARIANTS
+
+    return tracer.encode_png(tracer.Renderer(schemas.load_scene(text), VARIANTS[name][0]).pixels())
+
+
 def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
     right = tmp_path / "right.png"
     right.write_bytes(post_json(server, "/render", SCENE))
@@ -202,6 +210,15 @@ def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
     assert page.inner_text("#verdict").startswith("FAIL: ") and "off even nearby" in page.inner_text("#verdict")
     legend = page.inner_text("#legend")
     assert "brighter than the reference" in legend and "darker than the reference" in legend
+    assert page.is_visible("#diagnosis") and page.inner_text("#likely").startswith("Likely: the ")
+    unshadowed = tmp_path / "unshadowed.png"
+    unshadowed.write_bytes(variant_png(SCENE, "no-shadows"))
+    page.set_input_files("#upload", str(unshadowed))
+    page.wait_for_function("() => document.getElementById('likely').textContent.startsWith('Likely: no shadow')",
+                           timeout=30_000)
+    page.wait_for_function("() => { const i = document.getElementById('grade-heat-map'); "
+                           "return i && i.naturalWidth === 160; }", timeout=20_000)
+    assert "failing pixels show: objects[" in page.inner_text("#evidence")
     shot(page, "playground-grade.png", tmp_path)
     assert page.outside == []
     page.close()
