@@ -147,9 +147,11 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
         scored.append(Cause(name, mistake, g.fraction_off_nearby, g.passed))
     for name in BOUNDS if renders.bound is not None else ():
         assert renders.bound is not None
+        # the variant's own speckles are one pattern of many: only lying between the reference and the far
+        # end, in speckles, is evidence of the mistake
+        scored = [c for c in scored if c.variant != name]
         outside = speckled(reference, renders.bound(name), submitted, verdict.tolerance)
         if outside is not None:
-            scored = [c for c in scored if c.variant != name]
             scored.append(Cause(name, VARIANTS[name][1], outside, outside <= verdict.max_fraction))
     scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
     passing = [c for c in scored if c.passes]

@@ -7,7 +7,9 @@ ada gets everything right; ben's lights image misses a light and his mirror imag
 dara has her own randomised spheres scene, in the TA's student-scenes/ folder (and renders it right); eli sent
 nothing for two tasks, and a scene of his own (ignored: students cannot change their task); frank's files come
 as a learning-management system downloads them: Spheres.PNG, one folder deeper hw3/lights.png, and a JPEG
-mirror.jpg.  tasks.json gives each task its points.
+mirror.jpg; gus and hana made classic mistakes, which the report names: gus cast no shadow rays and used the
+Blinn–Phong half vector, hana cast no shadow rays, left out attenuation and inverted the index of refraction.  tasks.json
+gives each task its points.
 """
 
 import copy
@@ -26,8 +28,11 @@ EXAMPLES = HERE.parent
 TASKS = {"spheres": "01_three_spheres", "lights": "02_all_lights", "mirror": "04_whitted"}
 
 
-def render(data: dict) -> np.ndarray:
-    return tracer.render(schemas.validate_scene(copy.deepcopy(data)))
+def render(data: dict, mistake: str | None = None) -> np.ndarray:
+    from tracer.variants import VARIANTS
+
+    scene = schemas.validate_scene(copy.deepcopy(data))
+    return tracer.Renderer(scene, VARIANTS[mistake][0]).pixels() if mistake else tracer.render(scene)
 
 
 def save(path: Path, pixels: np.ndarray) -> None:
@@ -72,6 +77,11 @@ def main() -> None:
     buf = io.BytesIO()
     Image.fromarray(right["mirror"]).save(buf, format="JPEG", quality=95)
     (sub / "frank" / "mirror.jpg").write_bytes(buf.getvalue())
+    for student, mistakes in (("gus", {"spheres": "no-shadows", "lights": "blinn-phong", "mirror": None}),
+                              ("hana", {"spheres": "no-shadows", "lights": "no-attenuation",
+                                        "mirror": "ior-inverted"})):
+        for task, mistake in mistakes.items():
+            save(sub / student / f"{task}.png", render(scenes[task], mistake))
     points = {"spheres": {"points": 2}, "lights": {"points": 3}, "mirror": {"points": 5, "tolerance": 3}}
     (HERE / "tasks.json").write_text(json.dumps(points, indent=2) + "\n")
 
