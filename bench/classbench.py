@@ -145,3 +145,68 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
             "per_task": {"render_s": t_render, "grade_s": t_grade, "png_bytes": len(ref_png),
                          "scene_bytes": len(json.dumps(one))},
             "estimate_500x10": {"workers_10_s": estimate(500, 10, 10), "workers_100_s": estimate(500, 10, 100)}}
+
+
+#: the per-student class: every student has an own scene for every task (the course's real workload)
+PER_STUDENT = 80
+PER_STUDENT_TASKS = ["01_three_spheres", "02_all_lights", "03_soft_shadows", "04_whitted", "05_mesh",
+                     "06_orthographic", "07_spotlights", "08_antialiased", "01_three_spheres", "04_whitted"]
+
+
+def _jittered(data: dict[str, Any], student: int, task: int) -> dict[str, Any]:
+    """A student's own copy of a task's scene: the camera and every sphere moved a little, its own way."""
+    out = copy.deepcopy(data)
+    out["image"].update(width=320, height=240)
+    step = 0.003 * (student + 1) * (1 + task % 3)
+    out["camera"]["position"] = [c + step * s for c, s in zip(out["camera"]["position"], (1, 0.5, -0.5))]
+    for obj in out["objects"]:
+        if obj["type"] == "sphere":
+            obj["center"] = [obj["center"][0] + step, *obj["center"][1:]]
+    return out
+
+
+def _render_file(scene_path: str, out: str) -> float:
+    from service.classgrade import render_task
+
+    started = time.perf_counter()
+    png, why = render_task(Path(scene_path).read_bytes())
+    assert png is not None, why
+    Path(out).write_bytes(png)
+    return time.perf_counter() - started
+
+
+def per_student_row(work: Path) -> dict[str, Any]:
+    """80 students × 10 tasks at 320×240, every pair its own scene (800 distinct renders and comparisons),
+    graded from scratch by ``grade-class`` with a process per core; beside it the same 800 renders alone in a
+    pool of as many processes (the floor that class grading cannot go below without a faster tracer)."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    root = work / "per-student"
+    scenes, subs, own = root / "scenes", root / "subs", root / "own"
+    scenes.mkdir(parents=True)
+    jobs = []
+    for t, name in enumerate(PER_STUDENT_TASKS):
+        task = f"task{t:02d}"
+        data = json.loads((EXAMPLES / f"{name}.json").read_text())
+        data["image"].update(width=320, height=240)
+        (scenes / f"{task}.json").write_text(json.dumps(data))
+        for k in range(PER_STUDENT):
+            student = f"student{k:02d}"
+            (own / student).mkdir(parents=True, exist_ok=True)
+            (subs / student).mkdir(parents=True, exist_ok=True)
+            path = own / student / f"{task}.json"
+            path.write_text(json.dumps(_jittered(data, k, t)))
+            jobs.append((str(path), str(subs / student / f"{task}.png")))
+    workers = os.cpu_count() or 1
+    started = time.perf_counter()
+    with ProcessPoolExecutor(workers) as pool:
+        per_render = list(pool.map(_render_file, *zip(*jobs)))
+    floor = time.perf_counter() - started
+    started = time.perf_counter()
+    outcome = grade_class(scenes, subs, root / "report", student_scenes=own)
+    seconds = time.perf_counter() - started
+    assert outcome.count("pass") == len(outcome.rows), outcome.summary()
+    pairs = len(outcome.rows)
+    return {"mode": "local, a scene per student", "pairs": pairs, "references": outcome.renders,
+            "seconds": seconds, "pairs_per_s": pairs / seconds, "renders_alone_s": floor,
+            "render_mean_s": sum(per_render) / len(per_render), "workers": workers}

@@ -395,24 +395,22 @@ class _Help(argparse.HelpFormatter):
         return text + " (default: %(default)s)"
 
 
-def _index(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an index (0, 1, ...), got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an index (0, 1, ...), got {text!r}")
-    return value
-
-
-def _port(text: str) -> int:
+def _integer(text: str, low: int, high: int | None, what: str) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"{value} is not a TCP port (0–65535)")
+    if value < low or (high is not None and value > high):
+        raise argparse.ArgumentTypeError(f"{value} is not {what}")
     return value
+
+
+def _index(text: str) -> int:
+    return _integer(text, 0, None, "an index (0, 1, ...)")
+
+
+def _port(text: str) -> int:
+    return _integer(text, 0, 65535, "a TCP port (0–65535)")
 
 
 def _seconds(text: str) -> float:

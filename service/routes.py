@@ -129,6 +129,15 @@ class _Flight:
         self.waiting = 0  # requests still interested; the render stops when none is
 
 
+def _unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
+    """503 with Retry-After for a render that cannot be had now: the slots busy, past its time, no cluster."""
+    settings = service.settings
+    detail = ("every render slot is busy; try again shortly" if isinstance(exc, Busy) else
+              f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
+              if isinstance(exc, TooSlow) else "the render cluster cannot be reached; try again shortly")
+    return HTTPProblem(503, detail, headers={"Retry-After": str(settings.retry_after)})
+
+
 async def _png(request: Request, job: Job) -> bytes:
     """Render (or fetch) off the event loop; stop rendering once every client that wants it has gone."""
     service: RenderService = request.app.state.service
@@ -174,15 +183,8 @@ async def _png(request: Request, job: Job) -> bytes:
     try:
         if failure is not None:
             raise failure
-    except Busy:
-        raise HTTPProblem(503, "every render slot is busy; try again shortly",
-                          headers={"Retry-After": str(service.settings.retry_after)}) from None
-    except TooSlow:
-        raise HTTPProblem(503, f"the render ran past the limit render_timeout = {service.settings.render_timeout:g} s",
-                          headers={"Retry-After": str(service.settings.retry_after)}) from None
-    except ClusterDown:
-        raise HTTPProblem(503, "the render cluster cannot be reached; try again shortly",
-                          headers={"Retry-After": str(service.settings.retry_after)}) from None
+    except (Busy, TooSlow, ClusterDown) as exc:
+        raise _unavailable(exc, service) from None
     except RenderCancelled:
         raise HTTPProblem(499, "client closed the request") from None
     except ImageTooLarge as exc:  # only when the service's own limits are set above the renderer's
@@ -226,12 +228,8 @@ async def _pass(service: RenderService, job: Job, name: str, light: int | None, 
         data = await anyio.to_thread.run_sync(service.pass_file, job, name, light, fmt, limiter=service.grading)
     except ValueError as exc:  # a light the scene does not have
         raise HTTPProblem(422, str(exc)) from None
-    except Busy:
-        raise HTTPProblem(503, "every render slot is busy; try again shortly",
-                          headers={"Retry-After": str(service.settings.retry_after)}) from None
-    except TooSlow:
-        raise HTTPProblem(503, f"the render ran past the limit render_timeout = {service.settings.render_timeout:g} s",
-                          headers={"Retry-After": str(service.settings.retry_after)}) from None
+    except (Busy, TooSlow) as exc:
+        raise _unavailable(exc, service) from None
     media = "application/x-npy" if fmt == "npy" else "image/png"
     return Response(data, media_type=media, headers={"Cache-Control": "no-cache"})
 
