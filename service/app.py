@@ -118,7 +118,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         extra = settings.max_image_bytes if path == "/grade" else 0
         return settings.max_body_bytes + extra
 
-    app.add_middleware(BodyLimit, limit=body_limit, grace=settings.body_timeout, min_rate=settings.body_min_rate)
+    app.state.body_limit = body_limit  # (also the most a form part may be: service.routes)
+    app.add_middleware(BodyLimit, limit=body_limit, grace=settings.body_timeout, min_rate=settings.body_min_rate,
+                       budget=settings.max_buffered_bytes, wait=settings.buffer_wait, retry_after=settings.retry_after)
     if settings.api_key:
         app.add_middleware(ApiKey, key=settings.api_key)
     return app
