@@ -18,6 +18,9 @@ Scope = dict[str, Any]
 #: bodies from this size on leave enough garbage to be worth handing back to the OS at once
 LARGE_BODY = 1 << 20
 ASGIApp = Callable[..., Any]
+#: refused bodies read and dropped at once by one worker (the event loop's work is bounded like the budget's); the
+#: others are not read, and their clients may see the connection reset before the answer
+DRAINS = 4
 
 
 async def _send_json(send: Callable[..., Any], status: int, detail: str, headers: list | None = None,
@@ -89,7 +92,8 @@ class BodyLimit:
       limit (413 beyond it) and then replayed to the app.
     * Before anything of it is read, a body takes its declared length (a chunked body: the limit, the most it
       may be) from the worker's :class:`Budget` of ``budget`` bytes, and holds it until its answer is sent; a
-      body that finds no room within ``wait`` seconds gets 503 with ``Retry-After``.  So the request bodies one
+      body that finds no room within ``wait`` seconds gets 503 with ``Retry-After`` (:data:`DRAINS` of them at
+      a time are read and dropped first).  So the request bodies one
       worker holds are bounded whatever the number of connections (those waiting are not read: TCP holds
       their senders back).
     * The body must have arrived ``grace`` seconds after it started plus one second per ``min_rate`` bytes (408
@@ -107,6 +111,7 @@ class BodyLimit:
         self.budget = Budget(budget)
         self.wait = wait
         self.retry_after = retry_after
+        self.draining = 0
 
     async def __call__(self, scope: Scope, receive: Callable[..., Any], send: Callable[..., Any]) -> None:
         if scope["type"] != "http":
@@ -135,7 +140,12 @@ class BodyLimit:
             return
         size_taken = limit if framed else (declared or 0)
         if size_taken and not await self.budget.take(size_taken, self.wait):
-            await self._discard(receive, limit)  # so that the client can read the answer (no reset)
+            if self.draining < DRAINS:  # read and drop the body, so that the client can read the answer (no reset)
+                self.draining += 1
+                try:
+                    await self._discard(receive, limit)
+                finally:
+                    self.draining -= 1
             await _send_json(send, 503, f"this worker holds as many request bodies as it may "
                                         f"(max_buffered_bytes = {self.budget.total}); try again shortly",
                              [(b"retry-after", str(self.retry_after).encode())], close=True)
