@@ -40,8 +40,9 @@ def _free_port() -> int:
 
 
 def _workers(pid: int) -> list[int]:
+    """The worker processes of a server (with one worker, uvicorn serves in the server's own process)."""
     with open(f"/proc/{pid}/task/{pid}/children") as f:
-        return [int(p) for p in f.read().split()]
+        return [int(p) for p in f.read().split()] or [pid]
 
 
 def _rss_mib(pids: list[int]) -> float:
@@ -140,7 +141,7 @@ def run(requests: int, workers: int, mib: float, source: Path, env: dict[str, st
             try:
                 with urllib.request.urlopen(url + "/healthz", timeout=1):
                     pass
-                if len(_workers(proc.pid)) >= workers:
+                if len(_workers(proc.pid)) >= workers or workers == 1:
                     break
             except OSError:
                 pass
