@@ -148,7 +148,7 @@ def run(requests: int, workers: int, mib: float, source: Path, env: dict[str, st
             time.sleep(0.1)
         else:
             raise RuntimeError("the server did not start")
-        time.sleep(2.0)  # every worker up and idle
+        time.sleep(2.0 if workers > 1 else 0.5)  # every worker up and idle
         scene = SCENE.read_bytes()
         render = urllib.request.Request(url + "/render", data=scene, headers={"content-type": "application/json"})
         with urllib.request.urlopen(render, timeout=60) as res:

@@ -255,10 +255,10 @@ def test_the_budget_serves_in_arrival_order_and_gives_up_after_its_wait():
     anyio.run(main)
 
 
-def test_400_concurrent_large_grades_hold_bounded_memory_and_healthz_answers():
-    """The issue's attack at a test's scale: 64 concurrent 16 MiB /grade bodies on one worker (on 341e1da the
-    worker grew by about 1.5 GiB and /healthz took seconds).  ``python -m bench.bodies`` runs the full 400 on 2."""
-    result = bodies.run(requests=64, workers=1, mib=16, source=bodies.HERE, env={})
-    assert set(result["statuses"]) <= {"200", "503"} and result["statuses"].get("200", 0) >= 32, result
+def test_concurrent_16_mib_grades_hold_bounded_memory_and_healthz_answers():
+    """The issue's attack at a test's scale: 48 concurrent 16 MiB /grade bodies on one worker (on 341e1da, 64 of
+    them grew the worker by 2.4 GiB).  ``python -m bench.bodies`` runs the issue's 400 on 2 workers."""
+    result = bodies.run(requests=48, workers=1, mib=16, source=bodies.HERE, env={})
+    assert result["statuses"] == {"200": 48}, result  # (they wait their turn: none is refused)
     assert result["rss_peak_growth_mib"] <= 384, result
     assert result["healthz_worst_ms"] < 250 and result["healthz_failures"] == 0, result
