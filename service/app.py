@@ -19,7 +19,7 @@ from schemas import Scene
 
 from .heatmap import LEGEND
 from .jobs import RenderService
-from .middleware import ApiKey, BodyLimit
+from .middleware import ApiKey, BodyLimit, Framing
 from .routes import HTTPProblem, SafeJSONResponse, problem_response, router
 from .settings import Settings
 
@@ -123,4 +123,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                        budget=settings.max_buffered_bytes, wait=settings.buffer_wait, retry_after=settings.retry_after)
     if settings.api_key:
         app.add_middleware(ApiKey, key=settings.api_key)
+    app.add_middleware(Framing)  # (the outermost: before the key is asked for)
     return app

@@ -34,6 +34,24 @@ async def _send_json(send: Callable[..., Any], status: int, detail: str, headers
     await send({"type": "http.response.body", "body": body})
 
 
+class Framing:
+    """A request with both ``Content-Length`` and ``Transfer-Encoding`` gets 400 and its connection is closed,
+    before anything else answers it (RFC 9112 §6.1: such a message may be an attempt at request smuggling, and
+    the server must close the connection after answering, so that nothing sent after its body is answered)."""
+
+    def __init__(self, app: ASGIApp):
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Callable[..., Any], send: Callable[..., Any]) -> None:
+        if scope["type"] == "http":
+            names = {name for name, _ in scope.get("headers", [])}
+            if b"content-length" in names and b"transfer-encoding" in names:
+                await _send_json(send, 400, "the request has both Content-Length and Transfer-Encoding headers; "
+                                            "send exactly one of them (RFC 9112 section 6.1)", close=True)
+                return
+        await self.app(scope, receive, send)
+
+
 class Budget:
     """The bytes of request bodies one worker holds at once, at most ``total``: each body takes its size before
     it is read and gives it back when its answer has gone out.  Bodies that do not fit wait in arrival order
@@ -86,8 +104,6 @@ class BodyLimit:
     """Read the request body before the app sees it, and refuse what is malformed, too large or too slow, or what
     does not fit in the worker's memory budget.
 
-    * Both ``Content-Length`` and ``Transfer-Encoding`` get 400 (RFC 9112 §6.1: such a message may be an attempt
-      at request smuggling, and the connection must be closed after answering).
     * A declared Content-Length over ``limit(path)`` bytes gets 413 at once; otherwise the body is read up to the
       limit (413 beyond it) and then replayed to the app.
     * Before anything of it is read, a body takes its declared length (a chunked body: the limit, the most it
@@ -120,7 +136,7 @@ class BodyLimit:
         limit = self.limit(scope["path"])
         too_large = f"request body exceeds the limit max_body_bytes = {limit}"
         declared: int | None = None
-        framed = False  # a Transfer-Encoding (chunked) body
+        framed = False  # a Transfer-Encoding (chunked) body (never with a Content-Length: see Framing)
         for name, value in scope.get("headers", []):
             if name == b"content-length":
                 try:
@@ -134,10 +150,6 @@ class BodyLimit:
                     return
             elif name == b"transfer-encoding":
                 framed = True
-        if framed and declared is not None:
-            await _send_json(send, 400, "the request has both Content-Length and Transfer-Encoding headers; "
-                                        "send exactly one of them (RFC 9112 section 6.1)", close=True)
-            return
         size_taken = limit if framed else (declared or 0)
         if size_taken and not await self.budget.take(size_taken, self.wait):
             if self.draining < DRAINS:  # read and drop the body, so that the client can read the answer (no reset)

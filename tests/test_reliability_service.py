@@ -156,6 +156,12 @@ def server(tmp_path_factory):
         yield url
 
 
+@pytest.fixture(scope="module")
+def keyed(tmp_path_factory):
+    with running_server(tmp_path_factory.mktemp("keyed"), api_key="k") as (url, proc):
+        yield url
+
+
 def port_of(url: str) -> int:
     return int(url.rsplit(":", 1)[1])
 
@@ -184,20 +190,33 @@ def read_all(sock: socket.socket, seconds: float) -> tuple[bytes, bool]:
     return data, False
 
 
-@pytest.mark.parametrize("encoding", [b"chunked", b"gzip, chunked"])
-def test_content_length_with_transfer_encoding_gets_400_and_a_smuggled_request_no_answer(server, encoding):
+def smuggle(url: str, encoding: bytes, extra: bytes = b"") -> tuple[bytes, bool]:
+    """A POST with both Content-Length and Transfer-Encoding and a GET smuggled after its chunked body: what the
+    server sends back within 3 s, and whether it closed the connection."""
     smuggled = b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"
     body = b"0\r\n\r\n" + smuggled
     head = (b"POST /validate HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: %d\r\n"
-            b"Transfer-Encoding: %s\r\n\r\n" % (len(body), encoding))
-    with socket.create_connection(("127.0.0.1", port_of(server)), timeout=5) as sock:
+            b"Transfer-Encoding: %s\r\n%s\r\n" % (len(body), encoding, extra))
+    with socket.create_connection(("127.0.0.1", port_of(url)), timeout=5) as sock:
         sock.sendall(head + body)
-        data, closed = read_all(sock, 3.0)
+        return read_all(sock, 3.0)
+
+
+@pytest.mark.parametrize("encoding", [b"chunked", b"gzip, chunked"])
+def test_content_length_with_transfer_encoding_gets_400_and_a_smuggled_request_no_answer(server, encoding):
+    data, closed = smuggle(server, encoding)
     assert data.startswith(b"HTTP/1.1 4"), data
     assert data.count(b"HTTP/1.1 ") == 1, data  # the smuggled GET is never answered
     assert closed, "the connection stayed open"
     if encoding == b"chunked":  # (h11 itself refuses a coding other than chunked, also with a 400)
         assert data.startswith(b"HTTP/1.1 400") and b"Transfer-Encoding" in data, data
+
+
+@pytest.mark.parametrize("extra", [b"", b"Authorization: Bearer wrong\r\n", b"X-API-Key: k\r\n"])
+def test_content_length_with_transfer_encoding_gets_400_before_the_key_is_asked_for(keyed, extra):
+    """With a key set, the 401 of a wrong key (or the answer of the right one) would keep the connection open."""
+    data, closed = smuggle(keyed, b"chunked", extra)
+    assert data.startswith(b"HTTP/1.1 400") and data.count(b"HTTP/1.1 ") == 1 and closed, data
 
 
 def test_a_body_that_finds_no_room_in_the_budget_gets_503_with_retry_after(server):
