@@ -19,7 +19,7 @@ from schemas import Scene
 
 from .heatmap import LEGEND
 from .jobs import RenderService
-from .middleware import ApiKey, BodyLimit
+from .middleware import ApiKey, BodyLimit, Framing
 from .routes import HTTPProblem, SafeJSONResponse, problem_response, router
 from .settings import Settings
 
@@ -118,7 +118,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         extra = settings.max_image_bytes if path == "/grade" else 0
         return settings.max_body_bytes + extra
 
-    app.add_middleware(BodyLimit, limit=body_limit, grace=settings.body_timeout, min_rate=settings.body_min_rate)
+    app.state.body_limit = body_limit  # (also the most a form part may be: service.routes)
+    app.add_middleware(BodyLimit, limit=body_limit, grace=settings.body_timeout, min_rate=settings.body_min_rate,
+                       budget=settings.max_buffered_bytes, wait=settings.buffer_wait, retry_after=settings.retry_after)
     if settings.api_key:
         app.add_middleware(ApiKey, key=settings.api_key)
+    app.add_middleware(Framing)  # (the outermost: before the key is asked for)
     return app

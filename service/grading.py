@@ -70,16 +70,60 @@ def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
             if img.size != expected:
                 raise ImageError(f"image is {img.size[0]}×{img.size[1]} pixels, the scene is "
                                  f"{expected[0]}×{expected[1]}")
+            low = _low_bytes(data, img)
             img.load()
+            if img.mode in WIDE_GRAY:
+                return _wide_gray(img)
             if "A" in img.getbands() or "transparency" in img.info:
-                rgba = np.asarray(img.convert("RGBA"))
+                rgba = _scaled(np.asarray(img.convert("RGBA")), low)
                 _opaque(rgba[:, :, 3])
                 return np.ascontiguousarray(rgba[:, :, :3])
-            return np.asarray(img.convert("RGB"))
+            return _scaled(np.asarray(img.convert("RGB")), low)
     except ImageError:
         raise
     except Exception as exc:  # Pillow raises many kinds for broken files
         raise ImageError(f"image is truncated or corrupt ({type(exc).__name__})") from None
+
+
+#: the modes Pillow gives a 16-bit grayscale PNG (by version and byte order); Pillow's own conversion to 8 bits
+#: clips their values at 255, so they are scaled here
+WIDE_GRAY = ("I;16", "I;16B", "I;16L", "I;16N", "I")
+#: 16-bit colour layouts that Pillow decodes to 8 bits by each value's high byte, and the layout of the same
+#: decoder that gives the low bytes: with both, a value v becomes round(v / 257) exactly
+LOW_BYTES = {"RGB;16B": "RGB;16L", "RGBA;16B": "RGBA;16L"}
+
+
+def _to_8bit(wide: np.ndarray) -> np.ndarray:
+    """16-bit levels (0–65535) to 8-bit ones, round(v / 257): 65535 is 255, and v·257 is v (never clipped)."""
+    v = np.clip(wide, 0, 65535).astype(np.uint32)
+    return ((2 * v + 257) // 514).astype(np.uint8)  # (257 is odd: no value lies halfway)
+
+
+def _wide_gray(img: Image.Image) -> np.ndarray:
+    """A 16-bit grayscale image as 8-bit RGB; a ``tRNS`` grey level (transparent pixels) is refused."""
+    wide = np.asarray(img)
+    if "transparency" in img.info:
+        _opaque(np.where(wide == img.info["transparency"], 0, 255).astype(np.uint8))
+    gray = _to_8bit(wide)
+    return np.repeat(gray[:, :, None], 3, axis=2)
+
+
+def _low_bytes(data: bytes, img: Image.Image) -> np.ndarray | None:
+    """For a 16-bit colour PNG, the low byte of every value (decoded a second time); None for other PNGs."""
+    tiles = getattr(img, "tile", [])
+    if len(tiles) != 1 or tiles[0].args not in LOW_BYTES:
+        return None
+    with Image.open(io.BytesIO(data)) as again:
+        again.tile = [again.tile[0]._replace(args=LOW_BYTES[tiles[0].args])]
+        again.load()
+        return np.asarray(again)
+
+
+def _scaled(high: np.ndarray, low: np.ndarray | None) -> np.ndarray:
+    """The 8-bit values of a 16-bit image from Pillow's high bytes and :func:`_low_bytes` (as is without them)."""
+    if low is None or low.shape != high.shape:
+        return high
+    return _to_8bit(high.astype(np.uint32) * 256 + low)
 
 
 def declared_size(data: bytes, max_pixels: int | None = None) -> tuple[int, int]:

@@ -257,7 +257,9 @@ async def grade(request: Request, format: Literal["json", "png"] = "json",
     if kind not in ("multipart/form-data", "application/x-www-form-urlencoded"):
         raise HTTPProblem(415, f"content type must be multipart/form-data, got {kind or 'none'}")
     try:
-        form = await request.form(max_files=4, max_fields=16)
+        # a part may be as large as the body (the framework's default is 1 MiB): the limits of each part are
+        # checked below, with 413 naming the part
+        form = await request.form(max_files=4, max_fields=16, max_part_size=request.app.state.body_limit("/grade"))
     except Exception as exc:  # malformed multipart bodies
         raise HTTPProblem(422, f"invalid multipart form: {exc}") from None
     try:

@@ -43,6 +43,8 @@ class Settings(BaseSettings):
     body_min_rate: int = 65_536  # ... which must then keep arriving at this many bytes per second (else 408)
     keep_alive: float = 5.0  # seconds an idle kept-alive connection stays open
     max_connections: int = 1_000  # open connections per worker process; beyond it, 503
+    max_buffered_bytes: int = 96 * 1024 * 1024  # request bodies one worker process holds at once ...
+    buffer_wait: float = 30.0  # ... beyond which a body waits this many seconds for room, then gets 503
     cluster: str = ""  # a Dask scheduler (tcp://HOST:PORT): renders go to its workers instead of this process
     cluster_wait: float = 30.0  # seconds to wait for a cluster's first worker before giving up
 
