@@ -73,8 +73,12 @@ def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[s
     write_atomic(report / "report.json", _text(json.dumps(rows, indent=1, ensure_ascii=False) + "\n"))
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    # a carriage return in a cell (a student's name can hold one) is quoted only by a writer that quotes all
+    quoted = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n", quoting=csv.QUOTE_ALL)
     writer.writeheader()
-    writer.writerows({k: neutral_cell(v) for k, v in row.items()} for row in rows)
+    for row in rows:
+        cells = {k: neutral_cell(v) for k, v in row.items()}
+        (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
     write_atomic(report / "report.csv", _text(buf.getvalue()))
     for student in students:
         mine = [r for r in rows if r["student"] == student]
