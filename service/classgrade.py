@@ -117,6 +117,8 @@ def _server_grade(server: str, api_key: str | None, scene: bytes, reference: byt
 RETRIES = 4
 #: ... after this many seconds, doubled at each retry (0.5 + 1 + 2 + 4 s: a restarting server worker is back)
 BACKOFF = 0.5
+#: seconds to reach a lost Dask scheduler again, at each retry
+RECONNECT_TIMEOUT = 10.0
 #: the longest a request waits out a busy service's 503s (Retry-After), in seconds
 BUSY_WAIT = 600.0
 
@@ -270,13 +272,14 @@ class _Backend:
             max_workers=self.workers, mp_context=context, initializer=_die_with_parent,
             initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
 
-    def _connect(self) -> None:
+    def _connect(self, timeout: float = 10.0) -> None:
+        """A client of the scheduler (a new one when the old has lost it) with a worker, and its executor."""
         from .cluster import client, wait_for_workers
 
         assert self.cluster is not None
         if self.client is None or getattr(self.client, "status", "running") != "running":
             self._close_client()
-            self.client = client(self.cluster)
+            self.client = client(self.cluster, timeout)
         wait_for_workers(self.client, self.cluster, self.cluster_wait)
         self.executor = self.client.get_executor(retries=2)
 
@@ -292,14 +295,16 @@ class _Backend:
             with contextlib.suppress(Exception):
                 self.executor.shutdown(wait=False, cancel_futures=True)
         if self.cluster:
-            self._connect()
+            self._connect(RECONNECT_TIMEOUT)
         else:
             self._pool()
 
-    def close(self) -> None:
+    def close(self, wait: bool = True) -> None:
+        """Done with: ``wait`` for what still runs (not after an error or an interruption: a pool process then
+        ends with its task, or with grade-class)."""
         if self.executor is not None:
             with contextlib.suppress(Exception):
-                self.executor.shutdown(wait=True, cancel_futures=True)
+                self.executor.shutdown(wait=wait, cancel_futures=True)
         self._close_client()
 
 
@@ -309,6 +314,10 @@ def _one_line(exc: BaseException) -> str:
         return "a pool process died (killed, or out of memory)"
     if isinstance(exc, futures.CancelledError):
         return f"the work was cancelled ({text or 'the scheduler was lost'})"
+    from .cluster import ClusterError
+
+    if isinstance(exc, ClusterError) and text:
+        return text
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
@@ -354,7 +363,7 @@ def _run_tasks(backend: _Backend, tasks: dict[Any, tuple[Callable[..., Any], tup
             raise fatal
         while pending and fault is not None:
             if attempt >= RETRIES:
-                raise ClassError(f"{backend.name}: {_one_line(fault)}, {RETRIES + 1} times; stopped with "
+                raise ClassError(f"{backend.name}: {_one_line(fault)} (tried {RETRIES + 1} times); stopped with "
                                  f"{len(pending)} tasks unfinished; {kept()}: run again to resume")
             time.sleep(BACKOFF * 2**attempt)
             attempt += 1
@@ -419,10 +428,13 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
         _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts,
                    settings.max_image_bytes)
     except ServerError as exc:  # the service went away, or stopped taking the key, in the middle of the batch
+        backend.close(wait=False)
         raise ClassError(f"--server {server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
                          f"resume") from None
-    finally:
-        backend.close()
+    except BaseException:
+        backend.close(wait=False)
+        raise
+    backend.close()
     rows = [_row(p, refs, report, tasks) for p in batch.pairs]
     outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - started)
     write_report(report, rows, batch.ignored, batch.students, tasks, outcome.summary())

@@ -352,7 +352,7 @@ def test_a_pool_process_killed_every_time_stops_with_one_line_and_a_rerun_resume
     code = main(["grade-class", str(scenes), str(subs), "-o", str(report), "--jobs", "1"])
     said = one_line(capsys.readouterr().err)
     assert code == 2 and time.monotonic() - started < 30
-    assert said.startswith("the pool of processes: a pool process died (killed, or out of memory), 5 times; ")
+    assert said.startswith("the pool of processes: a pool process died (killed, or out of memory) (tried 5 times); ")
     assert said.endswith(f"1 references and 2 grades are kept in {report}: run again to resume")
     kept = {p: p.stat().st_mtime_ns for p in (report / "resume").rglob("*.json")}
     assert {p.parent.name for p in kept} == {"ada", "ben"}
@@ -539,3 +539,57 @@ def test_unreadable_helper_restores_permissions(tmp_path):
         with pytest.raises(PermissionError):
             os.open(tmp_path / "f", os.O_RDONLY)
     assert stat.S_IMODE((tmp_path / "f").stat().st_mode) == 0o755
+
+
+def _start(args: list[str], log: Path) -> subprocess.Popen:
+    with open(log, "w") as out:
+        return subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+
+
+def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_finished(tmp_path, capsys,
+                                                                                          monkeypatch):
+    pytest.importorskip("distributed")
+    from server import free_port
+
+    scenes, subs, right = make_class(tmp_path, {"ada": b""})
+    slow = tiny("02_all_lights", width=320, height=240, samples=3)  # about 4 s on a worker thread
+    (scenes / "lamps.json").write_text(json.dumps(slow))
+    (subs / "ada" / "lamps.png").write_bytes(right)
+    key = scene_key(schemas.validate_scene(json.loads((scenes / "spheres.json").read_text())))
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    scheduler = _start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
+                        str(port), "--dashboard-address", "127.0.0.1:0"], tmp_path / "scheduler.log")
+    worker = _start([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "2", "--no-nanny",
+                     "--host", "127.0.0.1"], tmp_path / "worker.log")
+    report = tmp_path / "report"
+
+    def lose_the_scheduler() -> None:  # once the quick reference is in, while the slow one renders
+        deadline = time.monotonic() + 60
+        while not (report / "references" / f"{key}.png").exists() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        _stop(scheduler)
+
+    monkeypatch.setattr(classgrade, "BACKOFF", 0.01)
+    monkeypatch.setattr(classgrade, "RECONNECT_TIMEOUT", 0.5)
+    killer = threading.Thread(target=lose_the_scheduler, daemon=True)
+    try:
+        killer.start()
+        started = time.monotonic()
+        code = main(["grade-class", str(scenes), str(subs), "-o", str(report), "--cluster", address])
+        seconds = time.monotonic() - started
+    finally:
+        _stop(scheduler)
+        _stop(worker)
+    said = one_line(capsys.readouterr().err)
+    assert code == 2 and seconds < 30, said
+    assert said.startswith(f"--cluster {address}: cannot reach the Dask scheduler at {address}")
+    assert "(tried 5 times); stopped with 1 tasks unfinished; " in said
+    assert said.endswith(f"1 references and 0 grades are kept in {report}: run again to resume")
+    assert (report / "references" / f"{key}.png").exists()
