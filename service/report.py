@@ -38,9 +38,11 @@ def write_atomic(path: Path, data: bytes) -> None:
     try:
         tmp.write_bytes(data)
         os.replace(tmp, path)
-    except BaseException:  # a full disk, an interruption: no partial temporary file is left to fill it
+    except BaseException as exc:  # a full disk, an interruption: no partial temporary file is left to fill it
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.filename is None:  # (a failed write names no file of its own)
+            exc.filename = str(path)
         raise
 
 
