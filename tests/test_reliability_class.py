@@ -333,7 +333,7 @@ def test_a_killed_pool_process_is_retried_and_the_report_is_the_same(tmp_path, m
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
     classgrade.grade_class(scenes, subs, tmp_path / "clean", jobs=2)
     monkeypatch.setattr(classgrade, "_local_grade", killing_grade)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01)
+    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
     monkeypatch.setenv("KILL_ONCE", str(tmp_path / "killed"))
     outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=2)
     assert (tmp_path / "killed").exists()  # a pool process was killed
@@ -345,7 +345,7 @@ def test_a_pool_process_killed_every_time_stops_with_one_line_and_a_rerun_resume
     poison = b"poison: its grading is killed every time"
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b"", "zed": poison})
     monkeypatch.setattr(classgrade, "_local_grade", killing_grade)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01)
+    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
     monkeypatch.setenv("KILL_ALWAYS", poison.decode())
     report = tmp_path / "report"
     started = time.monotonic()
@@ -466,7 +466,7 @@ class ResettingProxy:
 def test_a_server_worker_restart_during_server_is_retried(tmp_path, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
     classgrade.grade_class(scenes, subs, tmp_path / "local", jobs=1)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01)
+    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
     with running_server(tmp_path) as (url, _):
         proxy = ResettingProxy(url, reset={2, 3, 5}, busy={6})  # 0, 1: the check (/healthz, /schema)
         try:
@@ -480,7 +480,7 @@ def test_a_server_worker_restart_during_server_is_retried(tmp_path, monkeypatch)
 
 def test_a_server_gone_for_good_stops_with_one_line_and_keeps_what_finished(tmp_path, capsys, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01)
+    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
     report = tmp_path / "report"
     with running_server(tmp_path) as (url, _):
         proxy = ResettingProxy(url, reset_from=2 + 1 + 2)  # the check, the render, ada's grade; then all reset
@@ -577,8 +577,8 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
             time.sleep(0.02)
         _stop(scheduler)
 
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01)
-    monkeypatch.setattr(classgrade, "RECONNECT_TIMEOUT", 0.5)
+    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    monkeypatch.setattr(classgrade, "RECONNECT_TIMEOUT", 0.5, raising=False)
     killer = threading.Thread(target=lose_the_scheduler, daemon=True)
     try:
         killer.start()
