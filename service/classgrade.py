@@ -9,6 +9,12 @@ canonical scene hash), so a re-run renders only what it does not have.  Renders 
 (bytes in, bytes out) run in a pool of processes (every core), on a Dask cluster with ``cluster``, or as
 requests to a running service with ``server``: the same tasks, the same pipeline
 (:mod:`service.pipeline`), the same report.
+
+Every scene is priced with the service's limits before anything renders, and a render has its
+``render_timeout``.  A fault of where the work runs (a pool process killed, the Dask scheduler lost, a server
+connection reset) is retried :data:`RETRIES` times with backoff; every reference and every grade is kept as it
+finishes (``REPORT/resume/<student>/<task>.json`` for a grade), so a run stopped by a fault that persists
+resumes where it stopped.
 """
 
 from __future__ import annotations
