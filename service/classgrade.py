@@ -9,16 +9,29 @@ canonical scene hash), so a re-run renders only what it does not have.  Renders 
 (bytes in, bytes out) run in a pool of processes (every core), on a Dask cluster with ``cluster``, or as
 requests to a running service with ``server``: the same tasks, the same pipeline
 (:mod:`service.pipeline`), the same report.
+
+Every scene is priced with the service's limits before anything renders, and a render has its
+``render_timeout``.  A fault of where the work runs (a pool process killed, the Dask scheduler lost, a server
+connection reset) is retried :data:`RETRIES` times with backoff; every reference and every grade is kept as it
+finishes (``REPORT/resume/<student>/<task>.json`` for a grade), so a run stopped by a fault that persists
+resumes where it stopped.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as futures
 import contextlib
+import ctypes
+import hashlib
+import json
 import multiprocessing
 import os
+import signal
+import sys
+import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -36,15 +49,20 @@ __all__ = ["COLUMNS", "NUMBERS", "SCENE_IGNORED", "STATUSES", "ClassError", "Out
 # -- the tasks: bytes in, bytes out, so that they run alike in a local pool and on Dask workers ---------------
 
 
-def render_task(scene: bytes) -> tuple[bytes | None, str]:
-    """The reference PNG of a scene's text, or (None, the reason it cannot be rendered)."""
+def render_task(scene: bytes, timeout: float | None = None) -> tuple[bytes | None, str]:
+    """The reference PNG of a scene's text, or (None, the reason it cannot be rendered); a render still going
+    after ``timeout`` seconds (the service's ``render_timeout``) is stopped."""
     from schemas import load_scene
-    from tracer import ImageTooLarge, encode_png, render
+    from tracer import ImageTooLarge, RenderCancelled, encode_png, render
 
+    deadline = None if timeout is None else time.monotonic() + timeout
     try:
-        return encode_png(render(load_scene(scene), threads=1)), ""
+        return encode_png(render(load_scene(scene), threads=1,
+                                 cancel=None if deadline is None else lambda: time.monotonic() > deadline)), ""
     except ImageTooLarge as exc:
         return None, str(exc)
+    except RenderCancelled:
+        return None, f"the render ran past the limit render_timeout = {timeout:g} s (PHONGRAY_RENDER_TIMEOUT)"
 
 
 def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float,
@@ -71,13 +89,17 @@ def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float,
     return grade_task(reference, image, tolerance, max_fraction, scene)
 
 
-def _server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes | None, str]:
-    """:func:`render_task` by a running service; a refusal of the scene (its limits) is the reason."""
+def _server_render(server: str, api_key: str | None, scene: bytes, timeout: float | None = None
+                   ) -> tuple[bytes | None, str]:
+    """:func:`render_task` by a running service (which has its own ``render_timeout``); a refusal of the scene
+    (its limits, its time) is the reason."""
     from .client import ServerError, post_json
 
     try:
         return _patient(post_json, server, "/render", scene, api_key=api_key), ""
     except ServerError as exc:
+        if _too_slow(exc):
+            return None, f"the server stopped it: {exc.detail}"
         if exc.ta_side or exc.status == 503:
             raise
         return None, f"the server refuses it: {exc.detail}"
@@ -103,18 +125,42 @@ def _server_grade(server: str, api_key: str | None, scene: bytes, reference: byt
     return {**result, "status": "pass" if result["passed"] else "fail", "heatmap_png": heat}
 
 
+#: a fault of the pool, the cluster or the server (a lost connection) is retried this many times ...
+RETRIES = 4
+#: ... after this many seconds, doubled at each retry (0.5 + 1 + 2 + 4 s: a restarting server worker is back)
+BACKOFF = 0.5
+#: seconds to reach a lost Dask scheduler again, at each retry
+RECONNECT_TIMEOUT = 10.0
+#: the longest a request waits out a busy service's 503s (Retry-After), in seconds
+BUSY_WAIT = 600.0
+
+
+def _too_slow(exc: Exception) -> bool:
+    """The service's 503 for a render past its ``render_timeout`` (the scene's, not to be waited out)."""
+    return getattr(exc, "status", 0) == 503 and "render_timeout" in str(getattr(exc, "detail", ""))
+
+
 def _patient(func: Callable[..., bytes], server: str, *args: Any, **kw: Any) -> bytes:
-    """A request to the service that waits out its 503s (for at most 10 minutes)."""
+    """A request to the service that waits out its 503s (their Retry-After, for at most :data:`BUSY_WAIT`
+    seconds) and retries a lost connection (a worker restarting: reset, refused, closed) :data:`RETRIES` times
+    with backoff.  Every request of class grading is a pure function of its body, so sending it again is safe."""
     from .client import ServerError
 
-    deadline = time.monotonic() + 600
+    deadline = time.monotonic() + BUSY_WAIT
+    lost = 0
     while True:
         try:
             return func(server, *args, **kw)
         except ServerError as exc:
-            if exc.status != 503 or time.monotonic() > deadline:
+            if exc.status == 503 and not _too_slow(exc) and time.monotonic() < deadline:
+                time.sleep(exc.retry_after if exc.retry_after is not None else 1.0)
+            elif exc.lost and lost < RETRIES:
+                time.sleep(BACKOFF * 2**lost)
+                lost += 1
+            else:
+                if exc.lost:
+                    exc.args = (f"{exc} (after {lost} retries)",)
                 raise
-            time.sleep(exc.retry_after if exc.retry_after is not None else 1.0)
 
 
 # -- the batch ---------------------------------------------------------------------------------------------
@@ -133,32 +179,39 @@ class Outcome:
         return summary(self.rows, self.renders, self.seconds)
 
 
-def _scene_keys(batch: Batch) -> dict[str, Path]:
-    """Validate every scene of the TA's once (the tasks' and the students' own): key → scene file.  An invalid
-    one stops the run, every problem named by file and line."""
+def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict[Path, bytes]]:
+    """Validate and price every scene of the TA's once (the tasks' and the students' own), with the service's
+    cost model and limits: key → scene file, and each file's text.  An invalid scene, or one the service would
+    refuse as too costly, stops the run before anything renders, every problem named by file (and line)."""
     from schemas import SceneError
 
     from .jobs import scene_key
+    from .limits import LimitError, check_body, check_scene
     from .pipeline import load_scene
 
     keys: dict[Path, str] = {}
+    texts: dict[Path, bytes] = {}
     problems: list[str] = []
     for pair in batch.pairs:
         if pair.scene in keys:
             pair.key = keys[pair.scene]
             continue
+        keys[pair.scene] = ""
         try:
-            text = pair.scene.read_bytes()
-            pair.key = keys[pair.scene] = scene_key(load_scene(str(pair.scene), text))
+            text = texts[pair.scene] = pair.scene.read_bytes()
+            check_body(text, settings)
+            scene = load_scene(str(pair.scene), text)
+            check_scene(scene, settings)
+            pair.key = keys[pair.scene] = scene_key(scene)
         except SceneError as exc:
-            keys[pair.scene] = ""
             problems.extend(exc.lines)  # type: ignore[attr-defined]
+        except LimitError as exc:
+            problems.append(f"{pair.scene}: {exc} (the service's limit; PHONGRAY_* variables set them)")
         except OSError as exc:
-            keys[pair.scene] = ""
             problems.append(f"{pair.scene}: cannot read: {exc.strerror or exc}")
     if problems:
         raise ClassError("; ".join(problems))
-    return {key: scene for scene, key in keys.items()}
+    return {key: scene for scene, key in keys.items()}, texts
 
 
 def _writable(report: Path) -> None:
@@ -171,31 +224,168 @@ def _writable(report: Path) -> None:
         raise ClassError(f"{report}: cannot write the report there: {exc.strerror or exc}") from None
 
 
-@contextlib.contextmanager
-def _backend(server: str | None, cluster: str | None, jobs: int | None, work: int, api_key: str | None,
-             cluster_wait: float) -> Iterator[tuple[futures.Executor | None, Callable[..., Any], Callable[..., Any]]]:
-    """Where the tasks run, checked before any is sent: (an executor, the render task, the grade task)."""
-    if server:
-        from .client import ServerError, check
+def _die_with_parent(parent: int, prctl: bool) -> None:
+    """Initializer of a pool process: it ends when grade-class does, however grade-class ends (SIGKILL, the
+    OOM killer), never left running.  On Linux the kernel kills it (PR_SET_PDEATHSIG; only when the pool was
+    made by the main thread, as the signal comes when the creating thread ends); everywhere, a watchdog thread
+    sees the parent gone."""
+    if prctl and sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent died before the signal was asked for
+        os._exit(1)
 
-        try:
-            check(server, api_key)
-        except ServerError as exc:
-            raise ClassError(f"--server {server}: {exc}") from None
-        with futures.ThreadPoolExecutor(max_workers=jobs or 4) as pool:
-            yield pool, partial(_server_render, server, api_key), partial(_server_grade, server, api_key)
-    elif cluster:
-        from .cluster import connect
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.25)
+        os._exit(1)
 
-        with connect(cluster, wait=cluster_wait) as client:
-            yield client.get_executor(retries=2), render_task, _local_grade
-    elif work:
-        workers = max(1, min(jobs or os.cpu_count() or 1, work))
+    threading.Thread(target=watch, name="phongray-parent-watch", daemon=True).start()
+
+
+class _Backend:
+    """Where the tasks run, checked before any is sent: an executor, the render task and the grade task.  After
+    a fault of the executor itself (a pool process killed, the Dask scheduler lost) :meth:`reset` makes a new
+    one; a server's faults are retried per request (:func:`_patient`)."""
+
+    def __init__(self, server: str | None, cluster: str | None, jobs: int | None, work: int, api_key: str | None,
+                 cluster_wait: float, timeout: float):
+        self.cluster, self.cluster_wait = cluster, cluster_wait
+        self.client: Any = None
+        self.workers = max(1, min(jobs or os.cpu_count() or 1, work))
+        self.executor: futures.Executor | None = None
+        #: what a fault of the executor raises (for a result, or for a submission)
+        self.faults: tuple[type[BaseException], ...] = ()
+        self.render: Callable[..., Any] = partial(render_task, timeout=timeout)
+        self.grade: Callable[..., Any] = _local_grade
+        if server:
+            from .client import ServerError, check
+
+            try:
+                check(server, api_key)
+            except ServerError as exc:
+                raise ClassError(f"--server {server}: {exc}") from None
+            self.name = f"--server {server}"
+            self.executor = futures.ThreadPoolExecutor(max_workers=jobs or 4)
+            self.render = partial(_server_render, server, api_key)
+            self.grade = partial(_server_grade, server, api_key)
+        elif cluster:
+            self.name = f"--cluster {cluster}"
+            self.faults = (futures.CancelledError, OSError, TimeoutError)
+            self._connect()
+        elif work:
+            self.name = "the pool of processes"
+            self.faults = (BrokenProcessPool,)
+            self._pool()
+
+    def _pool(self) -> None:
         context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
-        with futures.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            yield pool, render_task, _local_grade
-    else:
-        yield None, render_task, _local_grade
+        self.executor = futures.ProcessPoolExecutor(
+            max_workers=self.workers, mp_context=context, initializer=_die_with_parent,
+            initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
+
+    def _connect(self, timeout: float = 10.0) -> None:
+        """A client of the scheduler (a new one when the old has lost it) with a worker, and its executor."""
+        from .cluster import client, wait_for_workers
+
+        assert self.cluster is not None
+        if self.client is None or getattr(self.client, "status", "running") != "running":
+            self._close_client()
+            self.client = client(self.cluster, timeout)
+        wait_for_workers(self.client, self.cluster, self.cluster_wait)
+        self.executor = self.client.get_executor(retries=2)
+
+    def _close_client(self) -> None:
+        old, self.client = self.client, None
+        if old is not None:
+            with contextlib.suppress(Exception):
+                old.close(timeout=5)
+
+    def reset(self) -> None:
+        """A new executor after a fault of the old one (:class:`ClusterError` if the cluster cannot be had)."""
+        if self.executor is not None:
+            with contextlib.suppress(Exception):
+                self.executor.shutdown(wait=False, cancel_futures=True)
+        if self.cluster:
+            self._connect(RECONNECT_TIMEOUT)
+        else:
+            self._pool()
+
+    def close(self, wait: bool = True) -> None:
+        """Done with: ``wait`` for what still runs (not after an error or an interruption: a pool process then
+        ends with its task, or with grade-class)."""
+        if self.executor is not None:
+            with contextlib.suppress(Exception):
+                self.executor.shutdown(wait=wait, cancel_futures=True)
+        self._close_client()
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    if isinstance(exc, BrokenProcessPool):
+        return "a pool process died (killed, or out of memory)"
+    if isinstance(exc, futures.CancelledError):
+        return f"the work was cancelled ({text or 'the scheduler was lost'})"
+    from .cluster import ClusterError
+
+    if isinstance(exc, ClusterError) and text:
+        return text
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _run_tasks(backend: _Backend, tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
+               done: Callable[[Any, Any], None], kept: Callable[[], str]) -> None:
+    """Run every task on the backend; ``done(key, result)`` keeps each result as it comes (so that no finished
+    work is lost, whatever happens next).  A fault of the executor (``backend.faults``) is retried
+    :data:`RETRIES` times with backoff on a new one, with only the unfinished tasks; then the run stops with
+    :class:`ClassError` (one line, saying what ``kept()`` kept).  Any other error stops it once every task
+    already running has finished and been kept."""
+    from .cluster import ClusterError
+
+    pending = dict(tasks)
+    attempt = 0
+    while pending:
+        fault: BaseException | None = None
+        fatal: BaseException | None = None
+        submitted: dict[Any, Any] = {}
+        assert backend.executor is not None
+        try:
+            for key, (func, args) in pending.items():
+                submitted[backend.executor.submit(func, *args)] = key
+        except backend.faults as exc:
+            fault = exc
+        for fut in futures.as_completed(submitted):
+            key = submitted[fut]
+            try:
+                result = fut.result()
+            except backend.faults as exc:
+                fault = fault or exc
+                continue
+            except futures.CancelledError:  # cancelled below, after an error
+                continue
+            except Exception as exc:
+                if fatal is None:
+                    fatal = exc
+                    for other in submitted:
+                        other.cancel()
+                continue
+            done(key, result)
+            del pending[key]
+        if fatal is not None:
+            raise fatal
+        while pending and fault is not None:
+            if attempt >= RETRIES:
+                raise ClassError(f"{backend.name}: {_one_line(fault)} (tried {RETRIES + 1} times); stopped with "
+                                 f"{len(pending)} tasks unfinished; {kept()}: run again to resume")
+            time.sleep(BACKOFF * 2**attempt)
+            attempt += 1
+            try:
+                backend.reset()
+                fault = None
+            except Exception as exc:
+                if not isinstance(exc, (ClusterError, *backend.faults)):
+                    raise
+                fault = exc
 
 
 def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float = 2.0, max_fraction: float = 0.001,
@@ -204,16 +394,18 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
                 student_scenes: Path | None = None, tasks_file: Path | None = None,
                 cluster_wait: float = 30.0) -> Outcome:
     """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away.
-    Raises :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's."""
+    Raises :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a
+    fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
+    settings = Settings.from_env()
     batch = discover(scenes, submissions, student_scenes)
     tasks = load_tasks(tasks_file, batch.tasks)
-    scene_of_key = _scene_keys(batch)
+    scene_of_key, texts = _scene_keys(batch, settings)
     made = not report.exists()
     _writable(report)
     try:
-        return _run(batch, tasks, scene_of_key, report, tolerance, max_fraction, jobs, server, cluster, progress,
-                    api_key, cluster_wait, started)
+        return _run(batch, tasks, scene_of_key, texts, report, tolerance, max_fraction, jobs, server, cluster,
+                    progress, api_key, cluster_wait, started, settings)
     except Exception:
         if made:  # a run stopped by a fault of the TA's leaves no empty report folder behind
             with contextlib.suppress(OSError):
@@ -221,10 +413,10 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
         raise
 
 
-def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, Path], report: Path,
-         tolerance: float, max_fraction: float, jobs: int | None, server: str | None, cluster: str | None,
-         progress: Callable[[int, int], None] | None, api_key: str | None, cluster_wait: float,
-         started: float) -> Outcome:
+def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, Path], texts: dict[Path, bytes],
+         report: Path, tolerance: float, max_fraction: float, jobs: int | None, server: str | None,
+         cluster: str | None, progress: Callable[[int, int], None] | None, api_key: str | None,
+         cluster_wait: float, started: float, settings: Settings) -> Outcome:
     """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report."""
     for pair in batch.pairs:
         if not pair.row and pair.image is None:
@@ -241,77 +433,131 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     tick()
     from .client import ServerError
 
+    backend = _Backend(server, cluster, jobs, len(todo) + len(needed), api_key, cluster_wait,
+                       settings.render_timeout)
     try:
-        with _backend(server, cluster, jobs, len(todo) + len(needed), api_key, cluster_wait) as (pool, render, grade):
-            references = _render_all(pool, render, needed, refs)
-            _grade_all(pool, grade, todo, references, refs, report, tasks, tolerance, max_fraction, tick)
+        references = _render_all(backend, needed, refs, texts, report)
+        _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts,
+                   settings.max_image_bytes)
     except ServerError as exc:  # the service went away, or stopped taking the key, in the middle of the batch
-        raise ClassError(f"--server {server}: {exc}") from None
+        backend.close(wait=False)
+        raise ClassError(f"--server {server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
+                         f"resume") from None
+    except BaseException:
+        backend.close(wait=False)
+        raise
+    backend.close()
     rows = [_row(p, refs, report, tasks) for p in batch.pairs]
     outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - started)
     write_report(report, rows, batch.ignored, batch.students, tasks, outcome.summary())
     return outcome
 
 
-def _render_all(pool: futures.Executor | None, render: Callable[..., Any], needed: dict[str, Path],
-                refs: dict[str, Path]) -> dict[str, bytes]:
-    """Every reference the batch lacks, rendered and kept; one that cannot be rendered stops the run."""
+def _kept(report: Path) -> str:
+    """What a stopped run leaves for the next: its references and grades, counted."""
+    def count(folder: str) -> int:
+        with contextlib.suppress(OSError):
+            return sum(1 for _ in (report / folder).rglob("*.json" if folder == RESUME else "*.png"))
+        return 0
+
+    return f"{count('references')} references and {count(RESUME)} grades are kept in {report}"
+
+
+def _render_all(backend: _Backend, needed: dict[str, Path], refs: dict[str, Path], texts: dict[Path, bytes],
+                report: Path) -> dict[str, bytes]:
+    """Every reference the batch lacks, rendered and kept as each comes; one that cannot be rendered stops the
+    run (once the others are kept)."""
     done: dict[str, bytes] = {}
-    if not needed:
-        return done
-    assert pool is not None
-    pending = {pool.submit(render, scene.read_bytes()): key for key, scene in needed.items()}
     failures = []
-    for fut in futures.as_completed(pending):
-        key = pending[fut]
-        png, failure = fut.result()
+
+    def keep(key: str, result: tuple[bytes | None, str]) -> None:
+        png, failure = result
         if png is None:
             failures.append(f"{needed[key]}: {failure}")
         else:
             write_atomic(refs[key], png)
             done[key] = png
+
+    _run_tasks(backend, {key: (backend.render, (texts[scene],)) for key, scene in needed.items()}, keep,
+               lambda: _kept(report))
     if failures:
         raise ClassError("; ".join(sorted(failures)))
     return done
 
 
-def _grade_all(pool: futures.Executor | None, grade: Callable[..., Any], todo: list[Pair],
-               references: dict[str, bytes], refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings],
-               tolerance: float, max_fraction: float, tick: Callable[[], None]) -> None:
-    """Grade every pair on ``pool``; the submissions are read here (:func:`read_untrusted`), and every file is
-    written here, never by the tasks."""
-    limit = Settings.from_env().max_image_bytes
-    pending: dict[Any, tuple[Pair, bytes]] = {}
-    for pair in todo:
-        assert pair.key is not None and pair.image is not None and pool is not None
+#: the folder of a report where each finished grade is kept, so that a stopped run resumes where it stopped
+RESUME = "resume"
+
+
+def _journal(pair: Pair, report: Path) -> Path:
+    return report / RESUME / pair.student / f"{pair.task}.json"
+
+
+def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] | None:
+    """The row of a grade an earlier run finished for the same reference, the same bytes and the same
+    thresholds (with its heat-map and copy in place), or None."""
+    try:
+        kept = json.loads(_journal(pair, report).read_bytes())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(kept, dict) or kept.get("stamp") != stamp or not isinstance(kept.get("row"), dict):
+        return None
+    row: dict[str, Any] = kept["row"]
+    if row.get("status") in ("pass", "fail") and not all(p.exists() for p in _paths(pair, report)):
+        return None
+    return row
+
+
+def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes], refs: dict[str, Path],
+               report: Path, tasks: dict[str, TaskSettings], tolerance: float, max_fraction: float,
+               tick: Callable[[], None], texts: dict[Path, bytes], limit: int) -> None:
+    """Grade every pair on the backend; the submissions are read here (:func:`read_untrusted`), and every file
+    is written here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
+    pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
+    about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
+    for n, pair in enumerate(todo):
+        assert pair.key is not None and pair.image is not None
         try:
             image = read_untrusted(pair.image, limit)
         except UntrustedFileError as exc:
             pair.row = {"status": "invalid", "reason": f"{pair.image}: {exc}"}
             continue
+        own = tasks[pair.task]
+        thresholds = (tolerance if own.tolerance is None else own.tolerance,
+                      max_fraction if own.max_fraction is None else own.max_fraction)
+        stamp = {"reference": pair.key, "image_sha256": hashlib.sha256(image).hexdigest(),
+                 "tolerance": thresholds[0], "max_fraction": thresholds[1]}
+        row = _resumed(pair, report, stamp)
+        if row is not None:
+            pair.row = row
+            continue
         if pair.key not in references:
             references[pair.key] = refs[pair.key].read_bytes()
-        own = tasks[pair.task]
-        pending[pool.submit(grade, pair.scene.read_bytes(), references[pair.key], image,
-                            tolerance if own.tolerance is None else own.tolerance,
-                            max_fraction if own.max_fraction is None else own.max_fraction)] = (pair, image)
-    for fut in futures.as_completed(pending):
-        pair, image = pending[fut]
-        _graded(pair, fut.result(), image, report)
+        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds))
+        about[n] = (pair, image, stamp)
+    tick()
+
+    def keep(n: int, result: dict[str, Any]) -> None:
+        pair, image, stamp = about[n]
+        _graded(pair, result, image, report, stamp)
         tick()
 
+    _run_tasks(backend, pending, keep, lambda: _kept(report))
 
-def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path) -> None:
-    """Keep a grade task's row; write its heat-map and the copy of the submission."""
+
+def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stamp: dict[str, Any]) -> None:
+    """Keep a grade task's row; write its heat-map and the copy of the submission (the very bytes graded), then
+    the grade itself, for a run that resumes."""
     if result["status"] == "invalid":
         pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
-        return
-    result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
-    result["likely"] = headline(result.pop("diagnosis", None))
-    heat, copy = _paths(pair, report)
-    write_atomic(heat, result.pop("heatmap_png"))
-    write_atomic(copy, image)
-    pair.row = result
+    else:
+        result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
+        result["likely"] = headline(result.pop("diagnosis", None))
+        heat, copy = _paths(pair, report)
+        write_atomic(heat, result.pop("heatmap_png"))
+        write_atomic(copy, image)
+        pair.row = result
+    write_atomic(_journal(pair, report), (json.dumps({"stamp": stamp, "row": pair.row}) + "\n").encode())
 
 
 def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from .display import ProgressBar, describe
+from .display import ProgressBar, describe, printable
 
 #: tracer.passes.NAMES, here so that the parser needs no tracer import (a test keeps them equal)
 PASS_NAMES = ("background", "ambient", "diffuse", "specular", "reflection", "refraction", "shadow", "normal",
@@ -322,15 +322,15 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
                               progress=bar, api_key=args.api_key,
                               student_scenes=Path(args.student_scenes) if args.student_scenes else None,
                               tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait)
-    except (ClassError, ClusterError) as exc:
-        raise CliError(str(exc)) from None
+    except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
+        raise CliError(printable(str(exc))) from None
     except OSError as exc:
-        raise CliError(f"{exc.filename or args.output}: {exc.strerror or exc}") from None
+        raise CliError(printable(f"{exc.filename or args.output}: {exc.strerror or exc}")) from None
     finally:
         bar.close()
     for name, why in outcome.ignored:
-        print(f"ignored: {name}: {why}", file=sys.stderr)
-    print(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}")
+        print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
+    print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
     return 0
 
 

@@ -14,9 +14,13 @@ from typing import Any
 class ServerError(Exception):
     """The server answered with an error, or could not be reached."""
 
-    def __init__(self, message: str, status: int = 0, body: Any = None, headers: dict[str, str] | None = None):
+    def __init__(self, message: str, status: int = 0, body: Any = None, headers: dict[str, str] | None = None,
+                 lost: bool = False):
         super().__init__(message)
         self.status, self.body, self.headers = status, body, headers or {}
+        #: the connection was refused, reset or closed before an answer (a server worker restarting): worth a
+        #: retry, unlike a timeout or an answer
+        self.lost = lost
 
     @property
     def problems(self) -> str | None:
@@ -78,7 +82,8 @@ def _call(request: urllib.request.Request, timeout: float, api_key: str | None) 
         raise ServerError(f"server answered {exc.code}: {detail}", exc.code, body, dict(exc.headers or {})) from None
     except (urllib.error.URLError, OSError, http.client.HTTPException, ValueError) as exc:
         reason = getattr(exc, "reason", exc)  # (ValueError: a URL urllib cannot use, such as port 99999)
-        raise ServerError(f"cannot reach {request.full_url}: {reason or type(exc).__name__}") from None
+        lost = isinstance(reason, (ConnectionError, http.client.HTTPException))
+        raise ServerError(f"cannot reach {request.full_url}: {reason or type(exc).__name__}", lost=lost) from None
 
 
 def get(server: str, path: str, timeout: float = 30, api_key: str | None = None) -> bytes:

@@ -2,9 +2,27 @@
 
 from __future__ import annotations
 
+import re
 import sys
 import time
 from typing import Any
+
+#: what a terminal acts on rather than shows: C0 and C1 controls and DEL (escape sequences, carriage returns,
+#: new lines), the bidirectional overrides and isolates that reorder a line, and lone surrogates (the stray
+#: bytes of a name that is not UTF-8)
+_UNSAFE = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]")
+
+
+def _escape(match: re.Match[str]) -> str:
+    c = ord(match.group())
+    if 0xDC80 <= c <= 0xDCFF:  # a byte that was not UTF-8, as Python keeps it (surrogateescape)
+        return f"\\x{c - 0xDC00:02x}"
+    return f"\\x{c:02x}" if c < 0x100 else f"\\u{c:04x}"
+
+
+def printable(text: str) -> str:
+    """A name for the terminal, on one line, its control characters escaped (``\\x1b[2J`` is shown, not run)."""
+    return _UNSAFE.sub(_escape, text)
 
 
 def percent(fraction: float) -> str:

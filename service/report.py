@@ -6,6 +6,7 @@ report readable.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import html
 import io
@@ -34,8 +35,33 @@ def write_atomic(path: Path, data: bytes) -> None:
     """Write a file whole or not at all: a temporary file beside it, then one rename."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    except BaseException as exc:  # a full disk, an interruption: no partial temporary file is left to fill it
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        if isinstance(exc, OSError) and exc.filename is None:  # (a failed write names no file of its own)
+            exc.filename = str(path)
+        raise
+
+
+def _text(text: str) -> bytes:
+    """A report file's text as UTF-8; a name that is not valid UTF-8 (a student's folder of stray bytes, kept
+    by Python as lone surrogates) is written as its escapes (``\\udcff``), never stopping the report."""
+    return text.encode("utf-8", "backslashreplace")
+
+
+#: what a spreadsheet runs as a formula at the start of a cell (OWASP's list for CSV injection)
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+
+
+def neutral_cell(value: Any) -> Any:
+    """A report.csv cell that a spreadsheet shows as text: a string that begins as a formula would gets a
+    single quote in front (OWASP's advice); every other value is kept."""
+    if isinstance(value, str) and value.startswith(FORMULA_STARTS):
+        return "'" + value
+    return value
 
 
 def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
@@ -46,17 +72,21 @@ def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
 
 def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str],
                  tasks: dict[str, TaskSettings], headline: str) -> None:
-    write_atomic(report / "report.json", (json.dumps(rows, indent=1, ensure_ascii=False) + "\n").encode())
+    write_atomic(report / "report.json", _text(json.dumps(rows, indent=1, ensure_ascii=False) + "\n"))
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    # a carriage return in a cell (a student's name can hold one) is quoted only by a writer that quotes all
+    quoted = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n", quoting=csv.QUOTE_ALL)
     writer.writeheader()
-    writer.writerows(rows)
-    write_atomic(report / "report.csv", buf.getvalue().encode())
+    for row in rows:
+        cells = {k: neutral_cell(v) for k, v in row.items()}
+        (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
+    write_atomic(report / "report.csv", _text(buf.getvalue()))
     for student in students:
         mine = [r for r in rows if r["student"] == student]
         write_atomic(report / "gradescope" / student / "results.json",
-                     (json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n").encode())
-    write_atomic(report / "index.html", render_html(rows, ignored, students, list(tasks), headline).encode())
+                     _text(json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n"))
+    write_atomic(report / "index.html", _text(render_html(rows, ignored, students, list(tasks), headline)))
 
 
 def test_output(row: dict[str, Any]) -> str:
@@ -105,7 +135,7 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
         cells = []
         for task in tasks:
             r = by[(student, task)]
-            anchor = f"p-{quote(student)}-{quote(task)}"
+            anchor = f"p-{_url(student)}-{_url(task)}"
             label = r["status"]
             # the cell shows the reason without the file it names (the detail shows it whole)
             note = (_percent(r["fraction_off_nearby"]) if r["status"] == "pass"
@@ -114,7 +144,7 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
             own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
             cells.append(f'<td class="{r["status"]}"><a href="#{anchor}">{label}{own}<small>{note}</small></a></td>')
             images = "".join(
-                f'<figure><img src="{quote(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
+                f'<figure><img src="{_url(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
                 if r[k] else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
                 for k in ("reference", "submission", "heatmap"))
             legend = _legend() if r["heatmap"] else ""
@@ -175,6 +205,11 @@ p.likely {{ background: #fff7e0; border-left: 4px solid #d89b00; padding: 4px 10
 
 #: the file a reason begins with (``subs/frank/mirror.jpg: ``), left out of a cell (its detail shows it whole)
 _FILE = re.compile(r"^.*?\.[A-Za-z0-9]{2,5}: ")
+
+
+def _url(text: str) -> str:
+    """Percent-encoded, a name of stray bytes (lone surrogates) by its own bytes."""
+    return quote(text, errors="surrogateescape")
 
 
 def _without_file(reason: str) -> str:

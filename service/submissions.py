@@ -34,19 +34,40 @@ SCENE_IGNORED = ("a scene among the submissions is not used (a student's own sce
                  "--student-scenes folder)")
 
 
+def _kind(mode: int) -> str:
+    return ("a symbolic link; links in submissions are not followed" if stat.S_ISLNK(mode)
+            else "a folder, not a file" if stat.S_ISDIR(mode)
+            else "a FIFO, not a regular file" if stat.S_ISFIFO(mode)
+            else "a device, not a regular file" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "not a regular file")
+
+
 def read_untrusted(path: Path, limit: int) -> bytes:
     """The bytes of a file in a student's folder: a regular file, not through a link, at most ``limit`` bytes.
-    :class:`UntrustedFileError` says why not."""
+    :class:`UntrustedFileError` says why not.  The file is looked at before it is opened (a FIFO or a device is
+    never opened), opened without following a link and without blocking, and checked again once open (the same
+    file, still regular); no more than ``limit + 1`` bytes are ever read."""
+    try:
+        before = os.lstat(path)
+    except OSError as exc:
+        raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(before.st_mode):
+        raise UntrustedFileError(_kind(before.st_mode))
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         if os.path.islink(path):
-            raise UntrustedFileError("a symbolic link; links in submissions are not followed") from None
+            raise UntrustedFileError(_kind(stat.S_IFLNK)) from None
         raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
-    with os.fdopen(fd, "rb") as f:
-        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):
-            raise UntrustedFileError("not a regular file")
-        data = f.read(limit + 1)
+    try:
+        with os.fdopen(fd, "rb") as f:
+            now = os.fstat(f.fileno())
+            if not stat.S_ISREG(now.st_mode) or (now.st_dev, now.st_ino) != (before.st_dev, before.st_ino):
+                raise UntrustedFileError(f"{_kind(now.st_mode)} (it changed while it was read)"
+                                         if not stat.S_ISREG(now.st_mode) else "changed while it was read")
+            data = f.read(limit + 1)
+    except OSError as exc:  # EIO, EISDIR, ...: the student's file, not the batch's fault
+        raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
     if len(data) > limit:
         raise UntrustedFileError(f"larger than the limit max_image_bytes = {limit} bytes")
     return data
@@ -80,6 +101,13 @@ def _entries(folder: Path) -> list[os.DirEntry[str]]:
         raise ClassError(f"{folder}: cannot read: {exc.strerror or exc}") from None
 
 
+def _is_link(entry: os.DirEntry[str]) -> bool:
+    try:
+        return entry.is_symlink()
+    except OSError:
+        return False
+
+
 def _task_of(name: str, tasks: dict[str, Path], folded: dict[str, str]) -> tuple[str | None, str]:
     """The task a file's name is for (its stem exactly, else regardless of case) and its extension, lower case."""
     stem, dot, ext = name.rpartition(".")
@@ -88,19 +116,49 @@ def _task_of(name: str, tasks: dict[str, Path], folded: dict[str, str]) -> tuple
     return (stem if stem in tasks else folded.get(stem.lower())), ext.lower()
 
 
+def _listing(folder: Path) -> tuple[list[os.DirEntry[str]], str]:
+    """A student's folder's entries, or (none, why they cannot be listed): the student's fault, not the batch's."""
+    try:
+        with os.scandir(folder) as it:
+            return sorted(it, key=lambda e: e.name), ""
+    except OSError as exc:
+        return [], f"cannot read the folder: {exc.strerror or exc}"
+
+
+def _is_folder(entry: os.DirEntry[str]) -> bool:
+    """A folder itself, not a link to one (an entry that cannot be looked at is taken as a file: reading it says
+    why it cannot be graded)."""
+    try:
+        return entry.is_dir(follow_symlinks=False)
+    except OSError:
+        return False
+
+
 def _student(folder: Path, shown: Path, tasks: dict[str, Path], folded: dict[str, str],
-             ignored: list[tuple[str, str]]) -> dict[str, Path | str]:
-    """Per task, the submitted file (a path) or why the student's files for it cannot be graded (a reason)."""
+             ignored: list[tuple[str, str]]) -> tuple[dict[str, Path | str], list[str]]:
+    """Per task, the submitted file (a path) or why the student's files for it cannot be graded (a reason); and
+    the student's folders that cannot be read (``hw3: cannot read the folder: Permission denied``)."""
+    top, why = _listing(folder)
+    if why:
+        return {task: f"{shown}: {why}" for task in tasks}, []
+    unreadable: list[str] = []
     candidates: dict[str, list[tuple[tuple[int, int, int], Path, Path]]] = {}
-    for depth, base, where in ((0, folder, shown), *(
-            (1, folder / e.name, shown / e.name) for e in _entries(folder) if e.is_dir(follow_symlinks=False))):
-        for entry in _entries(base):
+    levels: list[tuple[int, Path, Path, list[os.DirEntry[str]]]] = [(0, folder, shown, top)]
+    for e in top:
+        if _is_folder(e):
+            below, why = _listing(folder / e.name)
+            if why:
+                unreadable.append(f"{shown / e.name}: {why}")
+                ignored.append((str(shown / e.name), why))
+            levels.append((1, folder / e.name, shown / e.name, below))
+    for depth, base, where, entries in levels:
+        for entry in entries:
             path, rel = base / entry.name, where / entry.name
-            if entry.is_dir(follow_symlinks=False):
-                if depth:
+            task, ext = _task_of(entry.name, tasks, folded)
+            if _is_folder(entry) and not (task is not None and (ext == "png" or ext in OTHER_IMAGES)):
+                if depth:  # (a folder named as a task's image is a candidate: reading it says it is a folder)
                     ignored.append((str(rel), "a folder two levels down (phongray looks one folder deep)"))
                 continue
-            task, ext = _task_of(entry.name, tasks, folded)
             if task is None:
                 ignored.append((str(rel), "matches no task"))
             elif ext == "json":
@@ -120,7 +178,7 @@ def _student(folder: Path, shown: Path, tasks: dict[str, Path], folded: dict[str
         found[task] = options[0][1]
         for _, _, rel in options[1:]:
             ignored.append((str(rel), f"another file for {task} is graded: {options[0][2]}"))
-    return found
+    return found, unreadable
 
 
 def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Batch:
@@ -137,16 +195,18 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
     own = _student_scenes(student_scenes, tasks) if student_scenes is not None else {}
     folders: dict[str, Path] = {}
     for entry in _entries(submissions):
-        if entry.is_dir(follow_symlinks=False) and not entry.name.startswith(".") and entry.name not in NOT_STUDENTS:
+        folder = _is_folder(entry)
+        if folder and not entry.name.startswith(".") and entry.name not in NOT_STUDENTS:
             folders[entry.name] = submissions / entry.name
-        else:
-            why = ("a symbolic link (not followed)" if entry.is_symlink() else "not a student's folder"
-                   if entry.is_dir() else "not in a student's folder")
+        else:  # (a link to a folder is not a student's: it is never listed, let alone read)
+            why = ("not a student's folder" if folder else "a symbolic link (not followed)"
+                   if _is_link(entry) else "not in a student's folder")
             ignored.append((str(submissions / entry.name), why))
     pairs = []
     students = sorted({*folders, *own})
     for student in students:
-        found = _student(folders[student], folders[student], tasks, folded, ignored) if student in folders else {}
+        found, unreadable = (_student(folders[student], folders[student], tasks, folded, ignored)
+                             if student in folders else ({}, []))
         for task, shared in tasks.items():
             scene = own.get(student, {}).get(task)
             what = found.get(task)
@@ -155,6 +215,8 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
                 pair.file = what.relative_to(folders[student]).as_posix()
             if isinstance(what, str):
                 pair.row = {"status": "invalid", "reason": what}
+            elif what is None and unreadable:  # not found, but perhaps in a folder that cannot be read
+                pair.row = {"status": "invalid", "reason": f"no {task}.png found; {'; '.join(unreadable)}"}
             pairs.append(pair)
     return Batch(tasks, students, pairs, ignored)
 

@@ -3,6 +3,7 @@
 import io
 import json
 import os
+import stat
 
 import numpy as np
 import pytest
@@ -149,3 +150,17 @@ def test_the_pixels_of_a_nested_submission_are_graded(task, tmp_path):
     put(tmp_path, "gus/hw3/cornell.PNG", tracer.encode_png(np.zeros((24, 32, 3), np.uint8)))
     rows, _ = rows_of(tmp_path, tmp_path)
     assert rows["gus"]["status"] == "fail" and rows["gus"]["file"] == "hw3/cornell.PNG"
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="making a device node needs root (as a tar extracted by root does)")
+def test_a_device_or_fifo_is_looked_at_and_never_opened(tmp_path, monkeypatch):
+    os.mknod(tmp_path / "zero.png", 0o666 | stat.S_IFCHR, os.makedev(1, 5))  # /dev/zero: a read never ends
+    os.mkfifo(tmp_path / "fifo.png")
+    opened = []
+    real_open = os.open
+    monkeypatch.setattr(os, "open", lambda path, *a, **kw: opened.append(path) or real_open(path, *a, **kw))
+    with pytest.raises(UntrustedFileError, match="^a device, not a regular file$"):
+        read_untrusted(tmp_path / "zero.png", 1000)
+    with pytest.raises(UntrustedFileError, match="^a FIFO, not a regular file$"):
+        read_untrusted(tmp_path / "fifo.png", 1000)
+    assert opened == []
