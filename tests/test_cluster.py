@@ -109,10 +109,14 @@ def test_the_class_report_on_the_cluster_equals_the_local_one(dask, tmp_path):
     assert (tmp_path / "remote" / "report.json").read_bytes() == (tmp_path / "local" / "report.json").read_bytes()
 
 
+#: students of the class a worker dies in: enough grades that the kill, a poll after the second, lands mid-batch
+STUDENTS = 48
+
+
 def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
     address, procs = dask
     scenes, subs, data = one_task(tmp_path, "soft", "03_soft_shadows", 96, 72)
-    for k in range(16):  # every student has an own scene: 16 renders to share out
+    for k in range(STUDENTS):  # every student has an own scene: as many renders to share out
         own = json.loads(json.dumps(data))
         own["image"]["background"] = [0.01 * k, 0.02, 0.03]
         (subs / f"s{k:02d}").mkdir(parents=True)
@@ -140,8 +144,8 @@ def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
     thread.join(timeout=180)
     assert not thread.is_alive()
     rows = outcome["o"].rows
-    assert len(rows) == 16 and all(r["status"] == "pass" for r in rows), [r["reason"] for r in rows]
-    assert at_kill < 12  # the kill came with most of the batch still to do
+    assert len(rows) == STUDENTS and all(r["status"] == "pass" for r in rows), [r["reason"] for r in rows]
+    assert at_kill < STUDENTS * 3 // 4  # the kill came with much of the batch still to do
     assert _workers(address) == 1
 
 
