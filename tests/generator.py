@@ -45,6 +45,16 @@ def _vec(a: Any) -> list[float]:
     return [float(v) for v in np.asarray(a, dtype=np.float64).reshape(3)]
 
 
+def _triangle(rng: Rng) -> list[list[float]]:
+    """Three grid points that make a triangle (the format refuses collinear vertices): drawn again until they do."""
+    for _ in range(100):
+        vertices = [_grid(rng, -2, 2) for _ in range(3)]
+        a, b, c = (np.array(v) for v in vertices)
+        if np.any(np.cross(b - a, c - a) != 0):
+            return vertices
+    raise AssertionError("no triangle in 100 draws")
+
+
 def _grid(rng: Rng, lo: float, hi: float, step: float = 0.125) -> list[float]:
     """A point with coordinates on a grid of ``step`` (exact in binary)."""
     return [float(step * round(rng.uniform(lo, hi) / step)) for _ in range(3)]
@@ -365,8 +375,7 @@ def mesh(rng: Rng) -> tuple[dict[str, Any], list, list]:
         objects.append(box([-1, 0.25, -1], [1, 1.5, 0.5], _any(rng, 0.2)))
     else:
         for _ in range(int(rng.integers(1, 5))):
-            objects.append({"type": "triangle", "material": _opaque(rng),
-                            "vertices": [_grid(rng, -2, 2) for _ in range(3)]})
+            objects.append({"type": "triangle", "material": _opaque(rng), "vertices": _triangle(rng)})
     if rng.random() < 0.5:
         objects.append(sphere([1.0, 0.8, 1.0], 0.6, _any(rng)))
     lights = _lights(rng, [0, 2, 0], 2.5, int(rng.integers(1, 3)))
