@@ -556,6 +556,19 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
     return args
 
 
+def _quiet_dask() -> None:
+    """Dask's own log lines (a lost scheduler's reconnection tracebacks) off the terminal: phongray says what
+    happened to the cluster in one line of its own."""
+    import logging
+
+    try:
+        import distributed  # noqa: F401  (its import sets its loggers' levels: set them after it)
+    except ImportError:
+        return
+    for name in ["distributed", *(n for n in logging.Logger.manager.loggerDict if n.startswith("distributed."))]:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
 def _settings_error(exc: ValueError) -> int:
     """A PHONGRAY_* variable of the wrong type is one line and exit 2 (any other ValueError is a bug: raised)."""
     from .settings import SettingsError
@@ -579,6 +592,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for stream in (sys.stdout, sys.stderr):  # a scene's text may not be valid Unicode (a lone surrogate)
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
+    if getattr(args, "cluster", None):
+        _quiet_dask()
     try:
         return int(args.func(args))
     except CliError as exc:

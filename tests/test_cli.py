@@ -450,3 +450,25 @@ def test_python_m_phongray_works_in_a_folder_with_a_students_modules(tmp_path):
                            "out.png", "-q"], cwd=tmp_path, capture_output=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert decode_png((tmp_path / "out.png").read_bytes()).shape == (120, 160, 3)
+
+
+def test_with_a_cluster_dask_logs_nothing_of_its_own(tmp_path, capsys):
+    """A lost scheduler makes Dask's client log reconnection tracebacks to the terminal; phongray's one line
+    says what happened, so with --cluster Dask's loggers are quiet."""
+    import logging
+
+    import distributed  # noqa: F401
+
+    free = socket_free_port()
+    assert main(["render", str(SCENES / "01_three_spheres.json"), "-o", str(tmp_path / "x.png"),
+                 "--cluster", f"tcp://127.0.0.1:{free}", "--cluster-wait", "1"]) == 2
+    assert capsys.readouterr().err.startswith("phongray: ")
+    assert not logging.getLogger("distributed.client").isEnabledFor(logging.ERROR)
+
+
+def socket_free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
