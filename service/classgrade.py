@@ -76,7 +76,7 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
 
     try:
         graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict",
-                                    scene=None if scene is None else load_scene(scene), threads=1)
+                                    scene=None if scene is None else lambda: load_scene(scene), threads=1)
     except grading.ImageError as exc:
         return {"status": "invalid", "reason": str(exc)}
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}

@@ -156,8 +156,6 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def _render_pass(args: argparse.Namespace) -> int:
     """``render --pass NAME [--light K]``: one pass as a PNG, or its values as ``.npy`` (by the output's name)."""
-    from tracer import RenderCancelled
-
     from . import passes
 
     if args.pass_ is None:
@@ -181,8 +179,6 @@ def _render_pass(args: argparse.Namespace) -> int:
             data = passes.encoded(args.pass_, passes.values(scene, args.pass_, args.light, args.threads), fmt)
         except ValueError as exc:
             raise CliError(f"{args.scene}: {exc}") from None
-        except RenderCancelled:  # pragma: no cover - nothing cancels a local pass
-            raise CliError(f"{args.scene}: cancelled") from None
     _write(args.output, data)
     return 0
 
@@ -274,7 +270,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
         try:
             graded = pipeline.grade_png(reference, image, args.tolerance, args.max_fraction,
                                         kind if args.heatmap else None, legend=True,
-                                        scene=None if args.no_diagnosis else scene)
+                                        scene=None if args.no_diagnosis else lambda: scene)
         except grading.ImageError as exc:
             raise CliError(f"{args.image}: {exc}") from None
         result, heat = graded.as_dict(), graded.heatmap

@@ -290,7 +290,6 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     """:class:`Renders` of a validated scene, rendered here when first asked for (each variant, and each
     light's passes, once); its ``cancel()`` true stops a render with :class:`tracer.RenderCancelled`."""
     from tracer import Renderer
-    from tracer.variants import VARIANTS as named
 
     variants: dict[str, np.ndarray] = {}
     bounds: dict[str, np.ndarray] = {}
@@ -298,7 +297,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
 
     def variant(name: str) -> np.ndarray:
         if name not in variants:
-            variants[name] = Renderer(scene, named[name][0]).pixels(threads=threads, cancel=out.cancel)
+            variants[name] = Renderer(scene, VARIANTS[name][0]).pixels(threads=threads, cancel=out.cancel)
         return variants[name]
 
     def bound(name: str) -> np.ndarray:

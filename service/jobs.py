@@ -4,12 +4,13 @@ exceptions into status codes."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -111,6 +112,20 @@ class RenderService:
         self._dask: Any = None
         self._client_lock = threading.Lock()
 
+    @contextlib.contextmanager
+    def _slot(self) -> Iterator[Callable[[], bool]]:
+        """One of this worker's render slots (Busy when none is free) for at most ``render_timeout``: yields the
+        deadline's test, and hands what the work freed back to the OS afterwards."""
+        if not self.slots.acquire(blocking=False):
+            raise Busy()
+        before = resident()
+        deadline = time.monotonic() + self.settings.render_timeout
+        try:
+            yield lambda: time.monotonic() > deadline
+        finally:
+            self.slots.release()
+            release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
+
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:
         """The PNG of a job, from the cache or rendered. Raises Busy, TooSlow or RenderCancelled.
 
@@ -119,54 +134,35 @@ class RenderService:
         cached = self.cache.get(job.key)
         if cached is not None:
             return cached
-        if not self.slots.acquire(blocking=False):
-            raise Busy()
-        before = resident()
-        try:
-            deadline = time.monotonic() + self.settings.render_timeout
-
-            def stop() -> bool:
-                return cancelled() or time.monotonic() > deadline
-
+        with self._slot() as late:
             client = self._client() if self.settings.cluster else None
             try:
-                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=stop)
+                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=lambda: cancelled() or late())
             except RenderCancelled:
-                if time.monotonic() > deadline:
+                if late():
                     raise TooSlow() from None
                 raise
             data = encode_png(pixels)
-            del pixels  # before the release below, so that its pages go back too
+            del pixels  # before the slot's release, so that its pages go back too
             self.renders += 1
-        finally:
-            self.slots.release()
-            release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
         self.cache.put(job.key, data)
         return data
 
     def pass_file(self, job: Job, name: str, light: int | None, fmt: Format) -> bytes:
         """Render pass ``name`` of a job (of light ``light``) as a PNG or ``.npy`` file (:mod:`service.passes`),
         from the cache or rendered in a render slot within ``render_timeout``.  Raises Busy, TooSlow, or
-        ValueError for a pass or light the scene does not have."""
+        ValueError for a light the scene does not have."""
         from . import passes
 
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
         cached = self.cache.get(key)
         if cached is not None:
             return cached
-        passes.pixels(name, np.zeros((1, 1, 3)))  # an unknown name: before any slot is taken
-        if not self.slots.acquire(blocking=False):
-            raise Busy()
-        before = resident()
-        deadline = time.monotonic() + self.settings.render_timeout
-        try:
-            data = passes.encoded(name, passes.values(job.scene, name, light, self.threads,
-                                                      cancel=lambda: time.monotonic() > deadline), fmt)
-        except RenderCancelled:
-            raise TooSlow() from None
-        finally:
-            self.slots.release()
-            release_if_grown(before)
+        with self._slot() as late:
+            try:
+                data = passes.encoded(name, passes.values(job.scene, name, light, self.threads, cancel=late), fmt)
+            except RenderCancelled:
+                raise TooSlow() from None
         self.cache.put(key, data)
         return data
 
@@ -175,19 +171,14 @@ class RenderService:
         within ``render_timeout``; when no slot is free or time runs out, a diagnosis that says so."""
         if graded.grade.passed:
             return graded
-        if not self.slots.acquire(blocking=False):
-            return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
-        before = resident()
-        deadline = time.monotonic() + self.settings.render_timeout
         try:
-            return explain(job.scene, graded, reference, submitted, self.threads,
-                           cancel=lambda: time.monotonic() > deadline)
+            with self._slot() as late:
+                return explain(job.scene, graded, reference, submitted, self.threads, cancel=late)
+        except Busy:
+            return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
         except RenderCancelled:
             return replace(graded, diagnosis=unavailable(
                 f"its renders ran past the limit render_timeout = {self.settings.render_timeout:g} s"))
-        finally:
-            self.slots.release()
-            release_if_grown(before)
 
     def _client(self) -> Any:
         """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the

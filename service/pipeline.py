@@ -109,14 +109,16 @@ def compare(reference_png: bytes, submitted: np.ndarray, tolerance: float, max_f
 
 
 def grade_png(reference_png: bytes, image: bytes, tolerance: float, max_fraction: float,
-              heatmap: Kind | None = None, legend: bool = False, scene: Scene | None = None,
+              heatmap: Kind | None = None, legend: bool = False, scene: Callable[[], Scene] | None = None,
               threads: int | None = None) -> Graded:
-    """A submitted image's grade against a reference PNG, diagnosed when it fails and the reference's
-    ``scene`` is given; :class:`grading.ImageError` when it cannot be graded."""
+    """A submitted image's grade against a reference PNG, diagnosed when it fails and the reference's scene
+    is given (``scene()``, called only then); :class:`grading.ImageError` when it cannot be graded."""
     pixels = decode_png(reference_png)
     submitted = read_image(image, (pixels.shape[1], pixels.shape[0]))
     graded = compare(reference_png, submitted, tolerance, max_fraction, heatmap, legend, reference=pixels)
-    return graded if scene is None else explain(scene, graded, pixels, submitted, threads)
+    if scene is None or graded.grade.passed:
+        return graded
+    return explain(scene(), graded, pixels, submitted, threads)
 
 
 #: the largest reference ``phongray compare`` decodes (the service's default max_pixels)

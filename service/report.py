@@ -138,9 +138,12 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
             anchor = f"p-{_url(student)}-{_url(task)}"
             label = r["status"]
             # the cell shows the reason without the file it names (the detail shows it whole)
-            note = (_percent(r["fraction_off_nearby"]) if r["status"] == "pass"
-                    else esc((r.get("likely") or "")[:60]) or _percent(r["fraction_off_nearby"])
-                    if r["status"] == "fail" else esc(_without_file(r["reason"]))[:80])
+            if r["status"] == "pass":
+                note = _percent(r["fraction_off_nearby"])
+            elif r["status"] == "fail":  # the likely mistake, when one was named
+                note = esc((r.get("likely") or "")[:60]) or _percent(r["fraction_off_nearby"])
+            else:
+                note = esc(_without_file(r["reason"]))[:80]
             own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
             cells.append(f'<td class="{r["status"]}"><a href="#{anchor}">{label}{own}<small>{note}</small></a></td>')
             images = "".join(
