@@ -542,6 +542,12 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
     only once the command is known, so that ``--version`` and ``--help`` cost no settings."""
     args = build_parser().parse_args(argv)
     if hasattr(args, "cluster_wait"):
+        if args.cluster is None and not any(name.upper().startswith("PHONGRAY_") for name in os.environ):
+            from .cluster import CLUSTER_WAIT  # no PHONGRAY_* variable: the settings are their defaults, and
+            # a render's start-up need not import pydantic-settings to learn them
+            if args.cluster_wait is None:
+                args.cluster_wait = CLUSTER_WAIT
+            return args
         from .settings import Settings
 
         settings = Settings.from_env()

@@ -19,6 +19,8 @@ import numpy as np
 INSTALL = "--cluster needs Dask distributed: pip install 'phongray[cluster]'"
 #: pixels per band of a cluster render (a 3840×2160 image is 32 bands)
 BAND_PIXELS = 1 << 18
+#: seconds to wait for a cluster's first worker, unless ``--cluster-wait`` or ``PHONGRAY_CLUSTER_WAIT`` says
+CLUSTER_WAIT = 30.0
 
 
 class ClusterError(Exception):

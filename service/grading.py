@@ -12,11 +12,14 @@ from __future__ import annotations
 import io
 import math
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from PIL import Image
 
 from .display import percent
+
+if TYPE_CHECKING:
+    from PIL import Image
 
 DEFAULT_TOLERANCE = 2.0
 DEFAULT_MAX_FRACTION = 0.001
@@ -60,6 +63,8 @@ def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
 
     A submission must be opaque: an alpha channel is accepted only when every pixel's alpha is full (a
     render has no transparent pixels, and what a transparent one should be compared as is a guess)."""
+    from PIL import Image  # imported by the first grade, not by every render's start-up
+
     declared = declared_size(data)
     if declared != expected:  # checked on the header, before anything is decompressed
         raise ImageError(f"image is {declared[0]}×{declared[1]} pixels, the scene is {expected[0]}×{expected[1]}")
@@ -110,6 +115,8 @@ def _wide_gray(img: Image.Image) -> np.ndarray:
 
 def _low_bytes(data: bytes, img: Image.Image) -> np.ndarray | None:
     """For a 16-bit colour PNG, the low byte of every value (decoded a second time); None for other PNGs."""
+    from PIL import Image
+
     tiles = getattr(img, "tile", [])
     if len(tiles) != 1 or tiles[0].args not in LOW_BYTES:
         return None

@@ -12,6 +12,8 @@ from __future__ import annotations
 from pydantic import ValidationError
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from .cluster import CLUSTER_WAIT
+
 
 class SettingsError(ValueError):
     """An environment variable that does not hold a value of its setting's type."""
@@ -46,7 +48,7 @@ class Settings(BaseSettings):
     max_buffered_bytes: int = 96 * 1024 * 1024  # request bodies one worker process holds at once ...
     buffer_wait: float = 30.0  # ... beyond which a body waits this many seconds for room, then gets 503
     cluster: str = ""  # a Dask scheduler (tcp://HOST:PORT): renders go to its workers instead of this process
-    cluster_wait: float = 30.0  # seconds to wait for a cluster's first worker before giving up
+    cluster_wait: float = CLUSTER_WAIT  # seconds to wait for a cluster's first worker before giving up
 
     @classmethod
     def from_env(cls) -> Settings:

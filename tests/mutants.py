@@ -50,6 +50,11 @@ MUTANTS = [
     ("a shadow walk stops before its light by a tenth", "walk.py",
      "            far = np.minimum(limit[live] + p.slack, t_out[live]) - s\n",
      "            far = np.minimum(limit[live] * 0.9, t_out[live]) - s\n"),
+    ("a walk of a few primitives asks Embree only up to nine tenths of its best hit", "walk.py",
+     "        end = np.minimum(best.t + self.proxies.slack, t_out)\n",
+     "        end = np.minimum(best.t * 0.9, t_out)\n"),
+    ("a walk of a few primitives tests all but the last one", "walk.py",
+     "np.tile(np.arange(count), len(live))", "np.tile(np.arange(count - 1), len(live))"),
 ]
 
 

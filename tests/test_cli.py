@@ -1,6 +1,7 @@
 """The phongray command: renders, validates, and never prints a traceback."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -21,6 +22,19 @@ def test_render_writes_the_reference_image(tmp_path):
     out = tmp_path / "out.png"
     assert main(["render", str(SCENES / "01_three_spheres.json"), "-o", str(out), "-q"]) == 0
     assert (decode_png(out.read_bytes()) == reference("01_three_spheres")).mean() > 0.999
+
+
+def test_a_render_starts_without_the_settings_or_pillow(tmp_path):
+    """A render's start-up is its users' wait: with no PHONGRAY_* variable set, it imports neither
+    pydantic-settings (about 0.1 s) nor Pillow, which only grading needs."""
+    out = tmp_path / "out.png"
+    code = ("import sys; from service.cli import main; "
+            f"code = main(['render', {str(SCENES / '07_spotlights.json')!r}, '-o', {str(out)!r}, '-q']); "
+            "print(code, sorted(m for m in ('pydantic_settings', 'PIL') if m in sys.modules))")
+    env = {k: v for k, v in os.environ.items() if not k.upper().startswith("PHONGRAY_")}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    assert done.stdout.split() == ["0", "[]"], done.stderr
+    assert out.stat().st_size > 0
 
 
 def test_render_overrides_size_and_samples(tmp_path):
@@ -115,7 +129,6 @@ def test_absurd_area_light_grid_is_refused_not_attempted(tmp_path):
 # -- the command line as a careful user expects it ---------------------------------------------------------
 
 import io  # noqa: E402
-import os  # noqa: E402
 from importlib.metadata import metadata, version  # noqa: E402
 
 from service import cli  # noqa: E402

@@ -28,20 +28,19 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     sel = np.flatnonzero(size > 0)
     if len(sel) == 0:
         return mat
-    p = hits.point[sel] + world.origin
-    kind = hits.kind[sel]
-    normal = hits.normal[sel]
-    anchor = np.zeros_like(p)
-    planes = kind == PLANE
-    anchor[planes] = world.planes.point_world[hits.index[sel][planes]]
-    tris = kind == TRIANGLE
-    anchor[tris] = world.triangles.v0_world[hits.index[sel][tris]]
-    flat = planes | tris
-    p[flat] -= dot(p[flat] - anchor[flat], normal[flat])[:, None] * normal[flat]
-    cells = np.sum(np.floor(p / size[sel, None]), axis=1)
-    odd = np.mod(cells, 2.0) == 1.0
+    p = rows_of(hits.point, sel)
+    p += world.origin
+    kind, index = hits.kind[sel], hits.index[sel]
+    for code, anchors in ((PLANE, world.planes.point_world), (TRIANGLE, world.triangles.v0_world)):
+        flat = np.flatnonzero(kind == code)
+        if len(flat):  # projected onto the surface's plane: p − ((p − anchor)·n) n
+            pf, nf = rows_of(p, flat), rows_of(hits.normal, sel[flat])
+            p[flat] = pf - dot(pf - rows_of(anchors, index[flat]), nf)[:, None] * nf
+    p /= size[sel, None]
+    cells = np.sum(np.floor(p, out=p), axis=1)
+    odd = sel[np.mod(cells, 2.0) == 1.0]
     out = mat.copy()
-    out[sel[odd]] = mats.checker_other[mat[sel[odd]]]
+    out[odd] = mats.checker_other[mat[odd]]
     return out
 
 

@@ -37,6 +37,12 @@ PAIR_SLICE = 1 << 16
 #: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
 INSIDE = 2.0**-24
 _NONE = np.iinfo(np.int64).max
+#: a walk over primitives worth at most this many sphere tests per ray (a triangle counts :data:`TRIANGLE_COST`)
+#: tests every primitive against each ray its broad phase keeps, instead of walking the cells
+#: (:meth:`Walk.walk_few`): the cells' bookkeeping costs more than a few exact tests
+FEW = 6
+#: an exact triangle test's cost in sphere tests
+TRIANGLE_COST = 2
 
 
 def _nothing() -> None:
@@ -176,6 +182,9 @@ class Walk:
         self.box_hi = highest(p.hi) + p.step * 4 + p.slack
         # each pass of a walk consumes at least one proxy-face crossing (a ray crosses a face once)
         self.max_steps = len(p.faces) + 2
+        #: every primitive is tested against every ray the broad phase keeps (:meth:`walk_few`); not with plain
+        #: triangles, whose mates only the cell walk knows to skip
+        self.few = self.mates is None and TRIANGLE_COST * len(tris) + len(spheres) <= FEW
 
     # -- exact tests of (ray, primitive) pairs ----------------------------------------------------------------
     def _test(self, best: Best, rows: np.ndarray, prims: np.ndarray, table: np.ndarray, from_prim: np.ndarray,
@@ -250,7 +259,48 @@ class Walk:
                            & (1.0 - u - v > INSIDE))
         return self._with_mates(prims, inside)
 
+    def _from_prim(self, rays: Rays) -> np.ndarray:
+        """The BVH primitive each ray leaves, −1 for none. Shape (N,)."""
+        fk, fi = rays.from_kind, rays.from_index
+        from_prim = np.full(len(fk), -1, dtype=np.int64)
+        tri = fk == TRIANGLE
+        from_prim[tri] = self.tri_prim[fi[tri]]
+        sph = fk == SPHERE
+        from_prim[sph] = self.sphere_prim[fi[sph]]
+        return from_prim
+
     # -- the walk ---------------------------------------------------------------------------------------------
+    def walk_few(self, best: Best, rays: Rays, shadows: Shadows | None = None) -> None:
+        """:meth:`walk` for a BVH of a few primitives (:attr:`few`): the same answer, with no cells walked.
+
+        **Guarantee.**  Every primitive that a ray could hit before its best hit (or, for ``shadows``, before its
+        light) is tested exactly; so is every other primitive, for the rays that Embree cannot clear.
+
+        **Broad phase.**  From where its line enters the BVH's box (behind its origin if need be), a ray is
+        outside every proxy; a primitive the float64 ray hits at ``0 < t`` has the ray inside its proxy around
+        ``t`` (its margin is far above float32 rounding), so the float32 ray crosses one of that proxy's faces
+        between the box's entry and ``t``.  A ray that Embree finds crossing no proxy face before its best hit
+        (the slack of a plain triangle's crossing is 0 here: there are none) or the box's exit therefore hits
+        no primitive that would count: its best hit stands, and no test is needed.
+
+        **Stop.**  Each kept ray tests every primitive once (its own by identity, as :mod:`tracer.shapes` does
+        for any ray leaving a surface); nothing is left to test, so the walk ends there.
+        """
+        o, d = rays.origins, rays.dirs
+        t_in, t_out = slab(o, d, self.box_lo, self.box_hi)
+        end = np.minimum(best.t + self.proxies.slack, t_out)
+        live = np.flatnonzero((t_in < end) & (end > 0))
+        if len(live) == 0:
+            return
+        s = t_in[live]
+        o_l, d_l = rows_of(o, live), rows_of(d, live)
+        live = live[self.bvh.any_hit(along(o_l, s, d_l), d_l, end[live] - s)]
+        if len(live) == 0:
+            return
+        count = len(self.prim_index)
+        self._test(best, np.repeat(live, count), np.tile(np.arange(count), len(live)),
+                   gathered(o, d, rays.mag), self._from_prim(rays), shadows)
+
     def walk(self, best: Best, rays: Rays, shadows: Shadows | None = None) -> None:
         """Test, exactly, every BVH primitive that one of ``rays`` could hit before its best hit, or, for
         ``shadows`` (whose rays they are), before its light until one blocks it.
@@ -280,15 +330,14 @@ class Walk:
         no crossing is left before the light.  Each pass consumes a crossing, so the walk ends; should it not
         within :attr:`max_steps` passes, the rays still walking test every primitive (never silently wrong).
         """
+        if self.few:
+            self.walk_few(best, rays, shadows)
+            return
         p, bvh, cells = self.proxies, self.bvh, self.cells
         any_hit = shadows is not None
-        o, d, fk, fi = rays.origins, rays.dirs, rays.from_kind, rays.from_index
+        o, d = rays.origins, rays.dirs
         n = len(o)
-        from_prim = np.full(n, -1, dtype=np.int64)
-        tri = fk == TRIANGLE
-        from_prim[tri] = self.tri_prim[fi[tri]]
-        sph = fk == SPHERE
-        from_prim[sph] = self.sphere_prim[fi[sph]]
+        from_prim = self._from_prim(rays)
         limit = best.t.copy()
         table = gathered(o, d, rays.mag)
         t_in, t_out = slab(o, d, self.box_lo, self.box_hi)

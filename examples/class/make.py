@@ -8,8 +8,8 @@ dara has her own randomised spheres scene, in the TA's student-scenes/ folder (a
 nothing for two tasks, and a scene of his own (ignored: students cannot change their task); frank's files come
 as a learning-management system downloads them: Spheres.PNG, one folder deeper hw3/lights.png, and a JPEG
 mirror.jpg; gus and hana made classic mistakes, which the report names: gus cast no shadow rays and used the
-Blinn–Phong half vector, hana cast no shadow rays, left out attenuation and inverted the index of refraction.  tasks.json
-gives each task its points.
+Blinn–Phong half vector, hana cast no shadow rays, left out attenuation and inverted the index of refraction.
+tasks.json gives each task its points.
 """
 
 import copy
