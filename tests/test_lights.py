@@ -75,3 +75,17 @@ def test_area_light_is_a_grid_of_point_lights_at_cell_centres():
     assert positions == [(0.5, 2, 0.5), (1.5, 2, 0.5)]
     for e in ems:
         np.testing.assert_allclose(e.color, [2, 2, 2])
+
+
+@pytest.mark.parametrize("c", [1.0, 2.5, 1e-300])
+def test_constant_attenuation_is_the_formula_at_every_distance(c):
+    """An attenuation of (c, 0, 0) takes a shorter path; it gives what c + l·d + q·d² gives, bit for bit: at
+    the light, next to it, far away, where the distance overflows, and at infinity (no light there)."""
+    (em,) = emitters({"type": "point", "color": 1, "position": [0, 0, 0], "attenuation": [c, 0, 0]})
+    points = np.array([[0, 0, 0], [1e-150, 0, 0], [0, 3, 4], [1e150, 0, 0], [0, -1e300, 0], [np.inf, 0, 0]])
+    with np.errstate(all="ignore"):
+        _, d, factor = illuminate(em, points)
+        denom = c + 0.0 * d + 0.0 * d * d
+        general = np.where((d > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
+    assert factor.tobytes() == general.tobytes()
+    assert list(factor) == [0.0, 1.0 / c, 1.0 / c, 1.0 / c, 0.0, 0.0]

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from tracer.vec import along, cross, divided, dot, scaled
+from tracer.vec import along, cross, divided, dot, scaled, toward
 
 
 def test_each_operation_matches_numpy_broadcasting_bit_for_bit():
@@ -32,3 +32,15 @@ def test_empty_batches_stay_empty():
     e = np.zeros((0, 3))
     assert along(e, np.zeros(0), e).shape == (0, 3)
     assert dot(e, e).shape == (0,)
+
+
+def test_toward_is_the_broadcast_difference_in_columns():
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(1000, 3)) * 10.0 ** rng.integers(-8, 8, size=(1000, 1))
+    p = np.array([0.1, -3e5, 7.0])
+    out = toward(p, points)
+    assert out.tobytes(order="C") == (p - points).tobytes()
+    assert out.flags.f_contiguous  # and its columns contiguous, for the column-wise functions that read it
+    s = rng.uniform(0.5, 2.0, size=1000)
+    quotient = divided(out, s)
+    assert quotient.flags.f_contiguous and np.array_equal(quotient, (p - points) / s[:, None])

@@ -19,7 +19,7 @@ import numpy as np
 from schemas.scene import AmbientLight, AreaLight, DirectionalLight, PointLight, SpotLight
 
 from .variants import REFERENCE, Options
-from .vec import divided, dot
+from .vec import divided, dot, toward
 
 F64 = np.float64
 
@@ -130,13 +130,16 @@ def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     n = len(points)
     if em.kind == "directional":
         return np.broadcast_to(-em.direction, (n, 3)), np.full(n, np.inf), np.ones(n)
-    v = em.position - points
+    v = toward(em.position, points)
     d = np.sqrt(dot(v, v))
     safe_d = np.where(d > 0, d, 1.0)
     L = divided(v, safe_d)
     c, lin, q = em.attenuation
-    denom = c + lin * d + q * d * d
-    factor = np.where((d > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
+    if lin == 0 and q == 0:  # c + 0·d + (0·d)·d is c wherever d is finite (at d = ∞, NaN: no light); fewer passes
+        factor = np.where((d > 0) & (d < np.inf), 1.0 / c if c > 0 else 0.0, 0.0)
+    else:
+        denom = c + lin * d + q * d * d
+        factor = np.where((d > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
     if em.is_spot:
         factor = factor * spot_factor(em, -L)
     return L, d, factor

@@ -26,7 +26,7 @@ from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate, light_samples
 from .passes import BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
 from .rays import Rays, Shadows, Work
-from .shading import light_in_plane, mirror, phong, refract, resolve_material, shading_normal
+from .shading import add_phong, light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
 from .variants import REFERENCE, Options
 from .vec import dot, rows_of, scaled
@@ -280,10 +280,12 @@ class Renderer:
         their passes too.
         """
         m, opt = self.world.materials, self.options
-        colour = rows_of(m.ambient, mat) * self.world.ambient
+        # (N, 3) arrays whose columns are contiguous: every light adds to them a column at a time (add_phong)
+        colour = np.asfortranarray(rows_of(m.ambient, mat) * self.world.ambient)
         if not opt.ambient:
             colour = np.zeros_like(colour)
-        diffuse, specular, shininess = rows_of(m.diffuse, mat), rows_of(m.specular, mat), m.shininess[mat]
+        diffuse, specular = np.asfortranarray(rows_of(m.diffuse, mat)), np.asfortranarray(rows_of(m.specular, mat))
+        shininess = m.shininess[mat]
         if not opt.specular:
             specular = np.zeros_like(specular)
         first = tally is not None and work is not None and work.depth == 0
@@ -334,12 +336,11 @@ class Renderer:
                 rv = dot(normal, unit(to_light - dirs))
             else:
                 rv = 2.0 * nl * nv + dot(to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
-            d_term, s_term = phong(diffuse, specular, shininess, np.maximum(nl, 0.0) if opt.specular_behind
-                                   else nl, rv, weight)
-            colour += em.color * (d_term + s_term)
+            wd, ws = phong(shininess, np.maximum(nl, 0.0) if opt.specular_behind else nl, rv, weight)
+            add_phong(colour, em.color, diffuse, specular, wd, ws)
             if first and tally is not None and work is not None and tally.counts(e_index):
-                tally.add("diffuse", work.sample, scaled(em.color * d_term, work.weight))
-                tally.add("specular", work.sample, scaled(em.color * s_term, work.weight))
+                tally.add("diffuse", work.sample, scaled(em.color * scaled(diffuse, wd), work.weight))
+                tally.add("specular", work.sample, scaled(em.color * scaled(specular, ws), work.weight))
                 if tally.visible is not None:
                     np.add.at(tally.visible, work.sample, (weight > 0) & facing)
         if tally is not None and work is not None and work.branch is not None and work.depth > 0:

