@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from tracer.vec import along, cross, divided, dot, scaled, toward
+from tracer.vec import along, cross, divided, dot, minus, plus, scaled
 
 
 def test_each_operation_matches_numpy_broadcasting_bit_for_bit():
@@ -34,13 +34,16 @@ def test_empty_batches_stay_empty():
     assert dot(e, e).shape == (0,)
 
 
-def test_toward_is_the_broadcast_difference_in_columns():
+def test_minus_and_plus_are_the_broadcast_ones_in_columns():
     rng = np.random.default_rng(3)
     points = rng.normal(size=(1000, 3)) * 10.0 ** rng.integers(-8, 8, size=(1000, 1))
     p = np.array([0.1, -3e5, 7.0])
-    out = toward(p, points)
+    out = minus(p, points)
     assert out.tobytes(order="C") == (p - points).tobytes()
     assert out.flags.f_contiguous  # and its columns contiguous, for the column-wise functions that read it
     s = rng.uniform(0.5, 2.0, size=1000)
     quotient = divided(out, s)
     assert quotient.flags.f_contiguous and np.array_equal(quotient, (p - points) / s[:, None])
+    for a, b in ((points, p), (points, p[None]), (points, points[::-1]), (p, points), (points[:0], p)):
+        assert np.array_equal(minus(a, b), a - b) and np.array_equal(plus(a, b), a + b)
+        assert np.array_equal(np.signbit(minus(a, b)), np.signbit(a - b))

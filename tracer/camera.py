@@ -6,7 +6,7 @@ import numpy as np
 
 from schemas import Camera, Image
 
-from .vec import along, scaled
+from .vec import along, plus, scaled
 from .world import unit
 
 
@@ -48,5 +48,5 @@ class CameraRays:
         y = (1.0 - 2.0 * sy) * self.scale_y * self.h
         plane = along(scaled(self.right, x), y, self.up)  # x·right + y·up
         if self.orthographic:
-            return self.eye + plane, np.broadcast_to(self.forward, plane.shape).copy()
-        return np.broadcast_to(self.eye, plane.shape).copy(), unit(self.forward + plane)
+            return plus(self.eye, plane), np.broadcast_to(self.forward, plane.shape).copy()
+        return np.broadcast_to(self.eye, plane.shape).copy(), unit(plus(self.forward, plane))

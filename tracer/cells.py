@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .proxies import stable_order
-from .vec import highest, lowest, most, rows_of
+from .vec import highest, lowest, minus, most, plus, rows_of
 from .world import median_of
 
 #: the cell's edge over the largest box among those up to four times the median size
@@ -77,9 +77,9 @@ class Cells:
         With ``whole``, the region is the whole cell instead, numbered :attr:`whole_base` ``+ cell``, and the
         box is the cell's: a coarser region (every member of every part), for rays that step far."""
         with np.errstate(invalid="ignore", over="ignore"):
-            k = np.floor((points - self.origin) / self.size)
+            k = np.floor(minus(points, self.origin) / self.size)  # (a column at a time, see tracer.vec)
         k = np.clip(_finite(k, -1.0), -1, self.dims).astype(np.int64)
-        corner = self.origin + k * self.size
+        corner = plus(self.origin, k * self.size)
         inside = (k[:, 0] >= 0) & (k[:, 1] >= 0) & (k[:, 2] >= 0)  # (a column at a time, see tracer.vec)
         inside &= (k[:, 0] < self.dims[0]) & (k[:, 1] < self.dims[1]) & (k[:, 2] < self.dims[2])
         key = self._key(np.where(inside[:, None], k, 0))

@@ -96,7 +96,9 @@ class Bvh:
         self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
 
     def _rays(self, origins: np.ndarray, dirs: np.ndarray, far: np.ndarray) -> tuple[np.ndarray, ...]:
-        o = _f32((origins - self.centre) * self.inv)
+        o = np.empty((len(origins), 3), dtype=np.float32)  # (o − centre)·inv in float64, stored as float32
+        for k in range(3):
+            o[:, k] = (origins[:, k] - self.centre[k]) * self.inv
         d = _f32(dirs)
         f = np.asarray(far, dtype=np.float64) * self.inv
         f = _f32(np.where(np.isfinite(f), np.minimum(f * (1.0 + 2.0**-20) + 2.0**-20, FAR), FAR))

@@ -19,7 +19,7 @@ import numpy as np
 from schemas.scene import AmbientLight, AreaLight, DirectionalLight, PointLight, SpotLight
 
 from .variants import REFERENCE, Options
-from .vec import divided, dot, toward
+from .vec import divided, dot, minus
 
 F64 = np.float64
 
@@ -130,7 +130,7 @@ def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     n = len(points)
     if em.kind == "directional":
         return np.broadcast_to(-em.direction, (n, 3)), np.full(n, np.inf), np.ones(n)
-    v = toward(em.position, points)
+    v = minus(em.position, points)
     d = np.sqrt(dot(v, v))
     safe_d = np.where(d > 0, d, 1.0)
     L = divided(v, safe_d)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .vec import along, cross, dot
+from .vec import along, cross, dot, minus
 
 #: the kinds of surface, in one list: what a hit is (``Hits.kind``) and what a ray leaves (``Rays.from_kind``);
 #: MISS is none.  Each has an exact test here, arrays in :mod:`tracer.world` and a place in :mod:`tracer.intersect`
@@ -62,7 +62,7 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     of the centre to the ray's line, so a sphere of radius 1e6 is as exact as
     one of radius 1.
     """
-    oc = origins - center
+    oc = minus(origins, center)
     b = dot(oc, dirs)
     perp = along(oc, -b, dirs)  # oc − b·dirs
     h = np.sqrt(dot(perp, perp))
@@ -84,7 +84,7 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     t = np.where(on, np.where(b < 0, -2.0 * b, np.inf), t)
     if ends is not None:
         assert reach is not None and mag_end is not None
-        ec = ends - center
+        ec = minus(ends, center)
         at_end = np.abs(np.sqrt(dot(ec, ec)) - radius) <= on_tolerance(mag_end, mag_sphere)
         # the light is a root; the other root is c / reach (their product is c)
         with np.errstate(divide="ignore", invalid="ignore"):

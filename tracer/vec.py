@@ -41,12 +41,27 @@ def columns(n: int) -> np.ndarray:
     return np.empty((3, n)).T
 
 
-def toward(p: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """``p − points`` per row, for one point ``p (3,)``, a column at a time (NumPy broadcasts a ``(3,)`` over
-    the rows of an ``(N, 3)`` array with a loop of three per row: ten times slower). Shape (N, 3)."""
-    out = columns(len(points))
+def _rows(a: np.ndarray, b: np.ndarray) -> int:
+    """How many rows ``a`` and ``b`` (``(N, 3)``, ``(1, 3)`` or ``(3,)``) broadcast to."""
+    shape = np.broadcast_shapes(a.shape, b.shape)
+    return shape[0] if len(shape) == 2 else 1
+
+
+def minus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a − b`` per row, a column at a time, either of them possibly one vector that every row shares (NumPy
+    broadcasts a ``(3,)`` over the rows of an ``(N, 3)`` array with a loop of three per row: ten times slower).
+    Shape (N, 3), its columns contiguous."""
+    out = columns(_rows(a, b))
     for k in range(3):
-        np.subtract(p[k], points[:, k], out=out[:, k])
+        np.subtract(a[..., k], b[..., k], out=out[:, k])
+    return out
+
+
+def plus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a + b`` per row, as :func:`minus`. Shape (N, 3), its columns contiguous."""
+    out = columns(_rows(a, b))
+    for k in range(3):
+        np.add(a[..., k], b[..., k], out=out[:, k])
     return out
 
 
