@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from tracer.vec import along, cross, divided, dot, minus, plus, scaled
+from tracer.vec import along, cross, divided, dot, minus, plus, rows_of, scaled
 
 
 def test_each_operation_matches_numpy_broadcasting_bit_for_bit():
@@ -47,3 +47,13 @@ def test_minus_and_plus_are_the_broadcast_ones_in_columns():
     for a, b in ((points, p), (points, p[None]), (points, points[::-1]), (p, points), (points[:0], p)):
         assert np.array_equal(minus(a, b), a - b) and np.array_equal(plus(a, b), a + b)
         assert np.array_equal(np.signbit(minus(a, b)), np.signbit(a - b))
+
+
+def test_rows_of_gathers_rows_of_either_layout():
+    rng = np.random.default_rng(4)
+    a = rng.normal(size=(500, 3))
+    index = rng.integers(-500, 500, size=300)
+    for layout in (a, np.asfortranarray(a), np.asfortranarray((a * 100).astype(np.int64))):
+        got = rows_of(layout, index)
+        assert got.dtype == layout.dtype and np.array_equal(got, layout[index])
+    assert rows_of(np.asfortranarray(a), index[:0]).shape == (0, 3)

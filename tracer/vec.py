@@ -113,5 +113,11 @@ def highest(a: np.ndarray) -> np.ndarray:
 def rows_of(a: np.ndarray, index: np.ndarray) -> np.ndarray:
     """``a[index]`` for integer ``index``: the rows of an ``(N, 3)`` (or any) array.  ``np.take`` copies each
     row at once, where fancy indexing loops over its three values (measured: 64k rows of 208k, 0.22 ms against
-    0.99 ms)."""
+    0.99 ms).  Of an ``(N, 3)`` array whose columns are contiguous (:func:`columns`), a column at a time, into
+    another such array (np.take copies its rows a value at a time: four times slower)."""
+    if a.ndim == 2 and a.shape[1] == 3 and a.flags.f_contiguous and not a.flags.c_contiguous:
+        out = np.empty((3, len(index)), dtype=a.dtype).T
+        for k in range(3):
+            np.take(a[:, k], index, out=out[:, k])
+        return out
     return np.take(a, index, axis=0)
