@@ -71,8 +71,8 @@ def run(mutant: tuple[str, str, str, str] | None, scenes: int) -> bool:
         env = {**os.environ, "PYTHONPATH": tmp}
         if scenes:
             env["PHONGRAY_FUZZ_SCENES"] = str(scenes)
-        tests = [str(ROOT / "tests" / name)
-                 for name in ("test_proxies.py", "test_cells.py", "test_culling.py", "test_fuzz.py")]
+        names = ("test_proxies.py", "test_cells.py", "test_culling.py", "test_intersect.py", "test_fuzz.py")
+        tests = [str(ROOT / "tests" / name) for name in names]
         out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *tests],
                              env=env, cwd=tmp, capture_output=True, text=True)
         return out.returncode == 0

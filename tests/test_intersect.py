@@ -1,14 +1,28 @@
-"""The BVH walk finds exactly what testing every surface in float64 would find."""
+"""The BVH walk finds exactly what testing every surface in float64 would find.
+
+Most tests here are about the walk through the cells, and so make every BVH walk its cells (no walk of a few
+primitives, no direct tests beyond two surfaces); :func:`test_a_few_primitives_agree_with_brute_force_as_rendering_
+tests_them` checks the shortcuts rendering takes for small scenes against the same brute force."""
 
 import numpy as np
 import pytest
 
 import schemas
+import tracer.intersect
+import tracer.walk
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector
 from tracer.rays import Shadows
 from tracer.shapes import plane_t, sphere_t, triangle_t
 from tracer.walk import Best
 from tracer.world import build_world, max_abs
+
+
+@pytest.fixture(autouse=True)
+def cell_walk(request, monkeypatch):
+    """Every BVH walks its cells, unless a test is marked ``as_rendered`` (the settings rendering uses)."""
+    if "as_rendered" not in request.keywords:
+        monkeypatch.setattr(tracer.walk, "FEW", 0)
+        monkeypatch.setattr(tracer.intersect, "DIRECT_MAX", 2)
 
 
 def scene_with(objects, camera=None):
@@ -196,15 +210,39 @@ def test_no_bvh_without_triangles_or_small_spheres():
     assert list(hits.kind) == [PLANE, MISS]
 
 
-def test_two_spheres_are_tested_directly_and_three_go_into_the_bvh():
-    balls = [{"type": "sphere", "material": "m", "center": [x, 0, 0], "radius": 0.4} for x in (-1, 0, 1)]
-    two, three = (Intersector(build_world(scene_with(balls[:k]))) for k in (2, 3))
-    assert two.bvh is None and list(two.direct_spheres) == [0, 1]
-    assert three.bvh is not None and len(three.direct_spheres) == 0
+@pytest.mark.as_rendered
+def test_three_spheres_are_tested_directly_and_four_go_into_the_bvh():
+    balls = [{"type": "sphere", "material": "m", "center": [x, 0, 0], "radius": 0.4} for x in (-1, 0, 1, 2)]
+    three, four = (Intersector(build_world(scene_with(balls[:k]))) for k in (3, 4))
+    assert three.bvh is None and list(three.direct_spheres) == [0, 1, 2]
+    assert four.bvh is not None and len(four.direct_spheres) == 0 and four.walker.few
     o = np.array([[-1.0, 0, 5], [0.0, 0, 5], [3.0, 0, 5]])
     d = np.array([[0.0, 0, -1]] * 3)
-    assert list(two.closest(two.rays(o - two.world.origin, d)).kind) == [SPHERE, SPHERE, MISS]
-    assert list(three.closest(three.rays(o - three.world.origin, d)).index) == [0, 1, -1]
+    assert list(three.closest(three.rays(o - three.world.origin, d)).kind) == [SPHERE, SPHERE, MISS]
+    assert list(four.closest(four.rays(o - four.world.origin, d)).index) == [0, 1, -1]
+
+
+@pytest.mark.as_rendered
+@pytest.mark.parametrize("spheres, triangles", [(1, 0), (3, 0), (4, 0), (6, 0), (2, 2), (0, 3), (7, 0), (3, 2)])
+def test_a_few_primitives_agree_with_brute_force_as_rendering_tests_them(spheres, triangles):
+    """Direct tests (at most three surfaces), the walk of a few primitives (Embree's broad phase, then every
+    primitive) and, past that, the cell walk: closest hits, secondary rays and shadow rays from anywhere,
+    many of them inside spheres and proxies, exactly as brute force finds them."""
+    rng = np.random.default_rng(100 * spheres + triangles)
+    objs = [{"type": "sphere", "material": "m", "center": list(map(float, rng.uniform(-2, 2, 3))),
+             "radius": float(rng.uniform(0.05, 1.2))} for _ in range(spheres)]
+    objs += [{"type": "triangle", "material": "m", "vertices": (rng.uniform(-2, 2, (1, 3)) + rng.uniform(-1, 1, (3, 3))
+                                                                ).tolist()} for _ in range(triangles)]
+    objs.append({"type": "plane", "material": "m", "point": [0, -3, 0], "normal": [0.1, 1, 0]})
+    world = build_world(scene_with(objs))
+    isect = Intersector(world)
+    few = spheres + 2 * triangles
+    assert (isect.walker is None) == (spheres + triangles <= 3)
+    assert isect.walker is None or isect.walker.few == (few <= tracer.walk.FEW)
+    origins = rng.uniform(-3, 3, (3000, 3)) - world.origin
+    dirs = rng.normal(size=(3000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    check_agrees(world, origins, dirs, rng)
 
 
 def test_precision_does_not_depend_on_where_look_at_is():

@@ -173,18 +173,20 @@ class Walk:
         self.mates = mates if some_plain else None
         self.proxies: Proxies = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids)
         p = self.proxies
-        self.bvh = Bvh(p.vertices, p.faces, centre, half, commit=False)
-        with ThreadPoolExecutor(max_workers=1) as pool:  # Embree builds its tree while the walk's cells are made
-            committed = pool.submit(self.bvh.commit)
-            self.cells: Cells = build_cells(p.lo, p.hi, p.reach)
-            committed.result()
+        #: every primitive is tested against every ray the broad phase keeps (:meth:`walk_few`), and no cells are
+        #: made; not with plain triangles, whose mates only the cell walk knows to skip
+        self.few = self.mates is None and TRIANGLE_COST * len(tris) + len(spheres) <= FEW
+        self.bvh = Bvh(p.vertices, p.faces, centre, half, commit=self.few)
+        self.cells: Cells | None = None
+        if not self.few:
+            with ThreadPoolExecutor(max_workers=1) as pool:  # Embree builds its tree while the cells are made
+                committed = pool.submit(self.bvh.commit)
+                self.cells = build_cells(p.lo, p.hi, p.reach)
+                committed.result()
         self.box_lo = lowest(p.lo) - p.step * 4 - p.slack
         self.box_hi = highest(p.hi) + p.step * 4 + p.slack
         # each pass of a walk consumes at least one proxy-face crossing (a ray crosses a face once)
         self.max_steps = len(p.faces) + 2
-        #: every primitive is tested against every ray the broad phase keeps (:meth:`walk_few`); not with plain
-        #: triangles, whose mates only the cell walk knows to skip
-        self.few = self.mates is None and TRIANGLE_COST * len(tris) + len(spheres) <= FEW
 
     # -- exact tests of (ray, primitive) pairs ----------------------------------------------------------------
     def _test(self, best: Best, rows: np.ndarray, prims: np.ndarray, table: np.ndarray, from_prim: np.ndarray,
@@ -334,6 +336,7 @@ class Walk:
             self.walk_few(best, rays, shadows)
             return
         p, bvh, cells = self.proxies, self.bvh, self.cells
+        assert cells is not None  # (made for every walk but a few primitives')
         any_hit = shadows is not None
         o, d = rays.origins, rays.dirs
         n = len(o)
