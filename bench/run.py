@@ -317,13 +317,14 @@ def report(results: dict[str, Any]) -> str:
                      f"(target ≤ 1.5×), {many['render_s'] / few['render_s']:.2f}× the render time.")
     if "three_spheres_1080p" in speed:
         r = speed["three_spheres_1080p"]
-        lines.append(f"* 1080p three spheres: whole process ÷ POV-Ray {_f(r['process_over_povray'])} (target ≤ 0.6), "
-                     f"render ÷ Embree {_f(r['render_over_embree'], 1)} (target ≤ 3).")
-    worst = max((r for r in results["speed"] if r["process_over_povray"]), key=lambda r: r["process_over_povray"],
-                default=None)
+        lines.append(f"* 1080p three spheres: whole process ÷ POV-Ray {_f(r['process_over_povray'])}, "
+                     f"render ÷ Embree {_f(r['render_over_embree'], 1)} (— where no BVH is built).")
+    ratios = [r for r in results["speed"] if r["process_over_povray"]]
+    worst = max(ratios, key=lambda r: r["process_over_povray"], default=None)
     if worst:
+        met = sum(r["process_over_povray"] <= 0.5 for r in ratios)
         lines.append(f"* Slowest row against POV-Ray: {worst['scene']}, {worst['process_over_povray']:.2f}× "
-                     "(target ≤ 1.0 on every row).")
+                     f"(target ≤ 0.5 on every row; {met} of {len(ratios)} rows meet it).")
     lines += ["", "Render s: best of the runs, in-process, all cores. Embree-only s: the same Embree queries "
               "(recorded during a render) replayed on Embree alone, on all cores. Process s: the whole "
               "`phongray render` command, start-up, validation and PNG included, best of one more run than the "
@@ -345,7 +346,7 @@ def report(results: dict[str, Any]) -> str:
                   f"{m['seconds']:.1f} s (target < 2048 MiB).", ""]
     if results.get("http"):
         lines += ["## HTTP", "", "`phongray serve --workers 2` on loopback, one render thread per worker; each request "
-                  "is a distinct 160×120 scene, so every one is rendered (targets: median < 30 ms, ≥ 50 renders/s).",
+                  "is a distinct 160×120 scene, so every one is rendered (target: a median ≤ 15 ms with 2 clients).",
                   "", "| clients | requests | median ms | p99 ms | renders/s | status codes |",
                   "|---|---|---|---|---|---|"]
         for h in results["http"]:
