@@ -1,8 +1,11 @@
 """Exact ray tests: inside, grazing, behind the origin, huge radii, leaving a surface by identity."""
 
 import numpy as np
+import pytest
 
-from tracer.shapes import plane_t, sphere_t, triangle_t
+from tracer.shapes import on_tolerance, plane_t, sphere_t, triangle_t
+from tracer.vec import along, dot, minus
+from tracer.world import unit
 
 UP = np.array([0, 1.0, 0])
 TRI = (np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
@@ -139,3 +142,41 @@ def test_a_plane_separates_a_segment_exactly_when_its_ends_lie_on_opposite_sides
     # one light shared by every row
     shared = plane_separates(origins, np.array([[0.0, -1.0, 0.0]]), point, normal, mag_o, np.array([1.0]), 0.0)
     assert shared.tolist() == [True, True, True, False, False]
+
+
+@pytest.mark.parametrize("light", [None, 2.0, 1.0])
+def test_sphere_roots_of_the_rays_that_may_hit_are_those_of_every_ray(light):
+    """sphere_t finds the roots only for rays whose line meets the sphere or that start or end on it; the
+    others are inf either way, and the rest carry the same bits as roots found for every ray."""
+    from tracer.shapes import _roots
+
+    rng = np.random.default_rng(5)
+    shadow = light is not None
+    n = 4000
+    center, radius = np.array([0.3, -0.2, 0.1]), 0.7
+    on_surface = center + radius * unit(rng.normal(size=(n, 3)))
+    origins = np.where(rng.random((n, 1)) < 0.2, on_surface, rng.uniform(-3, 3, (n, 3)))
+    dirs = unit(rng.normal(size=(n, 3)))
+    leaving = rng.random(n) < 0.05
+    mag_o, mag_s = np.max(np.abs(origins), axis=1), float(np.max(np.abs(center)) + radius)
+    ends = reach = mag_e = None
+    if shadow:  # shadow rays to a light off the sphere, or on it (which the identity rule must handle)
+        ends = (center + light * radius * unit(np.array([1.0, 2.0, 2.0])))[None]
+        reach = np.sqrt(np.sum((ends - origins) ** 2, axis=1))
+        dirs = (ends - origins) / reach[:, None]
+        mag_e = np.max(np.abs(ends))
+    t = sphere_t(origins, dirs, center, radius, mag_o, mag_s, leaving, ends, reach, mag_e)
+    if light != 1.0:  # (so both the gathered and the skipped rays are many; on it, every ray may hit)
+        assert 0.05 < np.mean(np.isfinite(t)) < 0.5
+    oc = minus(origins, center)  # (the steps of sphere_t up to the roots, for every ray)
+    b = dot(oc, dirs)
+    perp = along(oc, -b, dirs)
+    h = np.sqrt(dot(perp, perp))
+    dist = np.sqrt(dot(oc, oc))
+    on = (np.abs(dist - radius) <= on_tolerance(mag_o, mag_s)) | leaving
+    at_end = None
+    if shadow:
+        ec = minus(ends, center)
+        at_end = np.broadcast_to(np.abs(np.sqrt(dot(ec, ec)) - radius) <= on_tolerance(mag_e, mag_s), (n,))
+    every = _roots(b, (radius - h) * (radius + h), dist, np.full(n, radius), on, at_end, reach)
+    assert t.tobytes() == every.tobytes()

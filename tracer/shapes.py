@@ -69,6 +69,35 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     radius = np.broadcast_to(radius, b.shape)
     disc = (radius - h) * (radius + h)
     dist = np.sqrt(dot(oc, oc))
+    # an origin on the sphere: one root is the origin itself, the other is the chord −2b (inward only)
+    on = np.abs(dist - radius) <= on_tolerance(mag_origin, mag_sphere)
+    if leaving is not None:
+        on |= leaving
+    at_end = None
+    if ends is not None:
+        assert reach is not None and mag_end is not None
+        ec = minus(ends, center)
+        at_end = np.abs(np.sqrt(dot(ec, ec)) - radius) <= on_tolerance(mag_end, mag_sphere)
+    # only a ray whose line meets the sphere, or that starts or ends on it, can hit it: the rest stay at inf, and
+    # the roots are found for the others alone (the same operations on the same numbers, so the same bits)
+    may = (disc >= 0) | on if at_end is None else (disc >= 0) | on | at_end
+    rows = np.flatnonzero(may)
+    t = np.full(len(b), np.inf)
+    if len(rows) == 0:
+        return t
+
+    reach_n = None if reach is None else np.broadcast_to(reach, b.shape)
+    if 2 * len(rows) > len(b):  # most rays may: no gathering
+        return _roots(b, disc, dist, radius, on, at_end, reach_n)
+    t[rows] = _roots(b[rows], disc[rows], dist[rows], radius[rows], on[rows],
+                     None if at_end is None else at_end[rows], None if reach_n is None else reach_n[rows])
+    return t
+
+
+def _roots(b: np.ndarray, disc: np.ndarray, dist: np.ndarray, radius: np.ndarray, on: np.ndarray,
+           at_end: np.ndarray | None, reach: np.ndarray | None) -> np.ndarray:
+    """:func:`sphere_t` for rays that may hit, from ``b = (o − c)·d``, the discriminant, the origin's distance
+    from the centre and whether it starts (``on``) or ends (``at_end``, towards a light at ``reach``) on it."""
     c = (dist - radius) * (dist + radius)
     root = np.sqrt(np.maximum(disc, 0.0))
     q = -b - np.where(b >= 0, root, -root)
@@ -77,15 +106,9 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     near, far = np.minimum(t_a, q), np.maximum(t_a, q)
     t = np.where(near > 0, near, np.where(far > 0, far, np.inf))
     t = np.where(disc >= 0, t, np.inf)
-    # an origin on the sphere: one root is the origin itself, the other is the chord −2b (inward only)
-    on = np.abs(dist - radius) <= on_tolerance(mag_origin, mag_sphere)
-    if leaving is not None:
-        on |= leaving
     t = np.where(on, np.where(b < 0, -2.0 * b, np.inf), t)
-    if ends is not None:
-        assert reach is not None and mag_end is not None
-        ec = minus(ends, center)
-        at_end = np.abs(np.sqrt(dot(ec, ec)) - radius) <= on_tolerance(mag_end, mag_sphere)
+    if at_end is not None:
+        assert reach is not None
         # the light is a root; the other root is c / reach (their product is c)
         with np.errstate(divide="ignore", invalid="ignore"):
             other = np.where(c > 0, c / reach, np.inf)
