@@ -19,8 +19,9 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def along(o: np.ndarray, t: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """``o + t·d`` per row: the points at parameters ``t (N,)`` of rays ``o + t d``. Shape (N, 3)."""
-    out = np.empty((len(t), 3))
+    """``o + t·d`` per row: the points at parameters ``t (N,)`` of rays ``o + t d``. Shape (N, 3), its columns
+    contiguous (as every result here)."""
+    out = columns(len(t))
     for k in range(3):
         np.multiply(d[..., k], t, out=out[:, k])
         out[:, k] += o[..., k]
@@ -29,7 +30,7 @@ def along(o: np.ndarray, t: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 def scaled(v: np.ndarray, s: np.ndarray) -> np.ndarray:
     """``s·v`` per row, for ``s (N,)``. Shape (N, 3)."""
-    out = np.empty((len(s), 3))
+    out = columns(len(s))
     for k in range(3):
         np.multiply(v[..., k], s, out=out[:, k])
     return out
@@ -66,8 +67,8 @@ def plus(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def divided(v: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """``v / s`` per row, for ``s (N,)``. Shape (N, 3), laid out as ``v`` is (rows or columns contiguous)."""
-    out = columns(len(s)) if v.ndim == 2 and v.shape[0] == len(s) and v.flags.f_contiguous else np.empty((len(s), 3))
+    """``v / s`` per row, for ``s (N,)``. Shape (N, 3)."""
+    out = columns(len(s))
     for k in range(3):
         np.divide(v[..., k], s, out=out[:, k])
     return out
@@ -75,8 +76,7 @@ def divided(v: np.ndarray, s: np.ndarray) -> np.ndarray:
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a × b`` per row, each component as ``a_i b_j − a_j b_i``, as ``np.cross`` computes it. Shape (N, 3)."""
-    n = max(len(a) if a.ndim == 2 else 1, len(b) if b.ndim == 2 else 1)
-    out = np.empty((n, 3))
+    out = columns(_rows(a, b))
     for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
         np.subtract(a[..., i] * b[..., j], a[..., j] * b[..., i], out=out[:, k])
     return out
