@@ -225,7 +225,7 @@ class Renderer:
             origins, dirs = self.camera.rays(start, stop)
             n = len(origins)
             self._count("primary", n)
-            acc = np.zeros((n, 3), dtype=np.int64)
+            acc = np.zeros((3, n), dtype=np.int64).T  # (n, 3), its columns contiguous (_accumulate)
             ceiling = float(2 * s)  # a sub-sample this bright saturates its pixel: sums are clamped there
             # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum
             fixed = 2.0 ** (48 - math.ceil(math.log2(ceiling)) - max(0, math.ceil(math.log2(self.slice_rays)) - 14))
@@ -431,16 +431,18 @@ def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling:
     sum is then a plain gather and scatter instead of ``np.add.at``.
     """
     if len(index):
-        v = np.clip(np.nan_to_num(values, nan=0.0, posinf=ceiling), 0.0, ceiling)
-        units = np.rint(v * fixed).astype(np.int64)
         cap = np.int64(ceiling * fixed)
-        if unique:
-            units += acc[index]
-            np.minimum(units, cap, out=units)
-            acc[index] = units
-        else:
-            np.add.at(acc, index, units)
-            np.minimum(acc, cap, out=acc)
+        for k in range(3):  # a column at a time: 1-D gathers and scatters
+            v = np.clip(np.nan_to_num(values[:, k], nan=0.0, posinf=ceiling), 0.0, ceiling)
+            units = np.rint(v * fixed).astype(np.int64)
+            column = acc[:, k]
+            if unique:
+                units += column[index]
+                np.minimum(units, cap, out=units)
+                column[index] = units
+            else:
+                np.add.at(column, index, units)
+                np.minimum(column, cap, out=column)
 
 
 def render(scene: Scene, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
