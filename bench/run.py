@@ -241,9 +241,7 @@ def http_latency(seconds: float, clients: int, workers: int) -> dict[str, Any]:
         "median_ms": 1000 * statistics.median(latencies) if latencies else None,
         "p99_ms": 1000 * latencies[int(0.99 * (len(latencies) - 1))] if latencies else None,
         "render_median_ms": 1000 * statistics.median(renders) if renders else None,
-        # uvicorn's workers share one listening socket and whichever is first takes a connection, so several
-        # kept-alive clients can all land on one worker, whose renders then share one interpreter lock
-        "workers_serving": len(set(served)),
+        "workers_serving": len(set(served)),  # see report(): all the clients can land on one worker
     }
 
 
@@ -365,7 +363,7 @@ def report(results: dict[str, Any]) -> str:
                   "|---|---|---|---|---|---|---|---|"]
         for h in results["http"]:
             lines.append(f"| {h['clients']} | {h['requests']} | {_f(h['median_ms'], 1)} | {_f(h['p99_ms'], 1)} | "
-                         f"{_f(h.get('render_median_ms'), 1)} | {h.get('workers_serving', '–')} | "
+                         f"{_f(h.get('render_median_ms'), 1)} | {h['workers_serving']} | "
                          f"{h['renders_per_s']:.1f} | {h['codes']} |")
         lines.append("")
     if results.get("class"):
