@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tracer.image import PNG_BAND, decode_png, encode_png, quantize
+from tracer.image import DECODE_BLOCK, PNG_BAND, decode_png, decode_rgbx, encode_png, open_png, quantize
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (5, 1), (PNG_BAND, 3), (PNG_BAND + 1, 33), (3 * PNG_BAND - 5, 17)])
@@ -49,3 +49,64 @@ def test_png_refuses_what_is_not_rgb_pixels(bad):
 def test_quantize_rounds_half_up_and_maps_nan_to_black():
     v = np.array([[0.0, 1.0, 0.3], [np.nan, 2.0, -1.0], [0.5 / 255, 1.5 / 255, np.inf]])
     assert quantize(v).tolist() == [[0, 255, 77], [0, 255, 0], [1, 2, 255]]
+
+
+def _png(img: Image.Image) -> bytes:
+    buf = io.BytesIO()
+    img.save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def _interlaced_png(px: np.ndarray) -> bytes:
+    """An Adam7-interlaced 8-bit RGB PNG of ``px`` (what Pillow cannot write), every row unfiltered."""
+    h, w = px.shape[:2]
+    passes = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2))
+    raw = b""
+    for x0, y0, dx, dy in passes:
+        sub = px[y0::dy, x0::dx]
+        if sub.size:
+            raw += b"".join(b"\x00" + row.tobytes() for row in sub)
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return len(data).to_bytes(4, "big") + kind + data + zlib.crc32(kind + data).to_bytes(4, "big")
+    header = w.to_bytes(4, "big") + h.to_bytes(4, "big") + bytes([8, 2, 0, 0, 1])
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw))
+            + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "LA", "P", "1", "interlaced"])
+def test_decode_png_reads_every_mode_as_pillow_shows_it(mode):
+    px = np.random.default_rng(41).integers(0, 256, (13, 19, 3), dtype=np.uint8)
+    rgb = Image.fromarray(px)
+    if mode == "interlaced":
+        data = _interlaced_png(px)
+    else:
+        data = _png(rgb.quantize(16) if mode == "P" else rgb.convert(mode))
+    want = np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
+    got = decode_png(data)
+    assert got.shape == (13, 19, 3) and got.dtype == np.uint8 and got.flags.c_contiguous
+    assert np.array_equal(got, want)
+    if mode in ("RGB", "interlaced"):
+        assert np.array_equal(got, px)
+
+
+def test_a_highly_compressed_png_is_inflated_a_block_at_a_time():
+    px = np.zeros((1500, 1000, 3), np.uint8)
+    px[700, 300] = (1, 2, 3)
+    data = encode_png(px)  # 4.5 MB of pixels in a few kilobytes
+    assert DECODE_BLOCK < len(data) < 4 * DECODE_BLOCK
+    with open_png(data) as img:
+        assert img.decodermaxblock == DECODE_BLOCK
+    assert np.array_equal(decode_png(data), px)
+
+
+def test_decode_rgbx_gives_the_pixels_when_pillow_decodes_into_memory_of_its_own(monkeypatch):
+    from PIL import ImageFile
+
+    def own_memory(self):
+        self.im = Image.core.new(self.mode, self.size)
+    monkeypatch.setattr(ImageFile.ImageFile, "load_prepare", own_memory)
+    px = np.random.default_rng(43).integers(0, 256, (9, 8, 3), dtype=np.uint8)
+    with open_png(encode_png(px)) as img:
+        got = decode_rgbx(img)
+    assert got.shape == (9, 8, 4) and np.array_equal(got[:, :, :3], px) and (got[:, :, 3] == 255).all()

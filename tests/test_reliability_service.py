@@ -17,9 +17,9 @@ from PIL import Image
 from starlette.testclient import TestClient
 
 from bench import bodies
-from service import client
+from service import client, grading
 from service.app import create_app
-from service.grading import read_submission
+from service.grading import LEVELS, _to_8bit, read_submission
 from service.middleware import Budget
 from service.settings import Settings
 
@@ -113,6 +113,47 @@ def test_a_transparent_grey_level_of_a_16_bit_gray_png_is_refused():
     image = _pillow_png(Image.fromarray(values), transparency=1000)
     with pytest.raises(ValueError, match="not fully opaque"):
         read_submission(image, (6, 4))
+
+
+def test_the_16_bit_table_is_round_v_over_257_for_every_level():
+    levels = np.arange(65536)
+    want = np.floor(levels / 257 + 0.5)
+    assert LEVELS.dtype == np.uint8 and (LEVELS == want).all()
+    assert list(_to_8bit(np.array([-5, 0, 65535, 70000], np.int32))) == [0, 0, 255, 255]  # mode I is clipped
+
+
+def test_a_16_bit_image_is_read_the_same_in_one_band_or_many(monkeypatch):
+    rng = np.random.default_rng(31)
+    values = rng.integers(0, 65536, (23, 7, 3), dtype=np.uint16)
+    image = png16(values, 2)
+    whole = read_submission(image, (7, 23))
+    monkeypatch.setattr(grading, "BAND", 5)  # 23 rows: four full bands and a short one
+    assert (read_submission(image, (7, 23)) == whole).all()
+    assert (whole == np.floor(values / 257 + 0.5)).all()
+
+
+@pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "LA", "P", "1"])
+def test_an_8_bit_png_of_every_mode_reads_as_pillow_shows_it(mode):
+    rng = np.random.default_rng(37)
+    rgb = Image.fromarray(rng.integers(0, 256, (17, 11, 3), dtype=np.uint8))
+    img = rgb.quantize(16) if mode == "P" else rgb.convert(mode)
+    image = _pillow_png(img)
+    got = read_submission(image, (11, 17))
+    want = np.asarray(Image.open(io.BytesIO(image)).convert("RGB"))
+    assert got.dtype == np.uint8 and got.shape == (17, 11, 3) and got.flags.c_contiguous
+    assert (got == want).all()
+
+
+@pytest.mark.parametrize("bits", [8, 16])
+def test_one_transparent_pixel_of_an_rgba_png_is_refused_by_its_place(bits):
+    values = np.full((6, 9, 4), 255 if bits == 8 else 65535, np.uint16)
+    values[4, 7, 3] = 254 if bits == 8 else 65406  # 65406 / 257 = 254.5 - 1/514: rounds down to 254
+    image = _pillow_png(Image.fromarray(values.astype(np.uint8), "RGBA")) if bits == 8 else png16(values, 6)
+    with pytest.raises(ValueError, match=r"image has 1 pixels that are not fully opaque \(the first at x = 7, y = 4\)"):
+        read_submission(image, (9, 6))
+    values[4, 7, 3] = 255 if bits == 8 else 65407  # the lowest 16-bit alpha that rounds to 255
+    image = _pillow_png(Image.fromarray(values.astype(np.uint8), "RGBA")) if bits == 8 else png16(values, 6)
+    assert read_submission(image, (9, 6)).shape == (6, 9, 3)
 
 
 def _pillow_png(img: Image.Image, **options) -> bytes:

@@ -5,8 +5,12 @@ from __future__ import annotations
 import io
 import struct
 import zlib
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from PIL import ImageFile
 
 #: colours are summed in fixed point (:func:`tracer.render._accumulate`), a hair below their float value; a
 #: value that lies on a rounding boundary (a background of 0.3 is 76.5 levels) still rounds up, as in float
@@ -56,9 +60,47 @@ def encode_png(pixels: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     return _SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", b"".join(parts)) + _chunk(b"IEND", b"")
 
 
-def decode_png(data: bytes) -> np.ndarray:
-    """Pixels ``(H, W, 3) uint8`` of a PNG (any colour type, converted to RGB)."""
+#: compressed bytes handed to Pillow's inflater at a time: it holds the interpreter lock while it inflates, and
+#: deflate expands a byte to at most about a kilobyte, so a call inflates at most about 4 MiB (a few ms) however
+#: well the file compresses, and the server's other requests are not kept waiting behind one decode
+DECODE_BLOCK = 4096
+
+
+def open_png(data: bytes) -> ImageFile.ImageFile:
+    """Pillow's image of PNG ``data``, not yet decoded, set to inflate :data:`DECODE_BLOCK` bytes at a time."""
     from PIL import Image  # only reading images needs Pillow; a render's start-up does without it
 
-    with Image.open(io.BytesIO(data)) as img:
+    img = Image.open(io.BytesIO(data))
+    img.decodermaxblock = DECODE_BLOCK
+    return img
+
+
+#: the colour modes Pillow keeps at four bytes a pixel, and the layout of its raw buffer for each
+RGBX_MODES = {"RGB": "RGBX", "RGBA": "RGBA"}
+
+
+def decode_rgbx(img: ImageFile.ImageFile) -> np.ndarray:
+    """Decode ``img`` (a :data:`RGBX_MODES` mode) into an array of its own: ``(H, W, 4) uint8``, RGBA or RGB and
+    a padding byte.
+
+    Pillow would allocate the image and zero it in one call that holds the interpreter lock: after a grade
+    has handed its memory back to the OS, every page of a 4096×4096 image faults in during that call (50-100
+    ms on a VM, while the server answers nothing else).  ``np.empty`` leaves the pages to fault in as the
+    image is inflated, :data:`DECODE_BLOCK` bytes at a time; and no copy is made afterwards."""
+    from PIL import Image
+
+    pixels = np.empty((img.size[1], img.size[0], 4), np.uint8)
+    target = Image.frombuffer(img.mode, img.size, pixels, "raw", RGBX_MODES[img.mode], 0, 1).im
+    img.im = target
+    img.load()
+    if img.im is not target:  # a Pillow that decodes into memory of its own
+        return np.asarray(img.convert("RGBA"))
+    return pixels
+
+
+def decode_png(data: bytes) -> np.ndarray:
+    """Pixels ``(H, W, 3) uint8`` of a PNG (any colour type, converted to RGB)."""
+    with open_png(data) as img:
+        if img.mode in RGBX_MODES:
+            return np.ascontiguousarray(decode_rgbx(img)[:, :, :3])
         return np.asarray(img.convert("RGB"))
