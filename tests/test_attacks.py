@@ -9,14 +9,14 @@ import json
 import os
 import re
 import socket
-import struct
 import threading
 import time
 import urllib.request
-import zlib
 
 import pytest
 from PIL import Image
+
+from bench.stalls import png_rgba16
 
 from helpers import scene_dict
 from server import running_server
@@ -168,19 +168,6 @@ def multipart(fields: dict[str, tuple[bytes, str | None]]) -> tuple[bytes, str]:
         disposition = f'form-data; name="{name}"' + (f'; filename="{filename}"' if filename else "")
         body += f"--{boundary}\r\nContent-Disposition: {disposition}\r\n\r\n".encode() + value + b"\r\n"
     return body + f"--{boundary}--\r\n".encode(), f"multipart/form-data; boundary={boundary}"
-
-
-def png_rgba16(width: int, height: int, alpha: int) -> bytes:
-    """A 16-bit RGBA PNG of black pixels with the given alpha: a few hundred KB that decode to width×height×8 bytes."""
-    row = b"\x00" + (b"\x00" * 6 + alpha.to_bytes(2, "big")) * width
-    compressor = zlib.compressobj(9)
-    idat = b"".join(compressor.compress(row) for _ in range(height)) + compressor.flush()
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-
-    ihdr = struct.pack(">IIBBBBB", width, height, 16, 6, 0, 0, 0)
-    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
 
 
 def test_a_million_empty_objects_to_validate(server):

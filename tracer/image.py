@@ -101,6 +101,4 @@ def decode_rgbx(img: ImageFile.ImageFile) -> np.ndarray:
 def decode_png(data: bytes) -> np.ndarray:
     """Pixels ``(H, W, 3) uint8`` of a PNG (any colour type, converted to RGB)."""
     with open_png(data) as img:
-        if img.mode in RGBX_MODES:
-            return np.ascontiguousarray(decode_rgbx(img)[:, :, :3])
         return np.asarray(img.convert("RGB"))
