@@ -17,16 +17,16 @@ import asyncio
 import json
 import os
 import socket
-import struct
 import subprocess
 import sys
 import threading
 import time
 import urllib.request
-import zlib
 from collections import Counter
 from pathlib import Path
 from typing import Any
+
+from tracer.image import png_chunk
 
 HERE = Path(__file__).resolve().parent.parent
 SCENE = HERE / "tests" / "scenes" / "01_three_spheres.json"
@@ -62,8 +62,7 @@ def padded_png(png: bytes, size: int) -> bytes:
     if pad < 0:
         raise ValueError(f"the PNG alone is {len(png)} bytes, more than {size}")
     data = b"\x00" * pad
-    chunk = struct.pack(">I", pad) + b"prVt" + data + struct.pack(">I", zlib.crc32(b"prVt" + data))
-    return png[:-12] + chunk + png[-12:]
+    return png[:-12] + png_chunk(b"prVt", data) + png[-12:]
 
 
 def grade_request(host: str, port: int, scene: bytes, png: bytes, total: int) -> bytes:

@@ -23,18 +23,19 @@ from typing import Any
 
 import numpy as np
 
+from service import pipeline
+from tracer import decode_png, encode_png
+from tracer.image import PNG_SIGNATURE, png_chunk
+from tracer.memory import release, tune_allocator
+
 
 def png_rgba16(width: int, height: int, alpha: int) -> bytes:
     """A 16-bit RGBA PNG of black pixels with the given alpha: a few hundred KB that decode to width×height×8 bytes."""
     row = b"\x00" + (b"\x00" * 6 + alpha.to_bytes(2, "big")) * width
     compressor = zlib.compressobj(9)
     idat = b"".join(compressor.compress(row) for _ in range(height)) + compressor.flush()
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-
     ihdr = struct.pack(">IIBBBBB", width, height, 16, 6, 0, 0, 0)
-    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
+    return PNG_SIGNATURE + png_chunk(b"IHDR", ihdr) + png_chunk(b"IDAT", idat) + png_chunk(b"IEND", b"")
 
 
 class Sleeper:
@@ -63,10 +64,6 @@ class Sleeper:
 
 
 def stalls(size: int, rounds: int) -> dict[str, Any]:
-    from service import pipeline
-    from tracer import decode_png, encode_png
-    from tracer.memory import release, tune_allocator
-
     tune_allocator(1)  # as a service worker asks for it
     bomb = png_rgba16(size, size, 65535)
     reference = encode_png(np.zeros((size, size, 3), np.uint8))

@@ -5,10 +5,11 @@ import json
 import socket
 import struct
 import time
-import zlib
 
 import pytest
 from PIL import Image
+
+from tracer.image import png_chunk
 
 from helpers import SCENES
 from server import rss_mib, running_server
@@ -115,7 +116,7 @@ def png_bomb() -> bytes:
     Image.new("RGB", (1, 1)).save(buf, format="PNG")
     data = bytearray(buf.getvalue())
     ihdr = struct.pack(">IIBBBBB", 50_000, 50_000, 8, 2, 0, 0, 0)
-    data[8:33] = struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+    data[8:33] = png_chunk(b"IHDR", ihdr)
     return bytes(data)
 
 

@@ -7,7 +7,17 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tracer.image import DECODE_BLOCK, PNG_BAND, decode_png, decode_rgbx, encode_png, open_png, quantize
+from tracer.image import (
+    DECODE_BLOCK,
+    PNG_BAND,
+    PNG_SIGNATURE,
+    decode_png,
+    decode_rgbx,
+    encode_png,
+    open_png,
+    png_chunk,
+    quantize,
+)
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (5, 1), (PNG_BAND, 3), (PNG_BAND + 1, 33), (3 * PNG_BAND - 5, 17)])
@@ -66,12 +76,9 @@ def _interlaced_png(px: np.ndarray) -> bytes:
         sub = px[y0::dy, x0::dx]
         if sub.size:
             raw += b"".join(b"\x00" + row.tobytes() for row in sub)
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return len(data).to_bytes(4, "big") + kind + data + zlib.crc32(kind + data).to_bytes(4, "big")
     header = w.to_bytes(4, "big") + h.to_bytes(4, "big") + bytes([8, 2, 0, 0, 1])
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw))
-            + chunk(b"IEND", b""))
+    return (PNG_SIGNATURE + png_chunk(b"IHDR", header) + png_chunk(b"IDAT", zlib.compress(raw))
+            + png_chunk(b"IEND", b""))
 
 
 @pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "LA", "P", "1", "interlaced"])

@@ -22,6 +22,7 @@ from service.app import create_app
 from service.grading import LEVELS, _to_8bit, read_submission
 from service.middleware import Budget
 from service.settings import Settings
+from tracer.image import PNG_SIGNATURE, png_chunk
 
 from helpers import scene_dict
 from server import running_server
@@ -34,11 +35,8 @@ def png16(values: np.ndarray, color_type: int) -> bytes:
     (h, w, 4) RGBA (6)."""
     h, w = values.shape[:2]
     raw = b"".join(b"\x00" + values[y].astype(">u2").tobytes() for y in range(h))
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, color_type, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+    return (PNG_SIGNATURE + png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, color_type, 0, 0, 0))
+            + png_chunk(b"IDAT", zlib.compress(raw)) + png_chunk(b"IEND", b""))
 
 
 def gray_scene() -> dict:

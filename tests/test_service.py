@@ -15,6 +15,7 @@ import schemas
 import tracer
 from service.app import create_app
 from service.settings import Settings
+from tracer.image import png_chunk
 
 from helpers import SCENES, scene_dict
 
@@ -231,9 +232,8 @@ def test_png_bomb_is_refused_before_decoding(api):
     img.save(buf, format="PNG")
     data = bytearray(buf.getvalue())
     import struct
-    import zlib
     ihdr = struct.pack(">IIBBBBB", 50_000, 50_000, 8, 2, 0, 0, 0)
-    data[8:33] = struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+    data[8:33] = png_chunk(b"IHDR", ihdr)
     res = grade(api, image=bytes(data))
     assert res.status_code == 422 and "50000×50000" in res.json()["detail"]
 

@@ -29,10 +29,11 @@ def quantize(colour: np.ndarray) -> np.ndarray:
 PNG_LEVEL = 6
 #: rows compressed at a time, so that encoding needs no second copy of a large image
 PNG_BAND = 256
-_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
-def _chunk(kind: bytes, data: bytes) -> bytes:
+def png_chunk(kind: bytes, data: bytes) -> bytes:
+    """One PNG chunk: its length, ``kind``, ``data`` and their CRC-32."""
     return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(data, zlib.crc32(kind)))
 
 
@@ -57,7 +58,7 @@ def encode_png(pixels: np.ndarray, level: int = PNG_LEVEL) -> bytes:
         parts.append(z.compress(rows.tobytes()))
     parts.append(z.flush())
     header = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)  # 8 bits per channel, RGB, deflate, no interlace
-    return _SIGNATURE + _chunk(b"IHDR", header) + _chunk(b"IDAT", b"".join(parts)) + _chunk(b"IEND", b"")
+    return PNG_SIGNATURE + png_chunk(b"IHDR", header) + png_chunk(b"IDAT", b"".join(parts)) + png_chunk(b"IEND", b"")
 
 
 #: compressed bytes handed to Pillow's inflater at a time: it holds the interpreter lock while it inflates, and
