@@ -13,7 +13,15 @@ the surfaces' bounds alone and with margins far above float64 rounding:
   between P and Q's plane, so every ray from P to Q enters it before it
   reaches the light: every sample is blocked;
 * **mixed**: anything else (penumbrae, points near a surface), where the
-  renderer casts every sample's ray as before.
+  renderer casts every sample's ray.
+
+A mixed point's rays need not meet every surface either: a bound that lies
+strictly outside one of the point's five face planes meets none of its
+segments, by the argument that proves a point seen, bound by bound.
+``may_block`` keeps, per point, the bounds that no face plane separates, and
+the shadow rays of a mixed point are tested against those surfaces alone
+(:meth:`tracer.intersect.Intersector.occluded`, ``among``), with the same
+exact tests, so the answer is the same.
 
 The surface a point lies on is never its own blocker for the samples it faces
 (leaving by identity), except a sphere seen from inside, which makes the point
@@ -29,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .shapes import PLANE, SPHERE, TRIANGLE
-from .vec import cross, dot, most
+from .vec import dot, most
 from .world import World
 
 SEEN, HIDDEN, MIXED = 0, 1, 2
@@ -67,50 +75,75 @@ def bounds_of(world: World) -> Bounds | None:
                   plane_point=pl.point, plane_normal=pl.normal)
 
 
+@dataclass(frozen=True)
+class Culled:
+    """What :func:`classify` proved of N points and one area light."""
+
+    state: np.ndarray  # (N,) int8: SEEN, HIDDEN or MIXED
+    #: (K, N) bool: the bounds that may block some sample of each point (every other bound lies strictly outside
+    #: one of the point's pyramid's faces, so its surface meets none of its shadow segments)
+    may_block: np.ndarray
+
+
 def classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-             corners: np.ndarray) -> np.ndarray:
+             corners: np.ndarray) -> Culled:
     """SEEN, HIDDEN or MIXED for each of ``points (N, 3)`` (on the surfaces ``kind, index``, whose normal
     ``outward`` faces the samples a point can be lit by) and the light's parallelogram ``corners (4, 3)``,
-    in order round it. Shape (N,), int8."""
+    in order round it, with the bounds that may block each point's samples.
+
+    Computed a bound at a time on the points' contiguous columns (``(N,)`` arrays, no ``(N, K)`` or
+    ``(N, K, 3)`` temporaries): the same tests as the docstring of this module states, whose margins are far
+    above the rounding of any order of the sums."""
     n = len(points)
-    scale = np.max(np.abs(points), axis=1) + float(np.max(np.abs(corners)))
-    own = (b.kind[None, :] == kind[:, None]) & (b.index[None, :] == index[:, None])  # (N, K)
-    margin = MARGIN * (scale[:, None] + np.max(np.abs(b.center), axis=1)[None, :] + b.radius[None, :])
-    # the pyramid's faces: four sides through P and an edge of Q, and Q's own plane
+    p = np.ascontiguousarray(points.T)  # (3, N): x, y and z, each contiguous
+    scale = np.maximum(np.maximum(np.abs(p[0]), np.abs(p[1])), np.abs(p[2])) + float(np.max(np.abs(corners)))
+    # the margin of bound k at a point: MARGIN·(scale + |centre_k| + r_k), the part of bound k a constant
+    margin_of = MARGIN * scale
+    bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
     q_normal = np.cross(corners[1] - corners[0], corners[3] - corners[0])
     q_normal /= np.linalg.norm(q_normal)
-    apex_side = dot(points - corners[0], q_normal)  # (N,)
-    flat = np.abs(apex_side) <= MARGIN * scale * 16  # a point in Q's plane: no pyramid to speak of
+    apex_side = _plane_dot(p, corners[0], q_normal)  # (N,)
+    flat = np.abs(apex_side) <= margin_of * 16  # a point in Q's plane: no pyramid to speak of
     side = np.sign(apex_side)
-    separated = np.zeros((n, len(b.radius)), dtype=bool)
-    centre_side = (b.center - corners[0]) @ q_normal  # (K,)
-    # beyond Q's plane, away from the point
-    separated |= (-side[:, None] * centre_side[None, :]) > b.radius[None, :] + margin
+    # the pyramid's faces: four sides through P and an edge of Q (each turned so that the pyramid lies on its
+    # negative side, NaN where P, a and c are in line: then no bound is separated by it), and Q's own plane
+    faces = []
     for k in range(4):
-        a, c = corners[k], corners[(k + 1) % 4]
-        face = cross(a - points, c - points)  # (N, 3): the plane through P, a and c
-        length = np.sqrt(dot(face, face))
+        a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
+        ax, ay, az = a[0] - p[0], a[1] - p[1], a[2] - p[2]
+        cx, cy, cz = c[0] - p[0], c[1] - p[1], c[2] - p[2]
+        f = np.stack([ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx])  # (3, N): (a − P) × (c − P)
         with np.errstate(divide="ignore", invalid="ignore"):
-            face = face / length[:, None]
-        inner = dot(corners[(k + 2) % 4] - points, face)  # the far corner: inside
-        out = -np.sign(inner)
-        dist = (b.center @ face.T).T - dot(points, face)[:, None]  # (N, K) signed distances of the centres
-        separated |= (out[:, None] * dist > b.radius[None, :] + margin) & (np.abs(inner) > 0)[:, None]
-    separated |= own  # (the own surface faced by the samples is handled below)
-    seen = np.all(separated, axis=1) & ~flat
+            f /= np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+            inner = (far[0] - p[0]) * f[0] + (far[1] - p[1]) * f[1] + (far[2] - p[2]) * f[2]  # the far corner
+            f *= np.where(inner != 0, -np.sign(inner), np.nan)  # outward: the far corner on the negative side
+        faces.append((f, f[0] * p[0] + f[1] * p[1] + f[2] * p[2]))
+    K = len(b.radius)
+    may_block = np.ones((K, n), dtype=bool)
+    seen = ~flat
+    for k in range(K):
+        ck, rk = b.center[k], float(b.radius[k])
+        reach = margin_of + (rk + bound_part[k])  # r_k + margin: the distance that separates
+        # beyond Q's plane, away from the point
+        sep = -side * float((ck - corners[0]) @ q_normal) > reach
+        for f, pf in faces:
+            sep |= (ck[0] * f[0] + ck[1] * f[1] + ck[2] * f[2]) - pf > reach
+        np.logical_not(sep, out=may_block[k])
+        # (the own surface faced by the samples is handled below)
+        seen &= sep | ((b.kind[k] == kind) & (b.index[k] == index))
     if len(b.plane_normal):  # a plane blocks no segment when P and Q lie strictly on one side of it
         for j, (p0, nrm) in enumerate(zip(b.plane_point, b.plane_normal)):
             q_side = (corners - p0) @ nrm
             m = MARGIN * (scale + float(np.max(np.abs(p0))))
-            p_side = dot(points - p0, nrm)
+            p_side = _plane_dot(p, p0, nrm)
             mine = (kind == PLANE) & (index == j)  # a point on this very plane, which it leaves
             if np.all(q_side > 0) or np.all(q_side < 0):
                 same = (np.sign(p_side) == np.sign(q_side[0])) & (np.abs(p_side) > m) & \
-                    np.all(np.abs(q_side)[None, :] > m[:, None], axis=1)
+                    (m < float(np.min(np.abs(q_side))))
             else:
                 same = np.zeros(n, dtype=bool)
             seen &= same | mine
-    hidden = _hidden(b, points, own, corners, q_normal, side, margin, scale) & ~flat
+    hidden = _hidden(b, p, kind, index, corners, q_normal, side, margin_of, bound_part) & ~flat
     # a sphere a point lies on blocks the samples it faces only when seen from inside
     on_sphere = kind == SPHERE
     if on_sphere.any():
@@ -122,26 +155,41 @@ def classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray,
     out = np.full(n, MIXED, dtype=np.int8)
     out[seen] = SEEN
     out[hidden & ~seen] = HIDDEN
-    return out
+    may_block[:, flat] = True  # (no pyramid to speak of: every bound may block)
+    return Culled(out, may_block)
 
 
-def _hidden(b: Bounds, points: np.ndarray, own: np.ndarray, corners: np.ndarray, q_normal: np.ndarray,
-            side: np.ndarray, margin: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """Points some solid sphere hides the whole parallelogram from. Shape (N,), bool."""
+def _plane_dot(p: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """``(P − point)·normal`` for the points ``p (3, N)``. Shape (N,)."""
+    return (p[0] - point[0]) * normal[0] + (p[1] - point[1]) * normal[1] + (p[2] - point[2]) * normal[2]
+
+
+def _hidden(b: Bounds, p: np.ndarray, kind: np.ndarray, index: np.ndarray, corners: np.ndarray,
+            q_normal: np.ndarray, side: np.ndarray, margin_of: np.ndarray, bound_part: np.ndarray) -> np.ndarray:
+    """Points ``p (3, N)`` some solid sphere hides the whole parallelogram from. Shape (N,), bool.
+
+    A sphere hides it when the point lies outside it, on the point's side of Q's plane beyond it, and every
+    corner lies strictly inside its cone from the point: ``cos(corner) > cos(cone)``, compared as
+    ``(C − P)·(q − P) > cos(cone)·|C − P|·|q − P|`` (both lengths positive), with no division."""
+    hidden = np.zeros(p.shape[1], dtype=bool)
     solid = np.flatnonzero(b.solid)
     if len(solid) == 0:
-        return np.zeros(len(points), dtype=bool)
-    c, r = b.center[solid], b.radius[solid]
-    m = margin[:, solid]
-    to_c = c[None, :, :] - points[:, None, :]  # (N, K, 3)
-    dist_c = np.sqrt(np.sum(to_c * to_c, axis=2))
-    outside = dist_c > r[None, :] + m
-    between = side[:, None] * ((c - corners[0]) @ q_normal)[None, :] > r[None, :] + m  # on P's side of Q
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cos_cone = np.sqrt(np.maximum(0.0, 1.0 - (r[None, :] / dist_c) ** 2))
-        covered = outside & between & ~own[:, solid]
-        for q in corners:
-            to_q = q[None, :] - points
-            cos_q = np.einsum("nkd,nd->nk", to_c, to_q) / (dist_c * np.sqrt(dot(to_q, to_q))[:, None])
-            covered &= cos_q > cos_cone + MARGIN * 16
-    return np.any(covered, axis=1)
+        return hidden
+    to_q = [(q[0] - p[0], q[1] - p[1], q[2] - p[2]) for q in corners]
+    length_q = [np.sqrt(x * x + y * y + z * z) for x, y, z in to_q]
+    for k in solid.tolist():
+        c, r = b.center[k], float(b.radius[k])
+        reach = margin_of + (r + bound_part[k])
+        tx, ty, tz = c[0] - p[0], c[1] - p[1], c[2] - p[2]
+        dist_c = np.sqrt(tx * tx + ty * ty + tz * tz)
+        covered = dist_c > reach  # outside
+        covered &= side * float((c - corners[0]) @ q_normal) > reach  # on P's side of Q, beyond it
+        covered &= ~((b.kind[k] == kind) & (b.index[k] == index))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = r / dist_c
+            cos_cone = np.sqrt(np.maximum(0.0, 1.0 - ratio * ratio))
+        cos_cone += MARGIN * 16
+        for (qx, qy, qz), lq in zip(to_q, length_q):
+            covered &= tx * qx + ty * qy + tz * qz > cos_cone * dist_c * lq
+        hidden |= covered
+    return hidden

@@ -116,9 +116,16 @@ class Intersector:
         return self._describe(rays.origins, rays.dirs, best)
 
     # -- occlusion ---------------------------------------------------------
-    def occluded(self, shadows: Shadows) -> np.ndarray:
+    def occluded(self, shadows: Shadows, among: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """True where a surface lies on the ray at a distance in (0, reach), other than one through the light
-        itself. Shape (N,), bool."""
+        itself. Shape (N,), bool.
+
+        ``among`` (pairs ``rays, primitives`` of the walk's primitive ids, :meth:`tracer.walk.Walk.prim_of`)
+        is the caller's proof that of the walk's primitives only those paired with a ray can block it
+        (:mod:`tracer.culling`'s ``may_block``).  The walk is then not walked: each pair is tested with the
+        walk's own exact test.  The answer is the same: the walk finds a ray blocked exactly when one of its
+        primitives has an exact hit before the light (its guarantee), and by the proof every such primitive
+        is paired with the ray.  Planes and the surfaces tested directly are tested as for any ray."""
         rays, reach, ends, mag_e = shadows.rays, shadows.reach, shadows.ends, shadows.mag_end
         n = len(rays)
         blocked = np.zeros(n, dtype=bool)
@@ -130,7 +137,14 @@ class Intersector:
                                            pl.mag[k], (fk == PLANE) & (fi == k))
         for _, _, t, _, _ in self._direct(rays, shadows):
             blocked |= t < reach
-        if self.walker is not None:
+        if self.walker is not None and among is not None:
+            rows, prims = among
+            keep = ~blocked[rows]
+            limit = np.broadcast_to(reach, (n,))
+            best = Best(limit)
+            self.walker.test_pairs(best, rays, rows[keep], prims[keep], shadows)
+            blocked |= best.t < limit
+        elif self.walker is not None:
             open_ = np.flatnonzero(~blocked)
             rest = shadows.take(open_)
             best = Best(rest.reach)

@@ -14,13 +14,14 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 
 import numpy as np
 
 from schemas import AreaLight, Scene
 
 from .camera import CameraRays
-from .culling import MIXED, SEEN, bounds_of, classify
+from .culling import HIDDEN, MIXED, SEEN, Culled, bounds_of, classify
 from .image import quantize
 from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate, light_samples
@@ -29,7 +30,7 @@ from .rays import Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
 from .variants import REFERENCE, Options
-from .vec import dot, rows_of, scaled
+from .vec import dot, minus, rows_of, scaled
 from .world import World, build_world, max_abs, unit
 
 #: rays per chunk: large enough for NumPy to be efficient (and for its long loops, which let go of the GIL, to
@@ -45,6 +46,10 @@ MAX_PIXELS = 1 << 28
 #: the most primary rays (pixels × sub-samples) one render will cast
 MAX_PRIMARY_RAYS = 1 << 32
 
+
+#: a point faces away from every sample of an area light when N·(corner − P) is below this, relative to the
+#: magnitudes of the point and the corners, at every corner: far beyond the rounding of N·L (see _area_light)
+FACING_MARGIN = 2.0**-30
 
 #: the most point lights (lights plus area-light samples) one render will shade with
 MAX_LIGHT_SAMPLES = 1 << 20
@@ -108,6 +113,10 @@ class Renderer:
             #: each area light's parallelogram (local corners in order round it), by its first emitter
             self.areas = self._areas(scene)
             self.bounds = bounds_of(self.world) if self.areas and options.shadows and not options.acne else None
+            #: each bound's primitive in the walk, −1 for none (see :meth:`_area_light`)
+            self.bound_prim = np.zeros(0, dtype=np.int64) if self.bounds is None else \
+                np.full(len(self.bounds.kind), -1, dtype=np.int64) if self.intersector.walker is None else \
+                self.intersector.walker.prim_of(self.bounds.kind, self.bounds.index)
         self.intersector.check = self._stop
 
     def _areas(self, scene: Scene) -> dict[int, tuple[int, np.ndarray]]:
@@ -297,12 +306,19 @@ class Renderer:
         proven: np.ndarray | None = None  # the area light's points that see every sample, or none (culling)
         group_end = 0
         for e_index, em in enumerate(self.world.emitters):
+            if e_index < group_end and proven is None:
+                continue  # (an area light's samples shaded by _area_light)
             if e_index >= group_end:
                 proven, group_end = None, e_index + 1
                 area = self.areas.get(e_index)
                 if area is not None and self.bounds is not None and len(hit.t) > 0:
                     group_end = e_index + area[0]
-                    proven = classify(self.bounds, hit.point, hit.kind, hit.index, normal, area[1])
+                    culled = classify(self.bounds, hit.point, hit.kind, hit.index, normal, area[1])
+                    if tally is None and not opt.specular_behind:
+                        self._area_light(hit, normal, dirs, nv, mag_points, (colour, diffuse, specular, shininess),
+                                         self.world.emitters[e_index:group_end], culled, area[1])
+                        continue
+                    proven = culled.state
             self._stop()  # a long chunk (many lights) stops early too
             mag_light = max_abs(em.position[None]) + self.world.origin_mag
             if not np.any(em.color > 0):
@@ -350,10 +366,85 @@ class Renderer:
                     tally.add(name, work.sample[sel], scaled(colour[sel], work.weight[sel]))
         return colour
 
+    def _area_light(self, hit: Hits, normal: np.ndarray, dirs: np.ndarray, nv: np.ndarray, mag_points: np.ndarray,
+                    terms: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], samples: list[Emitter],
+                    culled: Culled, corners: np.ndarray) -> None:
+        """One area light's ``samples`` added to ``colour`` (of ``terms``: colour, k_d, k_s and shininess per
+        hit) in place, as :meth:`direct` adds each emitter, with two shortcuts of its culling (``culled``).
+
+        **Points no sample can light are not shaded.**  A point proven HIDDEN gets weight 0 from every
+        sample, and so does a point whose normal faces away from all four ``corners`` by more than rounding
+        (N·(S − P) is linear in the sample S, so it is negative over the whole parallelogram, and N·L ≤ 0 at
+        every sample).  With weight 0 and finite N·L (finite points, normals and distances: asked for), each
+        term :meth:`direct` would add is ±0, which leaves a colour as it is.  Every other point is shaded with
+        the same operations on the same numbers, so its colour keeps its bits.
+
+        **A mixed point's shadow rays meet only the bounds that may block it** (``culled.may_block``, the
+        proof in :mod:`tracer.culling`): the walk is replaced by the exact tests of those surfaces
+        (:meth:`tracer.intersect.Intersector.occluded`, ``among``), which decide the same."""
+        colour, diffuse, specular, shininess = terms
+        p = hit.point
+        scale = max_abs(p) + float(np.max(np.abs(corners)))
+        towards = [dot(normal, minus(c, p)) for c in corners]
+        faces_some = np.maximum(np.maximum(towards[0], towards[1]), np.maximum(towards[2], towards[3]))
+        finite = np.isfinite(faces_some) & (scale < 1e300) & np.isfinite(dot(normal, normal))
+        idle = finite & ((culled.state == HIDDEN) | (faces_some < -FACING_MARGIN * scale))
+        active = np.flatnonzero(~idle)
+        if len(active) == 0:
+            return
+        every = len(active) == len(p)
+        if every:
+            sub, n_a, d_a, nv_a, mag_a = hit, normal, dirs, nv, mag_points
+            col_a, dif_a, spec_a, shin_a, state = colour, diffuse, specular, shininess, culled.state
+        else:
+            sub, n_a, d_a, nv_a, mag_a = hit.take(active), rows_of(normal, active), rows_of(dirs, active), \
+                nv[active], mag_points[active]
+            col_a, dif_a, spec_a = (np.asfortranarray(rows_of(a, active)) for a in (colour, diffuse, specular))
+            shin_a, state = shininess[active], culled.state[active]
+        seen, mixed = state == SEEN, state == MIXED
+        # every (mixed point, bound that may block it) pair, as the walk's primitive ids (−1: not in the walk)
+        m_rows = np.flatnonzero(mixed)
+        may = culled.may_block[:, active[m_rows]] if not every else culled.may_block[:, m_rows]
+        k, m = np.nonzero(may)
+        pair_prim = self.bound_prim[k]
+        walked = pair_prim >= 0
+        pair_point, pair_prim = m_rows[m[walked]], pair_prim[walked]
+        rank = np.full(len(active), -1, dtype=np.int64)
+        for em in samples:
+            self._stop()
+            mag_light = max_abs(em.position[None]) + self.world.origin_mag
+            if not np.any(em.color > 0):
+                continue
+            to_light, dist, factor = illuminate(em, sub.point)
+            nl = light_in_plane(self.world, sub, em, dot(n_a, to_light), dist)
+            lit = (nl > 0) & (factor > 0)
+            weight = np.where(lit & seen, factor, 0.0)
+            rows = np.flatnonzero(lit & mixed)
+            if len(rows):
+                self._count("shadow", len(rows))
+                rank[rows] = np.arange(len(rows))
+                ray = rank[pair_point]
+                chosen = ray >= 0
+                rank[rows] = -1
+                blocked = self._blocked(sub, partial(rows_of, index=rows), to_light, dist, em, mag_a, mag_light, n_a,
+                                        len(rows), among=(ray[chosen], pair_prim[chosen]))
+                weight[rows] = np.where(blocked, 0.0, factor[rows])
+            if self.options.blinn:  # N·H with H = unit(L + V), V = −D
+                rv = dot(n_a, unit(to_light - d_a))
+            else:
+                rv = 2.0 * nl * nv_a + dot(to_light, d_a)  # R·V with R = 2(N·L)N − L, V = −D
+            wd, ws = phong(shin_a, nl, rv, weight)
+            add_phong(col_a, em.color, dif_a, spec_a, wd, ws)
+        if not every:
+            for c in range(3):
+                colour[active, c] = col_a[:, c]
+
     def _blocked(self, hit: Hits, pick: Callable[[np.ndarray], np.ndarray], to_light: np.ndarray,
                  dist: np.ndarray, em: Emitter, mag_points: np.ndarray, mag_light: np.ndarray,
-                 normal: np.ndarray, n: int) -> np.ndarray:
-        """Whether a shadow ray from each picked hit point to the light ``em`` is blocked. Shape (n,)."""
+                 normal: np.ndarray, n: int, among: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """Whether a shadow ray from each picked hit point to the light ``em`` is blocked. Shape (n,).  With
+        ``among``, the proof that only those pairs of rays and walk primitives can block
+        (:meth:`tracer.intersect.Intersector.occluded`)."""
         opt = self.options
         if not opt.shadows:
             return np.zeros(n, dtype=bool)
@@ -369,7 +460,7 @@ class Renderer:
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
         else:
             shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
-        return self.intersector.occluded(shadows)
+        return self.intersector.occluded(shadows, among)
 
     def secondary(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, work: Work) -> Work:
         """Mirror and refracted rays of the hits whose material asks for them: the next depth's work."""

@@ -232,6 +232,22 @@ class Walk:
         else:
             best.offer(r, t, TRIANGLE if is_tri else SPHERE, k, u, v)
 
+    def test_pairs(self, best: Best, rays: Rays, rows: np.ndarray, prims: np.ndarray,
+                   shadows: Shadows | None = None) -> None:
+        """Test primitives ``prims`` exactly against ``rays`` ``rows`` (pairs; either may repeat), with the
+        exact tests a walk makes, and no walk: for a caller that knows which primitives each ray can hit."""
+        if len(rows):
+            self._test(best, rows, prims, gathered(rays.origins, rays.dirs, rays.mag), self._from_prim(rays), shadows)
+
+    def prim_of(self, kind: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """The walk's primitive id of each surface ``kind`` (SPHERE or TRIANGLE), ``index``; −1 for a surface
+        not in the walk (planes, and the surfaces tested directly). Shape (N,)."""
+        out = np.full(len(kind), -1, dtype=np.int64)
+        tri, sph = kind == TRIANGLE, kind == SPHERE
+        out[tri] = self.tri_prim[index[tri]]
+        out[sph] = self.sphere_prim[index[sph]]
+        return out
+
     def _with_mates(self, prims: np.ndarray, where: np.ndarray) -> np.ndarray:
         """``prims (n,)`` (−1 for none) and, where ``where``, a plain triangle's mates (its faces across its
         edges, :func:`tracer.sightlines.plain_triangles`): ``(n, 4)`` primitive ids, −1 for none, or ``(n, 1)``
@@ -263,13 +279,7 @@ class Walk:
 
     def _from_prim(self, rays: Rays) -> np.ndarray:
         """The BVH primitive each ray leaves, −1 for none. Shape (N,)."""
-        fk, fi = rays.from_kind, rays.from_index
-        from_prim = np.full(len(fk), -1, dtype=np.int64)
-        tri = fk == TRIANGLE
-        from_prim[tri] = self.tri_prim[fi[tri]]
-        sph = fk == SPHERE
-        from_prim[sph] = self.sphere_prim[fi[sph]]
-        return from_prim
+        return self.prim_of(rays.from_kind, rays.from_index)
 
     # -- the walk ---------------------------------------------------------------------------------------------
     def walk_few(self, best: Best, rays: Rays, shadows: Shadows | None = None) -> None:
