@@ -1,4 +1,5 @@
-"""The README's commands do what it says: binary uploads, Docker with mounted folders, Dask on 127.0.0.1."""
+"""The commands of the README and of the pages under docs/ do what they say: binary uploads, Docker with mounted
+folders, Dask on 127.0.0.1, and the class-grading command with its Gradescope output."""
 
 import json
 import re
@@ -11,8 +12,10 @@ from service.cli import main
 from service.settings import Settings
 
 ROOT = Path(__file__).resolve().parent.parent
-README = (ROOT / "README.md").read_text()
-COMMANDS = [line.strip() for block in re.findall(r"```sh\n(.*?)```", README, re.S) for line in block.splitlines()]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+DOCS = {page.relative_to(ROOT).as_posix(): page.read_text() for page in PAGES}
+COMMANDS = [line.strip() for text in DOCS.values() for block in re.findall(r"```sh\n(.*?)```", text, re.S)
+            for line in block.splitlines()]
 
 
 def test_curl_uploads_scenes_as_they_are():
@@ -45,10 +48,13 @@ def test_dask_dashboards_listen_on_127_0_0_1():
 
 
 def test_the_class_section_shows_the_tas_layout_and_the_gradescope_output(tmp_path, monkeypatch):
-    """The README's command on the sample class, and frank's results.json as the README shows it."""
-    section = README[README.index("## Grading a class"):README.index("## Past one machine")]
+    """docs/grading.md's command on the sample class (the README's too), and frank's results.json as the page
+    shows it."""
+    grading = DOCS["docs/grading.md"]
+    section = grading[grading.index("\n## Grading a class\n"):grading.index("\n## Grading that explains\n")]
     assert "student-scenes/<student>/<task>.json" in section
     command = next(c for c in re.findall(r"```sh\n(.*?)```", section, re.S) if "grade-class" in c)
+    assert command in DOCS["README.md"]
     argv = command.replace("\\\n", " ").split()[1:]
     assert argv[:2] == ["grade-class", "examples/class/scenes"] and "--student-scenes" in argv
     argv[argv.index("-o") + 1] = str(tmp_path / "report")
