@@ -79,7 +79,7 @@ STAGES = [
     Stage("tracer.render", "resolve_material", "materials and checker", _n_out),
     Stage("tracer.render", "shading_normal", "shading normals", _n_out),
     Stage("tracer.render", "Renderer.direct", "direct light", _n_out),
-    Stage("tracer.render", "classify", "area-light culling", lambda a, r: len(r.state)),
+    Stage("tracer.render", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
     Stage("tracer.render", "illuminate", "shading", per_light=True),
     Stage("tracer.render", "light_in_plane", "shading", per_light=True),
     Stage("tracer.render", "phong", "shading", per_light=True),
@@ -152,6 +152,8 @@ def instrumented(clock: Clock) -> Iterator[None]:
         owner: Any = module
         for part in path:
             owner = getattr(owner, part)
+        if not hasattr(owner, attr):  # (a stage an older tracer does not have, when profiling it)
+            continue
         original = owner.__dict__[attr] if isinstance(owner, type) else getattr(owner, attr)
 
         def wrapped(*args: Any, _f: Callable[..., Any] = original, _s: Stage = stage, **kwargs: Any) -> Any:

@@ -516,7 +516,7 @@ def build_parser() -> argparse.ArgumentParser:
     remote(p, cluster=True)
     p.set_defaults(func=cmd_grade_class)
 
-    p = command("serve", "run the HTTP service (settings from PHONGRAY_* variables, see the README)")
+    p = command("serve", "run the HTTP service (settings from PHONGRAY_* variables, see docs/service.md)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on")
     p.add_argument("--port", type=_port, default=8000, help="port to listen on")
     p.add_argument("--workers", type=_positive_int, default=1, help="worker processes")
