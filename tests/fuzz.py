@@ -35,6 +35,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
+from tracer.cones import along_direction, through_point  # noqa: E402
+from tracer.culling import bounds_of  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
 from tracer.rays import Shadows  # noqa: E402
 
@@ -116,7 +118,9 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
     o, d, _ = reference.camera_rays(scene)
     ref = reference.closest(surfaces, o, d, np.full(len(o), -1))
     isect = renderer.intersector
-    hits = isect.closest(isect.rays(o - origin, d))
+    camera_rays = isect.rays(o - origin, d)
+    hits = isect.closest(camera_rays)
+    _same_by_cones(out, "hit by cones", hits, isect.closest(camera_rays, _cones(renderer, camera_rays)))
     got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
     clear = ~ref.unclear
     with np.errstate(invalid="ignore"):
@@ -147,12 +151,46 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
         blk, unclear_b = reference.blocked(surfaces, p[ask], L[ask], dist[ask], which[ask], e.position)
         ends = None if e.position is None else (e.position - origin)[None]
         rays = isect.rays(p[ask] - origin, np.ascontiguousarray(L[ask]), kinds[ask], indices[ask])
-        mine = isect.occluded(Shadows.towards(rays, dist[ask], ends, renderer.world.origin_mag))
+        shadows = Shadows.towards(rays, dist[ask], ends, renderer.world.origin_mag)
+        mine = isect.occluded(shadows)
+        among = _cones(renderer, rays, None if ends is None else ends[0], dist[ask])
+        if among is not None:
+            by_cones = isect.occluded(shadows, among)
+            wrong = by_cones != mine
+            out.note("shadow by cones", len(mine), wrong,
+                     [f"shadow ray {r} to light {e_index}: walked {mine[r]}, by cones {by_cones[r]}"
+                      for r in np.flatnonzero(wrong)[:3]])
         bad = ~unclear_b & (mine != blk)
         out.note("shadow", int(np.count_nonzero(~unclear_b)), bad,
                  [f"shadow ray from surface {which[ask][r]} at {p[ask][r].tolist()} to light {e_index}: phongray "
                   f"{'blocked' if mine[r] else 'clear'}, brute force {'blocked' if blk[r] else 'clear'}"
                   for r in np.flatnonzero(bad)[:3]])
+
+
+def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach: np.ndarray | None = None
+           ) -> Any:
+    """The pairs :mod:`tracer.cones` proves for camera rays (from the eye, or along one direction) or for shadow
+    rays towards ``light`` (or along one direction, for a directional light): None where no proof applies."""
+    bounds, tris = bounds_of(renderer.world), renderer.world.triangles
+    if bounds is None or len(rays) == 0:
+        return None
+    if reach is None and np.all(rays.origins == rays.origins[0]):  # camera rays from the eye
+        return through_point(bounds, tris, rays.origins[0], rays.dirs, True)
+    if light is not None and reach is not None:
+        return through_point(bounds, tris, light, rays.dirs, False, float(np.max(reach)))
+    if np.all(rays.dirs == rays.dirs[0]):  # one direction: an orthographic camera, a directional light
+        return along_direction(bounds, tris, rays.origins, rays.dirs[0])
+    return None
+
+
+def _same_by_cones(out: Outcome, kind: str, walked: Any, by_cones: Any) -> None:
+    """The hits found with :mod:`tracer.cones`' pairs are the walk's, bit for bit."""
+    same = (walked.kind == by_cones.kind) & (walked.index == by_cones.index) & (
+        (walked.t == by_cones.t) | (np.isinf(walked.t) & np.isinf(by_cones.t)))
+    same &= np.all((walked.bary == by_cones.bary) | (walked.kind != TRIANGLE)[:, None], axis=1)
+    out.note(kind, len(same), ~same,
+             [f"camera ray {r}: walked surface {walked.kind[r]}/{walked.index[r]} t={walked.t[r]!r}, by cones "
+              f"{by_cones.kind[r]}/{by_cones.index[r]} t={by_cones.t[r]!r}" for r in np.flatnonzero(~same)[:3]])
 
 
 def run_seed(seed: int, width: int = 20, height: int = 15) -> Outcome:
@@ -205,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{done} scenes, {len(bad)} disagreeing, {time.monotonic() - start:.0f} s", flush=True)
     print(f"{len(seeds)} scenes (seeds {seeds.start}..{seeds.stop - 1}, {width}x{height}) in "
           f"{time.monotonic() - start:.0f} s")
-    for kind in ("hit", "shadow", "pixel"):
+    for kind in ("hit", "shadow", "pixel", "hit by cones", "shadow by cones"):
         print(f"  {kind}: {disagreed[kind]} disagreements in {compared[kind]} compared")
     crashed = sum(1 for o in bad if o.error)
     print(f"  crashes: {crashed}")

@@ -1,5 +1,6 @@
 """Does the fuzz test catch a weakened walk?  Each mutant weakens one stop rule or guarantee of the walk, or
-one of the proofs that spare an area light's shadow rays.
+one of the proofs that spare rays their tests: an area light's culling, the cones of rays through a point or
+along a direction.
 
     python -m tests.mutants [--scenes N]
 
@@ -49,6 +50,16 @@ MUTANTS = [
      "zip(to_q, length_q)", "zip(to_q[:1], length_q[:1])"),
     ("an area light's mixed points never meet their first bound", "culling.py",
      "np.logical_not(sep, out=may_block[k])", "np.logical_not(sep | (k == 0), out=may_block[k])"),
+    ("a ray through a point meets a ball only within half its angle", "cones.py",
+     "cos = float(np.sqrt(1.0 - (r / dist) ** 2)) - SLACK",
+     "cos = float(np.sqrt(1.0 - (0.5 * r / dist) ** 2)) - SLACK"),
+    ("a ray through a point meets a triangle only well inside its edges", "cones.py",
+     "allow = 4.0 * grow / h + SLACK", "allow = -0.01"),
+    ("a ray along a direction meets a ball only within half its radius", "cones.py",
+     "close = du * du + dv * dv <= (r * r) * (1.0 + SLACK)", "close = du * du + dv * dv <= 0.25 * (r * r)"),
+    ("a ray along a direction meets a triangle only well inside its edges", "cones.py",
+     "keep &= x * m[0] + y * m[1] + z * m[2] >= float(p @ m) - grow",
+     "keep &= x * m[0] + y * m[1] + z * m[2] >= float(p @ m) + 0.01 * size"),
     ("a shadow walk stops before its light by a tenth", "walk.py",
      "            far = np.minimum(limit[live] + p.slack, t_out[live]) - s\n",
      "            far = np.minimum(limit[live] * 0.9, t_out[live]) - s\n"),
@@ -73,7 +84,8 @@ def run(mutant: tuple[str, str, str, str] | None, scenes: int) -> bool:
         env = {**os.environ, "PYTHONPATH": tmp}
         if scenes:
             env["PHONGRAY_FUZZ_SCENES"] = str(scenes)
-        names = ("test_proxies.py", "test_cells.py", "test_culling.py", "test_intersect.py", "test_fuzz.py")
+        names = ("test_proxies.py", "test_cells.py", "test_culling.py", "test_cones.py", "test_intersect.py",
+                 "test_fuzz.py")
         tests = [str(ROOT / "tests" / name) for name in names]
         out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *tests],
                              env=env, cwd=tmp, capture_output=True, text=True)

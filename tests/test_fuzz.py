@@ -1,7 +1,8 @@
 """The differential fuzz test, CI's subset: generated scenes against the float64 brute force.
 
 A few hundred scenes of :mod:`generator` at tiny sizes, each compared ray by
-ray and pixel by pixel (:mod:`fuzz`), on every core.  A soak of thousands is
+ray and pixel by pixel (:mod:`fuzz`), on every core; the camera and shadow
+rays also by :mod:`tracer.cones`' pairs, against the walk, bit for bit.  A soak of thousands is
 ``python -m tests.fuzz --scenes 10000``.
 """
 
@@ -33,10 +34,14 @@ def test_every_family_is_in_the_subset(outcomes):
 
 def test_the_brute_force_is_clear_on_most_of_what_it_compares(outcomes):
     # a check of the check: the comparisons below must not be vacuous
-    total = {k: sum(o.compared[k] for o in outcomes) for k in ("hit", "shadow", "pixel")}
+    total = {k: sum(o.compared[k] for o in outcomes)
+             for k in ("hit", "shadow", "pixel", "hit by cones", "shadow by cones")}
     assert total["hit"] > 0.9 * SCENES * 20 * 15
     assert total["pixel"] > 0.8 * SCENES * 20 * 15
     assert total["shadow"] > SCENES * 100
+    # the cones' pairs are checked against the walk on most scenes' camera and shadow rays
+    assert total["hit by cones"] > 0.9 * SCENES * 20 * 15
+    assert total["shadow by cones"] > 0.8 * total["shadow"]
 
 
 def test_phongray_agrees_with_the_brute_force_on_every_generated_scene(outcomes):

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .embree import Bvh
-from .rays import Rays, Shadows
+from .rays import Among, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
 from .vec import along, divided, dot, most, rows_of
@@ -31,6 +31,9 @@ __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE"
 
 #: a sphere or triangle this many times larger than the median one is tested directly, not through the BVH
 BIG = 64.0
+#: a triangle paired with at least this many rays (:meth:`Intersector._among`) is tested against them as one
+#: triangle against many rays; with fewer, pair by pair with the walk's other pairs (fewer, larger passes)
+MANY = 4096
 #: a scene with at most this many spheres and triangles tests them all directly, with no BVH: measured on
 #: the Whitted example (two spheres) a third faster; three spheres at 160×120 (a small render, where building
 #: the BVH is a large share) 9.7 against 11.3 ms of one core, equal at 320×240 and at 1080p; with more, the
@@ -104,28 +107,25 @@ class Intersector:
         return Rays.leaving(origins, dirs, self.world.origin_mag, from_kind, from_index)
 
     # -- closest hit -------------------------------------------------------
-    def closest(self, rays: Rays) -> Hits:
-        """First hit at t > 0 of each ray."""
+    def closest(self, rays: Rays, among: Among | None = None) -> Hits:
+        """First hit at t > 0 of each ray.  With ``among`` (see :meth:`_among`), only the spheres and triangles
+        it pairs with a ray are tested against it, and nothing is walked."""
         n = len(rays)
         best = Best(np.full(n, np.inf))
         every = np.arange(n)
-        for kind, k, t, u, v in self._direct(rays):
+        for kind, k, t, u, v in self._direct(rays, among=among):
             best.offer(every, t, kind, np.full(n, k), u, v, unique=True)
-        if self.walker is not None:
+        if among is not None:
+            self._among(best, rays, among)
+        elif self.walker is not None:
             self.walker.walk(best, rays)
         return self._describe(rays.origins, rays.dirs, best)
 
     # -- occlusion ---------------------------------------------------------
-    def occluded(self, shadows: Shadows, among: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    def occluded(self, shadows: Shadows, among: Among | None = None) -> np.ndarray:
         """True where a surface lies on the ray at a distance in (0, reach), other than one through the light
-        itself. Shape (N,), bool.
-
-        ``among`` (pairs ``rays, primitives`` of the walk's primitive ids, :meth:`tracer.walk.Walk.prim_of`)
-        is the caller's proof that of the walk's primitives only those paired with a ray can block it
-        (:mod:`tracer.culling`'s ``may_block``).  The walk is then not walked: each pair is tested with the
-        walk's own exact test.  The answer is the same: the walk finds a ray blocked exactly when one of its
-        primitives has an exact hit before the light (its guarantee), and by the proof every such primitive
-        is paired with the ray.  Planes and the surfaces tested directly are tested as for any ray."""
+        itself. Shape (N,), bool.  With ``among`` (see :meth:`_among`), only the spheres and triangles it pairs
+        with a ray are tested against it, and nothing is walked."""
         rays, reach, ends, mag_e = shadows.rays, shadows.reach, shadows.ends, shadows.mag_end
         n = len(rays)
         blocked = np.zeros(n, dtype=bool)
@@ -135,14 +135,13 @@ class Intersector:
             for k in range(len(pl.normal)):
                 blocked |= plane_separates(rays.origins, ends, pl.point[k], pl.normal[k], rays.mag, mag_e,
                                            pl.mag[k], (fk == PLANE) & (fi == k))
-        for _, _, t, _, _ in self._direct(rays, shadows):
+        for _, _, t, _, _ in self._direct(rays, shadows, among):
             blocked |= t < reach
-        if self.walker is not None and among is not None:
-            rows, prims = among
-            keep = ~blocked[rows]
+        if among is not None:
+            keep = ~blocked[among.rows]
             limit = np.broadcast_to(reach, (n,))
             best = Best(limit)
-            self.walker.test_pairs(best, rays, rows[keep], prims[keep], shadows)
+            self._among(best, rays, Among(among.rows[keep], among.kind[keep], among.index[keep]), shadows)
             blocked |= best.t < limit
         elif self.walker is not None:
             open_ = np.flatnonzero(~blocked)
@@ -153,29 +152,85 @@ class Intersector:
         return blocked
 
     # -- the parts -----------------------------------------------------------
-    def _direct(self, rays: Rays, shadows: Shadows | None = None
+    def _among(self, best: Best, rays: Rays, among: Among, shadows: Shadows | None = None) -> None:
+        """Test each pair of ``among`` exactly, with the test :meth:`_direct` or the walk would make of it.
+
+        ``among`` is the caller's proof that a sphere or triangle it does not pair with a ray has no exact hit
+        on that ray at t > 0 (:mod:`tracer.cones`; :mod:`tracer.culling` for an area light's shadow rays).
+        The walk, and the direct tests, give the nearest of the exact hits of every surface (for a shadow ray:
+        whether there is one before the light), and every surface with an exact hit is paired with its ray;
+        each pair is tested with the same function on the same numbers.  So the answer is the same, with no
+        Embree query and no walk.
+
+        The pairs come surface by surface (:meth:`tracer.rays.Among.of`).  A triangle with many rays is tested
+        as :meth:`_direct` tests it, against its rays alone (the walk's test gathers a triangle's 13 numbers per
+        pair); the walk's other surfaces are tested together, pair by pair, as the walk tests them
+        (:meth:`tracer.walk.Walk.test_pairs`), and the rest surface by surface."""
+        if len(among.rows) == 0:
+            return
+        key = among.kind.astype(np.int64) << 48 | among.index
+        starts = np.r_[0, np.flatnonzero(key[1:] != key[:-1]) + 1, len(key)]
+        size = np.diff(starts)
+        prim = self.walker.prim_of(among.kind[starts[:-1]], among.index[starts[:-1]]) if self.walker is not None \
+            else np.full(len(size), -1, dtype=np.int64)
+        together = ((size < MANY) | (among.kind[starts[:-1]] != TRIANGLE)) & (prim >= 0)
+        if together.any():
+            assert self.walker is not None
+            sel = np.repeat(together, size)
+            self.walker.test_pairs(best, rays, among.rows[sel], np.repeat(prim[together], size[together]), shadows)
+        alone = np.flatnonzero(~together)
+        if len(alone) > 1:  # rays gathered once per surface: from contiguous columns, into contiguous columns
+            rays = Rays(np.asfortranarray(rays.origins), np.asfortranarray(rays.dirs), rays.from_kind,
+                        rays.from_index, rays.mag)
+        for m, g in enumerate(alone.tolist()):
+            if m % 64 == 63:
+                self.check()
+            a, b = int(starts[g]), int(starts[g + 1])
+            kind, k, rows = int(among.kind[a]), int(among.index[a]), among.rows[a:b]
+            sub = shadows.take(rows) if shadows is not None else None
+            t, u, v = self._surface_t(kind, k, rays.take(rows), sub)
+            if shadows is not None:
+                best.block(rows, t)
+            else:  # (rows of one surface are distinct)
+                best.offer(rows, t, kind, np.full(len(rows), k), u, v, unique=True)
+
+    def _direct(self, rays: Rays, shadows: Shadows | None = None, among: Among | None = None
                 ) -> Iterator[tuple[int, int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         """The surfaces too large for the BVH, and the planes (but for shadows towards a light, which
-        :func:`tracer.shapes.plane_separates` decides), against every ray: ``(kind, index, t, u, v)`` each."""
+        :func:`tracer.shapes.plane_separates` decides), against every ray: ``(kind, index, t, u, v)`` each.
+        With ``among``, only the planes (the spheres and triangles are its pairs)."""
+        w = self.world
+        ends = shadows.ends if shadows is not None else None
+        for k in range(len(w.planes.normal) if ends is None else 0):
+            yield PLANE, k, *self._surface_t(PLANE, k, rays, shadows)
+        if among is not None:
+            return
+        for m, k in enumerate(self.direct_spheres.tolist()):
+            if m % 64 == 63:
+                self.check()
+            yield SPHERE, k, *self._surface_t(SPHERE, k, rays, shadows)
+        for k in self.direct_triangles.tolist():
+            yield TRIANGLE, k, *self._surface_t(TRIANGLE, k, rays, shadows)
+
+    def _surface_t(self, kind: int, k: int, rays: Rays, shadows: Shadows | None
+                   ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """The exact test of one surface against every ray of ``rays`` (the rays of ``shadows``, if given):
+        ``t, u, v`` (u, v for triangles only)."""
         w = self.world
         o, d, fk, fi, mag_o = rays.origins, rays.dirs, rays.from_kind, rays.from_index, rays.mag
         ends = reach = mag_e = None
         if shadows is not None:
             ends, reach, mag_e = shadows.ends, shadows.reach, shadows.mag_end
-        for k in range(len(w.planes.normal) if ends is None else 0):
-            yield PLANE, k, plane_t(o, d, w.planes.point[k], w.planes.normal[k], mag_o, w.planes.mag[k],
-                                    (fk == PLANE) & (fi == k), ends, mag_e), None, None
-        sp = w.spheres
-        for m, k in enumerate(self.direct_spheres.tolist()):
-            if m % 64 == 63:
-                self.check()
-            yield SPHERE, k, sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k),
-                                      ends, reach, mag_e), None, None
+        leaving = (fk == kind) & (fi == k)
+        if kind == PLANE:
+            pl = w.planes
+            return plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], leaving, ends, mag_e), None, None
+        if kind == SPHERE:
+            sp = w.spheres
+            return sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], leaving, ends, reach, mag_e), \
+                None, None
         tr = w.triangles
-        for k in self.direct_triangles.tolist():
-            t, u, v = triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
-                                 (fk == TRIANGLE) & (fi == k), ends, mag_e)
-            yield TRIANGLE, k, t, u, v
+        return triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k], leaving, ends, mag_e)
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, best: Best) -> Hits:
         w = self.world

@@ -84,6 +84,24 @@ class Shadows:
                        shared_rows(self.mag_end, rows, n))
 
 
+@dataclass(frozen=True)
+class Among:
+    """A caller's proof of which spheres and triangles each ray of a batch may meet, as pairs (planes, which it
+    does not name, are tested against every ray): :mod:`tracer.cones`, :mod:`tracer.culling`.  The pairs come
+    surface by surface, each ray at most once per surface (as :meth:`of` makes them, and any subset keeps)."""
+
+    rows: np.ndarray  # (P,) int64: the ray of each pair
+    kind: np.ndarray  # (P,) SPHERE or TRIANGLE
+    index: np.ndarray  # (P,) the surface's index within its kind
+
+    @staticmethod
+    def of(kinds: np.ndarray, indices: np.ndarray, may: np.ndarray) -> Among:
+        """The pairs of a ``(K, N)`` matrix of which surfaces (``kinds``, ``indices``, each (K,)) each ray may
+        meet, surface by surface."""
+        k, rows = np.nonzero(may)
+        return Among(rows, kinds[k], indices[k])
+
+
 @dataclass
 class Work:
     """The renderer's work item: rays, the sub-sample each one's colour goes to, and the weight it carries."""

@@ -21,12 +21,13 @@ import numpy as np
 from schemas import AreaLight, Scene
 
 from .camera import CameraRays
+from .cones import along_direction, through_point
 from .culling import HIDDEN, MIXED, SEEN, Culled, bounds_of, classify
 from .image import quantize
 from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate, light_samples
 from .passes import BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
-from .rays import Rays, Shadows, Work
+from .rays import Among, Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
 from .variants import REFERENCE, Options
@@ -46,6 +47,10 @@ MAX_PIXELS = 1 << 28
 #: the most primary rays (pixels × sub-samples) one render will cast
 MAX_PRIMARY_RAYS = 1 << 32
 
+
+#: a scene with at most this many spheres and triangles tests its camera rays and its point and directional
+#: lights' shadow rays against the surfaces their bounds allow (:mod:`tracer.cones`), with no walk
+CONE_MAX = 32
 
 #: a point faces away from every sample of an area light when N·(corner − P) is below this, relative to the
 #: magnitudes of the point and the corners, at every corner: far beyond the rounding of N·L (see _area_light)
@@ -113,10 +118,10 @@ class Renderer:
             #: each area light's parallelogram (local corners in order round it), by its first emitter
             self.areas = self._areas(scene)
             self.bounds = bounds_of(self.world) if self.areas and options.shadows and not options.acne else None
-            #: each bound's primitive in the walk, −1 for none (see :meth:`_area_light`)
-            self.bound_prim = np.zeros(0, dtype=np.int64) if self.bounds is None else \
-                np.full(len(self.bounds.kind), -1, dtype=np.int64) if self.intersector.walker is None else \
-                self.intersector.walker.prim_of(self.bounds.kind, self.bounds.index)
+            #: the surfaces as bounds for camera and shadow rays through one point or along one direction
+            #: (:mod:`tracer.cones`), in scenes of at most CONE_MAX spheres and triangles
+            spheres_and_triangles = len(self.world.spheres.radius) + len(self.world.triangles.v0)
+            self.cone_bounds = bounds_of(self.world) if spheres_and_triangles <= CONE_MAX else None
         self.intersector.check = self._stop
 
     def _areas(self, scene: Scene) -> dict[int, tuple[int, np.ndarray]]:
@@ -248,7 +253,7 @@ class Renderer:
                     stack += reversed(work.slices(self.slice_rays))
                     continue
                 self._stop()
-                hits = self.intersector.closest(work.rays)
+                hits = self.intersector.closest(work.rays, self._camera_among(work.rays) if work.depth == 0 else None)
                 missed = hits.kind == MISS
                 once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
                 _accumulate(acc, work.sample[missed], work.weight[missed, None] * background, ceiling, fixed, once)
@@ -402,13 +407,12 @@ class Renderer:
             col_a, dif_a, spec_a = (np.asfortranarray(rows_of(a, active)) for a in (colour, diffuse, specular))
             shin_a, state = shininess[active], culled.state[active]
         seen, mixed = state == SEEN, state == MIXED
-        # every (mixed point, bound that may block it) pair, as the walk's primitive ids (−1: not in the walk)
+        # every (mixed point, bound that may block it) pair
         m_rows = np.flatnonzero(mixed)
-        may = culled.may_block[:, active[m_rows]] if not every else culled.may_block[:, m_rows]
-        k, m = np.nonzero(may)
-        pair_prim = self.bound_prim[k]
-        walked = pair_prim >= 0
-        pair_point, pair_prim = m_rows[m[walked]], pair_prim[walked]
+        assert self.bounds is not None
+        pairs = Among.of(self.bounds.kind, self.bounds.index,
+                         culled.may_block[:, active[m_rows]] if not every else culled.may_block[:, m_rows])
+        pair_point = m_rows[pairs.rows]
         rank = np.full(len(active), -1, dtype=np.int64)
         for em in samples:
             self._stop()
@@ -426,8 +430,9 @@ class Renderer:
                 ray = rank[pair_point]
                 chosen = ray >= 0
                 rank[rows] = -1
+                among = Among(ray[chosen], pairs.kind[chosen], pairs.index[chosen])
                 blocked = self._blocked(sub, partial(rows_of, index=rows), to_light, dist, em, mag_a, mag_light, n_a,
-                                        len(rows), among=(ray[chosen], pair_prim[chosen]))
+                                        len(rows), among)
                 weight[rows] = np.where(blocked, 0.0, factor[rows])
             if self.options.blinn:  # N·H with H = unit(L + V), V = −D
                 rv = dot(n_a, unit(to_light - d_a))
@@ -441,10 +446,11 @@ class Renderer:
 
     def _blocked(self, hit: Hits, pick: Callable[[np.ndarray], np.ndarray], to_light: np.ndarray,
                  dist: np.ndarray, em: Emitter, mag_points: np.ndarray, mag_light: np.ndarray,
-                 normal: np.ndarray, n: int, among: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+                 normal: np.ndarray, n: int, among: Among | None = None) -> np.ndarray:
         """Whether a shadow ray from each picked hit point to the light ``em`` is blocked. Shape (n,).  With
-        ``among``, the proof that only those pairs of rays and walk primitives can block
-        (:meth:`tracer.intersect.Intersector.occluded`)."""
+        ``among``, the proof that only those pairs of rays and surfaces can block
+        (:meth:`tracer.intersect.Intersector.occluded`); without, rays to a point light or along a directional
+        light's direction take theirs from :mod:`tracer.cones` when the scene has few enough surfaces."""
         opt = self.options
         if not opt.shadows:
             return np.zeros(n, dtype=bool)
@@ -456,11 +462,29 @@ class Renderer:
                 ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
             lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
+        bounds, tris = self.cone_bounds, self.world.triangles
+        cones = among is None and bounds is not None and not opt.acne
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
+            if cones:
+                assert bounds is not None
+                among = along_direction(bounds, tris, rays.origins, -em.direction)
         else:
             shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
+            if cones:
+                assert bounds is not None
+                longest = float(np.max(shadows.reach, initial=0.0))
+                among = through_point(bounds, tris, em.position, shadow_dirs, False, longest)
         return self.intersector.occluded(shadows, among)
+
+    def _camera_among(self, rays: Rays) -> Among | None:
+        """The surfaces each camera ray may meet (:mod:`tracer.cones`), when the scene has few enough: from the
+        eye (every perspective ray starts there, exactly), or along the view (orthographic)."""
+        if self.cone_bounds is None:
+            return None
+        if self.camera.orthographic:
+            return along_direction(self.cone_bounds, self.world.triangles, rays.origins, self.camera.forward)
+        return through_point(self.cone_bounds, self.world.triangles, self.camera.eye, rays.dirs, True)
 
     def secondary(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, work: Work) -> Work:
         """Mirror and refracted rays of the hits whose material asks for them: the next depth's work."""

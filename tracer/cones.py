@@ -1,0 +1,183 @@
+"""Rays through one point, or along one direction: which surfaces each ray may meet, proved from their bounds.
+
+Camera rays all leave the eye; a point light's (or a spot's) shadow rays all
+run towards the light; an orthographic camera's rays, and a directional
+light's shadow rays, all run along one direction.  Against a handful of
+surfaces, a ray of such a batch is tested exactly only against the surfaces
+it may meet (:class:`tracer.rays.Among`), in place of Embree and the walk.
+Two tests decide it, each from the surface's bound (:class:`tracer.culling.Bounds`:
+the sphere itself, or a sphere round a triangle) or the triangle itself:
+
+* **A ball, through a point** ``A``: a ray along the line through ``A`` in
+  the direction ``u`` (away from ``A``) meets the ball ``(c, r)``, with ``A``
+  outside it at distance ``D = |c − A|``, only if the angle between ``u`` and
+  ``c − A`` is at most ``asin(r / D)``: ``u·(c − A)/D ≥ √(1 − (r/D)²)``.
+* **A triangle, through a point**: a ray from ``A`` meets the triangle only
+  if its direction lies on the inner side of the three planes through ``A``
+  and an edge: ``u·n_i ≥ 0``.  A hit point the exact test accepts may lie
+  outside the triangle by its barycentric allowance and rounding, which
+  :data:`GROWTH` of the triangle's size bounds (as the walk's proxies and the
+  area light's bounds assume); at a distance of at least ``h`` from ``A``
+  (the distance of the triangle's plane), that is an angle of at most
+  ``GROWTH·size / (h − GROWTH·size)``, which the test allows (four times
+  ``GROWTH·size / h``, with ``h`` above four growths).  With ``A`` nearly in
+  the triangle's plane, only the ball's test is made.
+* **Along a direction** ``l``: the ray ``O + t·l`` (t > 0) meets the ball only
+  if the ball's centre lies within ``r`` of its line and not wholly behind
+  ``O``, and meets the triangle only if ``O`` lies on the inner side of the
+  three planes along ``l`` through an edge (within the same growth).
+
+A camera ray is ``eye + t·d`` exactly (its origin is the eye), so ``u = d``.
+A shadow ray ``P + t·d`` towards a light at ``A`` (``d`` the computed unit
+vector from ``P`` to ``A``) strays from the true segment ``PA`` by at most a
+few units in the last place of its length, which :data:`STRAY` bounds; each
+surface is grown by that much, and ``u = −d``, whose angle to the true
+direction is as small.  Every surface is grown by :data:`MARGIN` of the
+magnitudes involved, and every cosine compared with a slack of :data:`SLACK`,
+far above the rounding of the tests here.  A proof that cannot be made (``A``
+inside the ball, numbers that are not finite) leaves the surface paired with
+every ray.  So a surface that an exact test finds hit by a ray is always
+paired with it: the closest hit, and whether a shadow ray is blocked, come
+out as the walk's, which tests every surface a ray may hit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .culling import Bounds
+from .rays import Among
+from .shapes import TRIANGLE
+from .world import Triangles
+
+#: a ball's growth, relative to the magnitudes of the point (or the ray origins) and of the ball
+MARGIN = 2.0**-30
+#: the slack of a cosine (or of a squared distance, relative) compared here: far above its rounding
+SLACK = 2.0**-40
+#: how far a shadow ray may stray from its true segment, relative to the segment's length
+STRAY = 2.0**-46
+#: how far outside a triangle an exact test may accept a hit, relative to the triangle's size
+GROWTH = 2.0**-20
+
+
+def _pairs(kinds: list[int], indices: list[int], rows: list[np.ndarray]) -> Among:
+    count = [len(r) for r in rows]
+    if not rows:
+        return Among(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int8), np.zeros(0, dtype=np.int64))
+    return Among(np.concatenate(rows).astype(np.int64, copy=False), np.repeat(np.array(kinds, dtype=np.int8), count),
+                 np.repeat(np.array(indices, dtype=np.int64), count))
+
+
+def _corners(tris: Triangles, k: int) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Triangle ``k``'s corners (3, 3), unit normal, size (its longest edge) and world magnitude."""
+    v0, e1, e2 = tris.v0[k], tris.e1[k], tris.e2[k]
+    corners = np.stack([v0, v0 + e1, v0 + e2])
+    size = float(max(np.linalg.norm(e1), np.linalg.norm(e2), np.linalg.norm(e1 - e2)))
+    return corners, tris.normal[k], size, float(tris.mag[k])
+
+
+def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray, away: bool,
+                  length: float = 0.0) -> Among:
+    """The surfaces each ray through ``apex`` may meet, as pairs (surface by surface).
+
+    ``dirs (N, 3)`` are the rays' unit directions: leaving the apex when ``away`` (camera rays from the eye),
+    or towards it (shadow rays to a light at the apex).  ``length`` is the longest of the shadow rays' segments
+    (their stray grows with it); camera rays start at the apex itself and do not stray."""
+    n = len(dirs)
+    apex_mag = float(np.max(np.abs(apex)))
+    sign = 1.0 if away else -1.0
+    x, y, z = (np.ascontiguousarray(dirs[:, a]) for a in range(3))
+    stray = STRAY * length
+    kinds, indices, rows = [], [], []
+    for j in range(len(b.radius)):
+        c = b.center[j]
+        r = float(b.radius[j]) + MARGIN * (apex_mag + float(np.max(np.abs(c))) + float(b.radius[j])) + stray
+        a = c - apex
+        dist = float(np.sqrt(a @ a))
+        if np.isfinite(dist) and np.isfinite(r) and dist > r:
+            a = a * (sign / dist)
+            cos = float(np.sqrt(1.0 - (r / dist) ** 2)) - SLACK
+            near = np.flatnonzero(x * a[0] + y * a[1] + z * a[2] >= cos)
+        else:  # the apex inside the ball (or numbers beyond proof): every ray may meet it
+            near = np.arange(n)
+        if b.kind[j] == TRIANGLE and len(near):
+            near = near[_inside_edges(tris, int(b.index[j]), apex, apex_mag, sign, stray, x[near], y[near], z[near])]
+        if len(near):
+            kinds.append(int(b.kind[j]))
+            indices.append(int(b.index[j]))
+            rows.append(near)
+    return _pairs(kinds, indices, rows)
+
+
+def _inside_edges(tris: Triangles, k: int, apex: np.ndarray, apex_mag: float, sign: float, stray: float,
+                  x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Which directions ``sign·(x, y, z)`` from ``apex`` lie on the inner side of the three planes through
+    ``apex`` and an edge of triangle ``k``, within the angle its growth allows. Shape (n,), bool."""
+    corners, normal, size, mag = _corners(tris, k)
+    grow = GROWTH * size + MARGIN * (apex_mag + mag) + stray
+    h = abs(float((corners[0] - apex) @ normal))  # every point of the triangle's plane is this far from the apex
+    keep = np.ones(len(x), dtype=bool)
+    if not (np.isfinite(h) and np.isfinite(grow) and h > 4.0 * grow):
+        return keep  # the apex (nearly) in the triangle's plane: no angle to speak of
+    allow = 4.0 * grow / h + SLACK  # (the growth seen from at least h − grow away, and the stray's angle)
+    for i in range(3):
+        p, q, opposite = corners[i] - apex, corners[(i + 1) % 3] - apex, corners[(i + 2) % 3] - apex
+        edge_normal = np.cross(p, q)
+        length = float(np.linalg.norm(edge_normal))
+        side = float(opposite @ edge_normal)
+        if not (length > 0 and np.isfinite(length) and side != 0 and np.isfinite(side)):
+            return np.ones(len(x), dtype=bool)
+        m = edge_normal * (sign * np.sign(side) / length)  # unit, the triangle on its positive side
+        keep &= x * m[0] + y * m[1] + z * m[2] >= -allow
+    return keep
+
+
+def along_direction(b: Bounds, tris: Triangles, origins: np.ndarray, direction: np.ndarray) -> Among:
+    """The surfaces each ray ``origins + t·direction`` (t > 0, one unit direction for all) may meet, as pairs
+    (surface by surface)."""
+    ell = np.asarray(direction, dtype=np.float64)
+    e1 = np.cross(ell, [1.0, 0.0, 0.0] if abs(ell[0]) < 0.6 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(ell, e1)
+    ox, oy, oz = (np.ascontiguousarray(origins[:, a]) for a in range(3))
+    u, v, w = (ox * e[0] + oy * e[1] + oz * e[2] for e in (e1, e2, ell))  # each origin across and along l
+    origin_mag = float(np.max(np.abs(origins), initial=0.0))
+    kinds, indices, rows = [], [], []
+    for j in range(len(b.radius)):
+        c = b.center[j]
+        r = float(b.radius[j]) + MARGIN * (origin_mag + float(np.max(np.abs(c))) + float(b.radius[j]))
+        if np.isfinite(r) and np.all(np.isfinite(c)):
+            du, dv = u - float(c @ e1), v - float(c @ e2)
+            close = du * du + dv * dv <= (r * r) * (1.0 + SLACK)
+            close &= w - float(c @ ell) <= r  # the ball not wholly behind the origin
+            near = np.flatnonzero(close)
+        else:
+            near = np.arange(len(origins))
+        if b.kind[j] == TRIANGLE and len(near):
+            near = near[_beside_edges(tris, int(b.index[j]), ell, origin_mag, ox[near], oy[near], oz[near])]
+        if len(near):
+            kinds.append(int(b.kind[j]))
+            indices.append(int(b.index[j]))
+            rows.append(near)
+    return _pairs(kinds, indices, rows)
+
+
+def _beside_edges(tris: Triangles, k: int, ell: np.ndarray, origin_mag: float, x: np.ndarray, y: np.ndarray,
+                  z: np.ndarray) -> np.ndarray:
+    """Which origins ``(x, y, z)`` lie on the inner side of the three planes along ``ell`` through an edge of
+    triangle ``k``, within its growth. Shape (n,), bool."""
+    corners, _, size, mag = _corners(tris, k)
+    grow = GROWTH * size + MARGIN * (origin_mag + mag)
+    keep = np.ones(len(x), dtype=bool)
+    if not np.isfinite(grow):
+        return keep
+    for i in range(3):
+        p, q, opposite = corners[i], corners[(i + 1) % 3], corners[(i + 2) % 3]
+        edge_normal = np.cross(q - p, ell)
+        length = float(np.linalg.norm(edge_normal))
+        side = float((opposite - p) @ edge_normal)
+        if not (length > 0 and np.isfinite(length) and side != 0 and np.isfinite(side)):
+            return np.ones(len(x), dtype=bool)  # an edge along the direction: the triangle seen edge-on
+        m = edge_normal * (np.sign(side) / length)
+        keep &= x * m[0] + y * m[1] + z * m[2] >= float(p @ m) - grow
+    return keep
