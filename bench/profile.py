@@ -76,6 +76,8 @@ STAGES = [
     Stage("tracer.walk", "Walk._test", "exact tests", _n_second),
     Stage("tracer.embree", "Bvh.nearest", "Embree", _n_first),
     Stage("tracer.embree", "Bvh.any_hit", "Embree", _n_first),
+    Stage("tracer.render", "through_point", "cones", lambda a, r: len(a[3])),
+    Stage("tracer.render", "along_direction", "cones", lambda a, r: len(a[2])),
     Stage("tracer.render", "resolve_material", "materials and checker", _n_out),
     Stage("tracer.render", "shading_normal", "shading normals", _n_out),
     Stage("tracer.render", "Renderer.direct", "direct light", _n_out),

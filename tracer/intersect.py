@@ -23,7 +23,7 @@ from .embree import Bvh
 from .rays import Among, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
-from .vec import along, divided, dot, most, rows_of
+from .vec import along, divided, dot, minus, most, rows_of
 from .walk import Best, Walk
 from .world import World, median_of, unit
 
@@ -61,6 +61,13 @@ class Hits:
 
 def _nothing() -> None:
     return None
+
+
+def _put(dst: np.ndarray, rows: np.ndarray, src: np.ndarray) -> None:
+    """``dst[rows] = src`` for ``dst (N, 3)`` with contiguous columns and ``src`` ``(n, 3)`` or one ``(3,)``
+    row, a column at a time (1-D scatters)."""
+    for k in range(3):
+        dst[:, k][rows] = src[..., k]
 
 
 class Intersector:
@@ -233,11 +240,13 @@ class Intersector:
         return triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k], leaving, ends, mag_e)
 
     def _describe(self, origins: np.ndarray, dirs: np.ndarray, best: Best) -> Hits:
+        """The hits of ``best``: points on their surfaces, normals and materials; ``point`` and ``normal`` with
+        contiguous columns (what every later stage reads a column at a time)."""
         w = self.world
         t, kind, index = best.t, best.kind, best.index
         n = len(t)
-        point = np.zeros((n, 3))
-        normal = np.zeros((n, 3))
+        point = np.zeros((3, n)).T
+        normal = np.zeros((3, n)).T
         material = np.zeros(n, dtype=np.int64)
 
         s = np.flatnonzero(kind == SPHERE)
@@ -245,24 +254,30 @@ class Intersector:
             k = index[s]
             raw = along(rows_of(origins, s), t[s], rows_of(dirs, s))
             centre = rows_of(w.spheres.center, k)
-            nrm = unit(divided(raw - centre, w.spheres.radius[k]))
-            point[s] = along(centre, w.spheres.radius[k], nrm)
-            normal[s], material[s] = nrm, w.spheres.material[k]
+            nrm = unit(divided(minus(raw, centre), w.spheres.radius[k]))
+            _put(point, s, along(centre, w.spheres.radius[k], nrm))
+            _put(normal, s, nrm)
+            material[s] = w.spheres.material[k]
 
         q = np.flatnonzero(kind == PLANE)
         if len(q):
             k = index[q]
             raw = along(rows_of(origins, q), t[q], rows_of(dirs, q))
-            nrm, p0 = rows_of(w.planes.normal, k), rows_of(w.planes.point, k)
-            point[q] = along(raw, -dot(raw - p0, nrm), nrm)
-            normal[q], material[q] = nrm, w.planes.material[k]
+            if len(w.planes.normal) == 1:  # (one plane: its numbers shared, not gathered)
+                nrm, p0 = w.planes.normal[0], w.planes.point[0]
+            else:
+                nrm, p0 = rows_of(w.planes.normal, k), rows_of(w.planes.point, k)
+            _put(point, q, along(raw, -dot(minus(raw, p0), nrm), nrm))
+            _put(normal, q, nrm)
+            material[q] = w.planes.material[k]
 
         r = np.flatnonzero(kind == TRIANGLE)
         if len(r):
             k = index[r]
             tr = w.triangles
-            point[r] = along(along(rows_of(tr.v0, k), best.uv[r, 0], rows_of(tr.e1, k)), best.uv[r, 1],
-                             rows_of(tr.e2, k))
-            normal[r], material[r] = rows_of(tr.normal, k), tr.material[k]
+            _put(point, r, along(along(rows_of(tr.v0, k), best.uv[r, 0], rows_of(tr.e1, k)), best.uv[r, 1],
+                                 rows_of(tr.e2, k)))
+            _put(normal, r, rows_of(tr.normal, k))
+            material[r] = tr.material[k]
         return Hits(t=np.where(kind == MISS, np.inf, t), kind=kind, index=index, point=point, normal=normal,
                     bary=best.uv, material=material)

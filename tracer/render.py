@@ -256,7 +256,7 @@ class Renderer:
                 hits = self.intersector.closest(work.rays, self._camera_among(work.rays) if work.depth == 0 else None)
                 missed = hits.kind == MISS
                 once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
-                _accumulate(acc, work.sample[missed], work.weight[missed, None] * background, ceiling, fixed, once)
+                _accumulate(acc, work.sample[missed], scaled(background, work.weight[missed]), ceiling, fixed, once)
                 if tally is not None:
                     _tally_misses(tally, work, missed, background)
                 rows = np.flatnonzero(~missed)
@@ -548,8 +548,11 @@ def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling:
     if len(index):
         cap = np.int64(ceiling * fixed)
         for k in range(3):  # a column at a time: 1-D gathers and scatters
-            v = np.clip(np.nan_to_num(values[:, k], nan=0.0, posinf=ceiling), 0.0, ceiling)
-            units = np.rint(v * fixed).astype(np.int64)
+            # clipped into 0..ceiling, NaN to 0 (fmax drops a NaN, as nan_to_num and then clip would), in place
+            v = np.fmax(values[:, k], 0.0)
+            np.fmin(v, ceiling, out=v)
+            v *= fixed
+            units = np.rint(v, out=v).astype(np.int64)
             column = acc[:, k]
             if unique:
                 units += column[index]

@@ -20,7 +20,9 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     The checker is evaluated in world coordinates; on flat surfaces the point
     is first projected onto the surface's plane, computed from the plane's
     point (or the face's first vertex) as given, so that a floor lying on a
-    cell boundary such as y = 0 lands exactly on it.
+    cell boundary such as y = 0 lands exactly on it.  A column at a time: the
+    same operations, in the same order, as on ``(N, 3)`` rows (the cells' sum
+    is ``(x + y) + z``, as ``np.sum`` over a row adds it).
     """
     mats = world.materials
     mat = hits.material
@@ -28,16 +30,24 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     sel = np.flatnonzero(size > 0)
     if len(sel) == 0:
         return mat
-    p = rows_of(hits.point, sel)
-    p += world.origin
+    p = [np.take(hits.point[:, k], sel) + world.origin[k] for k in range(3)]
     kind, index = hits.kind[sel], hits.index[sel]
     for code, anchors in ((PLANE, world.planes.point_world), (TRIANGLE, world.triangles.v0_world)):
         flat = np.flatnonzero(kind == code)
         if len(flat):  # projected onto the surface's plane: p − ((p − anchor)·n) n
-            pf, nf = rows_of(p, flat), rows_of(hits.normal, sel[flat])
-            p[flat] = pf - dot(pf - rows_of(anchors, index[flat]), nf)[:, None] * nf
-    p /= size[sel, None]
-    cells = np.sum(np.floor(p, out=p), axis=1)
+            at, rows = index[flat], sel[flat]
+            pf = [np.take(p[k], flat) for k in range(3)]
+            nf = [np.take(hits.normal[:, k], rows) for k in range(3)]
+            side = (pf[0] - np.take(anchors[:, 0], at)) * nf[0] + (pf[1] - np.take(anchors[:, 1], at)) * nf[1] \
+                + (pf[2] - np.take(anchors[:, 2], at)) * nf[2]
+            for k in range(3):
+                p[k][flat] = pf[k] - side * nf[k]
+    cell = size[sel]
+    for k in range(3):
+        p[k] /= cell
+        np.floor(p[k], out=p[k])
+    cells = p[0] + p[1]
+    cells += p[2]
     odd = sel[np.mod(cells, 2.0) == 1.0]
     out = mat.copy()
     out[odd] = mats.checker_other[mat[odd]]
