@@ -10,6 +10,9 @@
   :class:`service.middleware.BodyLimit`; idle kept-alive connections are closed
   by uvicorn after ``keep_alive``; ``max_connections`` is uvicorn's
   ``limit_concurrency``.)
+* With several workers, each connection goes to the worker holding the
+  fewest (:mod:`service.balance`), so that two kept-alive clients do not
+  share one worker's interpreter lock while another idles.
 * The objects a worker holds once started (about 60k: FastAPI, Pydantic,
   NumPy and phongray's own) are frozen out of the garbage collector's rounds:
   a full collection, which runs on whichever thread allocated last and holds
@@ -28,6 +31,7 @@ import h11
 import uvicorn
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
+from . import balance
 from .app import create_app
 from .settings import Settings
 
@@ -55,6 +59,8 @@ class Protocol(H11Protocol):
 
     def connection_lost(self, exc: Exception | None) -> None:
         self._stop_waiting()
+        if balance.BOARD is not None:
+            balance.BOARD.closed()
         super().connection_lost(exc)
 
     def _await_headers(self) -> None:
@@ -83,7 +89,11 @@ def worker_app() -> Any:
 
 
 def serve(host: str, port: int, workers: int) -> None:
+    """uvicorn with ``workers`` processes; with more than one, each connection goes to the worker that holds
+    the fewest (:mod:`service.balance`)."""
     settings = Settings.from_env()
-    uvicorn.run("service.server:worker_app", factory=True, host=host, port=port, workers=workers,
-                http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
-                limit_concurrency=settings.max_connections)
+    with balance.board_for(workers) as board:
+        uvicorn.run("service.server:worker_app", factory=True, host=host, port=port, workers=workers,
+                    http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
+                    limit_concurrency=settings.max_connections,
+                    loop="service.balance:balanced_loop" if board is not None else "auto")
