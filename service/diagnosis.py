@@ -26,10 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from tracer.variants import BOUNDS, VARIANTS
+from tracer.passes import LIGHT_TERMS
+from tracer.variants import BOUNDS, VARIANTS, unchanged
 
 from .display import percent
-from .grading import Grade, grade
+from .grading import Grade, grade, nearby_difference, planes
 
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
 #: failing pixels
@@ -105,6 +106,8 @@ class Renders:
     objects: list[str]  # the scene's object types, in order
     bound: Callable[[str], np.ndarray] | None = None  # name of BOUNDS → pixels of the mistake's far end
     cancel: Callable[[], bool] | None = None  # the current diagnosis's: true stops its renders
+    #: name, row numbers → those rows of the variant's pixels, rendered alone (a first look, :func:`off_at_least`)
+    rows: Callable[[str, np.ndarray], np.ndarray] | None = None
 
 
 def term_words(term: dict[str, Any]) -> str:
@@ -138,13 +141,30 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
     out = Diagnosis()
     if verdict.passed:
         return out
-    scored = []
-    for name, (_, mistake) in VARIANTS.items():
+    pixels = submitted.shape[0] * submitted.shape[1]
+    may_pass = verdict.max_fraction * pixels  # off pixels (even nearby) a variant passed against may have
+    may_come_closest = max(may_pass, CLOSEST_SHARE * verdict.fraction_off_nearby * pixels)
+    scored: list[Cause] = []
+    later: list[str] = []  # variants that cannot pass, but may come closest if none passes
+
+    def score(name: str) -> None:
         image = renders.variant(name)
         if np.array_equal(image, reference):  # the mistake changes nothing in this scene: no evidence
-            continue
+            return
         g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
-        scored.append(Cause(name, mistake, g.fraction_off_nearby, g.passed))
+        scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
+
+    for name in VARIANTS:
+        if name in BOUNDS and renders.bound is not None:
+            continue  # (a speckled mistake is scored against its far end below, not by its own render)
+        # a first look at a few rows (exact: a lower bound of the variant's off pixels, surely_far): a variant that
+        # can neither pass nor come closest changes nothing in the diagnosis, scored or not
+        least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders)
+        if least is not None and least > may_pass:
+            if least <= may_come_closest:
+                later.append(name)
+            continue
+        score(name)
     for name in BOUNDS if renders.bound is not None else ():
         assert renders.bound is not None
         # the variant's own speckles are one pattern of many: only lying between the reference and the far
@@ -153,6 +173,9 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
         outside = speckled(reference, renders.bound(name), submitted, verdict.tolerance)
         if outside is not None:
             scored.append(Cause(name, VARIANTS[name][1], outside, outside <= verdict.max_fraction))
+    if not any(c.passes for c in scored):  # then the closest is named: score what may come closest
+        for name in later:
+            score(name)
     scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
     passing = [c for c in scored if c.passes]
     if passing:
@@ -163,6 +186,39 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
         out.terms = fit_terms(submitted, renders)
     out.objects, out.lights = where(reference, submitted, verdict, renders)
     return out
+
+
+#: a variant is first rendered on one row in this many (with the rows either side), and rendered whole only if
+#: those rows do not already rule it out (:func:`off_at_least`)
+SAMPLE_EVERY = 16
+
+
+def sampled_rows(height: int) -> tuple[np.ndarray, np.ndarray]:
+    """The middle rows a first look grades (every :data:`SAMPLE_EVERY`-th, none on the image's edge), and every
+    row it renders for them: each middle row with the rows above and below."""
+    middles = np.arange(SAMPLE_EVERY // 2, height - 1, SAMPLE_EVERY)
+    middles = middles[middles >= 1]
+    return middles, (middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
+
+
+def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders) -> int | None:
+    """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
+    look at a few of its rows (None when :class:`Renders` has no rows to give).
+
+    Exact, not a sample's estimate: a pixel is off nearby when every variant pixel in its 3×3 neighbourhood
+    differs from it by more than the tolerance, so each sampled middle row, rendered with the rows above and
+    below, gives its off pixels exactly as the whole grade counts them; their count bounds the whole image's.
+    A variant whose bound exceeds what passing allows cannot pass, and one whose bound exceeds the closest's
+    share cannot be named closest (:func:`diagnose`)."""
+    if renders.rows is None:
+        return None
+    h, w, _ = submitted.shape
+    middles, rows = sampled_rows(h)
+    if len(middles) == 0:
+        return None
+    bands = renders.rows(name, rows).reshape(len(middles), 3, w, 3)
+    return sum(int(np.count_nonzero(nearby_difference(band, planes(submitted[r:r + 1]), 1, 2) > verdict.tolerance))
+               for band, r in zip(bands, middles.tolist()))
 
 
 def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, tolerance: float) -> float | None:
@@ -286,42 +342,81 @@ def where(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
     return (sorted(objects, key=lambda s: -s.share), sorted(lights, key=lambda s: -s.share))
 
 
+#: the variants made from the reference's own linear colour, with no render of their own
+DERIVED = ("gamma", "image-flipped")
+
+
 def renders_of(scene: Any, threads: int | None = None) -> Renders:
-    """:class:`Renders` of a validated scene, rendered here when first asked for (each variant, and each
-    light's passes, once); its ``cancel()`` true stops a render with :class:`tracer.RenderCancelled`."""
+    """:class:`Renders` of a validated scene, rendered here when first asked for; its ``cancel()`` true stops a
+    render with :class:`tracer.RenderCancelled`.
+
+    One render gives every pass, every light's terms and the image's linear colour
+    (:meth:`tracer.Renderer.diagnosis_passes`); from that colour come, exactly as their own renders would make
+    them, the gamma variant (each pixel's colour to the power 1/2.2, then stored) and the flipped image, and
+    the reference itself stands for every variant the scene cannot show (:func:`tracer.variants.unchanged`).
+    Only the other variants are rendered, each once."""
     from tracer import Renderer
+    from tracer.image import quantize
 
     variants: dict[str, np.ndarray] = {}
     bounds: dict[str, np.ndarray] = {}
-    passes: dict[int | None, dict[str, np.ndarray]] = {}
+    made: dict[str, dict[str, np.ndarray]] = {}
 
-    def variant(name: str) -> np.ndarray:
-        if name not in variants:
-            variants[name] = Renderer(scene, VARIANTS[name][0]).pixels(threads=threads, cancel=out.cancel)
-        return variants[name]
-
-    def bound(name: str) -> np.ndarray:
-        if name not in bounds:
-            bounds[name] = Renderer(scene, BOUNDS[name]).pixels(threads=threads, cancel=out.cancel)
-        return bounds[name]
-
-    def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
-        if light not in passes:
+    def passes() -> dict[str, np.ndarray]:
+        if "all" not in made:
             if out.cancel is not None and out.cancel():
                 from tracer import RenderCancelled
 
                 raise RenderCancelled("diagnosis cancelled")
-            every = ["background", "ambient", "reflection", "refraction", "object"] if light is None else []
-            passes[light] = Renderer(scene).passes(every + ["diffuse", "specular"], light, threads=threads)
-        return {name: passes[light][name] for name in names}
+            made["all"] = Renderer(scene).diagnosis_passes(threads=threads, cancel=out.cancel)
+        return made["all"]
 
-    out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects], bound)
+    def variant(name: str) -> np.ndarray:
+        if name not in variants:
+            if name == "gamma":  # as Renderer.pixels stores a gamma variant's chunk colour
+                variants[name] = quantize(np.clip(passes()["colour"], 0.0, None) ** (1.0 / 2.2))
+            elif name == "image-flipped":  # the reference's rows, bottom to top
+                variants[name] = quantize(passes()["colour"])[::-1]
+            elif unchanged(name, scene):
+                variants[name] = quantize(passes()["colour"])
+            else:
+                variants[name] = Renderer(scene, VARIANTS[name][0]).pixels(threads=threads, cancel=out.cancel)
+        return variants[name]
+
+    sampled: dict[tuple[str, bytes], np.ndarray] = {}
+
+    def rows(name: str, numbers: np.ndarray) -> np.ndarray:
+        if name in variants or name in DERIVED or unchanged(name, scene):
+            return variant(name)[numbers]
+        key = (name, numbers.tobytes())
+        if key not in sampled:
+            sampled[key] = Renderer(scene, VARIANTS[name][0]).pixels_of_rows(numbers, threads=threads,
+                                                                             cancel=out.cancel)
+        return sampled[key]
+
+    def bound(name: str) -> np.ndarray:
+        if name not in bounds:
+            bounds[name] = quantize(passes()["colour"]) if unchanged(name, scene) else \
+                Renderer(scene, BOUNDS[name]).pixels(threads=threads, cancel=out.cancel)
+        return bounds[name]
+
+    def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
+        every = passes()
+        return {name: every[name if light is None or name not in LIGHT_TERMS else f"{name}:{light}"]
+                for name in names}
+
+    out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects], bound,
+                  rows=rows)
     return out
 
 
-#: renders a diagnosis may need: every variant, and the passes once for the scene and once per light
+#: the most renders a diagnosis may need: the variants the scene can show but the two made from the reference's
+#: colour (gamma, the flipped image), a speckled mistake's far end in place of the mistake itself, and one render
+#: for every pass (a first look at a few rows of a variant, :func:`off_at_least`, may spare its whole render)
 def renders_needed(scene: Any) -> int:
-    return len(VARIANTS) + len(BOUNDS) + 1 + sum(light.type != "ambient" for light in scene.lights)
+    shown = [name for name in [*(v for v in VARIANTS if v not in BOUNDS), *BOUNDS]
+             if name not in DERIVED and not unchanged(name, scene)]
+    return len(shown) + 1
 
 
 #: the largest image whose diagnosis renders are kept for the next pair of the same scene

@@ -189,7 +189,7 @@ def _opaque(alpha: np.ndarray) -> None:
 BAND = 256
 
 
-def _planes(img: np.ndarray) -> np.ndarray:
+def planes(img: np.ndarray) -> np.ndarray:
     """(h, w, 3) → (3, h, w), each channel contiguous: the comparisons run over whole rows of bytes."""
     return np.ascontiguousarray(np.moveaxis(img, 2, 0))
 
@@ -204,15 +204,15 @@ def _largest(ref: np.ndarray, sub: np.ndarray) -> np.ndarray:
 
 
 def _difference(reference: np.ndarray, submitted: np.ndarray) -> np.ndarray:
-    return _largest(_planes(reference), _planes(submitted))
+    return _largest(planes(reference), planes(submitted))
 
 
-def _nearby_difference(reference: np.ndarray, sub: np.ndarray, top: int, bottom: int) -> np.ndarray:
+def nearby_difference(reference: np.ndarray, sub: np.ndarray, top: int, bottom: int) -> np.ndarray:
     """For rows ``top:bottom`` (``sub`` is their submitted planes), per pixel the smallest largest-channel
     difference to any reference pixel in its 3×3 neighbourhood (edges repeat)."""
     h, w, _ = reference.shape
     rows = np.clip(np.arange(top - 1, bottom + 1), 0, h - 1)
-    padded = _planes(np.pad(reference[rows], ((0, 0), (1, 1), (0, 0)), mode="edge"))
+    padded = planes(np.pad(reference[rows], ((0, 0), (1, 1), (0, 0)), mode="edge"))
     n = bottom - top
     best = np.full((n, w), 255, dtype=np.uint8)
     for dy in range(3):
@@ -229,7 +229,7 @@ def grade(reference: np.ndarray, submitted: np.ndarray, reference_sha256: str,
     max_error, off, off_nearby = 0, 0, 0
     for top in range(0, h, BAND):
         bottom = min(top + BAND, h)
-        ref, sub = _planes(reference[top:bottom]), _planes(submitted[top:bottom])
+        ref, sub = planes(reference[top:bottom]), planes(submitted[top:bottom])
         channels = [_absdiff(ref[c], sub[c]) for c in range(3)]
         for c in channels:
             histogram += np.bincount(c.ravel(), minlength=256)
@@ -238,7 +238,7 @@ def grade(reference: np.ndarray, submitted: np.ndarray, reference_sha256: str,
         if band_off:  # only then can a pixel be off even nearby (its own reference pixel is one of the nine)
             off += band_off
             max_error = max(max_error, int(diff.max()))
-            off_nearby += int(np.count_nonzero(_nearby_difference(reference, sub, top, bottom) > tolerance))
+            off_nearby += int(np.count_nonzero(nearby_difference(reference, sub, top, bottom) > tolerance))
         else:
             max_error = max(max_error, int(diff.max()))
     values, pixels = 3 * h * w, h * w

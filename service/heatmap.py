@@ -19,7 +19,7 @@ import numpy as np
 
 from tracer.image import encode_png
 
-from .grading import BAND, _largest, _nearby_difference, _planes
+from .grading import BAND, _largest, nearby_difference, planes
 
 Kind = Literal["verdict", "raw"]
 
@@ -43,12 +43,12 @@ def verdict_pixels(reference: np.ndarray, submitted: np.ndarray, tolerance: floa
     out = np.empty((h, w, 3), dtype=np.uint8)
     for top in range(0, h, BAND):
         bottom = min(top + BAND, h)
-        ref, sub = _planes(reference[top:bottom]), _planes(submitted[top:bottom])
+        ref, sub = planes(reference[top:bottom]), planes(submitted[top:bottom])
         grey = (ref.astype(np.uint16).sum(axis=0) // 10).astype(np.uint8)  # 0–76: the scene, dimmed
         band = np.repeat(grey[:, :, None], 3, axis=2)
         off = _largest(ref, sub) > tolerance
         if off.any():
-            decisive = _nearby_difference(reference, sub, top, bottom) > tolerance
+            decisive = nearby_difference(reference, sub, top, bottom) > tolerance
             sign = sub.astype(np.int16).sum(axis=0) - ref.astype(np.int16).sum(axis=0)
             band[off & ~decisive] = FORGIVEN
             band[decisive & (sign >= 0)] = BRIGHTER
@@ -62,7 +62,7 @@ def raw_pixels(reference: np.ndarray, submitted: np.ndarray) -> np.ndarray:
     h, w, _ = reference.shape
     out = np.empty((h, w, 3), dtype=np.uint8)
     for top in range(0, h, BAND):
-        diff = _largest(_planes(reference[top:top + BAND]), _planes(submitted[top:top + BAND]))
+        diff = _largest(planes(reference[top:top + BAND]), planes(submitted[top:top + BAND]))
         x = np.clip(diff / 64.0, 0.0, 1.0)
         rgb = np.stack([np.clip(3 * x, 0, 1), np.clip(3 * x - 1, 0, 1), np.clip(3 * x - 2, 0, 1)], axis=2)
         out[top:top + BAND] = np.floor(255 * rgb + 0.5)

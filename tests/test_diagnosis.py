@@ -126,3 +126,61 @@ def test_a_light_left_out_is_no_named_mistake_but_a_term(room):
 
 def test_the_mistakes_are_the_variants():
     assert set(student.MISTAKES) == set(VARIANTS)
+
+
+# -- what a diagnosis renders: one pass render, variants from the reference's colour, a first look at rows --------
+
+def test_variants_made_from_the_reference_colour_are_their_own_renders(setting):
+    scene, reference, renders = setting
+    for name in ("gamma", "image-flipped"):
+        assert np.array_equal(renders.variant(name), Renderer(scene, VARIANTS[name][0]).pixels()), name
+
+
+def test_one_pass_render_gives_every_lights_terms_as_their_own_renders_do(setting):
+    scene, reference, renders = setting
+    for k, light in enumerate(scene.lights):
+        if light.type == "ambient":
+            continue
+        own = Renderer(scene).passes(["diffuse", "specular"], k)
+        got = renders.passes(["diffuse", "specular"], k)
+        assert all(np.array_equal(own[t], got[t]) for t in own), k
+    every = Renderer(scene).passes(["background", "ambient", "reflection", "refraction", "object"], None)
+    got = renders.passes(list(every), None)
+    assert all(np.array_equal(every[t], got[t]) for t in every)
+
+
+def _submissions(scene, reference):
+    out = {name: Renderer(scene, VARIANTS[name][0]).pixels()
+           for name in ("no-shadows", "blinn-phong", "no-half-pixel", "normals-not-flipped", "gamma")}
+    out["half as bright"] = reference // 2
+    patch = reference.copy()
+    patch[10:20, 5:30] = 255
+    out["a patch"] = patch
+    out["noise"] = np.random.default_rng(4).integers(0, 256, reference.shape, dtype=np.uint8)
+    return out
+
+
+def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
+    import dataclasses
+
+    from service import diagnosis
+
+    scene = schemas.validate_scene(EVERYTHING)
+    reference = Renderer(scene).pixels()
+    spared = 0
+    for name, submitted in _submissions(scene, reference).items():
+        verdict = grade(reference, submitted, "")
+        looked = renders_of(scene)
+        whole = []
+        render_variant = looked.variant
+        looked.variant = lambda v, f=render_variant, whole=whole: whole.append(v) or f(v)
+        blind = dataclasses.replace(renders_of(scene), rows=None)
+        assert diagnose(reference, submitted, verdict, looked).as_dict() == \
+            diagnose(reference, submitted, verdict, blind).as_dict(), name
+        spared += len(VARIANTS) - len(whole)
+        # and what the first look gives is a lower bound of what the whole grade counts
+        for v in ("no-shadows", "blinn-phong", "no-ambient"):
+            least = diagnosis.off_at_least(v, submitted, verdict, looked)
+            g = grade(Renderer(scene, VARIANTS[v][0]).pixels(), submitted, "", verdict.tolerance)
+            assert least is not None and least <= round(g.fraction_off_nearby * reference.shape[0] * reference.shape[1])
+    assert spared > 2 * len(_submissions(scene, reference))

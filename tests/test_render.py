@@ -198,3 +198,28 @@ def test_a_dropped_renderer_is_freed_at_once(name):
     finally:
         if enabled:
             gc.enable()
+
+
+def test_rows_rendered_alone_are_those_rows_of_the_image():
+    from tracer.variants import VARIANTS
+
+    for name, options in (("04_whitted", None), ("08_antialiased", None), ("04_whitted", "image-flipped")):
+        data = scene_dict(name)
+        data["image"].update(width=40, height=30)
+        scene = schemas.validate_scene(data)
+        opts = () if options is None else (VARIANTS[options][0],)
+        whole = Renderer(scene, *opts).pixels()
+        rows = np.array([0, 1, 2, 17, 29, 5])
+        assert np.array_equal(Renderer(scene, *opts).pixels_of_rows(rows, chunk_rays=64), whole[rows])
+
+
+def test_the_diagnosis_passes_hold_the_images_own_colour():
+    from tracer.image import quantize
+
+    data = scene_dict("02_all_lights")
+    data["image"].update(width=40, height=30)
+    scene = schemas.validate_scene(data)
+    got = Renderer(scene).diagnosis_passes(chunk_rays=256)
+    assert np.array_equal(quantize(got["colour"]), Renderer(scene).pixels(chunk_rays=256))
+    lights = [k for k, light in enumerate(scene.lights) if light.type != "ambient"]
+    assert sum(got[f"diffuse:{k}"] for k in lights) == pytest.approx(got["diffuse"], abs=1e-12)

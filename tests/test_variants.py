@@ -73,3 +73,65 @@ def test_the_far_end_of_acne_is_darker_than_acne_wherever_acne_shows():
     ref, acne, far = (pixels(o).astype(int) for o in (REFERENCE, VARIANTS["shadow-acne"][0], BOUNDS["shadow-acne"]))
     assert np.all(far <= acne) and np.all(acne <= ref)
     assert np.mean(np.any(far < acne, axis=2)) > 0.05  # the far end shadows what acne leaves lit
+
+
+# -- variants a scene cannot show (tracer.variants.unchanged): the reference, bit for bit ------------------------
+
+def _plain():
+    """EVERYTHING stripped bare in turn: each rule of UNCHANGED holds for one of these, and renders as it says."""
+    import copy
+
+    out = {}
+    dark = copy.deepcopy(EVERYTHING)
+    dark["lights"] = [light for light in dark["lights"] if light["type"] == "ambient"]
+    out["ambient light only"] = dark
+    matte = copy.deepcopy(EVERYTHING)
+    for m in matte["materials"].values():
+        m["specular"] = 0.0
+    out["every k_s zero"] = matte
+    unlit = copy.deepcopy(EVERYTHING)
+    unlit["lights"] = [light for light in unlit["lights"] if light["type"] != "ambient"]
+    out["no ambient light"] = unlit
+    square = copy.deepcopy(EVERYTHING)
+    square["image"].update(width=36, height=36)
+    out["a square image"] = square
+    plain = copy.deepcopy(EVERYTHING)
+    plain["lights"] = [{k: v for k, v in light.items() if k != "attenuation"} | (
+        {"samples": [1, 1]} if light["type"] == "area" else {}) for light in plain["lights"] if light["type"] != "spot"]
+    out["no attenuation, no spot, one area sample"] = plain
+    dull = copy.deepcopy(EVERYTHING)
+    for m in dull["materials"].values():
+        m["reflectance"] = m["transmittance"] = 0.0
+    out["no mirror, no glass"] = dull
+    thin = copy.deepcopy(EVERYTHING)
+    thin["materials"]["glass"]["ior"] = 1.0
+    out["glass of index 1"] = thin
+    flat = copy.deepcopy(EVERYTHING)
+    flat["image"]["max_depth"] = 0
+    out["no bounce"] = flat
+    return out
+
+
+PLAIN = _plain()
+
+
+@pytest.mark.parametrize("case", sorted(PLAIN))
+def test_a_variant_the_scene_cannot_show_renders_as_the_reference(case):
+    from tracer.variants import BOUNDS, unchanged
+
+    scene = schemas.validate_scene(PLAIN[case])
+    reference = Renderer(scene).pixels()
+    said = [name for name in [*VARIANTS, *BOUNDS] if unchanged(name, scene)]
+    assert said, f"no rule holds for {case}"
+    for name in said:
+        options = VARIANTS[name][0] if name in VARIANTS else BOUNDS[name]
+        assert np.array_equal(Renderer(scene, options).pixels(), reference), name
+
+
+def test_every_rule_holds_somewhere_and_every_variant_the_rules_allow_shows_in_everything():
+    from tracer.variants import UNCHANGED, unchanged
+
+    held = {name for data in PLAIN.values() for name in UNCHANGED if unchanged(name, schemas.validate_scene(data))}
+    assert held == set(UNCHANGED)
+    scene = schemas.validate_scene(EVERYTHING)
+    assert not any(unchanged(name, scene) for name in VARIANTS)  # (each changes it: the test above)

@@ -35,8 +35,12 @@ class CameraRays:
         Pixels are numbered row by row from the top left; within a pixel,
         sub-sample ``(a, b)`` comes at position ``b·n + a``.
         """
+        return self.rays_of(np.arange(start, stop, dtype=np.int64))
+
+    def rays_of(self, pixel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`rays` of the pixels ``pixel (P,)``, in that order: each pixel's rays are the same wherever
+        it is asked for."""
         n, W, H = self.n, self.width, self.height
-        pixel = np.arange(start, stop, dtype=np.int64)
         i = (pixel % W).astype(np.float64)
         j = (pixel // W).astype(np.float64)
         offsets = (np.arange(n, dtype=np.float64) + self.offset) / n

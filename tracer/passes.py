@@ -30,6 +30,8 @@ import numpy as np
 ADDITIVE = ("background", "ambient", "diffuse", "specular", "reflection", "refraction")
 DEBUG = ("shadow", "normal", "depth", "object")
 NAMES = ADDITIVE + DEBUG
+#: the additive passes that belong to a light
+LIGHT_TERMS = ("diffuse", "specular")
 #: where an additive pass saturates, per pixel (the image itself saturates at 1)
 CEILING = 1024.0
 #: the ray-tree branches a contribution comes from: the first hit, its mirror ray, its refracted ray
@@ -57,6 +59,10 @@ class Tally:
     light: int | None  # the scene light the light-specific passes are of
     emitter_light: np.ndarray  # (E,) int: the scene light each emitter comes from
     fixed: float = 2.0**30
+    #: keep diffuse and specular apart for every scene light, as ``diffuse:K`` and ``specular:K`` (one render
+    #: for every light's terms, :meth:`tracer.render.Renderer.diagnosis_passes`)
+    by_light: bool = False
+    colour: np.ndarray | None = None  # (pixels, 3) the chunk's linear colour, when asked for (by_light)
     sums: dict[str, np.ndarray] = field(default_factory=dict)
     visible: np.ndarray | None = None  # (samples,) reached-and-facing samples of the light(s)
     normal: np.ndarray | None = None  # (samples, 3)
@@ -65,8 +71,13 @@ class Tally:
 
     def __post_init__(self) -> None:
         for name in self.names:
-            if name in ADDITIVE:
+            if name in ADDITIVE and not (self.by_light and name in LIGHT_TERMS):
                 self.sums[name] = np.zeros((self.samples, 3), dtype=np.int64)
+        if self.by_light:
+            for k in sorted(set(self.emitter_light.tolist())):
+                for name in LIGHT_TERMS:
+                    if name in self.names:
+                        self.sums[f"{name}:{k}"] = np.zeros((self.samples, 3), dtype=np.int64)
         if "shadow" in self.names:
             self.visible = np.zeros(self.samples)
         if "normal" in self.names:
@@ -80,21 +91,37 @@ class Tally:
         """Whether the light-specific passes count this emitter."""
         return self.light is None or int(self.emitter_light[emitter]) == self.light
 
-    def add(self, name: str, sample: np.ndarray, values: np.ndarray) -> None:
-        """Add linear colours ``values (n, 3)`` to pass ``name`` at sub-samples ``sample`` (may repeat)."""
+    def term(self, name: str, emitter: int) -> str:
+        """The pass a light-specific term of this emitter goes to: ``name``, or ``name:K`` by light."""
+        return f"{name}:{int(self.emitter_light[emitter])}" if self.by_light else name
+
+    def add(self, name: str, sample: np.ndarray, values: np.ndarray, unique: bool = False) -> None:
+        """Add linear colours ``values (n, 3)`` to pass ``name`` at sub-samples ``sample`` (may repeat, unless
+        ``unique``: then a gather and a scatter, the same integer sums as ``np.add.at``)."""
         acc = self.sums.get(name)
         if acc is None or len(sample) == 0:
             return
         v = np.clip(np.nan_to_num(values, nan=0.0, posinf=CEILING), 0.0, CEILING * self.per_pixel)
-        np.add.at(acc, sample, np.rint(v * self.fixed).astype(np.int64))
+        units = np.rint(v * self.fixed).astype(np.int64)
+        if unique:
+            acc[sample] += units
+        else:
+            np.add.at(acc, sample, units)
 
     def result(self, shape: tuple[int, int], samples_of_light: int) -> dict[str, np.ndarray]:
         """Per pixel, over ``shape = (pixels, sub-samples per pixel)``: every pass asked for."""
         n, s = shape
         out: dict[str, np.ndarray] = {}
-        for name, acc in self.sums.items():
+        sums = dict(self.sums)
+        for name in LIGHT_TERMS if self.by_light else ():  # every light's, from the exact sums of each
+            parts = [acc for key, acc in self.sums.items() if key.startswith(name + ":")]
+            if name in self.names:
+                sums[name] = sum(parts[1:], parts[0].copy()) if parts else np.zeros((self.samples, 3), np.int64)
+        for name, acc in sums.items():
             total = acc.reshape(n, s, 3).sum(axis=1).astype(np.float64) / (self.fixed * s)
             out[name] = np.minimum(total, CEILING)
+        if self.colour is not None:
+            out["colour"] = self.colour
         if self.visible is not None:
             out["shadow"] = self.visible.reshape(n, s).mean(axis=1) / max(samples_of_light, 1)
         if self.normal is not None:

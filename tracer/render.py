@@ -26,7 +26,7 @@ from .culling import HIDDEN, MIXED, SEEN, Culled, bounds_of, classify
 from .image import quantize
 from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate, light_samples
-from .passes import BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
+from .passes import ADDITIVE, BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
 from .rays import Among, Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, mirror, phong, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
@@ -221,9 +221,64 @@ class Renderer:
             out[name] = whole.reshape(img.height, img.width, *whole.shape[1:])
         return out
 
+    def diagnosis_passes(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+                         cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
+        """In one render, what a diagnosis needs of the reference scene: the additive passes, ``object``, every
+        light's ``diffuse:K`` and ``specular:K`` (and their sums), and ``colour``, the image's linear colour
+        per pixel ``(H, W, 3)``, the very values :meth:`pixels` quantizes (the passes change no colour)."""
+        img = self.scene.image
+        self.slice_rays = chunk_rays
+        total = img.width * img.height
+        s = img.samples * img.samples
+        per_chunk = max(1, chunk_rays // s)
+        bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        names = (*ADDITIVE, "object")
+
+        def work(bound: tuple[int, int]) -> dict[str, np.ndarray]:
+            a, b = bound
+            if cancel is not None and cancel():
+                raise RenderCancelled("render cancelled")
+            tally = Tally(names, (b - a) * s, s, None, self.emitter_light, by_light=True)
+            tally.colour = self.chunk(a, b, tally)
+            return tally.result((b - a, s), len(self.emitter_light))
+
+        workers = threads or os.cpu_count() or 1
+        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(bounds)))) as pool:
+            parts = list(pool.map(work, bounds))
+        out = {}
+        for name in parts[0]:
+            whole = np.concatenate([p[name] for p in parts])
+            out[name] = whole.reshape(img.height, img.width, *whole.shape[1:])
+        return out
+
     # -- one chunk ---------------------------------------------------------
-    def chunk(self, start: int, stop: int, tally: Tally | None = None) -> np.ndarray:
-        """Linear colour of pixels ``start..stop`` (mean of their sub-samples). Shape (stop − start, 3).
+    def pixels_of_rows(self, rows: np.ndarray, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+                       cancel: Callable[[], bool] | None = None) -> np.ndarray:
+        """The image's rows ``rows`` (row numbers, any order) as ``(len(rows), W, 3) uint8``, in one go: byte for
+        byte those rows of :meth:`pixels` (every pixel is computed alone)."""
+        img = self.scene.image
+        self._stop.cancel = cancel
+        self.slice_rays = chunk_rays
+        shown = np.asarray(rows, dtype=np.int64)
+        if self.options.flip_image:  # (stored bottom to top: row r of the image is row H − 1 − r of the render)
+            shown = img.height - 1 - shown
+        pixel = (shown[:, None] * img.width + np.arange(img.width)[None, :]).ravel()
+        per_chunk = max(1, chunk_rays // (img.samples * img.samples))
+        parts = [pixel[a:a + per_chunk] for a in range(0, len(pixel), per_chunk)]
+
+        def work(part: np.ndarray) -> np.ndarray:
+            self._stop()
+            colour = self.chunk(0, len(part), pixels=part)
+            return quantize(colour if not self.options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2))
+
+        workers = threads or os.cpu_count() or 1
+        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(parts)))) as pool:
+            out = list(pool.map(work, parts))
+        return np.concatenate(out).reshape(len(shown), img.width, 3)
+
+    def chunk(self, start: int, stop: int, tally: Tally | None = None, pixels: np.ndarray | None = None) -> np.ndarray:
+        """Linear colour of pixels ``start..stop`` (mean of their sub-samples), or of the pixels ``pixels`` (then
+        ``stop − start`` of them). Shape (stop − start, 3).
 
         The ray tree is traced depth-first in slices of at most ``slice_rays``
         rays, so memory depends on the slice size and the depth, never on
@@ -236,7 +291,7 @@ class Renderer:
         img = self.scene.image
         s = img.samples * img.samples
         with np.errstate(all="ignore"):
-            origins, dirs = self.camera.rays(start, stop)
+            origins, dirs = self.camera.rays(start, stop) if pixels is None else self.camera.rays_of(pixels)
             n = len(origins)
             self._count("primary", n)
             acc = np.zeros((3, n), dtype=np.int64).T  # (n, 3), its columns contiguous (_accumulate)
@@ -305,7 +360,7 @@ class Renderer:
         first = tally is not None and work is not None and work.depth == 0
         if first:
             assert tally is not None and work is not None
-            tally.add("ambient", work.sample, scaled(colour, work.weight))
+            tally.add("ambient", work.sample, scaled(colour, work.weight), unique=True)  # (first hits: one each)
         nv = -dot(normal, dirs)  # N·V, the same for every light
         mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
         proven: np.ndarray | None = None  # the area light's points that see every sample, or none (culling)
@@ -360,8 +415,10 @@ class Renderer:
             wd, ws = phong(shininess, np.maximum(nl, 0.0) if opt.specular_behind else nl, rv, weight)
             add_phong(colour, em.color, diffuse, specular, wd, ws)
             if first and tally is not None and work is not None and tally.counts(e_index):
-                tally.add("diffuse", work.sample, scaled(em.color * scaled(diffuse, wd), work.weight))
-                tally.add("specular", work.sample, scaled(em.color * scaled(specular, ws), work.weight))
+                tally.add(tally.term("diffuse", e_index), work.sample,
+                          scaled(em.color * scaled(diffuse, wd), work.weight), unique=True)
+                tally.add(tally.term("specular", e_index), work.sample,
+                          scaled(em.color * scaled(specular, ws), work.weight), unique=True)
                 if tally.visible is not None:
                     np.add.at(tally.visible, work.sample, (weight > 0) & facing)
         if tally is not None and work is not None and work.branch is not None and work.depth > 0:
@@ -513,7 +570,7 @@ def _tally_misses(tally: Tally, work: Work, missed: np.ndarray, background: np.n
     if len(rows) == 0:
         return
     if work.depth == 0:
-        tally.add("background", work.sample[rows], work.weight[rows, None] * background)
+        tally.add("background", work.sample[rows], work.weight[rows, None] * background, unique=True)
         return
     assert work.branch is not None
     for branch, name in BRANCH_PASS.items():

@@ -8,7 +8,9 @@ gets it wrong; a grader renders the reference with it and compares.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, fields
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -69,3 +71,61 @@ VARIANTS: dict[str, tuple[Options, str]] = {
 #: the options of the mistake's far end.  An image with the mistake lies between the reference and that
 #: render, pixel by pixel, and departs from the reference in speckles.
 BOUNDS: dict[str, Options] = {"shadow-acne": Options(acne=True, acne_everywhere=True)}
+
+
+# -- variants a scene cannot show: the reference, bit for bit, without a render -----------------------------------
+
+def _lit(scene: Any) -> bool:
+    return any(light.type != "ambient" for light in scene.lights)
+
+
+def _materials(scene: Any, test: Callable[[Any], bool]) -> bool:
+    return any(test(m) for m in scene.materials.values())
+
+
+def _specular(scene: Any) -> bool:
+    return _lit(scene) and _materials(scene, lambda m: any(v != 0 for v in m.specular))
+
+
+def _bounces(scene: Any) -> bool:
+    return _materials(scene, lambda m: m.reflectance > 0 or m.transmittance > 0)
+
+
+#: per variant, whether a scene can show it: when not, the variant's render is the reference's, bit for bit.
+#: Each rule follows the one place the variant's option is read (tracer/render.py, lights.py, camera.py):
+UNCHANGED: dict[str, Callable[[Any], bool]] = {
+    # shadow rays are cast only towards a light that is not ambient
+    "no-shadows": lambda scene: not _lit(scene),
+    "shadow-acne": lambda scene: not _lit(scene),
+    # the specular term is k_s times a finite number: with every k_s zero (or no light to have one), another
+    # R·V (Blinn's), or a term behind the surface, adds exactly 0; where N·L > 0 nothing else changes
+    "blinn-phong": lambda scene: not _specular(scene),
+    "specular-behind": lambda scene: not _specular(scene),
+    "no-specular": lambda scene: not _specular(scene),
+    # no ambient light (or every k_a zero): the ambient term is k_a times 0, exactly the 0 the variant starts at
+    "no-ambient": lambda scene: not (any(light.type == "ambient" and any(v != 0 for v in light.color)
+                                         for light in scene.lights)
+                                     and _materials(scene, lambda m: any(v != 0 for v in m.ambient))),
+    # every point, spot and area light already falls off as (1, 0, 0)
+    "no-attenuation": lambda scene: all(tuple(light.attenuation) == (1.0, 0.0, 0.0) for light in scene.lights
+                                        if light.type in ("point", "spot", "area")),
+    # a square image: the view window's half-sizes are (1, 1) either way
+    "horizontal-fov": lambda scene: scene.image.width == scene.image.height,
+    # an area light of one sample is divided by 1 either way
+    "area-not-divided": lambda scene: all(light.samples[0] * light.samples[1] == 1 for light in scene.lights
+                                          if light.type == "area"),
+    "spot-radians": lambda scene: not any(light.type == "spot" for light in scene.lights),
+    # with no mirror or glass, no hit spawns a ray, so how deep the tree may go changes nothing
+    "depth-plus-one": lambda scene: not _bounces(scene),
+    "depth-minus-one": lambda scene: scene.image.max_depth == 0 or not _bounces(scene),
+    # η is read only where a refracted ray is spawned: no glass, no bounce, or ior 1 (1/1 is 1)
+    "ior-inverted": lambda scene: scene.image.max_depth == 0 or not _materials(
+        scene, lambda m: m.transmittance > 0 and m.ior != 1.0),
+}
+
+
+def unchanged(name: str, scene: Any) -> bool:
+    """Whether variant ``name`` (of :data:`VARIANTS`, or its far end in :data:`BOUNDS`) renders ``scene`` exactly
+    as the reference does, by the rules of :data:`UNCHANGED` (a variant without a rule: False)."""
+    rule = UNCHANGED.get(name)
+    return bool(rule is not None and rule(scene))
