@@ -175,13 +175,33 @@ def _render_file(scene_path: str, out: str) -> float:
     return time.perf_counter() - started
 
 
-def per_student_row(work: Path) -> dict[str, Any]:
+#: the mistakes a failing student of the per-student class made, in turn (each changes every task's image)
+MISTAKES = ("no-shadows", "blinn-phong", "no-ambient", "no-half-pixel")
+
+
+def failing(student: int, task: int, share: float) -> bool:
+    """Whether a student's image of a task is a failing one, for ``share`` of the pairs, spread over both."""
+    return (student * 7 + task * 3) % 100 < round(100 * share)
+
+
+def _render_wrong(scene_path: str, out: str, mistake: str) -> None:
+    """A failing student's image: the task's scene rendered with a classic mistake."""
+    import tracer
+    from tracer.variants import VARIANTS
+
+    scene = schemas.validate_scene(json.loads(Path(scene_path).read_text()))
+    Path(out).write_bytes(tracer.encode_png(tracer.Renderer(scene, VARIANTS[mistake][0]).pixels(threads=1)))
+
+
+def per_student_row(work: Path, share_failing: float = 0.0) -> dict[str, Any]:
     """80 students × 10 tasks at 320×240, every pair its own scene (800 distinct renders and comparisons),
     graded from scratch by ``grade-class`` with a process per core; beside it the same 800 renders alone in a
-    pool of as many processes (the floor that class grading cannot go below without a faster tracer)."""
+    pool of as many processes (the floor that class grading cannot go below without a faster tracer).  With
+    ``share_failing``, that share of the pairs is a student's mistake (:data:`MISTAKES`, in turn), and every
+    failing pair is diagnosed (cold: each has its own scene)."""
     from concurrent.futures import ProcessPoolExecutor
 
-    root = work / "per-student"
+    root = work / ("per-student" if not share_failing else f"per-student-failing-{share_failing:g}")
     scenes, subs, own = root / "scenes", root / "subs", root / "own"
     scenes.mkdir(parents=True)
     jobs = []
@@ -202,11 +222,18 @@ def per_student_row(work: Path) -> dict[str, Any]:
     with ProcessPoolExecutor(workers) as pool:
         per_render = list(pool.map(_render_file, *zip(*jobs)))
     floor = time.perf_counter() - started
+    wrong = [(scene, png, MISTAKES[k % len(MISTAKES)]) for k, (scene, png) in enumerate(jobs)
+             if failing(k % PER_STUDENT, k // PER_STUDENT, share_failing)]
+    if wrong:
+        with ProcessPoolExecutor(workers) as pool:
+            list(pool.map(_render_wrong, *zip(*wrong)))
     started = time.perf_counter()
     outcome = grade_class(scenes, subs, root / "report", student_scenes=own)
     seconds = time.perf_counter() - started
-    assert outcome.count("pass") == len(outcome.rows), outcome.summary()
+    assert outcome.count("fail") == len(wrong) and outcome.count("pass") == len(outcome.rows) - len(wrong), \
+        outcome.summary()
     pairs = len(outcome.rows)
-    return {"mode": "local, a scene per student", "pairs": pairs, "references": outcome.renders,
+    mode = "local, a scene per student" + (f", {100 * share_failing:.0f} % failing, diagnosed" if wrong else "")
+    return {"mode": mode, "pairs": pairs, "references": outcome.renders, "failing": len(wrong),
             "seconds": seconds, "pairs_per_s": pairs / seconds, "renders_alone_s": floor,
             "render_mean_s": sum(per_render) / len(per_render), "workers": workers}

@@ -8,7 +8,15 @@ a shared :class:`Board` (one slot per worker: its pid and its count, written
 by that worker alone), and a worker's event loop (:class:`BalancedLoop`)
 accepts a waiting connection only when no other live worker holds fewer
 (give or take a quarter of theirs, so that a flood is still taken at full
-speed).  Otherwise it stands aside, and the least-loaded worker takes it.
+speed), and, while workers hold few, when none that holds as many accepted
+less recently.  Otherwise it stands aside, and the least-loaded worker takes it.
+
+The last rule is for counts that lag: a worker counts a closed connection
+only when its event loop comes round to it, so for a moment after a client
+leaves, its worker still counts it.  If two clients then connect at once to a
+server whose workers count (1 stale, 0), the idle worker takes the first and
+the counts tie at (1, 1); on counts alone it would take the second too, but
+it has just accepted, so it stands aside for the other.
 
 A worker never waits on another for long: once it has stood aside for
 :data:`PATIENCE` seconds with a connection still waiting (the other worker
@@ -51,15 +59,17 @@ class Board:
     def __init__(self, path: str):
         self.path = path
         self._file = open(path, "r+b")  # noqa: SIM115 (held open for the life of the process)
-        self._map = mmap.mmap(self._file.fileno(), SLOTS * 16)
-        self._slots = np.frombuffer(self._map, dtype=np.int64).reshape(SLOTS, 2)  # (pid, open connections)
+        self._map = mmap.mmap(self._file.fileno(), SLOTS * 24)
+        #: per slot: pid, open connections, and the monotonic clock (ns, the same in every process) at its last
+        #: accept
+        self._slots = np.frombuffer(self._map, dtype=np.int64).reshape(SLOTS, 3)
         self.slot: int | None = None
 
     @staticmethod
     def create() -> Board:
         folder = "/dev/shm" if os.path.isdir("/dev/shm") else None
         fd, path = tempfile.mkstemp(prefix="phongray-balance-", dir=folder)
-        os.write(fd, bytes(SLOTS * 16))
+        os.write(fd, bytes(SLOTS * 24))
         os.close(fd)
         return Board(path)
 
@@ -70,7 +80,7 @@ class Board:
             for k in range(SLOTS):
                 pid = int(self._slots[k, 0])
                 if pid == 0 or not _alive(pid):
-                    self._slots[k] = (os.getpid(), 0)
+                    self._slots[k] = (os.getpid(), 0, 0)
                     self.slot = k
                     return
         finally:
@@ -79,6 +89,7 @@ class Board:
     def opened(self) -> None:
         if self.slot is not None:
             self._slots[self.slot, 1] += 1
+            self._slots[self.slot, 2] = time.monotonic_ns()
 
     def closed(self) -> None:
         if self.slot is not None and self._slots[self.slot, 1] > 0:
@@ -87,22 +98,26 @@ class Board:
     def my_turn(self) -> bool:
         """Whether this worker holds no more connections than every other live worker, give or take a quarter
         of theirs: exactly even while workers hold few (two clients on two workers), and free to accept at full
-        speed in a flood (hundreds of connections at once, which strict turns would take one by one)."""
+        speed in a flood (hundreds of connections at once, which strict turns would take one by one).  While
+        they hold few, a tie goes to the worker that accepted least recently (a count that lags behind a
+        closed connection then costs no client its own worker: see the module)."""
         if self.slot is None:
             return True
-        mine = int(self._slots[self.slot, 1])
+        mine, my_last = int(self._slots[self.slot, 1]), int(self._slots[self.slot, 2])
         for k in np.flatnonzero(self._slots[:, 0] > 0).tolist():
-            theirs = int(self._slots[k, 1])
-            if k != self.slot and mine > theirs + theirs // 4 and _alive(int(self._slots[k, 0])):
+            theirs, slack = int(self._slots[k, 1]), int(self._slots[k, 1]) // 4
+            if k == self.slot or mine < theirs or (0 < slack and mine <= theirs + slack):
+                continue
+            if (mine > theirs + slack or my_last > int(self._slots[k, 2])) and _alive(int(self._slots[k, 0])):
                 return False
         return True
 
     def counts(self) -> dict[int, int]:
         """Every claimed slot's pid and open connections (for tests)."""
-        return {int(pid): int(n) for pid, n in self._slots if pid > 0}
+        return {int(pid): int(n) for pid, n, _ in self._slots if pid > 0}
 
     def close(self) -> None:
-        self._slots = np.zeros((0, 2), dtype=np.int64)  # (drop the view before the map it points into)
+        self._slots = np.zeros((0, 3), dtype=np.int64)  # (drop the view before the map it points into)
         self._map.close()
         self._file.close()
 

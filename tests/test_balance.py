@@ -29,7 +29,9 @@ def test_a_board_counts_each_workers_connections_and_names_whose_turn_it_is():
             assert reader.counts() == {os.getpid(): 0, child.pid: 1}
             assert board.my_turn()  # 0 against 1
             board.opened()
-            assert board.my_turn()  # 1 against 1: either may take it
+            assert not board.my_turn()  # 1 against 1: the worker that accepted less recently (the child) takes it
+            board._slots[board.slot, 2] = 0
+            assert board.my_turn()  # 1 against 1, and this worker's last accept is the older
             board.opened()
             assert not board.my_turn()  # 2 against 1: the other worker's turn
             for _ in range(3):
@@ -79,22 +81,25 @@ def two_workers(tmp_path_factory):
 
 
 def test_two_kept_alive_clients_reach_two_workers(two_workers):
-    """Two clients that connect at the same moment, twenty times over: each time on two workers."""
-    for _ in range(20):
+    """Two clients that connect at the same moment, a hundred times over, each pair closed just before the next
+    connects (so that a worker may still count its last client): each time on two workers."""
+    for _ in range(100):
         conns = [http.client.HTTPConnection("127.0.0.1", two_workers, timeout=10) for _ in range(2)]
         barrier = threading.Barrier(2)
         reached: list[int] = []
 
         threads = [threading.Thread(target=_connect_at_once, args=(c, barrier, reached)) for c in conns]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
-        assert len(set(reached)) == 2, reached
-        for _ in range(3):  # and they stay there
-            assert sorted(_worker_of(c) for c in conns) == sorted(reached)
-        for c in conns:
-            c.close()
+        try:
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            assert len(set(reached)) == 2, reached
+            for _ in range(3):  # and they stay there
+                assert sorted(_worker_of(c) for c in conns) == sorted(reached)
+        finally:
+            for c in conns:
+                c.close()
 
 
 def test_more_clients_than_workers_are_all_answered_and_spread_evenly(two_workers):

@@ -170,8 +170,8 @@ def test_a_cluster_render_past_the_timeout_is_503_and_its_futures_are_cancelled(
 
     address, _ = dask
     data = scene_dict("03_soft_shadows")
-    data["image"].update(width=400, height=300)
-    with running_server(tmp_path, cluster=address, render_timeout="0.5") as (url, _):
+    data["image"].update(width=400, height=400, samples=2)  # about 3 s on one core, 15 times the timeout
+    with running_server(tmp_path, cluster=address, render_timeout="0.2") as (url, _):
         req = urllib.request.Request(url + "/render", json.dumps(data).encode(), {"content-type": "application/json"})
         started = time.monotonic()
         with pytest.raises(urllib.error.HTTPError) as answer:

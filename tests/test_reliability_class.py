@@ -305,8 +305,9 @@ def test_a_scene_over_the_cost_limit_stops_the_run_naming_the_file(tmp_path, cap
 
 
 def test_a_render_past_the_services_timeout_stops_the_run_naming_the_file(tmp_path, capsys, monkeypatch):
-    scenes, subs, _ = make_class(tmp_path, {"ada": b"x"}, data=tiny("02_all_lights", width=320, height=240, samples=2))
-    monkeypatch.setenv("PHONGRAY_RENDER_TIMEOUT", "0.2")  # the render takes about 2 s on one core
+    scenes, subs, _ = make_class(tmp_path, {"ada": b"x"}, data=tiny("02_all_lights", width=320, height=240, samples=6))
+    monkeypatch.setenv("PHONGRAY_RENDER_TIMEOUT", "0.2")  # the render would take several seconds on one core
+    monkeypatch.setenv("PHONGRAY_MAX_COST", "1e10")  # (the cost limit, met in the test above, is not this test's)
     started = time.monotonic()
     code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--jobs", "1"])
     said = one_line(capsys.readouterr().err)
@@ -559,7 +560,7 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
     from server import free_port
 
     scenes, subs, right = make_class(tmp_path, {"ada": b""})
-    slow = tiny("02_all_lights", width=320, height=240, samples=3)  # about 4 s on a worker thread
+    slow = tiny("03_soft_shadows", width=400, height=400, samples=2)  # about 3 s on a worker thread
     (scenes / "lamps.json").write_text(json.dumps(slow))
     (subs / "ada" / "lamps.png").write_bytes(right)
     key = scene_key(schemas.validate_scene(json.loads((scenes / "spheres.json").read_text())))

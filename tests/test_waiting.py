@@ -37,9 +37,9 @@ def healthz_ms(url: str) -> float:
     return 1000 * (time.perf_counter() - started)
 
 
-def slow_scene(size: int) -> bytes:
+def slow_scene(size: int, samples: int = 1) -> bytes:
     data = scene_dict("03_soft_shadows")
-    data["image"].update(width=size, height=size)
+    data["image"].update(width=size, height=size, samples=samples)
     return json.dumps(data).encode()
 
 
@@ -66,7 +66,7 @@ def test_identical_concurrent_requests_render_once_and_all_get_the_image(tmp_pat
 
 
 def test_a_timed_out_render_answers_all_its_waiters_once(tmp_path):
-    with running_server(tmp_path, render_threads="1", render_timeout="0.5") as (url, _):
-        statuses, _ = burst(url, slow_scene(400), 8)
+    with running_server(tmp_path, render_threads="1", render_timeout="0.2") as (url, _):
+        statuses, _ = burst(url, slow_scene(400, samples=2), 8)  # about 3 s on one core, 15 times the timeout
         assert statuses == [503] * 8
         assert health(url)["renders"] == 0
