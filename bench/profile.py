@@ -78,8 +78,19 @@ STAGES = [
     Stage("tracer.embree", "Bvh.any_hit", "Embree", _n_first),
     Stage("tracer.render", "through_point", "cones", lambda a, r: len(a[3])),
     Stage("tracer.render", "along_direction", "cones", lambda a, r: len(a[2])),
+    Stage("tracer.direct", "through_point", "cones", lambda a, r: len(a[3])),
+    Stage("tracer.direct", "along_direction", "cones", lambda a, r: len(a[2])),
     Stage("tracer.render", "resolve_material", "materials and checker", _n_out),
     Stage("tracer.render", "shading_normal", "shading normals", _n_out),
+    Stage("tracer.direct", "DirectLight.shade", "direct light", _n_out),
+    Stage("tracer.direct", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
+    Stage("tracer.direct", "illuminate", "shading", per_light=True),
+    Stage("tracer.direct", "light_in_plane", "shading", per_light=True),
+    Stage("tracer.direct", "phong", "shading", per_light=True),
+    Stage("tracer.direct", "add_phong", "shading", per_light=True),
+    Stage("tracer.direct", "DirectLight._area", "area light", per_light=True),
+    Stage("tracer.direct", "DirectLight.blocked", "shadow rays", _n_out, per_light=True),
+    # (an older tracer's, where direct light was the renderer's own: profiled when the bench runs it)
     Stage("tracer.render", "Renderer.direct", "direct light", _n_out),
     Stage("tracer.render", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
     Stage("tracer.render", "illuminate", "shading", per_light=True),
@@ -124,8 +135,10 @@ class Clock:
         self._charge()
         if stage.name == "illuminate":
             self.light = self.light_of.get(id(args[0]), "lights[?]")
-        elif stage.name == "Renderer._area_light":
+        elif stage.name == "Renderer._area_light":  # (an older tracer's, when profiling it)
             self.light = self.light_of.get(id(args[6][0]), "lights[?]")
+        elif stage.name == "DirectLight._area":
+            self.light = self.light_of.get(id(args[0]), "lights[?]")
         parent = self.stack[-1] if self.stack else ()
         if stage.per_light and parent[:1] == ("direct light",):
             parent = (self.light,)
@@ -196,9 +209,13 @@ def load(name: str, width: int | None, height: int | None) -> tuple[str, dict[st
 
 
 def light_labels(renderer: Renderer) -> dict[int, str]:
+    """Each emitter's and each light group's label, by id."""
     scene = renderer.scene
-    return {id(em): f"lights[{k}] {scene.lights[k].type}"
-            for em, k in zip(renderer.world.emitters, renderer.emitter_light.tolist())}
+    out = {id(em): f"lights[{k}] {scene.lights[k].type}"
+           for em, k in zip(renderer.world.emitters, renderer.emitter_light.tolist())}
+    for group in getattr(getattr(renderer, "shading", None), "groups", []):
+        out[id(group)] = f"lights[{group.light}] {scene.lights[group.light].type}"
+    return out
 
 
 def profile(data: dict[str, Any], runs: int = 3) -> dict[str, Any]:

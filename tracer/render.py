@@ -14,25 +14,25 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from functools import partial
 
 import numpy as np
 
-from schemas import AreaLight, Scene
+from schemas import Scene
 
 from .camera import CameraRays
 from .cones import along_direction, through_point
-from .culling import HIDDEN, MIXED, SEEN, Culled, bounds_of, classify
+from .culling import bounds_of
+from .direct import DirectLight, light_groups
 from .image import quantize
 from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
-from .lights import LIGHT_TYPES, Emitter, illuminate, light_samples
+from .lights import LIGHT_TYPES, light_samples
 from .passes import ADDITIVE, BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
-from .rays import Among, Rays, Shadows, Work
-from .shading import add_phong, light_in_plane, mirror, phong, refract, resolve_material, shading_normal
+from .rays import Among, Rays, Work
+from .shading import mirror, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
 from .variants import REFERENCE, Options
-from .vec import dot, minus, rows_of, scaled
-from .world import World, build_world, max_abs, unit
+from .vec import rows_of, scaled
+from .world import World, build_world, max_abs
 
 #: rays per chunk: large enough for NumPy to be efficient (and for its long loops, which let go of the GIL, to
 #: outweigh the interpreter's share), small enough to bound memory.  Measured on two threads: 2^16 is 12-25 %
@@ -51,10 +51,6 @@ MAX_PRIMARY_RAYS = 1 << 32
 #: a scene with at most this many spheres and triangles tests its camera rays and its point and directional
 #: lights' shadow rays against the surfaces their bounds allow (:mod:`tracer.cones`), with no walk
 CONE_MAX = 32
-
-#: a point faces away from every sample of an area light when N·(corner − P) is below this, relative to the
-#: magnitudes of the point and the corners, at every corner: far beyond the rounding of N·L (see _area_light)
-FACING_MARGIN = 2.0**-30
 
 #: the most point lights (lights plus area-light samples) one render will shade with
 MAX_LIGHT_SAMPLES = 1 << 20
@@ -81,6 +77,19 @@ class _Stop:
             raise RenderCancelled("the render was cancelled")
 
 
+class _RayCount:
+    """The rays cast so far, by kind (primary, shadow, secondary), counted from every thread.  Apart from the
+    renderer, as :class:`_Stop` is, so that the stages that count hold no reference back to it."""
+
+    def __init__(self) -> None:
+        self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
+        self._lock = threading.Lock()
+
+    def __call__(self, kind: str, n: int) -> None:
+        with self._lock:
+            self.counts[kind] += n
+
+
 class Renderer:
     """A scene prepared for tracing; :meth:`pixels` renders it.
 
@@ -102,8 +111,8 @@ class Renderer:
         self.scene = scene
         self._stop = _Stop()
         self.slice_rays = CHUNK_RAYS
-        self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
-        self._count_lock = threading.Lock()
+        self._count = _RayCount()
+        self.counts = self._count.counts
         #: how this render departs from the format (a variant, :mod:`tracer.variants`); the reference by default
         self.options = options
         self.max_depth = max(0, img.max_depth + options.depth_offset)
@@ -115,25 +124,17 @@ class Renderer:
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin, options.half_pixel,
                                      options.vertical_fov)
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
-            #: each area light's parallelogram (local corners in order round it), by its first emitter
-            self.areas = self._areas(scene)
-            self.bounds = bounds_of(self.world) if self.areas and options.shadows and not options.acne else None
+            groups = light_groups(scene, self.world.origin)
+            areas = any(g.corners is not None for g in groups)
             #: the surfaces as bounds for camera and shadow rays through one point or along one direction
             #: (:mod:`tracer.cones`), in scenes of at most CONE_MAX spheres and triangles
             spheres_and_triangles = len(self.world.spheres.radius) + len(self.world.triangles.v0)
             self.cone_bounds = bounds_of(self.world) if spheres_and_triangles <= CONE_MAX else None
+            self.shading = DirectLight(
+                self.world, options, self.intersector, groups,
+                bounds_of(self.world) if areas and options.shadows and not options.acne else None,
+                self.cone_bounds, self._stop, self._count)
         self.intersector.check = self._stop
-
-    def _areas(self, scene: Scene) -> dict[int, tuple[int, np.ndarray]]:
-        out: dict[int, tuple[int, np.ndarray]] = {}
-        first = 0
-        for light, count in zip(scene.lights, (LIGHT_TYPES[type(lt)].count(lt) for lt in scene.lights)):
-            if isinstance(light, AreaLight):
-                c = np.asarray(light.corner, dtype=np.float64) - self.world.origin
-                u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
-                out[first] = (count, np.stack([c, c + u, c + u + v, c + v]))
-            first += count
-        return out
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
@@ -323,8 +324,8 @@ class Renderer:
                 normal = shading_normal(self.world, hit, dd, self.options.flip_normals)
                 if tally is not None and work.depth == 0:
                     _tally_first_hits(tally, self.world, hit, done, normal)
-                _accumulate(acc, done.sample, scaled(self.direct(hit, mat, normal, dd, tally, done), done.weight),
-                            ceiling, fixed, once)
+                colour = self.shading.shade(hit, mat, normal, dd, tally, done)
+                _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once)
                 if work.depth == self.max_depth:
                     continue
                 children = self.secondary(hit, mat, normal, done)
@@ -333,206 +334,6 @@ class Renderer:
                     stack.append(children)
             per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
-
-    def _count(self, kind: str, n: int) -> None:
-        with self._count_lock:
-            self.counts[kind] += n
-
-    def direct(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray,
-               tally: Tally | None = None, work: Work | None = None) -> np.ndarray:
-        """Ambient plus every light's Phong term where the light reaches the hit points. Shape (N, 3).
-
-        Per light: L, d and the intensity factor at every point; one batch of
-        shadow rays for the points that face the light; then Phong over all
-        points with the unreached ones weighted zero (cheaper than gathering).
-        With a ``tally`` (and the ``work`` the hits came from), the terms go to
-        their passes too.
-        """
-        m, opt = self.world.materials, self.options
-        # (N, 3) arrays whose columns are contiguous: every light adds to them a column at a time (add_phong)
-        colour = np.asfortranarray(rows_of(m.ambient, mat) * self.world.ambient)
-        if not opt.ambient:
-            colour = np.zeros_like(colour)
-        diffuse, specular = np.asfortranarray(rows_of(m.diffuse, mat)), np.asfortranarray(rows_of(m.specular, mat))
-        shininess = m.shininess[mat]
-        if not opt.specular:
-            specular = np.zeros_like(specular)
-        first = tally is not None and work is not None and work.depth == 0
-        if first:
-            assert tally is not None and work is not None
-            tally.add("ambient", work.sample, scaled(colour, work.weight), unique=True)  # (first hits: one each)
-        nv = -dot(normal, dirs)  # N·V, the same for every light
-        mag_points = max_abs(hit.point) + self.world.origin_mag  # every light's shadow rays start there
-        proven: np.ndarray | None = None  # the area light's points that see every sample, or none (culling)
-        group_end = 0
-        for e_index, em in enumerate(self.world.emitters):
-            if e_index < group_end and proven is None:
-                continue  # (an area light's samples shaded by _area_light)
-            if e_index >= group_end:
-                proven, group_end = None, e_index + 1
-                area = self.areas.get(e_index)
-                if area is not None and self.bounds is not None and len(hit.t) > 0:
-                    group_end = e_index + area[0]
-                    culled = classify(self.bounds, hit.point, hit.kind, hit.index, normal, area[1])
-                    if tally is None and not opt.specular_behind:
-                        self._area_light(hit, normal, dirs, nv, mag_points, (colour, diffuse, specular, shininess),
-                                         self.world.emitters[e_index:group_end], culled, area[1])
-                        continue
-                    proven = culled.state
-            self._stop()  # a long chunk (many lights) stops early too
-            mag_light = max_abs(em.position[None]) + self.world.origin_mag
-            if not np.any(em.color > 0):
-                continue
-            to_light, dist, factor = illuminate(em, hit.point)
-            nl = light_in_plane(self.world, hit, em, dot(normal, to_light), dist)
-            facing = nl > 0
-            lit = (facing | opt.specular_behind) & (factor > 0)
-            if proven is not None:  # by proof: every sample seen, or none; the rest cast their rays
-                weight = np.where(lit & (proven == SEEN), factor, 0.0)
-                lit &= proven == MIXED
-            rows = np.flatnonzero(lit)
-            if len(rows) == 0 and proven is None:
-                continue
-            every = len(rows) == len(nl)  # then no gathering: the rows are all of them, in order
-
-            def pick(a: np.ndarray, every: bool = every, rows: np.ndarray = rows) -> np.ndarray:
-                return a if every else rows_of(a, rows)
-
-            if len(rows):
-                self._count("shadow", len(rows))
-                blocked = self._blocked(hit, pick, to_light, dist, em, mag_points, mag_light, normal, len(rows))
-                if proven is not None:
-                    weight[rows] = np.where(blocked, 0.0, factor[rows])
-                elif every:
-                    weight = np.where(blocked, 0.0, factor)
-                else:
-                    weight = np.zeros(len(nl))
-                    weight[rows] = np.where(blocked, 0.0, factor[rows])
-            if opt.blinn:  # N·H with H = unit(L + V), V = −D
-                rv = dot(normal, unit(to_light - dirs))
-            else:
-                rv = 2.0 * nl * nv + dot(to_light, dirs)  # R·V with R = 2(N·L)N − L, V = −D
-            wd, ws = phong(shininess, np.maximum(nl, 0.0) if opt.specular_behind else nl, rv, weight)
-            add_phong(colour, em.color, diffuse, specular, wd, ws)
-            if first and tally is not None and work is not None and tally.counts(e_index):
-                tally.add(tally.term("diffuse", e_index), work.sample,
-                          scaled(em.color * scaled(diffuse, wd), work.weight), unique=True)
-                tally.add(tally.term("specular", e_index), work.sample,
-                          scaled(em.color * scaled(specular, ws), work.weight), unique=True)
-                if tally.visible is not None:
-                    np.add.at(tally.visible, work.sample, (weight > 0) & facing)
-        if tally is not None and work is not None and work.branch is not None and work.depth > 0:
-            for branch, name in BRANCH_PASS.items():
-                sel = np.flatnonzero(work.branch == branch)
-                if name is not None and len(sel):
-                    tally.add(name, work.sample[sel], scaled(colour[sel], work.weight[sel]))
-        return colour
-
-    def _area_light(self, hit: Hits, normal: np.ndarray, dirs: np.ndarray, nv: np.ndarray, mag_points: np.ndarray,
-                    terms: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], samples: list[Emitter],
-                    culled: Culled, corners: np.ndarray) -> None:
-        """One area light's ``samples`` added to ``colour`` (of ``terms``: colour, k_d, k_s and shininess per
-        hit) in place, as :meth:`direct` adds each emitter, with two shortcuts of its culling (``culled``).
-
-        **Points no sample can light are not shaded.**  A point proven HIDDEN gets weight 0 from every
-        sample, and so does a point whose normal faces away from all four ``corners`` by more than rounding
-        (N·(S − P) is linear in the sample S, so it is negative over the whole parallelogram, and N·L ≤ 0 at
-        every sample).  With weight 0 and finite N·L (finite points, normals and distances: asked for), each
-        term :meth:`direct` would add is ±0, which leaves a colour as it is.  Every other point is shaded with
-        the same operations on the same numbers, so its colour keeps its bits.
-
-        **A mixed point's shadow rays meet only the bounds that may block it** (``culled.may_block``, the
-        proof in :mod:`tracer.culling`): the walk is replaced by the exact tests of those surfaces
-        (:meth:`tracer.intersect.Intersector.occluded`, ``among``), which decide the same."""
-        colour, diffuse, specular, shininess = terms
-        p = hit.point
-        scale = max_abs(p) + float(np.max(np.abs(corners)))
-        towards = [dot(normal, minus(c, p)) for c in corners]
-        faces_some = np.maximum(np.maximum(towards[0], towards[1]), np.maximum(towards[2], towards[3]))
-        finite = np.isfinite(faces_some) & (scale < 1e300) & np.isfinite(dot(normal, normal))
-        idle = finite & ((culled.state == HIDDEN) | (faces_some < -FACING_MARGIN * scale))
-        active = np.flatnonzero(~idle)
-        if len(active) == 0:
-            return
-        every = len(active) == len(p)
-        if every:
-            sub, n_a, d_a, nv_a, mag_a = hit, normal, dirs, nv, mag_points
-            col_a, dif_a, spec_a, shin_a, state = colour, diffuse, specular, shininess, culled.state
-        else:
-            sub, n_a, d_a, nv_a, mag_a = hit.take(active), rows_of(normal, active), rows_of(dirs, active), \
-                nv[active], mag_points[active]
-            col_a, dif_a, spec_a = (np.asfortranarray(rows_of(a, active)) for a in (colour, diffuse, specular))
-            shin_a, state = shininess[active], culled.state[active]
-        seen, mixed = state == SEEN, state == MIXED
-        # every (mixed point, bound that may block it) pair
-        m_rows = np.flatnonzero(mixed)
-        assert self.bounds is not None
-        pairs = Among.of(self.bounds.kind, self.bounds.index,
-                         culled.may_block[:, active[m_rows]] if not every else culled.may_block[:, m_rows])
-        pair_point = m_rows[pairs.rows]
-        rank = np.full(len(active), -1, dtype=np.int64)
-        for em in samples:
-            self._stop()
-            mag_light = max_abs(em.position[None]) + self.world.origin_mag
-            if not np.any(em.color > 0):
-                continue
-            to_light, dist, factor = illuminate(em, sub.point)
-            nl = light_in_plane(self.world, sub, em, dot(n_a, to_light), dist)
-            lit = (nl > 0) & (factor > 0)
-            weight = np.where(lit & seen, factor, 0.0)
-            rows = np.flatnonzero(lit & mixed)
-            if len(rows):
-                self._count("shadow", len(rows))
-                rank[rows] = np.arange(len(rows))
-                ray = rank[pair_point]
-                chosen = ray >= 0
-                rank[rows] = -1
-                among = Among(ray[chosen], pairs.kind[chosen], pairs.index[chosen])
-                blocked = self._blocked(sub, partial(rows_of, index=rows), to_light, dist, em, mag_a, mag_light, n_a,
-                                        len(rows), among)
-                weight[rows] = np.where(blocked, 0.0, factor[rows])
-            if self.options.blinn:  # N·H with H = unit(L + V), V = −D
-                rv = dot(n_a, unit(to_light - d_a))
-            else:
-                rv = 2.0 * nl * nv_a + dot(to_light, d_a)  # R·V with R = 2(N·L)N − L, V = −D
-            wd, ws = phong(shin_a, nl, rv, weight)
-            add_phong(col_a, em.color, dif_a, spec_a, wd, ws)
-        if not every:
-            for c in range(3):
-                colour[active, c] = col_a[:, c]
-
-    def _blocked(self, hit: Hits, pick: Callable[[np.ndarray], np.ndarray], to_light: np.ndarray,
-                 dist: np.ndarray, em: Emitter, mag_points: np.ndarray, mag_light: np.ndarray,
-                 normal: np.ndarray, n: int, among: Among | None = None) -> np.ndarray:
-        """Whether a shadow ray from each picked hit point to the light ``em`` is blocked. Shape (n,).  With
-        ``among``, the proof that only those pairs of rays and surfaces can block
-        (:meth:`tracer.intersect.Intersector.occluded`); without, rays to a point light or along a directional
-        light's direction take theirs from :mod:`tracer.cones` when the scene has few enough surfaces."""
-        opt = self.options
-        if not opt.shadows:
-            return np.zeros(n, dtype=bool)
-        shadow_dirs = np.ascontiguousarray(pick(to_light))
-        # from the exact hit point, leaving its surface by identity, to the light itself
-        rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(mag_points))
-        if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
-            below = np.ones(n, dtype=bool) if opt.acne_everywhere else \
-                ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
-            lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
-            rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
-        bounds, tris = self.cone_bounds, self.world.triangles
-        cones = among is None and bounds is not None and not opt.acne
-        if em.kind == "directional":
-            shadows = Shadows(rays, np.full(n, np.inf), None, None)
-            if cones:
-                assert bounds is not None
-                among = along_direction(bounds, tris, rays.origins, -em.direction)
-        else:
-            shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
-            if cones:
-                assert bounds is not None
-                longest = float(np.max(shadows.reach, initial=0.0))
-                among = through_point(bounds, tris, em.position, shadow_dirs, False, longest)
-        return self.intersector.occluded(shadows, among)
 
     def _camera_among(self, rays: Rays) -> Among | None:
         """The surfaces each camera ray may meet (:mod:`tracer.cones`), when the scene has few enough: from the

@@ -1,0 +1,352 @@
+"""Direct light at hit points: the ambient term, then every light's Phong terms where the light reaches.
+
+A light is one :class:`LightGroup` of emitters (:mod:`tracer.lights`): a
+point light, a spot or a directional light is one emitter, an area light its
+grid of samples, all of one colour.  For each emitter: L, d and the intensity
+factor at every point, shadow rays for the points it may light, and the
+weights of the diffuse and the specular term, ``wd = w·(N·L)`` and
+``ws = w·max(0, R·V)^n`` (``w`` the factor where the emitter reaches the
+point, 0 elsewhere).  A light's weights are summed over its emitters, and its
+colour is added once: ``color·(k_d·Σwd + k_s·Σws)``, the contract's sum over
+an area light's samples of ``color/(nu·nv)·(k_d·(N·L) + k_s·(R·V)^n)``
+gathered into one product per light (the same value to within rounding: a
+light of one emitter gets exactly its own term).
+
+Shadow rays run from the exact hit point, leaving its surface by identity,
+to the light (:meth:`DirectLight.blocked`).  Two proofs spare them: in a scene
+of few surfaces, a point or directional light's rays are tested only against
+the surfaces their bounds allow (:mod:`tracer.cones`), and an area light's
+points are sorted by :mod:`tracer.culling` into those that see every sample,
+none, or some, whose rays meet only the surfaces that may block them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+
+from schemas import AreaLight, Scene
+
+from .cones import along_direction, through_point
+from .culling import HIDDEN, MIXED, SEEN, Bounds, classify
+from .intersect import MISS, Hits, Intersector
+from .lights import LIGHT_TYPES, Emitter, illuminate
+from .passes import BRANCH_PASS, Tally
+from .rays import Among, Rays, Shadows, Work
+from .shading import add_phong, light_in_plane, phong
+from .variants import Options
+from .vec import columns, dot, minus, rows_of, scaled
+from .world import World, max_abs, unit
+
+#: a point faces away from every sample of an area light when N·(corner − P) is below this, relative to the
+#: magnitudes of the point and the corners, at every corner: far beyond the rounding of N·L (see
+#: :meth:`DirectLight._area`)
+FACING_MARGIN = 2.0**-30
+
+
+@dataclass(frozen=True)
+class LightGroup:
+    """One light of the scene as the emitters ``first..end − 1`` it became (all of one colour)."""
+
+    light: int  # its index in ``scene.lights``
+    first: int
+    end: int
+    #: an area light's parallelogram: its four local corners, in order round it; None for the other lights
+    corners: np.ndarray | None = None
+
+
+def light_groups(scene: Scene, origin: np.ndarray) -> list[LightGroup]:
+    """The scene's lights that emit (every type but ambient), in order, with their emitters' span."""
+    groups, first = [], 0
+    for k, light in enumerate(scene.lights):
+        count = LIGHT_TYPES[type(light)].count(light)
+        if count:
+            corners = None
+            if isinstance(light, AreaLight):
+                c = np.asarray(light.corner, dtype=np.float64) - origin
+                u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
+                corners = np.stack([c, c + u, c + u + v, c + v])
+            groups.append(LightGroup(k, first, first + count, corners))
+        first += count
+    return groups
+
+
+@dataclass
+class Points:
+    """The hit points being shaded, with what every light's terms read: the facing shading ``normal``, the
+    rays' ``dirs``, N·V and the points' world magnitudes (where their shadow rays start), each per point."""
+
+    hit: Hits
+    normal: np.ndarray  # (N, 3), columns contiguous
+    dirs: np.ndarray  # (N, 3)
+    nv: np.ndarray  # (N,) N·V with V = −D
+    mag: np.ndarray  # (N,)
+    shininess: np.ndarray  # (N,)
+
+    def take(self, rows: np.ndarray) -> Points:
+        return Points(self.hit.take(rows), rows_of(self.normal, rows), rows_of(self.dirs, rows), self.nv[rows],
+                      self.mag[rows], self.shininess[rows])
+
+
+#: a light's terms at the points: Σwd, Σws and, when asked for, how many emitters reach each point and face it
+Terms = tuple[np.ndarray, np.ndarray, np.ndarray | None]
+
+
+class DirectLight:
+    """The direct-light stage of a renderer: :meth:`shade` gives the colour of hit points."""
+
+    def __init__(self, world: World, options: Options, intersector: Intersector, groups: list[LightGroup],
+                 bounds: Bounds | None, cone_bounds: Bounds | None, stop: Callable[[], None],
+                 count: Callable[[str, int], None]):
+        self.world, self.options, self.intersector, self.groups = world, options, intersector, groups
+        #: the surfaces as bounds for an area light's culling (None: every point casts every sample's ray)
+        self.bounds = bounds
+        #: the surfaces as bounds for rays through one point or along one direction (:mod:`tracer.cones`)
+        self.cone_bounds = cone_bounds
+        self.stop, self.count = stop, count
+
+    def shade(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray, tally: Tally | None = None,
+              work: Work | None = None) -> np.ndarray:
+        """Ambient plus every light's Phong term where the light reaches the hit points. Shape (N, 3).
+
+        With a ``tally`` (and the ``work`` the hits came from), the terms go to their passes too.
+        """
+        m, opt = self.world.materials, self.options
+        # (N, 3) arrays whose columns are contiguous: every light adds to them a column at a time (add_phong)
+        colour = np.asfortranarray(rows_of(m.ambient, mat) * self.world.ambient)
+        if not opt.ambient:
+            colour = np.zeros_like(colour)
+        diffuse, specular = np.asfortranarray(rows_of(m.diffuse, mat)), np.asfortranarray(rows_of(m.specular, mat))
+        if not opt.specular:
+            specular = np.zeros_like(specular)
+        first = tally is not None and work is not None and work.depth == 0
+        if first:
+            assert tally is not None and work is not None
+            tally.add("ambient", work.sample, scaled(colour, work.weight), unique=True)  # (first hits: one each)
+        # N·V, the same for every light; the magnitudes where every light's shadow rays start
+        at = Points(hit, normal, dirs, -dot(normal, dirs), max_abs(hit.point) + self.world.origin_mag,
+                    m.shininess[mat])
+        for group in self.groups:
+            self.stop()  # a long chunk (many lights) stops early too
+            color = self.world.emitters[group.first].color
+            if not np.any(color > 0):
+                continue
+            counted = first and tally is not None and tally.counts(group.first)
+            visible = counted and tally is not None and tally.visible is not None
+            if group.corners is not None:
+                terms = self._area(group, at, visible)
+            else:
+                terms = self._one(self.world.emitters[group.first], at, visible)
+            if terms is None:
+                continue
+            wd, ws, reached = terms
+            add_phong(colour, color, diffuse, specular, wd, ws)
+            if counted:
+                assert tally is not None and work is not None
+                tally.add(tally.term("diffuse", group.first), work.sample,
+                          scaled(color * scaled(diffuse, wd), work.weight), unique=True)
+                tally.add(tally.term("specular", group.first), work.sample,
+                          scaled(color * scaled(specular, ws), work.weight), unique=True)
+                if reached is not None:
+                    assert tally.visible is not None
+                    np.add.at(tally.visible, work.sample, reached)
+        if tally is not None and work is not None and work.branch is not None and work.depth > 0:
+            for branch, name in BRANCH_PASS.items():
+                sel = np.flatnonzero(work.branch == branch)
+                if name is not None and len(sel):
+                    tally.add(name, work.sample[sel], scaled(colour[sel], work.weight[sel]))
+        return colour
+
+    # -- one emitter: a point light, a spot or a directional light ----------------------------------------------
+    def _one(self, em: Emitter, at: Points, visible: bool) -> Terms | None:
+        """The terms of a light of one emitter at every point, or None where it reaches none."""
+        opt, hit = self.options, at.hit
+        to_light, dist, factor = illuminate(em, hit.point)
+        nl = light_in_plane(self.world, hit, em, dot(at.normal, to_light), dist)
+        facing = nl > 0
+        lit = (facing | opt.specular_behind) & (factor > 0)
+        rows = np.flatnonzero(lit)
+        if len(rows) == 0:
+            return None
+        every = len(rows) == len(nl)  # then no gathering: the rows are all of them, in order
+
+        def pick(a: np.ndarray) -> np.ndarray:
+            return a if every else rows_of(a, rows)
+
+        self.count("shadow", len(rows))
+        blocked = self.blocked(hit, pick, to_light, dist, em, at.mag, at.normal, len(rows))
+        if every:
+            weight = np.where(blocked, 0.0, factor)
+        else:
+            weight = np.zeros(len(nl))
+            weight[rows] = np.where(blocked, 0.0, factor[rows])
+        wd, ws = phong(at.shininess, np.maximum(nl, 0.0) if opt.specular_behind else nl,
+                       self._rv(at.normal, nl, at.nv, to_light, at.dirs), weight)
+        return wd, ws, ((weight > 0) & facing) if visible else None
+
+    def _rv(self, normal: np.ndarray, nl: np.ndarray, nv: np.ndarray, to_light: np.ndarray,
+            dirs: np.ndarray) -> np.ndarray:
+        """R·V with R = 2(N·L)N − L and V = −D, or N·H with H = unit(L + V) for Blinn–Phong (a variant)."""
+        if self.options.blinn:
+            return dot(normal, unit(to_light - dirs))
+        return 2.0 * nl * nv + dot(to_light, dirs)
+
+    # -- an area light: its samples, with the culling's proofs -------------------------------------------------
+    def _area(self, group: LightGroup, at: Points, visible: bool) -> Terms | None:
+        """An area light's terms at every point, summed over its samples, or None where it reaches none.
+
+        **Points no sample can light are not shaded.**  A point proven HIDDEN (:mod:`tracer.culling`) gets
+        weight 0 from every sample, and so does a point whose normal faces away from all four corners by more
+        than rounding (N·(S − P) is linear in the sample S, so it is negative over the whole parallelogram,
+        and N·L ≤ 0 at every sample; not so for the variant that lights a point from behind).  Weight 0 at
+        finite N·L (finite points, normals and distances: asked for) makes both terms 0, which is what such a
+        point is given.
+
+        **A point that sees every sample casts no shadow ray** (SEEN), and **a mixed point's shadow rays meet
+        only the bounds that may block it** (``may_block``, the proof in :mod:`tracer.culling`): the walk is
+        replaced by the exact tests of those surfaces (:meth:`tracer.intersect.Intersector.occluded`,
+        ``among``), which decide the same.  Without bounds (too many surfaces, or a variant's shadow rays)
+        every point is mixed and casts every ray.
+
+        The points shaded are taken once, those that see every sample first, and each sample's terms are
+        computed into buffers of theirs (the same operations as :meth:`_one` makes per emitter, and
+        the same shadow rays)."""
+        opt, hit, corners = self.options, at.hit, group.corners
+        assert corners is not None
+        n = len(hit.t)
+        if n == 0:
+            return None
+        if self.bounds is not None:
+            culled = classify(self.bounds, hit.point, hit.kind, hit.index, at.normal, corners)
+            state, may_block = culled.state, culled.may_block
+            idle = state == HIDDEN
+        else:
+            state, may_block, idle = np.full(n, MIXED, dtype=np.int8), None, np.zeros(n, dtype=bool)
+        if not opt.specular_behind:
+            idle |= _faces_away(hit.point, at.normal, corners)
+        seen_rows = np.flatnonzero(~idle & (state == SEEN))
+        mixed_rows = np.flatnonzero(~idle & (state == MIXED))
+        ns, m = len(seen_rows), len(seen_rows) + len(mixed_rows)
+        if m == 0:
+            return None
+        active = np.concatenate([seen_rows, mixed_rows])
+        every = m == n and (ns == 0 or ns == n)  # the points in their own order: no gathering
+        sub = at if every else at.take(active)
+        among: Among | None = None
+        if may_block is not None and len(mixed_rows):  # every (mixed point, bound that may block it) pair
+            assert self.bounds is not None
+            among = Among.of(self.bounds.kind, self.bounds.index, may_block[:, mixed_rows])
+        point = sub.hit.point
+        to_light, dist, tmp = columns(m), np.empty(m), np.empty(m)
+        sum_d, sum_s = np.zeros(m), np.zeros(m)
+        reached = np.zeros(m, dtype=np.int64) if visible else None
+        rank = np.full(m, -1, dtype=np.int64)
+        for em in self.world.emitters[group.first:group.end]:
+            self.stop()
+            # L, d and the factor, as illuminate() computes them, into this light's buffers
+            for k in range(3):
+                np.subtract(em.position[k], point[:, k], out=to_light[:, k])
+            np.multiply(to_light[:, 0], to_light[:, 0], out=dist)
+            for k in (1, 2):
+                np.multiply(to_light[:, k], to_light[:, k], out=tmp)
+                dist += tmp
+            np.sqrt(dist, out=dist)
+            factor = _factor(em, dist, tmp)
+            for k in range(3):
+                to_light[:, k] /= tmp
+            nl = light_in_plane(self.world, sub.hit, em, dot(sub.normal, to_light), dist)
+            facing = nl > 0
+            lit = (facing | opt.specular_behind) & (factor > 0)
+            weight = np.where(lit, factor, 0.0)
+            rows = ns + np.flatnonzero(lit[ns:])  # the mixed points' shadow rays; the seen points see it
+            if len(rows):
+                self.count("shadow", len(rows))
+                pairs = None
+                if among is not None:  # the pairs of the rays cast, numbered as they are
+                    rank[rows] = np.arange(len(rows))
+                    ray = rank[ns + among.rows]
+                    chosen = ray >= 0
+                    rank[rows] = -1
+                    pairs = Among(ray[chosen], among.kind[chosen], among.index[chosen])
+                blocked = self.blocked(sub.hit, partial(rows_of, index=rows), to_light, dist, em, sub.mag,
+                                       sub.normal, len(rows), pairs)
+                weight[rows[blocked]] = 0.0
+            wd, ws = phong(sub.shininess, np.maximum(nl, 0.0) if opt.specular_behind else nl,
+                           self._rv(sub.normal, nl, sub.nv, to_light, sub.dirs), weight)
+            sum_d += wd
+            sum_s += ws
+            if reached is not None:
+                reached += (weight > 0) & facing
+        if every:
+            return sum_d, sum_s, reached
+        out_d, out_s = np.zeros(n), np.zeros(n)
+        out_d[active], out_s[active] = sum_d, sum_s
+        out_r = None
+        if reached is not None:
+            out_r = np.zeros(n, dtype=np.int64)
+            out_r[active] = reached
+        return out_d, out_s, out_r
+
+    # -- shadow rays -------------------------------------------------------------------------------------------
+    def blocked(self, hit: Hits, pick: Callable[[np.ndarray], np.ndarray], to_light: np.ndarray, dist: np.ndarray,
+                em: Emitter, mag_points: np.ndarray, normal: np.ndarray, n: int,
+                among: Among | None = None) -> np.ndarray:
+        """Whether a shadow ray from each picked hit point to the light ``em`` is blocked. Shape (n,).  With
+        ``among``, the proof that only those pairs of rays and surfaces can block
+        (:meth:`tracer.intersect.Intersector.occluded`); without, rays to a point light or along a directional
+        light's direction take theirs from :mod:`tracer.cones` when the scene has few enough surfaces."""
+        opt = self.options
+        if not opt.shadows:
+            return np.zeros(n, dtype=bool)
+        shadow_dirs = np.ascontiguousarray(pick(to_light))
+        # from the exact hit point, leaving its surface by identity, to the light itself
+        rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(mag_points))
+        if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
+            below = np.ones(n, dtype=bool) if opt.acne_everywhere else \
+                ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
+            lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
+            rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
+        bounds, tris = self.cone_bounds, self.world.triangles
+        cones = among is None and bounds is not None and not opt.acne
+        if em.kind == "directional":
+            shadows = Shadows(rays, np.full(n, np.inf), None, None)
+            if cones:
+                assert bounds is not None
+                among = along_direction(bounds, tris, rays.origins, -em.direction)
+        else:
+            mag_light = max_abs(em.position[None]) + self.world.origin_mag
+            shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
+            if cones:
+                assert bounds is not None
+                longest = float(np.max(shadows.reach, initial=0.0))
+                among = through_point(bounds, tris, em.position, shadow_dirs, False, longest)
+        return self.intersector.occluded(shadows, among)
+
+
+def _factor(em: Emitter, dist: np.ndarray, safe: np.ndarray) -> np.ndarray | float:
+    """An emitter's intensity factor at distances ``dist``, as :func:`tracer.lights.illuminate` gives it (a
+    point or area light: no cone), and the distances to divide ``L`` by into ``safe`` (1 where d = 0)."""
+    np.copyto(safe, dist)
+    shortest = float(dist.min(initial=np.inf))
+    if not shortest > 0:
+        safe[dist <= 0] = 1.0
+    c, lin, q = em.attenuation
+    if lin == 0 and q == 0:  # c + 0·d + (0·d)·d is c wherever d is finite (at d = ∞, NaN: no light)
+        if shortest > 0 and float(dist.max(initial=0.0)) < np.inf:
+            return 1.0 / c if c > 0 else 0.0
+        return np.where((dist > 0) & (dist < np.inf), 1.0 / c if c > 0 else 0.0, 0.0)
+    denom = c + lin * dist + q * dist * dist
+    return np.where((dist > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
+
+
+def _faces_away(p: np.ndarray, normal: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Points whose normal faces away from all four corners by more than rounding (and whose numbers are
+    finite). Shape (N,), bool."""
+    scale = max_abs(p) + float(np.max(np.abs(corners)))
+    towards = [dot(normal, minus(c, p)) for c in corners]
+    faces_some = np.maximum(np.maximum(towards[0], towards[1]), np.maximum(towards[2], towards[3]))
+    finite = np.isfinite(faces_some) & (scale < 1e300) & np.isfinite(dot(normal, normal))
+    return finite & (faces_some < -FACING_MARGIN * scale)
