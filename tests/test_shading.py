@@ -120,3 +120,31 @@ def test_total_internal_reflection_mirrors():
     d = np.array([[math.sin(math.radians(60)), math.cos(math.radians(60)), 0]])  # leaving: D·n > 0
     t = refract(d, np.array([[0.0, 1, 0]]), np.array([1.5]))
     np.testing.assert_allclose(t, [[d[0, 0], -d[0, 1], 0]], atol=1e-15)
+
+
+# -- which emitters a flat surface's plane holds: where light_in_plane need not be called ---------------------------
+
+def test_an_emitter_no_plane_holds_leaves_every_n_dot_l_as_it_is():
+    """planes_holding decides per surface what light_in_plane decides per hit: where it says no flat surface
+    holds an emitter, light_in_plane changes no N·L of any hit; and it finds the lights that do lie in one."""
+    from tracer.shading import light_in_plane, planes_holding
+    from tracer.vec import dot
+
+    import generator
+
+    held = 0
+    for seed in range(120):
+        _, data = generator.scene(seed, 12, 9, family="lights" if seed % 2 else None)
+        r = Renderer(schemas.validate_scene(data))
+        cam = r.camera.rays(0, 12 * 9)
+        hits = r.intersector.closest(r.intersector.rays(*cam))
+        hits = hits.take(np.flatnonzero(hits.kind != 0))
+        holds = planes_holding(r.world, r.world.emitters)
+        held += int(holds.sum())
+        for e, em in enumerate(r.world.emitters):
+            to_light = em.position - hits.point if em.kind != "directional" else -em.direction[None]
+            dist = np.sqrt(dot(to_light, to_light)) if em.kind != "directional" else np.full(len(hits.t), np.inf)
+            nl = dot(hits.normal, to_light / (dist[:, None] if em.kind != "directional" else 1.0))
+            if not holds[e]:
+                assert light_in_plane(r.world, hits, em, nl, dist) is nl
+    assert held > 0

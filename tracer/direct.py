@@ -36,7 +36,7 @@ from .intersect import MISS, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate
 from .passes import BRANCH_PASS, Tally
 from .rays import Among, Rays, Shadows, Work
-from .shading import add_phong, light_in_plane, phong
+from .shading import add_phong, light_in_plane, phong, planes_holding
 from .variants import Options
 from .vec import columns, dot, minus, rows_of, scaled
 from .world import World, max_abs, unit
@@ -107,6 +107,8 @@ class DirectLight:
         #: the surfaces as bounds for rays through one point or along one direction (:mod:`tracer.cones`)
         self.cone_bounds = cone_bounds
         self.stop, self.count = stop, count
+        #: the emitters some flat surface's plane holds (where N·L is rounding noise: light_in_plane)
+        self.holds = planes_holding(world, world.emitters)
 
     def shade(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray, tally: Tally | None = None,
               work: Work | None = None) -> np.ndarray:
@@ -139,7 +141,7 @@ class DirectLight:
             if group.corners is not None:
                 terms = self._area(group, at, visible)
             else:
-                terms = self._one(self.world.emitters[group.first], at, visible)
+                terms = self._one(group.first, at, visible)
             if terms is None:
                 continue
             wd, ws, reached = terms
@@ -161,11 +163,13 @@ class DirectLight:
         return colour
 
     # -- one emitter: a point light, a spot or a directional light ----------------------------------------------
-    def _one(self, em: Emitter, at: Points, visible: bool) -> Terms | None:
-        """The terms of a light of one emitter at every point, or None where it reaches none."""
-        opt, hit = self.options, at.hit
+    def _one(self, e_index: int, at: Points, visible: bool) -> Terms | None:
+        """The terms of a light of one emitter (``e_index``) at every point, or None where it reaches none."""
+        opt, hit, em = self.options, at.hit, self.world.emitters[e_index]
         to_light, dist, factor = illuminate(em, hit.point)
-        nl = light_in_plane(self.world, hit, em, dot(at.normal, to_light), dist)
+        nl = dot(at.normal, to_light)
+        if self.holds[e_index]:
+            nl = light_in_plane(self.world, hit, em, nl, dist)
         facing = nl > 0
         lit = (facing | opt.specular_behind) & (factor > 0)
         rows = np.flatnonzero(lit)
@@ -244,7 +248,8 @@ class DirectLight:
         sum_d, sum_s = np.zeros(m), np.zeros(m)
         reached = np.zeros(m, dtype=np.int64) if visible else None
         rank = np.full(m, -1, dtype=np.int64)
-        for em in self.world.emitters[group.first:group.end]:
+        holds = self.holds[group.first:group.end]
+        for e, em in enumerate(self.world.emitters[group.first:group.end]):
             self.stop()
             # L, d and the factor, as illuminate() computes them, into this light's buffers
             for k in range(3):
@@ -257,7 +262,9 @@ class DirectLight:
             factor = _factor(em, dist, tmp)
             for k in range(3):
                 to_light[:, k] /= tmp
-            nl = light_in_plane(self.world, sub.hit, em, dot(sub.normal, to_light), dist)
+            nl = dot(sub.normal, to_light)
+            if holds[e]:
+                nl = light_in_plane(self.world, sub.hit, em, nl, dist)
             facing = nl > 0
             lit = (facing | opt.specular_behind) & (factor > 0)
             weight = np.where(lit, factor, 0.0)
@@ -332,7 +339,7 @@ def _factor(em: Emitter, dist: np.ndarray, safe: np.ndarray) -> np.ndarray | flo
     np.copyto(safe, dist)
     shortest = float(dist.min(initial=np.inf))
     if not shortest > 0:
-        safe[dist <= 0] = 1.0
+        safe[~(dist > 0)] = 1.0
     c, lin, q = em.attenuation
     if lin == 0 and q == 0:  # c + 0·d + (0·d)·d is c wherever d is finite (at d = ∞, NaN: no light)
         if shortest > 0 and float(dist.max(initial=0.0)) < np.inf:

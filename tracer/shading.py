@@ -116,6 +116,38 @@ def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: 
     return out
 
 
+#: the most (emitter, flat surface) pairs :func:`planes_holding` looks at (its temporaries are (E, F, 3)); past it,
+#: every emitter may lie in one
+HOLDING_PAIRS = 1 << 18
+
+
+def planes_holding(world: World, emitters: list[Emitter]) -> np.ndarray:
+    """Which emitters some flat surface's plane holds, by the rule of :func:`light_in_plane` (its ``inside``, for
+    that surface's own anchor and normal: the same numbers a hit on it carries, so the same answer).  For an
+    emitter no flat surface holds, :func:`light_in_plane` returns N·L as given, and need not be called.  Shape
+    (E,), bool; every emitter when there are more pairs than :data:`HOLDING_PAIRS` to look at."""
+    pl, tr = world.planes, world.triangles
+    flat = np.flatnonzero(~tr.smooth)
+    out = np.ones(len(emitters), dtype=bool)
+    if len(emitters) * (len(pl.normal) + len(flat)) > HOLDING_PAIRS:
+        return out
+    points = [em for em in emitters if em.kind != "directional"]
+    at = np.array([e for e, em in enumerate(emitters) if em.kind != "directional"], dtype=np.int64)
+    directional = [e for e, em in enumerate(emitters) if em.kind == "directional"]
+    out[:] = False
+    for anchor, normal, mag in ((pl.point, pl.normal, pl.mag),
+                                (rows_of(tr.v0, flat), rows_of(tr.normal, flat), tr.mag[flat])):
+        if len(mag) == 0:
+            continue
+        if len(at):  # (E, F) at once, each pair as light_in_plane computes it
+            position = np.array([em.position for em in points])
+            tol = on_tolerance((max_abs(position) + world.origin_mag)[:, None], mag[None, :])
+            out[at] |= np.any(np.abs(dot(position[:, None, :] - anchor[None, :, :], normal[None, :, :])) <= tol, axis=1)
+        for e in directional:
+            out[e] |= bool(np.any(np.abs(dot(normal, emitters[e].direction)) <= PARALLEL))
+    return out
+
+
 def phong(shininess: np.ndarray, nl: np.ndarray, rv: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``weight · (N·L)`` and ``weight · max(0, R·V)^n`` per point: times ``k_d`` and ``k_s``, the diffuse and the
     specular term, whose sum is the Phong term (:func:`add_phong`). Each (N,).
