@@ -68,12 +68,24 @@ def _pairs(kinds: list[int], indices: list[int], rows: list[np.ndarray]) -> Amon
                  np.repeat(np.array(indices, dtype=np.int64), count))
 
 
-def _corners(tris: Triangles, k: int) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """Triangle ``k``'s corners (3, 3), unit normal, size (its longest edge) and world magnitude."""
+def _corners(tris: Triangles, k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Triangles ``k``'s corners (K, 3, 3), unit normals (K, 3), sizes (their longest edges) and world
+    magnitudes (K,), all at once."""
     v0, e1, e2 = tris.v0[k], tris.e1[k], tris.e2[k]
-    corners = np.stack([v0, v0 + e1, v0 + e2])
-    size = float(max(np.linalg.norm(e1), np.linalg.norm(e2), np.linalg.norm(e1 - e2)))
-    return corners, tris.normal[k], size, float(tris.mag[k])
+    corners = np.stack([v0, v0 + e1, v0 + e2], axis=1)
+    size = np.maximum(np.maximum(_norm(e1), _norm(e2)), _norm(e1 - e2))
+    return corners, tris.normal[k], size, tris.mag[k]
+
+
+def _norm(v: np.ndarray) -> np.ndarray:
+    """|v| of each row of ``v (..., 3)``. Shape (...)."""
+    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2])
+
+
+#: a triangle's three edge planes: unit normals, and the allowance (through a point) or the levels (along a
+#: direction) of its test
+Edges = tuple[list[np.ndarray], float]
+Levels = tuple[list[np.ndarray], list[float]]
 
 
 def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray, away: bool,
@@ -88,6 +100,7 @@ def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray
     sign = 1.0 if away else -1.0
     x, y, z = (np.ascontiguousarray(dirs[:, a]) for a in range(3))
     stray = STRAY * length
+    edges_of = _edges_through(tris, b, apex, apex_mag, sign, stray)
     kinds, indices, rows = [], [], []
     for j in range(len(b.radius)):
         c = b.center[j]
@@ -100,8 +113,9 @@ def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray
             near = np.flatnonzero(x * a[0] + y * a[1] + z * a[2] >= cos)
         else:  # the apex inside the ball (or numbers beyond proof): every ray may meet it
             near = np.arange(n)
-        if b.kind[j] == TRIANGLE and len(near):
-            near = near[_inside_edges(tris, int(b.index[j]), apex, apex_mag, sign, stray, x[near], y[near], z[near])]
+        edges = edges_of.get(j)
+        if edges is not None and len(near):
+            near = near[_inside(edges, x[near], y[near], z[near])]
         if len(near):
             kinds.append(int(b.kind[j]))
             indices.append(int(b.index[j]))
@@ -109,25 +123,40 @@ def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray
     return _pairs(kinds, indices, rows)
 
 
-def _inside_edges(tris: Triangles, k: int, apex: np.ndarray, apex_mag: float, sign: float, stray: float,
-                  x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Which directions ``sign·(x, y, z)`` from ``apex`` lie on the inner side of the three planes through
-    ``apex`` and an edge of triangle ``k``, within the angle its growth allows. Shape (n,), bool."""
-    corners, normal, size, mag = _corners(tris, k)
+def _edges_through(tris: Triangles, b: Bounds, apex: np.ndarray, apex_mag: float, sign: float,
+                   stray: float) -> dict[int, Edges]:
+    """For each triangle among the bounds ``b`` (by its place there), the three planes through ``apex`` and an
+    edge, as unit normals ``m`` (the triangle, seen along ``sign·u``, on their positive side), and the angle its
+    growth allows (``m·u ≥ −allow``); none where they prove nothing (the apex nearly in the triangle's plane, an
+    edge in line with it).  Every triangle at once."""
+    which = np.flatnonzero(b.kind == TRIANGLE)
+    if len(which) == 0:
+        return {}
+    corners, normal, size, mag = _corners(tris, b.index[which])
     grow = GROWTH * size + MARGIN * (apex_mag + mag) + stray
-    h = abs(float((corners[0] - apex) @ normal))  # every point of the triangle's plane is this far from the apex
+    rel = corners - apex  # (K, 3, 3)
+    # every point of a triangle's plane is this far from the apex
+    h = np.abs(rel[:, 0, 0] * normal[:, 0] + rel[:, 0, 1] * normal[:, 1] + rel[:, 0, 2] * normal[:, 2])
+    with np.errstate(all="ignore"):
+        allow = 4.0 * grow / h + SLACK  # (the growth seen from at least h − grow away, and the stray's angle)
+        ok = np.isfinite(h) & np.isfinite(grow) & (h > 4.0 * grow)  # else the apex (nearly) in its plane
+        ms = []
+        for i in range(3):
+            p, q, opposite = rel[:, i], rel[:, (i + 1) % 3], rel[:, (i + 2) % 3]
+            edge_normal = np.cross(p, q)
+            length = _norm(edge_normal)
+            side = np.sum(opposite * edge_normal, axis=1)
+            ok &= (length > 0) & np.isfinite(length) & (side != 0) & np.isfinite(side)
+            ms.append(edge_normal * (sign * np.sign(side) / length)[:, None])  # unit, the triangle on its side
+    return {int(j): ([m[t] for m in ms], float(allow[t])) for t, j in enumerate(which.tolist()) if ok[t]}
+
+
+def _inside(edges: Edges, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Which directions ``(x, y, z)`` lie on the inner side of the three planes through the apex, within the
+    angle allowed: the module's second test. Shape (n,), bool."""
+    ms, allow = edges
     keep = np.ones(len(x), dtype=bool)
-    if not (np.isfinite(h) and np.isfinite(grow) and h > 4.0 * grow):
-        return keep  # the apex (nearly) in the triangle's plane: no angle to speak of
-    allow = 4.0 * grow / h + SLACK  # (the growth seen from at least h − grow away, and the stray's angle)
-    for i in range(3):
-        p, q, opposite = corners[i] - apex, corners[(i + 1) % 3] - apex, corners[(i + 2) % 3] - apex
-        edge_normal = np.cross(p, q)
-        length = float(np.linalg.norm(edge_normal))
-        side = float(opposite @ edge_normal)
-        if not (length > 0 and np.isfinite(length) and side != 0 and np.isfinite(side)):
-            return np.ones(len(x), dtype=bool)
-        m = edge_normal * (sign * np.sign(side) / length)  # unit, the triangle on its positive side
+    for m in ms:
         keep &= x * m[0] + y * m[1] + z * m[2] >= -allow
     return keep
 
@@ -142,6 +171,7 @@ def along_direction(b: Bounds, tris: Triangles, origins: np.ndarray, direction: 
     ox, oy, oz = (np.ascontiguousarray(origins[:, a]) for a in range(3))
     u, v, w = (ox * e[0] + oy * e[1] + oz * e[2] for e in (e1, e2, ell))  # each origin across and along l
     origin_mag = float(np.max(np.abs(origins), initial=0.0))
+    edges_of = _edges_along(tris, b, ell, origin_mag)
     kinds, indices, rows = [], [], []
     for j in range(len(b.radius)):
         c = b.center[j]
@@ -153,8 +183,9 @@ def along_direction(b: Bounds, tris: Triangles, origins: np.ndarray, direction: 
             near = np.flatnonzero(close)
         else:
             near = np.arange(len(origins))
-        if b.kind[j] == TRIANGLE and len(near):
-            near = near[_beside_edges(tris, int(b.index[j]), ell, origin_mag, ox[near], oy[near], oz[near])]
+        edges = edges_of.get(j)
+        if edges is not None and len(near):
+            near = near[_beside(edges, ox[near], oy[near], oz[near])]
         if len(near):
             kinds.append(int(b.kind[j]))
             indices.append(int(b.index[j]))
@@ -162,22 +193,36 @@ def along_direction(b: Bounds, tris: Triangles, origins: np.ndarray, direction: 
     return _pairs(kinds, indices, rows)
 
 
-def _beside_edges(tris: Triangles, k: int, ell: np.ndarray, origin_mag: float, x: np.ndarray, y: np.ndarray,
-                  z: np.ndarray) -> np.ndarray:
-    """Which origins ``(x, y, z)`` lie on the inner side of the three planes along ``ell`` through an edge of
-    triangle ``k``, within its growth. Shape (n,), bool."""
-    corners, _, size, mag = _corners(tris, k)
+def _edges_along(tris: Triangles, b: Bounds, ell: np.ndarray, origin_mag: float) -> dict[int, Levels]:
+    """For each triangle among the bounds ``b`` (by its place there), the three planes along ``ell`` through an
+    edge, as unit normals ``m`` (the triangle on their positive side) and the level ``m·o`` must reach (within
+    its growth); none where they prove nothing (an edge along the direction: the triangle seen edge-on).  Every
+    triangle at once."""
+    which = np.flatnonzero(b.kind == TRIANGLE)
+    if len(which) == 0:
+        return {}
+    corners, _, size, mag = _corners(tris, b.index[which])
     grow = GROWTH * size + MARGIN * (origin_mag + mag)
+    with np.errstate(all="ignore"):
+        ok = np.isfinite(grow)
+        ms, levels = [], []
+        for i in range(3):
+            p, q, opposite = corners[:, i], corners[:, (i + 1) % 3], corners[:, (i + 2) % 3]
+            edge_normal = np.cross(q - p, ell)
+            length = _norm(edge_normal)
+            side = np.sum((opposite - p) * edge_normal, axis=1)
+            ok &= (length > 0) & np.isfinite(length) & (side != 0) & np.isfinite(side)
+            m = edge_normal * (np.sign(side) / length)[:, None]
+            ms.append(m)
+            levels.append(np.sum(p * m, axis=1) - grow)
+    return {int(j): ([m[t] for m in ms], [float(level[t]) for level in levels])
+            for t, j in enumerate(which.tolist()) if ok[t]}
+
+
+def _beside(edges: Levels, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Which origins ``(x, y, z)`` lie on the inner side of the three planes along the direction, within the
+    growth: the module's fourth test. Shape (n,), bool."""
     keep = np.ones(len(x), dtype=bool)
-    if not np.isfinite(grow):
-        return keep
-    for i in range(3):
-        p, q, opposite = corners[i], corners[(i + 1) % 3], corners[(i + 2) % 3]
-        edge_normal = np.cross(q - p, ell)
-        length = float(np.linalg.norm(edge_normal))
-        side = float((opposite - p) @ edge_normal)
-        if not (length > 0 and np.isfinite(length) and side != 0 and np.isfinite(side)):
-            return np.ones(len(x), dtype=bool)  # an edge along the direction: the triangle seen edge-on
-        m = edge_normal * (np.sign(side) / length)
-        keep &= x * m[0] + y * m[1] + z * m[2] >= float(p @ m) - grow
+    for m, level in zip(*edges):
+        keep &= x * m[0] + y * m[1] + z * m[2] >= level
     return keep
