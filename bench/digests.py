@@ -8,7 +8,8 @@ class's ten tasks for four students (their own cameras and spheres, :mod:`bench.
 quarter of their size; every variant of the diagnosis (:mod:`tracer.variants`) on four examples; the diagnosis
 passes' linear colour of the examples; and ``--generated N`` scenes of the fuzzer's generator (hard cases:
 rooms round the camera, glass with cores, lights on surfaces, huge beside tiny, far from the origin).  Images
-render on two threads, as the bench's do; a render's bytes do not depend on the thread count.
+render on ``--threads`` threads (two by default, as the bench's do; one, as a class's are, renders in smaller
+chunks): a render's bytes depend on neither.
 """
 
 from __future__ import annotations
@@ -64,22 +65,22 @@ def corpus(generated: int) -> list[Job]:
     return jobs
 
 
-def _render(job: Job) -> tuple[str, str, np.ndarray]:
+def _render(job: Job, threads: int = 2) -> tuple[str, str, np.ndarray]:
     name, data, what = job
     scene = schemas.validate_scene(data)
     if what == "passes":
-        out = Renderer(scene).diagnosis_passes(threads=2)["colour"]
+        out = Renderer(scene).diagnosis_passes(threads=threads)["colour"]
     else:
-        out = (Renderer(scene) if what == "image" else Renderer(scene, VARIANTS[what][0])).pixels(threads=2)
+        out = (Renderer(scene) if what == "image" else Renderer(scene, VARIANTS[what][0])).pixels(threads=threads)
     return name, hashlib.sha256(out.tobytes()).hexdigest(), out
 
 
-def _each(jobs: list[Job], processes: int) -> Iterator[tuple[str, str, np.ndarray]]:
+def _each(jobs: list[Job], processes: int, threads: int) -> Iterator[tuple[str, str, np.ndarray]]:
     if processes <= 1:
-        yield from map(_render, jobs)
+        yield from (_render(job, threads) for job in jobs)
         return
     with ProcessPoolExecutor(processes) as pool:
-        yield from pool.map(_render, jobs, chunksize=4)
+        yield from pool.map(_render, jobs, [threads] * len(jobs), chunksize=4)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -88,13 +89,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("file", type=Path, help="the digests (JSON): written, or checked against")
     parser.add_argument("--generated", type=int, default=400, help="generated scenes in the corpus (default 400)")
     parser.add_argument("--processes", type=int, default=1, help="renders at once (default 1)")
+    parser.add_argument("--threads", type=int, default=2, help="threads per render (default 2)")
     args = parser.parse_args(argv)
     started = time.perf_counter()
     jobs = corpus(args.generated)
     arrays = Path(f"{args.file}.npz")
     if args.mode == "write":
         out, images = {}, {}
-        for name, digest, image in _each(jobs, args.processes):
+        for name, digest, image in _each(jobs, args.processes, args.threads):
             out[name], images[name] = digest, image
         args.file.write_text(json.dumps(out, indent=0, sort_keys=True) + "\n")
         np.savez_compressed(arrays, **images)
@@ -103,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     known: dict[str, str] = json.loads(args.file.read_text())
     before = np.load(arrays) if arrays.is_file() else None
     changed, missing = 0, 0
-    for name, digest, image in _each(jobs, args.processes):
+    for name, digest, image in _each(jobs, args.processes, args.threads):
         if name not in known:
             missing += 1
             print(f"{name}: not in {args.file}")

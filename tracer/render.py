@@ -34,10 +34,21 @@ from .variants import REFERENCE, Options
 from .vec import rows_of, scaled
 from .world import World, build_world, max_abs
 
-#: rays per chunk: large enough for NumPy to be efficient (and for its long loops, which let go of the GIL, to
-#: outweigh the interpreter's share), small enough to bound memory.  Measured on two threads: 2^16 is 12-25 %
-#: faster than 2^15 on the bench scenes, 2^17 no faster; a 4096² render then peaks at 221 MiB (168 MiB at 2^15)
+#: rays per chunk on several threads: large enough for NumPy to be efficient (and for its long loops, which let
+#: go of the GIL, to outweigh the interpreter's share), small enough to bound memory.  Measured on two threads:
+#: 2^16 is 12-25 % faster than 2^15 on the bench scenes, 2^17 no faster; a 4096² render then peaks at 221 MiB
+#: (168 MiB at 2^15)
 CHUNK_RAYS = 1 << 16
+#: rays per chunk on one thread, where no other thread waits for the GIL and a chunk's arrays had better stay in
+#: the cache: measured on one core, 2^15 is 8-20 % faster than 2^16 (three spheres at 320×240 and at 1080p, the
+#: antialiased and the soft-shadow examples), 2^14 no faster
+ONE_THREAD_CHUNK_RAYS = 1 << 15
+
+
+def _chunking(threads: int | None, chunk_rays: int | None) -> tuple[int, int]:
+    """The threads a render runs on (every core by default) and the rays of its chunks."""
+    workers = threads or os.cpu_count() or 1
+    return workers, chunk_rays or (CHUNK_RAYS if workers > 1 else ONE_THREAD_CHUNK_RAYS)
 
 Progress = Callable[[int, int], None]
 
@@ -137,7 +148,7 @@ class Renderer:
         self.intersector.check = self._stop
 
     # -- whole image -------------------------------------------------------
-    def pixels(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+    def pixels(self, threads: int | None = None, chunk_rays: int | None = None,
                progress: Progress | None = None, cancel: Callable[[], bool] | None = None,
                rows: tuple[int, int] | None = None) -> np.ndarray:
         """The image as ``(H, W, 3) uint8``, or only its rows ``top..bottom`` with ``rows``.
@@ -149,6 +160,7 @@ class Renderer:
         """
         img = self.scene.image
         self._stop.cancel = cancel
+        workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         top, bottom = rows if rows is not None else (0, img.height)
         if not 0 <= top <= bottom <= img.height:
@@ -158,7 +170,6 @@ class Renderer:
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, end)) for a in range(first, end, per_chunk)]
         out = np.empty((total, 3), dtype=np.uint8)
-        workers = threads or os.cpu_count() or 1
 
         stopped = False
 
@@ -192,12 +203,13 @@ class Renderer:
         return image[::-1] if self.options.flip_image else image
 
     def passes(self, names: list[str], light: int | None = None, threads: int | None = None,
-               chunk_rays: int = CHUNK_RAYS, cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
+               chunk_rays: int | None = None, cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
         """Render passes (:mod:`tracer.passes`) by name: ``(H, W, 3)`` float64 for the additive ones and the
         normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object.  ``cancel`` is polled before
         every chunk, as :meth:`pixels` polls it."""
         check_passes(names, light, len(self.scene.lights))
         img = self.scene.image
+        workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
@@ -213,7 +225,6 @@ class Renderer:
             self.chunk(a, b, tally)
             return tally.result((b - a, s), counted)
 
-        workers = threads or os.cpu_count() or 1
         with ThreadPoolExecutor(max_workers=max(1, min(workers, len(bounds)))) as pool:
             parts = list(pool.map(work, bounds))
         out = {}
@@ -222,12 +233,13 @@ class Renderer:
             out[name] = whole.reshape(img.height, img.width, *whole.shape[1:])
         return out
 
-    def diagnosis_passes(self, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+    def diagnosis_passes(self, threads: int | None = None, chunk_rays: int | None = None,
                          cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
         """In one render, what a diagnosis needs of the reference scene: the additive passes, ``object``, every
         light's ``diffuse:K`` and ``specular:K`` (and their sums), and ``colour``, the image's linear colour
         per pixel ``(H, W, 3)``, the very values :meth:`pixels` quantizes (the passes change no colour)."""
         img = self.scene.image
+        workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         total = img.width * img.height
         s = img.samples * img.samples
@@ -243,7 +255,6 @@ class Renderer:
             tally.colour = self.chunk(a, b, tally)
             return tally.result((b - a, s), len(self.emitter_light))
 
-        workers = threads or os.cpu_count() or 1
         with ThreadPoolExecutor(max_workers=max(1, min(workers, len(bounds)))) as pool:
             parts = list(pool.map(work, bounds))
         out = {}
@@ -253,12 +264,13 @@ class Renderer:
         return out
 
     # -- one chunk ---------------------------------------------------------
-    def pixels_of_rows(self, rows: np.ndarray, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+    def pixels_of_rows(self, rows: np.ndarray, threads: int | None = None, chunk_rays: int | None = None,
                        cancel: Callable[[], bool] | None = None) -> np.ndarray:
         """The image's rows ``rows`` (row numbers, any order) as ``(len(rows), W, 3) uint8``, in one go: byte for
         byte those rows of :meth:`pixels` (every pixel is computed alone)."""
         img = self.scene.image
         self._stop.cancel = cancel
+        workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         shown = np.asarray(rows, dtype=np.int64)
         if self.options.flip_image:  # (stored bottom to top: row r of the image is row H − 1 − r of the render)
@@ -272,7 +284,6 @@ class Renderer:
             colour = self.chunk(0, len(part), pixels=part)
             return quantize(colour if not self.options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2))
 
-        workers = threads or os.cpu_count() or 1
         with ThreadPoolExecutor(max_workers=max(1, min(workers, len(parts)))) as pool:
             out = list(pool.map(work, parts))
         return np.concatenate(out).reshape(len(shown), img.width, 3)
@@ -297,8 +308,10 @@ class Renderer:
             self._count("primary", n)
             acc = np.zeros((3, n), dtype=np.int64).T  # (n, 3), its columns contiguous (_accumulate)
             ceiling = float(2 * s)  # a sub-sample this bright saturates its pixel: sums are clamped there
-            # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum
-            fixed = 2.0 ** (48 - math.ceil(math.log2(ceiling)) - max(0, math.ceil(math.log2(self.slice_rays)) - 14))
+            # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum (for
+            # slices of up to CHUNK_RAYS, one unit whatever the slice: the same sums, and bytes, for every size)
+            room = math.ceil(math.log2(max(self.slice_rays, CHUNK_RAYS)))
+            fixed = 2.0 ** (48 - math.ceil(math.log2(ceiling)) - max(0, room - 14))
             background = np.asarray(img.background, dtype=np.float64)
             camera = Work(self.intersector.rays(origins, dirs), np.arange(n), np.ones(n), 0,
                           None if tally is None else np.zeros(n, dtype=np.int8))
@@ -421,7 +434,7 @@ def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling:
                 np.minimum(column, cap, out=column)
 
 
-def render(scene: Scene, threads: int | None = None, chunk_rays: int = CHUNK_RAYS,
+def render(scene: Scene, threads: int | None = None, chunk_rays: int | None = None,
            progress: Progress | None = None, cancel: Callable[[], bool] | None = None) -> np.ndarray:
     """Render a validated scene to ``(H, W, 3) uint8`` pixels."""
     return Renderer(scene).pixels(threads=threads, chunk_rays=chunk_rays, progress=progress, cancel=cancel)
