@@ -6,7 +6,7 @@ import numpy as np
 
 from schemas import Camera, Image
 
-from .vec import along, plus, scaled
+from .vec import plus
 from .world import unit
 
 
@@ -28,6 +28,8 @@ class CameraRays:
         #: the view window's half-width and half-height over h (a variant reads fov across the width)
         aspect = image.width / image.height
         self.scale_x, self.scale_y = (aspect, 1.0) if vertical_fov else (1.0, 1.0 / aspect)
+        self._across: list[np.ndarray] | None = None
+        self._down: list[np.ndarray] | None = None
 
     def rays(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
         """Origins and unit directions, each ``((stop − start)·n², 3)``, pixel-major.
@@ -37,20 +39,40 @@ class CameraRays:
         """
         return self.rays_of(np.arange(start, stop, dtype=np.int64))
 
+    def _tables(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Per column and sub-sample column, each component of ``x·right`` (three (W, n) tables); per row and
+        sub-sample row, each component of ``y·up`` (three (H, n)): each value as the contract's equations
+        compute it, made once per render."""
+        if self._across is None or self._down is None:
+            n, W, H = self.n, self.width, self.height
+            offsets = (np.arange(n, dtype=np.float64) + self.offset) / n
+            sx = (np.arange(W, dtype=np.float64)[:, None] + offsets[None, :]) / W
+            sy = (np.arange(H, dtype=np.float64)[:, None] + offsets[None, :]) / H
+            x = (2.0 * sx - 1.0) * self.scale_x * self.h
+            y = (1.0 - 2.0 * sy) * self.scale_y * self.h
+            self._across = [self.right[k] * x for k in range(3)]
+            self._down = [y * self.up[k] for k in range(3)]
+        return self._across, self._down
+
     def rays_of(self, pixel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`rays` of the pixels ``pixel (P,)``, in that order: each pixel's rays are the same wherever
-        it is asked for."""
-        n, W, H = self.n, self.width, self.height
-        i = (pixel % W).astype(np.float64)
-        j = (pixel // W).astype(np.float64)
-        offsets = (np.arange(n, dtype=np.float64) + self.offset) / n
-        a = np.tile(offsets, n)  # varies fastest
-        b = np.repeat(offsets, n)
-        sx = (i[:, None] + a[None, :]).ravel() / W
-        sy = (j[:, None] + b[None, :]).ravel() / H
-        x = (2.0 * sx - 1.0) * self.scale_x * self.h
-        y = (1.0 - 2.0 * sy) * self.scale_y * self.h
-        plane = along(scaled(self.right, x), y, self.up)  # x·right + y·up
+        it is asked for.
+
+        A sub-sample's direction is ``forward + (y·up + x·right)`` (unit), its x from its column and y from
+        its row alone: each product comes from :meth:`_tables`, and only the sums are made per ray."""
+        n = self.n
+        across, down = self._tables()
+        col, row = pixel % self.width, pixel // self.width
+        count = len(pixel) * n * n
+        plane = np.empty((3, count)).T  # (rays, 3), its columns contiguous
+        for k in range(3):  # ray (p, b, a): down[row_p, b] + across[col_p, a]
+            if n == 1:
+                np.add(np.take(down[k][:, 0], row), np.take(across[k][:, 0], col), out=plane[:, k])
+            else:
+                np.add(np.take(down[k], row, axis=0)[:, :, None], np.take(across[k], col, axis=0)[:, None, :],
+                       out=plane[:, k].reshape(len(pixel), n, n))
         if self.orthographic:
             return plus(self.eye, plane), np.broadcast_to(self.forward, plane.shape).copy()
-        return np.broadcast_to(self.eye, plane.shape).copy(), unit(plus(self.forward, plane))
+        for k in range(3):
+            np.add(self.forward[k], plane[:, k], out=plane[:, k])
+        return np.broadcast_to(self.eye, plane.shape), unit(plane)  # (every origin the eye: one row, not copied)
