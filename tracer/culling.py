@@ -37,10 +37,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .shapes import PLANE, SPHERE, TRIANGLE
-from .vec import dot, most
+from .vec import dot, most, rows_of
 from .world import World
 
 SEEN, HIDDEN, MIXED = 0, 1, 2
+#: consecutive points proven SEEN at once (:func:`classify`): neighbours on the image lie close together.
+#: Measured at 320×240: tiles of 16 points prove 53k of the soft-shadow example's 65k seen points (and 59k of
+#: 72k in the all-lights example) in 3 ms, where the per-point proofs take 37 ms for all; tiles of 64 prove
+#: 17k and 31k (a row's 64 pixels reach far), of 8 no more for their cost
+TILE = 16
 #: the most surface bounds a scene may have for the proofs to be worth their cost per point
 MAX_BOUNDS = 64
 #: a proof's margin, relative to the magnitudes involved: far above the exact tests' float64 rounding
@@ -89,7 +94,100 @@ def classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray,
              corners: np.ndarray) -> Culled:
     """SEEN, HIDDEN or MIXED for each of ``points (N, 3)`` (on the surfaces ``kind, index``, whose normal
     ``outward`` faces the samples a point can be lit by) and the light's parallelogram ``corners (4, 3)``,
-    in order round it, with the bounds that may block each point's samples.
+    in order round it, with the bounds that may block each point's samples (of the points SEEN, none).
+
+    The points go a tile at a time first (:data:`TILE` consecutive points, neighbours on the image): a tile
+    proven to see every sample (:func:`_seen_tiles`) is SEEN whole, and only the others' points are
+    classified one by one.  A point of a SEEN tile sees every sample whatever the per-point proof would have
+    made of it, so its shading is the same."""
+    n = len(points)
+    if n >= 4 * TILE:
+        seen = np.repeat(_seen_tiles(b, points, kind, index, outward, corners), TILE)[:n]
+        if seen.any():
+            rest = np.flatnonzero(~seen)
+            state = np.full(n, SEEN, dtype=np.int8)
+            may_block = np.zeros((len(b.radius), n), dtype=bool)
+            if len(rest):
+                part = _classify(b, rows_of(points, rest), kind[rest], index[rest], rows_of(outward, rest), corners)
+                state[rest] = part.state
+                may_block[:, rest] = part.may_block
+            return Culled(state, may_block)
+    return _classify(b, points, kind, index, outward, corners)
+
+
+def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
+                corners: np.ndarray) -> np.ndarray:
+    """Which tiles of :data:`TILE` consecutive points see every sample. Shape (T,), bool.
+
+    **Proof.**  A tile's points lie in the ball B about the centre C of their box, of radius R (half its
+    diagonal, rounded up).  Every shadow segment from a point P of B to a point of the parallelogram Q lies in
+    the hull of B and Q, and that hull lies within R of the pyramid with apex C over Q (a point
+    λ(C + Ru) + (1 − λ)q is λRu from λC + (1 − λ)q); so on the outer side of each of that pyramid's face
+    planes pushed out by R.  A bound farther than its radius plus R (and the margin) beyond one of those
+    planes meets no segment of any point of the tile: the module's test for a point, from C, with every
+    reach grown by R.  A plane with B and Q strictly on one side of it, by more than R for B, blocks none.
+    The own-surface rule holds for a tile whose points all lie on one surface; a tile near Q's plane, with
+    points on a sphere seen from inside it, or with numbers beyond proof is left to the per-point tests."""
+    n = len(points)
+    starts = np.arange(0, n, TILE, dtype=np.int64)
+    p = np.ascontiguousarray(points.T)
+    lo = np.stack([np.minimum.reduceat(c, starts) for c in p])  # (3, T)
+    hi = np.stack([np.maximum.reduceat(c, starts) for c in p])
+    centre = (lo + hi) * 0.5
+    reach_t = np.sqrt(np.sum((hi - lo) ** 2, axis=0)) * (0.5 * (1.0 + 2.0**-40))  # R
+    scale = np.maximum(np.max(np.abs(lo), axis=0), np.max(np.abs(hi), axis=0)) + float(np.max(np.abs(corners)))
+    margin_of = MARGIN * scale  # (at least every point's own margin)
+    bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
+    q_normal = np.cross(corners[1] - corners[0], corners[3] - corners[0])
+    q_normal /= np.linalg.norm(q_normal)
+    with np.errstate(all="ignore"):
+        apex_side = _plane_dot(centre, corners[0], q_normal)
+        seen = np.abs(apex_side) > margin_of * 16 + reach_t  # every point of the ball off Q's plane
+        seen &= np.isfinite(scale) & np.isfinite(reach_t)
+        side = np.sign(apex_side)
+        key = kind.astype(np.int64) << 48 | index
+        one = np.minimum.reduceat(key, starts) == np.maximum.reduceat(key, starts)  # one surface per tile
+        tile_kind, tile_index = kind[starts], index[starts]
+        # a tile with points on a sphere seen from inside it: left to the per-point tests
+        on_sphere = np.flatnonzero(kind == SPHERE)
+        if len(on_sphere):
+            centre_of = b.center[np.searchsorted(np.flatnonzero(b.kind == SPHERE), index[on_sphere])]
+            inside = dot(outward[on_sphere], points[on_sphere] - centre_of) < 0
+            seen[np.unique(on_sphere[inside] // TILE)] = False
+        faces = []
+        for k in range(4):
+            a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
+            ax, ay, az = a[0] - centre[0], a[1] - centre[1], a[2] - centre[2]
+            cx, cy, cz = c[0] - centre[0], c[1] - centre[1], c[2] - centre[2]
+            f = np.stack([ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx])
+            f /= np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+            inner = (far[0] - centre[0]) * f[0] + (far[1] - centre[1]) * f[1] + (far[2] - centre[2]) * f[2]
+            f *= np.where(inner != 0, -np.sign(inner), np.nan)
+            faces.append((f, f[0] * centre[0] + f[1] * centre[1] + f[2] * centre[2]))
+        for k in range(len(b.radius)):
+            ck = b.center[k]
+            reach = margin_of + (float(b.radius[k]) + bound_part[k]) + reach_t
+            sep = -side * float((ck - corners[0]) @ q_normal) > reach
+            for f, pf in faces:
+                sep |= (ck[0] * f[0] + ck[1] * f[1] + ck[2] * f[2]) - pf > reach
+            seen &= sep | (one & (b.kind[k] == tile_kind) & (b.index[k] == tile_index))
+        for j, (p0, nrm) in enumerate(zip(b.plane_point, b.plane_normal)):
+            q_side = (corners - p0) @ nrm
+            m = MARGIN * (scale + float(np.max(np.abs(p0))))
+            c_side = _plane_dot(centre, p0, nrm)
+            mine = one & (tile_kind == PLANE) & (tile_index == j)
+            if np.all(q_side > 0) or np.all(q_side < 0):
+                same = (np.sign(c_side) == np.sign(q_side[0])) & (np.abs(c_side) > m + reach_t) & \
+                    (m < float(np.min(np.abs(q_side))))
+            else:
+                same = np.zeros(len(c_side), dtype=bool)
+            seen &= same | mine
+    return seen  # (NaN compares False above: no proof)
+
+
+def _classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
+              corners: np.ndarray) -> Culled:
+    """:func:`classify`, a point at a time.
 
     Computed a bound at a time on the points' contiguous columns (``(N,)`` arrays, no ``(N, K)`` or
     ``(N, K, 3)`` temporaries): the same tests as the docstring of this module states, whose margins are far
