@@ -244,30 +244,36 @@ class DirectLight:
             assert self.bounds is not None
             among = Among.of(self.bounds.kind, self.bounds.index, may_block[:, mixed_rows])
         point = sub.hit.point
-        to_light, dist, tmp = columns(m), np.empty(m), np.empty(m)
+        # this light's buffers, each computed into in place: L, d, N·L, R·V, the specular power, the weight
+        to_light, dist, tmp, nl_buf, rv, spec, weight = columns(m), *(np.empty(m) for _ in range(6))
+        facing, pos = np.empty(m, dtype=bool), np.empty(m, dtype=bool)
+        normal, dirs = np.asfortranarray(sub.normal), np.asfortranarray(sub.dirs)  # (read a column at a time)
+        nv2 = 2.0 * sub.nv  # (2·(N·L)·(N·V) as 2.0 * nl * nv makes it: doubling is exact)
         sum_d, sum_s = np.zeros(m), np.zeros(m)
         reached = np.zeros(m, dtype=np.int64) if visible else None
         rank = np.full(m, -1, dtype=np.int64)
         holds = self.holds[group.first:group.end]
         for e, em in enumerate(self.world.emitters[group.first:group.end]):
             self.stop()
-            # L, d and the factor, as illuminate() computes them, into this light's buffers
+            # L, d and the factor, as illuminate() computes them
             for k in range(3):
                 np.subtract(em.position[k], point[:, k], out=to_light[:, k])
-            np.multiply(to_light[:, 0], to_light[:, 0], out=dist)
-            for k in (1, 2):
-                np.multiply(to_light[:, k], to_light[:, k], out=tmp)
-                dist += tmp
+            _dot_into(dist, to_light, to_light, tmp)
             np.sqrt(dist, out=dist)
             factor = _factor(em, dist, tmp)
             for k in range(3):
                 to_light[:, k] /= tmp
-            nl = dot(sub.normal, to_light)
-            if holds[e]:
-                nl = light_in_plane(self.world, sub.hit, em, nl, dist)
-            facing = nl > 0
-            lit = (facing | opt.specular_behind) & (factor > 0)
-            weight = np.where(lit, factor, 0.0)
+            nl = light_in_plane(self.world, sub.hit, em, _dot_into(nl_buf, normal, to_light, tmp), dist) \
+                if holds[e] else _dot_into(nl_buf, normal, to_light, tmp)
+            np.greater(nl, 0.0, out=facing)
+            if opt.specular_behind:
+                lit = np.asarray(factor > 0) & np.ones(m, dtype=bool)
+            else:
+                lit = facing if isinstance(factor, float) and factor > 0 else facing & (factor > 0)
+            if isinstance(factor, float):
+                np.multiply(lit, factor, out=weight)  # (factor or 0: np.where(lit, factor, 0.0))
+            else:
+                np.copyto(weight, np.where(lit, factor, 0.0))
             rows = ns + np.flatnonzero(lit[ns:])  # the mixed points' shadow rays; the seen points see it
             if len(rows):
                 self.count("shadow", len(rows))
@@ -281,10 +287,22 @@ class DirectLight:
                 blocked = self.blocked(sub.hit, partial(rows_of, index=rows), to_light, dist, em, sub.mag,
                                        sub.normal, len(rows), pairs)
                 weight[rows[blocked]] = 0.0
-            wd, ws = phong(sub.shininess, np.maximum(nl, 0.0) if opt.specular_behind else nl,
-                           self._rv(sub.normal, nl, sub.nv, to_light, sub.dirs), weight)
-            sum_d += wd
-            sum_s += ws
+            # phong(), into the buffers: the same operations on the same numbers
+            if opt.blinn:
+                np.copyto(rv, self._rv(normal, nl, sub.nv, to_light, dirs))
+            else:  # R·V = 2·(N·L)·(N·V) + L·D
+                _dot_into(rv, to_light, dirs, tmp)
+                np.multiply(nl, nv2, out=tmp)
+                rv += tmp
+            np.greater(rv, 0.0, out=pos)
+            np.copyto(rv, 1.0, where=~pos)
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                np.power(rv, sub.shininess, out=spec)
+            spec *= pos  # (where R·V ≤ 0 the power of 1, times 0)
+            np.multiply(weight, np.maximum(nl, 0.0) if opt.specular_behind else nl, out=tmp)
+            sum_d += tmp
+            np.multiply(weight, spec, out=tmp)
+            sum_s += tmp
             if reached is not None:
                 reached += (weight > 0) & facing
         if every:
@@ -331,6 +349,16 @@ class DirectLight:
                 longest = float(np.max(shadows.reach, initial=0.0))
                 among = through_point(bounds, tris, em.position, shadow_dirs, False, longest)
         return self.intersector.occluded(shadows, among)
+
+
+def _dot_into(out: np.ndarray, a: np.ndarray, b: np.ndarray, tmp: np.ndarray) -> np.ndarray:
+    """``a·b`` per row of two ``(N, 3)`` arrays into ``out``, summed in the order x, y, z (as
+    :func:`tracer.vec.dot`), with ``tmp`` as scratch. Returns ``out``."""
+    np.multiply(a[:, 0], b[:, 0], out=out)
+    for k in (1, 2):
+        np.multiply(a[:, k], b[:, k], out=tmp)
+        out += tmp
+    return out
 
 
 def _factor(em: Emitter, dist: np.ndarray, safe: np.ndarray) -> np.ndarray | float:
