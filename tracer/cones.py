@@ -54,6 +54,11 @@ from .world import Triangles
 MARGIN = 2.0**-30
 #: the slack of a cosine (or of a squared distance, relative) compared here: far above its rounding
 SLACK = 2.0**-40
+#: how far a float32 cosine of two unit vectors may lie from the float64 one: the casts of both vectors' components,
+#: three products and two sums are eight roundings, each by at most 2^-24 times a sum of |products| of at most 1
+#: (Cauchy–Schwarz, for unit vectors): 2^-21 in all.  The tests through a point, made in float32 (the float64
+#: numbers of their directions are not needed to bound an angle), compare with eight times that much slack
+SLACK32 = 2.0**-18
 #: how far a shadow ray may stray from its true segment, relative to the segment's length
 STRAY = 2.0**-46
 #: how far outside a triangle an exact test may accept a hit, relative to the triangle's size
@@ -98,7 +103,9 @@ def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray
     n = len(dirs)
     apex_mag = float(np.max(np.abs(apex)))
     sign = 1.0 if away else -1.0
-    x, y, z = (np.ascontiguousarray(dirs[:, a]) for a in range(3))
+    # unit directions lose nothing a cosine test needs in float32 (see SLACK32): half the bytes of every pass
+    x, y, z = (dirs[:, a].astype(np.float32) for a in range(3))
+    cos_of, scratch = np.empty(n, dtype=np.float32), np.empty(n, dtype=np.float32)
     stray = STRAY * length
     edges_of = _edges_through(tris, b, apex, apex_mag, sign, stray)
     kinds, indices, rows = [], [], []
@@ -109,8 +116,8 @@ def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray
         dist = float(np.sqrt(a @ a))
         if np.isfinite(dist) and np.isfinite(r) and dist > r:
             a = a * (sign / dist)
-            cos = float(np.sqrt(1.0 - (r / dist) ** 2)) - SLACK
-            near = np.flatnonzero(x * a[0] + y * a[1] + z * a[2] >= cos)
+            cos = float(np.sqrt(1.0 - (r / dist) ** 2)) - SLACK - SLACK32
+            near = np.flatnonzero(_along(cos_of, scratch, x, y, z, a) >= _below(cos))
         else:  # the apex inside the ball (or numbers beyond proof): every ray may meet it
             near = np.arange(n)
         edges = edges_of.get(j)
@@ -152,13 +159,31 @@ def _edges_through(tris: Triangles, b: Bounds, apex: np.ndarray, apex_mag: float
 
 
 def _inside(edges: Edges, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Which directions ``(x, y, z)`` lie on the inner side of the three planes through the apex, within the
-    angle allowed: the module's second test. Shape (n,), bool."""
+    """Which directions ``(x, y, z)`` (float32) lie on the inner side of the three planes through the apex,
+    within the angle allowed: the module's second test. Shape (n,), bool."""
     ms, allow = edges
     keep = np.ones(len(x), dtype=bool)
+    along, scratch = np.empty(len(x), dtype=np.float32), np.empty(len(x), dtype=np.float32)
     for m in ms:
-        keep &= x * m[0] + y * m[1] + z * m[2] >= -allow
+        keep &= _along(along, scratch, x, y, z, m) >= _below(-allow - SLACK32)
     return keep
+
+
+def _along(out: np.ndarray, scratch: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
+           a: np.ndarray) -> np.ndarray:
+    """``x·a₀ + y·a₁ + z·a₂`` into ``out``, in float32 (``x, y, z`` float32, ``a`` a unit vector)."""
+    np.multiply(x, np.float32(a[0]), out=out)
+    np.multiply(y, np.float32(a[1]), out=scratch)
+    out += scratch
+    np.multiply(z, np.float32(a[2]), out=scratch)
+    out += scratch
+    return out
+
+
+def _below(value: float) -> np.float32:
+    """The largest float32 at or below ``value``."""
+    low = np.float32(value)
+    return low if float(low) <= value else np.nextafter(low, np.float32(-np.inf))
 
 
 def along_direction(b: Bounds, tris: Triangles, origins: np.ndarray, direction: np.ndarray) -> Among:
