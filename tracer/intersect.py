@@ -119,9 +119,8 @@ class Intersector:
         it pairs with a ray are tested against it, and nothing is walked."""
         n = len(rays)
         best = Best(np.full(n, np.inf))
-        every = np.arange(n)
         for kind, k, t, u, v in self._direct(rays, among=among):
-            best.offer(every, t, kind, np.full(n, k), u, v, unique=True)
+            best.offer_all(t, kind, k, u, v)
         if among is not None:
             self._among(best, rays, among)
         elif self.walker is not None:

@@ -123,6 +123,21 @@ class Best:
         if u is not None and v is not None:
             self.uv[r, 0], self.uv[r, 1] = u[hit][pick], v[hit][pick]
 
+    def offer_all(self, t: np.ndarray, kind: int, index: int, u: np.ndarray | None = None,
+                  v: np.ndarray | None = None) -> None:
+        """:meth:`offer` of one surface's hits ``t`` to every ray, in order (each ray once): the same rule, a
+        finite hit taken where it is nearer or, as near, of a smaller key, with no rows gathered."""
+        key = (int(kind) << 48) | int(index)
+        with np.errstate(invalid="ignore"):
+            better = t < self.t
+            better |= (t == self.t) & (key < self.key)
+            better &= np.isfinite(t)
+        np.copyto(self.t, t, where=better)
+        np.copyto(self.key, key, where=better)
+        if u is not None and v is not None:
+            np.copyto(self.uv[:, 0], u, where=better)
+            np.copyto(self.uv[:, 1], v, where=better)
+
     def block(self, rows: np.ndarray, t: np.ndarray) -> None:
         """For an any-hit walk, where only whether a ray's ``t`` falls below its limit matters: lower the
         rays ``rows`` (which may repeat) to hits ``t`` nearer than they have."""
