@@ -70,6 +70,8 @@ STAGES = [
     Stage("tracer.camera", "CameraRays.rays", "camera rays", _n_result),
     Stage("tracer.intersect", "Intersector.closest", "closest hit", _n_first),
     Stage("tracer.intersect", "Intersector.occluded", "occlusion", _n_first),
+    Stage("tracer.intersect", "Intersector.nearest", "closest hit", _n_first),
+    Stage("tracer.intersect", "Intersector.describe", "hit reconstruction", lambda a, r: len(r.t)),
     Stage("tracer.intersect", "Intersector._describe", "hit reconstruction", lambda a, r: len(a[2].t)),
     Stage("tracer.intersect", "Intersector._direct", "direct tests"),
     Stage("tracer.walk", "Walk.walk", "walk", _n_second),

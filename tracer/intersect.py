@@ -24,7 +24,7 @@ from .rays import Among, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
 from .vec import along, divided, dot, minus, most, rows_of
-from .walk import Best, Walk
+from .walk import NO_HIT, Best, Walk
 from .world import World, median_of, unit
 
 __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE", "TRIANGLE"]
@@ -117,6 +117,11 @@ class Intersector:
     def closest(self, rays: Rays, among: Among | None = None) -> Hits:
         """First hit at t > 0 of each ray.  With ``among`` (see :meth:`_among`), only the spheres and triangles
         it pairs with a ray are tested against it, and nothing is walked."""
+        return self.describe(rays, self.nearest(rays, among))
+
+    def nearest(self, rays: Rays, among: Among | None = None) -> Best:
+        """:meth:`closest` as the surface and parameter of each ray's first hit, before the hits are described
+        (:meth:`describe`)."""
         n = len(rays)
         best = Best(np.full(n, np.inf))
         for kind, k, t, u, v in self._direct(rays, among=among):
@@ -125,7 +130,7 @@ class Intersector:
             self._among(best, rays, among)
         elif self.walker is not None:
             self.walker.walk(best, rays)
-        return self._describe(rays.origins, rays.dirs, best)
+        return best
 
     # -- occlusion ---------------------------------------------------------
     def occluded(self, shadows: Shadows, among: Among | None = None) -> np.ndarray:
@@ -238,12 +243,25 @@ class Intersector:
         tr = w.triangles
         return triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k], leaving, ends, mag_e)
 
-    def _describe(self, origins: np.ndarray, dirs: np.ndarray, best: Best) -> Hits:
-        """The hits of ``best``: points on their surfaces, normals and materials; ``point`` and ``normal`` with
-        contiguous columns (what every later stage reads a column at a time)."""
+    def describe(self, rays: Rays, best: Best, rows: np.ndarray | None = None) -> Hits:
+        """The hits of ``best`` (of the rays ``rows`` alone, when given: those that hit something, say):
+        points on their surfaces, normals and materials; ``point`` and ``normal`` with contiguous columns (what
+        every later stage reads a column at a time)."""
         w = self.world
-        t, kind, index = best.t, best.kind, best.index
+        if rows is None:
+            t, key, uv = best.t, best.key, best.uv
+        else:
+            t, key, uv = best.t[rows], best.key[rows], rows_of(best.uv, rows)
+        kind = np.where(key == NO_HIT, MISS, key >> 48).astype(np.int8)
+        index = np.where(key == NO_HIT, -1, key & ((1 << 48) - 1))
         n = len(t)
+
+        def rays_of(sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """The origins (one row, when every ray shares it) and directions of the rays ``sel`` of these."""
+            at = sel if rows is None else rows[sel]
+            o = rays.origins[0] if rays.origins.strides[0] == 0 else rows_of(rays.origins, at)
+            return o, rows_of(rays.dirs, at)
+
         point = np.zeros((3, n)).T
         normal = np.zeros((3, n)).T
         material = np.zeros(n, dtype=np.int64)
@@ -251,7 +269,8 @@ class Intersector:
         s = np.flatnonzero(kind == SPHERE)
         if len(s):
             k = index[s]
-            raw = along(rows_of(origins, s), t[s], rows_of(dirs, s))
+            o, d = rays_of(s)
+            raw = along(o, t[s], d)
             centre = rows_of(w.spheres.center, k)
             nrm = unit(divided(minus(raw, centre), w.spheres.radius[k]))
             _put(point, s, along(centre, w.spheres.radius[k], nrm))
@@ -261,7 +280,8 @@ class Intersector:
         q = np.flatnonzero(kind == PLANE)
         if len(q):
             k = index[q]
-            raw = along(rows_of(origins, q), t[q], rows_of(dirs, q))
+            o, d = rays_of(q)
+            raw = along(o, t[q], d)
             if len(w.planes.normal) == 1:  # (one plane: its numbers shared, not gathered)
                 nrm, p0 = w.planes.normal[0], w.planes.point[0]
             else:
@@ -274,9 +294,9 @@ class Intersector:
         if len(r):
             k = index[r]
             tr = w.triangles
-            _put(point, r, along(along(rows_of(tr.v0, k), best.uv[r, 0], rows_of(tr.e1, k)), best.uv[r, 1],
+            _put(point, r, along(along(rows_of(tr.v0, k), uv[r, 0], rows_of(tr.e1, k)), uv[r, 1],
                                  rows_of(tr.e2, k)))
             _put(normal, r, rows_of(tr.normal, k))
             material[r] = tr.material[k]
         return Hits(t=np.where(kind == MISS, np.inf, t), kind=kind, index=index, point=point, normal=normal,
-                    bary=best.uv, material=material)
+                    bary=uv, material=material)

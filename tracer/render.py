@@ -24,7 +24,7 @@ from .cones import along_direction, through_point
 from .culling import bounds_of
 from .direct import DirectLight, light_groups
 from .image import quantize
-from .intersect import MISS, PLANE, SPHERE, TRIANGLE, Hits, Intersector
+from .intersect import PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, light_samples
 from .passes import ADDITIVE, BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
 from .rays import Among, Rays, Work
@@ -32,6 +32,7 @@ from .shading import mirror, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
 from .variants import REFERENCE, Options
 from .vec import rows_of, scaled
+from .walk import NO_HIT
 from .world import World, build_world, max_abs
 
 #: rays per chunk on several threads: large enough for NumPy to be efficient (and for its long loops, which let
@@ -322,8 +323,8 @@ class Renderer:
                     stack += reversed(work.slices(self.slice_rays))
                     continue
                 self._stop()
-                hits = self.intersector.closest(work.rays, self._camera_among(work.rays) if work.depth == 0 else None)
-                missed = hits.kind == MISS
+                best = self.intersector.nearest(work.rays, self._camera_among(work.rays) if work.depth == 0 else None)
+                missed = best.key == NO_HIT
                 once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
                 _accumulate(acc, work.sample[missed], scaled(background, work.weight[missed]), ceiling, fixed, once)
                 if tally is not None:
@@ -331,7 +332,7 @@ class Renderer:
                 rows = np.flatnonzero(~missed)
                 if len(rows) == 0:
                     continue
-                hit, done = hits.take(rows), work.take(rows)
+                hit, done = self.intersector.describe(work.rays, best, rows), work.take(rows)  # (the hits alone)
                 dd = done.rays.dirs
                 mat = resolve_material(self.world, hit)
                 normal = shading_normal(self.world, hit, dd, self.options.flip_normals)

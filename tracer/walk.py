@@ -36,7 +36,8 @@ from .world import World
 PAIR_SLICE = 1 << 16
 #: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
 INSIDE = 2.0**-24
-_NONE = np.iinfo(np.int64).max
+#: a ray's key (:class:`Best`) while it has hit nothing
+NO_HIT = _NONE = np.iinfo(np.int64).max
 #: a walk over primitives worth at most this many sphere tests per ray (a triangle counts :data:`TRIANGLE_COST`)
 #: tests every primitive against each ray its broad phase keeps, instead of walking the cells
 #: (:meth:`Walk.walk_few`): the cells' bookkeeping costs more than a few exact tests
