@@ -148,3 +148,15 @@ def test_an_emitter_no_plane_holds_leaves_every_n_dot_l_as_it_is():
             if not holds[e]:
                 assert light_in_plane(r.world, hits, em, nl, dist) is nl
     assert held > 0
+
+
+def test_odd_cells_are_those_np_mod_finds_odd():
+    from tracer.shading import odd_cells
+
+    cells = np.array([-5.0, -4, -3, -1, -0.0, 0, 1, 2, 3, 2**52 + 1, -(2**52 + 1), 2**53, 2**53 + 2, -2.0**60, 1e300,
+                      np.inf, -np.inf, np.nan, 7.0e15 + 1])
+    rng = np.random.default_rng(0)
+    cells = np.concatenate([cells, np.floor(rng.uniform(-1e6, 1e6, 1000)), np.floor(rng.normal(size=1000) * 1e15)])
+    with np.errstate(invalid="ignore"):
+        assert np.array_equal(odd_cells(cells), np.mod(cells, 2.0) == 1.0)
+    assert odd_cells(cells).sum() > 500

@@ -30,28 +30,54 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     sel = np.flatnonzero(size > 0)
     if len(sel) == 0:
         return mat
-    p = [np.take(hits.point[:, k], sel) + world.origin[k] for k in range(3)]
+    every = len(sel) == len(mat)  # (every hit checkered: no gathering)
+
+    def pick(a: np.ndarray, rows: np.ndarray, all_of: bool) -> np.ndarray:
+        return a.copy() if all_of else np.take(a, rows)
+
+    p = [pick(hits.point[:, k], sel, every) + world.origin[k] for k in range(3)]
     kind, index = hits.kind[sel], hits.index[sel]
-    for code, anchors in ((PLANE, world.planes.point_world), (TRIANGLE, world.triangles.v0_world)):
+    for code, anchors, normals in ((PLANE, world.planes.point_world, world.planes.normal),
+                                   (TRIANGLE, world.triangles.v0_world, world.triangles.normal)):
         flat = np.flatnonzero(kind == code)
         if len(flat):  # projected onto the surface's plane: p − ((p − anchor)·n) n
-            at, rows = index[flat], sel[flat]
-            pf = [np.take(p[k], flat) for k in range(3)]
-            nf = [np.take(hits.normal[:, k], rows) for k in range(3)]
-            side = (pf[0] - np.take(anchors[:, 0], at)) * nf[0] + (pf[1] - np.take(anchors[:, 1], at)) * nf[1] \
-                + (pf[2] - np.take(anchors[:, 2], at)) * nf[2]
+            at = index[flat]
+            whole = len(flat) == len(sel)
+            pf = [pick(p[k], flat, whole) for k in range(3)]
+            one = bool(at[0] == at[-1]) and bool(np.all(at == at[0]))  # one surface: its numbers shared
+            if one:  # (a hit's normal is its flat surface's own, copied: the same numbers)
+                anchor, nf = [anchors[at[0], k] for k in range(3)], [normals[at[0], k] for k in range(3)]
+            else:
+                anchor = [np.take(anchors[:, k], at) for k in range(3)]
+                nf = [pick(hits.normal[:, k], sel[flat], every and whole) for k in range(3)]
+            side = (pf[0] - anchor[0]) * nf[0] + (pf[1] - anchor[1]) * nf[1] + (pf[2] - anchor[2]) * nf[2]
             for k in range(3):
-                p[k][flat] = pf[k] - side * nf[k]
+                if whole:
+                    p[k] = pf[k] - side * nf[k]
+                else:
+                    p[k][flat] = pf[k] - side * nf[k]
     cell = size[sel]
     for k in range(3):
         p[k] /= cell
         np.floor(p[k], out=p[k])
     cells = p[0] + p[1]
     cells += p[2]
-    odd = sel[np.mod(cells, 2.0) == 1.0]
+    odd = sel[odd_cells(cells)]
     out = mat.copy()
     out[odd] = mats.checker_other[mat[odd]]
     return out
+
+
+def odd_cells(cells: np.ndarray) -> np.ndarray:
+    """``np.mod(cells, 2.0) == 1.0`` for sums of whole numbers, as ``cells − 2·floor(cells / 2) == 1``: exact for
+    whole numbers (halving and doubling are), NaN where mod gives NaN (infinities, NaN), and a fifth of mod's
+    time. Shape as ``cells``, bool."""
+    with np.errstate(invalid="ignore"):
+        half = cells * 0.5
+        np.floor(half, out=half)
+        half *= 2.0
+        np.subtract(cells, half, out=half)
+        return half == 1.0
 
 
 def shading_normal(world: World, hits: Hits, dirs: np.ndarray, face_the_ray: bool = True) -> np.ndarray:
