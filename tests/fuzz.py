@@ -36,9 +36,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
 from tracer.cones import along_direction, through_point  # noqa: E402
-from tracer.culling import bounds_of  # noqa: E402
+from tracer.culling import SEEN, TILE, bounds_of, classify, lit_tiles  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
-from tracer.rays import Shadows  # noqa: E402
+from tracer.lights import illuminate  # noqa: E402
+from tracer.rays import Rays, Shadows  # noqa: E402
+from tracer.shading import shading_normal  # noqa: E402
 
 import generator  # noqa: E402
 import reference  # noqa: E402
@@ -121,6 +123,7 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
     camera_rays = isect.rays(o - origin, d)
     hits = isect.closest(camera_rays)
     _same_by_cones(out, "hit by cones", hits, isect.closest(camera_rays, _cones(renderer, camera_rays)))
+    _proofs(out, renderer, camera_rays, hits)
     got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
     clear = ~ref.unclear
     with np.errstate(invalid="ignore"):
@@ -165,6 +168,42 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
                  [f"shadow ray from surface {which[ask][r]} at {p[ask][r].tolist()} to light {e_index}: phongray "
                   f"{'blocked' if mine[r] else 'clear'}, brute force {'blocked' if blk[r] else 'clear'}"
                   for r in np.flatnonzero(bad)[:3]])
+
+
+def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> None:
+    """Every shadow ray the proofs of tracer.culling spare (tiles of points a point or directional light
+    reaches whole, points that see every sample of an area light), cast all the same from phongray's own hits
+    that face the light: none is blocked."""
+    world, isect = renderer.world, renderer.intersector
+    bounds = bounds_of(world)
+    got = np.flatnonzero(hits.kind != MISS)
+    if bounds is None or len(got) == 0:
+        return
+    h = hits.take(got)
+    normal = shading_normal(world, h, camera_rays.dirs[got])
+    mag = np.max(np.abs(h.point), axis=1) + world.origin_mag
+    for group in renderer.shading.groups:
+        if group.corners is None:
+            em = world.emitters[group.first]
+            directional = em.kind == "directional"
+            proven = np.repeat(lit_tiles(bounds, h.point, h.kind, h.index, normal, None if directional else em.position,
+                                         em.direction if directional else None), TILE)[:len(got)]
+            samples = [em]
+        else:
+            proven = classify(bounds, h.point, h.kind, h.index, normal, group.corners).state == SEEN
+            samples = world.emitters[group.first:group.end]
+        for em in samples:
+            to_light, dist, factor = illuminate(em, h.point)
+            rows = np.flatnonzero(proven & (np.sum(normal * to_light, axis=1) > 0) & (factor > 0))
+            if len(rows) == 0:
+                continue
+            rays = Rays(h.point[rows], np.ascontiguousarray(to_light[rows]), h.kind[rows], h.index[rows], mag[rows])
+            ends = None if em.kind == "directional" else em.position[None]
+            shadows = Shadows.towards(rays, dist[rows], ends, world.origin_mag)
+            blocked = isect.occluded(shadows)
+            out.note("shadow by proofs", len(rows), blocked,
+                     [f"shadow ray from {h.point[r].tolist()} (surface {h.kind[r]}/{h.index[r]}) to light "
+                      f"{group.light}, proven clear, is blocked" for r in rows[np.flatnonzero(blocked)][:3]])
 
 
 def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach: np.ndarray | None = None
@@ -243,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{done} scenes, {len(bad)} disagreeing, {time.monotonic() - start:.0f} s", flush=True)
     print(f"{len(seeds)} scenes (seeds {seeds.start}..{seeds.stop - 1}, {width}x{height}) in "
           f"{time.monotonic() - start:.0f} s")
-    for kind in ("hit", "shadow", "pixel", "hit by cones", "shadow by cones"):
+    for kind in ("hit", "shadow", "pixel", "hit by cones", "shadow by cones", "shadow by proofs"):
         print(f"  {kind}: {disagreed[kind]} disagreements in {compared[kind]} compared")
     crashed = sum(1 for o in bad if o.error)
     print(f"  crashes: {crashed}")

@@ -115,6 +115,21 @@ def classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray,
     return _classify(b, points, kind, index, outward, corners)
 
 
+def _inside_spheres(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
+                    candidate: np.ndarray) -> np.ndarray:
+    """The points on a sphere whose ``outward`` normal faces its inside (a sphere seen from inside it), among
+    those of the ``candidate`` tiles (T,): rows, ascending.  A column at a time."""
+    on_sphere = np.flatnonzero((kind == SPHERE) & np.repeat(candidate, TILE)[:len(kind)])
+    if len(on_sphere) == 0:
+        return on_sphere
+    which = np.searchsorted(np.flatnonzero(b.kind == SPHERE), index[on_sphere])
+    facing = np.zeros(len(on_sphere))
+    for k in range(3):  # N·(P − c), summed x, y, z
+        offset = np.take(points[:, k], on_sphere) - np.take(b.center[:, k], which)
+        facing += np.take(outward[:, k], on_sphere) * offset
+    return on_sphere[facing < 0]
+
+
 def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
                 corners: np.ndarray) -> np.ndarray:
     """Which tiles of :data:`TILE` consecutive points see every sample. Shape (T,), bool.
@@ -149,11 +164,7 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
         one = np.minimum.reduceat(key, starts) == np.maximum.reduceat(key, starts)  # one surface per tile
         tile_kind, tile_index = kind[starts], index[starts]
         # a tile with points on a sphere seen from inside it: left to the per-point tests
-        on_sphere = np.flatnonzero(kind == SPHERE)
-        if len(on_sphere):
-            centre_of = b.center[np.searchsorted(np.flatnonzero(b.kind == SPHERE), index[on_sphere])]
-            inside = dot(outward[on_sphere], points[on_sphere] - centre_of) < 0
-            seen[np.unique(on_sphere[inside] // TILE)] = False
+        seen[_inside_spheres(b, points, kind, index, outward, seen) // TILE] = False
         faces = []
         for k in range(4):
             a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
@@ -291,3 +302,69 @@ def _hidden(b: Bounds, p: np.ndarray, kind: np.ndarray, index: np.ndarray, corne
             covered &= tx * qx + ty * qy + tz * qz > cos_cone * dist_c * lq
         hidden |= covered
     return hidden
+
+
+def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
+              position: np.ndarray | None, direction: np.ndarray | None) -> np.ndarray:
+    """Which tiles of :data:`TILE` consecutive points a point light at ``position`` (or a directional light
+    shining along ``direction``) reaches unblocked from every point. Shape (T,), bool.
+
+    **Proof.**  A tile's points lie in the ball B about the centre C of their box, of radius R.  The shadow
+    segment from a point P of B to the light A lies within R of the segment CA (its point λP + (1 − λ)A is
+    λ|P − C| from λC + (1 − λ)A); a directional light's shadow ray from P along u = −direction lies within R of
+    the ray from C along u.  A bound farther than its radius plus R (and the margin) from that segment, or
+    ray, meets no shadow ray of the tile.  A plane with B strictly on one side of it, by more than R, blocks
+    none when the light lies strictly on that side too (for a directional light: when u does not head
+    towards the plane; a ray parallel to it never meets it).  The surface a tile's points all lie on is not
+    their blocker (leaving it by identity) but for a sphere seen from inside, whose tiles, like those with
+    numbers beyond proof, are left to their rays."""
+    n = len(points)
+    starts = np.arange(0, n, TILE, dtype=np.int64)
+    p = np.ascontiguousarray(points.T)
+    lo = np.stack([np.minimum.reduceat(c, starts) for c in p])  # (3, T)
+    hi = np.stack([np.maximum.reduceat(c, starts) for c in p])
+    centre = (lo + hi) * 0.5
+    reach_t = np.sqrt(np.sum((hi - lo) ** 2, axis=0)) * (0.5 * (1.0 + 2.0**-40))  # R
+    scale = np.maximum(np.max(np.abs(lo), axis=0), np.max(np.abs(hi), axis=0))
+    if position is not None:
+        scale = scale + float(np.max(np.abs(position)))
+    margin_of = MARGIN * scale
+    with np.errstate(all="ignore"):
+        seen = np.isfinite(scale) & np.isfinite(reach_t)
+        key = kind.astype(np.int64) << 48 | index
+        one = np.minimum.reduceat(key, starts) == np.maximum.reduceat(key, starts)  # one surface per tile
+        tile_kind, tile_index = kind[starts], index[starts]
+        seen[_inside_spheres(b, points, kind, index, outward, seen) // TILE] = False
+        if position is not None:  # the segment from C to the light: C + s·span, 0 ≤ s ≤ 1
+            span = np.asarray(position, dtype=np.float64)[:, None] - centre
+            length_sq = span[0] * span[0] + span[1] * span[1] + span[2] * span[2]
+        else:
+            assert direction is not None
+            u = -np.asarray(direction, dtype=np.float64)
+        if len(b.radius):  # every bound against every tile at once: (K, T)
+            bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
+            rel = [b.center[:, i][:, None] - centre[i][None, :] for i in range(3)]  # bound centre − C
+            way = [span[i][None, :] for i in range(3)] if position is not None else [u[i] for i in range(3)]
+            along = rel[0] * way[0] + rel[1] * way[1] + rel[2] * way[2]
+            if position is not None:  # the nearest point of the segment C + s·span, 0 ≤ s ≤ 1
+                s = np.clip(along / length_sq[None, :], 0.0, 1.0)
+            else:  # of the ray C + s·u, s ≥ 0
+                s = np.maximum(along, 0.0)
+            off = [rel[i] - s * way[i] for i in range(3)]
+            apart = np.sqrt(off[0] * off[0] + off[1] * off[1] + off[2] * off[2])
+            clear = apart > margin_of[None, :] + (b.radius + bound_part)[:, None] + reach_t[None, :]
+            own = one[None, :] & (b.kind[:, None] == tile_kind[None, :]) & (b.index[:, None] == tile_index[None, :])
+            seen &= np.all(clear | own, axis=0)
+        for j, (p0, nrm) in enumerate(zip(b.plane_point, b.plane_normal)):
+            m = MARGIN * (scale + float(np.max(np.abs(p0))))
+            c_side = _plane_dot(centre, p0, nrm)
+            mine = one & (tile_kind == PLANE) & (tile_index == j)
+            away = np.abs(c_side) > m + reach_t
+            if position is not None:
+                light_side = float((np.asarray(position, dtype=np.float64) - p0) @ nrm)
+                away &= (np.sign(c_side) == np.sign(light_side)) & (abs(light_side) > m)
+            else:  # the shadow rays' own denominator, one for all, computed as their plane test computes it
+                heading = float(dot(u[None], nrm[None])[0])
+                away &= (heading == 0.0) | (np.sign(c_side) == np.sign(heading))
+            seen &= away | mine
+    return seen

@@ -137,15 +137,15 @@ class Renderer:
                                      options.vertical_fov)
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
             groups = light_groups(scene, self.world.origin)
-            areas = any(g.corners is not None for g in groups)
             #: the surfaces as bounds for camera and shadow rays through one point or along one direction
             #: (:mod:`tracer.cones`), in scenes of at most CONE_MAX spheres and triangles
             spheres_and_triangles = len(self.world.spheres.radius) + len(self.world.triangles.v0)
             self.cone_bounds = bounds_of(self.world) if spheres_and_triangles <= CONE_MAX else None
-            self.shading = DirectLight(
-                self.world, options, self.intersector, groups,
-                bounds_of(self.world) if areas and options.shadows and not options.acne else None,
-                self.cone_bounds, self._stop, self._count)
+            # the proofs of which points a light reaches hold for the shadow rays of the format (not a variant's
+            # without them, or with acne)
+            proofs = bounds_of(self.world) if options.shadows and not options.acne else None
+            self.shading = DirectLight(self.world, options, self.intersector, groups, proofs, self.cone_bounds,
+                                       self._stop, self._count)
         self.intersector.check = self._stop
 
     # -- whole image -------------------------------------------------------
