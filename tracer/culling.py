@@ -143,14 +143,8 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
     reach grown by R.  A plane with B and Q strictly on one side of it, by more than R for B, blocks none.
     The own-surface rule holds for a tile whose points all lie on one surface; a tile near Q's plane, with
     points on a sphere seen from inside it, or with numbers beyond proof is left to the per-point tests."""
-    n = len(points)
-    starts = np.arange(0, n, TILE, dtype=np.int64)
-    p = np.ascontiguousarray(points.T)
-    lo = np.stack([np.minimum.reduceat(c, starts) for c in p])  # (3, T)
-    hi = np.stack([np.maximum.reduceat(c, starts) for c in p])
-    centre = (lo + hi) * 0.5
-    reach_t = np.sqrt(np.sum((hi - lo) ** 2, axis=0)) * (0.5 * (1.0 + 2.0**-40))  # R
-    scale = np.maximum(np.max(np.abs(lo), axis=0), np.max(np.abs(hi), axis=0)) + float(np.max(np.abs(corners)))
+    centre, reach_t, scale, one, tile_kind, tile_index = _tiles_of(points, kind, index)
+    scale = scale + float(np.max(np.abs(corners)))
     margin_of = MARGIN * scale  # (at least every point's own margin)
     bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
     q_normal = np.cross(corners[1] - corners[0], corners[3] - corners[0])
@@ -160,11 +154,6 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
         seen = np.abs(apex_side) > margin_of * 16 + reach_t  # every point of the ball off Q's plane
         seen &= np.isfinite(scale) & np.isfinite(reach_t)
         side = np.sign(apex_side)
-        key = kind.astype(np.int64) << 48 | index
-        one = np.minimum.reduceat(key, starts) == np.maximum.reduceat(key, starts)  # one surface per tile
-        tile_kind, tile_index = kind[starts], index[starts]
-        # a tile with points on a sphere seen from inside it: left to the per-point tests
-        seen[_inside_spheres(b, points, kind, index, outward, seen) // TILE] = False
         faces = []
         for k in range(4):
             a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
@@ -193,6 +182,8 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
             else:
                 same = np.zeros(len(c_side), dtype=bool)
             seen &= same | mine
+        # a tile with points on a sphere seen from inside it: left to the per-point tests
+        seen[_inside_spheres(b, points, kind, index, outward, seen) // TILE] = False
     return seen  # (NaN compares False above: no proof)
 
 
@@ -304,6 +295,37 @@ def _hidden(b: Bounds, p: np.ndarray, kind: np.ndarray, index: np.ndarray, corne
     return hidden
 
 
+def _tiles_of(points: np.ndarray, kind: np.ndarray, index: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per tile of :data:`TILE` consecutive points: the centre C ``(3, T)`` of the box of its points (their
+    exact minima and maxima), the radius R of the ball about C that holds the box (rounded up), the largest
+    magnitude of its coordinates, whether its points all lie on one surface, and that surface (its first
+    point's)."""
+    n = len(points)
+    full = n // TILE * TILE
+    lo, hi = np.empty((3, (n + TILE - 1) // TILE)), np.empty((3, (n + TILE - 1) // TILE))
+    for k in range(3):  # a tile's minimum and maximum: a loop over its TILE places, on contiguous columns
+        column = np.ascontiguousarray(points[:, k])
+        whole = column[:full].reshape(-1, TILE)
+        low, high = lo[k, :len(whole)], hi[k, :len(whole)]
+        np.copyto(low, whole[:, 0])
+        np.copyto(high, whole[:, 0])
+        for j in range(1, TILE):
+            np.minimum(low, whole[:, j], out=low)
+            np.maximum(high, whole[:, j], out=high)
+        if full < n:
+            lo[k, -1], hi[k, -1] = column[full:].min(), column[full:].max()
+    centre = (lo + hi) * 0.5
+    reach = np.sqrt(np.sum((hi - lo) ** 2, axis=0)) * (0.5 * (1.0 + 2.0**-40))
+    scale = np.maximum(np.max(np.abs(lo), axis=0), np.max(np.abs(hi), axis=0))
+    key = kind.astype(np.int64) << 48 | index
+    edges = np.flatnonzero(key[1:] != key[:-1]) + 1  # where the surface changes: a tile holds one unless inside it
+    one = np.ones(len(scale), dtype=bool)
+    one[edges[edges % TILE != 0] // TILE] = False
+    starts = np.arange(0, n, TILE)
+    return centre, reach, scale, one, kind[starts], index[starts]
+
+
 def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
               position: np.ndarray | None, direction: np.ndarray | None) -> np.ndarray:
     """Which tiles of :data:`TILE` consecutive points a point light at ``position`` (or a directional light
@@ -318,23 +340,12 @@ def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
     towards the plane; a ray parallel to it never meets it).  The surface a tile's points all lie on is not
     their blocker (leaving it by identity) but for a sphere seen from inside, whose tiles, like those with
     numbers beyond proof, are left to their rays."""
-    n = len(points)
-    starts = np.arange(0, n, TILE, dtype=np.int64)
-    p = np.ascontiguousarray(points.T)
-    lo = np.stack([np.minimum.reduceat(c, starts) for c in p])  # (3, T)
-    hi = np.stack([np.maximum.reduceat(c, starts) for c in p])
-    centre = (lo + hi) * 0.5
-    reach_t = np.sqrt(np.sum((hi - lo) ** 2, axis=0)) * (0.5 * (1.0 + 2.0**-40))  # R
-    scale = np.maximum(np.max(np.abs(lo), axis=0), np.max(np.abs(hi), axis=0))
+    centre, reach_t, scale, one, tile_kind, tile_index = _tiles_of(points, kind, index)
     if position is not None:
         scale = scale + float(np.max(np.abs(position)))
     margin_of = MARGIN * scale
     with np.errstate(all="ignore"):
         seen = np.isfinite(scale) & np.isfinite(reach_t)
-        key = kind.astype(np.int64) << 48 | index
-        one = np.minimum.reduceat(key, starts) == np.maximum.reduceat(key, starts)  # one surface per tile
-        tile_kind, tile_index = kind[starts], index[starts]
-        seen[_inside_spheres(b, points, kind, index, outward, seen) // TILE] = False
         if position is not None:  # the segment from C to the light: C + s·span, 0 ≤ s ≤ 1
             span = np.asarray(position, dtype=np.float64)[:, None] - centre
             length_sq = span[0] * span[0] + span[1] * span[1] + span[2] * span[2]
@@ -367,4 +378,5 @@ def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
                 heading = float(dot(u[None], nrm[None])[0])
                 away &= (heading == 0.0) | (np.sign(c_side) == np.sign(heading))
             seen &= away | mine
+        seen[_inside_spheres(b, points, kind, index, outward, seen) // TILE] = False
     return seen
