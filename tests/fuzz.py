@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
 from tracer.cones import along_direction, through_point  # noqa: E402
-from tracer.culling import SEEN, TILE, bounds_of, classify, lit_tiles  # noqa: E402
+from tracer.culling import MIXED, SEEN, TILE, Penumbra, bounds_of, classify, lit_tiles  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
 from tracer.lights import illuminate  # noqa: E402
 from tracer.rays import Rays, Shadows  # noqa: E402
@@ -190,8 +190,10 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
                                          em.direction if directional else None), TILE)[:len(got)]
             samples = [em]
         else:
-            proven = classify(bounds, h.point, h.kind, h.index, normal, group.corners).state == SEEN
+            culled = classify(bounds, h.point, h.kind, h.index, normal, group.corners)
+            proven = culled.state == SEEN
             samples = world.emitters[group.first:group.end]
+            _penumbra(out, renderer, h, normal, mag, culled, group)
         for em in samples:
             to_light, dist, factor = illuminate(em, h.point)
             rows = np.flatnonzero(proven & (np.sum(normal * to_light, axis=1) > 0) & (factor > 0))
@@ -204,6 +206,33 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
             out.note("shadow by proofs", len(rows), blocked,
                      [f"shadow ray from {h.point[r].tolist()} (surface {h.kind[r]}/{h.index[r]}) to light "
                       f"{group.light}, proven clear, is blocked" for r in rows[np.flatnonzero(blocked)][:3]])
+
+
+def _penumbra(out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag: np.ndarray, culled: Any,
+              group: Any) -> None:
+    """An area light's mixed points' rays that tracer.culling.Penumbra decides without casting them, cast all the
+    same: each proven blocked is blocked, each left uncast and not blocked is clear."""
+    world, isect = renderer.world, renderer.intersector
+    mixed = np.flatnonzero(culled.state == MIXED)
+    if len(mixed) == 0:
+        return
+    bounds = bounds_of(world)
+    pen = Penumbra(bounds, h.point[mixed], h.kind[mixed], h.index[mixed], normal[mixed], culled.may_block[:, mixed],
+                   group.corners, True)
+    for em in world.emitters[group.first:group.end]:
+        to_light, dist, factor = illuminate(em, h.point[mixed])
+        lit = (np.sum(normal[mixed] * to_light, axis=1) > 0) & (factor > 0)
+        if not lit.any():
+            continue
+        blocked, cast, _ = pen.decide(lit, to_light, dist)
+        rows = mixed[lit]
+        rays = Rays(h.point[rows], np.ascontiguousarray(to_light[lit]), h.kind[rows], h.index[rows], mag[rows])
+        truth = isect.occluded(Shadows.towards(rays, dist[lit], em.position[None], world.origin_mag))
+        wrong = (blocked & ~truth) | (~cast & ~blocked & truth)
+        out.note("shadow by proofs", len(rows), wrong,
+                 [f"penumbra ray from {h.point[r].tolist()} to a sample of light {group.light}: proven "
+                  f"{'blocked' if blocked[j] else 'clear'}, cast {'blocked' if truth[j] else 'clear'}"
+                  for j, r in zip(np.flatnonzero(wrong)[:3], rows[np.flatnonzero(wrong)[:3]])])
 
 
 def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach: np.ndarray | None = None

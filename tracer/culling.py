@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .rays import Among
 from .shapes import PLANE, SPHERE, TRIANGLE
 from .vec import dot, most, rows_of
 from .world import World
@@ -380,3 +381,93 @@ def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
             seen &= away | mine
         seen[_inside_spheres(b, points, kind, index, outward, seen) // TILE] = False
     return seen
+
+
+class Penumbra:
+    """An area light's mixed points (:func:`classify`) and the bounds that may block them, as pairs, with what a
+    shadow ray of each pair is proven to do from its direction and length alone.
+
+    **Proof.**  For a point P outside the ball (c, r) (by the module's margin, and not on the bound's own
+    surface), at distance D from its centre, the ball subtends the cone of half-angle θ = asin(r / D) about
+    â = (c − P)/D.  A shadow ray P + t·u (u the ray's own unit direction) towards a sample at distance d:
+
+    * misses the ball, so meets no part of the bound's surface, when u·â < cos θ by a margin (its line
+      passes farther than r from c), or when the ball lies wholly beyond the sample (D − r > d);
+    * is blocked by a sphere (a bound that is the sphere itself) when u·â > cos θ by a margin (its line passes
+      through the ball's inside) and the ball lies wholly before the sample (D + r < d): it enters the sphere
+      at some 0 < t ≤ D < d.
+
+    Each margin (2^-30 of the cosine, of the magnitudes for a distance) is far above the rounding of the
+    float64 numbers compared and of the exact test that would decide the pair, which therefore decides alike.
+    A point's own surface blocks none of the rays it casts towards samples it faces (``facing``: every ray
+    cast, but in the variant that lights points from behind), as the rays leave it by identity: a flat
+    surface never, a sphere seen from outside only heading inwards.
+    A plane blocks none of a point's rays when the point and the parallelogram lie strictly on one side of it,
+    or the point lies on it (and leaves it).  A ray whose pairs all miss and whose planes cannot block is
+    clear; a ray one of whose pairs blocks is blocked; the rest are cast, against their undecided pairs."""
+
+    def __init__(self, b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
+                 may_block: np.ndarray, corners: np.ndarray, facing: bool):
+        self.bounds = b
+        self.bound, self.point = np.nonzero(may_block)  # (P,) each: bound-major, as Among.of makes them
+        self.count = len(kind)
+        p = [np.take(points[:, k], self.point) for k in range(3)]
+        a = [b.center[self.bound, k] - p[k] for k in range(3)]
+        with np.errstate(all="ignore"):
+            dist = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+            self.axis = [a[k] / dist for k in range(3)]
+            scale = np.maximum(np.maximum(np.abs(p[0]), np.abs(p[1])), np.abs(p[2])) + \
+                np.max(np.abs(b.center[self.bound]), axis=1) + b.radius[self.bound]
+            self.margin = MARGIN * scale
+            grown, shrunk = b.radius[self.bound] + self.margin, b.radius[self.bound] - self.margin
+            own = (b.kind[self.bound] == kind[self.point]) & (b.index[self.bound] == index[self.point])
+            outside = np.isfinite(dist) & np.isfinite(scale) & (dist > grown) & ~own
+            # u·â below this: the line misses the grown ball; above `inside`: it passes within the shrunk one
+            self.miss_below = np.where(outside, np.sqrt(1.0 - (grown / dist) ** 2) - MARGIN, -np.inf)
+            if facing:  # its own surface, which a ray towards a sample the point faces leaves for good
+                on_sphere = b.kind[self.bound] == SPHERE
+                towards = sum(np.take(outward[:, k], self.point) * -a[k] for k in range(3))  # N·(P − c)
+                self.miss_below[own & (~on_sphere | (towards >= 0))] = np.inf
+            inside = np.sqrt(1.0 - np.maximum(shrunk, 0.0) ** 2 / dist ** 2) + MARGIN
+            self.hit_above = np.where(outside & b.solid[self.bound] & (shrunk > 0), inside, np.inf)
+            self.starts = np.where(outside, dist - grown, -np.inf)  # the ball's nearest and farthest reach along
+            self.ends = np.where(outside, dist + grown, np.inf)  # any ray from the point
+        # the planes that may block some ray of each point (not with the parallelogram strictly on its side)
+        self.planes = np.zeros(len(kind), dtype=bool)
+        for j, (p0, nrm) in enumerate(zip(b.plane_point, b.plane_normal)):
+            q_side = (corners - p0) @ nrm
+            side = _plane_dot(np.ascontiguousarray(points.T), p0, nrm)
+            m = MARGIN * (np.max(np.abs(points), axis=1) + float(np.max(np.abs(p0))) + float(np.max(np.abs(corners))))
+            one_side = bool(np.all(q_side > 0) or np.all(q_side < 0)) and float(np.min(np.abs(q_side))) > 0
+            clear = one_side & (np.sign(side) == np.sign(q_side[0])) & (np.abs(side) > m) & \
+                (m < float(np.min(np.abs(q_side))))
+            self.planes |= ~(clear | ((kind == PLANE) & (index == j)))
+
+    def decide(self, lit: np.ndarray, to_light: np.ndarray, dist: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, Among]:
+        """For the rays of the points ``lit`` (mixed points, bool), in order, whose unit directions are
+        ``to_light`` and lengths ``dist`` (per point, of every point): whether each is proven blocked, whether
+        it must still be cast, and the pairs of the rays cast (numbered among them) that are not decided."""
+        ray_of = np.cumsum(lit) - 1  # each lit point's ray
+        n = int(ray_of[-1]) + 1 if len(ray_of) else 0
+        pairs = np.flatnonzero(lit[self.point])
+        at = self.point[pairs]
+        x = np.take(to_light[:, 0], at) * np.take(self.axis[0], pairs)
+        for k in (1, 2):
+            x += np.take(to_light[:, k], at) * np.take(self.axis[k], pairs)
+        d = np.take(dist, at)
+        slack = MARGIN * d + np.take(self.margin, pairs)
+        misses = (x < np.take(self.miss_below, pairs)) | (np.take(self.starts, pairs) > d + slack)
+        blocks = (x > np.take(self.hit_above, pairs)) & (np.take(self.ends, pairs) < d - slack)
+        rays = np.take(ray_of, at)
+        blocked = np.zeros(n, dtype=bool)
+        blocked[rays[blocks]] = True
+        open_pairs = np.flatnonzero(~misses & ~blocks)
+        cast = self.planes[lit].copy()
+        cast[rays[open_pairs]] = True
+        cast &= ~blocked
+        keep = open_pairs[cast[rays[open_pairs]]]
+        number = np.cumsum(cast) - 1  # each ray cast, numbered among them
+        bound = self.bound[pairs[keep]]
+        among = Among(number[rays[keep]], self.bounds.kind[bound], self.bounds.index[bound])
+        return blocked, cast, among

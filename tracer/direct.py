@@ -31,7 +31,7 @@ import numpy as np
 from schemas import AreaLight, Scene
 
 from .cones import along_direction, through_point
-from .culling import HIDDEN, MIXED, SEEN, TILE, Bounds, classify, lit_tiles
+from .culling import HIDDEN, MIXED, SEEN, TILE, Bounds, Penumbra, classify, lit_tiles
 from .intersect import MISS, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate
 from .passes import BRANCH_PASS, Tally
@@ -253,10 +253,11 @@ class DirectLight:
         active = np.concatenate([seen_rows, mixed_rows])
         every = m == n and (ns == 0 or ns == n)  # the points in their own order: no gathering
         sub = at if every else at.take(active)
-        among: Among | None = None
-        if may_block is not None and len(mixed_rows):  # every (mixed point, bound that may block it) pair
+        penumbra = None  # the mixed points' pairs with the bounds that may block them, decided where they can be
+        if may_block is not None and len(mixed_rows):
             assert self.bounds is not None
-            among = Among.of(self.bounds.kind, self.bounds.index, may_block[:, mixed_rows])
+            penumbra = Penumbra(self.bounds, sub.hit.point[ns:], sub.hit.kind[ns:], sub.hit.index[ns:],
+                                sub.normal[ns:], may_block[:, mixed_rows], corners, not opt.specular_behind)
         point = sub.hit.point
         # this light's buffers, each computed into in place: L, d, N·L, R·V, the specular power, the weight
         to_light, dist, tmp, nl_buf, rv, spec, weight = columns(m), *(np.empty(m) for _ in range(6))
@@ -265,7 +266,6 @@ class DirectLight:
         nv2 = 2.0 * sub.nv  # (2·(N·L)·(N·V) as 2.0 * nl * nv makes it: doubling is exact)
         sum_d, sum_s = np.zeros(m), np.zeros(m)
         reached = np.zeros(m, dtype=np.int64) if visible else None
-        rank = np.full(m, -1, dtype=np.int64)
         holds = self.holds[group.first:group.end]
         for e, em in enumerate(self.world.emitters[group.first:group.end]):
             self.stop()
@@ -289,17 +289,17 @@ class DirectLight:
             else:
                 np.copyto(weight, np.where(lit, factor, 0.0))
             rows = ns + np.flatnonzero(lit[ns:])  # the mixed points' shadow rays; the seen points see it
-            if len(rows):
+            if len(rows) and penumbra is not None:  # rays decided by their pairs, the rest cast against theirs
+                blocked, cast, pairs = penumbra.decide(lit[ns:], to_light[ns:], dist[ns:])
+                if cast.any():
+                    self.count("shadow", int(np.count_nonzero(cast)))
+                    blocked[cast] = self.blocked(sub.hit, partial(rows_of, index=rows[cast]), to_light, dist, em,
+                                                 sub.mag, sub.normal, int(np.count_nonzero(cast)), pairs)
+                weight[rows[blocked]] = 0.0
+            elif len(rows):
                 self.count("shadow", len(rows))
-                pairs = None
-                if among is not None:  # the pairs of the rays cast, numbered as they are
-                    rank[rows] = np.arange(len(rows))
-                    ray = rank[ns + among.rows]
-                    chosen = ray >= 0
-                    rank[rows] = -1
-                    pairs = Among(ray[chosen], among.kind[chosen], among.index[chosen])
                 blocked = self.blocked(sub.hit, partial(rows_of, index=rows), to_light, dist, em, sub.mag,
-                                       sub.normal, len(rows), pairs)
+                                       sub.normal, len(rows))
                 weight[rows[blocked]] = 0.0
             # phong(), into the buffers: the same operations on the same numbers
             if opt.blinn:
