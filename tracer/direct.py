@@ -123,11 +123,16 @@ class DirectLight:
         With a ``tally`` (and the ``work`` the hits came from), the terms go to their passes too.
         """
         m, opt = self.world.materials, self.options
-        # (N, 3) arrays whose columns are contiguous: every light adds to them a column at a time (add_phong)
-        colour = np.asfortranarray(rows_of(m.ambient, mat) * self.world.ambient)
+        # (N, 3) arrays whose columns are contiguous, each gathered a column at a time: every light adds to them
+        # a column at a time (add_phong)
+        colour, diffuse, specular = columns(len(mat)), columns(len(mat)), columns(len(mat))
+        for k in range(3):
+            np.take(m.ambient[:, k], mat, out=colour[:, k])
+            colour[:, k] *= self.world.ambient[k]
+            np.take(m.diffuse[:, k], mat, out=diffuse[:, k])
+            np.take(m.specular[:, k], mat, out=specular[:, k])
         if not opt.ambient:
             colour = np.zeros_like(colour)
-        diffuse, specular = np.asfortranarray(rows_of(m.diffuse, mat)), np.asfortranarray(rows_of(m.specular, mat))
         if not opt.specular:
             specular = np.zeros_like(specular)
         first = tally is not None and work is not None and work.depth == 0

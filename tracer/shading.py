@@ -83,7 +83,7 @@ def odd_cells(cells: np.ndarray) -> np.ndarray:
 def shading_normal(world: World, hits: Hits, dirs: np.ndarray, face_the_ray: bool = True) -> np.ndarray:
     """Unit shading normal turned to face the ray (N·D ≤ 0; unless not ``face_the_ray``, a variant's
     mistake). Shape (N, 3)."""
-    normal = hits.normal.copy()
+    normal = hits.normal.copy(order="K")  # (its columns contiguous, as every later stage reads them)
     tris = np.flatnonzero(hits.kind == TRIANGLE)
     if len(tris):
         k = hits.index[tris]
@@ -97,8 +97,9 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray, face_the_ray: boo
             blend[zero] = normal[rows[zero]]
             normal[rows] = blend
     if face_the_ray:
-        flip = dot(normal, dirs) > 0
-        normal[flip] *= -1.0
+        turned = np.flatnonzero(dot(normal, dirs) > 0)
+        for c in range(3):  # (a column at a time)
+            normal[turned, c] *= -1.0
     return normal
 
 
