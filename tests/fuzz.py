@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
-from tracer.cones import along_direction, through_point  # noqa: E402
+from tracer.cones import along_direction, on_lines, through_point  # noqa: E402
 from tracer.culling import MIXED, SEEN, TILE, Penumbra, bounds_of, classify, lit_tiles  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
 from tracer.lights import illuminate  # noqa: E402
@@ -123,6 +123,10 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
     camera_rays = isect.rays(o - origin, d)
     hits = isect.closest(camera_rays)
     _same_by_cones(out, "hit by cones", hits, isect.closest(camera_rays, _cones(renderer, camera_rays)))
+    bounds = bounds_of(renderer.world)
+    if bounds is not None:  # the test of rays of their own directions (a mirror's), on these rays
+        _same_by_cones(out, "hit by lines", hits,
+                       isect.closest(camera_rays, on_lines(bounds, camera_rays.origins, camera_rays.dirs)))
     _proofs(out, renderer, camera_rays, hits)
     got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
     clear = ~ref.unclear
@@ -311,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{done} scenes, {len(bad)} disagreeing, {time.monotonic() - start:.0f} s", flush=True)
     print(f"{len(seeds)} scenes (seeds {seeds.start}..{seeds.stop - 1}, {width}x{height}) in "
           f"{time.monotonic() - start:.0f} s")
-    for kind in ("hit", "shadow", "pixel", "hit by cones", "shadow by cones", "shadow by proofs"):
+    for kind in ("hit", "shadow", "pixel", "hit by cones", "hit by lines", "shadow by cones", "shadow by proofs"):
         print(f"  {kind}: {disagreed[kind]} disagreements in {compared[kind]} compared")
     crashed = sum(1 for o in bad if o.error)
     print(f"  crashes: {crashed}")

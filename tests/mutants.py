@@ -59,6 +59,8 @@ MUTANTS = [
      "close = du * du + dv * dv <= (r * r) * (1.0 + SLACK)", "close = du * du + dv * dv <= 0.25 * (r * r)"),
     ("a ray along a direction meets a triangle only well inside its edges", "cones.py",
      "levels.append(np.sum(p * m, axis=1) - grow)", "levels.append(np.sum(p * m, axis=1) + 0.01 * size)"),
+    ("a ray of its own direction meets a ball only within half its radius", "cones.py",
+     "close = across <= grown * grown * (1.0 + SLACK)", "close = across <= 0.25 * grown * grown"),
     ("a tile of points is proven to see an area light without its radius", "culling.py",
      "            reach = margin_of + (float(b.radius[k]) + bound_part[k]) + reach_t\n",
      "            reach = margin_of + (float(b.radius[k]) + bound_part[k])\n"),

@@ -251,3 +251,45 @@ def _beside(edges: Levels, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.nd
     for m, level in zip(*edges):
         keep &= x * m[0] + y * m[1] + z * m[2] >= level
     return keep
+
+
+def on_lines(b: Bounds, origins: np.ndarray, dirs: np.ndarray) -> Among:
+    """The surfaces each ray ``origins + t·dirs`` (t > 0, unit directions of their own: a mirror's or glass's
+    rays) may meet, as pairs (surface by surface): a bound's ball only if its centre lies within its radius of
+    the ray's line and not wholly behind its origin (the test along one direction, ray by ray).  A triangle is
+    paired with the rays that meet its bound."""
+    n = len(origins)
+    o = [np.ascontiguousarray(origins[:, k]) for k in range(3)]
+    d = [np.ascontiguousarray(dirs[:, k]) for k in range(3)]
+    origin_mag = np.maximum(np.maximum(np.abs(o[0]), np.abs(o[1])), np.abs(o[2]))
+    kinds, indices, rows = [], [], []
+    along, tmp = np.empty(n), np.empty(n)
+    offset = [np.empty(n) for _ in range(3)]
+    for j in range(len(b.radius)):
+        c = b.center[j]
+        r = float(b.radius[j])
+        if not (np.isfinite(r) and np.all(np.isfinite(c))):
+            near = np.arange(n)
+        else:
+            grown = r + MARGIN * (origin_mag + (float(np.max(np.abs(c))) + r))  # (N,)
+            for k in range(3):
+                np.subtract(c[k], o[k], out=offset[k])
+            np.multiply(offset[0], d[0], out=along)  # (c − o)·d: how far along the ray the centre lies
+            for k in (1, 2):
+                np.multiply(offset[k], d[k], out=tmp)
+                along += tmp
+            for k in range(3):  # (c − o) − ((c − o)·d)·d: the centre's offset across the ray
+                np.multiply(along, d[k], out=tmp)
+                offset[k] -= tmp
+            across = offset[0] * offset[0]
+            for k in (1, 2):
+                np.multiply(offset[k], offset[k], out=tmp)
+                across += tmp
+            close = across <= grown * grown * (1.0 + SLACK)
+            close &= along >= -grown  # the ball not wholly behind the origin
+            near = np.flatnonzero(close)
+        if len(near):
+            kinds.append(int(b.kind[j]))
+            indices.append(int(b.index[j]))
+            rows.append(near)
+    return _pairs(kinds, indices, rows)

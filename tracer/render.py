@@ -20,7 +20,7 @@ import numpy as np
 from schemas import Scene
 
 from .camera import CameraRays
-from .cones import along_direction, through_point
+from .cones import along_direction, on_lines, through_point
 from .culling import bounds_of
 from .direct import DirectLight, light_groups
 from .image import quantize
@@ -323,7 +323,8 @@ class Renderer:
                     stack += reversed(work.slices(self.slice_rays))
                     continue
                 self._stop()
-                best = self.intersector.nearest(work.rays, self._camera_among(work.rays) if work.depth == 0 else None)
+                best = self.intersector.nearest(work.rays, self._camera_among(work.rays) if work.depth == 0 else
+                                                self._mirror_among(work.rays))
                 missed = best.key == NO_HIT
                 once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
                 _accumulate(acc, work.sample[missed], scaled(background, work.weight[missed]), ceiling, fixed, once,
@@ -349,6 +350,13 @@ class Renderer:
                     stack.append(children)
             per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
+
+    def _mirror_among(self, rays: Rays) -> Among | None:
+        """The surfaces each mirror or refracted ray may meet (:func:`tracer.cones.on_lines`), when the scene has
+        few enough and walks them (with no walk, every surface is tested against every ray already)."""
+        if self.cone_bounds is None or self.intersector.walker is None:
+            return None
+        return on_lines(self.cone_bounds, rays.origins, rays.dirs)
 
     def _camera_among(self, rays: Rays) -> Among | None:
         """The surfaces each camera ray may meet (:mod:`tracer.cones`), when the scene has few enough: from the
