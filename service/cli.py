@@ -140,7 +140,7 @@ def cmd_render(args: argparse.Namespace) -> int:
             with _cluster(args) as client:
                 pixels = render_pixels(scene, client)
         else:
-            pixels = render_pixels(scene, threads=args.threads, progress=bar)
+            pixels = render_pixels(scene, threads=args.threads, progress=bar, processes=True)
     except ImageTooLarge as exc:
         raise CliError(f"{args.scene}: {exc}") from None
     except ClusterError as exc:

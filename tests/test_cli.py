@@ -37,6 +37,36 @@ def test_a_render_starts_without_the_settings_or_pillow(tmp_path):
     assert out.stat().st_size > 0
 
 
+def test_a_large_render_on_forked_processes_is_the_same_bytes(tmp_path):
+    """`phongray render` spreads a large render over forked processes (service.rendering.render_forked): the
+    PNG is the same bytes as a render on threads."""
+    import schemas
+    import tracer
+    from service.rendering import FORKED_RAYS
+
+    data = json.loads((SCENES / "02_all_lights.json").read_text())
+    data["image"].update(width=640, height=480)
+    assert 640 * 480 >= FORKED_RAYS
+    scene, out = tmp_path / "scene.json", tmp_path / "out.png"
+    scene.write_text(json.dumps(data))
+    done = run("render", str(scene), "-o", str(out), "--threads", "2", "-q")
+    assert done.returncode == 0, done.stderr
+    assert out.read_bytes() == tracer.encode_png(tracer.render(schemas.validate_scene(data), threads=2))
+
+
+def test_bands_on_forked_processes_are_the_rows_of_the_render():
+    import schemas
+    import tracer
+    from service.rendering import render_forked
+
+    data = json.loads((SCENES / "08_antialiased.json").read_text())
+    data["image"].update(width=48, height=37)
+    scene = schemas.validate_scene(data)
+    done = []
+    assert np.array_equal(render_forked(scene, 2, lambda a, b: done.append((a, b))), tracer.render(scene, threads=1))
+    assert done[-1] == (48 * 37, 48 * 37) and len(done) == 16  # every band, its progress told
+
+
 def test_render_overrides_size_and_samples(tmp_path):
     out = tmp_path / "out.png"
     assert main(["render", str(SCENES / "01_three_spheres.json"), "-o", str(out), "--width", "20",
