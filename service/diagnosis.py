@@ -157,12 +157,11 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
     for name in VARIANTS:
         if name in BOUNDS and renders.bound is not None:
             continue  # (a speckled mistake is scored against its far end below, not by its own render)
-        # a first look at a few rows (exact: a lower bound of the variant's off pixels, surely_far): a variant that
-        # can neither pass nor come closest changes nothing in the diagnosis, scored or not
-        least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders)
+        # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot pass
+        # is scored only if none passes, and then only if it may come closest
+        least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders, may_pass)
         if least is not None and least > may_pass:
-            if least <= may_come_closest:
-                later.append(name)
+            later.append(name)
             continue
         score(name)
     for name in BOUNDS if renders.bound is not None else ():
@@ -175,7 +174,9 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
             scored.append(Cause(name, VARIANTS[name][1], outside, outside <= verdict.max_fraction))
     if not any(c.passes for c in scored):  # then the closest is named: score what may come closest
         for name in later:
-            score(name)
+            least = off_at_least(name, submitted, verdict, renders, may_come_closest)  # (every row looked at)
+            if least is None or least <= may_come_closest:
+                score(name)
     scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
     passing = [c for c in scored if c.passes]
     if passing:
@@ -191,34 +192,49 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
 #: a variant is first rendered on one row in this many (with the rows either side), and rendered whole only if
 #: those rows do not already rule it out (:func:`off_at_least`)
 SAMPLE_EVERY = 16
+#: the first look takes one row in this many of those, and the rest only when it does not settle the variant
+FIRST_LOOK = 4
 
 
-def sampled_rows(height: int) -> tuple[np.ndarray, np.ndarray]:
-    """The middle rows a first look grades (every :data:`SAMPLE_EVERY`-th, none on the image's edge), and every
-    row it renders for them: each middle row with the rows above and below."""
-    middles = np.arange(SAMPLE_EVERY // 2, height - 1, SAMPLE_EVERY)
+def sampled_rows(height: int, every: int = SAMPLE_EVERY) -> tuple[np.ndarray, np.ndarray]:
+    """The middle rows a first look grades (every ``every``-th, none on the image's edge), and every row it
+    renders for them: each middle row with the rows above and below."""
+    middles = np.arange(every // 2, height - 1, every)
     middles = middles[middles >= 1]
     return middles, (middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
 
 
-def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders) -> int | None:
+def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
+                 enough: float = np.inf) -> int | None:
     """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
-    look at a few of its rows (None when :class:`Renders` has no rows to give).
+    look at a few of its rows (None when :class:`Renders` has no rows to give); once it exceeds ``enough``, no
+    more rows are looked at.
 
     Exact, not a sample's estimate: a pixel is off nearby when every variant pixel in its 3×3 neighbourhood
     differs from it by more than the tolerance, so each sampled middle row, rendered with the rows above and
     below, gives its off pixels exactly as the whole grade counts them; their count bounds the whole image's.
     A variant whose bound exceeds what passing allows cannot pass, and one whose bound exceeds the closest's
-    share cannot be named closest (:func:`diagnose`)."""
+    share cannot be named closest (:func:`diagnose`).  The rows are looked at in two goes, one in
+    :data:`FIRST_LOOK` of them first: a bound from some of the rows is a bound too, and most variants are
+    settled by it."""
     if renders.rows is None:
         return None
     h, w, _ = submitted.shape
-    middles, rows = sampled_rows(h)
+    middles, _ = sampled_rows(h)
     if len(middles) == 0:
         return None
-    bands = renders.rows(name, rows).reshape(len(middles), 3, w, 3)
-    return sum(int(np.count_nonzero(nearby_difference(band, planes(submitted[r:r + 1]), 1, 2) > verdict.tolerance))
-               for band, r in zip(bands, middles.tolist()))
+    first = middles[FIRST_LOOK // 2::FIRST_LOOK]
+    off = 0
+    for look in (first, np.setdiff1d(middles, first)):
+        if len(look) == 0:
+            continue
+        rows = (look[:, None] + np.arange(-1, 2)[None, :]).ravel()
+        bands = renders.rows(name, rows).reshape(len(look), 3, w, 3)
+        off += sum(int(np.count_nonzero(nearby_difference(band, planes(submitted[r:r + 1]), 1, 2) > verdict.tolerance))
+                   for band, r in zip(bands, look.tolist()))
+        if off > enough:
+            break
+    return off
 
 
 def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, tolerance: float) -> float | None:
