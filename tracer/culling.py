@@ -410,7 +410,6 @@ class Penumbra:
                  may_block: np.ndarray, corners: np.ndarray, facing: bool):
         self.bounds = b
         self.bound, self.point = np.nonzero(may_block)  # (P,) each: bound-major, as Among.of makes them
-        self.count = len(kind)
         p = [np.take(points[:, k], self.point) for k in range(3)]
         a = [b.center[self.bound, k] - p[k] for k in range(3)]
         with np.errstate(all="ignore"):
