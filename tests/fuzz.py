@@ -149,6 +149,7 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
         p[sel], _, shading[sel] = reference.surface_point(surfaces[k], o[r], d[r], ref.t[r], ref.u[r], ref.w[r])
     kinds = np.array([to_phong[int(k)][0] for k in which], dtype=np.int8)
     indices = np.array([to_phong[int(k)][1] for k in which], dtype=np.int64)
+    _mirrors(out, renderer, surfaces, to_ref, p, d[rows], shading, which, kinds, indices, bounds)
     for e_index, e in enumerate(reference.emitters_of(scene)[1]):
         L, dist, f, unclear_f = reference.illuminate(e, p)
         nl, unclear_nl = reference.n_dot_l(surfaces, which, e, shading, L)
@@ -172,6 +173,34 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
                  [f"shadow ray from surface {which[ask][r]} at {p[ask][r].tolist()} to light {e_index}: phongray "
                   f"{'blocked' if mine[r] else 'clear'}, brute force {'blocked' if blk[r] else 'clear'}"
                   for r in np.flatnonzero(bad)[:3]])
+
+
+def _mirrors(out: Outcome, renderer: Renderer, surfaces: list, to_ref: dict, p: np.ndarray, d: np.ndarray,
+             shading: np.ndarray, which: np.ndarray, kinds: np.ndarray, indices: np.ndarray, bounds: Any) -> None:
+    """Mirror rays from the brute force's own clear hits, leaving their surfaces: phongray's walk (whatever the
+    scene's materials, which may send none) against the brute force, and the pairs of rays of their own
+    directions (tracer.cones.on_lines) against the walk, bit for bit."""
+    mirror = d - 2.0 * np.sum(d * shading, axis=1)[:, None] * shading
+    mirror /= np.linalg.norm(mirror, axis=1)[:, None]
+    ref = reference.closest(surfaces, p, mirror, which)
+    isect = renderer.intersector
+    rays = isect.rays(p - renderer.world.origin, np.ascontiguousarray(mirror), kinds, indices)
+    hits = isect.closest(rays)
+    if bounds is not None:
+        _same_by_cones(out, "hit by lines", hits, isect.closest(rays, on_lines(bounds, rays.origins, rays.dirs)))
+    got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
+    clear = ~ref.unclear
+    # t as exact as the numbers it comes from: the ray's origin (which phongray takes in the eye's frame, rounded
+    # there), the hit surface's own (a planet's), and t itself
+    mag = np.array([surfaces[k].mag if k >= 0 else 0.0 for k in ref.surface]) + float(np.max(np.abs(
+        renderer.world.origin)))
+    with np.errstate(invalid="ignore"):
+        t_ok = (ref.surface < 0) | (np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + reference.ERR * (
+            np.abs(p).max(axis=1) + ref.t + mag))
+    bad = clear & ((got != ref.surface) | ~t_ok)
+    out.note("mirror hit", int(clear.sum()), bad,
+             [f"mirror ray {r} from surface {which[r]}: phongray surface {got[r]} t={hits.t[r]!r}, brute force "
+              f"{ref.surface[r]} t={ref.t[r]!r}" for r in np.flatnonzero(bad)[:3]])
 
 
 def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> None:
@@ -315,7 +344,8 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{done} scenes, {len(bad)} disagreeing, {time.monotonic() - start:.0f} s", flush=True)
     print(f"{len(seeds)} scenes (seeds {seeds.start}..{seeds.stop - 1}, {width}x{height}) in "
           f"{time.monotonic() - start:.0f} s")
-    for kind in ("hit", "shadow", "pixel", "hit by cones", "hit by lines", "shadow by cones", "shadow by proofs"):
+    for kind in ("hit", "mirror hit", "shadow", "pixel", "hit by cones", "hit by lines", "shadow by cones",
+                 "shadow by proofs"):
         print(f"  {kind}: {disagreed[kind]} disagreements in {compared[kind]} compared")
     crashed = sum(1 for o in bad if o.error)
     print(f"  crashes: {crashed}")

@@ -1,9 +1,12 @@
 """The differential fuzz test, CI's subset: generated scenes against the float64 brute force.
 
 A few hundred scenes of :mod:`generator` at tiny sizes, each compared ray by
-ray and pixel by pixel (:mod:`fuzz`), on every core; the camera and shadow
-rays also by :mod:`tracer.cones`' pairs, against the walk, bit for bit.  A soak of thousands is
-``python -m tests.fuzz --scenes 10000``.
+ray and pixel by pixel (:mod:`fuzz`), on every core: camera rays, mirror rays
+leaving the hit surfaces (the walk from a surface) and shadow rays; the camera,
+mirror and shadow rays also by :mod:`tracer.cones`' pairs, against the walk,
+bit for bit; and every shadow ray the lights' proofs (:mod:`tracer.culling`)
+decide without casting, cast.  A soak of thousands is ``python -m tests.fuzz
+--scenes 10000``.
 """
 
 import os
@@ -35,13 +38,18 @@ def test_every_family_is_in_the_subset(outcomes):
 def test_the_brute_force_is_clear_on_most_of_what_it_compares(outcomes):
     # a check of the check: the comparisons below must not be vacuous
     total = {k: sum(o.compared[k] for o in outcomes)
-             for k in ("hit", "shadow", "pixel", "hit by cones", "shadow by cones")}
+             for k in ("hit", "mirror hit", "shadow", "pixel", "hit by cones", "hit by lines", "shadow by cones",
+                       "shadow by proofs")}
     assert total["hit"] > 0.9 * SCENES * 20 * 15
     assert total["pixel"] > 0.8 * SCENES * 20 * 15
     assert total["shadow"] > SCENES * 100
     # the cones' pairs are checked against the walk on most scenes' camera and shadow rays
     assert total["hit by cones"] > 0.9 * SCENES * 20 * 15
     assert total["shadow by cones"] > 0.8 * total["shadow"]
+    # mirror rays from the hit surfaces, the lines' pairs, and the rays the proofs decide
+    assert total["mirror hit"] > SCENES * 150
+    assert total["hit by lines"] > SCENES * 400
+    assert total["shadow by proofs"] > SCENES * 50
 
 
 def test_phongray_agrees_with_the_brute_force_on_every_generated_scene(outcomes):
