@@ -191,12 +191,18 @@ def _mirrors(out: Outcome, renderer: Renderer, surfaces: list, to_ref: dict, p: 
     got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
     clear = ~ref.unclear
     # t as exact as the numbers it comes from: the ray's origin (which phongray takes in the eye's frame, rounded
-    # there), the hit surface's own (a planet's), and t itself
+    # there), the hit surface's own (a planet's), and t itself; across the surface, that is, and along a ray that
+    # grazes it, that much over the cosine (a mirror ray meets a planet far off nearly edge-on)
     mag = np.array([surfaces[k].mag if k >= 0 else 0.0 for k in ref.surface]) + float(np.max(np.abs(
         renderer.world.origin)))
-    with np.errstate(invalid="ignore"):
+    cosine = np.ones(len(p))
+    for k in np.unique(ref.surface[ref.surface >= 0]):
+        sel = np.flatnonzero(ref.surface == k)
+        _, geo, _ = reference.surface_point(surfaces[k], p[sel], mirror[sel], ref.t[sel], ref.u[sel], ref.w[sel])
+        cosine[sel] = np.abs(np.sum(geo * mirror[sel], axis=1))
+    with np.errstate(invalid="ignore", divide="ignore"):
         t_ok = (ref.surface < 0) | (np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + reference.ERR * (
-            np.abs(p).max(axis=1) + ref.t + mag))
+            np.abs(p).max(axis=1) + ref.t + mag) / np.maximum(cosine, 2.0**-40))
     bad = clear & ((got != ref.surface) | ~t_ok)
     out.note("mirror hit", int(clear.sum()), bad,
              [f"mirror ray {r} from surface {which[r]}: phongray surface {got[r]} t={hits.t[r]!r}, brute force "
