@@ -65,6 +65,16 @@ class Stage:
     per_light: bool = False
 
 
+def _direct_light(module: str, shade: str, area: str, blocked: str) -> list[Stage]:
+    """The stages of direct light, in the module that shades (its functions by the names it calls them by)."""
+    return [Stage(module, shade, "direct light", _n_out),
+            Stage(module, "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
+            *(Stage(module, name, "shading", per_light=True)
+              for name in ("illuminate", "light_in_plane", "phong", "add_phong")),
+            Stage(module, area, "area light", per_light=True),
+            Stage(module, blocked, "shadow rays", _n_out, per_light=True)]
+
+
 #: the stages, by the names the render calls them by (render.py imports its helpers by name)
 STAGES = [
     Stage("tracer.camera", "CameraRays.rays", "camera rays", _n_result),
@@ -84,23 +94,9 @@ STAGES = [
     Stage("tracer.direct", "along_direction", "cones", lambda a, r: len(a[2])),
     Stage("tracer.render", "resolve_material", "materials and checker", _n_out),
     Stage("tracer.render", "shading_normal", "shading normals", _n_out),
-    Stage("tracer.direct", "DirectLight.shade", "direct light", _n_out),
-    Stage("tracer.direct", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
-    Stage("tracer.direct", "illuminate", "shading", per_light=True),
-    Stage("tracer.direct", "light_in_plane", "shading", per_light=True),
-    Stage("tracer.direct", "phong", "shading", per_light=True),
-    Stage("tracer.direct", "add_phong", "shading", per_light=True),
-    Stage("tracer.direct", "DirectLight._area", "area light", per_light=True),
-    Stage("tracer.direct", "DirectLight.blocked", "shadow rays", _n_out, per_light=True),
+    *_direct_light("tracer.direct", "DirectLight.shade", "DirectLight._area", "DirectLight.blocked"),
     # (an older tracer's, where direct light was the renderer's own: profiled when the bench runs it)
-    Stage("tracer.render", "Renderer.direct", "direct light", _n_out),
-    Stage("tracer.render", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
-    Stage("tracer.render", "illuminate", "shading", per_light=True),
-    Stage("tracer.render", "light_in_plane", "shading", per_light=True),
-    Stage("tracer.render", "phong", "shading", per_light=True),
-    Stage("tracer.render", "add_phong", "shading", per_light=True),
-    Stage("tracer.render", "Renderer._area_light", "area light", per_light=True),
-    Stage("tracer.render", "Renderer._blocked", "shadow rays", _n_out, per_light=True),
+    *_direct_light("tracer.render", "Renderer.direct", "Renderer._area_light", "Renderer._blocked"),
     Stage("tracer.render", "Renderer.secondary", "reflection and refraction", _n_out),
     Stage("tracer.render", "_accumulate", "adding up", _n_second),
     Stage("tracer.render", "quantize", "quantisation", _n_first),

@@ -155,16 +155,7 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
         seen = np.abs(apex_side) > margin_of * 16 + reach_t  # every point of the ball off Q's plane
         seen &= np.isfinite(scale) & np.isfinite(reach_t)
         side = np.sign(apex_side)
-        faces = []
-        for k in range(4):
-            a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
-            ax, ay, az = a[0] - centre[0], a[1] - centre[1], a[2] - centre[2]
-            cx, cy, cz = c[0] - centre[0], c[1] - centre[1], c[2] - centre[2]
-            f = np.stack([ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx])
-            f /= np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-            inner = (far[0] - centre[0]) * f[0] + (far[1] - centre[1]) * f[1] + (far[2] - centre[2]) * f[2]
-            f *= np.where(inner != 0, -np.sign(inner), np.nan)
-            faces.append((f, f[0] * centre[0] + f[1] * centre[1] + f[2] * centre[2]))
+        faces = _faces(centre, corners)
         for k in range(len(b.radius)):
             ck = b.center[k]
             reach = margin_of + (float(b.radius[k]) + bound_part[k]) + reach_t
@@ -206,19 +197,7 @@ def _classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
     apex_side = _plane_dot(p, corners[0], q_normal)  # (N,)
     flat = np.abs(apex_side) <= margin_of * 16  # a point in Q's plane: no pyramid to speak of
     side = np.sign(apex_side)
-    # the pyramid's faces: four sides through P and an edge of Q (each turned so that the pyramid lies on its
-    # negative side, NaN where P, a and c are in line: then no bound is separated by it), and Q's own plane
-    faces = []
-    for k in range(4):
-        a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
-        ax, ay, az = a[0] - p[0], a[1] - p[1], a[2] - p[2]
-        cx, cy, cz = c[0] - p[0], c[1] - p[1], c[2] - p[2]
-        f = np.stack([ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx])  # (3, N): (a − P) × (c − P)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            f /= np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-            inner = (far[0] - p[0]) * f[0] + (far[1] - p[1]) * f[1] + (far[2] - p[2]) * f[2]  # the far corner
-            f *= np.where(inner != 0, -np.sign(inner), np.nan)  # outward: the far corner on the negative side
-        faces.append((f, f[0] * p[0] + f[1] * p[1] + f[2] * p[2]))
+    faces = _faces(p, corners)  # (and Q's own plane)
     K = len(b.radius)
     may_block = np.ones((K, n), dtype=bool)
     seen = ~flat
@@ -258,6 +237,25 @@ def _classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
     out[hidden & ~seen] = HIDDEN
     may_block[:, flat] = True  # (no pyramid to speak of: every bound may block)
     return Culled(out, may_block)
+
+
+def _faces(p: np.ndarray, corners: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The side faces of the pyramids with apexes ``p (3, N)`` over the parallelogram ``corners (4, 3)``: four
+    planes through an apex and an edge of Q, each as its unit normal ``(3, N)`` turned so that the pyramid lies
+    on its negative side (NaN where the apex and the edge are in line: then no bound is separated by it), and
+    the apex's offset along it ``(N,)``."""
+    faces = []
+    for k in range(4):
+        a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
+        ax, ay, az = a[0] - p[0], a[1] - p[1], a[2] - p[2]
+        cx, cy, cz = c[0] - p[0], c[1] - p[1], c[2] - p[2]
+        f = np.stack([ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx])  # (3, N): (a − P) × (c − P)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f /= np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
+            inner = (far[0] - p[0]) * f[0] + (far[1] - p[1]) * f[1] + (far[2] - p[2]) * f[2]  # the far corner
+            f *= np.where(inner != 0, -np.sign(inner), np.nan)  # outward: the far corner on the negative side
+        faces.append((f, f[0] * p[0] + f[1] * p[1] + f[2] * p[2]))
+    return faces
 
 
 def _plane_dot(p: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
