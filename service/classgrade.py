@@ -185,9 +185,9 @@ def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict
     refuse as too costly, stops the run before anything renders, every problem named by file (and line)."""
     from schemas import SceneError
 
-    from .jobs import scene_key
     from .limits import LimitError, check_body, check_scene
     from .pipeline import load_scene
+    from .scenekey import scene_key
 
     keys: dict[Path, str] = {}
     texts: dict[Path, bytes] = {}

@@ -20,17 +20,21 @@ Everything here is pure: the renders come in through a :class:`Renders`.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tracer.passes import LIGHT_TERMS
-from tracer.variants import BOUNDS, VARIANTS, unchanged
+from tracer.variants import BOUNDS, REFERENCE, VARIANTS, Options, unchanged
 
 from .display import percent
-from .grading import Grade, grade, nearby_difference, planes
+from .grading import Grade, grade
+
+if TYPE_CHECKING:
+    from tracer import Renderer
 
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
 #: failing pixels
@@ -108,6 +112,12 @@ class Renders:
     cancel: Callable[[], bool] | None = None  # the current diagnosis's: true stops its renders
     #: name, row numbers → those rows of the variant's pixels, rendered alone (a first look, :func:`off_at_least`)
     rows: Callable[[str, np.ndarray], np.ndarray] | None = None
+    #: name of BOUNDS, row numbers → those rows of the mistake's far end, rendered alone (:func:`outside_at_least`)
+    bound_rows: Callable[[str, np.ndarray], np.ndarray] | None = None
+    #: pixel numbers → every pass (of :meth:`tracer.Renderer.diagnosis_passes`) at those pixels alone
+    at: Callable[[np.ndarray], dict[str, np.ndarray]] | None = None
+    #: name → whether the scene cannot show that mistake (its render is the reference's, bit for bit)
+    unchanged: Callable[[str], bool] | None = None
 
 
 def term_words(term: dict[str, Any]) -> str:
@@ -154,7 +164,10 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
         g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
         scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
 
-    for name in VARIANTS:
+    def shown(name: str) -> bool:  # a mistake the scene cannot show is no evidence of anything: not rendered
+        return renders.unchanged is None or not renders.unchanged(name)
+
+    for name in filter(shown, VARIANTS):
         if name in BOUNDS and renders.bound is not None:
             continue  # (a speckled mistake is scored against its far end below, not by its own render)
         # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot pass
@@ -164,19 +177,30 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
             later.append(name)
             continue
         score(name)
-    for name in BOUNDS if renders.bound is not None else ():
+    def score_speckled(name: str) -> None:
         assert renders.bound is not None
         # the variant's own speckles are one pattern of many: only lying between the reference and the far
         # end, in speckles, is evidence of the mistake
-        scored = [c for c in scored if c.variant != name]
         outside = speckled(reference, renders.bound(name), submitted, verdict.tolerance)
         if outside is not None:
             scored.append(Cause(name, VARIANTS[name][1], outside, outside <= verdict.max_fraction))
+
+    later_bounds: list[str] = []  # speckled mistakes that cannot pass, but may come closest if none passes
+    for name in filter(shown, BOUNDS) if renders.bound is not None else ():
+        least = outside_at_least(name, reference, submitted, verdict, renders, may_pass)
+        if least is not None and least > may_pass:
+            later_bounds.append(name)
+        else:
+            score_speckled(name)
     if not any(c.passes for c in scored):  # then the closest is named: score what may come closest
         for name in later:
             least = off_at_least(name, submitted, verdict, renders, may_come_closest)  # (every row looked at)
             if least is None or least <= may_come_closest:
                 score(name)
+        for name in later_bounds:
+            least = outside_at_least(name, reference, submitted, verdict, renders, may_come_closest)
+            if least is None or least <= may_come_closest:
+                score_speckled(name)
     scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
     passing = [c for c in scored if c.passes]
     if passing:
@@ -230,8 +254,54 @@ def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Rend
             continue
         rows = (look[:, None] + np.arange(-1, 2)[None, :]).ravel()
         bands = renders.rows(name, rows).reshape(len(look), 3, w, 3)
-        off += sum(int(np.count_nonzero(nearby_difference(band, planes(submitted[r:r + 1]), 1, 2) > verdict.tolerance))
-                   for band, r in zip(bands, look.tolist()))
+        off += _off_nearby(bands, submitted[look], verdict.tolerance)
+        if off > enough:
+            break
+    return off
+
+
+def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int:
+    """How many pixels of the submitted rows ``middles (k, W, 3)`` are off even nearby against the variant's
+    ``bands (k, 3, W, 3)`` (each middle row with the rows above and below): every variant pixel in the 3×3
+    neighbourhood (the row's ends repeated) differs from it by more than ``tolerance`` in some channel, as
+    :func:`service.grading.grade` counts them."""
+    k, _, w, _ = bands.shape
+    padded = np.pad(bands, ((0, 0), (0, 0), (1, 1), (0, 0)), mode="edge").astype(np.int16)
+    sub = middles.astype(np.int16)
+    best = np.full((k, w), 255, dtype=np.int16)
+    for dy in range(3):
+        for dx in range(3):
+            np.minimum(best, np.abs(padded[:, dy, dx:dx + w] - sub).max(axis=2), out=best)
+    return int(np.count_nonzero(best > tolerance))
+
+
+def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
+                     enough: float = np.inf) -> int | None:
+    """For a speckled mistake ``name`` of :data:`tracer.variants.BOUNDS`: a lower bound of how many pixels of
+    ``submitted`` lie outside the reference and the mistake's far end (:func:`speckled`'s share, as a count),
+    from a look at the sampled middle rows of the far end (None when :class:`Renders` has no rows to give);
+    once it exceeds ``enough``, no more rows are looked at.
+
+    Exact, as :func:`off_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
+    sampled rows give their outside pixels exactly as :func:`speckled` counts them, and their count bounds
+    the whole image's.  A mistake whose bound exceeds what passing allows cannot pass, and one whose bound
+    exceeds the closest's share cannot be named closest: its far end is rendered whole only when it can."""
+    if renders.bound_rows is None:
+        return None
+    h = submitted.shape[0]
+    middles, _ = sampled_rows(h)
+    if len(middles) == 0:
+        return None
+    first = middles[FIRST_LOOK // 2::FIRST_LOOK]
+    off = 0
+    for look in (first, np.setdiff1d(middles, first)):
+        if len(look) == 0:
+            continue
+        far = renders.bound_rows(name, look).astype(np.int16)
+        ref, sub = reference[look].astype(np.int16), submitted[look].astype(np.int16)
+        tol = verdict.tolerance
+        outside = (sub < np.minimum(ref, far) - tol) | (sub > np.maximum(ref, far) + tol)
+        off += int(np.count_nonzero(np.any(outside, axis=2)))
         if off > enough:
             break
     return off
@@ -344,15 +414,23 @@ def where(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
     count = int(diff.sum())
     if count == 0:
         return [], []
-    found = renders.passes(["object"], None)["object"][diff]
+    if renders.at is not None:  # the passes of the failing pixels alone
+        at = renders.at(np.flatnonzero(diff))
+
+        def there(name: str, light: int | None) -> np.ndarray:
+            return at[name if light is None else f"{name}:{light}"]
+    else:
+        def there(name: str, light: int | None) -> np.ndarray:
+            return renders.passes([name], light)[name][diff]
+
+    found = there("object", None)
     objects = [Share(int(k), renders.objects[int(k)] if k >= 0 else "background", float(np.mean(found == k)))
                for k in np.unique(found)]
     lights = []
     for k, kind in enumerate(renders.lights):
         if kind == "ambient":
             continue
-        own = renders.passes(["diffuse", "specular"], k)
-        lit = (own["diffuse"] + own["specular"]).max(axis=2)[diff] > 1.0 / 255
+        lit = (there("diffuse", k) + there("specular", k)).max(axis=1) > 1.0 / 255
         if lit.any():
             lights.append(Share(k, kind, float(lit.mean())))
     return (sorted(objects, key=lambda s: -s.share), sorted(lights, key=lambda s: -s.share))
@@ -370,13 +448,28 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     (:meth:`tracer.Renderer.diagnosis_passes`); from that colour come, exactly as their own renders would make
     them, the gamma variant (each pixel's colour to the power 1/2.2, then stored) and the flipped image, and
     the reference itself stands for every variant the scene cannot show (:func:`tracer.variants.unchanged`).
-    Only the other variants are rendered, each once."""
+    Only the other variants are rendered, each once.
+
+    That render is made only when something needs the whole image's passes (a fit of the terms, a variant
+    made from the colour).  Until then the passes of the failing pixels come alone (``at``), at most half
+    the image's worth of them in all, and the gamma and flipped variants are rendered, first a few rows of
+    them, like any other: the same pixels either way."""
     from tracer import Renderer
     from tracer.image import quantize
 
     variants: dict[str, np.ndarray] = {}
     bounds: dict[str, np.ndarray] = {}
     made: dict[str, dict[str, np.ndarray]] = {}
+    last = threading.local()  # per thread, the last scene prepared and its options
+
+    def prepared(options: Options) -> Renderer:
+        # a variant's first look, its second and its whole render come one after another: one preparation of
+        # the scene (its world, its Embree scene) serves them all.  One per thread, and only the last: threads
+        # share no renderer, and a cached scene holds no more than one
+        if getattr(last, "options", None) != options:
+            last.options, last.renderer = options, Renderer(scene, options)
+        renderer: Renderer = last.renderer
+        return renderer
 
     def passes() -> dict[str, np.ndarray]:
         if "all" not in made:
@@ -384,37 +477,56 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
                 from tracer import RenderCancelled
 
                 raise RenderCancelled("diagnosis cancelled")
-            made["all"] = Renderer(scene).diagnosis_passes(threads=threads, cancel=out.cancel)
+            made["all"] = prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=out.cancel)
         return made["all"]
 
     def variant(name: str) -> np.ndarray:
         if name not in variants:
-            if name == "gamma":  # as Renderer.pixels stores a gamma variant's chunk colour
+            if name == "gamma" and "all" in made:  # as Renderer.pixels stores a gamma variant's chunk colour
                 variants[name] = quantize(np.clip(passes()["colour"], 0.0, None) ** (1.0 / 2.2))
-            elif name == "image-flipped":  # the reference's rows, bottom to top
+            elif name == "image-flipped" and "all" in made:  # the reference's rows, bottom to top
                 variants[name] = quantize(passes()["colour"])[::-1]
             elif unchanged(name, scene):
                 variants[name] = quantize(passes()["colour"])
             else:
-                variants[name] = Renderer(scene, VARIANTS[name][0]).pixels(threads=threads, cancel=out.cancel)
+                variants[name] = prepared(VARIANTS[name][0]).pixels(threads=threads, cancel=out.cancel)
         return variants[name]
 
     sampled: dict[tuple[str, bytes], np.ndarray] = {}
 
     def rows(name: str, numbers: np.ndarray) -> np.ndarray:
-        if name in variants or name in DERIVED or unchanged(name, scene):
+        if name in variants or (name in DERIVED and "all" in made) or unchanged(name, scene):
             return variant(name)[numbers]
         key = (name, numbers.tobytes())
         if key not in sampled:
-            sampled[key] = Renderer(scene, VARIANTS[name][0]).pixels_of_rows(numbers, threads=threads,
+            sampled[key] = prepared(VARIANTS[name][0]).pixels_of_rows(numbers, threads=threads,
                                                                              cancel=out.cancel)
         return sampled[key]
 
     def bound(name: str) -> np.ndarray:
         if name not in bounds:
             bounds[name] = quantize(passes()["colour"]) if unchanged(name, scene) else \
-                Renderer(scene, BOUNDS[name]).pixels(threads=threads, cancel=out.cancel)
+                prepared(BOUNDS[name]).pixels(threads=threads, cancel=out.cancel)
         return bounds[name]
+
+    def bound_rows(name: str, numbers: np.ndarray) -> np.ndarray:
+        if name in bounds or unchanged(name, scene):
+            return bound(name)[numbers]
+        key = ("bound:" + name, numbers.tobytes())
+        if key not in sampled:
+            sampled[key] = prepared(BOUNDS[name]).pixels_of_rows(numbers, threads=threads, cancel=out.cancel)
+        return sampled[key]
+
+    width, total = scene.image.width, scene.image.width * scene.image.height
+    spent = [0]  # pixels whose passes were rendered alone so far
+
+    def at(pixels: np.ndarray) -> dict[str, np.ndarray]:
+        # pixels alone while they add up to at most half the image; past that, the whole image once, and kept
+        if "all" in made or spent[0] + len(pixels) > total // 2:
+            rows, cols = np.divmod(pixels, width)
+            return {name: plane[rows, cols] for name, plane in passes().items()}
+        spent[0] += len(pixels)
+        return prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=out.cancel, pixels=pixels)
 
     def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
         every = passes()
@@ -422,7 +534,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
                 for name in names}
 
     out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects], bound,
-                  rows=rows)
+                  rows=rows, bound_rows=bound_rows, at=at, unchanged=lambda name: unchanged(name, scene))
     return out
 
 

@@ -5,8 +5,6 @@ exceptions into status codes."""
 from __future__ import annotations
 
 import contextlib
-import hashlib
-import json
 import os
 import threading
 import time
@@ -17,7 +15,7 @@ from typing import Any
 import anyio
 import numpy as np
 
-from schemas import Mesh, Scene, parse_json, validate_scene
+from schemas import Scene, parse_json, validate_scene
 from tracer import RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
 
@@ -27,9 +25,8 @@ from .limits import check_body, check_raw, check_scene
 from .passes import Format
 from .pipeline import Graded, explain, with_overrides
 from .rendering import render_pixels
+from .scenekey import scene_key
 from .settings import Settings
-
-RENDERER_VERSION = "phongray-1"
 
 
 class Busy(Exception):
@@ -67,34 +64,6 @@ def prepare(body: bytes | str, overrides: dict[str, int | None], settings: Setti
     scene = with_overrides(validate_scene(parse_counted(body, settings)), overrides)
     check_scene(scene, settings)
     return Job(scene, scene_key(scene))
-
-
-#: rows of a mesh array hashed at once (each hashing step is a short call)
-KEY_ROWS = 65_536
-
-
-def scene_key(scene: Scene) -> str:
-    """sha256 of the canonical scene: its JSON (keys sorted) piece by piece, each mesh array as float64 or
-    int64 bytes, so a large mesh is hashed in short steps."""
-    digest = hashlib.sha256(RENDERER_VERSION.encode())
-
-    def put(value: Any) -> None:
-        text = json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
-        digest.update(b"%d:" % len(text) + text.encode("utf-8", "surrogatepass"))
-
-    put(scene.model_dump(mode="json", exclude={"objects"}))
-    put(len(scene.objects))
-    for obj in scene.objects:
-        if not isinstance(obj, Mesh):
-            put(obj.model_dump(mode="json"))
-            continue
-        put(obj.model_dump(mode="json", exclude={"vertices", "faces", "normals"}))
-        for name, dtype in (("vertices", np.float64), ("faces", np.int64), ("normals", np.float64)):
-            rows = getattr(obj, name)
-            put([name, None if rows is None else len(rows)])
-            for start in range(0, len(rows or ()), KEY_ROWS):
-                digest.update(np.asarray(rows[start:start + KEY_ROWS], dtype=dtype).tobytes())
-    return digest.hexdigest()
 
 
 class RenderService:

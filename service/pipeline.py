@@ -85,7 +85,7 @@ def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.n
     if graded.grade.passed:
         return graded
     from .diagnosis import CACHE, diagnose, renders_of
-    from .jobs import scene_key
+    from .scenekey import scene_key
 
     renders = CACHE.get(scene_key(scene), lambda: renders_of(scene, threads), scene.image.width * scene.image.height)
     renders.cancel = cancel

@@ -1,6 +1,7 @@
 """Diagnosis (service/diagnosis.py): a failing submission's likely mistake, terms out of scale, and where."""
 
 import copy
+from dataclasses import replace as dataclasses_replace
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ from test_variants import EVERYTHING
 
 import schemas
 from service.diagnosis import diagnose, nnls, renders_of
+from service.diagnosis import where as diagnosis_where
 from service.grading import grade
 from tracer import Renderer
 from tracer.image import quantize
@@ -132,6 +134,7 @@ def test_the_mistakes_are_the_variants():
 
 def test_variants_made_from_the_reference_colour_are_their_own_renders(setting):
     scene, reference, renders = setting
+    renders.passes(["ambient"], None)  # (made from the colour once the pass render is there)
     for name in ("gamma", "image-flipped"):
         assert np.array_equal(renders.variant(name), Renderer(scene, VARIANTS[name][0]).pixels()), name
 
@@ -174,13 +177,55 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         whole = []
         render_variant = looked.variant
         looked.variant = lambda v, f=render_variant, whole=whole: whole.append(v) or f(v)
-        blind = dataclasses.replace(renders_of(scene), rows=None)
+        far = []
+        render_bound = looked.bound
+        looked.bound = lambda v, f=render_bound, far=far: far.append(v) or f(v)
+        # blind: every variant, the far end and the passes rendered whole, and every variant scored
+        blind = dataclasses.replace(renders_of(scene), rows=None, bound_rows=None, at=None, unchanged=None)
         assert diagnose(reference, submitted, verdict, looked).as_dict() == \
             diagnose(reference, submitted, verdict, blind).as_dict(), name
-        spared += len(VARIANTS) - len(whole)
+        spared += len(VARIANTS) - len(whole) + 1 - len(far)
+        # and the first look at the far end's rows is a lower bound of what the whole of it counts
+        least = diagnosis.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
+        outside = diagnosis.speckled(reference, looked.bound("shadow-acne"), submitted, verdict.tolerance)
+        whole_far = Renderer(scene, diagnosis.BOUNDS["shadow-acne"]).pixels().astype(int)
+        ref, sub, tol = reference.astype(int), submitted.astype(int), verdict.tolerance
+        count = int(np.any((sub < np.minimum(ref, whole_far) - tol) | (sub > np.maximum(ref, whole_far) + tol),
+                           axis=2).sum())
+        assert least is not None and least <= count
+        assert outside is None or outside == count / (ref.shape[0] * ref.shape[1])
         # and what the first look gives is a lower bound of what the whole grade counts
         for v in ("no-shadows", "blinn-phong", "no-ambient"):
             least = diagnosis.off_at_least(v, submitted, verdict, looked)
             g = grade(Renderer(scene, VARIANTS[v][0]).pixels(), submitted, "", verdict.tolerance)
             assert least is not None and least <= round(g.fraction_off_nearby * reference.shape[0] * reference.shape[1])
     assert spared > 2 * len(_submissions(scene, reference))
+
+
+def test_a_first_look_counts_off_pixels_as_the_grade_does():
+    from service.diagnosis import _off_nearby
+    from service.grading import nearby_difference, planes
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        bands = rng.integers(0, 256, (5, 3, 17, 3), dtype=np.uint8)
+        middles = np.clip(bands[:, 1].astype(int) + rng.integers(-12, 13, (5, 17, 3)), 0, 255).astype(np.uint8)
+        tolerance = float(rng.integers(0, 10))
+        alone = sum(int(np.count_nonzero(nearby_difference(band, planes(m[None]), 1, 2) > tolerance))
+                    for band, m in zip(bands, middles))
+        assert _off_nearby(bands, middles, tolerance) == alone
+
+
+def test_where_renders_the_failing_pixels_alone_as_the_whole_pass_render_has_them(setting):
+    scene, reference, _ = setting
+    renders = renders_of(scene)
+    student = reference.copy()
+    student[5:9, 20:60] = 0
+    verdict = grade(reference, student, "")
+    rendered = []
+    at = renders.at
+    renders.at = lambda pixels: rendered.append(len(pixels)) or at(pixels)
+    found = diagnosis_where(reference, student, verdict, renders)
+    whole = diagnosis_where(reference, student, verdict, dataclasses_replace(renders, at=None))
+    failing = np.abs(reference.astype(int) - student.astype(int)).max(axis=2) > verdict.tolerance
+    assert found == whole and found[0] and rendered == [int(failing.sum())] and 0 < rendered[0] <= 4 * 40

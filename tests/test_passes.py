@@ -86,3 +86,17 @@ def test_unknown_passes_and_lights_are_refused():
         r.passes(["albedo"])
     with pytest.raises(ValueError, match="2 lights"):
         r.passes(["diffuse"], light=2)
+
+
+def test_the_passes_of_some_pixels_are_those_of_the_whole_render():
+    data = scene_dict("02_all_lights")
+    data["image"].update(width=48, height=36)
+    scene = schemas.validate_scene(data)
+    whole = Renderer(scene).diagnosis_passes()
+    picked = np.random.default_rng(2).choice(48 * 36, 300, replace=False)
+    some = Renderer(scene).diagnosis_passes(pixels=picked, chunk_rays=64)
+    rows, cols = np.divmod(picked, 48)
+    assert set(some) == set(whole)
+    for name, plane in whole.items():
+        assert np.array_equal(plane[rows, cols], some[name]), name
+    assert all(len(v) == 0 for v in Renderer(scene).diagnosis_passes(pixels=np.zeros(0, int)).values())

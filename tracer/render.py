@@ -235,33 +235,45 @@ class Renderer:
         return out
 
     def diagnosis_passes(self, threads: int | None = None, chunk_rays: int | None = None,
-                         cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
+                         cancel: Callable[[], bool] | None = None,
+                         pixels: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """In one render, what a diagnosis needs of the reference scene: the additive passes, ``object``, every
         light's ``diffuse:K`` and ``specular:K`` (and their sums), and ``colour``, the image's linear colour
-        per pixel ``(H, W, 3)``, the very values :meth:`pixels` quantizes (the passes change no colour)."""
+        per pixel ``(H, W, 3)``, the very values :meth:`pixels` quantizes (the passes change no colour).
+
+        With ``pixels`` (pixel numbers, row by row from the top left), of those pixels alone, each pass
+        ``(len(pixels), …)``: the very values of the whole render's (every pixel is computed alone)."""
         img = self.scene.image
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         total = img.width * img.height
         s = img.samples * img.samples
         per_chunk = max(1, chunk_rays // s)
-        bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        if pixels is None:
+            parts: list[tuple[int, int, np.ndarray | None]] = [(a, min(a + per_chunk, total), None)
+                                                               for a in range(0, total, per_chunk)]
+        else:
+            picked = np.asarray(pixels, dtype=np.int64)
+            parts = [(0, len(picked[a:a + per_chunk]), picked[a:a + per_chunk])
+                     for a in range(0, len(picked), per_chunk)]
         names = (*ADDITIVE, "object")
 
-        def work(bound: tuple[int, int]) -> dict[str, np.ndarray]:
-            a, b = bound
+        def work(part: tuple[int, int, np.ndarray | None]) -> dict[str, np.ndarray]:
+            a, b, some = part
             if cancel is not None and cancel():
                 raise RenderCancelled("render cancelled")
             tally = Tally(names, (b - a) * s, s, None, self.emitter_light, by_light=True)
-            tally.colour = self.chunk(a, b, tally)
+            tally.colour = self.chunk(a, b, tally, pixels=some)
             return tally.result((b - a, s), len(self.emitter_light))
 
-        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(bounds)))) as pool:
-            parts = list(pool.map(work, bounds))
+        if not parts:
+            parts = [(0, 0, np.zeros(0, dtype=np.int64))]
+        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(parts)))) as pool:
+            done = list(pool.map(work, parts))
         out = {}
-        for name in parts[0]:
-            whole = np.concatenate([p[name] for p in parts])
-            out[name] = whole.reshape(img.height, img.width, *whole.shape[1:])
+        for name in done[0]:
+            whole = np.concatenate([p[name] for p in done])
+            out[name] = whole if pixels is not None else whole.reshape(img.height, img.width, *whole.shape[1:])
         return out
 
     # -- one chunk ---------------------------------------------------------
