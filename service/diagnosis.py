@@ -157,12 +157,17 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
     scored: list[Cause] = []
     later: list[str] = []  # variants that cannot pass, but may come closest if none passes
 
-    def score(name: str) -> None:
-        image = renders.variant(name)
+    def score(name: str, enough: float) -> bool:
+        """Scores variant ``name``, unless its render shows on the way more than ``enough`` off pixels (then
+        False: it cannot pass, or come closest, whichever ``enough`` is the share of)."""
+        image = whole_unless_off(name, submitted, verdict, renders, enough)
+        if image is None:
+            return False
         if np.array_equal(image, reference):  # the mistake changes nothing in this scene: no evidence
-            return
+            return True
         g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
         scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
+        return True
 
     def shown(name: str) -> bool:  # a mistake the scene cannot show is no evidence of anything: not rendered
         return renders.unchanged is None or not renders.unchanged(name)
@@ -173,10 +178,8 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
         # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot pass
         # is scored only if none passes, and then only if it may come closest
         least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders, may_pass)
-        if least is not None and least > may_pass:
+        if (least is not None and least > may_pass) or not score(name, may_pass):
             later.append(name)
-            continue
-        score(name)
     def score_speckled(name: str) -> None:
         assert renders.bound is not None
         # the variant's own speckles are one pattern of many: only lying between the reference and the far
@@ -196,7 +199,7 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
         for name in later:
             least = off_at_least(name, submitted, verdict, renders, may_come_closest)  # (every row looked at)
             if least is None or least <= may_come_closest:
-                score(name)
+                score(name, may_come_closest)
         for name in later_bounds:
             least = outside_at_least(name, reference, submitted, verdict, renders, may_come_closest)
             if least is None or least <= may_come_closest:
@@ -260,18 +263,63 @@ def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Rend
     return off
 
 
+#: a variant's whole render comes in this many bands of rows, each band's off pixels counted as it comes
+BANDS = 4
+
+
+def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
+                     enough: float = np.inf) -> np.ndarray | None:
+    """Variant ``name``'s whole image, rendered a band of rows at a time; None as soon as the rows so far have
+    more than ``enough`` pixels of ``submitted`` off even nearby.
+
+    Exact, as :func:`off_at_least` is: a row whose neighbours above and below have come too gives its off
+    pixels exactly as the whole grade counts them, so the count so far is a lower bound of the whole
+    image's, and once past ``enough`` the variant cannot pass (or come closest): the rest of it is not
+    rendered.  The bands come in the order 0, 2, 1, 3, so that a mistake confined to one part of the image
+    shows early; a variant that may pass is rendered whole, each row once (:class:`Renders` keeps the rows of
+    the first looks too)."""
+    if renders.rows is None or not np.isfinite(enough):
+        return renders.variant(name)
+    h, w, _ = submitted.shape
+    edges = np.linspace(0, h, BANDS + 1).round().astype(np.int64)
+    order = [0, 2, 1, 3] if BANDS == 4 else list(range(BANDS))
+    image = np.empty_like(submitted)
+    came, counted = np.zeros(h, dtype=bool), np.zeros(h, dtype=bool)
+    everywhere = np.arange(h)
+    above, below = np.maximum(everywhere - 1, 0), np.minimum(everywhere + 1, h - 1)
+    off = 0
+    for k in order:
+        band = np.arange(edges[k], edges[k + 1])
+        if len(band) == 0:
+            continue
+        image[band] = renders.rows(name, band)
+        came[band] = True
+        ready = np.flatnonzero(came & came[above] & came[below] & ~counted)
+        if len(ready) == 0:
+            continue
+        counted[ready] = True
+        bands = np.stack([image[above[ready]], image[ready], image[below[ready]]], axis=1)
+        off += _off_nearby(bands, submitted[ready], verdict.tolerance)
+        if off > enough:
+            return None
+    return image
+
+
 def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int:
     """How many pixels of the submitted rows ``middles (k, W, 3)`` are off even nearby against the variant's
     ``bands (k, 3, W, 3)`` (each middle row with the rows above and below): every variant pixel in the 3×3
     neighbourhood (the row's ends repeated) differs from it by more than ``tolerance`` in some channel, as
     :func:`service.grading.grade` counts them."""
     k, _, w, _ = bands.shape
-    padded = np.pad(bands, ((0, 0), (0, 0), (1, 1), (0, 0)), mode="edge").astype(np.int16)
-    sub = middles.astype(np.int16)
-    best = np.full((k, w), 255, dtype=np.int16)
+    # channel planes, as the grade compares them: (3, k, 3, W + 2) and (3, k, W), differences in uint8
+    padded = np.ascontiguousarray(np.moveaxis(np.pad(bands, ((0, 0), (0, 0), (1, 1), (0, 0)), mode="edge"), 3, 0))
+    sub = np.ascontiguousarray(np.moveaxis(middles, 2, 0))
+    best = np.full((k, w), 255, dtype=np.uint8)
     for dy in range(3):
         for dx in range(3):
-            np.minimum(best, np.abs(padded[:, dy, dx:dx + w] - sub).max(axis=2), out=best)
+            near = padded[:, :, dy, dx:dx + w]
+            diff = [np.maximum(near[c], sub[c]) - np.minimum(near[c], sub[c]) for c in range(3)]
+            np.minimum(best, np.maximum(np.maximum(diff[0], diff[1]), diff[2]), out=best)
     return int(np.count_nonzero(best > tolerance))
 
 
@@ -488,20 +536,35 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
                 variants[name] = quantize(passes()["colour"])[::-1]
             elif unchanged(name, scene):
                 variants[name] = quantize(passes()["colour"])
+            elif name in kept:  # the rows not yet rendered
+                rows(name, np.arange(height))
             else:
                 variants[name] = prepared(VARIANTS[name][0]).pixels(threads=threads, cancel=out.cancel)
         return variants[name]
 
+    height = scene.image.height
+    kept: dict[str, dict[int, np.ndarray]] = {}  # per variant, its rows rendered so far (until it is whole)
     sampled: dict[tuple[str, bytes], np.ndarray] = {}
+    guard = threading.Lock()
 
     def rows(name: str, numbers: np.ndarray) -> np.ndarray:
+        # a variant's rows are kept as they come (first looks, bands), and are not rendered again: once every
+        # row has come, they are its whole image
         if name in variants or (name in DERIVED and "all" in made) or unchanged(name, scene):
             return variant(name)[numbers]
-        key = (name, numbers.tobytes())
-        if key not in sampled:
-            sampled[key] = prepared(VARIANTS[name][0]).pixels_of_rows(numbers, threads=threads,
-                                                                             cancel=out.cancel)
-        return sampled[key]
+        with guard:
+            have = dict(kept.get(name, {}))
+        todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
+        if len(todo):
+            fresh = prepared(VARIANTS[name][0]).pixels_of_rows(todo, threads=threads, cancel=out.cancel)
+            with guard:
+                mine = kept.setdefault(name, {})
+                mine.update(zip(todo.tolist(), fresh))
+                have = dict(mine)
+                if len(mine) == height:
+                    variants[name] = np.stack([mine[r] for r in range(height)])
+                    kept.pop(name)
+        return np.stack([have[r] for r in numbers.tolist()])
 
     def bound(name: str) -> np.ndarray:
         if name not in bounds:

@@ -229,3 +229,24 @@ def test_where_renders_the_failing_pixels_alone_as_the_whole_pass_render_has_the
     whole = diagnosis_where(reference, student, verdict, dataclasses_replace(renders, at=None))
     failing = np.abs(reference.astype(int) - student.astype(int)).max(axis=2) > verdict.tolerance
     assert found == whole and found[0] and rendered == [int(failing.sum())] and 0 < rendered[0] <= 4 * 40
+
+
+def test_a_variant_rendered_in_bands_is_its_whole_render_or_given_up_only_when_it_cannot_pass(setting):
+    from service.diagnosis import whole_unless_off
+
+    scene, reference, _ = setting
+    submitted = Renderer(scene, VARIANTS["no-shadows"][0]).pixels()
+    verdict = grade(reference, submitted, "")
+    pixels = reference.shape[0] * reference.shape[1]
+    given_up = 0
+    for name in ("no-shadows", "blinn-phong", "no-ambient", "image-flipped", "no-half-pixel"):
+        whole = Renderer(scene, VARIANTS[name][0]).pixels()
+        off = round(grade(whole, submitted, "", verdict.tolerance).fraction_off_nearby * pixels)
+        for enough in (0, 50, off, np.inf):
+            banded = whole_unless_off(name, submitted, verdict, renders_of(scene), enough)
+            if banded is None:
+                assert off > enough, (name, enough)
+                given_up += 1
+            else:
+                assert np.array_equal(banded, whole), (name, enough)
+    assert given_up >= 3
