@@ -499,8 +499,8 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     Only the other variants are rendered, each once.
 
     That render is made only when something needs the whole image's passes (a fit of the terms, a variant
-    made from the colour).  Until then the passes of the failing pixels come alone (``at``), at most half
-    the image's worth of them in all, and the gamma and flipped variants are rendered, first a few rows of
+    made from the colour).  Until then the passes of the failing pixels come alone (``at``), at most the
+    image's worth of them in all, and the gamma and flipped variants are rendered, first a few rows of
     them, like any other: the same pixels either way."""
     from tracer import Renderer
     from tracer.image import quantize
@@ -584,8 +584,9 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     spent = [0]  # pixels whose passes were rendered alone so far
 
     def at(pixels: np.ndarray) -> dict[str, np.ndarray]:
-        # pixels alone while they add up to at most half the image; past that, the whole image once, and kept
-        if "all" in made or spent[0] + len(pixels) > total // 2:
+        # pixels alone while they add up to at most the image (a scene diagnosed once renders only its failing
+    # pixels); past that, the whole image once, and kept
+        if "all" in made or spent[0] + len(pixels) > total:
             rows, cols = np.divmod(pixels, width)
             return {name: plane[rows, cols] for name, plane in passes().items()}
         spent[0] += len(pixels)

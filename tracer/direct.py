@@ -138,7 +138,7 @@ class DirectLight:
         first = tally is not None and work is not None and work.depth == 0
         if first:
             assert tally is not None and work is not None
-            tally.add("ambient", work.sample, scaled(colour, work.weight), unique=True)  # (first hits: one each)
+            tally.add("ambient", work.sample, scaled(colour, work.weight))
         # N·V, the same for every light; the magnitudes where every light's shadow rays start
         at = Points(hit, normal, dirs, -dot(normal, dirs), max_abs(hit.point) + self.world.origin_mag,
                     m.shininess[mat])
@@ -160,9 +160,9 @@ class DirectLight:
             if counted:
                 assert tally is not None and work is not None
                 tally.add(tally.term("diffuse", group.first), work.sample,
-                          scaled(color * scaled(diffuse, wd), work.weight), unique=True)
+                          scaled(color * scaled(diffuse, wd), work.weight))
                 tally.add(tally.term("specular", group.first), work.sample,
-                          scaled(color * scaled(specular, ws), work.weight), unique=True)
+                          scaled(color * scaled(specular, ws), work.weight))
                 if reached is not None:
                     assert tally.visible is not None
                     np.add.at(tally.visible, work.sample, reached)

@@ -72,12 +72,12 @@ class Tally:
     def __post_init__(self) -> None:
         for name in self.names:
             if name in ADDITIVE and not (self.by_light and name in LIGHT_TERMS):
-                self.sums[name] = np.zeros((self.samples, 3), dtype=np.int64)
+                self.sums[name] = np.zeros((3, self.samples), dtype=np.int64)
         if self.by_light:
             for k in sorted(set(self.emitter_light.tolist())):
                 for name in LIGHT_TERMS:
                     if name in self.names:
-                        self.sums[f"{name}:{k}"] = np.zeros((self.samples, 3), dtype=np.int64)
+                        self.sums[f"{name}:{k}"] = np.zeros((3, self.samples), dtype=np.int64)
         if "shadow" in self.names:
             self.visible = np.zeros(self.samples)
         if "normal" in self.names:
@@ -95,18 +95,22 @@ class Tally:
         """The pass a light-specific term of this emitter goes to: ``name``, or ``name:K`` by light."""
         return f"{name}:{int(self.emitter_light[emitter])}" if self.by_light else name
 
-    def add(self, name: str, sample: np.ndarray, values: np.ndarray, unique: bool = False) -> None:
-        """Add linear colours ``values (n, 3)`` to pass ``name`` at sub-samples ``sample`` (may repeat, unless
-        ``unique``: then a gather and a scatter, the same integer sums as ``np.add.at``)."""
+    def add(self, name: str, sample: np.ndarray, values: np.ndarray) -> None:
+        """Add linear colours ``values (n, 3)`` to pass ``name`` at sub-samples ``sample`` (which may repeat).
+
+        A value is clamped to 0..CEILING per sub-sample of a pixel (NaN as 0, +∞ as CEILING), then added as a
+        fixed-point integer, a channel at a time (each channel's sums lie in one contiguous row): integer sums,
+        the same in any order."""
         acc = self.sums.get(name)
         if acc is None or len(sample) == 0:
             return
-        v = np.clip(np.nan_to_num(values, nan=0.0, posinf=CEILING), 0.0, CEILING * self.per_pixel)
-        units = np.rint(v * self.fixed).astype(np.int64)
-        if unique:
-            acc[sample] += units
-        else:
-            np.add.at(acc, sample, units)
+        v = np.fmax(values, 0.0)  # (NaN and −∞ to 0)
+        np.copyto(v, CEILING, where=v == np.inf)
+        np.minimum(v, CEILING * self.per_pixel, out=v)
+        v *= self.fixed
+        units = np.rint(v, out=v).astype(np.int64)
+        for k in range(3):
+            np.add.at(acc[k], sample, units[:, k])
 
     def result(self, shape: tuple[int, int], samples_of_light: int) -> dict[str, np.ndarray]:
         """Per pixel, over ``shape = (pixels, sub-samples per pixel)``: every pass asked for."""
@@ -116,10 +120,12 @@ class Tally:
         for name in LIGHT_TERMS if self.by_light else ():  # every light's, from the exact sums of each
             parts = [acc for key, acc in self.sums.items() if key.startswith(name + ":")]
             if name in self.names:
-                sums[name] = sum(parts[1:], parts[0].copy()) if parts else np.zeros((self.samples, 3), np.int64)
+                sums[name] = sum(parts[1:], parts[0].copy()) if parts else np.zeros((3, self.samples), np.int64)
+        starts = np.arange(0, n * s, s)
         for name, acc in sums.items():
-            total = acc.reshape(n, s, 3).sum(axis=1).astype(np.float64) / (self.fixed * s)
-            out[name] = np.minimum(total, CEILING)
+            # each pixel's sub-samples summed in integers (exact, in any order): reduceat over runs of ``s``
+            per_pixel = (acc if s == 1 else np.add.reduceat(acc, starts, axis=1) if n else acc[:, :0]).T
+            out[name] = np.minimum(per_pixel.astype(np.float64) / (self.fixed * s), CEILING)
         if self.colour is not None:
             out["colour"] = self.colour
         if self.visible is not None:

@@ -406,7 +406,7 @@ def _tally_misses(tally: Tally, work: Work, missed: np.ndarray, background: np.n
     if len(rows) == 0:
         return
     if work.depth == 0:
-        tally.add("background", work.sample[rows], work.weight[rows, None] * background, unique=True)
+        tally.add("background", work.sample[rows], work.weight[rows, None] * background)
         return
     assert work.branch is not None
     for branch, name in BRANCH_PASS.items():
