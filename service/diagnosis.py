@@ -114,7 +114,7 @@ class Renders:
     rows: Callable[[str, np.ndarray], np.ndarray] | None = None
     #: name of BOUNDS, row numbers → those rows of the mistake's far end, rendered alone (:func:`outside_at_least`)
     bound_rows: Callable[[str, np.ndarray], np.ndarray] | None = None
-    #: pixel numbers → every pass (of :meth:`tracer.Renderer.diagnosis_passes`) at those pixels alone
+    #: pixel numbers → the first hits' passes (``object``, ``diffuse:K``, ``specular:K``) at those pixels alone
     at: Callable[[np.ndarray], dict[str, np.ndarray]] | None = None
     #: name → whether the scene cannot show that mistake (its render is the reference's, bit for bit)
     unchanged: Callable[[str], bool] | None = None
@@ -590,7 +590,8 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
             rows, cols = np.divmod(pixels, width)
             return {name: plane[rows, cols] for name, plane in passes().items()}
         spent[0] += len(pixels)
-        return prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=out.cancel, pixels=pixels)
+        return prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=out.cancel, pixels=pixels,
+                                                    first_hits=True)
 
     def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
         every = passes()

@@ -100,3 +100,11 @@ def test_the_passes_of_some_pixels_are_those_of_the_whole_render():
     for name, plane in whole.items():
         assert np.array_equal(plane[rows, cols], some[name]), name
     assert all(len(v) == 0 for v in Renderer(scene).diagnosis_passes(pixels=np.zeros(0, int)).values())
+    # the first hits' passes alone, from camera rays alone (the scene has a mirror: its rays are not traced)
+    renderer = Renderer(scene)
+    first = renderer.diagnosis_passes(pixels=picked, first_hits=True)
+    assert set(first) == {"object", "diffuse", "specular"} | {f"{t}:{k}" for t in ("diffuse", "specular")
+                                                               for k in (1, 2, 3, 4)}
+    assert renderer.counts["secondary"] == 0 and Renderer(scene).passes(["reflection"])["reflection"].max() > 0
+    for name, values in first.items():
+        assert np.array_equal(whole[name][rows, cols], values), name

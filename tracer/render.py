@@ -14,6 +14,7 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from typing import TypeVar
 
 import numpy as np
 
@@ -26,7 +27,7 @@ from .direct import DirectLight, light_groups
 from .image import quantize
 from .intersect import PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, light_samples
-from .passes import ADDITIVE, BRANCH_PASS, REFLECTED, REFRACTED, Tally, check_passes
+from .passes import ADDITIVE, BRANCH_PASS, LIGHT_TERMS, REFLECTED, REFRACTED, Tally, check_passes
 from .rays import Among, Rays, Work
 from .shading import mirror, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
@@ -100,6 +101,10 @@ class _RayCount:
     def __call__(self, kind: str, n: int) -> None:
         with self._lock:
             self.counts[kind] += n
+
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 
 class Renderer:
@@ -235,14 +240,16 @@ class Renderer:
         return out
 
     def diagnosis_passes(self, threads: int | None = None, chunk_rays: int | None = None,
-                         cancel: Callable[[], bool] | None = None,
-                         pixels: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                         cancel: Callable[[], bool] | None = None, pixels: np.ndarray | None = None,
+                         first_hits: bool = False) -> dict[str, np.ndarray]:
         """In one render, what a diagnosis needs of the reference scene: the additive passes, ``object``, every
         light's ``diffuse:K`` and ``specular:K`` (and their sums), and ``colour``, the image's linear colour
         per pixel ``(H, W, 3)``, the very values :meth:`pixels` quantizes (the passes change no colour).
 
         With ``pixels`` (pixel numbers, row by row from the top left), of those pixels alone, each pass
-        ``(len(pixels), …)``: the very values of the whole render's (every pixel is computed alone)."""
+        ``(len(pixels), …)``: the very values of the whole render's (every pixel is computed alone).  With
+        ``first_hits``, only what the camera rays' first hits give (``object`` and the lights' terms), their
+        very values, from camera rays alone: no mirror or refracted ray is traced."""
         img = self.scene.image
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
@@ -256,20 +263,21 @@ class Renderer:
             picked = np.asarray(pixels, dtype=np.int64)
             parts = [(0, len(picked[a:a + per_chunk]), picked[a:a + per_chunk])
                      for a in range(0, len(picked), per_chunk)]
-        names = (*ADDITIVE, "object")
+        names = ("object", *LIGHT_TERMS) if first_hits else (*ADDITIVE, "object")
 
         def work(part: tuple[int, int, np.ndarray | None]) -> dict[str, np.ndarray]:
             a, b, some = part
             if cancel is not None and cancel():
                 raise RenderCancelled("render cancelled")
             tally = Tally(names, (b - a) * s, s, None, self.emitter_light, by_light=True)
-            tally.colour = self.chunk(a, b, tally, pixels=some)
+            colour = self.chunk(a, b, tally, pixels=some, depth=0 if first_hits else None)
+            if not first_hits:  # (with the camera rays alone, not the image's colour)
+                tally.colour = colour
             return tally.result((b - a, s), len(self.emitter_light))
 
         if not parts:
             parts = [(0, 0, np.zeros(0, dtype=np.int64))]
-        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(parts)))) as pool:
-            done = list(pool.map(work, parts))
+        done = _mapped(work, parts, workers)
         out = {}
         for name in done[0]:
             whole = np.concatenate([p[name] for p in done])
@@ -297,11 +305,11 @@ class Renderer:
             colour = self.chunk(0, len(part), pixels=part)
             return quantize(colour if not self.options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2))
 
-        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(parts)))) as pool:
-            out = list(pool.map(work, parts))
+        out = _mapped(work, parts, workers)
         return np.concatenate(out).reshape(len(shown), img.width, 3)
 
-    def chunk(self, start: int, stop: int, tally: Tally | None = None, pixels: np.ndarray | None = None) -> np.ndarray:
+    def chunk(self, start: int, stop: int, tally: Tally | None = None, pixels: np.ndarray | None = None,
+              depth: int | None = None) -> np.ndarray:
         """Linear colour of pixels ``start..stop`` (mean of their sub-samples), or of the pixels ``pixels`` (then
         ``stop − start`` of them). Shape (stop − start, 3).
 
@@ -311,10 +319,12 @@ class Renderer:
         sums, and the bytes of the image, do not depend on the order in which
         slices, chunks or threads deliver them.  With a ``tally``, the passes
         it asks for are added up too (each ray then carries the branch of the
-        ray tree it belongs to).
+        ray tree it belongs to).  With ``depth``, the tree stops there (0: the
+        camera rays' hits alone), if not before.
         """
         img = self.scene.image
         s = img.samples * img.samples
+        deepest = self.max_depth if depth is None else min(depth, self.max_depth)
         with np.errstate(all="ignore"):
             origins, dirs = self.camera.rays(start, stop) if pixels is None else self.camera.rays_of(pixels)
             n = len(origins)
@@ -354,7 +364,7 @@ class Renderer:
                     _tally_first_hits(tally, self.world, hit, done, normal)
                 colour = self.shading.shade(hit, mat, normal, dd, tally, done)
                 _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once, once)
-                if work.depth == self.max_depth:
+                if work.depth >= deepest:
                     continue
                 children = self.secondary(hit, mat, normal, done)
                 self._count("secondary", len(children))
@@ -398,6 +408,14 @@ class Renderer:
                 np.concatenate([np.full(len(r), REFLECTED), np.full(len(t), REFRACTED)]).astype(np.int8)
         return Work(rays, work.sample[both], np.concatenate([weight[r] * kr[r], weight[t] * kt[t]]), work.depth + 1,
                     branch)
+
+
+def _mapped(work: Callable[[T], R], parts: list[T], workers: int) -> list[R]:
+    """``work`` of every part, in order: on a pool of up to ``workers`` threads, or here when one would do."""
+    if workers <= 1 or len(parts) <= 1:
+        return [work(part) for part in parts]
+    with ThreadPoolExecutor(max_workers=min(workers, len(parts))) as pool:
+        return list(pool.map(work, parts))
 
 
 def _tally_misses(tally: Tally, work: Work, missed: np.ndarray, background: np.ndarray) -> None:
