@@ -118,6 +118,8 @@ class Renders:
     at: Callable[[np.ndarray], dict[str, np.ndarray]] | None = None
     #: name → whether the scene cannot show that mistake (its render is the reference's, bit for bit)
     unchanged: Callable[[str], bool] | None = None
+    #: called when a diagnosis is over, in its thread: lets go of what was prepared only for its renders
+    done: Callable[[], None] | None = None
 
 
 def term_words(term: dict[str, Any]) -> str:
@@ -213,6 +215,8 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
     if not passing:  # a mistake that explains the image leaves no term to fit
         out.terms = fit_terms(submitted, renders)
     out.objects, out.lights = where(reference, submitted, verdict, renders)
+    if renders.done is not None:
+        renders.done()
     return out
 
 
@@ -513,7 +517,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     def prepared(options: Options) -> Renderer:
         # a variant's first look, its second and its whole render come one after another: one preparation of
         # the scene (its world, its Embree scene) serves them all.  One per thread, and only the last: threads
-        # share no renderer, and a cached scene holds no more than one
+        # share no renderer; and none is held once the diagnosis is over (``done``)
         if getattr(last, "options", None) != options:
             last.options, last.renderer = options, Renderer(scene, options)
         renderer: Renderer = last.renderer
@@ -599,7 +603,8 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
                 for name in names}
 
     out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects], bound,
-                  rows=rows, bound_rows=bound_rows, at=at, unchanged=lambda name: unchanged(name, scene))
+                  rows=rows, bound_rows=bound_rows, at=at, unchanged=lambda name: unchanged(name, scene),
+                  done=lambda: last.__dict__.clear())
     return out
 
 

@@ -250,3 +250,16 @@ def test_a_variant_rendered_in_bands_is_its_whole_render_or_given_up_only_when_i
             else:
                 assert np.array_equal(banded, whole), (name, enough)
     assert given_up >= 3
+
+
+def test_a_diagnosis_holds_no_prepared_scene_once_it_is_over(setting):
+    import gc
+
+    scene, reference, _ = setting
+    renders = renders_of(scene)
+    student = Renderer(scene, VARIANTS["no-ambient"][0]).pixels()
+    gc.collect()
+    before = sum(isinstance(o, Renderer) for o in gc.get_objects())
+    assert diagnose(reference, student, grade(reference, student, ""), renders).causes
+    gc.collect()
+    assert sum(isinstance(o, Renderer) for o in gc.get_objects()) == before
