@@ -54,7 +54,7 @@ def report_lines(rows: list[dict[str, Any]]) -> list[str]:
              "diagnosed (" + " and ".join(STUDENTS) + "). Cold: the first failing pair renders every variant "
              "and pass of the scene; warm: the second finds them cached by canonical scene. Passing pairs cost "
              "nothing extra.", "",
-             "| scene | reference render s | renders per diagnosis | cold s | cold ÷ render | warm s | named |",
+             "| scene | reference render s | renders at most | cold s | cold ÷ render | warm s | named |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
         named = ", ".join(f"{n or 'passes'}" for n in r["named"])

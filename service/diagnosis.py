@@ -110,7 +110,8 @@ class Renders:
     objects: list[str]  # the scene's object types, in order
     bound: Callable[[str], np.ndarray] | None = None  # name of BOUNDS → pixels of the mistake's far end
     cancel: Callable[[], bool] | None = None  # the current diagnosis's: true stops its renders
-    #: name, row numbers → those rows of the variant's pixels, rendered alone (a first look, :func:`off_at_least`)
+    #: name, row numbers → those rows of the variant's pixels, rendered alone (a first look, :func:`off_at_least`,
+    #: or a band of its whole image, :func:`whole_unless_off`)
     rows: Callable[[str, np.ndarray], np.ndarray] | None = None
     #: name of BOUNDS, row numbers → those rows of the mistake's far end, rendered alone (:func:`outside_at_least`)
     bound_rows: Callable[[str, np.ndarray], np.ndarray] | None = None
@@ -150,19 +151,34 @@ def unavailable(why: str) -> dict[str, Any]:
 def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
     """The likely causes of a failing grade ``verdict`` of ``submitted`` against ``reference`` (a passing
     grade gets no diagnosis: an empty one)."""
+    try:
+        return _diagnosed(reference, submitted, verdict, renders)
+    finally:  # (cancelled or not)
+        if renders.done is not None:
+            renders.done()
+
+
+def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
     out = Diagnosis()
     if verdict.passed:
         return out
     pixels = submitted.shape[0] * submitted.shape[1]
-    may_pass = verdict.max_fraction * pixels  # off pixels (even nearby) a variant passed against may have
-    may_come_closest = max(may_pass, CLOSEST_SHARE * verdict.fraction_off_nearby * pixels)
+
+    # whether a variant with at least ``off`` pixels off (even nearby) cannot pass, or cannot be named the
+    # closest either: decided as the grade and the naming decide them, on the share of the pixels
+    def cannot_pass(off: int) -> bool:
+        return off / pixels > verdict.max_fraction
+
+    def cannot_come_closest(off: int) -> bool:
+        return cannot_pass(off) and off / pixels > CLOSEST_SHARE * verdict.fraction_off_nearby
+
     scored: list[Cause] = []
     later: list[str] = []  # variants that cannot pass, but may come closest if none passes
 
-    def score(name: str, enough: float) -> bool:
-        """Scores variant ``name``, unless its render shows on the way more than ``enough`` off pixels (then
-        False: it cannot pass, or come closest, whichever ``enough`` is the share of)."""
-        image = whole_unless_off(name, submitted, verdict, renders, enough)
+    def score(name: str, beyond: Callable[[int], bool]) -> bool:
+        """Scores variant ``name``, unless its render shows on the way a count of off pixels ``beyond`` says
+        is too many (then False: it cannot pass, or come closest, whichever ``beyond`` decides)."""
+        image = whole_unless_off(name, submitted, verdict, renders, beyond)
         if image is None:
             return False
         if np.array_equal(image, reference):  # the mistake changes nothing in this scene: no evidence
@@ -179,8 +195,8 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
             continue  # (a speckled mistake is scored against its far end below, not by its own render)
         # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot pass
         # is scored only if none passes, and then only if it may come closest
-        least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders, may_pass)
-        if (least is not None and least > may_pass) or not score(name, may_pass):
+        least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders, cannot_pass)
+        if (least is not None and cannot_pass(least)) or not score(name, cannot_pass):
             later.append(name)
     def score_speckled(name: str) -> None:
         assert renders.bound is not None
@@ -192,19 +208,19 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
 
     later_bounds: list[str] = []  # speckled mistakes that cannot pass, but may come closest if none passes
     for name in filter(shown, BOUNDS) if renders.bound is not None else ():
-        least = outside_at_least(name, reference, submitted, verdict, renders, may_pass)
-        if least is not None and least > may_pass:
+        least = outside_at_least(name, reference, submitted, verdict, renders, cannot_pass)
+        if least is not None and cannot_pass(least):
             later_bounds.append(name)
         else:
             score_speckled(name)
     if not any(c.passes for c in scored):  # then the closest is named: score what may come closest
         for name in later:
-            least = off_at_least(name, submitted, verdict, renders, may_come_closest)  # (every row looked at)
-            if least is None or least <= may_come_closest:
-                score(name, may_come_closest)
+            least = off_at_least(name, submitted, verdict, renders, cannot_come_closest)  # (every row looked at)
+            if least is None or not cannot_come_closest(least):
+                score(name, cannot_come_closest)
         for name in later_bounds:
-            least = outside_at_least(name, reference, submitted, verdict, renders, may_come_closest)
-            if least is None or least <= may_come_closest:
+            least = outside_at_least(name, reference, submitted, verdict, renders, cannot_come_closest)
+            if least is None or not cannot_come_closest(least):
                 score_speckled(name)
     scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
     passing = [c for c in scored if c.passes]
@@ -215,8 +231,6 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
     if not passing:  # a mistake that explains the image leaves no term to fit
         out.terms = fit_terms(submitted, renders)
     out.objects, out.lights = where(reference, submitted, verdict, renders)
-    if renders.done is not None:
-        renders.done()
     return out
 
 
@@ -236,10 +250,10 @@ def sampled_rows(height: int, every: int = SAMPLE_EVERY) -> tuple[np.ndarray, np
 
 
 def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                 enough: float = np.inf) -> int | None:
+                 beyond: Callable[[int], bool] | None = None) -> int | None:
     """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
-    look at a few of its rows (None when :class:`Renders` has no rows to give); once it exceeds ``enough``, no
-    more rows are looked at.
+    look at a few of its rows (None when :class:`Renders` has no rows to give); once ``beyond`` says the count
+    is too many, no more rows are looked at.
 
     Exact, not a sample's estimate: a pixel is off nearby when every variant pixel in its 3×3 neighbourhood
     differs from it by more than the tolerance, so each sampled middle row, rendered with the rows above and
@@ -262,7 +276,7 @@ def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Rend
         rows = (look[:, None] + np.arange(-1, 2)[None, :]).ravel()
         bands = renders.rows(name, rows).reshape(len(look), 3, w, 3)
         off += _off_nearby(bands, submitted[look], verdict.tolerance)
-        if off > enough:
+        if beyond is not None and beyond(off):
             break
     return off
 
@@ -272,17 +286,18 @@ BANDS = 4
 
 
 def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                     enough: float = np.inf) -> np.ndarray | None:
-    """Variant ``name``'s whole image, rendered a band of rows at a time; None as soon as the rows so far have
-    more than ``enough`` pixels of ``submitted`` off even nearby.
+                     beyond: Callable[[int], bool] | None = None) -> np.ndarray | None:
+    """Variant ``name``'s whole image, rendered a band of rows at a time; None as soon as ``beyond`` says the
+    pixels of ``submitted`` off even nearby in the rows so far are too many.
 
     Exact, as :func:`off_at_least` is: a row whose neighbours above and below have come too gives its off
     pixels exactly as the whole grade counts them, so the count so far is a lower bound of the whole
-    image's, and once past ``enough`` the variant cannot pass (or come closest): the rest of it is not
-    rendered.  The bands come in the order 0, 2, 1, 3, so that a mistake confined to one part of the image
+    image's; ``beyond`` decides on it as the grade decides on the whole count (the share of the pixels, the
+    same division), so once it says too many, the variant cannot pass (or come closest): the rest of it is
+    not rendered.  The bands come in the order 0, 2, 1, 3, so that a mistake confined to one part of the image
     shows early; a variant that may pass is rendered whole, each row once (:class:`Renders` keeps the rows of
     the first looks too)."""
-    if renders.rows is None or not np.isfinite(enough):
+    if renders.rows is None or beyond is None:
         return renders.variant(name)
     h, w, _ = submitted.shape
     edges = np.linspace(0, h, BANDS + 1).round().astype(np.int64)
@@ -304,7 +319,7 @@ def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: 
         counted[ready] = True
         bands = np.stack([image[above[ready]], image[ready], image[below[ready]]], axis=1)
         off += _off_nearby(bands, submitted[ready], verdict.tolerance)
-        if off > enough:
+        if beyond(off):
             return None
     return image
 
@@ -328,11 +343,11 @@ def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int
 
 
 def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                     enough: float = np.inf) -> int | None:
+                     beyond: Callable[[int], bool] | None = None) -> int | None:
     """For a speckled mistake ``name`` of :data:`tracer.variants.BOUNDS`: a lower bound of how many pixels of
     ``submitted`` lie outside the reference and the mistake's far end (:func:`speckled`'s share, as a count),
     from a look at the sampled middle rows of the far end (None when :class:`Renders` has no rows to give);
-    once it exceeds ``enough``, no more rows are looked at.
+    once ``beyond`` says the count is too many, no more rows are looked at.
 
     Exact, as :func:`off_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
     sampled rows give their outside pixels exactly as :func:`speckled` counts them, and their count bounds
@@ -354,7 +369,7 @@ def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, ve
         tol = verdict.tolerance
         outside = (sub < np.minimum(ref, far) - tol) | (sub > np.maximum(ref, far) + tol)
         off += int(np.count_nonzero(np.any(outside, axis=2)))
-        if off > enough:
+        if beyond is not None and beyond(off):
             break
     return off
 
@@ -517,9 +532,11 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     def prepared(options: Options) -> Renderer:
         # a variant's first look, its second and its whole render come one after another: one preparation of
         # the scene (its world, its Embree scene) serves them all.  One per thread, and only the last: threads
-        # share no renderer; and none is held once the diagnosis is over (``done``)
+        # share no renderer; and none is held once a diagnosis is over, cancelled or not (``done``)
         if getattr(last, "options", None) != options:
-            last.options, last.renderer = options, Renderer(scene, options)
+            last.__dict__.clear()  # (the last one let go of before the next is built)
+            last.renderer = Renderer(scene, options)
+            last.options = options
         renderer: Renderer = last.renderer
         return renderer
 
@@ -536,8 +553,10 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
         if name not in variants:
             if name == "gamma" and "all" in made:  # as Renderer.pixels stores a gamma variant's chunk colour
                 variants[name] = quantize(np.clip(passes()["colour"], 0.0, None) ** (1.0 / 2.2))
+                kept.pop(name, None)
             elif name == "image-flipped" and "all" in made:  # the reference's rows, bottom to top
                 variants[name] = quantize(passes()["colour"])[::-1]
+                kept.pop(name, None)
             elif unchanged(name, scene):
                 variants[name] = quantize(passes()["colour"])
             elif name in kept:  # the rows not yet rendered
@@ -557,11 +576,15 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
         if name in variants or (name in DERIVED and "all" in made) or unchanged(name, scene):
             return variant(name)[numbers]
         with guard:
+            if name in variants:
+                return variants[name][numbers]
             have = dict(kept.get(name, {}))
         todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
         if len(todo):
             fresh = prepared(VARIANTS[name][0]).pixels_of_rows(todo, threads=threads, cancel=out.cancel)
             with guard:
+                if name in variants:  # (made whole meanwhile, in another thread)
+                    return variants[name][numbers]
                 mine = kept.setdefault(name, {})
                 mine.update(zip(todo.tolist(), fresh))
                 have = dict(mine)
@@ -589,7 +612,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
 
     def at(pixels: np.ndarray) -> dict[str, np.ndarray]:
         # pixels alone while they add up to at most the image (a scene diagnosed once renders only its failing
-    # pixels); past that, the whole image once, and kept
+        # pixels); past that, the whole image once, and kept
         if "all" in made or spent[0] + len(pixels) > total:
             rows, cols = np.divmod(pixels, width)
             return {name: plane[rows, cols] for name, plane in passes().items()}
@@ -608,13 +631,13 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     return out
 
 
-#: the most renders a diagnosis may need: the variants the scene can show but the two made from the reference's
-#: colour (gamma, the flipped image), a speckled mistake's far end in place of the mistake itself, and one render
-#: for every pass (a first look at a few rows of a variant, :func:`off_at_least`, may spare its whole render)
+#: the most renders a diagnosis may need: the variants the scene can show (gamma and the flipped image too, when
+#: the pass render is not there to make them from), a speckled mistake's far end in place of the mistake itself,
+#: the failing pixels' first hits, and one render for every pass.  Most diagnoses need far fewer: a first look at
+#: a few rows of a variant (:func:`off_at_least`) or a band of it (:func:`whole_unless_off`) may spare the rest
 def renders_needed(scene: Any) -> int:
-    shown = [name for name in [*(v for v in VARIANTS if v not in BOUNDS), *BOUNDS]
-             if name not in DERIVED and not unchanged(name, scene)]
-    return len(shown) + 1
+    shown = [name for name in [*(v for v in VARIANTS if v not in BOUNDS), *BOUNDS] if not unchanged(name, scene)]
+    return len(shown) + 2
 
 
 #: the largest image whose diagnosis renders are kept for the next pair of the same scene
