@@ -121,6 +121,9 @@ class Renders:
     unchanged: Callable[[str], bool] | None = None
     #: called when a diagnosis is over, in its thread: lets go of what was prepared only for its renders
     done: Callable[[], None] | None = None
+    #: sets the cancel of the diagnosis this thread runs (``cancel`` is every thread's): two diagnoses of one
+    #: cached scene, in two threads, each stop on their own
+    cancel_in_thread: Callable[[Callable[[], bool] | None], None] | None = None
 
 
 def term_words(term: dict[str, Any]) -> str:
@@ -528,6 +531,18 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     bounds: dict[str, np.ndarray] = {}
     made: dict[str, dict[str, np.ndarray]] = {}
     last = threading.local()  # per thread, the last scene prepared and its options
+    asked = threading.local()  # per thread, the cancel of the diagnosis it runs (these renders may be shared)
+
+    def polled() -> Callable[[], bool] | None:
+        mine: Callable[[], bool] | None = getattr(asked, "cancel", None)
+        return mine if mine is not None else out.cancel
+
+    def cancel_in_thread(cancel: Callable[[], bool] | None) -> None:
+        asked.cancel = cancel
+
+    def done() -> None:
+        last.__dict__.clear()
+        asked.__dict__.clear()
 
     def prepared(options: Options) -> Renderer:
         # a variant's first look, its second and its whole render come one after another: one preparation of
@@ -542,11 +557,12 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
 
     def passes() -> dict[str, np.ndarray]:
         if "all" not in made:
-            if out.cancel is not None and out.cancel():
+            cancel = polled()
+            if cancel is not None and cancel():
                 from tracer import RenderCancelled
 
                 raise RenderCancelled("diagnosis cancelled")
-            made["all"] = prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=out.cancel)
+            made["all"] = prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=polled())
         return made["all"]
 
     def variant(name: str) -> np.ndarray:
@@ -562,7 +578,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
             elif name in kept:  # the rows not yet rendered
                 rows(name, np.arange(height))
             else:
-                variants[name] = prepared(VARIANTS[name][0]).pixels(threads=threads, cancel=out.cancel)
+                variants[name] = prepared(VARIANTS[name][0]).pixels(threads=threads, cancel=polled())
         return variants[name]
 
     height = scene.image.height
@@ -581,7 +597,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
             have = dict(kept.get(name, {}))
         todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
         if len(todo):
-            fresh = prepared(VARIANTS[name][0]).pixels_of_rows(todo, threads=threads, cancel=out.cancel)
+            fresh = prepared(VARIANTS[name][0]).pixels_of_rows(todo, threads=threads, cancel=polled())
             with guard:
                 if name in variants:  # (made whole meanwhile, in another thread)
                     return variants[name][numbers]
@@ -596,7 +612,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     def bound(name: str) -> np.ndarray:
         if name not in bounds:
             bounds[name] = quantize(passes()["colour"]) if unchanged(name, scene) else \
-                prepared(BOUNDS[name]).pixels(threads=threads, cancel=out.cancel)
+                prepared(BOUNDS[name]).pixels(threads=threads, cancel=polled())
         return bounds[name]
 
     def bound_rows(name: str, numbers: np.ndarray) -> np.ndarray:
@@ -604,7 +620,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
             return bound(name)[numbers]
         key = ("bound:" + name, numbers.tobytes())
         if key not in sampled:
-            sampled[key] = prepared(BOUNDS[name]).pixels_of_rows(numbers, threads=threads, cancel=out.cancel)
+            sampled[key] = prepared(BOUNDS[name]).pixels_of_rows(numbers, threads=threads, cancel=polled())
         return sampled[key]
 
     width, total = scene.image.width, scene.image.width * scene.image.height
@@ -617,7 +633,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
             rows, cols = np.divmod(pixels, width)
             return {name: plane[rows, cols] for name, plane in passes().items()}
         spent[0] += len(pixels)
-        return prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=out.cancel, pixels=pixels,
+        return prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=polled(), pixels=pixels,
                                                     first_hits=True)
 
     def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
@@ -627,7 +643,7 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
 
     out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects], bound,
                   rows=rows, bound_rows=bound_rows, at=at, unchanged=lambda name: unchanged(name, scene),
-                  done=lambda: last.__dict__.clear())
+                  done=done, cancel_in_thread=cancel_in_thread)
     return out
 
 

@@ -88,7 +88,10 @@ def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.n
     from .scenekey import scene_key
 
     renders = CACHE.get(scene_key(scene), lambda: renders_of(scene, threads), scene.image.width * scene.image.height)
-    renders.cancel = cancel
+    if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
+        renders.cancel_in_thread(cancel)
+    else:
+        renders.cancel = cancel
     found = diagnose(reference, submitted, graded.grade, renders)
     return Graded(graded.grade, graded.heatmap, found.as_dict())
 

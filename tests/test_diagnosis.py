@@ -355,3 +355,38 @@ def test_two_diagnoses_of_one_scene_share_its_rows_safely():
         Renderer.pixels_of_rows = real
     whole = Renderer(scene, VARIANTS[name][0]).pixels()
     assert not errors and np.array_equal(got["A"], whole) and np.array_equal(got["B"], whole[1:5])
+
+
+def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
+    import threading
+
+    from bench.scenes import example
+    from service.diagnosis import CACHE
+    from service.pipeline import Graded, explain
+    from tracer import RenderCancelled
+
+    scene = schemas.validate_scene(example("01_three_spheres", 40, 30))
+    reference = Renderer(scene).pixels()
+    submitted = Renderer(scene, VARIANTS["no-shadows"][0]).pixels()
+    verdict = grade(reference, submitted, "")
+    CACHE.held.clear()
+    both = threading.Barrier(2)
+    results = {}
+
+    def run(name, cancel):
+        both.wait()
+        try:
+            results[name] = explain(scene, Graded(verdict, None), reference, submitted, threads=1,
+                                    cancel=cancel).diagnosis
+        except RenderCancelled:
+            results[name] = "cancelled"
+
+    threads = [threading.Thread(target=run, args=("stopped", lambda: True)),
+               threading.Thread(target=run, args=("going on", lambda: False))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    CACHE.held.clear()
+    assert results["stopped"] == "cancelled"
+    assert results["going on"]["causes"][0]["variant"] == "no-shadows"
