@@ -201,21 +201,24 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
         least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders, cannot_pass)
         if (least is not None and cannot_pass(least)) or not score(name, cannot_pass):
             later.append(name)
-    def score_speckled(name: str) -> None:
-        assert renders.bound is not None
+    def score_speckled(name: str, beyond: Callable[[int], bool]) -> bool:
+        """Scores speckled mistake ``name``, unless its far end shows on the way a count of pixels outside that
+        ``beyond`` says is too many (then False, as :func:`score`)."""
         # the variant's own speckles are one pattern of many: only lying between the reference and the far
         # end, in speckles, is evidence of the mistake
-        outside = speckled(reference, renders.bound(name), submitted, verdict.tolerance)
+        far = bound_unless_outside(name, reference, submitted, verdict, renders, beyond)
+        if far is None:
+            return False
+        outside = speckled(reference, far, submitted, verdict.tolerance)
         if outside is not None:
             scored.append(Cause(name, VARIANTS[name][1], outside, outside <= verdict.max_fraction))
+        return True
 
     later_bounds: list[str] = []  # speckled mistakes that cannot pass, but may come closest if none passes
     for name in filter(shown, BOUNDS) if renders.bound is not None else ():
         least = outside_at_least(name, reference, submitted, verdict, renders, cannot_pass)
-        if least is not None and cannot_pass(least):
+        if (least is not None and cannot_pass(least)) or not score_speckled(name, cannot_pass):
             later_bounds.append(name)
-        else:
-            score_speckled(name)
     if not any(c.passes for c in scored):  # then the closest is named: score what may come closest
         for name in later:
             least = off_at_least(name, submitted, verdict, renders, cannot_come_closest)  # (every row looked at)
@@ -224,7 +227,7 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
         for name in later_bounds:
             least = outside_at_least(name, reference, submitted, verdict, renders, cannot_come_closest)
             if least is None or not cannot_come_closest(least):
-                score_speckled(name)
+                score_speckled(name, cannot_come_closest)
     scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
     passing = [c for c in scored if c.passes]
     if passing:
@@ -297,14 +300,14 @@ def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: 
     pixels exactly as the whole grade counts them, so the count so far is a lower bound of the whole
     image's; ``beyond`` decides on it as the grade decides on the whole count (the share of the pixels, the
     same division), so once it says too many, the variant cannot pass (or come closest): the rest of it is
-    not rendered.  The bands come in the order 0, 2, 1, 3, so that a mistake confined to one part of the image
+    not rendered.  The bands come in :func:`_band_order`, so that a mistake confined to one part of the image
     shows early; a variant that may pass is rendered whole, each row once (:class:`Renders` keeps the rows of
     the first looks too)."""
     if renders.rows is None or beyond is None:
         return renders.variant(name)
     h, w, _ = submitted.shape
     edges = np.linspace(0, h, BANDS + 1).round().astype(np.int64)
-    order = [0, 2, 1, 3] if BANDS == 4 else list(range(BANDS))
+    order = _band_order(BANDS)
     image = np.empty_like(submitted)
     came, counted = np.zeros(h, dtype=bool), np.zeros(h, dtype=bool)
     everywhere = np.arange(h)
@@ -325,6 +328,53 @@ def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: 
         if beyond(off):
             return None
     return image
+
+
+def _band_order(bands: int) -> list[int]:
+    """The order the bands of a whole render come in: each next band as far as it can be from those before
+    (0, 4, 2, 6, 1, 5, 3, 7 for eight), so that a mistake confined to one part of the image shows early."""
+    order = [0]
+    while len(order) < bands:
+        step = len(order)
+        order += [k + bands // (2 * step) for k in order] if bands % (2 * step) == 0 else \
+            [k for k in range(bands) if k not in order]
+    return order[:bands]
+
+
+def bound_unless_outside(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
+                         renders: Renders, beyond: Callable[[int], bool] | None = None) -> np.ndarray | None:
+    """Speckled mistake ``name``'s far end, whole, rendered a band of rows at a time as
+    :func:`whole_unless_off` renders a variant; None as soon as ``beyond`` says the pixels of ``submitted``
+    outside the reference and the far end in the bands so far are too many.
+
+    Exact, as :func:`outside_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
+    count so far is a lower bound of :func:`speckled`'s, decided on as it decides (the share of the pixels):
+    once too many, the mistake cannot pass (or come closest), and the rest of its far end is not rendered."""
+    assert renders.bound is not None
+    if renders.bound_rows is None or beyond is None:
+        return renders.bound(name)
+    h = submitted.shape[0]
+    edges = np.linspace(0, h, BANDS + 1).round().astype(np.int64)
+    order = _band_order(BANDS)
+    image = np.empty_like(submitted)
+    off = 0
+    for k in order:
+        band = np.arange(edges[k], edges[k + 1])
+        if len(band) == 0:
+            continue
+        image[band] = renders.bound_rows(name, band)
+        off += _outside(reference[band], image[band], submitted[band], verdict.tolerance)
+        if beyond(off):
+            return None
+    return image
+
+
+def _outside(reference: np.ndarray, far: np.ndarray, submitted: np.ndarray, tolerance: float) -> int:
+    """How many pixels of ``submitted`` lie outside the reference and the far end, each channel within
+    ``tolerance`` (as :func:`speckled` counts them)."""
+    ref, low, sub = (a.astype(np.int16) for a in (reference, far, submitted))
+    return int(np.count_nonzero(np.any((sub < np.minimum(ref, low) - tolerance) |
+                                       (sub > np.maximum(ref, low) + tolerance), axis=2)))
 
 
 def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int:
@@ -367,11 +417,7 @@ def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, ve
     for look in (first, np.setdiff1d(middles, first)):
         if len(look) == 0:
             continue
-        far = renders.bound_rows(name, look).astype(np.int16)
-        ref, sub = reference[look].astype(np.int16), submitted[look].astype(np.int16)
-        tol = verdict.tolerance
-        outside = (sub < np.minimum(ref, far) - tol) | (sub > np.maximum(ref, far) + tol)
-        off += int(np.count_nonzero(np.any(outside, axis=2)))
+        off += _outside(reference[look], renders.bound_rows(name, look), submitted[look], verdict.tolerance)
         if beyond is not None and beyond(off):
             break
     return off
@@ -582,46 +628,51 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
         return variants[name]
 
     height = scene.image.height
-    kept: dict[str, dict[int, np.ndarray]] = {}  # per variant, its rows rendered so far (until it is whole)
-    sampled: dict[tuple[str, bytes], np.ndarray] = {}
+    #: per variant (and per far end), its rows rendered so far, until it is whole
+    kept: dict[str, dict[int, np.ndarray]] = {}
     guard = threading.Lock()
 
-    def rows(name: str, numbers: np.ndarray) -> np.ndarray:
-        # a variant's rows are kept as they come (first looks, bands), and are not rendered again: once every
-        # row has come, they are its whole image
-        if name in variants or (name in DERIVED and "all" in made) or unchanged(name, scene):
-            return variant(name)[numbers]
+    def kept_rows(key: str, name: str, options: Options, whole: dict[str, np.ndarray],
+                  numbers: np.ndarray) -> np.ndarray:
+        # a render's rows are kept as they come (first looks, bands), under ``key``, and are not rendered again:
+        # once every row has come, they are its whole image, ``whole[name]``
         with guard:
-            if name in variants:
-                return variants[name][numbers]
-            have = dict(kept.get(name, {}))
+            if name in whole:
+                return whole[name][numbers]
+            have = dict(kept.get(key, {}))
         todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
         if len(todo):
-            fresh = prepared(VARIANTS[name][0]).pixels_of_rows(todo, threads=threads, cancel=polled())
+            fresh = prepared(options).pixels_of_rows(todo, threads=threads, cancel=polled())
             with guard:
-                if name in variants:  # (made whole meanwhile, in another thread)
-                    return variants[name][numbers]
-                mine = kept.setdefault(name, {})
+                if name in whole:  # (made whole meanwhile, in another thread)
+                    return whole[name][numbers]
+                mine = kept.setdefault(key, {})
                 mine.update(zip(todo.tolist(), fresh))
                 have = dict(mine)
                 if len(mine) == height:
-                    variants[name] = np.stack([mine[r] for r in range(height)])
-                    kept.pop(name)
+                    whole[name] = np.stack([mine[r] for r in range(height)])
+                    kept.pop(key)
         return np.stack([have[r] for r in numbers.tolist()])
+
+    def rows(name: str, numbers: np.ndarray) -> np.ndarray:
+        if name in variants or (name in DERIVED and "all" in made) or unchanged(name, scene):
+            return variant(name)[numbers]
+        return kept_rows(name, name, VARIANTS[name][0], variants, numbers)
 
     def bound(name: str) -> np.ndarray:
         if name not in bounds:
-            bounds[name] = quantize(passes()["colour"]) if unchanged(name, scene) else \
-                prepared(BOUNDS[name]).pixels(threads=threads, cancel=polled())
+            if unchanged(name, scene):
+                bounds[name] = quantize(passes()["colour"])
+            elif "bound:" + name in kept:  # the rows not yet rendered
+                bound_rows(name, np.arange(height))
+            else:
+                bounds[name] = prepared(BOUNDS[name]).pixels(threads=threads, cancel=polled())
         return bounds[name]
 
     def bound_rows(name: str, numbers: np.ndarray) -> np.ndarray:
         if name in bounds or unchanged(name, scene):
             return bound(name)[numbers]
-        key = ("bound:" + name, numbers.tobytes())
-        if key not in sampled:
-            sampled[key] = prepared(BOUNDS[name]).pixels_of_rows(numbers, threads=threads, cancel=polled())
-        return sampled[key]
+        return kept_rows("bound:" + name, name, BOUNDS[name], bounds, numbers)
 
     width, total = scene.image.width, scene.image.width * scene.image.height
     spent = [0]  # pixels whose passes were rendered alone so far

@@ -390,3 +390,26 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
     CACHE.held.clear()
     assert results["stopped"] == "cancelled"
     assert results["going on"]["causes"][0]["variant"] == "no-shadows"
+
+
+def test_acnes_far_end_in_bands_is_whole_or_given_up_only_when_too_much_lies_outside(setting):
+    from service.diagnosis import BOUNDS, bound_unless_outside
+
+    scene, reference, _ = setting
+    whole = Renderer(scene, BOUNDS["shadow-acne"]).pixels()
+    given_up = 0
+    for name in ("no-shadows", "no-ambient", "blinn-phong"):
+        submitted = Renderer(scene, VARIANTS[name][0]).pixels()
+        verdict = grade(reference, submitted, "")
+        ref, far, sub = (a.astype(int) for a in (reference, whole, submitted))
+        tol = verdict.tolerance
+        outside = int(np.any((sub < np.minimum(ref, far) - tol) | (sub > np.maximum(ref, far) + tol), axis=2).sum())
+        for enough in (0, 40, outside, None):
+            beyond = None if enough is None else (lambda count, enough=enough: count > enough)
+            banded = bound_unless_outside("shadow-acne", reference, submitted, verdict, renders_of(scene), beyond)
+            if banded is None:
+                assert enough is not None and outside > enough, (name, enough)
+                given_up += 1
+            else:
+                assert np.array_equal(banded, whole), (name, enough)
+    assert given_up >= 3
