@@ -255,6 +255,14 @@ def sampled_rows(height: int, every: int = SAMPLE_EVERY) -> tuple[np.ndarray, np
     return middles, (middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
 
 
+def _looks(height: int) -> list[np.ndarray]:
+    """The sampled middle rows (:func:`sampled_rows`) in the goes a first look takes them: one in
+    :data:`FIRST_LOOK` first, then the rest (none for an image too short to have middle rows)."""
+    middles, _ = sampled_rows(height)
+    first = middles[FIRST_LOOK // 2::FIRST_LOOK]
+    return [look for look in (first, np.setdiff1d(middles, first)) if len(look)]
+
+
 def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
                  beyond: Callable[[int], bool] | None = None) -> int | None:
     """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
@@ -271,14 +279,11 @@ def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Rend
     if renders.rows is None:
         return None
     h, w, _ = submitted.shape
-    middles, _ = sampled_rows(h)
-    if len(middles) == 0:
+    looks = _looks(h)
+    if not looks:
         return None
-    first = middles[FIRST_LOOK // 2::FIRST_LOOK]
     off = 0
-    for look in (first, np.setdiff1d(middles, first)):
-        if len(look) == 0:
-            continue
+    for look in looks:
         rows = (look[:, None] + np.arange(-1, 2)[None, :]).ravel()
         bands = renders.rows(name, rows).reshape(len(look), 3, w, 3)
         off += _off_nearby(bands, submitted[look], verdict.tolerance)
@@ -300,23 +305,18 @@ def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: 
     pixels exactly as the whole grade counts them, so the count so far is a lower bound of the whole
     image's; ``beyond`` decides on it as the grade decides on the whole count (the share of the pixels, the
     same division), so once it says too many, the variant cannot pass (or come closest): the rest of it is
-    not rendered.  The bands come in :func:`_band_order`, so that a mistake confined to one part of the image
+    not rendered.  The bands come in the order of :func:`_bands`, so that a mistake confined to one part of the image
     shows early; a variant that may pass is rendered whole, each row once (:class:`Renders` keeps the rows of
     the first looks too)."""
     if renders.rows is None or beyond is None:
         return renders.variant(name)
-    h, w, _ = submitted.shape
-    edges = np.linspace(0, h, BANDS + 1).round().astype(np.int64)
-    order = _band_order(BANDS)
+    h = submitted.shape[0]
     image = np.empty_like(submitted)
     came, counted = np.zeros(h, dtype=bool), np.zeros(h, dtype=bool)
     everywhere = np.arange(h)
     above, below = np.maximum(everywhere - 1, 0), np.minimum(everywhere + 1, h - 1)
     off = 0
-    for k in order:
-        band = np.arange(edges[k], edges[k + 1])
-        if len(band) == 0:
-            continue
+    for band in _bands(h):
         image[band] = renders.rows(name, band)
         came[band] = True
         ready = np.flatnonzero(came & came[above] & came[below] & ~counted)
@@ -330,15 +330,17 @@ def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: 
     return image
 
 
-def _band_order(bands: int) -> list[int]:
-    """The order the bands of a whole render come in: each next band as far as it can be from those before
-    (0, 4, 2, 6, 1, 5, 3, 7 for eight), so that a mistake confined to one part of the image shows early."""
+def _bands(height: int, bands: int = BANDS) -> list[np.ndarray]:
+    """The rows of an image ``height`` tall in ``bands`` bands (none empty), in the order a whole render takes
+    them: each next band as far as it can be from those before (0, 4, 2, 6, 1, 5, 3, 7 of eight), so that a
+    mistake confined to one part of the image shows early."""
     order = [0]
     while len(order) < bands:
         step = len(order)
         order += [k + bands // (2 * step) for k in order] if bands % (2 * step) == 0 else \
             [k for k in range(bands) if k not in order]
-    return order[:bands]
+    edges = np.linspace(0, height, bands + 1).round().astype(np.int64)
+    return [np.arange(edges[k], edges[k + 1]) for k in order[:bands] if edges[k + 1] > edges[k]]
 
 
 def bound_unless_outside(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
@@ -353,15 +355,9 @@ def bound_unless_outside(name: str, reference: np.ndarray, submitted: np.ndarray
     assert renders.bound is not None
     if renders.bound_rows is None or beyond is None:
         return renders.bound(name)
-    h = submitted.shape[0]
-    edges = np.linspace(0, h, BANDS + 1).round().astype(np.int64)
-    order = _band_order(BANDS)
     image = np.empty_like(submitted)
     off = 0
-    for k in order:
-        band = np.arange(edges[k], edges[k + 1])
-        if len(band) == 0:
-            continue
+    for band in _bands(submitted.shape[0]):
         image[band] = renders.bound_rows(name, band)
         off += _outside(reference[band], image[band], submitted[band], verdict.tolerance)
         if beyond(off):
@@ -408,15 +404,11 @@ def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, ve
     exceeds the closest's share cannot be named closest: its far end is rendered whole only when it can."""
     if renders.bound_rows is None:
         return None
-    h = submitted.shape[0]
-    middles, _ = sampled_rows(h)
-    if len(middles) == 0:
+    looks = _looks(submitted.shape[0])
+    if not looks:
         return None
-    first = middles[FIRST_LOOK // 2::FIRST_LOOK]
     off = 0
-    for look in (first, np.setdiff1d(middles, first)):
-        if len(look) == 0:
-            continue
+    for look in looks:
         off += _outside(reference[look], renders.bound_rows(name, look), submitted[look], verdict.tolerance)
         if beyond is not None and beyond(off):
             break
