@@ -127,15 +127,33 @@ def _columns(a: np.ndarray) -> Columns:
     return tuple(np.ascontiguousarray(a[..., k]) for k in range(3))
 
 
+#: below this many triangles, the tests of :func:`plain_triangles` run one after another here: starting a pool's
+#: threads would cost more than they spare
+SIDE_BY_SIDE_MIN = 4096
+
+
 @contextmanager
-def _side_by_side(tasks: int) -> Iterator[Callable[..., Future]]:
+def _side_by_side(tasks: int, here: bool = False) -> Iterator[Callable[..., Future]]:
     """``run(f, *args)`` starts ``f(*args)`` (with floating-point warnings off) on a pool of up to as many
-    threads as cores, and gives its future; every task has finished when the block ends."""
+    threads as cores, and gives its future; every task has finished when the block ends.  With ``here`` (or one
+    task, or one core), each runs at once in this thread instead: the same results, as finished futures."""
     def quiet(f: Callable[..., np.ndarray], *args: object) -> np.ndarray:
         with np.errstate(all="ignore"):
             return f(*args)
 
-    with ThreadPoolExecutor(max_workers=max(1, min(tasks, os.cpu_count() or 1))) as pool:
+    workers = max(1, min(tasks, os.cpu_count() or 1))
+    if here or workers == 1:
+        def now(f: Callable[..., np.ndarray], *args: object) -> Future:
+            done: Future = Future()
+            try:
+                done.set_result(quiet(f, *args))
+            except BaseException as e:  # (raised where the pool's future would raise it: at its result)
+                done.set_exception(e)
+            return done
+
+        yield now
+        return
+    with ThreadPoolExecutor(max_workers=workers) as pool:
         yield lambda f, *args: pool.submit(quiet, f, *args)
 
 
@@ -191,7 +209,7 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
         [(seen_squarely, ([tuple(float(x) for x in p) for p in hull],)) for hull in lines.hulls]
     face_tests += [(seen_along, (tuple(float(x) for x in d),)) for d in lines.directions]
     face_tests += [(clear_of, (tuple(float(x) for x in p), tuple(float(x) for x in n))) for p, n in lines.starts]
-    with _side_by_side(len(face_tests) + len(lines.hulls) + len(lines.directions)) as run:
+    with _side_by_side(len(face_tests) + len(lines.hulls) + len(lines.directions), n_tri < SIDE_BY_SIDE_MIN) as run:
         face_masks = [run(test, *args) for test, args in face_tests]
         plain = np.ones(n_tri, dtype=bool)
         # edges: slot s joins corners s and s+1; the corner opposite it is s+2
