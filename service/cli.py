@@ -47,11 +47,19 @@ def _read(path: str) -> bytes:
 def _read_image(path: str) -> bytes:
     """An image file, read no further than the limit ``max_image_bytes`` (an image is a student's file: a file
     without end, such as /dev/zero, must not be read whole), the same with and without ``--server``."""
+    import stat
+
     from .settings import Settings
+    from .submissions import file_kind
 
     limit = Settings.from_env().max_image_bytes
     try:
-        with open(path, "rb") as f:
+        # opened without blocking, and looked at once open: a FIFO or a socket, which would wait for a writer
+        # that never comes, is refused; a device without end (/dev/zero) is read up to the limit
+        with os.fdopen(os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)), "rb") as f:
+            mode = os.fstat(f.fileno()).st_mode
+            if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode):
+                raise CliError(f"{path}: {file_kind(mode)}")
             data = f.read(limit + 1)
     except OSError as exc:
         raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None

@@ -34,7 +34,8 @@ SCENE_IGNORED = ("a scene among the submissions is not used (a student's own sce
                  "--student-scenes folder)")
 
 
-def _kind(mode: int) -> str:
+def file_kind(mode: int) -> str:
+    """What a file that is not a regular one is, in words (from its ``st_mode``)."""
     return ("a symbolic link; links in submissions are not followed" if stat.S_ISLNK(mode)
             else "a folder, not a file" if stat.S_ISDIR(mode)
             else "a FIFO, not a regular file" if stat.S_ISFIFO(mode)
@@ -52,18 +53,18 @@ def read_untrusted(path: Path, limit: int) -> bytes:
     except OSError as exc:
         raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
     if not stat.S_ISREG(before.st_mode):
-        raise UntrustedFileError(_kind(before.st_mode))
+        raise UntrustedFileError(file_kind(before.st_mode))
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         if os.path.islink(path):
-            raise UntrustedFileError(_kind(stat.S_IFLNK)) from None
+            raise UntrustedFileError(file_kind(stat.S_IFLNK)) from None
         raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "rb") as f:
             now = os.fstat(f.fileno())
             if not stat.S_ISREG(now.st_mode) or (now.st_dev, now.st_ino) != (before.st_dev, before.st_ino):
-                raise UntrustedFileError(f"{_kind(now.st_mode)} (it changed while it was read)"
+                raise UntrustedFileError(f"{file_kind(now.st_mode)} (it changed while it was read)"
                                          if not stat.S_ISREG(now.st_mode) else "changed while it was read")
             data = f.read(limit + 1)
     except OSError as exc:  # EIO, EISDIR, ...: the student's file, not the batch's fault

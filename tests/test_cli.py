@@ -515,3 +515,11 @@ def socket_free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def test_a_fifo_given_as_the_image_is_refused_not_waited_on(files, service_url, capsys, tmp_path):
+    fifo = tmp_path / "student.png"
+    os.mkfifo(fifo)
+    for extra in ([], ["--server", service_url]):
+        assert main(["grade", str(files / "good.json"), str(fifo), *extra]) == 2
+        assert capsys.readouterr().err == f"phongray: {fifo}: a FIFO, not a regular file\n"
