@@ -231,8 +231,7 @@ class Renderer:
             self.chunk(a, b, tally)
             return tally.result((b - a, s), counted)
 
-        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(bounds)))) as pool:
-            parts = list(pool.map(work, bounds))
+        parts = _mapped(work, bounds, workers)
         out = {}
         for name in names:
             whole = np.concatenate([p[name] for p in parts])
@@ -349,8 +348,7 @@ class Renderer:
                                                 self._mirror_among(work.rays))
                 missed = best.key == NO_HIT
                 once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
-                _accumulate(acc, work.sample[missed], scaled(background, work.weight[missed]), ceiling, fixed, once,
-                            once)
+                _accumulate(acc, work.sample[missed], scaled(background, work.weight[missed]), ceiling, fixed, once)
                 if tally is not None:
                     _tally_misses(tally, work, missed, background)
                 rows = np.flatnonzero(~missed)
@@ -363,7 +361,7 @@ class Renderer:
                 if tally is not None and work.depth == 0:
                     _tally_first_hits(tally, self.world, hit, done, normal)
                 colour = self.shading.shade(hit, mat, normal, dd, tally, done)
-                _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once, once)
+                _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once)
                 if work.depth >= deepest:
                     continue
                 children = self.secondary(hit, mat, normal, done)
@@ -447,17 +445,16 @@ def _tally_first_hits(tally: Tally, world: World, hit: Hits, work: Work, normal:
 
 
 def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling: float, fixed: float,
-                unique: bool = False, fresh: bool = False) -> None:
+                fresh: bool = False) -> None:
     """``acc[index] += values`` in fixed point (units of ``1/fixed``); repeated indices are summed.
 
     Contributions are never negative, so a sum at or above ``ceiling`` (twice
     the sub-samples of a pixel) already saturates its pixel and is clamped
     there; NaN counts as nothing.  Integer sums are exact, so their order
-    never shows in the image.  ``unique`` says that no index repeats: the
-    sum is then a plain gather and scatter instead of ``np.add.at``; ``fresh``
-    (with ``unique``) that ``acc`` holds nothing yet at ``index`` (a camera
-    ray's contribution, its sample's first), so the sum is the value itself,
-    at most ``ceiling``.
+    never shows in the image.  ``fresh`` says that no index repeats and that
+    ``acc`` holds nothing yet at ``index`` (a camera ray's contribution, its
+    sample's first), so the sum is the value itself, at most ``ceiling``: a
+    plain scatter instead of ``np.add.at``.
     """
     if len(index):
         cap = np.int64(ceiling * fixed)
@@ -468,11 +465,7 @@ def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling:
             v *= fixed
             units = np.rint(v, out=v).astype(np.int64)
             column = acc[:, k]
-            if unique and fresh:
-                column[index] = units
-            elif unique:
-                units += column[index]
-                np.minimum(units, cap, out=units)
+            if fresh:
                 column[index] = units
             else:
                 np.add.at(column, index, units)
