@@ -40,7 +40,7 @@ from typing import Any
 from .diagnosis import headline
 from .report import COLUMNS, NUMBERS, STATUSES, summary, write_atomic, write_report
 from .settings import Settings
-from .submissions import SCENE_IGNORED, Batch, ClassError, Pair, UntrustedFileError, discover, read_untrusted
+from .submissions import SCENE_IGNORED, Batch, ClassError, Pair, discover
 from .taskfile import TaskSettings, load_tasks
 
 __all__ = ["COLUMNS", "NUMBERS", "SCENE_IGNORED", "STATUSES", "ClassError", "Outcome", "grade_class", "grade_task",
@@ -212,6 +212,14 @@ def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict
     if problems:
         raise ClassError("; ".join(problems))
     return {key: scene for scene, key in keys.items()}, texts
+
+
+def _outside(report: Path, submissions: Path) -> None:
+    """The report folder is not inside the submissions folder (its files would be a student's next run)."""
+    inside, outer = report.resolve(), submissions.resolve()
+    if inside == outer or inside.is_relative_to(outer):
+        raise ClassError(f"{report}: the report folder is inside the submissions folder {submissions} (it would "
+                         f"be graded as a student's); write it elsewhere")
 
 
 def _writable(report: Path) -> None:
@@ -398,7 +406,8 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
     settings = Settings.from_env()
-    batch = discover(scenes, submissions, student_scenes)
+    _outside(report, submissions)
+    batch = discover(scenes, submissions, student_scenes, settings.max_image_bytes)
     tasks = load_tasks(tasks_file, batch.tasks)
     scene_of_key, texts = _scene_keys(batch, settings)
     made = not report.exists()
@@ -437,8 +446,7 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
                        settings.render_timeout)
     try:
         references = _render_all(backend, needed, refs, texts, report)
-        _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts,
-                   settings.max_image_bytes)
+        _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts)
     except ServerError as exc:  # the service went away, or stopped taking the key, in the middle of the batch
         backend.close(wait=False)
         raise ClassError(f"--server {server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
@@ -510,18 +518,14 @@ def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] 
 
 def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes], refs: dict[str, Path],
                report: Path, tasks: dict[str, TaskSettings], tolerance: float, max_fraction: float,
-               tick: Callable[[], None], texts: dict[Path, bytes], limit: int) -> None:
-    """Grade every pair on the backend; the submissions are read here (:func:`read_untrusted`), and every file
-    is written here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
+               tick: Callable[[], None], texts: dict[Path, bytes]) -> None:
+    """Grade every pair on the backend (its bytes were read when the class was found); every file is written
+    here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
     pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
     about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
     for n, pair in enumerate(todo):
-        assert pair.key is not None and pair.image is not None
-        try:
-            image = read_untrusted(pair.image, limit)
-        except UntrustedFileError as exc:
-            pair.row = {"status": "invalid", "reason": f"{pair.image}: {exc}"}
-            continue
+        assert pair.key is not None and pair.data is not None
+        image = pair.data
         own = tasks[pair.task]
         thresholds = (tolerance if own.tolerance is None else own.tolerance,
                       max_fraction if own.max_fraction is None else own.max_fraction)

@@ -229,7 +229,12 @@ def unreadable(*paths: Path):
         denied = {os.path.abspath(p) for p in paths}
         scandir, open_ = os.scandir, os.open
 
-        def check(path: object) -> None:
+        def check(path: object, dir_fd: object = None) -> None:
+            """(a folder held open, listed or opened in by its descriptor, is named by /proc/self/fd)"""
+            if isinstance(path, int):
+                path, dir_fd = "", path
+            if isinstance(dir_fd, int):
+                path = os.path.join(os.readlink(f"/proc/self/fd/{dir_fd}"), os.fsdecode(path))  # type: ignore
             if os.path.abspath(os.fsdecode(path)) in denied:  # type: ignore[arg-type]
                 raise PermissionError(13, "Permission denied", os.fsdecode(path))  # type: ignore[arg-type]
 
@@ -238,7 +243,7 @@ def unreadable(*paths: Path):
             return scandir(path)  # type: ignore[arg-type]
 
         def fake_open(path: object, *args: object, **kw: object) -> int:
-            check(path)
+            check(path, kw.get("dir_fd"))
             return open_(path, *args, **kw)  # type: ignore[arg-type]
 
         os.scandir, os.open = fake_scandir, fake_open  # type: ignore[assignment]

@@ -134,12 +134,13 @@ def test_a_missing_folder_of_the_tas_is_a_class_error(tmp_path):
 def test_a_student_with_an_own_scene_and_no_folder_is_missing(tmp_path):
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "t.json").write_text("{}")
-    (tmp_path / "subs").mkdir()
+    (tmp_path / "subs" / "ada").mkdir(parents=True)
     (tmp_path / "own" / "zoe").mkdir(parents=True)
     (tmp_path / "own" / "zoe" / "t.json").write_text("{}")
     batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
-    (pair,) = batch.pairs
-    assert (pair.student, pair.own, pair.image, pair.scene) == ("zoe", True, None, tmp_path / "own" / "zoe" / "t.json")
+    ada, zoe = batch.pairs
+    assert (zoe.student, zoe.own, zoe.image, zoe.scene) == ("zoe", True, None, tmp_path / "own" / "zoe" / "t.json")
+    assert zoe.row == {"status": "missing", "reason": "no t.png"} and ada.student == "ada"
 
 
 def test_the_pixels_of_a_nested_submission_are_graded(task, tmp_path):
