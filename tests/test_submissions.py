@@ -165,3 +165,105 @@ def test_a_device_or_fifo_is_looked_at_and_never_opened(tmp_path, monkeypatch):
     with pytest.raises(UntrustedFileError, match="^a FIFO, not a regular file$"):
         read_untrusted(tmp_path / "fifo.png", 1000)
     assert opened == []
+
+
+# -- learning-management systems' exports, as they come -----------------------------------------------------
+
+def with_task(task, tmp_path):
+    """A class folder of the task's scene alone (tmp_path/scenes), to put submissions in (tmp_path/subs)."""
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_bytes((task[0] / "scenes" / "Cornell.json").read_bytes())
+    return task[1]
+
+
+def test_a_canvas_flat_folder_is_graded_under_the_students_logins(task, tmp_path):
+    right = with_task(task, tmp_path)
+    put(tmp_path, "adamsada_LATE_12345_67890_cornell-1.png", right)
+    put(tmp_path, "bobbybee_222_333_Cornell.png", right)
+    put(tmp_path, "carlc_late_444_555_Cornell (1).PNG", tracer.encode_png(np.zeros((24, 32, 3), np.uint8)))
+    put(tmp_path, "readme.txt", b"exported by Canvas")
+    rows, ignored = rows_of(tmp_path, tmp_path)
+    assert {s: (r["status"], r["file"]) for s, r in rows.items()} == {
+        "adamsada": ("pass", "adamsada_LATE_12345_67890_cornell-1.png"),
+        "bobbybee": ("pass", "bobbybee_222_333_Cornell.png"),
+        "carlc": ("fail", "carlc_late_444_555_Cornell (1).PNG")}
+    assert ignored == {f"{tmp_path}/subs/readme.txt": "not in a student's folder"}
+
+
+def test_moodle_folders_are_graded_under_the_students_names(task, tmp_path):
+    right = with_task(task, tmp_path)
+    put(tmp_path, "Ada Adams_123456_assignsubmission_file_/Cornell.png", right)
+    put(tmp_path, "Ada Adams_123456_assignsubmission_onlinetext_/onlinetext.html", b"<p>hi</p>")
+    put(tmp_path, "Bo Li_17_assignsubmission_file_/hw/cornell.png", right)
+    put(tmp_path, "Bo Li_18_assignsubmission_file_/Cornell.jpg", jpeg(right))  # another Bo Li
+    put(tmp_path, "Cy Ng_19_assignsubmission_file_Cornell.png", right)  # downloaded without folders
+    put(tmp_path, ".._20_assignsubmission_file_/Cornell.png", right)  # never a student named ".."
+    rows, ignored = rows_of(tmp_path, tmp_path)
+    assert {s: (r["status"], r["file"]) for s, r in rows.items()} == {
+        "Ada Adams": ("pass", "Cornell.png"), "Bo Li (17)": ("pass", "hw/cornell.png"),
+        "Bo Li (18)": ("invalid", "Cornell.jpg"), "Cy Ng": ("pass", "Cy Ng_19_assignsubmission_file_Cornell.png")}
+    subs = tmp_path / "subs"
+    assert ignored == {f"{subs}/Ada Adams_123456_assignsubmission_onlinetext_/onlinetext.html": "matches no task",
+                       f"{subs}/.._20_assignsubmission_file_": "not a student's folder"}
+    assert (tmp_path / "report" / "gradescope" / "Ada Adams" / "results.json").is_file()
+
+
+def test_a_resubmission_and_a_near_miss_of_the_tasks_name(task, tmp_path):
+    right = with_task(task, tmp_path)
+    put(tmp_path, "ada/Cornell (2).png", right)
+    put(tmp_path, "ben/cornel.png", right)
+    put(tmp_path, "cal/Cornell.png", right)
+    put(tmp_path, "cal/Cornell-1.png", right)  # which one is the newer? the student says, not phongray
+    rows, ignored = rows_of(tmp_path, tmp_path)
+    subs = tmp_path / "subs"
+    assert rows["ada"]["status"] == "pass" and rows["ada"]["file"] == "Cornell (2).png"
+    assert rows["ben"]["status"] == "missing"
+    assert rows["ben"]["reason"] == "no Cornell.png (found cornel.png: did you mean Cornell.png?)"
+    assert ignored == {f"{subs}/ben/cornel.png": "matches no task (did you mean Cornell?)"}
+    assert rows["cal"]["reason"] == f"2 files for Cornell: {subs}/cal/Cornell-1.png, {subs}/cal/Cornell.png; keep one"
+
+
+def test_a_submissions_folder_of_no_student_stops_the_run_saying_what_was_expected(task, tmp_path, capsys):
+    from service.cli import main
+
+    right = with_task(task, tmp_path)
+    put(tmp_path, "Cornell.png", right)  # a loose file: no student's
+    put(tmp_path, "__MACOSX/._Cornell.png", b"")
+    assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"phongray: {tmp_path}/subs: no student found; expected a "
+                                                   f"folder per student (<student>/<task>.png), Moodle's folders")
+    assert "Canvas's flat folder (<login>_<id>_<id>_<task>.png)" in err and not (tmp_path / "r").exists()
+
+
+def test_a_report_folder_inside_the_submissions_folder_stops_the_run(task, tmp_path, capsys):
+    from service.cli import main
+
+    right = with_task(task, tmp_path)
+    put(tmp_path, "ada/Cornell.png", right)
+    for inside in (tmp_path / "subs" / "report", tmp_path / "subs" / "ada" / "report", tmp_path / "subs"):
+        assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(inside)]) == 2
+        err = capsys.readouterr().err
+        assert err == (f"phongray: {inside}: the report folder is inside the submissions folder {tmp_path}/subs "
+                       f"(it would be graded as a student's); write it elsewhere\n")
+    assert sorted(os.listdir(tmp_path / "subs")) == ["ada"] and os.listdir(tmp_path / "subs" / "ada") == ["Cornell.png"]
+
+
+def test_a_student_folder_swapped_for_a_link_while_the_references_render_is_not_followed(task, tmp_path):
+    """eve's folder becomes a link to ada's (right) images once the class is found: eve's own image is graded."""
+    right = with_task(task, tmp_path)
+    put(tmp_path, "ada/Cornell.png", right)
+    put(tmp_path, "eve/Cornell.png", tracer.encode_png(np.zeros((24, 32, 3), np.uint8)))
+    subs = tmp_path / "subs"
+    swapped = []
+
+    def swap(done: int, total: int) -> None:
+        if not swapped:  # the first tick: the class is found, nothing is rendered yet
+            os.rename(subs / "eve", tmp_path / "eve-was")
+            os.symlink("ada", subs / "eve")
+            swapped.append(True)
+
+    outcome = classgrade.grade_class(tmp_path / "scenes", subs, tmp_path / "report", jobs=1, progress=swap)
+    rows = {r["student"]: r for r in outcome.rows}
+    assert swapped and rows["eve"]["status"] == "fail" and rows["ada"]["status"] == "pass"
+    assert (tmp_path / "report" / "submissions" / "eve" / "Cornell.png").read_bytes() != right
