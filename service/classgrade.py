@@ -32,12 +32,14 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
 
+from . import journal
 from .diagnosis import headline
+from .gradebook import matched, score
 from .report import COLUMNS, NUMBERS, STATUSES, summary, write_atomic, write_report
 from .settings import Settings
 from .submissions import SCENE_IGNORED, Batch, ClassError, Pair, discover
@@ -108,7 +110,6 @@ def _server_render(server: str, api_key: str | None, scene: bytes, timeout: floa
 def _server_grade(server: str, api_key: str | None, scene: bytes, reference: bytes, image: bytes,
                   tolerance: float, max_fraction: float) -> dict[str, Any]:
     """:func:`grade_task` by a running service (which renders the same reference, from its cache)."""
-    import json
 
     from .client import ServerError, post_form
 
@@ -465,10 +466,10 @@ def _kept(report: Path) -> str:
     """What a stopped run leaves for the next: its references and grades, counted."""
     def count(folder: str) -> int:
         with contextlib.suppress(OSError):
-            return sum(1 for _ in (report / folder).rglob("*.json" if folder == RESUME else "*.png"))
+            return sum(1 for _ in (report / folder).rglob("*.json" if folder == journal.RESUME else "*.png"))
         return 0
 
-    return f"{count('references')} references and {count(RESUME)} grades are kept in {report}"
+    return f"{count('references')} references and {count(journal.RESUME)} grades are kept in {report}"
 
 
 def _render_all(backend: _Backend, needed: dict[str, Path], refs: dict[str, Path], texts: dict[Path, bytes],
@@ -493,25 +494,11 @@ def _render_all(backend: _Backend, needed: dict[str, Path], refs: dict[str, Path
     return done
 
 
-#: the folder of a report where each finished grade is kept, so that a stopped run resumes where it stopped
-RESUME = "resume"
-
-
-def _journal(pair: Pair, report: Path) -> Path:
-    return report / RESUME / pair.student / f"{pair.task}.json"
-
-
 def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] | None:
     """The row of a grade an earlier run finished for the same reference, the same bytes and the same
-    thresholds (with its heat-map and copy in place), or None."""
-    try:
-        kept = json.loads(_journal(pair, report).read_bytes())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(kept, dict) or kept.get("stamp") != stamp or not isinstance(kept.get("row"), dict):
-        return None
-    row: dict[str, Any] = kept["row"]
-    if row.get("status") in ("pass", "fail") and not all(p.exists() for p in _paths(pair, report)):
+    thresholds (with its heat-map and copy in place), or None (:mod:`service.journal` checks the rest)."""
+    row = journal.kept(journal.path(report, pair.student, pair.task), stamp)
+    if row is not None and row["status"] in ("pass", "fail") and not all(p.exists() for p in _paths(pair, report)):
         return None
     return row
 
@@ -529,8 +516,7 @@ def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes]
         own = tasks[pair.task]
         thresholds = (tolerance if own.tolerance is None else own.tolerance,
                       max_fraction if own.max_fraction is None else own.max_fraction)
-        stamp = {"reference": pair.key, "image_sha256": hashlib.sha256(image).hexdigest(),
-                 "tolerance": thresholds[0], "max_fraction": thresholds[1]}
+        stamp = journal.stamp(pair.key, hashlib.sha256(image).hexdigest(), *thresholds)
         row = _resumed(pair, report, stamp)
         if row is not None:
             pair.row = row
@@ -556,12 +542,13 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
     else:
         result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
-        result["likely"] = headline(result.pop("diagnosis", None))
+        diagnosis = result.pop("diagnosis", None)
+        result["likely"], result["mistakes"] = headline(diagnosis), matched(diagnosis)
         heat, copy = _paths(pair, report)
         write_atomic(heat, result.pop("heatmap_png"))
         write_atomic(copy, image)
         pair.row = result
-    write_atomic(_journal(pair, report), (json.dumps({"stamp": stamp, "row": pair.row}) + "\n").encode())
+    journal.keep(journal.path(report, pair.student, pair.task), stamp, pair.row)
 
 
 def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
@@ -575,7 +562,8 @@ def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskS
     row.update(student=pair.student, task=pair.task, scene="own" if pair.own else "shared")
     row["reason"] = row["reason"] or ""
     row["points"] = tasks[pair.task].points
-    row["score"] = row["points"] if row["status"] == "pass" else 0.0
+    row["mistakes"] = row["mistakes"] or []
+    row["score"], row["deducted"] = astuple(score(row, tasks[pair.task]))
     row["file"] = pair.file
     ref = refs.get(pair.key or "")
     if ref is not None and ref.exists():
