@@ -57,14 +57,15 @@ def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSetti
         unknown = sorted(set(given) - set(tasks))
         if unknown:
             raise ClassError(f"{path}: no task {', '.join(unknown)} (the tasks are {', '.join(sorted(tasks))})")
-        _known_mistakes(path, given)
+        _known_mistakes(path, given, text)
     return {task: given.get(task, TaskSettings()) for task in tasks}
 
 
-def _known_mistakes(path: Path, given: dict[str, TaskSettings]) -> None:
+def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> None:
     """Every deduction names a mistake the diagnosis knows (else the run stops, with the nearest id)."""
-    for task, settings in sorted(given.items()):
-        for mistake in settings.deductions:
-            if mistake not in VARIANTS:
-                raise ClassError(f"{path}: {task}.deductions.{mistake}: no such mistake"
-                                 f"{did_you_mean(mistake, VARIANTS)} (the ids are in docs/grading.md)")
+    problems = [(f"{task}.deductions.{mistake}", f"no such mistake{did_you_mean(mistake, VARIANTS)} (the ids "
+                                                 f"are in docs/grading.md)")
+                for task, settings in sorted(given.items()) for mistake in settings.deductions
+                if mistake not in VARIANTS]
+    if problems:
+        raise ClassError("; ".join(as_lines(str(path), problems, text)))
