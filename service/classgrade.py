@@ -428,10 +428,7 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
          cluster: str | None, progress: Callable[[int, int], None] | None, api_key: str | None,
          cluster_wait: float, started: float, settings: Settings) -> Outcome:
     """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report."""
-    for pair in batch.pairs:
-        if not pair.row and pair.image is None:
-            pair.row = {"status": "missing", "reason": f"no {pair.task}.png"}
-    todo = [p for p in batch.pairs if not p.row]
+    todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
     refs = {k: report / "references" / f"{k}.png" for k in scene_of_key}
     needed = {k: scene_of_key[k] for k, path in refs.items() if not path.exists()}
     total = len(batch.pairs)
