@@ -215,12 +215,21 @@ def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict
     return {key: scene for scene, key in keys.items()}, texts
 
 
+#: the folders a report writes into
+REPORT_FOLDERS = ("references", "submissions", "heatmaps", "gradescope", journal.RESUME)
+
+
 def _outside(report: Path, submissions: Path) -> None:
-    """The report folder is not inside the submissions folder (its files would be a student's next run)."""
+    """The report folder is not inside the submissions folder (its files would be a student's next run), nor
+    the submissions folder inside a folder the report writes (its copies would be)."""
     inside, outer = report.resolve(), submissions.resolve()
     if inside == outer or inside.is_relative_to(outer):
         raise ClassError(f"{report}: the report folder is inside the submissions folder {submissions} (it would "
                          f"be graded as a student's); write it elsewhere")
+    for name in REPORT_FOLDERS:
+        if outer.is_relative_to(inside / name):
+            raise ClassError(f"{report}: the report writes its {name}/ folder where the submissions folder "
+                             f"{submissions} is (its files would be graded as the students'); write it elsewhere")
 
 
 def _writable(report: Path) -> None:

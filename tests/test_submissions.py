@@ -247,6 +247,15 @@ def test_a_report_folder_inside_the_submissions_folder_stops_the_run(task, tmp_p
         assert err == (f"phongray: {inside}: the report folder is inside the submissions folder {tmp_path}/subs "
                        f"(it would be graded as a student's); write it elsewhere\n")
     assert sorted(os.listdir(tmp_path / "subs")) == ["ada"] and os.listdir(tmp_path / "subs" / "ada") == ["Cornell.png"]
+    # nor the submissions where the report writes its own copies of them (a TA's hw3/submissions and -o hw3)
+    hw3 = tmp_path / "hw3"
+    (hw3 / "submissions" / "ada").mkdir(parents=True)
+    (hw3 / "submissions" / "ada" / "Cornell.png").write_bytes(right)
+    assert main(["grade-class", str(tmp_path / "scenes"), str(hw3 / "submissions"), "-o", str(hw3)]) == 2
+    assert capsys.readouterr().err == (
+        f"phongray: {hw3}: the report writes its submissions/ folder where the submissions folder "
+        f"{hw3}/submissions is (its files would be graded as the students'); write it elsewhere\n")
+    assert os.listdir(hw3) == ["submissions"]
 
 
 def test_a_student_folder_swapped_for_a_link_while_the_references_render_is_not_followed(task, tmp_path):
