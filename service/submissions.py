@@ -146,8 +146,8 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
         sources = _sources(root, ignored)
         if not sources:
             raise ClassError(f"{submissions}: no student found; expected {LAYOUTS}")
-        found = {student: _student(root, source, TaskNames(tasks), limit, ignored)
-                 for student, source in sources.items()}
+        names = TaskNames(tasks)
+        found = {student: _student(root, source, names, limit, ignored) for student, source in sources.items()}
     pairs = []
     students = sorted({*found, *own})
     for student in students:
@@ -348,10 +348,14 @@ def _student(root: Folder, source: Source, names: TaskNames, limit: int,
         given = {entry.name: name for entry, name in source.files}
         for name in source.folders:
             listed = walk.folder(root, name, 0)
-            if listed is not None:
-                places.append((0, *listed))
-                places += [(1, *below) for e in listed[1] if e.folder
-                           if (below := walk.folder(listed[0], e.name, 1)) is not None]
+            if listed is None:
+                continue
+            folder, entries = listed
+            places.append((0, folder, entries))
+            for entry in entries:  # one folder deeper (hw3/)
+                below = walk.folder(folder, entry.name, 1) if entry.folder else None
+                if below is not None:
+                    places.append((1, *below))
         if not places:  # none of the student's folders can be read
             return {task: _invalid("; ".join(walk.unreadable)) for task in names.tasks}
         for depth, folder, entries in places:
