@@ -570,7 +570,7 @@ def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskS
     row["points"] = tasks[pair.task].points
     row["mistakes"] = row["mistakes"] or []
     row["score"], row["deducted"] = astuple(score(row, tasks[pair.task]))
-    row["file"] = pair.file
+    row["file"], row["lms_id"] = pair.file, pair.lms_id
     ref = refs.get(pair.key or "")
     if ref is not None and ref.exists():
         row["reference"] = str(ref.relative_to(report))

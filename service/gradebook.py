@@ -61,6 +61,7 @@ def partial(row: dict[str, Any]) -> str:
 @dataclass(frozen=True)
 class Total:
     student: str
+    lms_id: str  # the student's id in the LMS's export ("" for none)
     scores: dict[str, float]  # task → score
     total: float
     out_of: float
@@ -71,21 +72,22 @@ def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
     out = []
     for student in students:
         mine = [r for r in rows if r["student"] == student]
-        out.append(Total(student, {r["task"]: r["score"] for r in mine}, sum(r["score"] for r in mine),
-                         sum(r["points"] for r in mine)))
+        out.append(Total(student, mine[0]["lms_id"] if mine else "", {r["task"]: r["score"] for r in mine},
+                         sum(r["score"] for r in mine), sum(r["points"] for r in mine)))
     return out
 
 
 def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[str],
                   cell: Any = lambda v: v) -> str:
-    """``gradebook.csv``: a row per student, a column per task (its score) and the total; ``cell`` makes a
-    text cell safe to open (:func:`service.report.safe_cell`)."""
+    """``gradebook.csv``: a row per student (their name and, from a Canvas or Moodle export, the LMS's id, to
+    match on import), a column per task (its score) and the total; ``cell`` makes a text cell safe to open
+    (:func:`service.report.safe_cell`)."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_MINIMAL)
-    writer.writerow(["student", *map(cell, tasks), "total"])
+    writer.writerow(["student", "id", *map(cell, tasks), "total"])
     for t in totals(rows, students):
         name = cell(t.student)
-        row = [name, *(f"{t.scores[task]:g}" for task in tasks), f"{t.total:g}"]
+        row = [name, t.lms_id, *(f"{t.scores[task]:g}" for task in tasks), f"{t.total:g}"]
         (csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_ALL) if "\r" in name else writer).writerow(row)
     return buf.getvalue()
 

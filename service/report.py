@@ -30,8 +30,8 @@ from .taskfile import TaskSettings
 NUMBERS = ["mean_abs_error", "rmse", "psnr", "max_error", "fraction_off", "fraction_off_nearby", "width", "height",
            "reference_sha256"]
 #: the columns of report.csv (and the keys of each row of report.json), in order
-COLUMNS = ["student", "task", "status", "reason", "likely", "mistakes", "scene", "file", "passed", "points", "score",
-           "deducted", "tolerance", "max_fraction", *NUMBERS, "reference", "submission", "heatmap"]
+COLUMNS = ["student", "lms_id", "task", "status", "reason", "likely", "mistakes", "scene", "file", "passed", "points",
+           "score", "deducted", "tolerance", "max_fraction", *NUMBERS, "reference", "submission", "heatmap"]
 STATUSES = ("pass", "fail", "missing", "invalid")
 
 

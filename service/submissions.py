@@ -96,6 +96,7 @@ class Pair:
     file: str | None = None  # the submitted file, relative to the student's folder (spheres.png, hw3/Spheres.PNG)
     row: dict[str, Any] = field(default_factory=dict)
     data: bytes | None = None  # the submitted bytes, read once, when the class was found
+    lms_id: str = ""  # the student's id in the learning-management system's export (Canvas's, Moodle's), if any
 
 
 @dataclass
@@ -148,13 +149,14 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
             raise ClassError(f"{submissions}: no student found; expected {LAYOUTS}")
         names = TaskNames(tasks)
         found = {student: _student(root, source, names, limit, ignored) for student, source in sources.items()}
+    ids = {student: source.id for student, source in sources.items()}
     pairs = []
     students = sorted({*found, *own})
     for student in students:
         mine = found.get(student, {})
         for task, shared in tasks.items():
             scene = own.get(student, {}).get(task)
-            pair = Pair(student, task, None, scene or shared, scene is not None)
+            pair = Pair(student, task, None, scene or shared, scene is not None, lms_id=ids.get(student, ""))
             mine.get(task, Submitted(row={"status": "missing", "reason": f"no {task}.png"})).fill(pair)
             pairs.append(pair)
     return Batch(tasks, students, pairs, ignored)
@@ -212,6 +214,7 @@ class Source:
 
     folders: list[str] = field(default_factory=list)
     files: list[tuple[Entry, str]] = field(default_factory=list)
+    id: str = ""  # the LMS's id of the student, if the names gave one
 
 
 def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
@@ -236,6 +239,7 @@ def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
         merged = out.setdefault(name, Source())
         merged.folders += owners[owner].folders
         merged.files += owners[owner].files
+        merged.id = merged.id or owner.id
     return out
 
 

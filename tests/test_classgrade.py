@@ -401,10 +401,11 @@ def test_the_gradebook_the_totals_and_gradescope_agree(mistaken):
     report, rows = mistaken
     with open(report / "gradebook.csv", newline="") as f:
         table = list(csv.reader(f))
-    assert table[0] == ["student", "lamps", "total"]
+    assert table[0] == ["student", "id", "lamps", "total"]
     assert [r[0] for r in table[1:]] == sorted(rows)
     page = (report / "index.html").read_text()
-    for student, lamps, total in table[1:]:
+    for student, lms_id, lamps, total in table[1:]:
+        assert lms_id == ""  # (folders of no learning-management system)
         assert float(lamps) == float(total) == rows[student]["score"]
         results = json.loads((report / "gradescope" / student / "results.json").read_text())
         assert results["score"] == float(total) == sum(t["score"] for t in results["tests"])

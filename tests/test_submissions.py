@@ -1,5 +1,6 @@
 """Students' folders as learning-management systems download them, and their files as untrusted input."""
 
+import csv
 import io
 import json
 import os
@@ -188,6 +189,10 @@ def test_a_canvas_flat_folder_is_graded_under_the_students_logins(task, tmp_path
         "bobbybee": ("pass", "bobbybee_222_333_Cornell.png"),
         "carlc": ("fail", "carlc_late_444_555_Cornell (1).PNG")}
     assert ignored == {f"{tmp_path}/subs/readme.txt": "not in a student's folder"}
+    assert {s: r["lms_id"] for s, r in rows.items()} == {"adamsada": "12345", "bobbybee": "222", "carlc": "444"}
+    with open(tmp_path / "report" / "gradebook.csv", newline="") as f:
+        assert [r[:2] for r in csv.reader(f)] == [["student", "id"], ["adamsada", "12345"], ["bobbybee", "222"],
+                                                  ["carlc", "444"]]
 
 
 def test_moodle_folders_are_graded_under_the_students_names(task, tmp_path):
@@ -206,6 +211,8 @@ def test_moodle_folders_are_graded_under_the_students_names(task, tmp_path):
     assert ignored == {f"{subs}/Ada Adams_123456_assignsubmission_onlinetext_/onlinetext.html": "matches no task",
                        f"{subs}/.._20_assignsubmission_file_": "not a student's folder"}
     assert (tmp_path / "report" / "gradescope" / "Ada Adams" / "results.json").is_file()
+    assert {s: r["lms_id"] for s, r in rows.items()} == {"Ada Adams": "123456", "Bo Li (17)": "17",
+                                                         "Bo Li (18)": "18", "Cy Ng": "19"}
 
 
 def test_a_resubmission_and_a_near_miss_of_the_tasks_name(task, tmp_path):
