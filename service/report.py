@@ -168,7 +168,8 @@ def _cell(r: dict[str, Any], anchor: str) -> str:
         note = esc(_without_file(r["reason"])[:80])
     own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
     status = esc(r["status"])
-    return f'<td class="{status}"><a href="#{anchor}">{status}{own}<small>{note}</small></a></td>'
+    kind = f"{status} partial" if r.get("deducted") else status
+    return f'<td class="{kind}"><a href="#{anchor}">{status}{own}<small>{note}</small></a></td>'
 
 
 def _detail(r: dict[str, Any], anchor: str) -> str:
@@ -232,7 +233,7 @@ table.grid {{ border-collapse: collapse; }}
 .grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow: hidden; }}
 td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
 td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
-td.total {{ font-weight: bold; white-space: nowrap; }}
+td.partial {{ background: #fbe3cf; }} td.total {{ font-weight: bold; white-space: nowrap; }}
 .own {{ color: #36c; }}
 .pair {{ display: none; }}
 .pair:target {{ display: block; position: fixed; top: 4%; left: 4%; right: 4%; max-height: 88%; overflow: auto;

@@ -410,6 +410,8 @@ def test_the_gradebook_the_totals_and_gradescope_agree(mistaken):
         results = json.loads((report / "gradescope" / student / "results.json").read_text())
         assert results["score"] == float(total) == sum(t["score"] for t in results["tests"])
         assert f'<td class="total">{float(total):g} / 4</td>' in page
+    deducted = sum(r["deducted"] is not None for r in rows.values())
+    assert page.count('<td class="fail partial">') == deducted == sum(m in DEDUCTIONS for m in MISTAKEN.values())
     assert json.loads((report / "gradescope" / "bob" / "results.json").read_text())["tests"][0]["output"].endswith(
         "\nLikely: no attenuation of point, spot and area lights\nPartial credit: 2.5 of 4 points (no attenuation "
         "of point, spot and area lights: -1.5)")
