@@ -3,7 +3,7 @@ results.json per student.
 
 Every file is written whole or not at all (:func:`write_atomic`), so an interrupted run leaves the previous
 report readable.  A student's name (and a file's) is the students' text: in the CSV files and the HTML its
-bidirectional-text controls are shown escaped (``\u202e``), so that it cannot reorder what is shown around it,
+bidirectional-text controls are shown escaped (``\\u202e``), so that it cannot reorder what is shown around it,
 and a CSV cell never begins as a formula.
 """
 
@@ -65,7 +65,7 @@ BIDI = re.compile("[\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069]")
 
 
 def visible(text: str) -> str:
-    """A name with its bidirectional-text controls escaped (``\u202e``): shown, not obeyed."""
+    """A name with its bidirectional-text controls escaped (``\\u202e``): shown, not obeyed."""
     return BIDI.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
 
 
