@@ -283,3 +283,14 @@ def test_a_student_folder_swapped_for_a_link_while_the_references_render_is_not_
     rows = {r["student"]: r for r in outcome.rows}
     assert swapped and rows["eve"]["status"] == "fail" and rows["ada"]["status"] == "pass"
     assert (tmp_path / "report" / "submissions" / "eve" / "Cornell.png").read_bytes() != right
+
+
+def test_a_tasks_own_name_comes_before_a_resubmissions_suffix():
+    from service.lms import TaskNames
+
+    names = TaskNames(["Cornell", "cornell-2", "box"])
+    assert [(n.task, n.exact) for n in map(names.match, ["cornell-2.png", "Cornell-3.PNG", "box (12).png",
+                                                          "BOX-1.jpg", "box-x.png", "box (1).png.json"])] == [
+        ("cornell-2", True), ("Cornell", True), ("box", True), ("box", False), (None, False), (None, False)]
+    assert names.near("cornel.PNG") == "Cornell"
+    assert names.near("Box-2-final.png") is None and names.near("notes.txt") is None
