@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
+from .lms import LAYOUTS, Owner, TaskNames, composed, file_owner, folder_owner, student_names
 
 
 class ClassError(Exception):
@@ -149,6 +149,8 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
             raise ClassError(f"{submissions}: no student found; expected {LAYOUTS}")
         names = TaskNames(tasks)
         found = {student: _student(root, source, names, limit, ignored) for student, source in sources.items()}
+    if student_scenes is not None:
+        _scenes_name_students(student_scenes, own, sources)
     ids = {student: source.id for student, source in sources.items()}
     pairs = []
     students = sorted({*found, *own})
@@ -369,7 +371,8 @@ def _student(root: Folder, source: Source, names: TaskNames, limit: int,
 
 
 def _student_scenes(folder: Path, tasks: dict[str, Path]) -> dict[str, dict[str, Path]]:
-    """``<student>/<task>.json`` of the TA's folder of students' own scenes; a file for no task stops the run."""
+    """``<student>/<task>.json`` of the TA's folder of students' own scenes, by the student's name (composed, as
+    the submissions' are); a file for no task stops the run."""
     out: dict[str, dict[str, Path]] = {}
     for entry in _entries(folder):
         if not entry.is_dir():
@@ -379,5 +382,25 @@ def _student_scenes(folder: Path, tasks: dict[str, Path]) -> dict[str, dict[str,
             task = file.name[:-5] if file.name.endswith(".json") else None
             if task not in tasks:
                 raise ClassError(f"{path}: names no task (the tasks are {', '.join(sorted(tasks))})")
-            out.setdefault(entry.name, {})[task] = path
+            out.setdefault(composed(entry.name), {})[task] = path
     return out
+
+
+def _scenes_name_students(folder: Path, own: dict[str, dict[str, Path]], sources: dict[str, Source]) -> None:
+    """A student's own scenes are under the student's name as the report gives it; a folder named otherwise for
+    a student of the submissions (another case, Moodle's folder name, a name without the id that tells two
+    students apart) stops the run: that student would be graded against the task's scene, and a student of
+    that name who sent nothing listed beside them.  (A student with no submission at all is no mistake.)"""
+    def key(name: str) -> str:
+        return folder_owner(name).name.casefold()
+
+    keys: dict[str, set[str]] = {}
+    for student, source in sources.items():
+        for name in (student, student.removesuffix(f" ({source.id})")):
+            keys.setdefault(key(name), set()).add(student)
+    for name in sorted(own):
+        meant = sorted(keys.get(key(name), set()))
+        if name not in sources and meant:
+            raise ClassError(f"{folder / name}: no student {name} among the submissions (did you mean "
+                             f"{' or '.join(meant)}? a student's own scenes go in a folder of the name the "
+                             f"report gives them)")

@@ -294,3 +294,60 @@ def test_a_tasks_own_name_comes_before_a_resubmissions_suffix():
         ("cornell-2", True), ("Cornell", True), ("box", True), ("box", False), (None, False), (None, False)]
     assert names.near("cornel.PNG") == "Cornell"
     assert names.near("Box-2-final.png") is None and names.near("notes.txt") is None
+
+
+def test_a_name_spelt_decomposed_is_the_same_student_as_the_tas_composed_one(tmp_path):
+    """An archive unpacked on a Mac spells José decomposed (NFD), the TA's student-scenes folder composed (NFC):
+    one student, graded against their own scene, never a second José with nothing sent."""
+    import unicodedata
+
+    nfd, nfc = (unicodedata.normalize(form, "José García") for form in ("NFD", "NFC"))
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    put(tmp_path, f"{nfd}_555_assignsubmission_file_/Cornell.png", b"png")
+    put(tmp_path, f"{nfd}ez/Cornell.png", b"png")  # (a folder per student, too: Joséez)
+    (tmp_path / "own" / nfc).mkdir(parents=True)
+    (tmp_path / "own" / nfc / "Cornell.json").write_text("{}")
+    (tmp_path / "own" / f"{nfc}ez").mkdir(parents=True)
+    (tmp_path / "own" / f"{nfc}ez" / "Cornell.json").write_text("{}")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert [(p.student, p.own, p.file, p.row, p.lms_id) for p in batch.pairs] == [
+        (nfc, True, "Cornell.png", {}, "555"), (f"{nfc}ez", True, "Cornell.png", {}, "")]
+
+
+@pytest.mark.parametrize("folder, meant", [
+    ("ADA", "ada"),  # another case
+    ("Eve Ng_777_assignsubmission_file_", "Eve Ng"),  # Moodle's folder name
+    ("Bo Li", "Bo Li (17) or Bo Li (18)"),  # without the id that tells two students apart
+])
+def test_student_scenes_under_another_name_than_the_students_stop_the_run(tmp_path, folder, meant):
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for student in ("ada", "Eve Ng_777_assignsubmission_file_", "Bo Li_17_assignsubmission_file_",
+                    "Bo Li_18_assignsubmission_file_"):
+        put(tmp_path, f"{student}/Cornell.png", b"png")
+    (tmp_path / "own" / folder).mkdir(parents=True)
+    (tmp_path / "own" / folder / "Cornell.json").write_text("{}")
+    with pytest.raises(ClassError) as caught:
+        discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert str(caught.value).startswith(f"{tmp_path}/own/{folder}: no student {folder} among the submissions "
+                                        f"(did you mean {meant}?")
+    # a student of their own scene who sent nothing is no mistake: missing
+    (tmp_path / "own" / folder).rename(tmp_path / "own" / "zed")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert [(p.own, p.row["status"]) for p in batch.pairs if p.student == "zed"] == [(True, "missing")]
+
+
+def test_a_name_a_student_gave_themselves_never_makes_them_another_student(tmp_path):
+    """Moodle lets a student edit their own name: 'Bo Li_17_assignsubmission_file_' or 'Bo Li (17)' names a
+    second student, never the first Bo Li, whose image stays theirs alone (not '2 files; keep one')."""
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for folder, data in [("Bo Li_17_assignsubmission_file_", b"bo"), ("Bo Li_18_assignsubmission_file_", b"other"),
+                         ("Bo Li_17_assignsubmission_file__66_assignsubmission_file_", b"mallory"),
+                         ("Bo Li (17)_99_assignsubmission_file_", b"trudy")]:
+        put(tmp_path, f"{folder}/Cornell.png", data)
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert {p.student: (p.lms_id, p.data, p.row) for p in batch.pairs} == {
+        "Bo Li (17)": ("17", b"bo", {}), "Bo Li (18)": ("18", b"other", {}),
+        "Bo Li_17_assignsubmission_file_": ("66", b"mallory", {}), "Bo Li (17) (99)": ("99", b"trudy", {})}
