@@ -137,12 +137,12 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
     folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
     unusable, or a submissions folder in which no student is found."""
     scene_files = [e for e in _entries(scenes) if e.is_file()]
-    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if e.name.endswith(".json")}
+    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if _scene(e.name)}
     if not tasks:
         raise ClassError(f"{scenes}: no task scenes (<task>.json)")
-    ignored = [(str(scenes / e.name), "not a task scene (<task>.json)") for e in scene_files
-               if not e.name.endswith(".json")]
-    own = _student_scenes(student_scenes, tasks) if student_scenes is not None else {}
+    ignored = [(str(scenes / e.name), HIDDEN if _hidden(e.name) else "not a task scene (<task>.json)")
+               for e in scene_files if not _scene(e.name)]
+    own = _student_scenes(student_scenes, tasks, ignored) if student_scenes is not None else {}
     with Folder.root(submissions) as root:
         sources = _sources(root, ignored)
         if not sources:
@@ -370,15 +370,35 @@ def _student(root: Folder, source: Source, names: TaskNames, limit: int,
         return walk.chosen(sorted(names.tasks), limit)
 
 
-def _student_scenes(folder: Path, tasks: dict[str, Path]) -> dict[str, dict[str, Path]]:
+def _hidden(name: str) -> bool:
+    """A file no one means as a scene or a student: hidden (``.DS_Store``, the ``._spheres.json`` a Mac's archive
+    leaves beside each file, an editor's ``.#spheres.json``), or an archive tool's folder (``__MACOSX``)."""
+    return name.startswith(".") or name in NOT_STUDENTS
+
+
+def _scene(name: str) -> bool:
+    return name.endswith(".json") and not _hidden(name)
+
+
+HIDDEN = "a hidden file or an archive tool's (never a scene)"
+
+
+def _student_scenes(folder: Path, tasks: dict[str, Path],
+                    ignored: list[tuple[str, str]]) -> dict[str, dict[str, Path]]:
     """``<student>/<task>.json`` of the TA's folder of students' own scenes, by the student's name (composed, as
-    the submissions' are); a file for no task stops the run."""
+    the submissions' are); a file for no task stops the run (a hidden one is ``ignored``)."""
     out: dict[str, dict[str, Path]] = {}
     for entry in _entries(folder):
+        if _hidden(entry.name):
+            ignored.append((str(folder / entry.name), HIDDEN))
+            continue
         if not entry.is_dir():
             raise ClassError(f"{folder / entry.name}: expected a folder per student (<student>/<task>.json)")
         for file in _entries(folder / entry.name):
             path = folder / entry.name / file.name
+            if _hidden(file.name):
+                ignored.append((str(path), HIDDEN))
+                continue
             task = file.name[:-5] if file.name.endswith(".json") else None
             if task not in tasks:
                 raise ClassError(f"{path}: names no task (the tasks are {', '.join(sorted(tasks))})")

@@ -351,3 +351,20 @@ def test_a_name_a_student_gave_themselves_never_makes_them_another_student(tmp_p
     assert {p.student: (p.lms_id, p.data, p.row) for p in batch.pairs} == {
         "Bo Li (17)": ("17", b"bo", {}), "Bo Li (18)": ("18", b"other", {}),
         "Bo Li_17_assignsubmission_file_": ("66", b"mallory", {}), "Bo Li (17) (99)": ("99", b"trudy", {})}
+
+
+def test_the_files_a_macs_archive_leaves_in_the_tas_folders_are_ignored(tmp_path):
+    """A class folder zipped on a Mac and unpacked elsewhere holds ._Cornell.json (AppleDouble, binary) beside
+    each file, .DS_Store and __MACOSX/: never a task or a student's scene, so no reason to stop the run."""
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for junk in ("scenes/._Cornell.json", "scenes/.DS_Store", "own/.DS_Store", "own/ada/._Cornell.json",
+                 "own/__MACOSX/ada/._Cornell.json"):
+        (tmp_path / junk).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / junk).write_bytes(b"\x00\x05\x16\x07")
+    (tmp_path / "own" / "ada" / "Cornell.json").write_text("{}")
+    put(tmp_path, "ada/Cornell.png", b"png")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert list(batch.tasks) == ["Cornell"] and [(p.student, p.own) for p in batch.pairs] == [("ada", True)]
+    assert sorted(dict(batch.ignored)) == [f"{tmp_path}/{junk}" for junk in (
+        "own/.DS_Store", "own/__MACOSX", "own/ada/._Cornell.json", "scenes/.DS_Store", "scenes/._Cornell.json")]
