@@ -219,13 +219,20 @@ def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict
 REPORT_FOLDERS = ("references", "submissions", "heatmaps", "gradescope", journal.RESUME)
 
 
-def _outside(report: Path, submissions: Path) -> None:
+def _outside(report: Path, submissions: Path, scenes: Path, student_scenes: Path | None) -> None:
     """The report folder is not inside the submissions folder (its files would be a student's next run), nor
-    the submissions folder inside a folder the report writes (its copies would be)."""
+    the submissions folder inside a folder the report writes (its copies would be); nor is it the scenes folder
+    (its report.json would be a task) or inside the students' scenes (a student of them)."""
     inside, outer = report.resolve(), submissions.resolve()
     if inside == outer or inside.is_relative_to(outer):
         raise ClassError(f"{report}: the report folder is inside the submissions folder {submissions} (it would "
                          f"be graded as a student's); write it elsewhere")
+    if inside == scenes.resolve():
+        raise ClassError(f"{report}: the report folder is the scenes folder (its report.json would be read as a "
+                         f"task); write it elsewhere")
+    if student_scenes is not None and inside.is_relative_to(student_scenes.resolve()):
+        raise ClassError(f"{report}: the report folder is inside the --student-scenes folder {student_scenes} "
+                         f"(it would be read as a student's scenes); write it elsewhere")
     for name in REPORT_FOLDERS:
         if outer.is_relative_to(inside / name):
             raise ClassError(f"{report}: the report writes its {name}/ folder where the submissions folder "
@@ -416,7 +423,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
     settings = Settings.from_env()
-    _outside(report, submissions)
+    _outside(report, submissions, scenes, student_scenes)
     batch = discover(scenes, submissions, student_scenes, settings.max_image_bytes)
     tasks = load_tasks(tasks_file, batch.tasks)
     scene_of_key, texts = _scene_keys(batch, settings)

@@ -368,3 +368,23 @@ def test_the_files_a_macs_archive_leaves_in_the_tas_folders_are_ignored(tmp_path
     assert list(batch.tasks) == ["Cornell"] and [(p.student, p.own) for p in batch.pairs] == [("ada", True)]
     assert sorted(dict(batch.ignored)) == [f"{tmp_path}/{junk}" for junk in (
         "own/.DS_Store", "own/__MACOSX", "own/ada/._Cornell.json", "scenes/.DS_Store", "scenes/._Cornell.json")]
+
+
+def test_a_report_folder_that_is_the_scenes_folder_or_in_the_student_scenes_stops_the_run(task, tmp_path, capsys):
+    """Its report.json would be a task, or its gradescope/ folder a student of their own scenes, next time."""
+    from service.cli import main
+
+    right = with_task(task, tmp_path)
+    put(tmp_path, "ada/Cornell.png", right)
+    (tmp_path / "own" / "ada").mkdir(parents=True)
+    common = ["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "--student-scenes",
+              str(tmp_path / "own"), "-o"]
+    assert main([*common, str(tmp_path / "scenes")]) == 2
+    assert capsys.readouterr().err == (f"phongray: {tmp_path}/scenes: the report folder is the scenes folder (its "
+                                       f"report.json would be read as a task); write it elsewhere\n")
+    for inside in (tmp_path / "own", tmp_path / "own" / "report"):
+        assert main([*common, str(inside)]) == 2
+        assert capsys.readouterr().err == (
+            f"phongray: {inside}: the report folder is inside the --student-scenes folder {tmp_path}/own (it would "
+            f"be read as a student's scenes); write it elsewhere\n")
+    assert sorted(os.listdir(tmp_path / "scenes")) == ["Cornell.json"] and os.listdir(tmp_path / "own") == ["ada"]
