@@ -148,6 +148,7 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
         if not sources:
             raise ClassError(f"{submissions}: no student found; expected {LAYOUTS}")
         names = TaskNames(tasks)
+        _not_one_level_up(root, sources, names)
         found = {student: _student(root, source, names, limit, ignored) for student, source in sources.items()}
     if student_scenes is not None:
         _scenes_name_students(student_scenes, own, sources)
@@ -243,6 +244,35 @@ def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
         merged.files += owners[owner].files
         merged.id = merged.id or owner.id
     return out
+
+
+def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames) -> None:
+    """A submissions folder whose one folder holds a class (an export unpacked into a folder of its own, and that
+    folder's parent given): :class:`ClassError`, not a class of one student with every image "2 files; keep
+    one" or missing.  The folder holds a class when two of its entries are two students' by an LMS's naming, or
+    two of its folders each hold an image named for a task."""
+    if len(sources) != 1:
+        return
+    (source,) = sources.values()
+    if source.files or len(source.folders) != 1:
+        return
+    (name,) = source.folders
+    try:
+        with root.sub(name) as folder:
+            entries = folder.entries()
+            lms = {(o.name, o.id) for e in entries
+                   if (o := folder_owner(e.name) if e.folder else file_owner(e.name)) is not None and o.id}
+            students = 0
+            for entry in (e for e in entries if e.folder and len(lms) < 2 and students < 2):
+                with folder.sub(entry.name) as below:
+                    students += any(names.match(e.name).task is not None and names.match(e.name).ext == "png"
+                                    for e in below.entries())
+    except OSError:  # (a folder that cannot be read: the student's row says so)
+        return
+    if len(lms) >= 2 or students >= 2:
+        kind = "an LMS's export" if len(lms) >= 2 else "a folder per student"
+        raise ClassError(f"{root.shown}: its one folder, {name}, holds the submissions of several students "
+                         f"({kind}): give {root.shown / name} as the submissions folder")
 
 
 @dataclass

@@ -388,3 +388,33 @@ def test_a_report_folder_that_is_the_scenes_folder_or_in_the_student_scenes_stop
             f"phongray: {inside}: the report folder is inside the --student-scenes folder {tmp_path}/own (it would "
             f"be read as a student's scenes); write it elsewhere\n")
     assert sorted(os.listdir(tmp_path / "scenes")) == ["Cornell.json"] and os.listdir(tmp_path / "own") == ["ada"]
+
+
+@pytest.mark.parametrize("layout, files", [
+    ("an LMS's export", ["Ada Adams_1_assignsubmission_file_/Cornell.png", "Bo Li_2_assignsubmission_file_/x.png"]),
+    ("an LMS's export", ["adamsada_LATE_1_7_Cornell.png", "libo_2_8_Cornell-1.png"]),
+    ("a folder per student", ["ada/Cornell.png", "bo/cornell.PNG", "cy/notes.txt"]),
+])
+def test_a_class_unpacked_into_a_folder_of_its_own_stops_the_run(tmp_path, capsys, layout, files):
+    """The TA gave the folder an export was unpacked into: one 'student' with every image '2 files; keep one' or
+    missing would be graded; the run stops, naming the folder to give."""
+    from service.cli import main
+
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for file in files:
+        put(tmp_path, f"hw3/{file}", b"png")
+    assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(tmp_path / "r")]) == 2
+    assert capsys.readouterr().err == (f"phongray: {tmp_path}/subs: its one folder, hw3, holds the submissions of "
+                                       f"several students ({layout}): give {tmp_path}/subs/hw3 as the submissions "
+                                       f"folder\n")
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_class_of_one_student_with_a_folder_deeper_is_graded(tmp_path):
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    put(tmp_path, "ada/hw3/Cornell.png", b"png")
+    put(tmp_path, "ada/old/notes.png", b"png")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert [(p.student, p.file, p.data) for p in batch.pairs] == [("ada", "hw3/Cornell.png", b"png")]
