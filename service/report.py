@@ -211,7 +211,7 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
     for total in totals(rows, students):
         cells = []
         for task in tasks:
-            anchor = f"p-{_url(total.student)}-{_url(task)}"
+            anchor = f"p-{_url(total.student)}/{_url(task)}"  # (a "/" is in no name: no two pairs share one)
             cells.append(_cell(by[(total.student, task)], anchor))
             details.append(_detail(by[(total.student, task)], anchor))
         cells.append(f'<td class="total">{total.total:g} / {total.out_of:g}</td>')

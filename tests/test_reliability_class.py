@@ -671,3 +671,18 @@ def test_bidirectional_controls_in_names_are_shown_escaped(tmp_path):
         assert shown in text, file
     assert f"{shown}/notes.png: matches no task" in (report / "index.html").read_text()
     assert rows(report)[name]["status"] == "pass"
+
+
+def test_no_two_pairs_of_the_html_report_share_an_anchor(tmp_path):
+    """Student 'ada' and task 'x-spheres', student 'ada-x' and task 'spheres': each cell opens its own pair."""
+    import re
+
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "ada-x": b""})
+    (scenes / "x-spheres.json").write_text((scenes / "spheres.json").read_text())
+    (subs / "ada" / "x-spheres.png").write_bytes(right)
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    page = (report / "index.html").read_text()
+    ids = re.findall(r'<section class="pair" id="([^"]+)"', page)
+    assert len(ids) == 4 == len(set(ids)), ids
+    assert sorted(re.findall(r'<td class="[^"]*"><a href="#([^"]+)"', page)) == sorted(ids)
