@@ -100,13 +100,17 @@ class TaskNames:
 
     def __init__(self, tasks: Iterable[str]):
         self.tasks = set(tasks)
+        self.spelt = {composed(task): task for task in sorted(self.tasks, reverse=True)}  # (composed, as names are)
         self.folded: dict[str, str] = {}
         for task in sorted(self.tasks):
-            self.folded.setdefault(task.lower(), task)
+            self.folded.setdefault(composed(task).lower(), task)
 
     def _task(self, stem: str) -> tuple[str | None, bool]:
         if stem in self.tasks:
             return stem, True
+        stem = composed(stem)
+        if stem in self.spelt:
+            return self.spelt[stem], True
         return self.folded.get(stem.lower()), False
 
     def match(self, name: str) -> Named:
@@ -125,7 +129,7 @@ class TaskNames:
         """The task a file's name that matches none nearly is (``sphere.png`` → spheres), or None."""
         stem = name.rpartition(".")[0] or name
         again = RESUBMITTED.match(stem)
-        stem = (again["base"] if again else stem).lower()
+        stem = composed(again["base"] if again else stem).lower()
         close = difflib.get_close_matches(stem, list(self.folded), n=1, cutoff=NEAR)
         return self.folded[close[0]] if close else None
 

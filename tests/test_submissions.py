@@ -418,3 +418,16 @@ def test_a_class_of_one_student_with_a_folder_deeper_is_graded(tmp_path):
     put(tmp_path, "ada/old/notes.png", b"png")
     batch = discover(tmp_path / "scenes", tmp_path / "subs")
     assert [(p.student, p.file, p.data) for p in batch.pairs] == [("ada", "hw3/Cornell.png", b"png")]
+
+
+def test_a_file_name_spelt_decomposed_is_the_tasks():
+    """A Mac's archive spells café.png decomposed (NFD); the TA's scene café.json is composed (NFC)."""
+    import unicodedata
+
+    from service.lms import TaskNames
+
+    nfc, nfd = (unicodedata.normalize(form, "café") for form in ("NFC", "NFD"))
+    names = TaskNames([nfc, "box"])
+    assert [(n.task, n.exact) for n in map(names.match, [f"{nfd}.png", f"{nfd.upper()}-1.PNG", "box.png"])] == [
+        (nfc, True), (nfc, False), ("box", True)]
+    assert TaskNames([nfd]).match(f"{nfc}.png").task == nfd and names.near(f"{nfd}s.png") == nfc
