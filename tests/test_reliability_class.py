@@ -686,3 +686,16 @@ def test_no_two_pairs_of_the_html_report_share_an_anchor(tmp_path):
     ids = re.findall(r'<section class="pair" id="([^"]+)"', page)
     assert len(ids) == 4 == len(set(ids)), ids
     assert sorted(re.findall(r'<td class="[^"]*"><a href="#([^"]+)"', page)) == sorted(ids)
+
+
+def test_a_rerun_into_the_same_report_leaves_no_results_of_a_student_not_in_it(tmp_path):
+    """The TA graded the wrong folder (or a student's name changed) and runs again into the same report: no
+    results.json of a student of the first run is left in gradescope/ to be uploaded with this class's."""
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    (report / "gradescope" / "notes.txt").write_text("the TA's own")
+    (subs / "bob").rename(subs / "Bob Brown_7_assignsubmission_file_")
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    assert sorted(os.listdir(report / "gradescope")) == ["Bob Brown", "ada", "notes.txt"]
+    assert json.loads((report / "gradescope" / "Bob Brown" / "results.json").read_text())["score"] == 1.0
