@@ -135,7 +135,8 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
              limit: int = DEFAULT_LIMIT) -> Batch:
     """Every (student, task) pair of the class, each submission read (at most ``limit`` bytes) through the
     folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
-    unusable, or a submissions folder in which no student is found."""
+    unusable, a submissions folder in which no student is found (or whose one folder holds the class), or a
+    student's own scenes under another name than the student's."""
     scene_files = [e for e in _entries(scenes) if e.is_file()]
     tasks = {e.name[:-5]: scenes / e.name for e in scene_files if _scene(e.name)}
     if not tasks:
