@@ -66,20 +66,16 @@ def file_owner(name: str) -> Owner | None:
 def student_names(owners: Iterable[Owner]) -> dict[Owner, str]:
     """Each owner's student name: the name, or, for a name that two ids share, the name and the id; a name
     that is still another id's (a student who called themselves ``Bo Li (17)``) gets its own id too, so that
-    no two ids are ever one student."""
+    no two ids are ever one student.  Names are compared regardless of case, as a Mac's or Windows's file
+    system compares the report's folders of them (``Ada Adams`` and ``ada adams`` would share one)."""
     owners = list(owners)
-    ids: dict[str, set[str]] = {}
-    for owner in owners:
-        if owner.id:
-            ids.setdefault(owner.name, set()).add(owner.id)
-    names = {owner: f"{owner.name} ({owner.id})" if len(ids.get(owner.name, ())) > 1 and owner.id else owner.name
-             for owner in owners}
-    for _ in owners:
+    names = {owner: owner.name for owner in owners}
+    for _ in range(len(owners) + 1):
         taken: dict[str, set[str]] = {}
         for owner, name in names.items():
             if owner.id:
-                taken.setdefault(name, set()).add(owner.id)
-        clash = {o for o, name in names.items() if o.id and len(taken[name]) > 1 and name == o.name}
+                taken.setdefault(name.casefold(), set()).add(owner.id)
+        clash = {o for o, name in names.items() if o.id and len(taken[name.casefold()]) > 1 and name == o.name}
         if not clash:
             break
         names.update({o: f"{o.name} ({o.id})" for o in clash})

@@ -431,3 +431,16 @@ def test_a_file_name_spelt_decomposed_is_the_tasks():
     assert [(n.task, n.exact) for n in map(names.match, [f"{nfd}.png", f"{nfd.upper()}-1.PNG", "box.png"])] == [
         (nfc, True), (nfc, False), ("box", True)]
     assert TaskNames([nfd]).match(f"{nfc}.png").task == nfd and names.near(f"{nfd}s.png") == nfc
+
+
+def test_two_students_whose_names_differ_only_in_case_are_told_apart_by_their_ids(tmp_path):
+    """On a Mac's or Windows's file system the report's folders of 'Ada Adams' and 'ada adams' are one: each
+    would overwrite the other's results.json, heat-maps and copies."""
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    put(tmp_path, "Ada Adams_1_assignsubmission_file_/Cornell.png", b"first")
+    put(tmp_path, "ada adams_2_assignsubmission_file_/Cornell.png", b"second")
+    put(tmp_path, "Bo Li_3_assignsubmission_file_/Cornell.png", b"third")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert {p.student: p.data for p in batch.pairs} == {"Ada Adams (1)": b"first", "ada adams (2)": b"second",
+                                                        "Bo Li": b"third"}
