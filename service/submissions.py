@@ -309,6 +309,16 @@ class Candidate:
             return Submitted(self.shown, rel, row={"status": "invalid", "reason": f"{self.shown}: {exc}"})
 
 
+#: the most files a reason names (a student's folder may hold thousands: the report stays readable)
+LISTED = 5
+
+
+def _listed(files: list[str]) -> str:
+    """``a, b, c`` or, past :data:`LISTED`, ``a, b, c, d, e and 995 more``."""
+    more = len(files) - LISTED
+    return ", ".join(files[:LISTED]) + (f" and {more} more" if more > 0 else "")
+
+
 def _invalid(reason: str) -> Submitted:
     return Submitted(row={"status": "invalid", "reason": reason})
 
@@ -361,7 +371,7 @@ class _Walk:
             options.sort(key=lambda o: o.rank)
             best = [o for o in options if o.rank == options[0].rank]
             if len(best) > 1:
-                found[task] = _invalid(f"{len(best)} files for {task}: {', '.join(str(o.shown) for o in best)}; "
+                found[task] = _invalid(f"{len(best)} files for {task}: {_listed([str(o.shown) for o in best])}; "
                                        f"keep one")
                 continue
             found[task] = options[0].read(limit)
@@ -372,7 +382,7 @@ class _Walk:
                 found[task] = _invalid(f"no {task}.png found; {'; '.join(self.unreadable)}")
             elif task not in found and task in self.near:
                 found[task] = Submitted(row={"status": "missing", "reason": f"no {task}.png (found "
-                                             f"{', '.join(self.near[task])}: did you mean {task}.png?)"})
+                                             f"{_listed(self.near[task])}: did you mean {task}.png?)"})
         return found
 
 

@@ -699,3 +699,25 @@ def test_a_rerun_into_the_same_report_leaves_no_results_of_a_student_not_in_it(t
     classgrade.grade_class(scenes, subs, report, jobs=1)
     assert sorted(os.listdir(report / "gradescope")) == ["Bob Brown", "ada", "notes.txt"]
     assert json.loads((report / "gradescope" / "Bob Brown" / "results.json").read_text())["score"] == 1.0
+
+
+def test_a_folder_of_thousands_of_resubmissions_gives_a_short_reason(tmp_path):
+    """Every one of 3000 spheres-N.png is a candidate: the reason names a few, not 3000 paths in every file of
+    the report (and every Gradescope output)."""
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
+    (subs / "bob" / "spheres.png").unlink()
+    for n in range(3000):
+        (subs / "bob" / f"spheres-{n}.png").write_bytes(b"")
+        (subs / "bob" / f"sphere-{n}.png").write_bytes(b"")
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    reason = rows(report)["bob"]["reason"]
+    assert reason.startswith("3000 files for spheres: ") and reason.endswith(" and 2995 more; keep one")
+    assert len(reason) < 1000 and (report / "index.html").stat().st_size < 1_000_000
+    (subs / "bob" / "spheres-0.png").unlink()
+    for n in range(1, 3000):
+        (subs / "bob" / f"spheres-{n}.png").unlink()
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    reason = rows(report)["bob"]["reason"]
+    assert reason.startswith("no spheres.png (found sphere-") and reason.endswith(
+        " and 2995 more: did you mean spheres.png?)") and len(reason) < 1000
