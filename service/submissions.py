@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import stat
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -450,15 +451,15 @@ def _student_scenes(folder: Path, tasks: dict[str, Path],
 def _scenes_name_students(folder: Path, own: dict[str, dict[str, Path]], sources: dict[str, Source]) -> None:
     """A student's own scenes are under the student's name as the report gives it; a folder named otherwise for
     a student of the submissions (another case, Moodle's folder name, a name without the id that tells two
-    students apart) stops the run: that student would be graded against the task's scene, and a student of
-    that name who sent nothing listed beside them.  (A student with no submission at all is no mistake.)"""
+    students apart, or with an id that is not needed) stops the run: that student would be graded against the
+    task's scene, and a student of that name who sent nothing listed beside them.  (A student with no
+    submission at all is no mistake.)"""
     def key(name: str) -> str:
-        return folder_owner(name).name.casefold()
+        return re.sub(r" \(\d+\)$", "", folder_owner(name).name).casefold()
 
     keys: dict[str, set[str]] = {}
-    for student, source in sources.items():
-        for name in (student, student.removesuffix(f" ({source.id})")):
-            keys.setdefault(key(name), set()).add(student)
+    for student in sources:
+        keys.setdefault(key(student), set()).add(student)
     for name in sorted(own):
         meant = sorted(keys.get(key(name), set()))
         if name not in sources and meant:

@@ -319,6 +319,7 @@ def test_a_name_spelt_decomposed_is_the_same_student_as_the_tas_composed_one(tmp
     ("ADA", "ada"),  # another case
     ("Eve Ng_777_assignsubmission_file_", "Eve Ng"),  # Moodle's folder name
     ("Bo Li", "Bo Li (17) or Bo Li (18)"),  # without the id that tells two students apart
+    ("Eve Ng (777)", "Eve Ng"),  # with an id that one Eve Ng does not need
 ])
 def test_student_scenes_under_another_name_than_the_students_stop_the_run(tmp_path, folder, meant):
     (tmp_path / "scenes").mkdir()
