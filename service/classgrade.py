@@ -446,7 +446,7 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report."""
     todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
     refs = {k: report / "references" / f"{k}.png" for k in scene_of_key}
-    needed = {k: scene_of_key[k] for k, path in refs.items() if not path.exists()}
+    needed = {k: scene_of_key[k] for k, path in refs.items() if not _usable(path)}
     total = len(batch.pairs)
 
     def tick() -> None:
@@ -473,6 +473,18 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - started)
     write_report(report, rows, batch.ignored, batch.students, tasks, outcome.summary())
     return outcome
+
+
+def _usable(reference: Path) -> bool:
+    """A reference an earlier run kept that decodes (one cut short, or a Git LFS pointer where a course's bundle
+    was copied from, is rendered again rather than failing every pair of its scene)."""
+    from tracer import decode_png
+
+    try:
+        decode_png(reference.read_bytes())
+    except Exception:  # (Pillow raises many kinds for a broken file; a missing one is OSError)
+        return False
+    return True
 
 
 def _kept(report: Path) -> str:

@@ -9,6 +9,7 @@ import csv
 import json
 import os
 import resource
+import shutil
 import signal
 import socket
 import stat
@@ -721,3 +722,19 @@ def test_a_folder_of_thousands_of_resubmissions_gives_a_short_reason(tmp_path):
     reason = rows(report)["bob"]["reason"]
     assert reason.startswith("no spheres.png (found sphere-") and reason.endswith(
         " and 2995 more: did you mean spheres.png?)") and len(reason) < 1000
+
+
+@pytest.mark.parametrize("broken", [
+    lambda png: png[:100],  # cut short (a copy that failed)
+    lambda png: b"version https://git-lfs.github.com/spec/v1\noid sha256:0\nsize 1\n",  # a Git LFS pointer
+])
+def test_a_kept_reference_that_does_not_decode_is_rendered_again(tmp_path, broken):
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    (ref,) = (report / "references").iterdir()
+    ref.write_bytes(broken(ref.read_bytes()))
+    shutil.rmtree(report / "resume")
+    outcome = classgrade.grade_class(scenes, subs, report, jobs=1)
+    assert outcome.renders == 1 and [r["status"] for r in outcome.rows] == ["pass", "pass"]
+    assert ref.read_bytes() == right
