@@ -111,21 +111,23 @@ class TaskNames:
 
     def match(self, name: str) -> Named:
         """The task of a file's name: its stem exactly, else regardless of case, else without a resubmission's
-        suffix (``spheres-1``, ``Spheres (1)``); and its extension, lower case."""
+        suffix (``spheres-1``, ``Spheres (1)``), and another (a download's copy resubmitted: ``spheres (1)-1``);
+        and its extension, lower case."""
         stem, dot, ext = name.rpartition(".")
         if not dot or not stem:
             return Named(None, "", False)
         task, exact = self._task(stem)
-        again = RESUBMITTED.match(stem)
-        if task is None and again:
-            task, exact = self._task(again["base"])
+        while task is None and (again := RESUBMITTED.match(stem)):  # one suffix at a time: spheres (1)-1
+            stem = again["base"]
+            task, exact = self._task(stem)
         return Named(task, ext.lower(), exact)
 
     def near(self, name: str) -> str | None:
         """The task a file's name that matches none nearly is (``sphere.png`` → spheres), or None."""
         stem = name.rpartition(".")[0] or name
-        again = RESUBMITTED.match(stem)
-        stem = composed(again["base"] if again else stem).lower()
+        while again := RESUBMITTED.match(stem):
+            stem = again["base"]
+        stem = composed(stem).lower()
         close = difflib.get_close_matches(stem, list(self.folded), n=1, cutoff=NEAR)
         return self.folded[close[0]] if close else None
 

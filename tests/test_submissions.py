@@ -445,3 +445,14 @@ def test_two_students_whose_names_differ_only_in_case_are_told_apart_by_their_id
     batch = discover(tmp_path / "scenes", tmp_path / "subs")
     assert {p.student: p.data for p in batch.pairs} == {"Ada Adams (1)": b"first", "ada adams (2)": b"second",
                                                         "Bo Li": b"third"}
+
+
+def test_a_resubmitted_copy_of_a_download_is_its_tasks():
+    """A browser saved 'Spheres (1).png' and Canvas added its '-1' on a resubmission: 'Spheres (1)-1.png'."""
+    from service.lms import TaskNames
+
+    names = TaskNames(["spheres", "cornell-3", "cornell"])
+    assert [names.match(n).task for n in ["Spheres (1)-1.png", "spheres-2 (3).PNG", "cornell-3-1.png",
+                                          "cornell-4-1.png", "spheres-x-1.png"]] == [
+        "spheres", "spheres", "cornell-3", "cornell", None]
+    assert names.near("sphere (1)-2.png") == "spheres"
