@@ -47,8 +47,11 @@ class Owner:
 
 
 def composed(name: str) -> str:
-    """A name in Unicode's composed form (NFC), as two spellings of ``José`` are one student's."""
-    return unicodedata.normalize("NFC", name)
+    """A name in Unicode's composed form (NFC), as two spellings of ``José`` are one student's; kept as it is
+    when composing would lengthen it (a few letters, ``\u0958``, decompose under NFC: 255 bytes of them would
+    be no file name of the report's)."""
+    nfc = unicodedata.normalize("NFC", name)
+    return nfc if len(nfc.encode(errors="surrogateescape")) <= len(name.encode(errors="surrogateescape")) else name
 
 
 def folder_owner(name: str) -> Owner:

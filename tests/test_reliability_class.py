@@ -738,3 +738,11 @@ def test_a_kept_reference_that_does_not_decode_is_rendered_again(tmp_path, broke
     outcome = classgrade.grade_class(scenes, subs, report, jobs=1)
     assert outcome.renders == 1 and [r["status"] for r in outcome.rows] == ["pass", "pass"]
     assert ref.read_bytes() == right
+
+
+def test_a_name_of_255_bytes_that_composing_would_lengthen_is_graded(tmp_path):
+    """NFC decomposes U+0958: 85 of them (255 bytes) would be 510 bytes, no file name of the report's."""
+    name = "\u0958" * 85
+    scenes, subs, _ = make_class(tmp_path, {name: b"", "bob": b""})
+    outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=1)
+    assert [(r["student"], r["status"]) for r in outcome.rows] == [("bob", "pass"), (name, "pass")]
