@@ -20,11 +20,17 @@ RAY_BYTES = 82
 
 @dataclass(frozen=True)
 class Budget:
-    """What one render may spend: ``rays`` traced in all (primary, secondary and shadow), and ``ray_bytes``, the
-    memory its pending batches of rays may hold at once (every thread's together)."""
+    """What one render may spend: ``rays`` in all (camera, mirror and refracted rays, and a shadow ray per hit and
+    light sample: :class:`RayCount`), and ``ray_bytes``, the memory its pending batches of rays may hold at once
+    (every thread's together)."""
 
     rays: float = math.inf
     ray_bytes: float = math.inf
+
+
+#: a render is stopped early once the rays it has spent and the rays its chunks' trees foresee (:class:`Growth`)
+#: pass its budget this many times over: a foresight, not a count, so only when far over
+FORESIGHT = 4.0
 
 
 #: no limit: what a render on one's own machine gets
@@ -37,32 +43,56 @@ class RenderCancelled(Exception):
 
 class OverBudget(Exception):
     """A render stopped because it outgrew its budget: ``what`` is ``"rays"`` or ``"memory"``, ``spent`` what
-    it had spent when stopped and ``limit`` the budget's value (rays, or bytes)."""
+    it had spent when stopped (or, ``foreseen``, what it would have spent by the rates of its trees so far) and
+    ``limit`` the budget's value (rays, or bytes)."""
 
-    def __init__(self, what: str, spent: float, limit: float):
-        super().__init__(f"the render outgrew its budget of {what}: {spent:.3g} spent, {limit:.3g} allowed")
-        self.what, self.spent, self.limit = what, spent, limit
+    def __init__(self, what: str, spent: float, limit: float, foreseen: bool = False):
+        super().__init__(f"the render outgrew its budget of {what}: {spent:.3g} {'foreseen' if foreseen else 'spent'}"
+                         f", {limit:.3g} allowed")
+        self.what, self.spent, self.limit, self.foreseen = what, spent, limit, foreseen
 
 
 class RayCount:
-    """The rays cast so far, by kind (primary, shadow, secondary), counted from every thread, and the rays the
-    work stacks hold now.  Apart from the renderer, so that the stages that count hold no reference back to it."""
+    """The rays cast so far, by kind (primary, shadow, secondary), counted from every thread; their ``total``,
+    what a budget counts: camera, mirror and refracted rays, and a shadow ray per hit and light sample (cast,
+    or proven clear by :mod:`tracer.culling`, which costs work too); and the rays the work stacks hold now.
+    Apart from the renderer, so that the stages that count hold no reference back to it."""
 
     def __init__(self) -> None:
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self.total = 0
         self._held: dict[int, int] = {}  # the rays of each thread's work stack
+        self._ahead: dict[int, float] = {}  # the rays each thread's chunk foresees it has still to trace
         self._lock = threading.Lock()
 
     def __call__(self, kind: str, n: int) -> None:
         with self._lock:
             self.counts[kind] += n
+            if kind != "shadow":  # (counted as the light samples of every hit, cast or proven clear: lit)
+                self.total += n
+
+    def lit(self, n: int) -> None:
+        """``n`` more (hit, light sample) pairs shaded: a shadow ray each, whether cast or proven clear."""
+        with self._lock:
             self.total += n
 
     def hold(self, holder: int, n: int) -> None:
         """The work stack of ``holder`` (a thread) holds ``n`` rays now."""
         with self._lock:
             self._held[holder] = n
+
+    def foresee(self, holder: int, rays: float) -> None:
+        """The chunk of ``holder`` (a thread) foresees ``rays`` more rays of its tree (:class:`Growth`)."""
+        with self._lock:
+            self._ahead[holder] = rays
+
+    @property
+    def ahead(self) -> float:
+        """The budget's count that the chunks being traced foresee beyond :attr:`total`: their rays to come, each
+        counted as the rays traced so far were (with its light samples)."""
+        with self._lock:
+            rays = self.counts["primary"] + self.counts["secondary"]
+            return sum(self._ahead.values()) * (self.total / rays if rays else 1.0)
 
     @property
     def held(self) -> int:
@@ -86,6 +116,7 @@ class Stop:
         """A render begins with these: its rays are counted from here."""
         self.cancel, self.budget = cancel, budget
         self.count.total = 0
+        self.count._ahead.clear()
 
     def __call__(self) -> None:
         if self.cancel is not None and self.cancel():
@@ -93,6 +124,40 @@ class Stop:
         budget, count = self.budget, self.count
         if count.total > budget.rays:
             raise OverBudget("rays", count.total, budget.rays)
+        if budget.rays < math.inf:
+            foreseen = count.total + count.ahead
+            if foreseen > FORESIGHT * budget.rays:
+                raise OverBudget("rays", foreseen, budget.rays, foreseen=True)
         held = count.held * RAY_BYTES if budget.ray_bytes < math.inf else 0
         if held > budget.ray_bytes:
             raise OverBudget("memory", held, budget.ray_bytes)
+
+
+class Growth:
+    """The ray tree of one chunk as it is traced depth-first, and how many rays it will trace in all, foreseen
+    from how many rays each depth's rays have cast so far.  Depth-first, the first slice of every depth is traced
+    long before the tree is done (at depth 16 the tree of nested glass is 2^17 times its camera rays): the
+    foresight stops a render that is far over its budget in seconds, not once it has spent it."""
+
+    def __init__(self, camera_rays: int, depth: int):
+        self.camera_rays = camera_rays
+        self.traced = [0] * (depth + 1)
+        self.cast = [0] * (depth + 1)
+
+    def add(self, depth: int, traced: int, cast: int) -> None:
+        """Rays of ``depth`` traced, and the mirror and refracted rays they cast."""
+        self.traced[depth] += traced
+        self.cast[depth] += cast
+
+    def ahead(self) -> float:
+        """The rays still to trace, at the rates seen so far (0 until every depth that the tree reaches has
+        been seen: no rate is guessed)."""
+        level = total = float(self.camera_rays)
+        for traced, cast in zip(self.traced[:-1], self.cast[:-1]):
+            if level < 1.0:
+                break
+            if traced == 0:
+                return 0.0
+            level *= cast / traced
+            total += level
+        return max(0.0, total - sum(self.traced))

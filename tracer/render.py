@@ -20,7 +20,7 @@ import numpy as np
 
 from schemas import Scene
 
-from .budget import UNLIMITED, Budget, OverBudget, RayCount, RenderCancelled, Stop
+from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
 from .cones import along_direction, on_lines, through_point
 from .culling import bounds_of
@@ -125,6 +125,11 @@ class Renderer:
             self.shading = DirectLight(self.world, options, self.intersector, groups, proofs, self.cone_bounds,
                                        self._stop, self._count)
         self.intersector.check = self._stop
+
+    @property
+    def spent(self) -> int:
+        """What the budget counted of the last render (:class:`tracer.budget.RayCount`)."""
+        return self._count.total
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int | None = None,
@@ -317,6 +322,7 @@ class Renderer:
                           None if tally is None else np.zeros(n, dtype=np.int8))
             stack: list[Work] = [camera]
             holder = threading.get_ident()  # (one chunk at a time per thread)
+            growth = Growth(n, deepest)
             while stack:
                 work = stack.pop()
                 if len(work) > self.slice_rays:  # split; the first slice goes on top, so it is traced first
@@ -324,6 +330,7 @@ class Renderer:
                     continue
                 self._count.hold(holder, len(work) + sum(len(w) for w in stack))
                 self._stop()
+                growth.add(work.depth, len(work), 0)
                 best = self.intersector.nearest(work.rays, self._camera_among(work.rays) if work.depth == 0 else
                                                 self._mirror_among(work.rays))
                 missed = best.key == NO_HIT
@@ -341,14 +348,18 @@ class Renderer:
                 if tally is not None and work.depth == 0:
                     _tally_first_hits(tally, self.world, hit, done, normal)
                 colour = self.shading.shade(hit, mat, normal, dd, tally, done)
+                self._count.lit(len(rows) * len(self.emitter_light))
                 _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once)
                 if work.depth >= deepest:
                     continue
                 children = self.secondary(hit, mat, normal, done)
                 self._count("secondary", len(children))
+                growth.add(work.depth, 0, len(children))
+                self._count.foresee(holder, growth.ahead())
                 if len(children):
                     stack.append(children)
             self._count.hold(holder, 0)
+            self._count.foresee(holder, 0.0)
             per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
 
