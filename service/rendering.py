@@ -12,6 +12,7 @@ import numpy as np
 
 from schemas import Scene
 from tracer import Renderer, render
+from tracer.budget import UNLIMITED, Budget
 
 #: the fewest primary rays (pixels × sub-samples) a render of the command line spreads over processes: below,
 #: starting them costs more than the threads lose to the GIL
@@ -26,12 +27,14 @@ BANDS_PER_PROCESS = 8
 
 def render_pixels(scene: Scene, client: Any = None, threads: int | None = None,
                   cancel: Callable[[], bool] | None = None,
-                  progress: Callable[[int, int], None] | None = None, processes: bool = False) -> np.ndarray:
+                  progress: Callable[[int, int], None] | None = None, processes: bool = False,
+                  budget: Budget = UNLIMITED) -> np.ndarray:
     """``(H, W, 3) uint8`` pixels of ``scene``: on the cluster of the Dask ``client`` (in bands, the same bytes),
     else here on ``threads`` threads (every core by default), or, with ``processes`` (the command line, a
     process of its own), on as many forked processes when the render is large (:func:`render_forked`).
     ``cancel()`` true stops it with :class:`tracer.RenderCancelled`; an image beyond what phongray renders
-    raises :class:`tracer.ImageTooLarge`."""
+    raises :class:`tracer.ImageTooLarge`; a render here that outgrows its ``budget`` raises
+    :class:`tracer.OverBudget` (on a cluster or in forked processes, a render has no budget)."""
     if client is not None:
         from .cluster import render as render_on
 
@@ -41,9 +44,9 @@ def render_pixels(scene: Scene, client: Any = None, threads: int | None = None,
     img = scene.image
     if processes and workers > 1 and sys.platform.startswith("linux") and \
             img.width * img.height * img.samples**2 >= FORKED_RAYS and img.height >= 2 * workers and \
-            _triangles(scene) <= FORKED_TRIANGLES:
+            _triangles(scene) <= FORKED_TRIANGLES and budget == UNLIMITED:
         return render_forked(scene, workers, progress)
-    return render(scene, threads=threads, progress=progress, cancel=cancel)
+    return render(scene, threads=threads, progress=progress, cancel=cancel, budget=budget)
 
 
 def _triangles(scene: Scene) -> int:
