@@ -123,8 +123,8 @@ class RenderService:
 
     def pass_file(self, job: Job, name: str, light: int | None, fmt: Format) -> bytes:
         """Render pass ``name`` of a job (of light ``light``) as a PNG or ``.npy`` file (:mod:`service.passes`),
-        from the cache or rendered in a render slot within ``render_timeout``.  Raises Busy, TooSlow, or
-        ValueError for a light the scene does not have."""
+        from the cache or rendered in a render slot within ``render_timeout``.  Raises Busy, TooSlow, LimitError
+        when it outgrows its budget, or ValueError for a light the scene does not have."""
         from . import passes
 
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
@@ -133,9 +133,12 @@ class RenderService:
             return cached
         with self._slot() as late:
             try:
-                data = passes.encoded(name, passes.values(job.scene, name, light, self.threads, cancel=late), fmt)
+                data = passes.encoded(name, passes.values(job.scene, name, light, self.threads, cancel=late,
+                                                          budget=budget(job.scene, self.settings)), fmt)
             except RenderCancelled:
                 raise TooSlow() from None
+            except OverBudget as exc:
+                raise outgrown(exc, self.settings) from None
         self.cache.put(key, data)
         return data
 

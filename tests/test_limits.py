@@ -63,6 +63,11 @@ def test_the_ray_tree_bomb_is_stopped_fast_naming_the_setting(api):
     assert "max_cost" in detail and "PHONGRAY_MAX_COST" in detail and "image.max_depth" in detail, detail
 
 
+def test_a_pass_of_the_bomb_is_held_to_the_same_budget(api):
+    res = api.post("/render?pass=reflection", content=json.dumps(nested_glass_and_mirror(16, 128)), headers=JSON)
+    assert res.status_code == 422 and "PHONGRAY_MAX_COST" in res.json()["detail"]
+
+
 BOMB_SCRIPT = """
 import json, sys
 from fastapi.testclient import TestClient

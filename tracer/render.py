@@ -192,11 +192,13 @@ class Renderer:
         return image[::-1] if self.options.flip_image else image
 
     def passes(self, names: list[str], light: int | None = None, threads: int | None = None,
-               chunk_rays: int | None = None, cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
+               chunk_rays: int | None = None, cancel: Callable[[], bool] | None = None,
+               budget: Budget = UNLIMITED) -> dict[str, np.ndarray]:
         """Render passes (:mod:`tracer.passes`) by name: ``(H, W, 3)`` float64 for the additive ones and the
-        normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object.  ``cancel`` is polled before
-        every chunk, as :meth:`pixels` polls it."""
+        normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object.  ``cancel`` is polled, and the
+        ``budget`` held, as :meth:`pixels` polls and holds them."""
         check_passes(names, light, len(self.scene.lights))
+        self._stop.start(cancel, budget)
         img = self.scene.image
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
