@@ -108,9 +108,9 @@ def budget(scene: Scene, settings: Settings) -> Budget:
 
 
 #: what to say of each budget a render may outgrow: the setting, and what the scene can do about it
-OUTGROWN = {"rays": ("max_cost", "its mirrors and glass cast more rays than the service allows for one image "
-                                 "(each bounce between them multiplies the rays): lower image.max_depth, "
-                                 "image.samples or the image's size"),
+OUTGROWN = {"rays": ("max_cost", "it needs more rays than the service traces for one image: lower image.max_depth "
+                                 "(mirrors and glass that see each other multiply the rays at every bounce), "
+                                 "image.samples, the image's size or the area lights' samples"),
             "memory": ("max_ray_bytes", "its rays in flight need more memory than the service allows for one "
                                         "image: lower image.max_depth or image.samples")}
 
@@ -118,9 +118,8 @@ OUTGROWN = {"rays": ("max_cost", "its mirrors and glass cast more rays than the 
 def outgrown(exc: OverBudget, settings: Settings) -> LimitError:
     """The refusal of a render stopped by its budget, in words a student can act on, naming the setting."""
     name, advice = OUTGROWN[exc.what]
-    value = getattr(settings, name)
-    return LimitError(f"scene: the render was stopped: {advice}, or ask for a higher limit {name} = {value:.3g} "
-                      f"(PHONGRAY_{name.upper()})")
+    return LimitError(f"scene: the render was stopped: {advice}. The limit is {name} = {getattr(settings, name):.3g}, "
+                      f"set by PHONGRAY_{name.upper()}")
 
 
 def check_scene(scene: Scene, settings: Settings) -> None:

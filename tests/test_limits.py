@@ -12,6 +12,7 @@ from test_render import nested_glass_and_mirror
 
 import schemas
 from service.app import create_app
+from service.cli import main
 from service.limits import LimitError, beyond_limits, check_scene, estimated_cost, per_ray_factor
 from service.settings import Settings
 from tracer import Renderer
@@ -72,6 +73,7 @@ BOMB_SCRIPT = """
 import json, sys
 from fastapi.testclient import TestClient
 from service.app import create_app
+from service.cli import main
 from service.settings import Settings
 res = TestClient(create_app(Settings())).post("/render", content=sys.stdin.read(),
                                               headers={"content-type": "application/json"})
@@ -134,3 +136,22 @@ def test_validate_warns_of_the_limits_a_service_would_hold_the_scene_to():
     assert beyond_limits(schemas.validate_scene(homework(640, 480)), Settings()) == []
     said = beyond_limits(schemas.validate_scene(nested_glass_and_mirror(16, 128)), Settings())
     assert len(said) == 1 and "PHONGRAY_MAX_COST" in said[0]
+
+
+def test_phongray_validate_warns_but_calls_the_scene_valid(tmp_path, capsys):
+    path = tmp_path / "bomb.json"
+    path.write_text(json.dumps(nested_glass_and_mirror(16, 128)))
+    assert main(["validate", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert out == f"{path}: valid\n"
+    assert err.startswith(f"{path}: warning: ") and "PHONGRAY_MAX_COST" in err and err.count("\n") == 1
+
+
+def test_phongray_grade_holds_the_scene_to_the_limits_only_when_asked(tmp_path, capsys):
+    path, image = tmp_path / "bomb.json", tmp_path / "mine.png"
+    path.write_text(json.dumps(nested_glass_and_mirror(16, 128)))
+    image.write_bytes(b"not looked at: the reference is refused first")
+    assert main(["grade", str(path), str(image), "--limits"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"phongray: {path}: scene: the render was stopped") and err.count("\n") == 1
+    assert "max_cost = 1e+08, set by PHONGRAY_MAX_COST" in err
