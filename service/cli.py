@@ -152,7 +152,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from tracer import ImageTooLarge, OverBudget, encode_png
 
     from .cluster import ClusterError
-    from .rendering import render_pixels
+    from .rendering import BandLost, render_pixels
 
     if args.server and args.cluster:
         raise CliError("--server and --cluster: choose one")
@@ -182,6 +182,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise CliError(f"{args.scene}: {exc}") from None
     except OverBudget as exc:
         raise _outgrown(args, exc) from None
+    except BandLost as exc:
+        raise CliError(f"{args.scene}: {exc}", code=1) from None
     except ClusterError as exc:
         raise CliError(str(exc)) from None
     finally:
