@@ -8,6 +8,7 @@ the same messages as local work (both go through :mod:`service.pipeline`).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -76,11 +77,37 @@ def _write(path: str, data: bytes) -> None:
             sys.stdout.buffer.write(data)
             sys.stdout.flush()
         else:
-            Path(path).write_bytes(data)
+            _replace(Path(path), data)
     except BrokenPipeError:
         raise
     except OSError as exc:
         raise CliError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def _replace(path: Path, data: bytes) -> None:
+    """Write a file whole or not at all: a temporary file in its folder, then one rename, so that a failure (a
+    full disk, an interruption) never leaves a truncated image where an old one was.  The file keeps its mode;
+    a symbolic link is written through; a device or a FIFO (``/dev/null``) is written to as it is."""
+    import stat
+
+    target = path.resolve() if path.is_symlink() else path
+    try:
+        mode: int | None = os.stat(target).st_mode
+    except FileNotFoundError:
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
+        target.write_bytes(data)
+        return
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        if mode is not None:
+            os.chmod(tmp, stat.S_IMODE(mode))
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
 
 
 def _load(path: str, text: bytes, overrides: dict[str, Any] | None = None) -> Any:
