@@ -5,6 +5,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 from test_render import nested_glass_and_mirror
 
@@ -81,3 +82,12 @@ def test_ten_thousand_spheres_around_the_eye_hold_bounded_memory():
     out = subprocess.run([sys.executable, "-c", PEAK_SCRIPT], input=json.dumps(around_the_eye(10_000, 32)),
                          capture_output=True, text=True, check=True, timeout=600)
     assert int(out.stdout) < 400  # MiB
+
+
+def test_a_budget_applies_to_its_own_render_only():
+    """A renderer stopped by one render's budget renders rows afterwards with no budget of its own."""
+    renderer = Renderer(schemas.validate_scene(scene_dict("04_whitted")))
+    with pytest.raises(OverBudget):
+        renderer.pixels(threads=1, budget=Budget(rays=10))
+    rows = renderer.pixels_of_rows(np.arange(3), threads=1)
+    assert np.array_equal(rows, Renderer(renderer.scene).pixels(threads=1)[:3])

@@ -274,7 +274,7 @@ class Renderer:
         """The image's rows ``rows`` (row numbers, any order) as ``(len(rows), W, 3) uint8``, in one go: byte for
         byte those rows of :meth:`pixels` (every pixel is computed alone)."""
         img = self.scene.image
-        self._stop.cancel = cancel
+        self._stop.start(cancel, UNLIMITED)
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         shown = np.asarray(rows, dtype=np.int64)
