@@ -34,13 +34,13 @@ def render_pixels(scene: Scene, client: Any = None, threads: int | None = None,
     else here on ``threads`` threads (every core by default), or, with ``processes`` (the command line, a
     process of its own), on as many forked processes when the render is large (:func:`render_forked`).
     ``cancel()`` true stops it with :class:`tracer.RenderCancelled`; an image beyond what phongray renders
-    raises :class:`tracer.ImageTooLarge`; a render here that outgrows its ``budget`` raises
-    :class:`tracer.OverBudget` (on a cluster or in forked processes, a render has no budget)."""
+    raises :class:`tracer.ImageTooLarge`; a render that outgrows its ``budget`` raises :class:`tracer.OverBudget`
+    (on a cluster, each band is held to the whole budget; a budgeted render is not forked)."""
     if client is not None:
         from .cluster import render as render_on
 
         return render_on(client, scene.model_dump_json().encode(), scene.image.width, scene.image.height,
-                         cancelled=cancel or (lambda: False))
+                         cancelled=cancel or (lambda: False), budget=None if budget == UNLIMITED else budget)
     workers = threads or os.cpu_count() or 1
     img = scene.image
     if processes and workers > 1 and sys.platform.startswith("linux") and \

@@ -51,6 +51,10 @@ class OverBudget(Exception):
                          f", {limit:.3g} allowed")
         self.what, self.spent, self.limit, self.foreseen = what, spent, limit, foreseen
 
+    def __reduce__(self) -> tuple[type[OverBudget], tuple[str, float, float, bool]]:
+        """Pickled whole, so that it crosses from a Dask worker or a process as itself."""
+        return OverBudget, (self.what, self.spent, self.limit, self.foreseen)
+
 
 class RayCount:
     """The rays cast so far, by kind (primary, shadow, secondary), counted from every thread; their ``total``,
