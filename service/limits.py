@@ -55,7 +55,8 @@ def check_raw(data: Any, settings: Settings) -> None:
     for name, limit in (("objects", "max_objects"), ("lights", "max_lights"), ("materials", "max_materials")):
         part = data.get(name)
         if isinstance(part, (list, dict)) and len(part) > getattr(settings, limit):
-            raise LimitError(f"{name}: {len(part)} entries exceed the limit {limit} = {getattr(settings, limit)}")
+            raise LimitError(f"{name}: {len(part)} entries exceed the limit {limit} = {getattr(settings, limit)} "
+                             f"(PHONGRAY_{limit.upper()})")
     objects = data.get("objects")
     if not isinstance(objects, list):
         return
@@ -64,7 +65,7 @@ def check_raw(data: Any, settings: Settings) -> None:
         count = sum(len(o[key]) for o in meshes if isinstance(o.get(key), list))
         if count > getattr(settings, limit):
             raise LimitError(f"objects: {count} {key} in all exceed the limit {limit} = "
-                             f"{getattr(settings, limit)}")
+                             f"{getattr(settings, limit)} (PHONGRAY_{limit.upper()})")
 
 
 def light_samples(scene: Scene) -> int:
