@@ -26,6 +26,10 @@ from schemas import Image, Mesh, Plane, Scene, Sphere, Triangle
 
 #: camera rays per side of the grid that estimates what the camera sees
 GRID = 24
+#: bounding spheres tested against the grid at a time
+BLOCK = 512
+#: the most mirror and glass bodies followed one by one (the largest): the chain between them is a matrix
+MAX_CASTING = 256
 
 
 @dataclass(frozen=True)
@@ -82,35 +86,56 @@ def bodies(scene: Scene) -> list[Body]:
     return out
 
 
+def _ball_t(origins: np.ndarray, dirs: np.ndarray, centre: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Where each ray's line first meets each bounding sphere ahead of it (its exit when inside). (rays, balls)."""
+    rel = centre[None, :, :] - origins[:, None, :]
+    along = np.einsum("rbk,rk->rb", rel, dirs)
+    gap = np.einsum("rbk,rbk->rb", rel, rel) - along**2
+    half = np.sqrt(np.maximum(radius**2 - gap, 0.0))
+    return np.where(gap <= radius**2, np.where(along - half > 0, along - half, along + half), np.inf)
+
+
 def _nearest(origins: np.ndarray, dirs: np.ndarray, found: list[Body]) -> np.ndarray:
-    """Which body each ray's line meets first ahead of its origin (bounds only), −1 for none. Shape (N,)."""
+    """Which body each ray's line meets first ahead of its origin (bounds only), −1 for none. Shape (N,).
+    Bounding spheres a block of :data:`BLOCK` at a time, planes one by one."""
     best = np.full(len(dirs), np.inf)
     which = np.full(len(dirs), -1)
-    for k, body in enumerate(found):
-        rel = body.center - origins
-        if body.normal is not None:
-            t = (rel @ body.normal) / (dirs @ body.normal)
-        else:
-            along = (rel * dirs).sum(axis=1)
-            gap = (rel * rel).sum(axis=1) - along**2
-            half = np.sqrt(np.maximum(body.radius**2 - gap, 0.0))
-            t = np.where(gap <= body.radius**2, np.where(along - half > 0, along - half, along + half), np.inf)
+
+    def offer(t: np.ndarray, ks: np.ndarray) -> None:
         t = np.where(np.isfinite(t) & (t > 0), t, np.inf)
-        nearer = t < best
-        best[nearer], which[nearer] = t[nearer], k
+        pick = np.argmin(t, axis=1)
+        near = t[np.arange(len(t)), pick]
+        better = near < best
+        best[better], which[better] = near[better], ks[pick[better]]
+
+    balls = np.array([k for k, b in enumerate(found) if b.normal is None], dtype=int)
+    for at in range(0, len(balls), BLOCK):
+        ks = balls[at:at + BLOCK]
+        offer(_ball_t(origins, dirs, np.array([found[k].center for k in ks]),
+                      np.array([found[k].radius for k in ks])), ks)
+    for k, body in enumerate(found):
+        if body.normal is not None:
+            offer((((body.center - origins) @ body.normal) / (dirs @ body.normal))[:, None], np.array([k]))
     return which
+
+
+def _grid(image: Image) -> Image:
+    """The estimate's grid of camera rays: at most :data:`GRID` a side, the image's own aspect."""
+    w, h = image.width, image.height
+    if w >= h:
+        side = min(GRID, w)
+        return Image(width=side, height=max(1, min(side, round(side * h / w))))
+    side = min(GRID, h)
+    return Image(width=max(1, min(side, round(side * w / h))), height=side)
 
 
 def _camera(scene: Scene, found: list[Body]) -> tuple[np.ndarray, float]:
     """The share of camera rays that first meet each body, and the share that meet any."""
     from tracer.camera import CameraRays
 
-    img = scene.image
-    side_x = max(1, min(GRID, img.width))
-    side_y = max(1, min(GRID, img.height))
-    grid = Image(width=side_x, height=side_y)
+    grid = _grid(scene.image)
     with np.errstate(all="ignore"):
-        origins, dirs = CameraRays(scene.camera, grid, np.zeros(3)).rays(0, side_x * side_y)
+        origins, dirs = CameraRays(scene.camera, grid, np.zeros(3)).rays(0, grid.width * grid.height)
         which = _nearest(np.asarray(origins, dtype=float), dirs, found)
     share = np.bincount(which[which >= 0], minlength=len(found)) / len(which)
     return share, float(np.mean(which >= 0))
@@ -168,13 +193,15 @@ def ray_tree(scene: Scene) -> Tree:
     """Rays per camera sub-sample the scene can really spawn (:class:`Tree`): each depth's rays are those the
     hits of the depth before cast, and they meet the bodies that cast as :func:`transitions` says (rays that
     meet none are assumed to meet something that casts nothing, as often as camera rays do)."""
-    found = [b for b in bodies(scene)]
+    found = bodies(scene)
     share, hit = _camera(scene, found) if found else (np.zeros(0), 0.0)
-    keep = [k for k, b in enumerate(found) if b.children]
-    if not keep:
+    every = [k for k, b in enumerate(found) if b.children]
+    if not every:
         return Tree(1.0, hit)
+    # beyond MAX_CASTING bodies, those the camera sees most stand for the rest (their share scaled up to all's)
+    keep = sorted(every, key=lambda k: (-share[k], -found[k].radius))[:MAX_CASTING]
     casting = [found[k] for k in keep]
-    level = share[keep]  # per body, the rays of this depth that meet it
+    level = share[keep] * (share[every].sum() / max(share[keep].sum(), 1e-300))  # per body, rays meeting it
     step = transitions(casting)
     children = np.array([float(b.children) for b in casting])
     rays, hits = 1.0, hit
