@@ -65,6 +65,7 @@ class RayCount:
     def __init__(self) -> None:
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self.total = 0
+        self.traced = 0  # camera, mirror and refracted rays of this render (total counts their light samples too)
         self._held: dict[int, int] = {}  # the rays of each thread's work stack
         self._ahead: dict[int, float] = {}  # the rays each thread's chunk foresees it has still to trace
         self._lock = threading.Lock()
@@ -74,6 +75,14 @@ class RayCount:
             self.counts[kind] += n
             if kind != "shadow":  # (counted as the light samples of every hit, cast or proven clear: lit)
                 self.total += n
+                self.traced += n
+
+    def restart(self) -> None:
+        """A new render: its budget's count starts from nothing (the counts by kind go on)."""
+        with self._lock:
+            self.total = self.traced = 0
+            self._ahead.clear()
+            self._held.clear()
 
     def lit(self, n: int) -> None:
         """``n`` more (hit, light sample) pairs shaded: a shadow ray each, whether cast or proven clear."""
@@ -95,8 +104,7 @@ class RayCount:
         """The budget's count that the chunks being traced foresee beyond :attr:`total`: their rays to come, each
         counted as the rays traced so far were (with its light samples)."""
         with self._lock:
-            rays = self.counts["primary"] + self.counts["secondary"]
-            return sum(self._ahead.values()) * (self.total / rays if rays else 1.0)
+            return sum(self._ahead.values()) * (self.total / self.traced if self.traced else 1.0)
 
     @property
     def held(self) -> int:
@@ -119,8 +127,7 @@ class Stop:
     def start(self, cancel: Callable[[], bool] | None, budget: Budget) -> None:
         """A render begins with these: its rays are counted from here."""
         self.cancel, self.budget = cancel, budget
-        self.count.total = 0
-        self.count._ahead.clear()
+        self.count.restart()
 
     def __call__(self) -> None:
         if self.cancel is not None and self.cancel():
