@@ -30,6 +30,8 @@ GRID = 24
 BLOCK = 512
 #: the most mirror and glass bodies followed one by one (the largest): the chain between them is a matrix
 MAX_CASTING = 256
+#: depths followed one by one; deeper ones grow as the last did
+DEEPEST = 64
 
 
 @dataclass(frozen=True)
@@ -202,15 +204,32 @@ def ray_tree(scene: Scene) -> Tree:
     keep = sorted(every, key=lambda k: (-share[k], -found[k].radius))[:MAX_CASTING]
     casting = [found[k] for k in keep]
     level = share[keep] * (share[every].sum() / max(share[keep].sum(), 1e-300))  # per body, rays meeting it
-    step = transitions(casting)
+    step = np.nan_to_num(transitions(casting), nan=0.0)
     children = np.array([float(b.children) for b in casting])
-    rays, hits = 1.0, hit
-    for _ in range(scene.image.max_depth):
-        spawned = float(level @ children)
-        if spawned < 1e-12:
-            break
+    rays, hits, spawned, grew = 1.0, hit, 0.0, 0.0
+    depth = scene.image.max_depth
+    for d in range(min(depth, DEEPEST)):
+        before, spawned = spawned, float(level @ children)
+        if not spawned >= 1e-12:
+            return Tree(rays, hits)
         level = level @ step
         met = float(level.sum())
         rays += spawned
         hits += met + (spawned - met) * hit
+        grew = spawned / before if d else 0.0
+    if depth > DEEPEST:
+        more = _beyond(spawned, grew, depth - DEEPEST)
+        rays, hits = rays + more, hits + more
     return Tree(rays, hits)
+
+
+def _beyond(spawned: float, grew: float, k: int) -> float:
+    """The rays of ``k`` more depths, each growing ``grew`` times the one before, the last having ``spawned``
+    (a hall of mirrors: as many at every depth): spawned · (grew + grew² + … + grewᵏ), inf past a float."""
+    if abs(grew - 1.0) < 1e-9:
+        return spawned * k
+    if grew < 1.0:
+        return spawned * grew * (1.0 - grew**k) / (1.0 - grew)
+    if k * math.log(grew) > 700.0:
+        return math.inf
+    return spawned * grew * (grew**k - 1.0) / (grew - 1.0)

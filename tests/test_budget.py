@@ -91,3 +91,14 @@ def test_a_budget_applies_to_its_own_render_only():
         renderer.pixels(threads=1, budget=Budget(rays=10))
     rows = renderer.pixels_of_rows(np.arange(3), threads=1)
     assert np.array_equal(rows, Renderer(renderer.scene).pixels(threads=1)[:3])
+
+
+def test_a_huge_max_depth_costs_no_memory_of_its_own():
+    """Run locally, a scene is trusted, max_depth 10^9 included: the foresight's tally grows with the depths the
+    tree reaches, not with max_depth (a list of 10^9 counts would take 8 GB)."""
+    data = scene_dict("04_whitted")
+    data["image"].update(width=32, height=24)
+    shallow = Renderer(schemas.validate_scene(data)).pixels(threads=1)
+    data["image"]["max_depth"] = 10**9
+    deep = Renderer(schemas.validate_scene(data))
+    assert deep.pixels(threads=1, budget=Budget(rays=1e9)).shape == shallow.shape

@@ -155,3 +155,14 @@ def test_phongray_grade_holds_the_scene_to_the_limits_only_when_asked(tmp_path, 
     err = capsys.readouterr().err
     assert err.startswith(f"phongray: {path}: scene: the render was stopped") and err.count("\n") == 1
     assert "max_cost = 1e+08, set by PHONGRAY_MAX_COST" in err
+
+
+def test_the_estimate_of_a_huge_depth_is_made_at_once():
+    """Depths past 64 grow as the last one did: nested glass at depth 10^9 is infinite, a hall of mirrors
+    linear in the depth, and neither walks 10^9 depths."""
+    started = time.monotonic()
+    assert estimated_cost(schemas.validate_scene(nested_glass_and_mirror(10**9, 64))) == float("inf")
+    mirrors = nested_glass_and_mirror(10**9, 64)
+    mirrors["materials"] = {"glass": {"reflectance": 0.9}, "mirror": {"reflectance": 0.9}}
+    assert 1e11 < estimated_cost(schemas.validate_scene(mirrors)) < float("inf")
+    assert time.monotonic() - started < 10  # (about 2 ms)

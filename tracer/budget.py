@@ -151,24 +151,29 @@ class Growth:
     foresight stops a render that is far over its budget in seconds, not once it has spent it."""
 
     def __init__(self, camera_rays: int, depth: int):
-        self.camera_rays = camera_rays
-        self.traced = [0] * (depth + 1)
-        self.cast = [0] * (depth + 1)
+        self.camera_rays, self.depth = camera_rays, depth
+        self.traced: list[int] = []  # per depth seen so far (grown as the tree goes deeper: max_depth may be huge)
+        self.cast: list[int] = []
+        self.done = 0
 
     def add(self, depth: int, traced: int, cast: int) -> None:
         """Rays of ``depth`` traced, and the mirror and refracted rays they cast."""
+        while len(self.traced) <= depth:
+            self.traced.append(0)
+            self.cast.append(0)
         self.traced[depth] += traced
         self.cast[depth] += cast
+        self.done += traced
 
     def ahead(self) -> float:
         """The rays still to trace, at the rates seen so far (0 until every depth that the tree reaches has
         been seen: no rate is guessed)."""
         level = total = float(self.camera_rays)
-        for traced, cast in zip(self.traced[:-1], self.cast[:-1]):
+        for d in range(self.depth):  # the rays of depth d cast those of depth d + 1
             if level < 1.0:
                 break
-            if traced == 0:
+            if d >= len(self.traced) or self.traced[d] == 0:
                 return 0.0
-            level *= cast / traced
+            level *= self.cast[d] / self.traced[d]
             total += level
-        return max(0.0, total - sum(self.traced))
+        return max(0.0, total - self.done)
