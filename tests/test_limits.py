@@ -174,7 +174,8 @@ def test_the_estimate_is_within_ten_times_of_the_work_on_generated_scenes():
     from generator import scene
 
     for seed in range(60):
-        family, generated = scene(seed)
+        family, data = scene(seed)
+        generated = schemas.validate_scene(data)
         renderer = Renderer(generated)
         renderer.pixels(threads=1)
         counted = renderer.spent * per_ray_factor(generated)
