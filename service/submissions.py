@@ -252,7 +252,8 @@ def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames
     """A submissions folder whose one folder holds a class (an export unpacked into a folder of its own, and that
     folder's parent given): :class:`ClassError`, not a class of one student with every image "2 files; keep
     one" or missing.  The folder holds a class when two of its entries are two students' by an LMS's naming, or
-    two of its folders each hold an image named for a task."""
+    two of its folders each hold an image for one task (a student's part1/spheres.png and part2/lights.png
+    are one student's)."""
     if len(sources) != 1:
         return
     (source,) = sources.values()
@@ -264,14 +265,15 @@ def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames
             entries = folder.entries()
             lms = {(o.name, o.id) for e in entries
                    if (o := folder_owner(e.name) if e.folder else file_owner(e.name)) is not None and o.id}
-            students = 0
-            for entry in (e for e in entries if e.folder and len(lms) < 2 and students < 2):
+            held: dict[str, int] = {}  # task → how many of the folders hold its image
+            for entry in (e for e in entries if e.folder and len(lms) < 2 and max(held.values(), default=0) < 2):
                 with folder.sub(entry.name) as below:
-                    students += any(names.match(e.name).task is not None and names.match(e.name).ext == "png"
-                                    for e in below.entries())
+                    for task in {n.task for n in map(names.match, (e.name for e in below.entries()))
+                                 if n.task is not None and n.ext == "png"}:
+                        held[task] = held.get(task, 0) + 1
     except OSError:  # (a folder that cannot be read: the student's row says so)
         return
-    if len(lms) >= 2 or students >= 2:
+    if len(lms) >= 2 or max(held.values(), default=0) >= 2:
         kind = "an LMS's export" if len(lms) >= 2 else "a folder per student"
         raise ClassError(f"{root.shown}: its one folder, {name}, holds the submissions of several students "
                          f"({kind}): give {root.shown / name} as the submissions folder")

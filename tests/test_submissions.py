@@ -415,10 +415,13 @@ def test_a_class_unpacked_into_a_folder_of_its_own_stops_the_run(tmp_path, capsy
 def test_a_class_of_one_student_with_a_folder_deeper_is_graded(tmp_path):
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    (tmp_path / "scenes" / "box.json").write_text("{}")
     put(tmp_path, "ada/hw3/Cornell.png", b"png")
+    put(tmp_path, "ada/part2/box.png", b"box")
     put(tmp_path, "ada/old/notes.png", b"png")
     batch = discover(tmp_path / "scenes", tmp_path / "subs")
-    assert [(p.student, p.file, p.data) for p in batch.pairs] == [("ada", "hw3/Cornell.png", b"png")]
+    assert [(p.student, p.file, p.data) for p in batch.pairs] == [("ada", "hw3/Cornell.png", b"png"),
+                                                                  ("ada", "part2/box.png", b"box")]
 
 
 def test_a_file_name_spelt_decomposed_is_the_tasks():
