@@ -257,7 +257,7 @@ def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames
     if len(sources) != 1:
         return
     (source,) = sources.values()
-    if source.files or len(source.folders) != 1:
+    if source.files or len(source.folders) != 1 or source.id:  # (a folder named by an LMS is a student's)
         return
     (name,) = source.folders
     try:

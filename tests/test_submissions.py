@@ -422,6 +422,12 @@ def test_a_class_of_one_student_with_a_folder_deeper_is_graded(tmp_path):
     batch = discover(tmp_path / "scenes", tmp_path / "subs")
     assert [(p.student, p.file, p.data) for p in batch.pairs] == [("ada", "hw3/Cornell.png", b"png"),
                                                                   ("ada", "part2/box.png", b"box")]
+    # one Moodle student's draft/ and final/: that student's two files, not a class
+    (tmp_path / "subs" / "ada").rename(tmp_path / "subs" / "Ada Adams_1_assignsubmission_file_")
+    put(tmp_path, "Ada Adams_1_assignsubmission_file_/old/Cornell.png", b"old")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert [(p.student, p.row.get("status")) for p in batch.pairs] == [("Ada Adams", "invalid"), ("Ada Adams", None)]
+    assert batch.pairs[0].row["reason"].startswith("2 files for Cornell: ")
 
 
 def test_a_file_name_spelt_decomposed_is_the_tasks():
