@@ -102,3 +102,19 @@ def test_a_huge_max_depth_costs_no_memory_of_its_own():
     data["image"]["max_depth"] = 10**9
     deep = Renderer(schemas.validate_scene(data))
     assert deep.pixels(threads=1, budget=Budget(rays=1e9)).shape == shallow.shape
+
+
+def test_a_render_past_its_budget_of_exact_tests_stops_naming_them():
+    """Spheres far larger than the rest are tested against every ray: the tests are counted, whatever the rays."""
+    objs = [{"type": "sphere", "material": "m", "center": [k * 0.01, 0, 0], "radius": 0.001} for k in range(40)]
+    objs += [{"type": "sphere", "material": "m", "center": [0, 0, -1000 - k], "radius": 500.0} for k in range(39)]
+    scene = schemas.validate_scene({"camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]},
+                                    "image": {"width": 32, "height": 32}, "materials": {"m": {}}, "objects": objs,
+                                    "lights": [{"type": "point", "color": 1, "position": [0, 50, 0]}]})
+    whole = Renderer(scene)
+    whole.pixels(threads=1)
+    assert whole.tests >= 32 * 32 * 39
+    renderer = Renderer(scene)
+    with pytest.raises(OverBudget) as stopped:
+        renderer.pixels(threads=1, budget=Budget(tests=whole.tests / 2))
+    assert stopped.value.what == "tests"

@@ -26,6 +26,10 @@ class Budget:
 
     rays: float = math.inf
     ray_bytes: float = math.inf
+    #: exact (ray, sphere or triangle) tests in all: what a ray costs beyond its count when many surfaces lie
+    #: along it (every sphere or triangle far larger than the rest is tested against every ray; spheres nested
+    #: around a point share every cell that holds it), which the per-ray factor cannot foresee
+    tests: float = math.inf
 
 
 #: a render is stopped early once the rays it has spent and the rays its chunks' trees foresee (:class:`Growth`)
@@ -44,7 +48,7 @@ class RenderCancelled(Exception):
 class OverBudget(Exception):
     """A render stopped because it outgrew its budget: ``what`` is ``"rays"`` or ``"memory"``, ``spent`` what
     it had spent when stopped (or, ``foreseen``, what it would have spent by the rates of its trees so far) and
-    ``limit`` the budget's value (rays, or bytes)."""
+    ``limit`` the budget's value (rays, or bytes); ``"tests"``: its exact tests of rays against surfaces."""
 
     def __init__(self, what: str, spent: float, limit: float, foreseen: bool = False):
         super().__init__(f"the render outgrew its budget of {what}: {spent:.3g} {'foreseen' if foreseen else 'spent'}"
@@ -66,6 +70,7 @@ class RayCount:
         self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
         self.total = 0
         self.traced = 0  # camera, mirror and refracted rays of this render (total counts their light samples too)
+        self.tests = 0  # exact (ray, sphere or triangle) tests of this render
         self._held: dict[int, int] = {}  # the rays of each thread's work stack
         self._ahead: dict[int, float] = {}  # the rays each thread's chunk foresees it has still to trace
         self._lock = threading.Lock()
@@ -80,7 +85,7 @@ class RayCount:
     def restart(self) -> None:
         """A new render: its budget's count starts from nothing (the counts by kind go on)."""
         with self._lock:
-            self.total = self.traced = 0
+            self.total = self.traced = self.tests = 0
             self._ahead.clear()
             self._held.clear()
 
@@ -88,6 +93,11 @@ class RayCount:
         """``n`` more (hit, light sample) pairs shaded: a shadow ray each, whether cast or proven clear."""
         with self._lock:
             self.total += n
+
+    def tested(self, n: int) -> None:
+        """``n`` more exact tests of a ray against a sphere or a triangle."""
+        with self._lock:
+            self.tests += n
 
     def hold(self, holder: int, n: int) -> None:
         """The work stack of ``holder`` (a thread) holds ``n`` rays now."""
@@ -139,6 +149,8 @@ class Stop:
             foreseen = count.total + count.ahead
             if foreseen > FORESIGHT * budget.rays:
                 raise OverBudget("rays", foreseen, budget.rays, foreseen=True)
+        if count.tests > budget.tests:
+            raise OverBudget("tests", count.tests, budget.tests)
         held = count.held * RAY_BYTES if budget.ray_bytes < math.inf else 0
         if held > budget.ray_bytes:
             raise OverBudget("memory", held, budget.ray_bytes)

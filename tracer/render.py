@@ -125,11 +125,17 @@ class Renderer:
             self.shading = DirectLight(self.world, options, self.intersector, groups, proofs, self.cone_bounds,
                                        self._stop, self._count)
         self.intersector.check = self._stop
+        self.intersector.tested = self._count.tested
 
     @property
     def spent(self) -> int:
         """What the budget counted of the last render (:class:`tracer.budget.RayCount`)."""
         return self._count.total
+
+    @property
+    def tests(self) -> int:
+        """The exact tests of rays against spheres and triangles the last render made (its budget's ``tests``)."""
+        return self._count.tests
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int | None = None,
