@@ -118,3 +118,27 @@ def test_a_render_past_its_budget_of_exact_tests_stops_naming_them():
     with pytest.raises(OverBudget) as stopped:
         renderer.pixels(threads=1, budget=Budget(tests=whole.tests / 2))
     assert stopped.value.what == "tests"
+
+
+def test_the_foresight_sees_the_chunks_not_begun():
+    """Many chunks, each a small share of the budget, that make a render far over it: each chunk's own tree
+    foresees little, so the foresight also extends what the chunks begun spend per camera ray to those not
+    begun (nested glass at depth 12 and 1024² ran into the service's render_timeout on a loaded machine)."""
+    scene = schemas.validate_scene(nested_glass_and_mirror(8, 48))
+    whole = Renderer(scene)
+    whole.pixels(threads=1, chunk_rays=64)
+    renderer = Renderer(scene)
+    with pytest.raises(OverBudget) as stopped:
+        renderer.pixels(threads=1, chunk_rays=64, budget=Budget(rays=whole.spent / 40))
+    assert stopped.value.foreseen
+    assert renderer.spent < whole.spent / 40
+
+
+def test_a_budget_it_stays_within_foresees_no_more_than_it_spends():
+    """The tightest budget an honest render fits (its own count) does not stop it: what the chunks begun spend
+    per camera ray, extended to the rest, stays within FORESIGHT times the budget."""
+    scene = schemas.validate_scene(nested_glass_and_mirror(8, 48))
+    whole = Renderer(scene)
+    image = whole.pixels(threads=2, chunk_rays=64)
+    again = Renderer(scene).pixels(threads=2, chunk_rays=64, budget=Budget(rays=whole.spent))
+    assert np.array_equal(image, again)

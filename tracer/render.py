@@ -161,6 +161,7 @@ class Renderer:
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, end)) for a in range(first, end, per_chunk)]
         out = np.empty((total, 3), dtype=np.uint8)
+        self._count.plan(total * img.samples * img.samples)
 
         stopped = False
 
@@ -211,6 +212,7 @@ class Renderer:
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        self._count.plan(total * img.samples * img.samples)
         counted = int(np.count_nonzero(self.emitter_light == light)) if light is not None else len(self.emitter_light)
 
         def work(bound: tuple[int, int]) -> dict[str, np.ndarray]:
