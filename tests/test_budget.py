@@ -142,3 +142,38 @@ def test_a_budget_it_stays_within_foresees_no_more_than_it_spends():
     image = whole.pixels(threads=2, chunk_rays=64)
     again = Renderer(scene).pixels(threads=2, chunk_rays=64, budget=Budget(rays=whole.spent))
     assert np.array_equal(image, again)
+
+
+WIDE_SCRIPT = """
+import json, sys
+import schemas
+from tracer import Renderer
+renderer = Renderer(schemas.validate_scene(json.loads(sys.stdin.read())))
+renderer.camera.rays(0, 4096)
+renderer.camera.rays(16777216 - 4096, 16777216)
+print(next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmHWM:")) // 1024)
+"""
+
+
+@pytest.mark.parametrize("size", [(16777216, 1), (1, 16777216)])
+def test_an_image_of_one_row_or_column_holds_no_table_of_its_size(size):
+    """16777216 × 1 pixels (within max_pixels = 4096²) with 2×2 samples: the camera's per-column tables took
+    800 MiB before the first ray, and a render peaked at 1.4 GiB; the columns of each batch are made instead."""
+    data = {"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+            "image": {"width": size[0], "height": size[1], "samples": 2}, "materials": {"m": {}},
+            "objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
+            "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}]}
+    out = subprocess.run([sys.executable, "-c", WIDE_SCRIPT], input=json.dumps(data), capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert int(out.stdout) < 400
+
+
+@pytest.mark.parametrize("name", ["08_antialiased", "06_orthographic"])
+def test_the_camera_rays_are_the_same_made_per_batch(name, monkeypatch):
+    from tracer import camera
+
+    scene = schemas.validate_scene(scene_dict(name))
+    tabled = Renderer(scene).pixels(threads=2, chunk_rays=5000)
+    monkeypatch.setattr(camera, "TABLE_MAX", 0)
+    assert np.array_equal(Renderer(scene).pixels(threads=2, chunk_rays=5000), tabled)
