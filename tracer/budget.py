@@ -123,14 +123,17 @@ class RayCount:
     def ahead(self) -> float:
         """The budget's count that the chunks being traced foresee beyond :attr:`total`: their rays to come, each
         counted as the rays traced so far were (with its light samples); and, once :meth:`plan` said how many
-        camera rays the render casts, the chunks not begun, at what the chunks begun spend (and foresee) per
-        camera ray.  Without them a render of many chunks, each within the budget, was seen a chunk or two at a
-        time: nested glass at depth 12 and 1024², chunk by chunk within the budget, ran into the render_timeout
-        (503 after 120 s, on a loaded machine) instead of stopping (422 after 2.8 s now)."""
+        camera rays the render casts and a 1/:data:`FORESIGHT` share of them has begun, the chunks not begun, at
+        what the chunks begun spend (and foresee) per camera ray.  Without them a render of many chunks, each
+        within the budget, was seen a chunk or two at a time: nested glass at depth 12 and 1024² ran into the
+        render_timeout (503 after 120 s, on a loaded machine) instead of stopping with 422."""
         with self._lock:
             ahead = sum(self._ahead.values()) * (self.total / self.traced if self.traced else 1.0)
             rest = self.planned - self.camera
-            if rest > 0 and self.camera > 0:
+            # only once a 1/FORESIGHT share of them has begun: the chunks begun then foresee at most FORESIGHT
+            # times what the whole render spends, even when all its work lies in them (a mirror ball in the top
+            # rows), so that no render within its budget is stopped by this extension of the foresight
+            if rest > 0 and self.camera * FORESIGHT >= self.planned:
                 ahead += rest * (self.total + ahead) / self.camera
             return ahead
 
