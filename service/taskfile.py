@@ -1,7 +1,8 @@
 """The optional tasks file of a class: per task, its points and its own grading thresholds.
 
 ```json
-{"spheres": {"points": 10, "tolerance": 3}, "mirror": {"points": 5, "max_fraction": 0.002}}
+{"spheres": {"points": 10, "tolerance": 3}, "mirror": {"points": 5, "max_fraction": 0.002},
+ "glass": {"accepted": {"normal-offset": 0.002}}}
 ```
 
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
@@ -29,6 +30,9 @@ class TaskSettings(BaseModel):
     tolerance: Annotated[float, Field(ge=0, le=255)] | None = None  # None: the command's --tolerance
     max_fraction: Annotated[float, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
     visibility: Literal["visible", "hidden", "after_due_date", "after_published"] = "visible"  # Gradescope's
+    #: the accepted variants of honest tracers, name → largest amount × the scene's size (None: the defaults,
+    #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
+    accepted: dict[Literal["normal-offset", "t-min"], Annotated[float, Field(ge=0, le=0.1)]] | None = None
 
 
 _FILE = TypeAdapter(dict[str, TaskSettings])
