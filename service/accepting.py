@@ -25,6 +25,10 @@ from tracer.variants import ACCEPTED_DEFAULT, Options, accepted_options, unchang
 
 from .grading import Grade, grade
 
+#: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
+#: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
+#: merely looks alike at the threshold, an offset far too large in a scene that barely shows it, does not)
+EXPLAINED = 0.5
 #: renders of accepted variants kept (by scene and variant), each of at most this many pixels
 KEPT = 8
 KEPT_PIXELS = 640 * 480
@@ -64,7 +68,8 @@ KEPT_RENDERS = _Kept()
 def accept(scene: Scene, submitted: np.ndarray, failed: Grade, accepted: dict[str, float] | None = None,
            threads: int | None = None, cancel: Callable[[], bool] | None = None) -> Acceptance | None:
     """The first accepted variant (``accepted``: name → largest amount; None: the defaults) against which the
-    ``submitted`` pixels pass, graded with ``failed``'s thresholds; None when none does.
+    ``submitted`` pixels pass, graded with ``failed``'s thresholds, and which explains the failure (at most
+    :data:`EXPLAINED` of the pixels off the reference are off the variant); None when none does.
 
     A scene with no light but ambient and no mirror or glass renders every offset as the reference (no shadow or
     secondary ray is cast): it renders none of them."""
@@ -77,7 +82,7 @@ def accept(scene: Scene, submitted: np.ndarray, failed: Grade, accepted: dict[st
     for words, options in accepted_options(ACCEPTED_DEFAULT if accepted is None else accepted):
         variant = KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
         again = grade(variant, submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction)
-        if again.passed:
+        if again.passed and again.fraction_off_nearby <= EXPLAINED * failed.fraction_off_nearby:
             return Acceptance(words, again)
     return None
 
