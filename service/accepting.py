@@ -3,18 +3,19 @@
 A grade that fails against the reference is taken again against the
 reference rendered as honest tracers render it (:data:`tracer.variants.
 ACCEPTED_DEFAULT`: shadow and secondary rays started up to 10⁻³ of the
-scene's size off the surface, along its normal or by a t_min), smallest
-amount first; the first that passes is the verdict, "PASS, as rendered with a
-0.001 ray offset".  A passing image costs nothing more: these renders are made
-only for an image that fails the reference, and kept for the last few scenes,
-so a class's failing pairs of one task share them.
+scene's size off the surface, along its normal or by a t_min), each at its
+largest amount and halves of it: an image within the range of those renders
+and the reference passes, "PASS, as rendered with a 1e-3 ray offset".  A
+passing image costs nothing more: these renders are made only for an image
+that fails the reference, and kept for the last few scenes, so a class's
+failing pairs of one task share them.
 """
 
 from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -23,14 +24,14 @@ from schemas import Scene
 from tracer import Renderer
 from tracer.variants import ACCEPTED_DEFAULT, Options, accepted_options, unchanged
 
-from .grading import Grade, grade
+from .grading import BAND, Grade, grade
 
 #: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
 #: merely looks alike at the threshold, an offset far too large in a scene that barely shows it, does not)
 EXPLAINED = 0.5
 #: renders of accepted variants kept (by scene and variant), each of at most this many pixels
-KEPT = 8
+KEPT = 20
 KEPT_PIXELS = 640 * 480
 
 
@@ -65,11 +66,22 @@ class _Kept:
 KEPT_RENDERS = _Kept()
 
 
-def accept(scene: Scene, submitted: np.ndarray, failed: Grade, accepted: dict[str, float] | None = None,
-           threads: int | None = None, cancel: Callable[[], bool] | None = None) -> Acceptance | None:
-    """The first accepted variant (``accepted``: name → largest amount; None: the defaults) against which the
-    ``submitted`` pixels pass, graded with ``failed``'s thresholds, and which explains the failure (at most
-    :data:`EXPLAINED` of the pixels off the reference are off the variant); None when none does.
+@dataclass(frozen=True)
+class Failing:
+    """A submission that failed the reference: both images (``(H, W, 3) uint8``) and the grade."""
+
+    reference: np.ndarray
+    submitted: np.ndarray
+    failed: Grade
+
+
+def accept(scene: Scene, pair: Failing, accepted: dict[str, float] | None = None, threads: int | None = None,
+           cancel: Callable[[], bool] | None = None) -> Acceptance | None:
+    """The first accepted variant (``accepted``: name → largest amount; None: the defaults) whose range of
+    amounts, from the reference to its largest, the submitted pixels pass against (:func:`envelope_off`, with
+    the failed grade's thresholds), and which explains the failure (at most :data:`EXPLAINED` of the pixels off
+    the reference are off the range); None when none does.  Its words are those of the amount it comes
+    closest to.
 
     A scene with no light but ambient and no mirror or glass renders every offset as the reference (no shadow or
     secondary ray is cast): it renders none of them."""
@@ -79,12 +91,44 @@ def accept(scene: Scene, submitted: np.ndarray, failed: Grade, accepted: dict[st
         return None
     key = scene_key(scene)
     pixels = scene.image.width * scene.image.height
-    for words, options in accepted_options(ACCEPTED_DEFAULT if accepted is None else accepted):
-        variant = KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
-        again = grade(variant, submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction)
-        if again.passed and again.fraction_off_nearby <= EXPLAINED * failed.fraction_off_nearby:
-            return Acceptance(words, again)
+    submitted, failed = pair.submitted, pair.failed
+    for rungs in accepted_options(ACCEPTED_DEFAULT if accepted is None else accepted):
+        images = [KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
+                  for _, options in rungs]
+        off = envelope_off([pair.reference, *images], submitted, failed.tolerance)
+        if off > failed.max_fraction * pixels or off > EXPLAINED * failed.fraction_off_nearby * pixels:
+            continue
+        grades = [grade(image, submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction)
+                  for image in images]
+        best = min(range(len(rungs)), key=lambda k: grades[k].fraction_off_nearby)
+        return Acceptance(rungs[best][0], replace(grades[best], passed=True, fraction_off_nearby=off / pixels))
     return None
+
+
+def envelope_off(renders: list[np.ndarray], submitted: np.ndarray, tolerance: float) -> int:
+    """The pixels of ``submitted`` off even nearby the range of ``renders`` (each ``(H, W, 3) uint8``): those
+    with a channel outside [lowest − tolerance, highest + tolerance] of the renders at every pixel of their 3×3
+    neighbourhood (edges repeat).  With one render this is the grade's own count of pixels off even nearby; with
+    renders of one variant at several amounts it forgives any amount between them, as far as a pixel's value
+    moves between theirs (an offset shifts a glass ball's rim a little with each amount).  Rows are compared
+    :data:`BAND` at a time."""
+    h = submitted.shape[0]
+    low, high = np.min(renders, axis=0).astype(np.int16), np.max(renders, axis=0).astype(np.int16)
+    off = 0
+    for top in range(0, h, BAND):
+        bottom = min(top + BAND, h)
+        rows = np.clip(np.arange(top - 1, bottom + 1), 0, h - 1)
+        lo = np.pad(low[rows], ((0, 0), (1, 1), (0, 0)), mode="edge") - tolerance
+        hi = np.pad(high[rows], ((0, 0), (1, 1), (0, 0)), mode="edge") + tolerance
+        sub = submitted[top:bottom].astype(np.int16)
+        n, w = bottom - top, submitted.shape[1]
+        near = np.zeros((n, w), dtype=bool)
+        for dy in range(3):
+            for dx in range(3):
+                window = (slice(dy, dy + n), slice(dx, dx + w))
+                near |= np.all((sub >= lo[window]) & (sub <= hi[window]), axis=2)
+        off += int(np.count_nonzero(~near))
+    return off
 
 
 def _render(scene: Scene, options: Options, threads: int | None, cancel: Callable[[], bool] | None

@@ -97,9 +97,9 @@ def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.n
     passes, cached by canonical scene, compared with the submission.  A passing grade comes back as it is."""
     if graded.grade.passed:
         return graded
-    from .accepting import accept
+    from .accepting import Failing, accept
 
-    found_variant = accept(scene, submitted, graded.grade, checks.accepted, threads, cancel)
+    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, threads, cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:

@@ -59,6 +59,22 @@ def test_each_honest_style_passes_the_whitted_example(whitted, style):
     assert _graded(whitted, student.render(whitted, style=student.STYLES[style])).grade.passed
 
 
+@pytest.mark.parametrize("amount", [1.5e-4, 3e-4, 7e-4])
+def test_any_offset_up_to_the_largest_passes_as_the_amount_it_comes_closest_to(whitted, whitted_reference, amount):
+    """The variant is rendered at 1e-3 and its halves; an amount between them passes against their range."""
+    honest = student.render(whitted, style=student.Offset(amount))
+    assert not grade(whitted_reference, honest, "").passed
+    graded = _graded(whitted, honest, pipeline.Checks(diagnose=False))
+    assert graded.grade.passed and graded.accepted is not None and graded.accepted.endswith(" ray offset")
+
+
+def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_reference):
+    honest = student.render(whitted, style=student.STYLES["offset 1e-3"])
+    verdict = grade(whitted_reference, honest, "")
+    pixels = honest.shape[0] * honest.shape[1]
+    assert accepting.envelope_off([whitted_reference], honest, 2.0) == round(verdict.fraction_off_nearby * pixels)
+
+
 def test_an_offset_far_too_large_fails_and_is_named(whitted):
     wrong = student.render(whitted, ["offset-too-large"])
     graded = _graded(whitted, wrong)
@@ -90,6 +106,8 @@ def test_a_task_narrows_and_widens_its_accepted_variants(whitted):
     assert not _graded(whitted, wider, pipeline.Checks(diagnose=False)).grade.passed
     widened = _graded(whitted, wider, pipeline.Checks(accepted={"normal-offset": 4e-3}, diagnose=False))
     assert widened.grade.passed and widened.accepted == "a 4e-3 ray offset"
+    only_t_min = _graded(whitted, honest, pipeline.Checks(accepted={"t-min": 1e-3}, diagnose=False))
+    assert not only_t_min.grade.passed
 
 
 def test_a_passing_image_renders_no_variant(whitted, whitted_reference, monkeypatch):

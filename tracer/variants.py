@@ -139,15 +139,21 @@ def _short(x: float) -> str:
     return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
 
 
-def accepted_options(accepted: dict[str, float]) -> list[tuple[str, Options]]:
-    """The renders that accepted variants ``accepted`` (name → amount) make, each with its words
-    ("a 1e-3 ray offset"), smallest amounts first; an amount of 0 is the reference and is left out."""
+#: each accepted variant is rendered at its largest amount and at each half of it down to this many rungs
+RUNGS = 4
+
+
+def accepted_options(accepted: dict[str, float]) -> list[list[tuple[str, Options]]]:
+    """Per accepted variant of ``accepted`` (name → largest amount), the renders it makes, each with its words
+    ("a 1e-3 ray offset"): its largest amount and halves of it, :data:`RUNGS` in all, largest first; an amount of
+    0 is the reference alone and makes none."""
     out = []
-    for name, amount in sorted(accepted.items(), key=lambda item: (item[1], item[0])):
-        if amount > 0:
-            along, words = ACCEPTED_KINDS[name]
-            out.append((f"a {_short(amount)} {words}", Options(offset=amount, offset_along=along)))
-    return out
+    for name, amount in sorted(accepted.items()):
+        along, words = ACCEPTED_KINDS[name]
+        rungs = [amount / 2**k for k in range(RUNGS)] if amount > 0 else []
+        out.append([(f"a {_short(a)} {words}", Options(offset=a, offset_along=along)) for a in rungs])
+    return [rungs for rungs in out if rungs]
+
 
 #: mistakes whose effect varies from point to point (a student's acne speckles in its own pattern): name →
 #: the options of the mistake's far end.  An image with the mistake lies between the reference and that
