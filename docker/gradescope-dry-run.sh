@@ -27,9 +27,13 @@ cp -r "$submission/." "$rootfs/autograder/submission/"
 box() { bwrap --bind "$rootfs" / --proc /proc --dev /dev --tmpfs /tmp "${binds[@]}" --chdir "$1" \
           --setenv PATH /usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin --setenv HOME /root "${@:2}"; }
 echo "== setup.sh (once, as Gradescope builds the image)"
+SECONDS=0
 box /autograder/source bash ./setup.sh
+echo "(setup.sh: $SECONDS s)"
 cp "$rootfs/autograder/source/run_autograder" "$rootfs/autograder/run_autograder"
 echo "== run_autograder (per submission), from /autograder"
+SECONDS=0
 box /autograder ./run_autograder || echo "run_autograder exited $?"
+echo "(run_autograder: $SECONDS s)"
 echo "== /autograder/results/results.json"
 cat "$rootfs/autograder/results/results.json"

@@ -50,6 +50,10 @@ class _Kept:
         self.held: dict[tuple[str, object], np.ndarray] = {}
         self.lock = threading.Lock()
 
+    def has(self, key: tuple[str, object]) -> bool:
+        with self.lock:
+            return key in self.held
+
     def get(self, key: tuple[str, object], make: Callable[[], np.ndarray], pixels: int) -> np.ndarray:
         with self.lock:
             if key in self.held:
@@ -92,17 +96,63 @@ def accept(scene: Scene, pair: Failing, accepted: dict[str, float] | None = None
     key = scene_key(scene)
     pixels = scene.image.width * scene.image.height
     submitted, failed = pair.submitted, pair.failed
+    allowed = min(failed.max_fraction, EXPLAINED * failed.fraction_off_nearby) * pixels
     for rungs in accepted_options(ACCEPTED_DEFAULT if accepted is None else accepted):
+        kept = all(KEPT_RENDERS.has((key, options)) for _, options in rungs)
+        if not kept and first_look(scene, rungs, pair, Look(threads, cancel)) > allowed:
+            continue  # (its rows alone leave too many pixels off: it cannot pass, whole)
         images = [KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
                   for _, options in rungs]
         off = envelope_off([pair.reference, *images], submitted, failed.tolerance)
-        if off > failed.max_fraction * pixels or off > EXPLAINED * failed.fraction_off_nearby * pixels:
+        if off > allowed:
             continue
         grades = [grade(image, submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction)
                   for image in images]
         best = min(range(len(rungs)), key=lambda k: grades[k].fraction_off_nearby)
         return Acceptance(rungs[best][0], replace(grades[best], passed=True, fraction_off_nearby=off / pixels))
     return None
+
+
+@dataclass(frozen=True)
+class Look:
+    """How a first look renders: its threads and what cancels it."""
+
+    threads: int | None
+    cancel: Callable[[], bool] | None
+
+
+def first_look(scene: Scene, rungs: list[tuple[str, Options]], pair: Failing, how: Look) -> int:
+    """A lower bound of :func:`envelope_off` for the range of ``rungs`` and the reference, from their renders of
+    a few rows alone (:func:`service.diagnosis.sampled_rows`: every 16th row with the rows either side).
+
+    Exact, not an estimate: a pixel's count depends on its 3×3 neighbourhood alone, so each sampled middle row,
+    rendered with the rows above and below, gives its off pixels exactly as the whole count does, and their
+    count bounds the whole image's (0 for an image too short to have middle rows)."""
+    from .diagnosis import sampled_rows
+
+    middles, rows = sampled_rows(pair.submitted.shape[0])
+    if not len(middles):
+        return 0
+    images = [pair.reference[rows]] + [Renderer(scene, options).pixels_of_rows(rows, how.threads,
+                                                                               cancel=how.cancel)
+                                       for _, options in rungs]
+    return sum(_middle_off([image[3 * k:3 * k + 3] for image in images], pair.submitted[m],
+                           pair.failed.tolerance) for k, m in enumerate(middles))
+
+
+def _middle_off(triplets: list[np.ndarray], row: np.ndarray, tolerance: float) -> int:
+    """The pixels of one submitted ``row`` (W, 3) off even nearby the range of renders of it and the rows either
+    side (each (3, W, 3))."""
+    low = np.min(triplets, axis=0).astype(np.int16)
+    high = np.max(triplets, axis=0).astype(np.int16)
+    lo = np.pad(low, ((0, 0), (1, 1), (0, 0)), mode="edge") - tolerance
+    hi = np.pad(high, ((0, 0), (1, 1), (0, 0)), mode="edge") + tolerance
+    sub, w = row.astype(np.int16), row.shape[0]
+    near = np.zeros(w, dtype=bool)
+    for dy in range(3):
+        for dx in range(3):
+            near |= np.all((sub >= lo[dy, dx:dx + w]) & (sub <= hi[dy, dx:dx + w]), axis=1)
+    return int(np.count_nonzero(~near))
 
 
 def envelope_off(renders: list[np.ndarray], submitted: np.ndarray, tolerance: float) -> int:

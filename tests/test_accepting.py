@@ -75,6 +75,27 @@ def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_refe
     assert accepting.envelope_off([whitted_reference], honest, 2.0) == round(verdict.fraction_off_nearby * pixels)
 
 
+@pytest.mark.parametrize("made", [{"style": student.STYLES["offset 1e-3"]}, {"mistakes": ["no-shadows"]},
+                                  {"mistakes": ["offset-too-large"]}, {"style": student.Offset(7e-4)}])
+def test_a_first_look_at_a_few_rows_bounds_the_whole_count(whitted, whitted_reference, made):
+    from tracer.variants import ACCEPTED_DEFAULT, accepted_options
+
+    image = student.render(whitted, **made)
+    pair = accepting.Failing(whitted_reference, image, grade(whitted_reference, image, ""))
+    for rungs in accepted_options(ACCEPTED_DEFAULT):
+        whole = accepting.envelope_off([whitted_reference] + [Renderer(whitted, o).pixels() for _, o in rungs],
+                                       image, 2.0)
+        assert accepting.first_look(whitted, rungs, pair, accepting.Look(None, None)) <= whole
+
+
+def test_a_clearly_wrong_image_renders_no_whole_variant(whitted, whitted_reference, monkeypatch):
+    wrong = student.render(whitted, ["no-shadows"])
+    monkeypatch.setattr(accepting, "KEPT_RENDERS", accepting._Kept())  # (none kept from the tests before)
+    monkeypatch.setattr(accepting, "_render", lambda *a: pytest.fail("a whole variant was rendered"))
+    failed = grade(whitted_reference, wrong, "")
+    assert accepting.accept(whitted, accepting.Failing(whitted_reference, wrong, failed)) is None
+
+
 def test_an_offset_far_too_large_fails_and_is_named(whitted):
     wrong = student.render(whitted, ["offset-too-large"])
     graded = _graded(whitted, wrong)
