@@ -30,8 +30,9 @@ from .grading import BAND, Grade, grade
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
 #: merely looks alike at the threshold, an offset far too large in a scene that barely shows it, does not)
 EXPLAINED = 0.5
-#: renders of accepted variants kept (by scene and variant), each of at most this many pixels
-KEPT = 20
+#: renders of accepted variants kept (by scene and variant, whole or a first look's rows), each of at most this
+#: many pixels
+KEPT = 40
 KEPT_PIXELS = 640 * 480
 
 
@@ -47,14 +48,14 @@ class _Kept:
     """The last :data:`KEPT` accepted variants rendered, by canonical scene key and options."""
 
     def __init__(self) -> None:
-        self.held: dict[tuple[str, object], np.ndarray] = {}
+        self.held: dict[tuple[object, ...], np.ndarray] = {}
         self.lock = threading.Lock()
 
-    def has(self, key: tuple[str, object]) -> bool:
+    def has(self, key: tuple[object, ...]) -> bool:
         with self.lock:
             return key in self.held
 
-    def get(self, key: tuple[str, object], make: Callable[[], np.ndarray], pixels: int) -> np.ndarray:
+    def get(self, key: tuple[object, ...], make: Callable[[], np.ndarray], pixels: int) -> np.ndarray:
         with self.lock:
             if key in self.held:
                 return self.held[key]
@@ -99,7 +100,7 @@ def accept(scene: Scene, pair: Failing, accepted: dict[str, float] | None = None
     allowed = min(failed.max_fraction, EXPLAINED * failed.fraction_off_nearby) * pixels
     for rungs in accepted_options(ACCEPTED_DEFAULT if accepted is None else accepted):
         kept = all(KEPT_RENDERS.has((key, options)) for _, options in rungs)
-        if not kept and first_look(scene, rungs, pair, Look(threads, cancel)) > allowed:
+        if not kept and first_look(scene, rungs, pair, Look(key, threads, cancel)) > allowed:
             continue  # (its rows alone leave too many pixels off: it cannot pass, whole)
         images = [KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
                   for _, options in rungs]
@@ -115,10 +116,16 @@ def accept(scene: Scene, pair: Failing, accepted: dict[str, float] | None = None
 
 @dataclass(frozen=True)
 class Look:
-    """How a first look renders: its threads and what cancels it."""
+    """How a first look renders: the scene's key (its rows are kept under it), its threads and what cancels it."""
 
+    key: str
     threads: int | None
     cancel: Callable[[], bool] | None
+
+    def rows(self, scene: Scene, options: Options, rows: np.ndarray) -> np.ndarray:
+        """Rows ``rows`` of the scene rendered with ``options``, kept for the next failing image."""
+        return KEPT_RENDERS.get((self.key, options, "rows"), partial(_render_rows, scene, options, rows, self),
+                                scene.image.width * len(rows))
 
 
 def first_look(scene: Scene, rungs: list[tuple[str, Options]], pair: Failing, how: Look) -> int:
@@ -133,9 +140,7 @@ def first_look(scene: Scene, rungs: list[tuple[str, Options]], pair: Failing, ho
     middles, rows = sampled_rows(pair.submitted.shape[0])
     if not len(middles):
         return 0
-    images = [pair.reference[rows]] + [Renderer(scene, options).pixels_of_rows(rows, how.threads,
-                                                                               cancel=how.cancel)
-                                       for _, options in rungs]
+    images = [pair.reference[rows]] + [how.rows(scene, options, rows) for _, options in rungs]
     return sum(_middle_off([image[3 * k:3 * k + 3] for image in images], pair.submitted[m],
                            pair.failed.tolerance) for k, m in enumerate(middles))
 
@@ -184,3 +189,7 @@ def envelope_off(renders: list[np.ndarray], submitted: np.ndarray, tolerance: fl
 def _render(scene: Scene, options: Options, threads: int | None, cancel: Callable[[], bool] | None
             ) -> np.ndarray:
     return Renderer(scene, options).pixels(threads=threads, cancel=cancel)
+
+
+def _render_rows(scene: Scene, options: Options, rows: np.ndarray, how: Look) -> np.ndarray:
+    return Renderer(scene, options).pixels_of_rows(rows, how.threads, cancel=how.cancel)

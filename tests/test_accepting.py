@@ -85,7 +85,7 @@ def test_a_first_look_at_a_few_rows_bounds_the_whole_count(whitted, whitted_refe
     for rungs in accepted_options(ACCEPTED_DEFAULT):
         whole = accepting.envelope_off([whitted_reference] + [Renderer(whitted, o).pixels() for _, o in rungs],
                                        image, 2.0)
-        assert accepting.first_look(whitted, rungs, pair, accepting.Look(None, None)) <= whole
+        assert accepting.first_look(whitted, rungs, pair, accepting.Look("", None, None)) <= whole
 
 
 def test_a_clearly_wrong_image_renders_no_whole_variant(whitted, whitted_reference, monkeypatch):
