@@ -157,3 +157,28 @@ def test_a_tasks_file_names_the_accepted_variants_it_knows(tmp_path):
     bad.write_text('{"cornell": {"accepted": {"epsilon": 0.002}}}')
     with pytest.raises(ClassError, match="bad.json"):
         load_tasks(bad, tasks)
+
+
+def test_grade_says_which_variant_it_passed_as_even_without_a_diagnosis(whitted, tmp_path, capsys):
+    from service.cli import main
+
+    honest = tmp_path / "honest.png"
+    honest.write_bytes(encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"])))
+    for extra in ([], ["--no-diagnosis"]):
+        assert main(["grade", str(WHITTED), str(honest), *extra]) == 0
+        assert capsys.readouterr().out.splitlines()[0] == "PASS, as rendered with a 1e-3 ray offset"
+
+
+def test_post_grade_gives_the_accepted_variant(whitted):
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.settings import Settings
+
+    honest = encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"]))
+    api = TestClient(create_app(Settings()))
+    spec = api.get("/openapi.json").json()
+    assert "accepted" in spec["components"]["schemas"]["GradeAnswer"]["properties"]
+    body = api.post("/grade", files={"scene": ("s.json", WHITTED.read_bytes(), "application/json"),
+                                     "image": ("i.png", honest, "image/png")}).json()
+    assert body["passed"] is True and body["accepted"] == "a 1e-3 ray offset" and body["diagnosis"] is None
