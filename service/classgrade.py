@@ -535,7 +535,8 @@ def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes]
             continue
         if pair.key not in references:
             references[pair.key] = refs[pair.key].read_bytes()
-        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds, own.accepted))
+        accepted = () if own.accepted is None else (own.accepted,)  # (the defaults: the call as it was)
+        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds, *accepted))
         about[n] = (pair, image, stamp)
     tick()
 

@@ -182,3 +182,24 @@ def test_post_grade_gives_the_accepted_variant(whitted):
     body = api.post("/grade", files={"scene": ("s.json", WHITTED.read_bytes(), "application/json"),
                                      "image": ("i.png", honest, "image/png")}).json()
     assert body["passed"] is True and body["accepted"] == "a 1e-3 ray offset" and body["diagnosis"] is None
+
+
+def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, tmp_path):
+    import json
+    import shutil
+
+    from service.classgrade import grade_class
+
+    (tmp_path / "scenes").mkdir()
+    shutil.copyfile(WHITTED, tmp_path / "scenes" / "whitted.json")
+    (tmp_path / "subs" / "ada").mkdir(parents=True)
+    (tmp_path / "subs" / "ada" / "whitted.png").write_bytes(
+        encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"])))
+    rows = {}
+    for name, accepted in (("defaults", None), ("none", {})):
+        tasks = tmp_path / f"{name}.json"
+        tasks.write_text(json.dumps({"whitted": {} if accepted is None else {"accepted": accepted}}))
+        (row,) = grade_class(tmp_path / "scenes", tmp_path / "subs", tmp_path / name, jobs=1, tasks_file=tasks).rows
+        rows[name] = row
+    assert (rows["defaults"]["status"], rows["defaults"]["reason"]) == ("pass", "as rendered with a 1e-3 ray offset")
+    assert rows["none"]["status"] == "fail"
