@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from .submissions import ClassError, UntrustedFileError, read_untrusted
+from .taskfile import TaskSettings, load_tasks
 
 #: where Gradescope lays the autograder out, unless PHONGRAY_AUTOGRADER_ROOT says otherwise
 ROOT = "/autograder"
@@ -39,6 +40,8 @@ SOURCE, COURSE = "phongray", "course"
 PACKAGES = ("schemas", "tracer", "service", "bench")
 #: a file's timestamp in the zip: the same bundle, byte for byte, from the same course
 STAMP = (2024, 1, 1, 0, 0, 0)
+#: the variable that names the bundle's accepted variants rendered beforehand (service.accepting.STORED)
+STORED = "PHONGRAY_ACCEPTED_RENDERS"
 #: the largest submitted file read (as the service's max_image_bytes)
 MAX_BYTES = 16 * 1024 * 1024
 
@@ -58,12 +61,10 @@ def build(scenes: Path, out: Path, tasks_file: Path | None = None, student_scene
     """Write the autograder zip ``out`` for the task scenes in ``scenes``; :class:`ClassError` for a fault of
     the TA's (an invalid scene or tasks file, a scene that does not render), before anything is written."""
     from .submissions import discover
-    from .taskfile import load_tasks
 
     with tempfile.TemporaryDirectory() as empty:  # (the TA's folders checked as a class of one empty folder)
         (Path(empty) / "nobody").mkdir()
         batch = discover(scenes, Path(empty), student_scenes)
-    load_tasks(tasks_file, batch.tasks)  # (checked here: a fault of the TA's stops the build)
     files: dict[str, bytes] = {}
     for task, path in batch.tasks.items():
         files[f"{COURSE}/scenes/{task}.json"] = _read(path)
@@ -72,9 +73,10 @@ def build(scenes: Path, out: Path, tasks_file: Path | None = None, student_scene
             files[f"{COURSE}/student-scenes/{student}/{path.name}"] = _read(path)
     if tasks_file is not None:
         files[f"{COURSE}/tasks.json"] = _read(tasks_file)
-    references = _references({name: text for name, text in files.items() if name.endswith(".json")
-                              and "/tasks.json" not in name})
+    scenes_of = {name: text for name, text in files.items() if name.endswith(".json") and "/tasks.json" not in name}
+    references = _references(scenes_of)
     files.update({f"{COURSE}/references/{key}.png": png for key, png in references.items()})
+    files.update(_variants(scenes_of, load_tasks(tasks_file, batch.tasks)))
     files.update(_source_tree())
     data = _zip(files)
     try:
@@ -118,6 +120,32 @@ def _references(scenes: dict[str, bytes]) -> dict[str, bytes]:
             problems.append(f"{name}: {exc}")
     if problems:
         raise ClassError("; ".join(problems))
+    return out
+
+
+def _variants(scenes: dict[str, bytes], tasks: dict[str, TaskSettings]) -> dict[str, bytes]:
+    """The whole renders of each scene's accepted variants (its task's, or the defaults), rendered now so that
+    a submission that fails the reference is graded against them without rendering them again in Gradescope's
+    container: ``course/variants/<scene key>/<file name>`` (:data:`service.accepting.STORED`)."""
+    from tracer import Renderer, encode_png
+    from tracer.variants import ACCEPTED_DEFAULT, accepted_options, unchanged
+
+    from .accepting import file_name
+    from .pipeline import load_scene
+    from .scenekey import scene_key
+
+    out: dict[str, bytes] = {}
+    for name, text in scenes.items():
+        scene = load_scene(name, text)
+        given = tasks[name.rsplit("/", 1)[1][:-5]].accepted
+        if unchanged("offset-too-large", scene):
+            continue
+        accepted = ACCEPTED_DEFAULT if given is None else {str(k): v for k, v in given.items()}
+        for rungs in accepted_options(accepted):
+            for _, options in rungs:
+                path = f"{COURSE}/variants/{scene_key(scene)}/{file_name(options)}"
+                if path not in out:
+                    out[path] = encode_png(Renderer(scene, options).pixels())
     return out
 
 
@@ -266,6 +294,7 @@ def _grade(root: Path) -> dict[str, Any]:
         if (course / "references").is_dir():
             shutil.copytree(course / "references", report / "references")
         tasks_file = course / "tasks.json"
+        os.environ[STORED] = str(course / "variants")  # (the pool's processes inherit it)
         grade_class(scenes, place / "submissions", report, jobs=1, student_scenes=own,
                     tasks_file=tasks_file if tasks_file.exists() else None)
         return json.loads((report / "gradescope" / student.name / "results.json").read_text())

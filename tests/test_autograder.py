@@ -123,3 +123,37 @@ def test_which_file_is_a_tasks(names: list[str], expected: dict[str, str]):
     chosen, left = task_files(names, ["spheres", "mirror", "lights"])
     assert {task: found.name for task, found in chosen.items()} == expected
     assert len(left) == len(names) - len(expected)
+
+
+def test_the_bundles_accepted_variants_are_rendered_beforehand(tmp_path: Path):
+    """A submission that fails the reference is graded against the bundle's own renders of the variants, not
+    renders made in Gradescope's container: with the bundle's renders replaced by a wrong image (no shadow
+    rays), that image passes "as rendered with a 1e-3 ray offset", which no real render of it would give."""
+    from schemas import load_scene
+    from tracer import Renderer, encode_png
+    from tracer.variants import VARIANTS
+
+    whitted = CLASS.parent / "04_whitted.json"
+    (tmp_path / "scenes").mkdir()
+    shutil.copyfile(whitted, tmp_path / "scenes" / "whitted.json")
+    out = tmp_path / "autograder.zip"
+    assert main(["autograder", str(tmp_path / "scenes"), "-o", str(out)]) == 0
+    with zipfile.ZipFile(out) as archive:
+        stored = sorted(n.rsplit("/", 1)[1] for n in archive.namelist() if n.startswith("course/variants/"))
+    assert len(stored) == 8 and "normal-0.001.png" in stored and "ray-0.000125.png" in stored
+    wrong = tmp_path / "wrong.png"
+    wrong.write_bytes(encode_png(Renderer(load_scene(whitted.read_bytes()), VARIANTS["no-shadows"][0]).pixels()))
+    done, results = _run(out, tmp_path / "honest", {"whitted.png": wrong})
+    assert results["tests"][0]["status"] == "failed"  # (against the bundle's true renders)
+    root = tmp_path / "faked"
+    for folder in ("source", "submission", "results"):
+        (root / folder).mkdir(parents=True)
+    with zipfile.ZipFile(out) as archive:
+        archive.extractall(root / "source")
+    for png in (root / "source" / "course" / "variants").rglob("*.png"):
+        shutil.copyfile(wrong, png)
+    shutil.copyfile(wrong, root / "submission" / "whitted.png")
+    env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
+    subprocess.run(["bash", str(root / "source" / "run_autograder")], env=env, capture_output=True, timeout=600)
+    (test,) = json.loads((root / "results" / "results.json").read_text())["tests"]
+    assert test["output"].startswith("passed, as rendered with a 1e-3 ray offset: ")
