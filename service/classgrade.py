@@ -236,13 +236,20 @@ def _scene_keys(batch: Batch, settings: Settings | None) -> tuple[dict[str, Path
 REPORT_FOLDERS = ("references", "submissions", "heatmaps", "gradescope", journal.RESUME)
 
 
-def _outside(report: Path, submissions: Path) -> None:
+def _outside(report: Path, submissions: Path, scenes: Path, student_scenes: Path | None) -> None:
     """The report folder is not inside the submissions folder (its files would be a student's next run), nor
-    the submissions folder inside a folder the report writes (its copies would be)."""
+    the submissions folder inside a folder the report writes (its copies would be); nor is it the scenes folder
+    (its report.json would be a task) or inside the students' scenes (a student of them)."""
     inside, outer = report.resolve(), submissions.resolve()
     if inside == outer or inside.is_relative_to(outer):
         raise ClassError(f"{report}: the report folder is inside the submissions folder {submissions} (it would "
                          f"be graded as a student's); write it elsewhere")
+    if inside == scenes.resolve():
+        raise ClassError(f"{report}: the report folder is the scenes folder (its report.json would be read as a "
+                         f"task); write it elsewhere")
+    if student_scenes is not None and inside.is_relative_to(student_scenes.resolve()):
+        raise ClassError(f"{report}: the report folder is inside the --student-scenes folder {student_scenes} "
+                         f"(it would be read as a student's scenes); write it elsewhere")
     for name in REPORT_FOLDERS:
         if outer.is_relative_to(inside / name):
             raise ClassError(f"{report}: the report writes its {name}/ folder where the submissions folder "
@@ -434,7 +441,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
     settings = Settings.from_env()
-    _outside(report, submissions)
+    _outside(report, submissions, scenes, student_scenes)
     batch = discover(scenes, submissions, student_scenes, settings.max_image_bytes)
     tasks = load_tasks(tasks_file, batch.tasks)
     scene_of_key, texts = _scene_keys(batch, settings if limits else None)
@@ -458,7 +465,7 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     renders held to the service's limits ``settings`` with ``limits``)."""
     todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
     refs = {k: report / "references" / f"{k}.png" for k in scene_of_key}
-    needed = {k: scene_of_key[k] for k, path in refs.items() if not path.exists()}
+    needed = {k: scene_of_key[k] for k, path in refs.items() if not _usable(path)}
     total = len(batch.pairs)
 
     def tick() -> None:
@@ -485,6 +492,18 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - started)
     write_report(report, rows, batch.ignored, batch.students, tasks, outcome.summary())
     return outcome
+
+
+def _usable(reference: Path) -> bool:
+    """A reference an earlier run kept that decodes (one cut short, or a Git LFS pointer where a course's bundle
+    was copied from, is rendered again rather than failing every pair of its scene)."""
+    from tracer import decode_png
+
+    try:
+        decode_png(reference.read_bytes())
+    except Exception:  # (Pillow raises many kinds for a broken file; a missing one is OSError)
+        return False
+    return True
 
 
 def _kept(report: Path) -> str:
