@@ -46,6 +46,15 @@ class Protocol(H11Protocol):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         super().connection_made(transport)
         self._await_headers()
+        app = self.app
+
+        async def with_abort(scope: Any, receive: Any, send: Any) -> None:
+            # an answer's sender may drop a client that does not read (service.routes.Streamed): abort() closes
+            # the connection and lets go of what is queued for it, where close() would wait for the client
+            scope["phongray.abort"] = transport.abort
+            await app(scope, receive, send)
+
+        self.app = with_abort
 
     def data_received(self, data: bytes) -> None:
         super().data_received(data)

@@ -227,21 +227,24 @@ class Renderer:
         bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
         counted = int(np.count_nonzero(self.emitter_light == light)) if light is not None else len(self.emitter_light)
 
-        def work(bound: tuple[int, int]) -> dict[str, np.ndarray]:
+        whole: dict[str, np.ndarray] = {}
+        made = threading.Lock()
+
+        def work(bound: tuple[int, int]) -> None:
             a, b = bound
             if cancel is not None and cancel():
                 raise RenderCancelled("render cancelled")
             s = img.samples * img.samples
             tally = Tally(tuple(names), (b - a) * s, s, light, self.emitter_light)
             self.chunk(a, b, tally)
-            return tally.result((b - a, s), counted)
+            for name, part in tally.result((b - a, s), counted).items():  # each chunk into its place: no copies
+                with made:
+                    if name not in whole:
+                        whole[name] = np.empty((total, *part.shape[1:]), dtype=part.dtype)
+                whole[name][a:b] = part
 
-        parts = _mapped(work, bounds, workers)
-        out = {}
-        for name in names:
-            whole = np.concatenate([p[name] for p in parts])
-            out[name] = whole.reshape(img.height, img.width, *whole.shape[1:])
-        return out
+        _mapped(work, bounds, workers)
+        return {name: whole[name].reshape(img.height, img.width, *whole[name].shape[1:]) for name in names}
 
     def diagnosis_passes(self, threads: int | None = None, chunk_rays: int | None = None,
                          cancel: Callable[[], bool] | None = None, pixels: np.ndarray | None = None,
