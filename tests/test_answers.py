@@ -214,3 +214,20 @@ def test_a_client_that_leaves_stops_its_work_and_frees_its_slot(tmp_path, what):
         assert _free_soon(url, 0.5) == float("inf")  # (the work holds the one slot)
         sock.close()
         assert _free_soon(url, 30) < 30
+
+
+def test_a_diagnosis_stops_at_render_timeout_and_says_so():
+    # a diagnosis ran past render_timeout (5 s set: answered after 17.6 s; the term fit polled no deadline).
+    # This one (a noisy image of 96 lights) takes far longer than the 1 s given; it stops within a chunk of it
+    from test_bounded_diagnosis import many_lights as scene
+
+    service = RenderService(Settings(render_timeout=1, max_cost=1e12))
+    job = prepare(json.dumps(scene(96)), {}, service.settings)
+    png = service.png(job)
+    reference = Renderer(job.scene).pixels()
+    noise = np.random.default_rng(1).integers(0, 256, reference.shape, dtype=np.uint8)
+    started = time.monotonic()
+    explained = service.explain(job, compare(png, noise, 2, 0.001), reference, noise)
+    assert time.monotonic() - started < 10  # (ten times the deadline: stopped, not finished)
+    assert explained.diagnosis is not None
+    assert explained.diagnosis["sentence"] == "No diagnosis: its renders ran past the limit render_timeout = 1 s"
