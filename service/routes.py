@@ -299,10 +299,22 @@ class Streamed(Response):
                 if waiting.cancelled_caught:
                     await _drop(scope)
                     return
+                if await _left(receive):  # (a send to a closed connection returns at once: stop copying)
+                    return
+                await anyio.sleep(0)  # (a turn of the event loop between chunks, for the other requests)
             await send({"type": "http.response.body", "body": b"", "more_body": False})
         finally:
             del file
             self.done()
+
+
+async def _left(receive: Any) -> bool:
+    """Whether the client has gone, looked at without waiting (as :meth:`Request.is_disconnected` looks)."""
+    with anyio.CancelScope() as look:
+        look.cancel()
+        message = await receive()
+        return bool(message.get("type") == "http.disconnect")
+    return False
 
 
 async def _drop(scope: Any) -> None:
