@@ -10,7 +10,7 @@ The kinds: a noisy image of a 100-point-light 640×480 scene graded (a diagnosis
 that leaves after 3 s; a ``side``² ``?pass=normal&format=npy`` read whole, one never read (the client closes
 after 60 s), and one whose client leaves after 2 s; ``?format=npy`` and ``?light=0`` without a pass (422);
 small renders and passes.  A 503 is waited out after its ``Retry-After`` (as the command line's client does) and
-counted apart; "5xx" counts every other 5xx, and 503s still refused after 60 tries.
+counted apart; "5xx" counts every other 5xx, and 503s still refused after 10 minutes.
 """
 
 from __future__ import annotations
@@ -117,8 +117,10 @@ def form(scene: bytes, image: bytes) -> tuple[bytes, str]:
 
 
 def asked(url: str, path: str, body: bytes, kind: str, waits: Counter) -> tuple[int, int]:
-    """Status and bytes read of one request, 503s waited out after their Retry-After."""
-    for _ in range(60):
+    """Status and bytes read of one request, 503s waited out after their Retry-After (for at most 10 minutes, as
+    the command line's client waits)."""
+    given_up = time.monotonic() + 600
+    while time.monotonic() < given_up:
         req = urllib.request.Request(url + path, body, {"content-type": kind})
         try:
             with urllib.request.urlopen(req, timeout=600) as res:

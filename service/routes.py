@@ -182,6 +182,9 @@ async def _png(request: Request, job: Job) -> bytes:
         tasks.cancel_scope.cancel()
     if not gone.is_set():
         flight.waiting -= 1
+    if not gone.is_set() and isinstance(flight.failure, RenderCancelled):
+        # the flight stopped when every client waiting on it had left, as this one joined it: render again
+        return await _png(request, job)
     failure = RenderCancelled("client closed the request") if gone.is_set() else flight.failure
     result = flight.result
     try:

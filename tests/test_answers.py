@@ -231,3 +231,23 @@ def test_a_diagnosis_stops_at_render_timeout_and_says_so():
     assert time.monotonic() - started < 10  # (ten times the deadline: stopped, not finished)
     assert explained.diagnosis is not None
     assert explained.diagnosis["sentence"] == "No diagnosis: its renders ran past the limit render_timeout = 1 s"
+
+
+def test_a_client_that_joins_a_render_as_its_last_waiter_leaves_gets_the_image(monkeypatch):
+    # the acceptance run's one 499 to a client that stayed: it joined a flight whose only waiter had just left,
+    # and the flight, stopped for nobody, gave it the cancellation.  Its request renders again
+    api = client()
+    calls = []
+    real = RenderService.png
+
+    def png(self, job, cancelled=lambda: False):
+        calls.append(job.key)
+        if len(calls) == 1:  # (as a flight stopped by its last waiter's leaving ends for one that just joined)
+            from tracer import RenderCancelled
+
+            raise RenderCancelled("the render was cancelled")
+        return real(self, job, cancelled)
+
+    monkeypatch.setattr(RenderService, "png", png)
+    res = api.post("/render", content=SCENE, headers=JSON)
+    assert res.status_code == 200 and res.headers["content-type"] == "image/png" and len(calls) == 2
