@@ -1,8 +1,8 @@
 """Issue 44's acceptance for answers, passes and diagnoses: a two-worker ``phongray serve`` on 127.0.0.1 (under
 ``prlimit --as`` when given a cap) answers a fixed mix of requests of the attacks' kinds, at most ``--clients``
 at once, while ``/healthz`` is asked every 0.2 s; prints each kind's outcomes, the slowest ``/healthz``, the
-peak of the workers' summed resident memory, the worker processes seen (a restart adds one) and whether any
-answer was a 5xx other than a 503 the client waited out.
+peak of the server's summed proportional (and resident) memory, the worker processes seen (a restart adds
+one) and whether any answer was a 5xx other than a 503 the client waited out.
 
     python -m bench.answers [--requests 100] [--clients 8] [--cap-gib 4] [--side 4096]
 
@@ -91,12 +91,15 @@ class Server:
         self.log.close()
 
 
-def rss(pid: int) -> int:
+def rss(pid: int) -> tuple[int, int]:
+    """A process's resident and proportional set sizes (bytes): PSS counts a page shared by the forked workers
+    once in all, as a memory cap counts it; RSS counts it in each."""
     try:
-        with open(f"/proc/{pid}/statm") as f:
-            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-    except OSError:
-        return 0
+        with open(f"/proc/{pid}/smaps_rollup") as f:
+            fields = {line.split(":")[0]: int(line.split()[1]) * 1024 for line in f if line.split()[-1] == "kB"}
+        return fields.get("Rss", 0), fields.get("Pss", 0)
+    except (OSError, ValueError, IndexError):
+        return 0, 0
 
 
 def raw(url: str, path: str, body: bytes, kind: str) -> socket.socket:
@@ -173,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     server = Server(args.cap_gib, logs / "server.log", render_timeout=args.render_timeout,
                     send_timeout=args.send_timeout)
     done = threading.Event()
-    slowest, peak, workers = [0.0], [0], set()
+    slowest, peak, workers = [0.0], [0, 0], set()
     waits: Counter = Counter()
     outcomes: dict[str, Counter] = defaultdict(Counter)
     started = time.monotonic()
@@ -187,7 +190,8 @@ def main(argv: list[str] | None = None) -> int:
                 slowest[0] = max(slowest[0], time.perf_counter() - t)
             except OSError:
                 slowest[0] = float("inf")
-            peak[0] = max(peak[0], sum(rss(p) for p in server.tree()))
+            sizes = [rss(p) for p in server.tree()]
+            peak[:] = [max(peak[0], sum(r for r, _ in sizes)), max(peak[1], sum(p for _, p in sizes))]
             time.sleep(0.2)
 
     def one(case: tuple[str, str, bytes, str]) -> None:
@@ -238,7 +242,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"5xx answers: {errors}; 'Traceback' in the server's log: {log.count('Traceback')}; "
           f"MemoryError: {log.count('MemoryError')}")
     print(f"worker processes seen: {len(workers)} (2 without a restart); slowest /healthz {slowest[0] * 1000:.0f} ms; "
-          f"peak summed RSS {peak[0] / 2**30:.2f} GiB; after: answer_bytes {after.get('answer_bytes')}")
+          f"peak summed PSS {peak[1] / 2**30:.2f} GiB (RSS {peak[0] / 2**30:.2f} GiB, shared pages counted in each "
+          f"process); after: answer_bytes {after.get('answer_bytes')}")
     return 0 if errors == 0 and len(workers) == 2 and slowest[0] < 0.5 else 1
 
 
