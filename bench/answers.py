@@ -8,7 +8,7 @@ one) and whether any answer was a 5xx other than a 503 the client waited out.
 
 The kinds: a noisy image of a 100-point-light 640×480 scene graded (a diagnosis), and the same with a client
 that leaves after 3 s; a ``side``² ``?pass=normal&format=npy`` read whole, one never read (the client closes
-after 60 s), and one whose client leaves after 2 s; ``?format=npy`` and ``?light=0`` without a pass (422);
+after 120 s), and one whose client leaves after 2 s; ``?format=npy`` and ``?light=0`` without a pass (422);
 small renders and passes.  A 503 is waited out after its ``Retry-After`` (as the command line's client does) and
 counted apart; "5xx" counts every other 5xx, and 503s still refused after 10 minutes.
 """
@@ -201,8 +201,8 @@ def main(argv: list[str] | None = None) -> int:
             if name.endswith("client leaves"):
                 time.sleep(3 if path == "/grade" else 2)
                 outcomes[name]["left"] += 1
-            else:  # 60 s without reading; then what had come before the server dropped it, and its end
-                time.sleep(60)
+            else:  # 120 s without reading (past render_timeout, send_timeout and a wait for a slot); then what
+                time.sleep(120)  # had come before the server dropped it, and its end
                 sock.settimeout(5)
                 got = 0
                 try:
