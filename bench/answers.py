@@ -7,10 +7,11 @@ one) and whether any answer was a 5xx other than a 503 the client waited out.
     python -m bench.answers [--requests 100] [--clients 8] [--cap-gib 4] [--side 4096]
 
 The kinds: a noisy image of a 100-point-light 640×480 scene graded (a diagnosis), and the same with a client
-that leaves after 3 s; a ``side``² ``?pass=normal&format=npy`` read whole, one never read (the client closes
-after 120 s), and one whose client leaves after 2 s; ``?format=npy`` and ``?light=0`` without a pass (422);
-small renders and passes.  A 503 is waited out after its ``Retry-After`` (as the command line's client does) and
-counted apart; "5xx" counts every other 5xx, and 503s still refused after 10 minutes.
+that leaves after 3 s; a ``side``² ``?pass=normal&format=npy`` read whole, one never read (looked at once its
+answer has begun and send_timeout has passed), and one whose client leaves after 2 s; ``?format=npy`` and
+``?light=0`` without a pass (422); small renders and passes.  A 503 is waited out after its ``Retry-After`` (as
+the command line's client does) and counted apart; "5xx" counts every other 5xx, and 503s still refused after
+10 minutes.
 """
 
 from __future__ import annotations
@@ -201,8 +202,17 @@ def main(argv: list[str] | None = None) -> int:
             if name.endswith("client leaves"):
                 time.sleep(3 if path == "/grade" else 2)
                 outcomes[name]["left"] += 1
-            else:  # 120 s without reading (past render_timeout, send_timeout and a wait for a slot); then what
-                time.sleep(120)  # had come before the server dropped it, and its end
+            else:  # never read: once its answer has begun (its first bytes here, looked at without reading),
+                # send_timeout and 20 s more; then what had come before the server dropped it, and its end
+                begun = time.monotonic() + 600
+                while time.monotonic() < begun:
+                    try:
+                        if sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT):
+                            break
+                    except BlockingIOError:
+                        pass
+                    time.sleep(1)
+                time.sleep(float(args.send_timeout) + 20)
                 sock.settimeout(5)
                 got = 0
                 try:
