@@ -37,6 +37,11 @@ class TooSlow(Exception):
     """The render ran past the time limit."""
 
 
+class OutOfMemory(Busy):
+    """The work ran out of memory as it ran (the worker's other work held it): stopped, its memory let go, and
+    answered as a busy slot is, to be tried again."""
+
+
 class ClusterDown(Exception):
     """The Dask cluster the renders go to cannot be reached."""
 
@@ -184,6 +189,8 @@ class RenderService:
                     if gone():
                         raise
                     raise TooSlow() from None
+                except MemoryError:
+                    raise OutOfMemory() from None
             self.answers.give(held - made.size)  # (what the making held beyond the file itself)
             held = made.size
             if made.size <= self.cache.max_bytes // 4:  # (a small answer is kept; a large one would crowd out all)
@@ -213,6 +220,9 @@ class RenderService:
                                cache=self.diagnoses)
         except Busy:
             return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
+        except MemoryError:
+            return replace(graded, diagnosis=unavailable("its renders ran out of memory beside the worker's other "
+                                                         "work; grade again for one"))
         except RenderCancelled:
             if gone():
                 raise

@@ -22,7 +22,7 @@ from tracer.memory import release
 
 from . import grading, pipeline
 from .heatmap import Kind
-from .jobs import AnswersFull, Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted, prepare
+from .jobs import AnswersFull, Busy, ClusterDown, Job, OutOfMemory, RenderService, TooSlow, parse_counted, prepare
 from .limits import LimitError
 from .models import ErrorAnswer, GradeAnswer, ValidAnswer
 from .passes import PassFile
@@ -136,6 +136,8 @@ def _unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
     settings = service.settings
     detail = (f"the pass answers this worker holds leave no room for this one now (max_answer_bytes = "
               f"{settings.max_answer_bytes}); try again shortly" if isinstance(exc, AnswersFull) else
+              "the render ran out of memory beside this worker's other work; try again shortly"
+              if isinstance(exc, OutOfMemory) else
               "every render slot is busy; try again shortly" if isinstance(exc, Busy) else
               f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
               if isinstance(exc, TooSlow) else "the render cluster cannot be reached; try again shortly")

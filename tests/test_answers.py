@@ -251,3 +251,24 @@ def test_a_client_that_joins_a_render_as_its_last_waiter_leaves_gets_the_image(m
     monkeypatch.setattr(RenderService, "png", png)
     res = api.post("/render", content=SCENE, headers=JSON)
     assert res.status_code == 200 and res.headers["content-type"] == "image/png" and len(calls) == 2
+
+
+def test_a_pass_or_a_diagnosis_out_of_memory_is_a_503_not_a_500(monkeypatch):
+    # the acceptance run under prlimit --as: a 4096² pass beside the worker's other work hit MemoryError, 500
+    api = client()
+
+    def starved(*args, **kwargs):
+        raise MemoryError("Unable to allocate 384. MiB")
+
+    monkeypatch.setattr(passes, "values", starved)
+    res = api.post("/render?pass=normal&format=npy", content=SCENE, headers=JSON)
+    assert res.status_code == 503 and "out of memory" in res.json()["detail"] and "retry-after" in res.headers
+    assert api.app.state.service.answers.held == 0
+    service = RenderService(Settings())
+    job = prepare(SCENE, {}, service.settings)
+    png = service.png(job)
+    reference = Renderer(job.scene).pixels()
+    wrong = Renderer(job.scene.model_copy(update={"lights": job.scene.lights[:1]})).pixels()
+    monkeypatch.setattr("service.jobs.explain", starved)
+    explained = service.explain(job, compare(png, wrong, 2, 0.001), reference, wrong)
+    assert explained.diagnosis is not None and "ran out of memory" in explained.diagnosis["sentence"]
