@@ -16,12 +16,12 @@ import anyio
 import numpy as np
 
 from schemas import Scene, parse_json, validate_scene
-from tracer import RenderCancelled, encode_png
+from tracer import OverBudget, RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
 from .diagnosis import Cached, unavailable
-from .limits import LimitError, check_body, check_raw, check_scene
+from .limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
 from .passes import Format, PassFile
 from .pipeline import Graded, explain, with_overrides
 from .rendering import render_pixels
@@ -129,7 +129,8 @@ class RenderService:
             release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
 
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:
-        """The PNG of a job, from the cache or rendered. Raises Busy, TooSlow or RenderCancelled.
+        """The PNG of a job, from the cache or rendered. Raises Busy, TooSlow, RenderCancelled, or LimitError when
+        the render outgrows its budget (:func:`service.limits.budget`).
 
         Concurrent requests for one scene are joined before they get here (one flight per scene in
         :mod:`service.routes`), so each scene is rendered once."""
@@ -139,11 +140,14 @@ class RenderService:
         with self._slot() as late:
             client = self._client() if self.settings.cluster else None
             try:
-                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=lambda: cancelled() or late())
+                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=lambda: cancelled() or late(),
+                                       budget=budget(job.scene, self.settings))
             except RenderCancelled:
                 if late():
                     raise TooSlow() from None
                 raise
+            except OverBudget as exc:
+                raise outgrown(exc, self.settings) from None
             data = encode_png(pixels)
             del pixels  # before the slot's release, so that its pages go back too
             self.renders += 1
@@ -157,7 +161,8 @@ class RenderService:
         one), and the bytes of :attr:`answers` it holds: the caller gives them back once it is sent.  Priced up
         front (:func:`service.passes.price`): LimitError when it could never fit in ``max_answer_bytes``,
         AnswersFull when it does not now.  Raises Busy, TooSlow, ClusterDown, RenderCancelled once ``gone()``
-        (its client left), or ValueError for a light the scene does not have."""
+        (its client left), LimitError when it outgrows its render budget (:func:`service.limits.budget`), or
+        ValueError for a light the scene does not have."""
         from . import passes
 
         media = "application/x-npy" if fmt == "npy" else "image/png"
@@ -184,11 +189,14 @@ class RenderService:
                                    light, fmt, self.settings.render_timeout, cancelled=stop)
                         made = passes.PassFile(b"", data, media)
                     else:
-                        made = passes.as_file(name, passes.values(job.scene, name, light, self.threads, stop), fmt)
+                        made = passes.as_file(name, passes.values(job.scene, name, light, self.threads, stop,
+                                                                  budget=budget(job.scene, self.settings)), fmt)
                 except RenderCancelled:
                     if gone():
                         raise
                     raise TooSlow() from None
+                except OverBudget as exc:
+                    raise outgrown(exc, self.settings) from None
                 except MemoryError:
                     raise OutOfMemory() from None
             self.answers.give(held - made.size)  # (what the making held beyond the file itself)

@@ -35,6 +35,7 @@ import numpy as np
 
 from schemas import Scene
 from tracer import Renderer, encode_png
+from tracer.budget import UNLIMITED, Budget
 from tracer.image import quantize
 from tracer.passes import ADDITIVE, NAMES
 
@@ -69,11 +70,12 @@ def price(scene: Scene, name: str, fmt: Format) -> int:
 
 
 def values(scene: Scene, name: str, light: int | None = None, threads: int | None = None,
-           cancel: Callable[[], bool] | None = None) -> np.ndarray:
-    """The pass ``name`` of ``scene`` (of light ``light`` alone where that applies), as the tracer gives it.
-    ValueError names an unknown pass or a light the scene does not have."""
+           cancel: Callable[[], bool] | None = None, budget: Budget = UNLIMITED) -> np.ndarray:
+    """The pass ``name`` of ``scene`` (of light ``light`` alone where that applies), as the tracer gives it,
+    within ``budget`` (else :class:`tracer.OverBudget`).  ValueError names an unknown pass or a light the scene
+    does not have."""
     wanted = [name, "object"] if name in ("normal", "depth") else [name]
-    out = Renderer(scene).passes(wanted, light, threads=threads, cancel=cancel)
+    out = Renderer(scene).passes(wanted, light, threads=threads, cancel=cancel, budget=budget)
     if name == "normal":  # nothing hit: no normal (the tracer leaves zeros there), in place
         out["normal"][out["object"] < 0] = 0.0
     return out[name]
