@@ -78,9 +78,10 @@ def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | N
 
 
 def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float,
-               scene: bytes | None = None) -> dict[str, Any]:
+               scene: bytes | None = None, accepted: dict[str, float] | None = None) -> dict[str, Any]:
     """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"`` and,
-    given the reference's ``scene`` text, the likely mistake of a failing one; or an invalid row whose reason
+    given the reference's ``scene`` text, a failing one graded again against the task's ``accepted`` variants
+    (None: the defaults) and the likely mistake of one that fails them too; or an invalid row whose reason
     lacks only the file's name."""
     from schemas import load_scene
 
@@ -88,17 +89,18 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
 
     try:
         graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict",
-                                    scene=None if scene is None else lambda: load_scene(scene), threads=1)
+                                    scene=None if scene is None else lambda: load_scene(scene), threads=1,
+                                    checks=pipeline.Checks(accepted=accepted))
     except grading.ImageError as exc:
         return {"status": "invalid", "reason": str(exc)}
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
 
 
-def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float
-                 ) -> dict[str, Any]:
+def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float,
+                 accepted: dict[str, float] | None = None) -> dict[str, Any]:
     """:func:`grade_task` with the scene's text first, as the service's grade task takes it (the reference is
-    already rendered: the scene is for the diagnosis of a failing pair)."""
-    return grade_task(reference, image, tolerance, max_fraction, scene)
+    already rendered: the scene is for the accepted variants and the diagnosis of a failing pair)."""
+    return grade_task(reference, image, tolerance, max_fraction, scene, accepted)
 
 
 def _server_render(server: str, api_key: str | None, scene: bytes, limits: Settings | None = None
@@ -118,8 +120,10 @@ def _server_render(server: str, api_key: str | None, scene: bytes, limits: Setti
 
 
 def _server_grade(server: str, api_key: str | None, scene: bytes, reference: bytes, image: bytes,
-                  tolerance: float, max_fraction: float) -> dict[str, Any]:
-    """:func:`grade_task` by a running service (which renders the same reference, from its cache)."""
+                  tolerance: float, max_fraction: float, accepted: dict[str, float] | None = None
+                  ) -> dict[str, Any]:
+    """:func:`grade_task` by a running service (which renders the same reference, from its cache, and accepts
+    its own default variants: a task's ``accepted`` is for local grading)."""
 
     from .client import ServerError, post_form
 
@@ -557,13 +561,16 @@ def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes]
         thresholds = (tolerance if own.tolerance is None else own.tolerance,
                       max_fraction if own.max_fraction is None else own.max_fraction)
         stamp = journal.stamp(pair.key, hashlib.sha256(image).hexdigest(), *thresholds)
+        if own.accepted is not None:
+            stamp["accepted"] = own.accepted
         row = _resumed(pair, report, stamp)
         if row is not None:
             pair.row = row
             continue
         if pair.key not in references:
             references[pair.key] = refs[pair.key].read_bytes()
-        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds))
+        accepted = () if own.accepted is None else (own.accepted,)  # (the defaults: the call as it was)
+        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds, *accepted))
         about[n] = (pair, image, stamp)
     tick()
 
@@ -584,6 +591,9 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
         diagnosis = result.pop("diagnosis", None)
         result["likely"], result["mistakes"] = headline(diagnosis), matched(diagnosis)
+        accepted = result.pop("accepted", None)
+        if accepted:  # passed as an honest tracer's variant: the reason says which
+            result["reason"] = f"as rendered with {accepted}"
         heat, copy = _paths(pair, report)
         write_atomic(heat, result.pop("heatmap_png"))
         write_atomic(copy, image)

@@ -126,7 +126,8 @@ def _drop_stale_results(folder: Path, students: set[str]) -> None:
 def test_output(row: dict[str, Any]) -> str:
     """What a student reads of one task: the verdict and its reason or numbers, and the likely mistake."""
     if row["status"] == "pass":
-        return (f"passed: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
+        how = f", {row['reason']}" if row.get("reason") else ""  # (as rendered with an accepted variant)
+        return (f"passed{how}: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
                 f"(at most {percent(row['max_fraction'])} may be)")
     likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
     credit = f"\n{partial(row)}" if row.get("deducted") else ""

@@ -1,7 +1,8 @@
 """The optional tasks file of a class: per task, its points, its own grading thresholds and its deductions.
 
 ```json
-{"spheres": {"points": 10, "tolerance": 3, "deductions": {"no-shadows": 4}}, "mirror": {"points": 5}}
+{"spheres": {"points": 10, "tolerance": 3, "deductions": {"no-shadows": 4}}, "mirror": {"points": 5},
+ "glass": {"accepted": {"normal-offset": 0.002}}}
 ```
 
 A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS`): an image whose one fault is that
@@ -38,6 +39,9 @@ class TaskSettings(BaseModel):
     max_fraction: Annotated[Number, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
     visibility: Literal["visible", "hidden", "after_due_date", "after_published"] = "visible"  # Gradescope's
     deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
+    #: the accepted variants of honest tracers, name → largest amount × the scene's size (None: the defaults,
+    #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
+    accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None
 
 
 _FILE = TypeAdapter(dict[str, TaskSettings])
