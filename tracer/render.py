@@ -133,11 +133,17 @@ class Renderer:
                                        self._stop, self._count)
             self.shading.spawn = self.spawn
         self.intersector.check = self._stop
+        self.intersector.tested = self._count.tested
 
     @property
     def spent(self) -> int:
         """What the budget counted of the last render (:class:`tracer.budget.RayCount`)."""
         return self._count.total
+
+    @property
+    def tests(self) -> int:
+        """The exact tests of rays against spheres and triangles the last render made (its budget's ``tests``)."""
+        return self._count.tests
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int | None = None,
@@ -163,6 +169,7 @@ class Renderer:
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, end)) for a in range(first, end, per_chunk)]
         out = np.empty((total, 3), dtype=np.uint8)
+        self._count.plan(total * img.samples * img.samples)
 
         stopped = False
 
@@ -213,6 +220,7 @@ class Renderer:
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        self._count.plan(total * img.samples * img.samples)
         counted = int(np.count_nonzero(self.emitter_light == light)) if light is not None else len(self.emitter_light)
 
         whole: dict[str, np.ndarray] = {}
