@@ -218,9 +218,10 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
                        format: Annotated[Literal["png", "npy"], Query(description="with pass: a PNG to look "
                                          "at, or the values as a NumPy .npy array")] = "png") -> Response:
     _require_json(request)
-    if pass_ is None:  # (as the command line refuses --light or an .npy file without --pass)
+    if pass_ is None:  # (as the command line refuses --light or an .npy file without --pass; format=png, the
+        # default, which the API page's "Try it out" sends with every render, asks for what a render gives)
         for option in ("format", "light"):
-            if option in request.query_params:
+            if option in request.query_params and request.query_params.get(option) != "png":
                 raise HTTPProblem(422, f"{option}: applies to a render pass only; add pass=NAME (one of "
                                        f"{', '.join(get_args(PassName))}) or leave {option} out")
     service: RenderService = request.app.state.service

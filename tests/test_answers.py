@@ -33,13 +33,19 @@ def client(**settings):
     return TestClient(create_app(Settings(**settings)))
 
 
-@pytest.mark.parametrize("query, named", [("format=npy", "format"), ("format=png", "format"), ("light=0", "light")])
+@pytest.mark.parametrize("query, named", [("format=npy", "format"), ("light=0", "light")])
 def test_a_pass_option_without_a_pass_is_refused_naming_it(query, named):
     res = client().post(f"/render?{query}", content=SCENE, headers=JSON)
     assert res.status_code == 422, res.status_code
     assert res.json()["detail"].startswith(f"{named}: applies to a render pass only")
     # with the pass, the same option is taken
     assert client().post(f"/render?pass=diffuse&{query}", content=SCENE, headers=JSON).status_code == 200
+
+
+def test_format_png_without_a_pass_is_the_render_it_asks_for():
+    # the API page's "Try it out" sends every query parameter's default, format=png among them
+    res = client().post("/render?format=png", content=SCENE, headers=JSON)
+    assert res.status_code == 200 and res.headers["content-type"] == "image/png"
 
 
 def test_a_pass_beyond_max_answer_bytes_is_refused_up_front_naming_it():
