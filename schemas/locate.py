@@ -112,9 +112,9 @@ def as_lines(name: str, problems: list[tuple[str, str]], text: bytes | str) -> l
 
 def format_located(name: str, errors: list[dict[str, object]]) -> list[str]:
     """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as :func:`located`
-    and the service's answers give them)."""
+    and the service's answers give them), in the order of their lines (those of no line first)."""
     out = []
-    for e in errors:
+    for e in sorted(errors, key=lambda e: int(e.get("line") or 0)):  # type: ignore[call-overload]
         what = f"{e.get('path')}: {e.get('message')}" if e.get("path") else str(e.get("message"))
         out.append(f"{name}:{e['line']}: {what}" if e.get("line") else f"{name}: {what}")
     return out

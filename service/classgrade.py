@@ -82,11 +82,11 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
 
 
-def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float
-                 ) -> dict[str, Any]:
+def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float,
+                 diagnose: bool = True) -> dict[str, Any]:
     """:func:`grade_task` with the scene's text first, as the service's grade task takes it (the reference is
-    already rendered: the scene is for the diagnosis of a failing pair)."""
-    return grade_task(reference, image, tolerance, max_fraction, scene)
+    already rendered: the scene is for the diagnosis of a failing pair, unless not to ``diagnose``)."""
+    return grade_task(reference, image, tolerance, max_fraction, scene if diagnose else None)
 
 
 def _server_render(server: str, api_key: str | None, scene: bytes, timeout: float | None = None
@@ -106,13 +106,14 @@ def _server_render(server: str, api_key: str | None, scene: bytes, timeout: floa
 
 
 def _server_grade(server: str, api_key: str | None, scene: bytes, reference: bytes, image: bytes,
-                  tolerance: float, max_fraction: float) -> dict[str, Any]:
+                  tolerance: float, max_fraction: float, diagnose: bool = True) -> dict[str, Any]:
     """:func:`grade_task` by a running service (which renders the same reference, from its cache)."""
     import json
 
     from .client import ServerError, post_form
 
-    fields = {"scene": scene, "tolerance": repr(tolerance), "max_fraction": repr(max_fraction)}
+    fields = {"scene": scene, "tolerance": repr(tolerance), "max_fraction": repr(max_fraction),
+              "diagnose": "true" if diagnose else "false"}
     files = {"image": ("submission.png", image, "image/png")}
     try:
         result = json.loads(_patient(post_form, server, "/grade", fields, files, api_key=api_key))
@@ -286,13 +287,14 @@ class _Backend:
 
     def _connect(self, timeout: float = 10.0) -> None:
         """A client of the scheduler (a new one when the old has lost it) with a worker, and its executor."""
-        from .cluster import client, wait_for_workers
+        from .cluster import client, connect_timeout, wait_for_workers
 
         assert self.cluster is not None
+        started = time.monotonic()
         if self.client is None or getattr(self.client, "status", "running") != "running":
             self._close_client()
-            self.client = client(self.cluster, timeout)
-        wait_for_workers(self.client, self.cluster, self.cluster_wait)
+            self.client = client(self.cluster, connect_timeout(timeout, self.cluster_wait))
+        wait_for_workers(self.client, self.cluster, self.cluster_wait, time.monotonic() - started)
         self.executor = self.client.get_executor(retries=2)
 
     def _close_client(self) -> None:
@@ -392,7 +394,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
                 jobs: int | None = None, server: str | None = None, cluster: str | None = None,
                 progress: Callable[[int, int], None] | None = None, api_key: str | None = None,
                 student_scenes: Path | None = None, tasks_file: Path | None = None,
-                cluster_wait: float = 30.0) -> Outcome:
+                cluster_wait: float = 30.0, diagnose: bool = True) -> Outcome:
     """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away.
     Raises :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a
     fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
@@ -405,7 +407,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     _writable(report)
     try:
         return _run(batch, tasks, scene_of_key, texts, report, tolerance, max_fraction, jobs, server, cluster,
-                    progress, api_key, cluster_wait, started, settings)
+                    progress, api_key, cluster_wait, started, settings, diagnose)
     except Exception:
         if made:  # a run stopped by a fault of the TA's leaves no empty report folder behind
             with contextlib.suppress(OSError):
@@ -416,7 +418,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
 def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, Path], texts: dict[Path, bytes],
          report: Path, tolerance: float, max_fraction: float, jobs: int | None, server: str | None,
          cluster: str | None, progress: Callable[[int, int], None] | None, api_key: str | None,
-         cluster_wait: float, started: float, settings: Settings) -> Outcome:
+         cluster_wait: float, started: float, settings: Settings, diagnose: bool = True) -> Outcome:
     """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report."""
     for pair in batch.pairs:
         if not pair.row and pair.image is None:
@@ -435,6 +437,8 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
 
     backend = _Backend(server, cluster, jobs, len(todo) + len(needed), api_key, cluster_wait,
                        settings.render_timeout)
+    if not diagnose:
+        backend.grade = partial(backend.grade, diagnose=False)
     try:
         references = _render_all(backend, needed, refs, texts, report)
         _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts,
@@ -447,10 +451,21 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
         backend.close(wait=False)
         raise
     backend.close()
+    _drop_stale_references(report, refs)
     rows = [_row(p, refs, report, tasks) for p in batch.pairs]
     outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - started)
     write_report(report, rows, batch.ignored, batch.students, tasks, outcome.summary())
     return outcome
+
+
+def _drop_stale_references(report: Path, refs: dict[str, Path]) -> None:
+    """An earlier run's references of scenes that are no longer the batch's (a scene changed, a task gone)
+    are removed: the report's references folder holds this batch's and no other."""
+    current = set(refs.values())
+    with contextlib.suppress(OSError):
+        for old in (report / "references").glob("*.png"):
+            if old not in current:
+                old.unlink()
 
 
 def _kept(report: Path) -> str:
