@@ -147,7 +147,7 @@ def test_one_transparent_pixel_of_an_rgba_png_is_refused_by_its_place(bits):
     values = np.full((6, 9, 4), 255 if bits == 8 else 65535, np.uint16)
     values[4, 7, 3] = 254 if bits == 8 else 65406  # 65406 / 257 = 254.5 - 1/514: rounds down to 254
     image = _pillow_png(Image.fromarray(values.astype(np.uint8), "RGBA")) if bits == 8 else png16(values, 6)
-    with pytest.raises(ValueError, match=r"image has 1 pixels that are not fully opaque \(the first at x = 7, y = 4\)"):
+    with pytest.raises(ValueError, match=r"image has 1 pixel that is not fully opaque \(at x = 7, y = 4\)"):
         read_submission(image, (9, 6))
     values[4, 7, 3] = 255 if bits == 8 else 65407  # the lowest 16-bit alpha that rounds to 255
     image = _pillow_png(Image.fromarray(values.astype(np.uint8), "RGBA")) if bits == 8 else png16(values, 6)
