@@ -115,11 +115,19 @@ def test_a_client_that_disconnects_stops_costing_cpu(server):
     url, proc = server
     with urllib.request.urlopen(url + "/healthz") as res:
         renders_before = json.loads(res.read())["renders"]
+    before = cpu_seconds(proc.pid)
     sock = slow_request(url)
-    time.sleep(0.8)
-    busy = cpu_seconds(proc.pid)
+    deadline = time.monotonic() + 60  # until the render has cost 0.3 s of CPU (0.8 s on a quiet machine)
+    while cpu_seconds(proc.pid) - before < 0.3 and time.monotonic() < deadline:
+        time.sleep(0.1)
+    busy = cpu_seconds(proc.pid) - before
     sock.close()
-    time.sleep(1.5)  # the render stops at its next light or chunk
+    time.sleep(1.5)  # the render stops at its next light or chunk (later on a busy machine: 10 s at most)
+    for _ in range(17):
+        last = cpu_seconds(proc.pid)
+        time.sleep(0.5)
+        if cpu_seconds(proc.pid) - last < 0.05:
+            break
     settled = cpu_seconds(proc.pid)
     time.sleep(1.5)
     idle = cpu_seconds(proc.pid) - settled
