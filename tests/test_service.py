@@ -51,6 +51,15 @@ def test_render_gives_the_same_bytes_as_the_cli_path(api, reference_png):
     assert float(res.headers["x-render-seconds"]) >= 0
 
 
+def test_a_render_says_whether_it_came_from_the_cache(api):
+    data = json.loads(SCENE)
+    data["image"]["background"] = [0.011, 0.0, 0.0]  # rendered by no other test
+    body = json.dumps(data)
+    first, second = (api.post("/render", content=body, headers=JSON) for _ in range(2))
+    assert (first.headers["x-cache"], second.headers["x-cache"]) == ("miss", "hit")
+    assert first.content == second.content
+
+
 def test_etag_and_if_none_match(api):
     etag = api.post("/render", content=SCENE, headers=JSON).headers["etag"]
     res = api.post("/render", content=SCENE, headers={**JSON, "if-none-match": etag})
