@@ -209,11 +209,11 @@ def test_validate_prints_the_json_line_of_every_problem(tmp_path, capsys):
                    ' "materials": {"gold": {}},\n "objects": [{"type": "sphere", "material": "glod",\n'
                    '   "center": [0, 0, 0], "radius": -1}]}\n')
     assert main(["validate", str(bad)]) == 1
-    assert capsys.readouterr().out.splitlines() == [
-        f"{bad}:6: objects[0].radius: must be > 0",
+    assert capsys.readouterr().out.splitlines() == [  # in the order of their lines
         f"{bad}:1: camera.look_at: required",
         f"{bad}:2: camera.look_At: unknown key (did you mean 'look_at'?)",
-        f"{bad}:5: objects[0].material: unknown material 'glod' (did you mean 'gold'?)"]
+        f"{bad}:5: objects[0].material: unknown material 'glod' (did you mean 'gold'?)",
+        f"{bad}:6: objects[0].radius: must be > 0"]
     syntax = tmp_path / "syntax.json"
     syntax.write_text('{"camera": {\n  "x": 1,,\n}}')
     assert main(["validate", str(syntax)]) == 1
