@@ -238,13 +238,19 @@ def test_playground_says_from_cache_for_a_cached_image(server, browser):
     page.close()
 
 
-def test_playground_clears_the_old_error_list_as_the_scene_is_edited(server, browser):
+def test_playground_lists_errors_in_line_order_and_clears_them_as_the_scene_is_edited(server, browser):
     page = offline_page(browser, server)
     page.goto(server + "/")
-    page.fill("#scene", page.input_value("#scene").replace('"width": 160', '"width": -1', 1))
+    data = json.loads(page.input_value("#scene"))
+    data["objects"][0]["material"] = "glod"  # found after the fields' errors, but on an earlier line
+    data["objects"][-1]["radius"] = -1
+    page.fill("#scene", json.dumps(data, indent=2))
     page.click("#render")
     page.wait_for_selector("#errors li", timeout=20_000)
-    assert page.locator("#gutter .bad").count() == 1
+    items = page.locator("#errors li").all_inner_texts()
+    lines = [int(item.split(":")[0].removeprefix("line ")) for item in items]
+    assert len(items) == 2 and lines == sorted(lines) and "unknown material" in items[0], items
+    assert page.locator("#gutter .bad").count() == 2
     page.focus("#scene")
     page.keyboard.press("End")
     page.keyboard.type(" ")
