@@ -32,15 +32,17 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
 
+from . import journal
 from .diagnosis import headline
+from .gradebook import matched, score
 from .report import COLUMNS, NUMBERS, STATUSES, summary, write_atomic, write_report
 from .settings import Settings
-from .submissions import SCENE_IGNORED, Batch, ClassError, Pair, UntrustedFileError, discover, read_untrusted
+from .submissions import SCENE_IGNORED, Batch, ClassError, Pair, discover
 from .taskfile import TaskSettings, load_tasks
 
 __all__ = ["COLUMNS", "NUMBERS", "SCENE_IGNORED", "STATUSES", "ClassError", "Outcome", "grade_class", "grade_task",
@@ -108,7 +110,6 @@ def _server_render(server: str, api_key: str | None, scene: bytes, timeout: floa
 def _server_grade(server: str, api_key: str | None, scene: bytes, reference: bytes, image: bytes,
                   tolerance: float, max_fraction: float, diagnose: bool = True) -> dict[str, Any]:
     """:func:`grade_task` by a running service (which renders the same reference, from its cache)."""
-    import json
 
     from .client import ServerError, post_form
 
@@ -215,6 +216,23 @@ def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict
     return {key: scene for scene, key in keys.items()}, texts
 
 
+#: the folders a report writes into
+REPORT_FOLDERS = ("references", "submissions", "heatmaps", "gradescope", journal.RESUME)
+
+
+def _outside(report: Path, submissions: Path) -> None:
+    """The report folder is not inside the submissions folder (its files would be a student's next run), nor
+    the submissions folder inside a folder the report writes (its copies would be)."""
+    inside, outer = report.resolve(), submissions.resolve()
+    if inside == outer or inside.is_relative_to(outer):
+        raise ClassError(f"{report}: the report folder is inside the submissions folder {submissions} (it would "
+                         f"be graded as a student's); write it elsewhere")
+    for name in REPORT_FOLDERS:
+        if outer.is_relative_to(inside / name):
+            raise ClassError(f"{report}: the report writes its {name}/ folder where the submissions folder "
+                             f"{submissions} is (its files would be graded as the students'); write it elsewhere")
+
+
 def _writable(report: Path) -> None:
     """The report folder can be made and written to (else the run stops before any grading)."""
     try:
@@ -259,6 +277,7 @@ class _Backend:
         self.faults: tuple[type[BaseException], ...] = ()
         self.render: Callable[..., Any] = partial(render_task, timeout=timeout)
         self.grade: Callable[..., Any] = _local_grade
+        self.diagnose = True  # whether a failing pair's likely mistake is named (see no_diagnosis)
         if server:
             from .client import ServerError, check
 
@@ -278,6 +297,10 @@ class _Backend:
             self.name = "the pool of processes"
             self.faults = (BrokenProcessPool,)
             self._pool()
+
+    def no_diagnosis(self) -> None:
+        """Grade without naming failing pairs' likely mistakes (--no-diagnosis)."""
+        self.grade, self.diagnose = partial(self.grade, diagnose=False), False
 
     def _pool(self) -> None:
         context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
@@ -400,7 +423,8 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
     settings = Settings.from_env()
-    batch = discover(scenes, submissions, student_scenes)
+    _outside(report, submissions)
+    batch = discover(scenes, submissions, student_scenes, settings.max_image_bytes)
     tasks = load_tasks(tasks_file, batch.tasks)
     scene_of_key, texts = _scene_keys(batch, settings)
     made = not report.exists()
@@ -420,10 +444,7 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
          cluster: str | None, progress: Callable[[int, int], None] | None, api_key: str | None,
          cluster_wait: float, started: float, settings: Settings, diagnose: bool = True) -> Outcome:
     """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report."""
-    for pair in batch.pairs:
-        if not pair.row and pair.image is None:
-            pair.row = {"status": "missing", "reason": f"no {pair.task}.png"}
-    todo = [p for p in batch.pairs if not p.row]
+    todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
     refs = {k: report / "references" / f"{k}.png" for k in scene_of_key}
     needed = {k: scene_of_key[k] for k, path in refs.items() if not path.exists()}
     total = len(batch.pairs)
@@ -438,11 +459,10 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     backend = _Backend(server, cluster, jobs, len(todo) + len(needed), api_key, cluster_wait,
                        settings.render_timeout)
     if not diagnose:
-        backend.grade = partial(backend.grade, diagnose=False)
+        backend.no_diagnosis()
     try:
         references = _render_all(backend, needed, refs, texts, report)
-        _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts,
-                   settings.max_image_bytes)
+        _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts)
     except ServerError as exc:  # the service went away, or stopped taking the key, in the middle of the batch
         backend.close(wait=False)
         raise ClassError(f"--server {server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
@@ -472,10 +492,10 @@ def _kept(report: Path) -> str:
     """What a stopped run leaves for the next: its references and grades, counted."""
     def count(folder: str) -> int:
         with contextlib.suppress(OSError):
-            return sum(1 for _ in (report / folder).rglob("*.json" if folder == RESUME else "*.png"))
+            return sum(1 for _ in (report / folder).rglob("*.json" if folder == journal.RESUME else "*.png"))
         return 0
 
-    return f"{count('references')} references and {count(RESUME)} grades are kept in {report}"
+    return f"{count('references')} references and {count(journal.RESUME)} grades are kept in {report}"
 
 
 def _render_all(backend: _Backend, needed: dict[str, Path], refs: dict[str, Path], texts: dict[Path, bytes],
@@ -500,48 +520,31 @@ def _render_all(backend: _Backend, needed: dict[str, Path], refs: dict[str, Path
     return done
 
 
-#: the folder of a report where each finished grade is kept, so that a stopped run resumes where it stopped
-RESUME = "resume"
-
-
-def _journal(pair: Pair, report: Path) -> Path:
-    return report / RESUME / pair.student / f"{pair.task}.json"
-
-
 def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] | None:
     """The row of a grade an earlier run finished for the same reference, the same bytes and the same
-    thresholds (with its heat-map and copy in place), or None."""
-    try:
-        kept = json.loads(_journal(pair, report).read_bytes())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(kept, dict) or kept.get("stamp") != stamp or not isinstance(kept.get("row"), dict):
-        return None
-    row: dict[str, Any] = kept["row"]
-    if row.get("status") in ("pass", "fail") and not all(p.exists() for p in _paths(pair, report)):
+    thresholds (with its heat-map and copy in place), or None (:mod:`service.journal` checks the rest)."""
+    row = journal.kept(journal.path(report, pair.student, pair.task), stamp)
+    if row is not None and row["status"] in ("pass", "fail") and not all(p.exists() for p in _paths(pair, report)):
         return None
     return row
 
 
 def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes], refs: dict[str, Path],
                report: Path, tasks: dict[str, TaskSettings], tolerance: float, max_fraction: float,
-               tick: Callable[[], None], texts: dict[Path, bytes], limit: int) -> None:
-    """Grade every pair on the backend; the submissions are read here (:func:`read_untrusted`), and every file
-    is written here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
+               tick: Callable[[], None], texts: dict[Path, bytes]) -> None:
+    """Grade every pair on the backend (its bytes were read when the class was found); every file is written
+    here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
     pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
     about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
     for n, pair in enumerate(todo):
-        assert pair.key is not None and pair.image is not None
-        try:
-            image = read_untrusted(pair.image, limit)
-        except UntrustedFileError as exc:
-            pair.row = {"status": "invalid", "reason": f"{pair.image}: {exc}"}
-            continue
+        assert pair.key is not None and pair.data is not None
+        image = pair.data
         own = tasks[pair.task]
         thresholds = (tolerance if own.tolerance is None else own.tolerance,
                       max_fraction if own.max_fraction is None else own.max_fraction)
-        stamp = {"reference": pair.key, "image_sha256": hashlib.sha256(image).hexdigest(),
-                 "tolerance": thresholds[0], "max_fraction": thresholds[1]}
+        stamp = journal.stamp(pair.key, hashlib.sha256(image).hexdigest(), *thresholds)
+        if not backend.diagnose:  # a grade without its likely mistake is not one a diagnosing run may take
+            stamp["diagnosis"] = False
         row = _resumed(pair, report, stamp)
         if row is not None:
             pair.row = row
@@ -567,12 +570,13 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
     else:
         result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
-        result["likely"] = headline(result.pop("diagnosis", None))
+        diagnosis = result.pop("diagnosis", None)
+        result["likely"], result["mistakes"] = headline(diagnosis), matched(diagnosis)
         heat, copy = _paths(pair, report)
         write_atomic(heat, result.pop("heatmap_png"))
         write_atomic(copy, image)
         pair.row = result
-    write_atomic(_journal(pair, report), (json.dumps({"stamp": stamp, "row": pair.row}) + "\n").encode())
+    journal.keep(journal.path(report, pair.student, pair.task), stamp, pair.row)
 
 
 def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
@@ -586,8 +590,9 @@ def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskS
     row.update(student=pair.student, task=pair.task, scene="own" if pair.own else "shared")
     row["reason"] = row["reason"] or ""
     row["points"] = tasks[pair.task].points
-    row["score"] = row["points"] if row["status"] == "pass" else 0.0
-    row["file"] = pair.file
+    row["mistakes"] = row["mistakes"] or []
+    row["score"], row["deducted"] = astuple(score(row, tasks[pair.task]))
+    row["file"], row["lms_id"] = pair.file, pair.lms_id
     ref = refs.get(pair.key or "")
     if ref is not None and ref.exists():
         row["reference"] = str(ref.relative_to(report))

@@ -523,18 +523,21 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = command("grade-class", "grade every student's images of every task; write a report",
                 description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images (any "
-                            "case of the name, or one folder deeper). A student's own scene comes from the TA's "
-                            "--student-scenes DIR/<student>/<task>.json, never from the submissions. Writes "
-                            "report.json, report.csv, index.html, gradescope/<student>/results.json, references "
-                            "and heat-maps into REPORT. Exit 0 when the batch ran, 2 when the TA's input or "
-                            "set-up is unusable (nothing is graded then).")
+                            "case of the name, a resubmission's -1 or (1), or one folder deeper; Moodle's "
+                            "<name>_<id>_assignsubmission_file_ folders and Canvas's flat <login>_<id>_<id>_<task>.png "
+                            "too). A student's own scene comes from the TA's --student-scenes "
+                            "DIR/<student>/<task>.json, never from the submissions. Writes report.json, report.csv, "
+                            "gradebook.csv, index.html, gradescope/<student>/results.json, references and heat-maps "
+                            "into REPORT. Exit 0 when the batch ran, 2 when the TA's input or set-up is unusable "
+                            "(nothing is graded then).")
     p.add_argument("scenes", metavar="SCENES_DIR", help="a <task>.json per task")
-    p.add_argument("submissions", metavar="SUBMISSIONS_DIR", help="a folder per student")
+    p.add_argument("submissions", metavar="SUBMISSIONS_DIR", help="the students' images, as an LMS downloads them")
     p.add_argument("-o", "--output", metavar="REPORT_DIR", required=True, help="where the report goes")
     p.add_argument("--student-scenes", metavar="DIR", help="the TA's folder of students' own scenes, "
                                                            "<student>/<task>.json")
-    p.add_argument("--tasks", metavar="TASKS.json", help='per task its points and thresholds: {"spheres": '
-                                                         '{"points": 10, "tolerance": 3, "max_fraction": 0.002}}')
+    p.add_argument("--tasks", metavar="TASKS.json", help='per task its points, thresholds and deductions by '
+                                                         'mistake id: {"spheres": {"points": 10, "tolerance": 3, '
+                                                         '"deductions": {"no-shadows": 4}}}')
     thresholds(p)
     p.add_argument("--jobs", type=_positive_int, help="processes (default: all cores; with --server, 4 requests)")
     no_diagnosis(p, "skip naming the likely mistake of each failing image (it renders the scene once per "

@@ -1,7 +1,10 @@
-"""The files of a class report: report.json, report.csv, index.html and Gradescope's results.json per student.
+"""The files of a class report: report.json, report.csv, gradebook.csv, index.html and Gradescope's
+results.json per student.
 
 Every file is written whole or not at all (:func:`write_atomic`), so an interrupted run leaves the previous
-report readable.
+report readable.  A student's name (and a file's) is the students' text: in the CSV files and the HTML its
+bidirectional-text controls are shown escaped (``\\u202e``), so that it cannot reorder what is shown around it,
+and a CSV cell never begins as a formula.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from typing import Any
 from urllib.parse import quote
 
 from .display import percent
+from .gradebook import gradebook_csv, partial, totals
 from .heatmap import LEGEND
 from .taskfile import TaskSettings
 
@@ -26,8 +30,8 @@ from .taskfile import TaskSettings
 NUMBERS = ["mean_abs_error", "rmse", "psnr", "max_error", "fraction_off", "fraction_off_nearby", "width", "height",
            "reference_sha256"]
 #: the columns of report.csv (and the keys of each row of report.json), in order
-COLUMNS = ["student", "task", "status", "reason", "likely", "scene", "file", "passed", "points", "score", "tolerance",
-           "max_fraction", *NUMBERS, "reference", "submission", "heatmap"]
+COLUMNS = ["student", "lms_id", "task", "status", "reason", "likely", "mistakes", "scene", "file", "passed", "points",
+           "score", "deducted", "tolerance", "max_fraction", *NUMBERS, "reference", "submission", "heatmap"]
 STATUSES = ("pass", "fail", "missing", "invalid")
 
 
@@ -56,6 +60,23 @@ def _text(text: str) -> bytes:
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
 
 
+#: the controls that reorder bidirectional text (embeddings, overrides, isolates, marks)
+BIDI = re.compile("[\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069]")
+
+
+def visible(text: str) -> str:
+    """A name with its bidirectional-text controls escaped (``\\u202e``): shown, not obeyed."""
+    return BIDI.sub(lambda m: f"\\u{ord(m.group()):04x}", text)
+
+
+def safe_cell(value: Any) -> Any:
+    """A CSV cell of the students' text made safe to open: controls shown (:func:`visible`), no formula
+    (:func:`neutral_cell`); a list (the mistakes) as its items, space-separated."""
+    if isinstance(value, list):
+        value = " ".join(map(str, value))
+    return neutral_cell(visible(value)) if isinstance(value, str) else value
+
+
 def neutral_cell(value: Any) -> Any:
     """A report.csv cell that a spreadsheet shows as text: a string that begins as a formula would gets a
     single quote in front (OWASP's advice); every other value is kept."""
@@ -79,9 +100,10 @@ def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[s
     quoted = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n", quoting=csv.QUOTE_ALL)
     writer.writeheader()
     for row in rows:
-        cells = {k: neutral_cell(v) for k, v in row.items()}
+        cells = {k: safe_cell(v) for k, v in row.items()}
         (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
     write_atomic(report / "report.csv", _text(buf.getvalue()))
+    write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
     for student in students:
         mine = [r for r in rows if r["student"] == student]
         write_atomic(report / "gradescope" / student / "results.json",
@@ -95,7 +117,8 @@ def test_output(row: dict[str, Any]) -> str:
         return (f"passed: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
                 f"(at most {percent(row['max_fraction'])} may be)")
     likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
-    return f"{row['status']}: {row['reason']}{likely}"
+    credit = f"\n{partial(row)}" if row.get("deducted") else ""
+    return f"{row['status']}: {row['reason']}{likely}{credit}"
 
 
 def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
@@ -125,48 +148,80 @@ def _legend() -> str:
     return f'<ul class="legend">{items}</ul>'
 
 
+def esc(text: str) -> str:
+    """The students' text (or ours) for HTML: escaped, its bidirectional-text controls shown (:func:`visible`)."""
+    return html.escape(visible(text))
+
+
+#: a task's likely mistakes shown beneath its column; the others are behind "… and N more"
+SHOWN_MISTAKES = 3
+
+
+def _cell(r: dict[str, Any], anchor: str) -> str:
+    """A pair's cell of the table: the status and, without the file it names, the reason (or the error)."""
+    if r["status"] == "pass":
+        note = _percent(r["fraction_off_nearby"])
+    elif r["status"] == "fail":  # the likely mistake, when one was named
+        note = esc((r.get("likely") or "")[:60]) or _percent(r["fraction_off_nearby"])
+        note += f" · {r['score']:g}/{r['points']:g}" if r.get("deducted") else ""
+    else:
+        note = esc(_without_file(r["reason"])[:80])
+    own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
+    status = esc(r["status"])
+    kind = f"{status} partial" if r.get("deducted") else status
+    return f'<td class="{kind}"><a href="#{anchor}">{status}{own}<small>{note}</small></a></td>'
+
+
+def _detail(r: dict[str, Any], anchor: str) -> str:
+    """A pair's detail: the reason, the likely mistake, the score's deduction, the three images, the numbers."""
+    images = "".join(
+        f'<figure><img src="{_url(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
+        if r[k] else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
+        for k in ("reference", "submission", "heatmap"))
+    legend = _legend() if r["heatmap"] else ""
+    numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
+    likely = f'<p class="likely">Likely: {esc(r["likely"])}</p>' if r.get("likely") else ""
+    credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
+    return (f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
+            f'</h2><p>{esc(r["reason"])}</p>{likely}{credit}<div class="images">{images}</div>{legend}'
+            f'<table class="numbers">{numbers}</table>'
+            f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
+
+
+def _mistakes(rows: list[dict[str, Any]], tasks: list[str]) -> tuple[str, str]:
+    """The table's row of each task's likely mistakes (the first :data:`SHOWN_MISTAKES`, then "… and N more"
+    linking to the full list), and the full lists."""
+    cells, lists = [], []
+    for task, found in likely_by_task(rows, tasks).items():
+        items = [f"<li>{n} of {failing}: {esc(m)}</li>" for m, n, failing in found]
+        more = len(items) - SHOWN_MISTAKES
+        link = f'<li><a href="#likely-{_url(task)}">… and {more} more</a></li>' if more > 0 else ""
+        cells.append(f'<td><ul class="likely">{"".join(items[:SHOWN_MISTAKES])}{link}</ul></td>' if items
+                     else "<td></td>")
+        if items:
+            lists.append(f'<h3 id="likely-{_url(task)}">{esc(task)}</h3><ul>{"".join(items)}</ul>')
+    return "".join(cells), "".join(lists) or "<p>none</p>"
+
+
 def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str], tasks: list[str],
                 headline: str) -> str:
-    esc = html.escape
     by = {(r["student"], r["task"]): r for r in rows}
-    head = "".join(f"<th>{esc(t)}</th>" for t in tasks)
+    head = "".join(f"<th>{esc(t)}</th>" for t in tasks) + "<th>total</th>"
     body, details = [], []
-    for student in students:
+    for total in totals(rows, students):
         cells = []
         for task in tasks:
-            r = by[(student, task)]
-            anchor = f"p-{_url(student)}-{_url(task)}"
-            label = r["status"]
-            # the cell shows the reason without the file it names (the detail shows it whole)
-            if r["status"] == "pass":
-                note = _percent(r["fraction_off_nearby"])
-            elif r["status"] == "fail":  # the likely mistake, when one was named
-                note = esc((r.get("likely") or "")[:60]) or _percent(r["fraction_off_nearby"])
-            else:
-                note = esc(_without_file(r["reason"]))[:80]
-            own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
-            cells.append(f'<td class="{r["status"]}"><a href="#{anchor}">{label}{own}<small>{note}</small></a></td>')
-            images = "".join(
-                f'<figure><img src="{_url(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
-                if r[k] else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
-                for k in ("reference", "submission", "heatmap"))
-            legend = _legend() if r["heatmap"] else ""
-            numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
-            likely = f'<p class="likely">Likely: {esc(r["likely"])}</p>' if r.get("likely") else ""
-            details.append(f'<section class="pair" id="{anchor}"><h2>{esc(student)} · {esc(task)}: {label}</h2>'
-                           f'<p>{esc(r["reason"])}</p>{likely}<div class="images">{images}</div>{legend}'
-                           f'<table class="numbers">{numbers}</table>'
-                           f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
-        body.append(f"<tr><th>{esc(student)}</th>{''.join(cells)}</tr>")
+            anchor = f"p-{_url(total.student)}-{_url(task)}"
+            cells.append(_cell(by[(total.student, task)], anchor))
+            details.append(_detail(by[(total.student, task)], anchor))
+        cells.append(f'<td class="total">{total.total:g} / {total.out_of:g}</td>')
+        body.append(f"<tr><th>{esc(total.student)}</th>{''.join(cells)}</tr>")
     rates = []
     for task in tasks:
         mine = [by[(s, task)] for s in students]
         passed = sum(r["status"] == "pass" for r in mine)
         rates.append(f"<td>{passed}/{len(mine)}<small>{_percent(passed / len(mine) if mine else None)}</small></td>")
-    common = []
-    for found in likely_by_task(rows, tasks).values():
-        lines = "".join(f"<li>{n} of {failing}: {esc(m)}</li>" for m, n, failing in found[:3])
-        common.append(f'<td><ul class="likely">{lines}</ul></td>' if lines else "<td></td>")
+    common, every = _mistakes(rows, tasks)
     skipped = "".join(f"<li>{esc(name)}: {esc(why)}</li>" for name, why in ignored) or "<li>none</li>"
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>phongray class report</title>
@@ -178,6 +233,7 @@ table.grid {{ border-collapse: collapse; }}
 .grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow: hidden; }}
 td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
 td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
+td.partial {{ background: #fbe3cf; }} td.total {{ font-weight: bold; white-space: nowrap; }}
 .own {{ color: #36c; }}
 .pair {{ display: none; }}
 .pair:target {{ display: block; position: fixed; top: 4%; left: 4%; right: 4%; max-height: 88%; overflow: auto;
@@ -198,9 +254,10 @@ p.likely {{ background: #fff7e0; border-left: 4px solid #d89b00; padding: 4px 10
 ● marks a student's own scene.</p>
 <table class="grid"><thead><tr><th>student</th>{head}</tr></thead>
 <tbody>{''.join(body)}</tbody>
-<tfoot><tr><th>passed</th>{''.join(rates)}</tr>
-<tr><th>likely mistakes<small>of the failing pairs</small></th>{''.join(common)}</tr></tfoot></table>
+<tfoot><tr><th>passed</th>{''.join(rates)}<td></td></tr>
+<tr><th>likely mistakes<small>of the failing pairs</small></th>{common}<td></td></tr></tfoot></table>
 {''.join(details)}
+<h2>Likely mistakes of each task</h2>{every}
 <h2>Ignored files</h2><ul>{skipped}</ul>
 </body></html>
 """

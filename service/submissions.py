@@ -1,21 +1,29 @@
 """A class's folders as a teaching assistant has them, and the students' files as untrusted input.
 
 ``SCENES/<task>.json`` are the tasks and ``STUDENT_SCENES/<student>/<task>.json`` (optional) a student's own
-scene for a task: both folders are the TA's.  ``SUBMISSIONS/<student>/`` is each student's folder, as a
-learning-management system downloads it: the image of a task is ``<task>.png`` there or one folder deeper
-(``frank/hw3/spheres.png``), its extension and name matched regardless of case.  A submitted file that is no
-PNG (``spheres.jpg``) is graded, and so reported as the format it is.  Nothing in a student's folder is ever
-a setting: a scene found there is ignored, with the reason.  Links are never followed, and every byte read
-from a student's folder is read by :func:`read_untrusted`.
+scene for a task: both folders are the TA's.  ``SUBMISSIONS`` holds the students' files as a
+learning-management system downloads them (:mod:`service.lms`): a folder per student (Moodle's
+``<name>_<id>_assignsubmission_file_`` too) where the image of a task is ``<task>.png`` or one folder deeper
+(``frank/hw3/spheres.png``), or Canvas's flat ``<login>_<id>_<id>_<task>.png``; a name is matched regardless of
+case and of a resubmission's suffix.  A submitted file that is no PNG (``spheres.jpg``) is graded, and so
+reported as the format it is.  Nothing in a student's folder is ever a setting: a scene found there is
+ignored, with the reason.  Links are never followed; each student's folder is opened once and held
+(:class:`Folder`) while its files are found and read, so that nothing is looked up again by a path a student
+could swap for a link while the references render; every byte read from a student's folder is read by
+:func:`read_untrusted`, when the class is found.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
 
 
 class ClassError(Exception):
@@ -30,6 +38,8 @@ class UntrustedFileError(ValueError):
 OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "heif", "avif"}
 #: folders an archive tool leaves beside the students' (never a student)
 NOT_STUDENTS = {"__MACOSX"}
+#: the most bytes read of a submission when no limit is given (the service's max_image_bytes)
+DEFAULT_LIMIT = 16 << 20
 SCENE_IGNORED = ("a scene among the submissions is not used (a student's own scene comes from the TA's "
                  "--student-scenes folder)")
 
@@ -43,21 +53,22 @@ def file_kind(mode: int) -> str:
             else "not a regular file")
 
 
-def read_untrusted(path: Path, limit: int) -> bytes:
-    """The bytes of a file in a student's folder: a regular file, not through a link, at most ``limit`` bytes.
-    :class:`UntrustedFileError` says why not.  The file is looked at before it is opened (a FIFO or a device is
-    never opened), opened without following a link and without blocking, and checked again once open (the same
-    file, still regular); no more than ``limit + 1`` bytes are ever read."""
+def read_untrusted(path: Path | str, limit: int, dir_fd: int | None = None) -> bytes:
+    """The bytes of a file in a student's folder: a regular file, not through a link, at most ``limit`` bytes
+    (``path`` a name in the folder open as ``dir_fd``, when given).  :class:`UntrustedFileError` says why not.
+    The file is looked at before it is opened (a FIFO or a device is never opened), opened without following a
+    link and without blocking, and checked again once open (the same file, still regular); no more than
+    ``limit + 1`` bytes are ever read."""
     try:
-        before = os.lstat(path)
+        before = os.stat(path, dir_fd=dir_fd, follow_symlinks=False)
     except OSError as exc:
         raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
     if not stat.S_ISREG(before.st_mode):
         raise UntrustedFileError(file_kind(before.st_mode))
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, dir_fd=dir_fd)
     except OSError as exc:
-        if os.path.islink(path):
+        if exc.errno == errno.ELOOP:  # (a link put in its place since it was looked at)
             raise UntrustedFileError(file_kind(stat.S_IFLNK)) from None
         raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
     try:
@@ -78,12 +89,14 @@ def read_untrusted(path: Path, limit: int) -> bytes:
 class Pair:
     student: str
     task: str
-    image: Path | None  # None: missing
+    image: Path | None  # the submitted file, as the report names it; None: missing
     scene: Path  # the student's own scene (the TA's), or the task's
     own: bool
     key: str | None = None  # the canonical scene hash
     file: str | None = None  # the submitted file, relative to the student's folder (spheres.png, hw3/Spheres.PNG)
     row: dict[str, Any] = field(default_factory=dict)
+    data: bytes | None = None  # the submitted bytes, read once, when the class was found
+    lms_id: str = ""  # the student's id in the learning-management system's export (Canvas's, Moodle's), if any
 
 
 @dataclass
@@ -109,23 +122,6 @@ def _is_link(entry: os.DirEntry[str]) -> bool:
         return False
 
 
-def _task_of(name: str, tasks: dict[str, Path], folded: dict[str, str]) -> tuple[str | None, str]:
-    """The task a file's name is for (its stem exactly, else regardless of case) and its extension, lower case."""
-    stem, dot, ext = name.rpartition(".")
-    if not dot or not stem:
-        return None, ""
-    return (stem if stem in tasks else folded.get(stem.lower())), ext.lower()
-
-
-def _listing(folder: Path) -> tuple[list[os.DirEntry[str]], str]:
-    """A student's folder's entries, or (none, why they cannot be listed): the student's fault, not the batch's."""
-    try:
-        with os.scandir(folder) as it:
-            return sorted(it, key=lambda e: e.name), ""
-    except OSError as exc:
-        return [], f"cannot read the folder: {exc.strerror or exc}"
-
-
 def _is_folder(entry: os.DirEntry[str]) -> bool:
     """A folder itself, not a link to one (an entry that cannot be looked at is taken as a file: reading it says
     why it cannot be graded)."""
@@ -135,91 +131,241 @@ def _is_folder(entry: os.DirEntry[str]) -> bool:
         return False
 
 
-def _student(folder: Path, shown: Path, tasks: dict[str, Path], folded: dict[str, str],
-             ignored: list[tuple[str, str]]) -> tuple[dict[str, Path | str], list[str]]:
-    """Per task, the submitted file (a path) or why the student's files for it cannot be graded (a reason); and
-    the student's folders that cannot be read (``hw3: cannot read the folder: Permission denied``)."""
-    top, why = _listing(folder)
-    if why:
-        return {task: f"{shown}: {why}" for task in tasks}, []
-    unreadable: list[str] = []
-    candidates: dict[str, list[tuple[tuple[int, int, int], Path, Path]]] = {}
-    levels: list[tuple[int, Path, Path, list[os.DirEntry[str]]]] = [(0, folder, shown, top)]
-    for e in top:
-        if _is_folder(e):
-            below, why = _listing(folder / e.name)
-            if why:
-                unreadable.append(f"{shown / e.name}: {why}")
-                ignored.append((str(shown / e.name), why))
-            levels.append((1, folder / e.name, shown / e.name, below))
-    for depth, base, where, entries in levels:
-        for entry in entries:
-            path, rel = base / entry.name, where / entry.name
-            task, ext = _task_of(entry.name, tasks, folded)
-            if _is_folder(entry) and not (task is not None and (ext == "png" or ext in OTHER_IMAGES)):
-                if depth:  # (a folder named as a task's image is a candidate: reading it says it is a folder)
-                    ignored.append((str(rel), "a folder two levels down (phongray looks one folder deep)"))
-                continue
-            if task is None:
-                ignored.append((str(rel), "matches no task"))
-            elif ext == "json":
-                ignored.append((str(rel), SCENE_IGNORED))
-            elif ext == "png" or ext in OTHER_IMAGES:
-                rank = (depth, ext != "png", entry.name.rpartition(".")[0] != task)
-                candidates.setdefault(task, []).append((rank, path, rel))
-            else:
-                ignored.append((str(rel), f"matches task {task}, but is no image"))
-    found: dict[str, Path | str] = {}
-    for task, options in candidates.items():
-        options.sort(key=lambda o: o[0])
-        best = [o for o in options if o[0] == options[0][0]]
-        if len(best) > 1:
-            found[task] = f"{len(best)} files for {task}: {', '.join(str(o[2]) for o in best)}; keep one"
-            continue
-        found[task] = options[0][1]
-        for _, _, rel in options[1:]:
-            ignored.append((str(rel), f"another file for {task} is graded: {options[0][2]}"))
-    return found, unreadable
-
-
-def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Batch:
-    """Every (student, task) pair of the class; :class:`ClassError` for a folder of the TA's that is unusable."""
+def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None,
+             limit: int = DEFAULT_LIMIT) -> Batch:
+    """Every (student, task) pair of the class, each submission read (at most ``limit`` bytes) through the
+    folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
+    unusable, or a submissions folder in which no student is found."""
     scene_files = [e for e in _entries(scenes) if e.is_file()]
     tasks = {e.name[:-5]: scenes / e.name for e in scene_files if e.name.endswith(".json")}
     if not tasks:
         raise ClassError(f"{scenes}: no task scenes (<task>.json)")
-    folded: dict[str, str] = {}
-    for task in tasks:
-        folded.setdefault(task.lower(), task)
     ignored = [(str(scenes / e.name), "not a task scene (<task>.json)") for e in scene_files
                if not e.name.endswith(".json")]
     own = _student_scenes(student_scenes, tasks) if student_scenes is not None else {}
-    folders: dict[str, Path] = {}
-    for entry in _entries(submissions):
-        folder = _is_folder(entry)
-        if folder and not entry.name.startswith(".") and entry.name not in NOT_STUDENTS:
-            folders[entry.name] = submissions / entry.name
-        else:  # (a link to a folder is not a student's: it is never listed, let alone read)
-            why = ("not a student's folder" if folder else "a symbolic link (not followed)"
-                   if _is_link(entry) else "not in a student's folder")
-            ignored.append((str(submissions / entry.name), why))
+    with Folder.root(submissions) as root:
+        sources = _sources(root, ignored)
+        if not sources:
+            raise ClassError(f"{submissions}: no student found; expected {LAYOUTS}")
+        names = TaskNames(tasks)
+        found = {student: _student(root, source, names, limit, ignored) for student, source in sources.items()}
+    ids = {student: source.id for student, source in sources.items()}
     pairs = []
-    students = sorted({*folders, *own})
+    students = sorted({*found, *own})
     for student in students:
-        found, unreadable = (_student(folders[student], folders[student], tasks, folded, ignored)
-                             if student in folders else ({}, []))
+        mine = found.get(student, {})
         for task, shared in tasks.items():
             scene = own.get(student, {}).get(task)
-            what = found.get(task)
-            pair = Pair(student, task, what if isinstance(what, Path) else None, scene or shared, scene is not None)
-            if isinstance(what, Path):
-                pair.file = what.relative_to(folders[student]).as_posix()
-            if isinstance(what, str):
-                pair.row = {"status": "invalid", "reason": what}
-            elif what is None and unreadable:  # not found, but perhaps in a folder that cannot be read
-                pair.row = {"status": "invalid", "reason": f"no {task}.png found; {'; '.join(unreadable)}"}
+            pair = Pair(student, task, None, scene or shared, scene is not None, lms_id=ids.get(student, ""))
+            mine.get(task, Submitted(row={"status": "missing", "reason": f"no {task}.png"})).fill(pair)
             pairs.append(pair)
     return Batch(tasks, students, pairs, ignored)
+
+
+@dataclass(frozen=True)
+class Entry:
+    name: str
+    folder: bool  # a folder itself, not a link to one
+    link: bool
+
+
+class Folder:
+    """A folder opened once and held: the TA's submissions folder, or a student's (opened without following a
+    link, ``O_NOFOLLOW``, through the folder it is in).  Its entries are listed, its folders opened and its
+    files read through it, never by a second lookup of a path, which a student could have swapped for a link
+    meanwhile."""
+
+    def __init__(self, fd: int, shown: Path, rel: str = ""):
+        self.fd, self.shown, self.rel = fd, shown, rel  # rel: the path below the student's folder ("hw3/")
+
+    @classmethod
+    def root(cls, path: Path) -> Folder:
+        """The TA's submissions folder (a link to it is the TA's, and followed)."""
+        try:
+            return cls(os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC), path)
+        except OSError as exc:
+            raise ClassError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+    def sub(self, name: str, student: bool = False) -> Folder:
+        """A folder in this one (OSError when it cannot be opened, or is a link now); ``student``: a student's
+        own folder, the one its files' paths start from."""
+        fd = os.open(name, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=self.fd)
+        return Folder(fd, self.shown / name, "" if student else f"{self.rel}{name}/")
+
+    def entries(self) -> list[Entry]:
+        """What the folder holds, sorted by name (OSError when it cannot be listed)."""
+        with os.scandir(self.fd) as it:
+            return sorted((Entry(e.name, _is_folder(e), _is_link(e)) for e in it), key=lambda e: e.name)
+
+    def read(self, name: str, limit: int) -> bytes:
+        return read_untrusted(name, limit, dir_fd=self.fd)
+
+    def __enter__(self) -> Folder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        os.close(self.fd)
+
+
+@dataclass
+class Source:
+    """Where one student's files are: their folders in the submissions folder (a Moodle student may have two),
+    and their files lying in it (Canvas's), each with the name the student gave it."""
+
+    folders: list[str] = field(default_factory=list)
+    files: list[tuple[Entry, str]] = field(default_factory=list)
+    id: str = ""  # the LMS's id of the student, if the names gave one
+
+
+def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
+    """Each student's :class:`Source`, by the student's name; what is no student's is ``ignored``."""
+    try:
+        entries = root.entries()
+    except OSError as exc:
+        raise ClassError(f"{root.shown}: cannot read: {exc.strerror or exc}") from None
+    owners: dict[Owner, Source] = {}
+    for entry in entries:
+        shown = str(root.shown / entry.name)
+        if entry.folder and (entry.name.startswith(".") or entry.name in NOT_STUDENTS):
+            ignored.append((shown, "not a student's folder"))
+        elif entry.folder:
+            owners.setdefault(folder_owner(entry.name), Source()).folders.append(entry.name)
+        elif (owner := file_owner(entry.name)) is not None:  # a link too: reading it says it is one
+            owners.setdefault(Owner(owner.name, owner.id), Source()).files.append((entry, owner.file))
+        else:  # (a link to a folder is not a student's: it is never listed, let alone read)
+            ignored.append((shown, "a symbolic link (not followed)" if entry.link else "not in a student's folder"))
+    out: dict[str, Source] = {}
+    for owner, name in student_names(owners).items():
+        merged = out.setdefault(name, Source())
+        merged.folders += owners[owner].folders
+        merged.files += owners[owner].files
+        merged.id = merged.id or owner.id
+    return out
+
+
+@dataclass
+class Submitted:
+    """What a student's files give one task: the file graded and its bytes, or the row that says why not."""
+
+    image: Path | None = None
+    file: str | None = None
+    data: bytes | None = None
+    row: dict[str, Any] = field(default_factory=dict)
+
+    def fill(self, pair: Pair) -> None:
+        pair.image, pair.file, pair.data, pair.row = self.image, self.file, self.data, dict(self.row)
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A file that may be a task's submission, in the folder it was found in (held open)."""
+
+    rank: tuple[int, bool, bool]  # (depth, not a PNG, not named as the task is spelt): the lowest is graded
+    folder: Folder
+    name: str
+
+    @property
+    def shown(self) -> Path:
+        return self.folder.shown / self.name
+
+    def read(self, limit: int) -> Submitted:
+        rel = self.folder.rel + self.name
+        try:
+            return Submitted(self.shown, rel, self.folder.read(self.name, limit))
+        except UntrustedFileError as exc:
+            return Submitted(self.shown, rel, row={"status": "invalid", "reason": f"{self.shown}: {exc}"})
+
+
+def _invalid(reason: str) -> Submitted:
+    return Submitted(row={"status": "invalid", "reason": reason})
+
+
+class _Walk:
+    """One student's files, found in their folders (held open while they are read) and among the flat files."""
+
+    def __init__(self, root: Folder, names: TaskNames, ignored: list[tuple[str, str]], stack: ExitStack):
+        self.root, self.names, self.ignored, self.stack = root, names, ignored, stack
+        self.candidates: dict[str, list[Candidate]] = {}
+        self.near: dict[str, list[str]] = {}  # task → files whose names nearly are the task's
+        self.unreadable: list[str] = []  # folders that cannot be listed, with why
+
+    def folder(self, parent: Folder, name: str, depth: int) -> tuple[Folder, list[Entry]] | None:
+        try:
+            folder = self.stack.enter_context(parent.sub(name, student=depth == 0))
+            return folder, folder.entries()
+        except OSError as exc:
+            why = f"cannot read the folder: {exc.strerror or exc}"
+            self.unreadable.append(f"{parent.shown / name}: {why}")
+            if depth:
+                self.ignored.append((str(parent.shown / name), why))
+            return None
+
+    def look(self, folder: Folder, entry: Entry, depth: int, given: str | None = None) -> None:
+        """Take one entry: a candidate for a task, or ignored with the reason."""
+        named, shown = self.names.match(given or entry.name), str(folder.shown / entry.name)
+        image = named.ext == "png" or named.ext in OTHER_IMAGES
+        if entry.folder and not (named.task is not None and image):
+            if depth:  # (a folder named as a task's image is a candidate: reading it says it is a folder)
+                self.ignored.append((shown, "a folder two levels down (phongray looks one folder deep)"))
+            return
+        if named.task is None:
+            near = self.names.near(given or entry.name) if image else None
+            self.ignored.append((shown, "matches no task" + (f" (did you mean {near}?)" if near else "")))
+            if near is not None:
+                self.near.setdefault(near, []).append(folder.rel + entry.name)
+        elif named.ext == "json":
+            self.ignored.append((shown, SCENE_IGNORED))
+        elif image:
+            rank = (depth, named.ext != "png", not named.exact)
+            self.candidates.setdefault(named.task, []).append(Candidate(rank, folder, entry.name))
+        else:
+            self.ignored.append((shown, f"matches task {named.task}, but is no image"))
+
+    def chosen(self, tasks: list[str], limit: int) -> dict[str, Submitted]:
+        """Per task, the file graded (read now, through its folder) or the row that says why none is."""
+        found: dict[str, Submitted] = {}
+        for task, options in self.candidates.items():
+            options.sort(key=lambda o: o.rank)
+            best = [o for o in options if o.rank == options[0].rank]
+            if len(best) > 1:
+                found[task] = _invalid(f"{len(best)} files for {task}: {', '.join(str(o.shown) for o in best)}; "
+                                       f"keep one")
+                continue
+            found[task] = options[0].read(limit)
+            for other in options[1:]:
+                self.ignored.append((str(other.shown), f"another file for {task} is graded: {options[0].shown}"))
+        for task in tasks:
+            if task not in found and self.unreadable:  # not found, but perhaps in a folder that cannot be read
+                found[task] = _invalid(f"no {task}.png found; {'; '.join(self.unreadable)}")
+            elif task not in found and task in self.near:
+                found[task] = Submitted(row={"status": "missing", "reason": f"no {task}.png (found "
+                                             f"{', '.join(self.near[task])}: did you mean {task}.png?)"})
+        return found
+
+
+def _student(root: Folder, source: Source, names: TaskNames, limit: int,
+             ignored: list[tuple[str, str]]) -> dict[str, Submitted]:
+    """Per task, the student's submission, read, or the row that says why there is none to grade."""
+    with ExitStack() as stack:
+        walk = _Walk(root, names, ignored, stack)
+        places = [(0, root, [entry for entry, _ in source.files])] if source.files else []
+        given = {entry.name: name for entry, name in source.files}
+        for name in source.folders:
+            listed = walk.folder(root, name, 0)
+            if listed is None:
+                continue
+            folder, entries = listed
+            places.append((0, folder, entries))
+            for entry in entries:  # one folder deeper (hw3/)
+                below = walk.folder(folder, entry.name, 1) if entry.folder else None
+                if below is not None:
+                    places.append((1, *below))
+        if not places:  # none of the student's folders can be read
+            return {task: _invalid("; ".join(walk.unreadable)) for task in names.tasks}
+        for depth, folder, entries in places:
+            for entry in entries:
+                walk.look(folder, entry, depth, given.get(entry.name) if folder is root else None)
+        return walk.chosen(sorted(names.tasks), limit)
 
 
 def _student_scenes(folder: Path, tasks: dict[str, Path]) -> dict[str, dict[str, Path]]:

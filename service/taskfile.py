@@ -1,8 +1,11 @@
-"""The optional tasks file of a class: per task, its points and its own grading thresholds.
+"""The optional tasks file of a class: per task, its points, its own grading thresholds and its deductions.
 
 ```json
-{"spheres": {"points": 10, "tolerance": 3}, "mirror": {"points": 5, "max_fraction": 0.002}}
+{"spheres": {"points": 10, "tolerance": 3, "deductions": {"no-shadows": 4}}, "mirror": {"points": 5}}
 ```
+
+A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS`): an image whose one fault is that
+mistake scores the task's points less the deduction (:mod:`service.gradebook`).
 
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
 teaching assistant's: a mistake in it stops the run (:class:`~service.submissions.ClassError`).
@@ -18,7 +21,9 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 from schemas import SceneError, parse_json
 from schemas.errors import problems_from_validation, suggestion
 from schemas.locate import as_lines
+from tracer.variants import VARIANTS
 
+from .lms import did_you_mean
 from .submissions import ClassError
 
 
@@ -29,6 +34,7 @@ class TaskSettings(BaseModel):
     tolerance: Annotated[float, Field(ge=0, le=255)] | None = None  # None: the command's --tolerance
     max_fraction: Annotated[float, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
     visibility: Literal["visible", "hidden", "after_due_date", "after_published"] = "visible"  # Gradescope's
+    deductions: dict[str, Annotated[float, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
 
 
 _FILE = TypeAdapter(dict[str, TaskSettings])
@@ -53,9 +59,21 @@ def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSetti
         except SceneError as exc:
             raise ClassError("; ".join(as_lines(str(path), exc.problems, text))) from None
         except ValidationError as exc:
-            raise ClassError("; ".join(as_lines(str(path), _suggested(problems_from_validation(exc)), text))) from None
+            problems = _suggested(problems_from_validation(exc))
+            raise ClassError("; ".join(as_lines(str(path), problems, text))) from None
         unknown = sorted(set(given) - set(tasks))
         if unknown:
             named = ", ".join(name + suggestion(name, tasks) for name in unknown)
             raise ClassError(f"{path}: no task {named} (the tasks are {', '.join(sorted(tasks))})")
+        _known_mistakes(path, given, text)
     return {task: given.get(task, TaskSettings()) for task in tasks}
+
+
+def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> None:
+    """Every deduction names a mistake the diagnosis knows (else the run stops, with the nearest id)."""
+    problems = [(f"{task}.deductions.{mistake}", f"no such mistake{did_you_mean(mistake, VARIANTS)} (the ids "
+                                                 f"are in docs/grading.md)")
+                for task, settings in sorted(given.items()) for mistake in settings.deductions
+                if mistake not in VARIANTS]
+    if problems:
+        raise ClassError("; ".join(as_lines(str(path), problems, text)))

@@ -18,7 +18,10 @@ what breaks walks and careless numerics:
 * ``mesh``: terrains, icospheres (with and without vertex normals), fans of
   slivers and boxes, lit from points on them;
 * ``dust``: specks 10⁻⁴ to 10⁻⁷ of the scene seen through a narrow field of
-  view, where float32 cannot tell their outlines (the proxies' margins).
+  view, where float32 cannot tell their outlines (the proxies' margins);
+* ``thin``: a thin area light far away (edge over distance 10⁻⁴ to 10⁻¹⁰)
+  over a floor, balls grazing the pyramid from the point in view to the
+  light, seen through a view a few rounding errors of its faces wide.
 
 Any scene may then be moved by up to 10⁶ and scaled by a power of ten
 (attenuation scaled with it).  Coordinates are often on a grid of 1/8, so that
@@ -409,9 +412,57 @@ def dust(rng: Rng) -> tuple[dict[str, Any], list, list]:
     return cam, objects, lights
 
 
+def thin(rng: Rng) -> tuple[dict[str, Any], list, list]:
+    """A thin area light far away (edge over distance 10⁻⁴ to 10⁻¹⁰) over a floor: a ball grazes the shadow ray
+    from the point the camera looks at to an outer sample (or a corner), by a tiny depth, near the floor or
+    anywhere up to the light; a tiny ball may lie on the floor.  The pyramids' faces from such points are long
+    and nearly parallel, and the camera's view is a few of their errors wide, where a proof that lost their
+    direction declares a point seen."""
+    # where the old faces lost most: about 10⁻⁸, their error then above the margin and their sign still right
+    ratio = 10.0 ** float(rng.uniform(-8.5, -7) if rng.random() < 0.5 else rng.uniform(-10, -4))
+    far = 10.0 ** float(rng.uniform(0, 8))
+    toward = _unit(rng)
+    toward[1] = abs(toward[1]) + 0.3
+    toward /= np.linalg.norm(toward)
+    a = np.cross(toward, _unit(rng))
+    a /= np.linalg.norm(a)
+    b = np.cross(toward, a)
+    e_u, e_v = a * ratio * far * float(rng.uniform(0.3, 1)), (b + a * float(rng.uniform(-0.5, 0.5))) * ratio * far
+    corner = toward * far - 0.5 * (e_u + e_v)
+    corners = [corner, corner + e_u, corner + e_u + e_v, corner + e_v]
+    samples = [int(rng.integers(1, 6)), int(rng.integers(1, 6))]
+    objects: list[dict[str, Any]] = [plane([0, 0, 0], [0, 1, 0], _opaque(rng))]
+    for _ in range(int(rng.integers(1, 3))):  # graze the shadow ray from the origin to a sample (or a corner)
+        i, j = (int(rng.choice([0, n - 1])) if rng.random() < 0.7 else int(rng.integers(n)) for n in samples)
+        end = corner + (i + 0.5) / samples[0] * e_u + (j + 0.5) / samples[1] * e_v if rng.random() < 0.8 else \
+            corners[int(rng.integers(4))]
+        at = float(rng.uniform(0.3, 0.98)) if rng.random() < 0.6 else 10.0 ** float(rng.uniform(-8, -0.05))
+        on = end * at
+        out = np.cross(end, np.cross(on - toward * (on @ toward), end))  # away from the pyramid's axis, across
+        if np.linalg.norm(out) == 0:
+            out = np.cross(end, _unit(rng))
+        out /= np.linalg.norm(out)
+        r = float(np.linalg.norm(on)) * 10.0 ** float(rng.uniform(-6, -1))
+        depth = r * 10.0 ** float(rng.uniform(-8, -1)) * float(rng.choice([1, -1]))
+        objects.append(sphere(on + out * (r - depth), r, _opaque(rng)))
+    if rng.random() < 0.5:  # a tiny ball on the floor, as in a sun over a marble
+        r = 10.0 ** float(rng.uniform(-3, 0))
+        objects.append(sphere([float(rng.uniform(-2, 2)) * r, r * 1.2, float(rng.uniform(-2, 2)) * r], r,
+                              _opaque(rng)))
+    pick = rng.random()  # a few faces' errors wide, a few edges wide, or the scene's own size
+    view = far * 10.0 ** float(rng.uniform(-9.5, -8)) if pick < 0.5 else \
+        far * ratio * 10.0 ** float(rng.uniform(-2, 2)) if pick < 0.8 else 10.0 ** float(rng.uniform(-2, 0))
+    eye = _unit(rng) * view * 3
+    eye[1] = abs(eye[1]) + view
+    lights = [{"type": "ambient", "color": 0.1},
+              {"type": "area", "color": 1.0, "corner": _vec(corner), "edge_u": _vec(e_u), "edge_v": _vec(e_v),
+               "samples": samples}]
+    return _camera(rng, eye, [0.0, 0.0, 0.0], height=view * 2), objects, lights
+
+
 FAMILIES: dict[str, Callable[[Rng], tuple[dict[str, Any], list, list]]] = {
     "room": room, "nested": nested, "overlap": overlap, "lights": lights_on, "cameras": cameras,
-    "scales": scales, "mesh": mesh, "dust": dust,
+    "scales": scales, "mesh": mesh, "dust": dust, "thin": thin,
 }
 
 

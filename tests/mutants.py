@@ -61,6 +61,11 @@ MUTANTS = [
      "levels.append(np.sum(p * m, axis=1) - grow)", "levels.append(np.sum(p * m, axis=1) + 0.01 * size)"),
     ("a ray of its own direction meets a ball only within half its radius", "cones.py",
      "close = across <= grown * grown * (1.0 + SLACK)", "close = across <= 0.25 * grown * grown"),
+    ("an area light's faces are crossed from two long vectors, apex to corner twice", "culling.py",
+     "        f = face_normal((a[0] - p[0], a[1] - p[1], a[2] - p[2]), c - a)\n",
+     "        u, w = (a[0] - p[0], a[1] - p[1], a[2] - p[2]), (c[0] - p[0], c[1] - p[1], c[2] - p[2])\n"
+     "        g = (u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0])\n"
+     "        f = tuple(x / np.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]) for x in g)\n"),
     ("a tile of points is proven to see an area light without its radius", "culling.py",
      "            reach = margin_of + (float(b.radius[k]) + bound_part[k]) + reach_t\n",
      "            reach = margin_of + (float(b.radius[k]) + bound_part[k])\n"),

@@ -157,7 +157,8 @@ def test_the_report_files_agree_and_link_what_exists(klass, tmp_path):
                 assert (report / r[key]).is_file()
         assert (r["heatmap"] is not None) == (r["status"] in ("pass", "fail"))
     page = (report / "index.html").read_text()
-    assert page.count('<td class="') == len(rows) and page.count("3/7") == 2
+    assert page.count('<td class="total">') == 7  # a total per student
+    assert page.count('<td class="') - 7 == len(rows) and page.count("3/7") == 2
     assert page.count('class="legend"') == sum(r["heatmap"] is not None for r in rows)  # beside each heat-map
     assert page.rstrip().endswith("</html>")
     assert "http" not in page.replace("http-equiv", "")  # nothing from the network
@@ -206,6 +207,10 @@ def test_the_cli_without_diagnosis_and_quiet(klass, tmp_path, capsys):
     assert out == "" and "ignored: " in err
     rows = json.loads((plain / "report.json").read_text())
     assert sum(r["status"] == "fail" for r in rows) == 3 and not any(r["likely"] for r in rows)
+    assert main([*args[:4], str(plain), *args[5:], "-q"]) == 0  # again, diagnosing: not the kept grades taken
+    capsys.readouterr()
+    again = {r["student"] + "/" + r["task"]: r["likely"] for r in json.loads((plain / "report.json").read_text())}
+    assert again == diagnosed
 
 
 def test_an_interrupted_rerun_leaves_every_report_file_whole(klass, tmp_path, monkeypatch):
@@ -378,9 +383,109 @@ def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_p
     ('{"lampz": {}}', ": no task lampz (did you mean 'lamps'?) (the tasks are balls, lamps)"),
     ('{"lamps": {"tolerence": 3}}', ":1: lamps.tolerence: unknown key (did you mean 'tolerance'?)"),
     ('{"lamps": {"point": 3}}', ":1: lamps.point: unknown key (did you mean 'points'?)"),
+    ('{"lamps": {"points": 2,\n "deductions": {"no-shadow": 1}}}',
+     ":2: lamps.deductions.no-shadow: no such mistake (did you mean 'no-shadows'?) (the ids are in docs/grading.md)"),
+    ('{"lamps": {"deductions": {"gamma": -1}}}', ":1: lamps.deductions.gamma: must be ≥ 0"),
 ])
 def test_a_bad_tasks_file_stops_the_run(klass, tmp_path, capsys, content, says):
     scenes, subs, _ = klass
     (tmp_path / "t.json").write_text(content)
     said = ta_fault(capsys, scenes, subs, "-o", tmp_path / "r", "--tasks", tmp_path / "t.json")
     assert said.startswith(f"{tmp_path}/t.json{says}"), said
+
+
+# -- partial credit, totals and the gradebook ------------------------------------------------------------------
+
+#: the mistaken class: each student's mistake in the one task, lamps (None: right; "black": no known mistake)
+MISTAKEN = {"ada": None, "bob": "no-attenuation", "cy": "no-attenuation", "dee": "image-flipped", "fay": "gamma",
+            "gil": "no-specular", "hal": "black"}
+
+
+@pytest.fixture(scope="module")
+def mistaken(tmp_path_factory):
+    """One task (lamps, 4 points) and a student per classic mistake, graded with deductions: (report, rows)."""
+    from tracer.variants import VARIANTS
+
+    root = tmp_path_factory.mktemp("mistaken")
+    scenes, subs = root / "scenes", root / "subs"
+    scenes.mkdir()
+    data = small("02_all_lights")
+    (scenes / "lamps.json").write_text(json.dumps(data))
+    scene = schemas.validate_scene(data)
+    for student, mistake in MISTAKEN.items():
+        (subs / student).mkdir(parents=True)
+        pixels = (tracer.render(scene) if mistake is None else np.zeros_like(tracer.render(scene))
+                  if mistake == "black" else tracer.Renderer(scene, VARIANTS[mistake][0]).pixels())
+        (subs / student / "lamps.png").write_bytes(png(pixels))
+    (subs / "ivy").mkdir()  # nothing sent
+    tasks = root / "tasks.json"
+    tasks.write_text(json.dumps({"lamps": {"points": 4, "deductions": DEDUCTIONS}}))
+    report = root / "report"
+    outcome = classgrade.grade_class(scenes, subs, report, jobs=2, tasks_file=tasks)
+    return report, {r["student"]: r for r in outcome.rows}
+
+
+DEDUCTIONS = {"no-attenuation": 1.5, "image-flipped": 9, "no-specular": 0.25}
+
+
+def test_an_image_whose_one_fault_has_a_deduction_scores_the_points_less_it(mistaken):
+    _, rows = mistaken
+    for student, mistake in MISTAKEN.items():
+        row = rows[student]
+        assert row["mistakes"] == ([mistake] if mistake not in (None, "black") else []), row
+        expected = 4.0 if mistake is None else max(0.0, 4 - DEDUCTIONS[mistake]) if mistake in DEDUCTIONS else 0.0
+        assert row["score"] == expected and row["points"] == 4.0, (student, row["score"])
+        assert row["deducted"] == (mistake if mistake in DEDUCTIONS else None)
+    assert rows["dee"]["score"] == 0.0 and rows["ivy"]["score"] == 0.0  # never below 0; nothing sent: 0
+
+
+def test_the_gradebook_the_totals_and_gradescope_agree(mistaken):
+    report, rows = mistaken
+    with open(report / "gradebook.csv", newline="") as f:
+        table = list(csv.reader(f))
+    assert table[0] == ["student", "id", "lamps", "total"]
+    assert [r[0] for r in table[1:]] == sorted(rows)
+    page = (report / "index.html").read_text()
+    for student, lms_id, lamps, total in table[1:]:
+        assert lms_id == ""  # (folders of no learning-management system)
+        assert float(lamps) == float(total) == rows[student]["score"]
+        results = json.loads((report / "gradescope" / student / "results.json").read_text())
+        assert results["score"] == float(total) == sum(t["score"] for t in results["tests"])
+        assert f'<td class="total">{float(total):g} / 4</td>' in page
+    deducted = sum(r["deducted"] is not None for r in rows.values())
+    assert page.count('<td class="fail partial">') == deducted == sum(m in DEDUCTIONS for m in MISTAKEN.values())
+    assert json.loads((report / "gradescope" / "bob" / "results.json").read_text())["tests"][0]["output"].endswith(
+        "\nLikely: no attenuation of point, spot and area lights\nPartial credit: 2.5 of 4 points (no attenuation "
+        "of point, spot and area lights: -1.5)")
+
+
+def test_the_report_lists_every_likely_mistake_of_a_task(mistaken):
+    report, rows = mistaken
+    page = (report / "index.html").read_text()
+    named = {r["likely"] for r in rows.values() if r["status"] == "fail"}
+    assert len(named) > 3
+    footer = page[page.index("likely mistakes<small>"):page.index("</tfoot>")]
+    assert footer.count("<li>") == 3 + 1 and f'… and {len(named) - 3} more</a>' in footer
+    assert '<a href="#likely-lamps">' in footer
+    every = page[page.index('<h3 id="likely-lamps">'):]
+    every = every[:every.index("</ul>")]
+    for mistake in named:
+        assert f": {mistake}</li>" in every, mistake
+
+
+def test_the_mistake_ids_are_documented_and_in_grade_json(mistaken, tmp_path, capsys):
+    import re
+    from pathlib import Path
+
+    from tracer.variants import VARIANTS
+
+    docs = (Path(__file__).parent.parent / "docs" / "grading.md").read_text()
+    section = docs[docs.index("\n### The mistake ids\n"):]
+    section = section[:section.index("\n## ")]
+    table = dict(re.findall(r"^\| `([a-z-]+)` \| (.+) \|$", section, re.M))
+    assert table == {name: words for name, (_, words) in VARIANTS.items()}
+    report, _ = mistaken
+    scene = report.parent / "scenes" / "lamps.json"
+    assert main(["grade", "--json", str(scene), str(report.parent / "subs" / "bob" / "lamps.png")]) == 1
+    diagnosis = json.loads(capsys.readouterr().out)["diagnosis"]
+    assert diagnosis["causes"][0]["variant"] == "no-attenuation" and diagnosis["causes"][0]["passes"]

@@ -142,3 +142,29 @@ def test_pairs_come_surface_by_surface():
     for k in set(runs.tolist()):
         rows = among.rows[key == k]
         assert len(rows) == len(set(rows.tolist()))  # each ray once per surface
+
+
+@pytest.mark.parametrize("ratio", [1e-3, 1e-6, 1e-9, 1e-11])
+def test_a_triangles_edge_planes_keep_their_direction_far_from_the_apex(ratio):
+    # a triangle ``ratio`` of its distance from the apex: each plane through the apex and an edge is the
+    # cross product of the apex-to-corner vector and the edge itself, within NORMAL_ERROR of the exact one
+    from fractions import Fraction
+
+    from tracer.cones import _edge_plane
+    from tracer.culling import NORMAL_ERROR
+    rng = np.random.default_rng(int(-np.log10(ratio)))
+    apex = rng.normal(size=3) * 1e3
+    far = apex + unit(rng.normal(size=(1, 3)))[0] * 1e6
+    corners = far + rng.normal(size=(8, 3, 3)) * 1e6 * ratio  # eight triangles
+    for i in range(3):
+        start, end, third = corners[:, i], corners[:, (i + 1) % 3], corners[:, (i + 2) % 3]
+        m, turn = _edge_plane(start - apex, end - start, third - start)
+        for k in range(len(corners)):
+            P = [Fraction(x) for x in apex]
+            u = [Fraction(x) - q for x, q in zip(start[k], P)]
+            w = [Fraction(x) - q for x, q in zip(end[k], P)]
+            n = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]]
+            side = sum((Fraction(x) - q) * c for x, q, c in zip(third[k], P, n))
+            want = np.array([float(c if side > 0 else -c) for c in n])
+            assert np.isfinite(turn[k])
+            assert np.linalg.norm(m[k] * turn[k] - want / np.linalg.norm(want)) <= NORMAL_ERROR

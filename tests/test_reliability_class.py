@@ -229,7 +229,12 @@ def unreadable(*paths: Path):
         denied = {os.path.abspath(p) for p in paths}
         scandir, open_ = os.scandir, os.open
 
-        def check(path: object) -> None:
+        def check(path: object, dir_fd: object = None) -> None:
+            """(a folder held open, listed or opened in by its descriptor, is named by /proc/self/fd)"""
+            if isinstance(path, int):
+                path, dir_fd = "", path
+            if isinstance(dir_fd, int):
+                path = os.path.join(os.readlink(f"/proc/self/fd/{dir_fd}"), os.fsdecode(path))  # type: ignore
             if os.path.abspath(os.fsdecode(path)) in denied:  # type: ignore[arg-type]
                 raise PermissionError(13, "Permission denied", os.fsdecode(path))  # type: ignore[arg-type]
 
@@ -238,7 +243,7 @@ def unreadable(*paths: Path):
             return scandir(path)  # type: ignore[arg-type]
 
         def fake_open(path: object, *args: object, **kw: object) -> int:
-            check(path)
+            check(path, kw.get("dir_fd"))
             return open_(path, *args, **kw)  # type: ignore[arg-type]
 
         os.scandir, os.open = fake_scandir, fake_open  # type: ignore[assignment]
@@ -599,3 +604,74 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
     assert "(tried 5 times); stopped with 1 tasks unfinished; " in said
     assert said.endswith(f"1 references and 0 grades are kept in {report}: run again to resume")
     assert (report / "references" / f"{key}.png").exists()
+
+
+# -- 4: a rerun trusts nothing it did not write: resume journals, and names shown as they are -------------------
+
+def test_a_resume_row_tampered_with_or_of_another_version_is_graded_again(tmp_path):
+    from service import journal
+
+    black = tracer.encode_png(tracer.render(schemas.validate_scene({**tiny(), "objects": [], "lights": []})))
+    scenes, subs, _ = make_class(tmp_path, {"ada": b"", "bob": black, "cy": b"", "dee": b""})
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    before = (report / "report.json").read_bytes()
+    files = {s: report / "resume" / s / "spheres.json" for s in ("ada", "bob", "cy", "dee")}
+    kept = {s: json.loads(p.read_text()) for s, p in files.items()}
+    assert {k["stamp"]["phongray"] for k in kept.values()} == {journal.version()}
+    assert {k["stamp"]["format"] for k in kept.values()} == {journal.FORMAT}
+    assert kept["bob"]["row"]["status"] == "fail"
+    tampered = {  # a status no report knows, a number that is text, a list in a list, another version
+        "ada": {**kept["ada"], "row": {**kept["ada"]["row"], "status": "<script>alert(1)</script>"}},
+        "cy": {**kept["cy"], "row": {**kept["cy"]["row"], "fraction_off_nearby": "x"}},
+        "bob": {**kept["bob"], "row": {**kept["bob"]["row"], "mistakes": [["no-shadows"]]}},
+        "dee": {"stamp": {**kept["dee"]["stamp"], "phongray": "0.0.1"},
+                "row": {**kept["dee"]["row"], "status": "fail", "passed": False}}}
+    for student, data in tampered.items():
+        files[student].write_text(json.dumps(data))
+    outcome = classgrade.grade_class(scenes, subs, report, jobs=1)
+    assert (report / "report.json").read_bytes() == before  # each graded again, as it was
+    assert [r["status"] for r in outcome.rows] == ["pass", "fail", "pass", "pass"]
+    assert "<script>" not in (report / "index.html").read_text()
+    assert {s: json.loads(p.read_text()) for s, p in files.items()} == kept
+
+
+def test_a_resume_journal_that_is_a_fifo_dev_zero_or_huge_is_graded_again_not_waited_on(tmp_path):
+    scenes, subs, _ = make_class(tmp_path, {"ada": b"", "bob": b"", "cy": b""})
+    report = tmp_path / "report"
+    assert cli(scenes, subs, "-o", report, "--jobs", "1")[0] == 0
+
+    def kept(student: str) -> Path:
+        return report / "resume" / student / "spheres.json"
+
+    kept("ada").unlink()
+    os.mkfifo(kept("ada"))  # a plain read waits for a writer forever
+    kept("bob").unlink()
+    os.symlink("/dev/zero", kept("bob"))  # a plain read never ends
+    with open(kept("cy"), "ab") as f:
+        f.write(b" " * (4 << 20))  # still JSON, larger than any journal
+    code, err, _ = cli(scenes, subs, "-o", report, "--jobs", "1", timeout=60)
+    assert code == 0, err
+    assert {s: r["status"] for s, r in rows(report).items()} == {"ada": "pass", "bob": "pass", "cy": "pass"}
+    for student in ("ada", "bob", "cy"):  # graded again, and kept anew
+        assert stat.S_ISREG(os.lstat(kept(student)).st_mode) and kept(student).stat().st_size < 4096
+
+
+BIDI = "\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u200f"
+
+
+def test_bidirectional_controls_in_names_are_shown_escaped(tmp_path):
+    """A name that would reorder what is around it ('ada<RLO>gnp.exe' shows as 'adaexe.png') is shown escaped in
+    index.html and the CSV files; report.json keeps it as it is."""
+    name = "ada" + "".join(f"{c}{i}" for i, c in enumerate(BIDI))
+    scenes, subs, _ = make_class(tmp_path, {name: b"", "bob": b""})
+    (subs / name / "notes.png").write_bytes(b"")  # an ignored file of theirs, listed in the HTML
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    shown = "ada" + "".join(f"\\u{ord(c):04x}{i}" for i, c in enumerate(BIDI))
+    for file in ("index.html", "report.csv", "gradebook.csv"):
+        text = (report / file).read_text()
+        assert not set(BIDI) & set(text), file
+        assert shown in text, file
+    assert f"{shown}/notes.png: matches no task" in (report / "index.html").read_text()
+    assert rows(report)[name]["status"] == "pass"

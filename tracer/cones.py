@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .culling import Bounds
+from .culling import NORMAL_ERROR, Bounds, face_normal
 from .rays import Among
 from .shapes import TRIANGLE
 from .world import Triangles
@@ -145,17 +145,33 @@ def _edges_through(tris: Triangles, b: Bounds, apex: np.ndarray, apex_mag: float
     # every point of a triangle's plane is this far from the apex
     h = np.abs(rel[:, 0, 0] * normal[:, 0] + rel[:, 0, 1] * normal[:, 1] + rel[:, 0, 2] * normal[:, 2])
     with np.errstate(all="ignore"):
-        allow = 4.0 * grow / h + SLACK  # (the growth seen from at least h − grow away, and the stray's angle)
+        allow = 4.0 * grow / h + SLACK + NORMAL_ERROR  # (the growth seen from h − grow away, the stray, the planes)
         ok = np.isfinite(h) & np.isfinite(grow) & (h > 4.0 * grow)  # else the apex (nearly) in its plane
         ms = []
-        for i in range(3):
-            p, q, opposite = rel[:, i], rel[:, (i + 1) % 3], rel[:, (i + 2) % 3]
-            edge_normal = np.cross(p, q)
-            length = _norm(edge_normal)
-            side = np.sum(opposite * edge_normal, axis=1)
-            ok &= (length > 0) & np.isfinite(length) & (side != 0) & np.isfinite(side)
-            ms.append(edge_normal * (sign * np.sign(side) / length)[:, None])  # unit, the triangle on its side
+        for i in range(3):  # each plane's normal from the apex-to-corner vector and the edge itself (face_normal)
+            m, turn = _edge_plane(rel[:, i], corners[:, (i + 1) % 3] - corners[:, i],
+                                  corners[:, (i + 2) % 3] - corners[:, i])
+            ok &= np.isfinite(turn)
+            ms.append(m * (sign * turn)[:, None])  # unit, the triangle on its side
     return {int(j): ([m[t] for m in ms], float(allow[t])) for t, j in enumerate(which.tolist()) if ok[t]}
+
+
+def _edge_plane(u: np.ndarray, e: np.ndarray, across: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per row, the unit normal ``(K, 3)`` of the plane spanned by ``u`` and ``e`` (:func:`tracer.culling.face_normal`:
+    within :data:`tracer.culling.NORMAL_ERROR` of the true one, each of ``u`` and ``e`` a rounded difference of
+    stored numbers or exact), and the sign ``(K,)`` that turns it towards ``across`` (the third corner from the
+    edge's start: a short vector), NaN where either is not known: the normal's direction, or a side nearer the
+    plane than the normal's error and the product's rounding allow.
+
+    An error of NORMAL_ERROR in a plane's direction moves a cosine compared with it by as much, and a level
+    ``m·o`` by NORMAL_ERROR·|o − corner|: each test here allows at least MARGIN (2^-30) of the magnitudes, eight
+    times more (and :data:`SLACK32` more again through a point)."""
+    e = np.broadcast_to(e, u.shape)
+    m = np.stack(face_normal((u[:, 0], u[:, 1], u[:, 2]), (e[:, 0], e[:, 1], e[:, 2])), axis=1)
+    with np.errstate(invalid="ignore"):
+        side = np.sum(across * m, axis=1)
+        known = np.abs(side) > 2.0 * NORMAL_ERROR * _norm(across)
+    return m, np.where(known, np.sign(side), np.nan)
 
 
 def _inside(edges: Edges, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -232,12 +248,10 @@ def _edges_along(tris: Triangles, b: Bounds, ell: np.ndarray, origin_mag: float)
         ok = np.isfinite(grow)
         ms, levels = [], []
         for i in range(3):
-            p, q, opposite = corners[:, i], corners[:, (i + 1) % 3], corners[:, (i + 2) % 3]
-            edge_normal = np.cross(q - p, ell)
-            length = _norm(edge_normal)
-            side = np.sum((opposite - p) * edge_normal, axis=1)
-            ok &= (length > 0) & np.isfinite(length) & (side != 0) & np.isfinite(side)
-            m = edge_normal * (np.sign(side) / length)[:, None]
+            p = corners[:, i]
+            m, turn = _edge_plane(corners[:, (i + 1) % 3] - p, ell, corners[:, (i + 2) % 3] - p)
+            ok &= np.isfinite(turn)
+            m = m * turn[:, None]
             ms.append(m)
             levels.append(np.sum(p * m, axis=1) - grow)
     return {int(j): ([m[t] for m in ms], [float(level[t]) for level in levels])

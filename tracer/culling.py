@@ -28,6 +28,29 @@ The surface a point lies on is never its own blocker for the samples it faces
 mixed.  The decisions the proofs stand for are those the exact per-sample test
 makes, far from its rounding, so the image keeps its bytes.  Scenes with more
 than :data:`MAX_BOUNDS` surfaces skip the proofs (every point mixed).
+
+**Precision, construction by construction.**  Every test compares a computed
+number with a threshold grown by :data:`MARGIN` (2^-30) of the magnitudes
+involved, or a cosine with a slack of at least MARGIN; each number's own error
+stays under a quarter of that at every scale and every ratio of sizes:
+
+* a face or Q's plane (:func:`face_normal`): a long vector crossed with a short
+  exact one, never two long ones, so its direction errs by at most
+  NORMAL_ERROR (2^-33) whatever the ratio of Q's edges to its distance, or the
+  face is declined; a distance to it then errs by at most 2^-32 of the
+  magnitudes (:func:`_faces`);
+* a point's side of a plane, ``(P − q)·n``: one rounded difference per
+  component and a dot product, a few 2^-53 of ``|P − q|``;
+* the hidden test's cosines (:func:`_hidden`) and the penumbra's
+  (:class:`Penumbra`): dot products of rounded differences over their
+  lengths, absolute errors of a few 2^-53 against slacks of 2^-30 and more;
+  cosines near 1 (a thin light far away) only lose proofs, never make one;
+* a tile's ball (:func:`_tiles_of`): its centre ``(lo + hi)/2`` errs by 2^-53
+  of the coordinates' magnitude, absolute, which the margin (of the same
+  magnitudes) covers even where the ball's radius is far smaller;
+* a bound's distance from a segment or a ray (:func:`lit_tiles`): the nearest
+  point's parameter and the offset across it err by a few 2^-53 of
+  ``|centre − C|``, absolute, not of the distance itself: within the margin.
 """
 
 from __future__ import annotations
@@ -51,6 +74,10 @@ TILE = 16
 MAX_BOUNDS = 64
 #: a proof's margin, relative to the magnitudes involved: far above the exact tests' float64 rounding
 MARGIN = 2.0**-30
+#: how far a face's unit normal (:func:`face_normal`) may turn from the true face's and still serve a proof: the
+#: error it brings to a separation, at most (NORMAL_ERROR + 2^-50)·√3 of the magnitudes, is under a quarter of
+#: :data:`MARGIN` (:func:`_faces`)
+NORMAL_ERROR = 2.0**-33
 
 
 @dataclass(frozen=True)
@@ -102,6 +129,8 @@ def classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray,
     classified one by one.  A point of a SEEN tile sees every sample whatever the per-point proof would have
     made of it, so its shading is the same."""
     n = len(points)
+    if not np.all(np.isfinite(_q_normal(corners))):  # Q's plane not known well enough: no proof at all
+        return Culled(np.full(n, MIXED, dtype=np.int8), np.ones((len(b.radius), n), dtype=bool))
     if n >= 4 * TILE:
         seen = np.repeat(_seen_tiles(b, points, kind, index, outward, corners), TILE)[:n]
         if seen.any():
@@ -148,8 +177,7 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
     scale = scale + float(np.max(np.abs(corners)))
     margin_of = MARGIN * scale  # (at least every point's own margin)
     bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
-    q_normal = np.cross(corners[1] - corners[0], corners[3] - corners[0])
-    q_normal /= np.linalg.norm(q_normal)
+    q_normal = _q_normal(corners)
     with np.errstate(all="ignore"):
         apex_side = _plane_dot(centre, corners[0], q_normal)
         seen = np.abs(apex_side) > margin_of * 16 + reach_t  # every point of the ball off Q's plane
@@ -192,8 +220,7 @@ def _classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
     # the margin of bound k at a point: MARGIN·(scale + |centre_k| + r_k), the part of bound k a constant
     margin_of = MARGIN * scale
     bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
-    q_normal = np.cross(corners[1] - corners[0], corners[3] - corners[0])
-    q_normal /= np.linalg.norm(q_normal)
+    q_normal = _q_normal(corners)
     apex_side = _plane_dot(p, corners[0], q_normal)  # (N,)
     flat = np.abs(apex_side) <= margin_of * 16  # a point in Q's plane: no pyramid to speak of
     side = np.sign(apex_side)
@@ -242,20 +269,68 @@ def _classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
 def _faces(p: np.ndarray, corners: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """The side faces of the pyramids with apexes ``p (3, N)`` over the parallelogram ``corners (4, 3)``: four
     planes through an apex and an edge of Q, each as its unit normal ``(3, N)`` turned so that the pyramid lies
-    on its negative side (NaN where the apex and the edge are in line: then no bound is separated by it), and
-    the apex's offset along it ``(N,)``."""
+    on its negative side, and the apex's offset along it ``(N,)``.
+
+    Each normal is :func:`face_normal` of the apex-to-corner vector and the edge itself (never the cross product
+    of two apex-to-corner vectors, whose direction is good only to about 2^-52·D/e for a light at distance D
+    with edges e: too little for a thin light far away).  Its direction is within :data:`NORMAL_ERROR` of the
+    true face's, or it is NaN.  It is turned by the side of the far corner, ``(far − a)·n``, a short vector
+    dotted with it: trusted only where that exceeds ``2·NORMAL_ERROR·|far − a|`` (the normal's error and the
+    product's rounding), NaN otherwise.  A NaN face separates no bound.
+
+    **What a proof may take from a face.**  For a bound centre ``c``, ``n̂·(c − P)`` (computed as
+    ``n̂·c − n̂·P``) lies within ``(NORMAL_ERROR + 2^-50)·|c − P| + 2^-50·(|c| + |P|)`` of the true face's
+    ``n·(c − P)``, and ``|c − P| ≤ √3·(max|c| + max|P|)``: under 2^-32 of the magnitudes, a quarter of the
+    module's :data:`MARGIN`, which every separation test adds (``MARGIN`` of the apex's, the corners' and the
+    bound's magnitudes).  So a bound found beyond a face by its radius plus the margin is beyond the true face
+    by its radius, at every ratio of edge to distance and at every scale."""
     faces = []
     for k in range(4):
         a, c, far = corners[k], corners[(k + 1) % 4], corners[(k + 2) % 4]
-        ax, ay, az = a[0] - p[0], a[1] - p[1], a[2] - p[2]
-        cx, cy, cz = c[0] - p[0], c[1] - p[1], c[2] - p[2]
-        f = np.stack([ay * cz - az * cy, az * cx - ax * cz, ax * cy - ay * cx])  # (3, N): (a − P) × (c − P)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            f /= np.sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2])
-            inner = (far[0] - p[0]) * f[0] + (far[1] - p[1]) * f[1] + (far[2] - p[2]) * f[2]  # the far corner
-            f *= np.where(inner != 0, -np.sign(inner), np.nan)  # outward: the far corner on the negative side
-        faces.append((f, f[0] * p[0] + f[1] * p[1] + f[2] * p[2]))
+        f = face_normal((a[0] - p[0], a[1] - p[1], a[2] - p[2]), c - a)
+        across = far - a  # (3,): the far corner from the edge's start, short and exact to rounding
+        with np.errstate(invalid="ignore"):
+            inner = across[0] * f[0] + across[1] * f[1] + across[2] * f[2]
+            known = np.abs(inner) > 2.0 * NORMAL_ERROR * float(np.sqrt(across @ across))
+            turn = np.where(known, -np.sign(inner), np.nan)  # outward: the far corner on the negative side
+        normal = np.stack([f[0] * turn, f[1] * turn, f[2] * turn])
+        faces.append((normal, normal[0] * p[0] + normal[1] * p[1] + normal[2] * p[2]))
     return faces
+
+
+Vector = tuple[np.ndarray, np.ndarray, np.ndarray] | np.ndarray
+
+
+def face_normal(u: Vector, e: Vector) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unit normal ``u × e / |u × e|`` of the plane through a point and a segment, from ``u`` (the segment's
+    start less the point) and ``e`` (the segment's end less its start), each by its three components (arrays
+    that broadcast, or a 3-vector), each component one rounded subtraction of stored numbers (or exact); NaN
+    where its direction is not known within :data:`NORMAL_ERROR`.
+
+    **Bound.**  Each rounded component is the true one times (1 + α), |α| ≤ μ = 2^-53.  A component
+    ``u_i e_j − u_j e_i`` of the product then errs by at most γ₄·(|u_i e_j| + |u_j e_i|) (γ₄ = 4μ/(1 − 4μ): the
+    two inputs' roundings, the product's and the difference's), so the vector by at most √2·γ₄·|u||e|, and its
+    unit vector by at most twice that over |u × e|: 11.4μ·|u||e|/|u × e|.  With the lengths' own roundings
+    (a few μ each) this is below 16μ·|u||e|/|n̂| as computed, which is kept at most NORMAL_ERROR; the division
+    adds 2^-50 at most.  The error is large only where ``u`` lies almost along ``e`` (the point nearly in line
+    with the segment), never because ``u`` is long: a point far from a short segment keeps its digits."""
+    e0, e1, e2 = e[0], e[1], e[2]
+    n0, n1, n2 = u[1] * e2 - u[2] * e1, u[2] * e0 - u[0] * e2, u[0] * e1 - u[1] * e0
+    with np.errstate(all="ignore"):
+        length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        reach = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) * np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        known = length * NORMAL_ERROR >= 2.0**-49 * reach
+        inverse = np.where(known & (length > 0), 1.0 / length, np.nan)
+    return n0 * inverse, n1 * inverse, n2 * inverse
+
+
+def _q_normal(corners: np.ndarray) -> np.ndarray:
+    """The unit normal of the parallelogram ``corners (4, 3)``, :func:`face_normal` of its two edges from
+    ``corners[0]``: within :data:`NORMAL_ERROR` of the true one (the edges are short vectors, exact to
+    rounding), or NaN where the edges are too nearly parallel for that.  Its error in ``(c − q)·n`` for a point
+    ``c`` is at most (NORMAL_ERROR + 2^-50)·|c − q|, under a quarter of the margin, as for the faces."""
+    u = corners[1] - corners[0]
+    return np.array(face_normal((u[0], u[1], u[2]), corners[3] - corners[0]), dtype=np.float64)
 
 
 def _plane_dot(p: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ nothing for two tasks, and a scene of his own (ignored: students cannot change t
 as a learning-management system downloads them: Spheres.PNG, one folder deeper hw3/lights.png, and a JPEG
 mirror.jpg; gus and hana made classic mistakes, which the report names: gus cast no shadow rays and used the
 Blinn–Phong half vector, hana cast no shadow rays, left out attenuation and inverted the index of refraction.
-tasks.json gives each task its points.
+tasks.json gives each task its points, and half of the spheres' for an image whose one fault is no shadows.
 """
 
 import copy
@@ -82,7 +82,8 @@ def main() -> None:
                                         "mirror": "ior-inverted"})):
         for task, mistake in mistakes.items():
             save(sub / student / f"{task}.png", render(scenes[task], mistake))
-    points = {"spheres": {"points": 2}, "lights": {"points": 3}, "mirror": {"points": 5, "tolerance": 3}}
+    points = {"spheres": {"points": 2, "deductions": {"no-shadows": 1}}, "lights": {"points": 3},
+              "mirror": {"points": 5, "tolerance": 3}}
     (HERE / "tasks.json").write_text(json.dumps(points, indent=2) + "\n")
 
 

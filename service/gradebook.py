@@ -1,0 +1,93 @@
+"""A class's scores: partial credit by the likely mistake, each student's total, and ``gradebook.csv``.
+
+A pair that passes scores its task's points, a missing or invalid one 0.  A failing one scores 0, unless the
+tasks file gives its task ``deductions`` by mistake id (``{"no-shadows": 1}``) and the image's one fault is
+such a mistake: it passes against the reference rendered with that mistake (:mod:`service.diagnosis`).  It
+then scores the points less the deduction, never below 0; an image that several mistakes explain alike gets
+the smallest of their deductions.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from typing import Any
+
+from tracer.variants import VARIANTS
+
+from .taskfile import TaskSettings
+
+#: the ids a deduction may name: the diagnosis's classic mistakes (tracer.variants), with what each is
+MISTAKES = {name: words for name, (_, words) in VARIANTS.items()}
+
+
+def matched(diagnosis: dict[str, Any] | None) -> list[str]:
+    """The ids of the mistakes a failing image matches (passes against the reference rendered with each), best
+    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it."""
+    if not diagnosis:
+        return []
+    return [c["variant"] for c in diagnosis.get("causes", []) if c.get("passes")]
+
+
+@dataclass(frozen=True)
+class Score:
+    score: float
+    deducted: str | None = None  # the mistake whose deduction was taken: a partial credit
+
+
+def score(row: dict[str, Any], task: TaskSettings) -> Score:
+    """What a pair scores of its task's points."""
+    if row["status"] == "pass":
+        return Score(task.points)
+    if row["status"] != "fail":
+        return Score(0.0)
+    options = sorted((task.deductions[m], m) for m in row.get("mistakes") or [] if m in task.deductions)
+    if not options:
+        return Score(0.0)
+    least, mistake = options[0]
+    return Score(max(0.0, task.points - least), mistake)
+
+
+def partial(row: dict[str, Any]) -> str:
+    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty."""
+    if not row.get("deducted"):
+        return ""
+    lost = row["points"] - row["score"]
+    return (f"Partial credit: {row['score']:g} of {row['points']:g} points ({MISTAKES[row['deducted']]}: "
+            f"-{lost:g})")
+
+
+@dataclass(frozen=True)
+class Total:
+    student: str
+    lms_id: str  # the student's id in the LMS's export ("" for none)
+    scores: dict[str, float]  # task → score
+    total: float
+    out_of: float
+
+
+def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
+    """Each student's scores and total, in the students' order."""
+    out = []
+    for student in students:
+        mine = [r for r in rows if r["student"] == student]
+        out.append(Total(student, mine[0]["lms_id"] if mine else "", {r["task"]: r["score"] for r in mine},
+                         sum(r["score"] for r in mine), sum(r["points"] for r in mine)))
+    return out
+
+
+def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[str],
+                  cell: Any = lambda v: v) -> str:
+    """``gradebook.csv``: a row per student (their name and, from a Canvas or Moodle export, the LMS's id, to
+    match on import), a column per task (its score) and the total; ``cell`` makes a text cell safe to open
+    (:func:`service.report.safe_cell`)."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_MINIMAL)
+    writer.writerow(["student", "id", *map(cell, tasks), "total"])
+    for t in totals(rows, students):
+        name = cell(t.student)
+        row = [name, t.lms_id, *(f"{t.scores[task]:g}" for task in tasks), f"{t.total:g}"]
+        (csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_ALL) if "\r" in name else writer).writerow(row)
+    return buf.getvalue()
+
