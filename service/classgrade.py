@@ -10,11 +10,11 @@ canonical scene hash), so a re-run renders only what it does not have.  Renders 
 requests to a running service with ``server``: the same tasks, the same pipeline
 (:mod:`service.pipeline`), the same report.
 
-Every scene is priced with the service's limits before anything renders, and a render has its
-``render_timeout``.  A fault of where the work runs (a pool process killed, the Dask scheduler lost, a server
-connection reset) is retried :data:`RETRIES` times with backoff; every reference and every grade is kept as it
-finishes (``REPORT/resume/<student>/<task>.json`` for a grade), so a run stopped by a fault that persists
-resumes where it stopped.
+The TA's scenes are trusted: with ``limits`` (``--limits``) every scene is priced with the service's limits
+before anything renders, and a render has its ``render_timeout`` and budget.  A fault of where the work runs
+(a pool process killed, the Dask scheduler lost, a server connection reset) is retried :data:`RETRIES` times
+with backoff; every reference and every grade is kept as it finishes (``REPORT/resume/<student>/<task>.json``
+for a grade), so a run stopped by a fault that persists resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -51,20 +51,30 @@ __all__ = ["COLUMNS", "NUMBERS", "SCENE_IGNORED", "STATUSES", "ClassError", "Out
 # -- the tasks: bytes in, bytes out, so that they run alike in a local pool and on Dask workers ---------------
 
 
-def render_task(scene: bytes, timeout: float | None = None) -> tuple[bytes | None, str]:
-    """The reference PNG of a scene's text, or (None, the reason it cannot be rendered); a render still going
-    after ``timeout`` seconds (the service's ``render_timeout``) is stopped."""
+def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | None, str]:
+    """The reference PNG of a scene's text, or (None, the reason it cannot be rendered).  With the service's
+    ``limits`` (``grade-class --limits``), a render still going after their ``render_timeout`` or outgrowing
+    their budget (:func:`service.limits.budget`) is stopped; without, the TA's scene is trusted."""
     from schemas import load_scene
-    from tracer import ImageTooLarge, RenderCancelled, encode_png, render
+    from tracer import ImageTooLarge, OverBudget, RenderCancelled, encode_png, render
+    from tracer.budget import UNLIMITED
 
-    deadline = None if timeout is None else time.monotonic() + timeout
+    from .limits import budget, outgrown
+
+    deadline = None if limits is None else time.monotonic() + limits.render_timeout
+    loaded = load_scene(scene)
     try:
-        return encode_png(render(load_scene(scene), threads=1,
+        return encode_png(render(loaded, threads=1, budget=UNLIMITED if limits is None else budget(loaded, limits),
                                  cancel=None if deadline is None else lambda: time.monotonic() > deadline)), ""
     except ImageTooLarge as exc:
         return None, str(exc)
+    except OverBudget as exc:
+        assert limits is not None
+        return None, str(outgrown(exc, limits))
     except RenderCancelled:
-        return None, f"the render ran past the limit render_timeout = {timeout:g} s (PHONGRAY_RENDER_TIMEOUT)"
+        assert limits is not None
+        return None, (f"the render ran past the limit render_timeout = {limits.render_timeout:g} s "
+                      f"(PHONGRAY_RENDER_TIMEOUT)")
 
 
 def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float,
@@ -91,7 +101,7 @@ def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float,
     return grade_task(reference, image, tolerance, max_fraction, scene if diagnose else None)
 
 
-def _server_render(server: str, api_key: str | None, scene: bytes, timeout: float | None = None
+def _server_render(server: str, api_key: str | None, scene: bytes, limits: Settings | None = None
                    ) -> tuple[bytes | None, str]:
     """:func:`render_task` by a running service (which has its own ``render_timeout``); a refusal of the scene
     (its limits, its time) is the reason."""
@@ -181,10 +191,11 @@ class Outcome:
         return summary(self.rows, self.renders, self.seconds)
 
 
-def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict[Path, bytes]]:
-    """Validate and price every scene of the TA's once (the tasks' and the students' own), with the service's
-    cost model and limits: key → scene file, and each file's text.  An invalid scene, or one the service would
-    refuse as too costly, stops the run before anything renders, every problem named by file (and line)."""
+def _scene_keys(batch: Batch, settings: Settings | None) -> tuple[dict[str, Path], dict[Path, bytes]]:
+    """Validate every scene of the TA's once (the tasks' and the students' own), and price it with the service's
+    limits ``settings`` when given (``--limits``): key → scene file, and each file's text.  An invalid scene, or
+    one the service would refuse up front, stops the run before anything renders, every problem named by file
+    (and line)."""
     from schemas import SceneError
 
     from .limits import LimitError, check_body, check_scene
@@ -201,14 +212,16 @@ def _scene_keys(batch: Batch, settings: Settings) -> tuple[dict[str, Path], dict
         keys[pair.scene] = ""
         try:
             text = texts[pair.scene] = pair.scene.read_bytes()
-            check_body(text, settings)
+            if settings is not None:
+                check_body(text, settings)
             scene = load_scene(str(pair.scene), text)
-            check_scene(scene, settings)
+            if settings is not None:
+                check_scene(scene, settings)
             pair.key = keys[pair.scene] = scene_key(scene)
         except SceneError as exc:
             problems.extend(exc.lines)  # type: ignore[attr-defined]
         except LimitError as exc:
-            problems.append(f"{pair.scene}: {exc} (the service's limit; PHONGRAY_* variables set them)")
+            problems.append(f"{pair.scene}: {exc} (the service's limit, asked for by --limits)")
         except OSError as exc:
             problems.append(f"{pair.scene}: cannot read: {exc.strerror or exc}")
     if problems:
@@ -268,14 +281,14 @@ class _Backend:
     one; a server's faults are retried per request (:func:`_patient`)."""
 
     def __init__(self, server: str | None, cluster: str | None, jobs: int | None, work: int, api_key: str | None,
-                 cluster_wait: float, timeout: float):
+                 cluster_wait: float, limits: Settings | None):
         self.cluster, self.cluster_wait = cluster, cluster_wait
         self.client: Any = None
         self.workers = max(1, min(jobs or os.cpu_count() or 1, work))
         self.executor: futures.Executor | None = None
         #: what a fault of the executor raises (for a result, or for a submission)
         self.faults: tuple[type[BaseException], ...] = ()
-        self.render: Callable[..., Any] = partial(render_task, timeout=timeout)
+        self.render: Callable[..., Any] = partial(render_task, limits=limits)
         self.grade: Callable[..., Any] = _local_grade
         self.diagnose = True  # whether a failing pair's likely mistake is named (see no_diagnosis)
         if server:
@@ -417,8 +430,10 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
                 jobs: int | None = None, server: str | None = None, cluster: str | None = None,
                 progress: Callable[[int, int], None] | None = None, api_key: str | None = None,
                 student_scenes: Path | None = None, tasks_file: Path | None = None,
-                cluster_wait: float = 30.0, diagnose: bool = True) -> Outcome:
-    """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away.
+                cluster_wait: float = 30.0, limits: bool = False, diagnose: bool = True
+                ) -> Outcome:
+    """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away.  The
+    TA's scenes are trusted: held to the service's limits (``PHONGRAY_*``) only with ``limits``.
     Raises :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a
     fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
@@ -426,12 +441,12 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     _outside(report, submissions)
     batch = discover(scenes, submissions, student_scenes, settings.max_image_bytes)
     tasks = load_tasks(tasks_file, batch.tasks)
-    scene_of_key, texts = _scene_keys(batch, settings)
+    scene_of_key, texts = _scene_keys(batch, settings if limits else None)
     made = not report.exists()
     _writable(report)
     try:
         return _run(batch, tasks, scene_of_key, texts, report, tolerance, max_fraction, jobs, server, cluster,
-                    progress, api_key, cluster_wait, started, settings, diagnose)
+                    progress, api_key, cluster_wait, started, settings, limits, diagnose)
     except Exception:
         if made:  # a run stopped by a fault of the TA's leaves no empty report folder behind
             with contextlib.suppress(OSError):
@@ -442,8 +457,10 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
 def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, Path], texts: dict[Path, bytes],
          report: Path, tolerance: float, max_fraction: float, jobs: int | None, server: str | None,
          cluster: str | None, progress: Callable[[int, int], None] | None, api_key: str | None,
-         cluster_wait: float, started: float, settings: Settings, diagnose: bool = True) -> Outcome:
-    """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report."""
+         cluster_wait: float, started: float, settings: Settings, limits: bool, diagnose: bool = True
+         ) -> Outcome:
+    """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report (the
+    renders held to the service's limits ``settings`` with ``limits``)."""
     todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
     refs = {k: report / "references" / f"{k}.png" for k in scene_of_key}
     needed = {k: scene_of_key[k] for k, path in refs.items() if not path.exists()}
@@ -457,7 +474,7 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     from .client import ServerError
 
     backend = _Backend(server, cluster, jobs, len(todo) + len(needed), api_key, cluster_wait,
-                       settings.render_timeout)
+                       settings if limits else None)
     if not diagnose:
         backend.no_diagnosis()
     try:

@@ -8,6 +8,7 @@ the same messages as local work (both go through :mod:`service.pipeline`).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -23,6 +24,8 @@ PASS_NAMES = ("background", "ambient", "diffuse", "specular", "reflection", "ref
               "depth", "object")
 
 if TYPE_CHECKING:
+    from tracer.budget import OverBudget
+
     from .heatmap import Kind
 
 EXIT_BAD_INPUT = 2
@@ -74,11 +77,37 @@ def _write(path: str, data: bytes) -> None:
             sys.stdout.buffer.write(data)
             sys.stdout.flush()
         else:
-            Path(path).write_bytes(data)
+            _replace(Path(path), data)
     except BrokenPipeError:
         raise
     except OSError as exc:
         raise CliError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def _replace(path: Path, data: bytes) -> None:
+    """Write a file whole or not at all: a temporary file in its folder, then one rename, so that a failure (a
+    full disk, an interruption) never leaves a truncated image where an old one was.  The file keeps its mode;
+    a symbolic link is written through; a device or a FIFO (``/dev/null``) is written to as it is."""
+    import stat
+
+    target = path.resolve() if path.is_symlink() else path
+    try:
+        mode: int | None = os.stat(target).st_mode
+    except FileNotFoundError:
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
+        target.write_bytes(data)
+        return
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_bytes(data)
+        if mode is not None:
+            os.chmod(tmp, stat.S_IMODE(mode))
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
 
 
 def _load(path: str, text: bytes, overrides: dict[str, Any] | None = None) -> Any:
@@ -120,11 +149,37 @@ def _cluster(args: argparse.Namespace) -> Any:
     return connect(args.cluster, wait=args.cluster_wait)
 
 
+def _budget(args: argparse.Namespace, scene: Any) -> Any:
+    """With ``--limits``, ``scene`` checked against the service's limits (exit 2 naming the one it exceeds) and
+    the budget its render is held to; without, no limit: a scene on one's own machine is trusted."""
+    from tracer.budget import UNLIMITED
+
+    if not args.limits:
+        return UNLIMITED
+    from .limits import LimitError, budget, check_scene
+    from .settings import Settings
+
+    settings = Settings.from_env()
+    try:
+        check_scene(scene, settings)
+    except LimitError as exc:
+        raise CliError(f"{args.scene}: {exc}") from None
+    return budget(scene, settings)
+
+
+def _outgrown(args: argparse.Namespace, exc: OverBudget) -> CliError:
+    """A render stopped by its ``--limits`` budget, in the service's words (exit 2)."""
+    from .limits import outgrown
+    from .settings import Settings
+
+    return CliError(f"{args.scene}: {outgrown(exc, Settings.from_env())}")
+
+
 def cmd_render(args: argparse.Namespace) -> int:
-    from tracer import ImageTooLarge, encode_png
+    from tracer import ImageTooLarge, OverBudget, encode_png
 
     from .cluster import ClusterError
-    from .rendering import render_pixels
+    from .rendering import BandLost, render_pixels
 
     if args.server and args.cluster:
         raise CliError("--server and --cluster: choose one")
@@ -142,15 +197,20 @@ def cmd_render(args: argparse.Namespace) -> int:
         _write(args.output, data)
         return 0
     scene = _load(args.scene, text, overrides)
+    budget = _budget(args, scene)
     bar = ProgressBar()
     try:
         if args.cluster:
             with _cluster(args) as client:
                 pixels = render_pixels(scene, client)
         else:
-            pixels = render_pixels(scene, threads=args.threads, progress=bar, processes=True)
+            pixels = render_pixels(scene, threads=args.threads, progress=bar, processes=True, budget=budget)
     except ImageTooLarge as exc:
         raise CliError(f"{args.scene}: {exc}") from None
+    except OverBudget as exc:
+        raise _outgrown(args, exc) from None
+    except BandLost as exc:
+        raise CliError(f"{args.scene}: {exc}", code=1) from None
     except ClusterError as exc:
         raise CliError(str(exc)) from None
     finally:
@@ -183,11 +243,16 @@ def _render_pass(args: argparse.Namespace) -> int:
         with _remote(args.scene):
             data = post_json(args.server, "/render", text, query, api_key=args.api_key)
     else:
+        from tracer import OverBudget
+
         scene = _load(args.scene, text, overrides)
         try:
-            data = passes.encoded(args.pass_, passes.values(scene, args.pass_, args.light, args.threads), fmt)
+            data = passes.encoded(args.pass_, passes.values(scene, args.pass_, args.light, args.threads,
+                                                            budget=_budget(args, scene)), fmt)
         except ValueError as exc:
             raise CliError(f"{args.scene}: {exc}") from None
+        except OverBudget as exc:
+            raise _outgrown(args, exc) from None
     _write(args.output, data)
     if not args.quiet:
         of = "" if args.pass_ not in passes.OF_A_LIGHT else " of every light" if args.light is None else \
@@ -217,7 +282,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
             lines = []
     else:
         try:
-            load_scene(args.scene, text)
+            _warn_of_limits(args.scene, load_scene(args.scene, text))
             lines = []
         except SceneError as exc:
             lines = exc.lines  # type: ignore[attr-defined]
@@ -227,6 +292,16 @@ def cmd_validate(args: argparse.Namespace) -> int:
         return 1
     print(f"{args.scene}: valid")
     return 0
+
+
+def _warn_of_limits(name: str, scene: Any) -> None:
+    """A warning on stderr for each limit of the service's (its ``PHONGRAY_*`` settings) that the scene exceeds,
+    or most likely will as it renders: it is valid, and renders here, but a service would refuse it."""
+    from .limits import beyond_limits
+    from .settings import Settings
+
+    for warning in beyond_limits(scene, Settings.from_env()):
+        print(f"{name}: warning: {warning}", file=sys.stderr)
 
 
 def _thresholds(args: argparse.Namespace) -> None:
@@ -272,15 +347,17 @@ def cmd_grade(args: argparse.Namespace) -> int:
                 heat = post_form(args.server, "/grade", fields, files, {"format": "png", "heatmap": kind},
                                  api_key=args.api_key)
     else:
-        from tracer import ImageTooLarge, encode_png
+        from tracer import ImageTooLarge, OverBudget, encode_png
 
         from .rendering import render_pixels
 
         scene = _load(args.scene, text)
         try:
-            reference = encode_png(render_pixels(scene))
+            reference = encode_png(render_pixels(scene, budget=_budget(args, scene)))
         except ImageTooLarge as exc:
             raise CliError(f"{args.scene}: {exc}") from None
+        except OverBudget as exc:
+            raise _outgrown(args, exc) from None
         try:
             graded = pipeline.grade_png(reference, image, args.tolerance, args.max_fraction,
                                         kind if args.heatmap else None, legend=True,
@@ -333,7 +410,8 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
                               progress=bar, api_key=args.api_key,
                               student_scenes=Path(args.student_scenes) if args.student_scenes else None,
                               tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
-                              diagnose=not args.no_diagnosis)
+                              diagnose=not args.no_diagnosis,
+                              limits=args.limits)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
         raise CliError(printable(str(exc))) from None
     except OSError as exc:
@@ -463,6 +541,12 @@ def build_parser() -> argparse.ArgumentParser:
                            help="how long to wait for the cluster's first worker before giving up "
                                 "(default: $PHONGRAY_CLUSTER_WAIT, else 30)")
 
+    def limits(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--limits", action="store_true",
+                       help="hold the scene to the service's limits (PHONGRAY_* settings: pixels, samples, depth, "
+                            "the cost counted as it renders, render_timeout for grade-class), as a server would; "
+                            "without it a scene here is trusted")
+
     def thresholds(p: argparse.ArgumentParser) -> None:
         p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (0–255)")
         p.add_argument("--max-fraction", type=float, default=0.001,
@@ -494,6 +578,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "additive terms)")
     p.add_argument("--light", type=_index, metavar="K", help="with --pass: light K alone (its index in lights)")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
+    limits(p)
     remote(p, cluster=True)
     p.set_defaults(func=cmd_render)
 
@@ -509,6 +594,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("image", help="the submitted PNG")
     verdict(p)
     no_diagnosis(p)
+    limits(p)
     remote(p)
     p.set_defaults(func=cmd_grade)
 
@@ -544,6 +630,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "classic mistake): a faster run, with an empty 'likely' column")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors and ignored files (no "
                                                               "progress bar, no summary line)")
+    limits(p)
     remote(p, cluster=True)
     p.set_defaults(func=cmd_grade_class)
 

@@ -12,9 +12,12 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from tracer.budget import Budget
 
 INSTALL = "--cluster needs Dask distributed: pip install 'phongray[cluster]'"
 #: pixels per band of a cluster render (a 3840×2160 image is 32 bands)
@@ -90,12 +93,14 @@ def connect(address: str, timeout: float = 10.0, wait: float | None = None) -> I
         client_.close()
 
 
-def band_task(scene: bytes, top: int, bottom: int) -> np.ndarray:
-    """Rows ``top..bottom`` of a scene's image, ``(bottom − top, W, 3) uint8``."""
+def band_task(scene: bytes, top: int, bottom: int, budget: Budget | None = None) -> np.ndarray:
+    """Rows ``top..bottom`` of a scene's image, ``(bottom − top, W, 3) uint8``, within ``budget`` when given (the
+    whole render's: a band alone over it is a render over it; :class:`tracer.OverBudget` otherwise)."""
     from schemas import load_scene
+    from tracer.budget import UNLIMITED
     from tracer.render import Renderer
 
-    return Renderer(load_scene(scene)).pixels(threads=1, rows=(top, bottom))
+    return Renderer(load_scene(scene)).pixels(threads=1, rows=(top, bottom), budget=budget or UNLIMITED)
 
 
 def bands(width: int, height: int) -> list[tuple[int, int]]:
@@ -104,15 +109,19 @@ def bands(width: int, height: int) -> list[tuple[int, int]]:
 
 
 def render(client: Any, scene: bytes, width: int, height: int,
-           cancelled: Callable[[], bool] = lambda: False, poll: float = 0.05) -> np.ndarray:
+           cancelled: Callable[[], bool] = lambda: False, poll: float = 0.05, budget: Budget | None = None
+           ) -> np.ndarray:
     """The image of a scene rendered band by band on the cluster; ``cancelled()`` is polled while waiting and,
-    once true, the bands still to come are cancelled and :class:`tracer.RenderCancelled` is raised."""
+    once true, the bands still to come are cancelled and :class:`tracer.RenderCancelled` is raised.  Each band is
+    held to ``budget`` when given; one that outgrows it raises :class:`tracer.OverBudget` here (not retried), the
+    others cancelled."""
     from tracer import RenderCancelled
 
     data = client.scatter(scene, broadcast=False, hash=False)
-    parts = [client.submit(band_task, data, top, bottom, pure=False, retries=2) for top, bottom in bands(width, height)]
+    parts = [client.submit(band_task, data, top, bottom, budget, pure=False, retries=2 if budget is None else 0)
+             for top, bottom in bands(width, height)]
     try:
-        while not all(f.done() for f in parts):
+        while not all(f.done() for f in parts) and not any(f.status == "error" for f in parts):
             if cancelled():
                 client.cancel(parts)
                 raise RenderCancelled("the render was cancelled")

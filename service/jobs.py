@@ -16,12 +16,12 @@ import anyio
 import numpy as np
 
 from schemas import Scene, parse_json, validate_scene
-from tracer import RenderCancelled, encode_png
+from tracer import OverBudget, RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
 from .diagnosis import unavailable
-from .limits import check_body, check_raw, check_scene
+from .limits import budget, check_body, check_raw, check_scene, outgrown
 from .passes import Format
 from .pipeline import Graded, explain, with_overrides
 from .rendering import render_pixels
@@ -96,7 +96,8 @@ class RenderService:
             release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
 
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:
-        """The PNG of a job, from the cache or rendered. Raises Busy, TooSlow or RenderCancelled.
+        """The PNG of a job, from the cache or rendered. Raises Busy, TooSlow, RenderCancelled, or LimitError when
+        the render outgrows its budget (:func:`service.limits.budget`).
 
         Concurrent requests for one scene are joined before they get here (one flight per scene in
         :mod:`service.routes`), so each scene is rendered once."""
@@ -106,11 +107,14 @@ class RenderService:
         with self._slot() as late:
             client = self._client() if self.settings.cluster else None
             try:
-                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=lambda: cancelled() or late())
+                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=lambda: cancelled() or late(),
+                                       budget=budget(job.scene, self.settings))
             except RenderCancelled:
                 if late():
                     raise TooSlow() from None
                 raise
+            except OverBudget as exc:
+                raise outgrown(exc, self.settings) from None
             data = encode_png(pixels)
             del pixels  # before the slot's release, so that its pages go back too
             self.renders += 1
@@ -119,8 +123,8 @@ class RenderService:
 
     def pass_file(self, job: Job, name: str, light: int | None, fmt: Format) -> bytes:
         """Render pass ``name`` of a job (of light ``light``) as a PNG or ``.npy`` file (:mod:`service.passes`),
-        from the cache or rendered in a render slot within ``render_timeout``.  Raises Busy, TooSlow, or
-        ValueError for a light the scene does not have."""
+        from the cache or rendered in a render slot within ``render_timeout``.  Raises Busy, TooSlow, LimitError
+        when it outgrows its budget, or ValueError for a light the scene does not have."""
         from . import passes
 
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
@@ -129,9 +133,12 @@ class RenderService:
             return cached
         with self._slot() as late:
             try:
-                data = passes.encoded(name, passes.values(job.scene, name, light, self.threads, cancel=late), fmt)
+                data = passes.encoded(name, passes.values(job.scene, name, light, self.threads, cancel=late,
+                                                          budget=budget(job.scene, self.settings)), fmt)
             except RenderCancelled:
                 raise TooSlow() from None
+            except OverBudget as exc:
+                raise outgrown(exc, self.settings) from None
         self.cache.put(key, data)
         return data
 

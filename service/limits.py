@@ -6,7 +6,9 @@ import math
 from typing import Any
 
 from schemas import AreaLight, Mesh, Plane, Scene, Sphere, Triangle
+from tracer.budget import Budget, OverBudget
 
+from .estimate import ray_tree
 from .settings import Settings
 
 
@@ -53,7 +55,8 @@ def check_raw(data: Any, settings: Settings) -> None:
     for name, limit in (("objects", "max_objects"), ("lights", "max_lights"), ("materials", "max_materials")):
         part = data.get(name)
         if isinstance(part, (list, dict)) and len(part) > getattr(settings, limit):
-            raise LimitError(f"{name}: {len(part)} entries exceed the limit {limit} = {getattr(settings, limit)}")
+            raise LimitError(f"{name}: {len(part)} entries exceed the limit {limit} = {getattr(settings, limit)} "
+                             f"(PHONGRAY_{limit.upper()})")
     objects = data.get("objects")
     if not isinstance(objects, list):
         return
@@ -62,7 +65,7 @@ def check_raw(data: Any, settings: Settings) -> None:
         count = sum(len(o[key]) for o in meshes if isinstance(o.get(key), list))
         if count > getattr(settings, limit):
             raise LimitError(f"objects: {count} {key} in all exceed the limit {limit} = "
-                             f"{getattr(settings, limit)}")
+                             f"{getattr(settings, limit)} (PHONGRAY_{limit.upper()})")
 
 
 def light_samples(scene: Scene) -> int:
@@ -73,18 +76,6 @@ def light_samples(scene: Scene) -> int:
 
 def triangle_count(scene: Scene) -> int:
     return sum(1 if isinstance(o, Triangle) else len(o.faces) if isinstance(o, Mesh) else 0 for o in scene.objects)
-
-
-def ray_tree_nodes(scene: Scene) -> float:
-    """Rays per sub-sample in the worst case: the ray tree doubles at every depth where a material both
-    reflects and transmits, grows by one where materials only reflect or only transmit."""
-    mats = scene.materials.values()
-    depth = scene.image.max_depth
-    if any(m.reflectance > 0 and m.transmittance > 0 for m in mats):
-        return 2.0 ** (depth + 1) - 1.0
-    if any(m.reflectance > 0 or m.transmittance > 0 for m in mats):
-        return depth + 1.0
-    return 1.0
 
 
 def per_ray_factor(scene: Scene) -> float:
@@ -98,32 +89,79 @@ def per_ray_factor(scene: Scene) -> float:
     return 1.0 + planes / 4.0 + math.log2(1.0 + bvh) / 8.0 + around / 2.0
 
 
-def estimated_cost(scene: Scene) -> float:
-    """Ray work of a render: pixels × samples² × worst-case ray tree × (1 + light samples) × per-ray factor."""
+def camera_rays(scene: Scene) -> float:
+    """The rays a render certainly casts: one per pixel and sub-sample."""
     img = scene.image
-    return (float(img.width) * img.height * img.samples**2 * ray_tree_nodes(scene) * (1 + light_samples(scene))
-            * per_ray_factor(scene))
+    return float(img.width) * img.height * img.samples**2
+
+
+def estimated_cost(scene: Scene) -> float:
+    """Ray work of a render, estimated before it starts: camera rays × (rays of the tree each spawns + their
+    hits × light samples) × per-ray factor (:func:`service.estimate.ray_tree`)."""
+    tree = ray_tree(scene)
+    return camera_rays(scene) * (tree.rays + tree.hits * light_samples(scene)) * per_ray_factor(scene)
+
+
+def budget(scene: Scene, settings: Settings) -> Budget:
+    """What a render of ``scene`` may spend as it runs: its rays, counted, times its per-ray factor within
+    ``max_cost``, and its rays in flight within ``max_ray_bytes``."""
+    return Budget(rays=settings.max_cost / per_ray_factor(scene), ray_bytes=settings.max_ray_bytes)
+
+
+#: what to say of each budget a render may outgrow: the setting, and what the scene can do about it
+OUTGROWN = {"rays": ("max_cost", "it needs more rays than the service traces for one image: lower image.max_depth "
+                                 "(mirrors and glass that see each other multiply the rays at every bounce), "
+                                 "image.samples, the image's size or the area lights' samples"),
+            "memory": ("max_ray_bytes", "its rays in flight need more memory than the service allows for one "
+                                        "image: lower image.max_depth or image.samples")}
+
+
+def outgrown(exc: OverBudget, settings: Settings) -> LimitError:
+    """The refusal of a render stopped by its budget, in words a student can act on, naming the setting."""
+    name, advice = OUTGROWN[exc.what]
+    return LimitError(f"scene: the render was stopped: {advice}. The limit is {name} = {getattr(settings, name):.3g}, "
+                      f"set by PHONGRAY_{name.upper()}")
 
 
 def check_scene(scene: Scene, settings: Settings) -> None:
+    """Refuse up front what is certain to exceed a limit: the image's size, samples and depth, the scene's
+    triangles and light samples, and camera rays whose work alone is over ``max_cost``.  The rest of a
+    render's work is counted as it runs (:func:`budget`)."""
     img = scene.image
     pixels = img.width * img.height
     if pixels > settings.max_pixels:
         raise LimitError(f"image: {shown(img.width)}×{shown(img.height)} = {shown(pixels)} pixels exceed the limit "
-                         f"max_pixels = {settings.max_pixels}")
+                         f"max_pixels = {settings.max_pixels} (PHONGRAY_MAX_PIXELS)")
     if img.samples > settings.max_samples:
-        raise LimitError(f"image.samples: {shown(img.samples)} exceeds the limit max_samples = {settings.max_samples}")
+        raise LimitError(f"image.samples: {shown(img.samples)} exceeds the limit max_samples = "
+                         f"{settings.max_samples} (PHONGRAY_MAX_SAMPLES)")
     if img.max_depth > settings.max_depth:
-        raise LimitError(f"image.max_depth: {shown(img.max_depth)} exceeds the limit max_depth = {settings.max_depth}")
+        raise LimitError(f"image.max_depth: {shown(img.max_depth)} exceeds the limit max_depth = "
+                         f"{settings.max_depth} (PHONGRAY_MAX_DEPTH)")
     triangles = triangle_count(scene)
     if triangles > settings.max_triangles:
-        raise LimitError(f"objects: {triangles} triangles exceed the limit max_triangles = {settings.max_triangles}")
+        raise LimitError(f"objects: {triangles} triangles exceed the limit max_triangles = "
+                         f"{settings.max_triangles} (PHONGRAY_MAX_TRIANGLES)")
     samples = light_samples(scene)
     if samples > settings.max_light_samples:
         raise LimitError(f"lights: {shown(samples)} light samples exceed the limit "
-                         f"max_light_samples = {settings.max_light_samples}")
+                         f"max_light_samples = {settings.max_light_samples} (PHONGRAY_MAX_LIGHT_SAMPLES)")
+    certain = camera_rays(scene) * per_ray_factor(scene)
+    if certain > settings.max_cost:
+        raise LimitError(f"image: its camera rays alone (pixels × samples² × per-ray factor = {certain:.3g}) "
+                         f"exceed the limit max_cost = {settings.max_cost:.3g} (PHONGRAY_MAX_COST): lower "
+                         f"image.samples or the image's size")
+
+
+def beyond_limits(scene: Scene, settings: Settings) -> list[str]:
+    """What a service with ``settings`` would refuse of ``scene`` up front, or most likely stop as it runs
+    (its estimated cost over ``max_cost``): the warnings of ``phongray validate``."""
+    try:
+        check_scene(scene, settings)
+    except LimitError as exc:
+        return [str(exc)]
     cost = estimated_cost(scene)
-    if cost > settings.max_cost:
-        raise LimitError(f"scene: estimated cost {cost:.3g} (pixels × samples² × worst-case ray tree × "
-                         f"(1 + light samples) × per-ray factor) "
-                         f"exceeds the limit max_cost = {settings.max_cost:.3g}")
+    if cost <= settings.max_cost:
+        return []
+    return [f"scene: its estimated cost {cost:.3g} exceeds the limit max_cost = {settings.max_cost:.3g} "
+            f"(PHONGRAY_MAX_COST): a service with that limit will likely stop its render"]

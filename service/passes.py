@@ -34,6 +34,7 @@ import numpy as np
 
 from schemas import Scene
 from tracer import Renderer, encode_png
+from tracer.budget import UNLIMITED, Budget
 from tracer.image import quantize
 from tracer.passes import ADDITIVE, LIGHT_TERMS, NAMES
 
@@ -62,12 +63,13 @@ def check(scene: Scene, name: str, light: int | None) -> None:
 
 
 def values(scene: Scene, name: str, light: int | None = None, threads: int | None = None,
-           cancel: Callable[[], bool] | None = None) -> np.ndarray:
-    """The pass ``name`` of ``scene`` (of light ``light`` alone where that applies), as the tracer gives it.
-    ValueError names an unknown pass, a light the scene does not have, or a light the pass cannot be of."""
+           cancel: Callable[[], bool] | None = None, budget: Budget = UNLIMITED) -> np.ndarray:
+    """The pass ``name`` of ``scene`` (of light ``light`` alone where that applies), as the tracer gives it,
+    within ``budget`` (else :class:`tracer.OverBudget`).  ValueError names an unknown pass, a light the scene
+    does not have, or a light the pass cannot be of."""
     check(scene, name, light)
     wanted = [name, "object"] if name in ("normal", "depth") else [name]
-    out = Renderer(scene).passes(wanted, light, threads=threads, cancel=cancel)
+    out = Renderer(scene).passes(wanted, light, threads=threads, cancel=cancel, budget=budget)
     if name == "normal":  # nothing hit: no normal (the tracer leaves zeros there)
         return np.where((out["object"] >= 0)[..., None], out["normal"], 0.0)
     return out[name]

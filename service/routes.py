@@ -189,6 +189,8 @@ async def _png(request: Request, job: Job) -> bytes:
         raise HTTPProblem(499, "client closed the request") from None
     except ImageTooLarge as exc:  # only when the service's own limits are set above the renderer's
         raise HTTPProblem(422, str(exc)) from None
+    except LimitError as exc:  # the render outgrew its budget
+        raise HTTPProblem(exc.status, str(exc)) from None
     assert result is not None
     return result
 

@@ -33,7 +33,8 @@ class Settings(BaseSettings):
     max_materials: int = 1_000
     max_lights: int = 1_024  # entries of "lights", ambient ones included
     max_light_samples: int = 1_024  # directional + point + spot lights + all area-light samples
-    max_cost: float = 1e8  # ray work, see service/limits.py estimated_cost (about 1e6 per second on 2 cores)
+    max_cost: float = 1e8  # ray work a render may do, counted as it runs (service/limits.py, docs/cost-model.md)
+    max_ray_bytes: int = 1024 * 1024 * 1024  # memory a render's rays in flight may hold
     max_concurrent_renders: int = 2  # renders at once per worker process; more get 503
     render_threads: int = 0  # threads per render; 0 means every core
     render_timeout: float = 120.0  # seconds; a longer render is stopped and answered with 503

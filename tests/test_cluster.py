@@ -186,6 +186,23 @@ def test_a_cluster_render_past_the_timeout_is_503_and_its_futures_are_cancelled(
             assert not any(client.processing().values())  # nothing of it left running on the workers
 
 
+def test_the_ray_tree_bomb_on_the_cluster_is_stopped_by_its_budget(dask, tmp_path):
+    """Each band on a worker is held to the render's budget: the bomb comes back as the service's 422."""
+    from test_render import nested_glass_and_mirror
+
+    address, _ = dask
+    body = json.dumps(nested_glass_and_mirror(16, 128)).encode()
+    with running_server(tmp_path, cluster=address) as (url, _):
+        req = urllib.request.Request(url + "/render", body, {"content-type": "application/json"})
+        started = time.monotonic()
+        with pytest.raises(urllib.error.HTTPError) as answer:
+            urllib.request.urlopen(req, timeout=120)
+        said = json.loads(answer.value.read())["detail"]
+        answer.value.close()
+    assert answer.value.code == 422 and "PHONGRAY_MAX_COST" in said, said
+    assert time.monotonic() - started < 60  # the foresight stops a band in seconds, far within render_timeout
+
+
 @pytest.fixture(scope="module")
 def idle_scheduler(tmp_path_factory):
     """A Dask scheduler on 127.0.0.1 with no workers at all."""

@@ -143,6 +143,22 @@ def test_playground_picks_an_example_renders_it_and_offers_the_png(server, brows
     page.close()
 
 
+def test_playground_shows_a_limit_as_a_refusal_naming_its_setting(server, browser):
+    """A valid scene the service stops (nested glass and mirrors at depth 16: its budget) is a refusal over the
+    image that names the setting, not a list of the scene's errors."""
+    from test_render import nested_glass_and_mirror
+
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    page.fill("#scene", json.dumps(nested_glass_and_mirror(16, 128), indent=2))
+    page.click("#render")
+    page.wait_for_selector("#refusal:not([hidden])", timeout=60_000)
+    said = page.inner_text("#refusal")
+    assert said.startswith("Not rendered: scene: the render was stopped") and "PHONGRAY_MAX_COST" in said
+    assert page.locator("#errors li").count() == 0 and "stale" not in page.get_attribute("#view", "class")
+    page.close()
+
+
 def test_playground_marks_an_error_beside_its_line_after_scrolling(server, browser):
     page = offline_page(browser, server)
     page.set_viewport_size({"width": 1400, "height": 700})

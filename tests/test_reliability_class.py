@@ -298,16 +298,27 @@ def test_a_scene_over_the_cost_limit_stops_the_run_naming_the_file(tmp_path, cap
     own = tmp_path / "own" / "ada"
     own.mkdir(parents=True)
     (own / "spheres.json").write_text(json.dumps(tiny(samples=2)))
-    monkeypatch.setenv("PHONGRAY_MAX_COST", "1000")  # the tiny scenes cost 1.3e3 and 5.2e3
+    monkeypatch.setenv("PHONGRAY_MAX_COST", "100")  # the tiny scenes' camera rays alone cost 4.3e2 and 1.7e3
     started = time.monotonic()
     code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--student-scenes",
-                 str(tmp_path / "own")])
+                 str(tmp_path / "own"), "--limits"])
     said = one_line(capsys.readouterr().err)
     measured("a class over the cost limit: stopped after (s)", time.monotonic() - started)
     assert code == 2 and time.monotonic() - started < 50  # before any render: a hang, not a slowdown, fails here
-    assert said.startswith(f"{own}/spheres.json: scene: estimated cost ")  # (the pairs' order: ada's own first)
-    assert f"; {scenes}/spheres.json: scene: estimated cost " in said and "exceeds the limit max_cost = 1e+03" in said
+    assert said.startswith(f"{own}/spheres.json: image: its camera rays ")  # (the pairs' order: ada's own first)
+    assert f"; {scenes}/spheres.json: image: its camera rays " in said and "max_cost = 100 (PHONGRAY_MAX_COST)" in said
     assert not (tmp_path / "r").exists()  # nothing rendered, no report folder left
+
+
+def test_without_limits_the_tas_scenes_are_trusted(tmp_path, capsys, monkeypatch):
+    """Run locally, grade-class grades whatever grade grades: the service's limits apply only with --limits."""
+    homework = json.loads((Path(__file__).parents[1] / "examples" / "09_cornell_homework.json").read_text())
+    homework["image"].update(width=32, height=24)
+    scenes, subs, _ = make_class(tmp_path, {"ada": b""}, data=homework)
+    monkeypatch.setenv("PHONGRAY_MAX_COST", "100")
+    monkeypatch.setenv("PHONGRAY_RENDER_TIMEOUT", "0")
+    code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--jobs", "1"])
+    assert code == 0 and rows(tmp_path / "r")["ada"]["status"] == "pass", capsys.readouterr().err
 
 
 def test_a_render_past_the_services_timeout_stops_the_run_naming_the_file(tmp_path, capsys, monkeypatch):
@@ -315,7 +326,7 @@ def test_a_render_past_the_services_timeout_stops_the_run_naming_the_file(tmp_pa
     monkeypatch.setenv("PHONGRAY_RENDER_TIMEOUT", "0.2")  # the render would take several seconds on one core
     monkeypatch.setenv("PHONGRAY_MAX_COST", "1e10")  # (the cost limit, met in the test above, is not this test's)
     started = time.monotonic()
-    code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--jobs", "1"])
+    code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--jobs", "1", "--limits"])
     said = one_line(capsys.readouterr().err)
     measured("a class render past render_timeout = 0.2 s: stopped after (s)", time.monotonic() - started)
     assert code == 2, said

@@ -4,13 +4,15 @@ from typing import Any
 
 from schemas import Scene
 
+from .budget import Budget, OverBudget
 from .image import decode_png, encode_png
 from .memory import tune_allocator
 from .render import ImageTooLarge, RenderCancelled, Renderer, render
 
 tune_allocator()
 
-__all__ = ["ImageTooLarge", "RenderCancelled", "Renderer", "decode_png", "encode_png", "render", "render_png"]
+__all__ = ["Budget", "ImageTooLarge", "OverBudget", "RenderCancelled", "Renderer", "decode_png", "encode_png", "render",
+           "render_png"]
 
 
 def render_png(scene: Scene, **kwargs: Any) -> bytes:

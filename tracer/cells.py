@@ -111,6 +111,20 @@ class Cells:
     def _key(self, k: np.ndarray) -> np.ndarray:
         return (k[:, 0] * self.dims[1] + k[:, 1]) * self.dims[2] + k[:, 2]
 
+    def groups(self, region: np.ndarray, most: int) -> list[slice]:
+        """Consecutive slices of ``region`` (from :meth:`locate`) whose cells hold at most ``most`` candidates
+        together (or one region, when its own cell holds more): :meth:`pairs` of each slice in turn then holds
+        bounded memory, however many primitives many rays' cells share (10,000 spheres around the eye)."""
+        cell = np.where(region >= self.whole_base, region - self.whole_base, region // SUB**3)
+        count = np.where(region >= 0, np.take(self.start, cell + 1, mode="clip") - np.take(self.start, cell,
+                                                                                           mode="clip"), 0)
+        ends = np.cumsum(count)
+        if len(ends) == 0 or ends[-1] <= most:
+            return [slice(0, len(region))]
+        cuts = np.unique(np.searchsorted(ends, np.arange(most, ends[-1], most), side="right"))
+        edges = [0, *(int(c) for c in cuts if 0 < c < len(region)), len(region)]
+        return [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
+
     def pairs(self, rows: np.ndarray, region: np.ndarray,
               but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(ray, primitive) pairs: each of ``rows`` with every member of its ``region`` (from :meth:`locate`;

@@ -20,6 +20,7 @@ import numpy as np
 
 from schemas import Scene
 
+from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
 from .cones import along_direction, on_lines, through_point
 from .culling import bounds_of
@@ -54,6 +55,8 @@ def _chunking(threads: int | None, chunk_rays: int | None) -> tuple[int, int]:
 
 Progress = Callable[[int, int], None]
 
+__all__ = ["Budget", "ImageTooLarge", "OverBudget", "RenderCancelled", "Renderer", "render"]
+
 
 #: the largest image the renderer will make (16384 × 16384): its pixels alone take 768 MiB
 MAX_PIXELS = 1 << 28
@@ -71,36 +74,6 @@ MAX_LIGHT_SAMPLES = 1 << 20
 
 class ImageTooLarge(ValueError):
     """The render asked for is beyond what phongray does: too many pixels, rays or light samples."""
-
-
-class RenderCancelled(Exception):
-    """Raised by :meth:`Renderer.pixels` when its ``cancel`` callback asked it to stop."""
-
-
-class _Stop:
-    """Raises :class:`RenderCancelled` when called once the caller's ``cancel`` returns True.  The renderer and
-    its intersector both poll it; it holds no reference back to the renderer, so that a renderer dropped by
-    its caller is freed at once (a cycle would keep its arrays and BVH until the garbage collector ran)."""
-
-    def __init__(self) -> None:
-        self.cancel: Callable[[], bool] | None = None
-
-    def __call__(self) -> None:
-        if self.cancel is not None and self.cancel():
-            raise RenderCancelled("the render was cancelled")
-
-
-class _RayCount:
-    """The rays cast so far, by kind (primary, shadow, secondary), counted from every thread.  Apart from the
-    renderer, as :class:`_Stop` is, so that the stages that count hold no reference back to it."""
-
-    def __init__(self) -> None:
-        self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
-        self._lock = threading.Lock()
-
-    def __call__(self, kind: str, n: int) -> None:
-        with self._lock:
-            self.counts[kind] += n
 
 
 T = TypeVar("T")
@@ -126,9 +99,9 @@ class Renderer:
             raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
                                 f"({MAX_LIGHT_SAMPLES})")
         self.scene = scene
-        self._stop = _Stop()
+        self._count = RayCount()
+        self._stop = Stop(self._count)
         self.slice_rays = CHUNK_RAYS
-        self._count = _RayCount()
         self.counts = self._count.counts
         #: how this render departs from the format (a variant, :mod:`tracer.variants`); the reference by default
         self.options = options
@@ -153,19 +126,25 @@ class Renderer:
                                        self._stop, self._count)
         self.intersector.check = self._stop
 
+    @property
+    def spent(self) -> int:
+        """What the budget counted of the last render (:class:`tracer.budget.RayCount`)."""
+        return self._count.total
+
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int | None = None,
                progress: Progress | None = None, cancel: Callable[[], bool] | None = None,
-               rows: tuple[int, int] | None = None) -> np.ndarray:
+               rows: tuple[int, int] | None = None, budget: Budget = UNLIMITED) -> np.ndarray:
         """The image as ``(H, W, 3) uint8``, or only its rows ``top..bottom`` with ``rows``.
 
         Every pixel is computed alone (its sums are exact integers), so a band of
         rows is byte for byte the same rows of the whole image.  ``cancel`` is
         polled before every chunk; once it returns True the remaining chunks are
-        skipped and :class:`RenderCancelled` is raised.
+        skipped and :class:`RenderCancelled` is raised.  A render that outgrows
+        its ``budget`` stops with :class:`OverBudget`, polled where ``cancel`` is.
         """
         img = self.scene.image
-        self._stop.cancel = cancel
+        self._stop.start(cancel, budget)
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         top, bottom = rows if rows is not None else (0, img.height)
@@ -182,7 +161,11 @@ class Renderer:
         def work(bound: tuple[int, int]) -> int:
             nonlocal stopped
             a, b = bound
-            if stopped or (cancel is not None and cancel()):
+            if stopped:
+                return 0
+            try:
+                self._stop()
+            except RenderCancelled:
                 stopped = True
                 return 0
             colour = self.chunk(a, b)
@@ -209,11 +192,13 @@ class Renderer:
         return image[::-1] if self.options.flip_image else image
 
     def passes(self, names: list[str], light: int | None = None, threads: int | None = None,
-               chunk_rays: int | None = None, cancel: Callable[[], bool] | None = None) -> dict[str, np.ndarray]:
+               chunk_rays: int | None = None, cancel: Callable[[], bool] | None = None,
+               budget: Budget = UNLIMITED) -> dict[str, np.ndarray]:
         """Render passes (:mod:`tracer.passes`) by name: ``(H, W, 3)`` float64 for the additive ones and the
-        normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object.  ``cancel`` is polled before
-        every chunk, as :meth:`pixels` polls it."""
+        normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object.  ``cancel`` is polled, and the
+        ``budget`` held, as :meth:`pixels` polls and holds them."""
         check_passes(names, light, len(self.scene.lights))
+        self._stop.start(cancel, budget)
         img = self.scene.image
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
@@ -289,7 +274,7 @@ class Renderer:
         """The image's rows ``rows`` (row numbers, any order) as ``(len(rows), W, 3) uint8``, in one go: byte for
         byte those rows of :meth:`pixels` (every pixel is computed alone)."""
         img = self.scene.image
-        self._stop.cancel = cancel
+        self._stop.start(cancel, UNLIMITED)
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         shown = np.asarray(rows, dtype=np.int64)
@@ -338,12 +323,16 @@ class Renderer:
             camera = Work(self.intersector.rays(origins, dirs), np.arange(n), np.ones(n), 0,
                           None if tally is None else np.zeros(n, dtype=np.int8))
             stack: list[Work] = [camera]
+            holder = threading.get_ident()  # (one chunk at a time per thread)
+            growth = Growth(n, deepest)
             while stack:
                 work = stack.pop()
                 if len(work) > self.slice_rays:  # split; the first slice goes on top, so it is traced first
                     stack += reversed(work.slices(self.slice_rays))
                     continue
+                self._count.hold(holder, len(work) + sum(len(w) for w in stack))
                 self._stop()
+                growth.add(work.depth, len(work), 0)
                 best = self.intersector.nearest(work.rays, self._camera_among(work.rays) if work.depth == 0 else
                                                 self._mirror_among(work.rays))
                 missed = best.key == NO_HIT
@@ -361,13 +350,18 @@ class Renderer:
                 if tally is not None and work.depth == 0:
                     _tally_first_hits(tally, self.world, hit, done, normal)
                 colour = self.shading.shade(hit, mat, normal, dd, tally, done)
+                self._count.lit(len(rows) * len(self.emitter_light))
                 _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once)
                 if work.depth >= deepest:
                     continue
                 children = self.secondary(hit, mat, normal, done)
                 self._count("secondary", len(children))
+                growth.add(work.depth, 0, len(children))
+                self._count.foresee(holder, growth.ahead())
                 if len(children):
                     stack.append(children)
+            self._count.hold(holder, 0)
+            self._count.foresee(holder, 0.0)
             per_pixel = acc.reshape(stop - start, s, 3).sum(axis=1)  # integers: exact in any order
             return per_pixel.astype(np.float64) / (fixed * s)
 
@@ -473,6 +467,8 @@ def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling:
 
 
 def render(scene: Scene, threads: int | None = None, chunk_rays: int | None = None,
-           progress: Progress | None = None, cancel: Callable[[], bool] | None = None) -> np.ndarray:
-    """Render a validated scene to ``(H, W, 3) uint8`` pixels."""
-    return Renderer(scene).pixels(threads=threads, chunk_rays=chunk_rays, progress=progress, cancel=cancel)
+           progress: Progress | None = None, cancel: Callable[[], bool] | None = None,
+           budget: Budget = UNLIMITED) -> np.ndarray:
+    """Render a validated scene to ``(H, W, 3) uint8`` pixels (:class:`OverBudget` past its ``budget``)."""
+    return Renderer(scene).pixels(threads=threads, chunk_rays=chunk_rays, progress=progress, cancel=cancel,
+                                  budget=budget)

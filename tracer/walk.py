@@ -34,6 +34,8 @@ from .world import World
 
 #: (ray, primitive) pairs tested exactly at a time
 PAIR_SLICE = 1 << 16
+#: candidates (ray, member of its part of a cell) made into pairs at a time: about 80 MiB of pairs at once
+PAIR_GROUP = 1 << 20
 #: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
 INSIDE = 2.0**-24
 #: a ray's key (:class:`Best`) while it has hit nothing
@@ -248,6 +250,19 @@ class Walk:
         else:
             best.offer(r, t, TRIANGLE if is_tri else SPHERE, k, u, v)
 
+    def _test_cells(self, best: Best, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None,
+                    table: np.ndarray, from_prim: np.ndarray, shadows: Shadows | None) -> None:
+        """:meth:`_test` of the pairs :meth:`Cells.pairs` makes of rays ``rows`` and their ``region``, but for
+        ``but``, made and tested a group of rays at a time (:data:`PAIR_GROUP` candidates), so that what they
+        hold is bounded; the best hits do not depend on the order pairs come in (:class:`Best`)."""
+        cells = self.cells
+        assert cells is not None
+        for part in cells.groups(region, PAIR_GROUP):
+            if part.start:
+                self.check()
+            self._test(best, *cells.pairs(rows[part], region[part], None if but is None else but[part]), table,
+                       from_prim, shadows)
+
     def test_pairs(self, best: Best, rays: Rays, rows: np.ndarray, prims: np.ndarray,
                    shadows: Shadows | None = None) -> None:
         """Test primitives ``prims`` exactly against ``rays`` ``rows`` (pairs; either may repeat), with the
@@ -379,7 +394,7 @@ class Walk:
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
             # nor, on its way to a light, are a plain triangle's mates
             but = self._with_mates(np.where(q < self.n_tri, q, -1), np.full(len(q), any_hit))
-            self._test(best, *cells.pairs(inside, cell, but), table, from_prim, shadows)
+            self._test_cells(best, inside, cell, but, table, from_prim, shadows)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             last[inside] = cell
             if not any_hit:  # a hit inside the origin's part is the nearest there is
@@ -420,9 +435,9 @@ class Walk:
                 self._test(best, rows, prim[fresh], table, from_prim, shadows)
                 if any_hit:
                     fresh[fresh] = ~(best.t[rows] < limit[rows])
-            pairs = cells.pairs(live[fresh], region[fresh], self._tested(best, live[fresh], prim[fresh], any_hit)
-                                if first else None)
-            self._test(best, *pairs, table, from_prim, shadows)
+            self._test_cells(best, live[fresh], region[fresh],
+                             self._tested(best, live[fresh], prim[fresh], any_hit) if first else None, table,
+                             from_prim, shadows)
             last[live] = region
             leave = slab(o_l, d_l, lo, hi)[1]
             start[live] = np.fmax(start[live] + tau + p.step, leave)
