@@ -78,27 +78,31 @@ def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | N
 
 
 def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float,
-               scene: bytes | None = None) -> dict[str, Any]:
+               scene: bytes | None = None, accepted: dict[str, float] | None = None, diagnose: bool = True
+               ) -> dict[str, Any]:
     """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"`` and,
-    given the reference's ``scene`` text, the likely mistake of a failing one; or an invalid row whose reason
-    lacks only the file's name."""
+    given the reference's ``scene`` text, a failing one graded again against the task's ``accepted`` variants
+    (None: the defaults) and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid row
+    whose reason lacks only the file's name."""
     from schemas import load_scene
 
     from . import grading, pipeline
 
     try:
         graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict",
-                                    scene=None if scene is None else lambda: load_scene(scene), threads=1)
+                                    scene=None if scene is None else lambda: load_scene(scene), threads=1,
+                                    checks=pipeline.Checks(accepted=accepted, diagnose=diagnose))
     except grading.ImageError as exc:
         return {"status": "invalid", "reason": str(exc)}
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
 
 
 def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float,
-                 diagnose: bool = True) -> dict[str, Any]:
+                 accepted: dict[str, float] | None = None, diagnose: bool = True) -> dict[str, Any]:
     """:func:`grade_task` with the scene's text first, as the service's grade task takes it (the reference is
-    already rendered: the scene is for the diagnosis of a failing pair, unless not to ``diagnose``)."""
-    return grade_task(reference, image, tolerance, max_fraction, scene if diagnose else None)
+    already rendered: the scene is for the accepted variants and, unless not to ``diagnose``, the diagnosis of
+    a failing pair)."""
+    return grade_task(reference, image, tolerance, max_fraction, scene, accepted, diagnose)
 
 
 def _server_render(server: str, api_key: str | None, scene: bytes, limits: Settings | None = None
@@ -118,8 +122,10 @@ def _server_render(server: str, api_key: str | None, scene: bytes, limits: Setti
 
 
 def _server_grade(server: str, api_key: str | None, scene: bytes, reference: bytes, image: bytes,
-                  tolerance: float, max_fraction: float, diagnose: bool = True) -> dict[str, Any]:
-    """:func:`grade_task` by a running service (which renders the same reference, from its cache)."""
+                  tolerance: float, max_fraction: float, accepted: dict[str, float] | None = None,
+                  diagnose: bool = True) -> dict[str, Any]:
+    """:func:`grade_task` by a running service (which renders the same reference, from its cache, and accepts
+    its own default variants: a task's ``accepted`` is for local grading)."""
 
     from .client import ServerError, post_form
 
@@ -233,13 +239,20 @@ def _scene_keys(batch: Batch, settings: Settings | None) -> tuple[dict[str, Path
 REPORT_FOLDERS = ("references", "submissions", "heatmaps", "gradescope", journal.RESUME)
 
 
-def _outside(report: Path, submissions: Path) -> None:
+def _outside(report: Path, submissions: Path, scenes: Path, student_scenes: Path | None) -> None:
     """The report folder is not inside the submissions folder (its files would be a student's next run), nor
-    the submissions folder inside a folder the report writes (its copies would be)."""
+    the submissions folder inside a folder the report writes (its copies would be); nor is it the scenes folder
+    (its report.json would be a task) or inside the students' scenes (a student of them)."""
     inside, outer = report.resolve(), submissions.resolve()
     if inside == outer or inside.is_relative_to(outer):
         raise ClassError(f"{report}: the report folder is inside the submissions folder {submissions} (it would "
                          f"be graded as a student's); write it elsewhere")
+    if inside == scenes.resolve():
+        raise ClassError(f"{report}: the report folder is the scenes folder (its report.json would be read as a "
+                         f"task); write it elsewhere")
+    if student_scenes is not None and inside.is_relative_to(student_scenes.resolve()):
+        raise ClassError(f"{report}: the report folder is inside the --student-scenes folder {student_scenes} "
+                         f"(it would be read as a student's scenes); write it elsewhere")
     for name in REPORT_FOLDERS:
         if outer.is_relative_to(inside / name):
             raise ClassError(f"{report}: the report writes its {name}/ folder where the submissions folder "
@@ -438,7 +451,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
     settings = Settings.from_env()
-    _outside(report, submissions)
+    _outside(report, submissions, scenes, student_scenes)
     batch = discover(scenes, submissions, student_scenes, settings.max_image_bytes)
     tasks = load_tasks(tasks_file, batch.tasks)
     scene_of_key, texts = _scene_keys(batch, settings if limits else None)
@@ -463,7 +476,7 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     renders held to the service's limits ``settings`` with ``limits``)."""
     todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
     refs = {k: report / "references" / f"{k}.png" for k in scene_of_key}
-    needed = {k: scene_of_key[k] for k, path in refs.items() if not path.exists()}
+    needed = {k: scene_of_key[k] for k, path in refs.items() if not _usable(path)}
     total = len(batch.pairs)
 
     def tick() -> None:
@@ -503,6 +516,18 @@ def _drop_stale_references(report: Path, refs: dict[str, Path]) -> None:
         for old in (report / "references").glob("*.png"):
             if old not in current:
                 old.unlink()
+
+
+def _usable(reference: Path) -> bool:
+    """A reference an earlier run kept that decodes (one cut short, or a Git LFS pointer where a course's bundle
+    was copied from, is rendered again rather than failing every pair of its scene)."""
+    from tracer import decode_png
+
+    try:
+        decode_png(reference.read_bytes())
+    except Exception:  # (Pillow raises many kinds for a broken file; a missing one is OSError)
+        return False
+    return True
 
 
 def _kept(report: Path) -> str:
@@ -562,13 +587,16 @@ def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes]
         stamp = journal.stamp(pair.key, hashlib.sha256(image).hexdigest(), *thresholds)
         if not backend.diagnose:  # a grade without its likely mistake is not one a diagnosing run may take
             stamp["diagnosis"] = False
+        if own.accepted is not None:
+            stamp["accepted"] = own.accepted
         row = _resumed(pair, report, stamp)
         if row is not None:
             pair.row = row
             continue
         if pair.key not in references:
             references[pair.key] = refs[pair.key].read_bytes()
-        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds))
+        accepted = () if own.accepted is None else (own.accepted,)  # (the defaults: the call as it was)
+        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds, *accepted))
         about[n] = (pair, image, stamp)
     tick()
 
@@ -589,6 +617,9 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
         diagnosis = result.pop("diagnosis", None)
         result["likely"], result["mistakes"] = headline(diagnosis), matched(diagnosis)
+        accepted = result.pop("accepted", None)
+        if accepted:  # passed as an honest tracer's variant: the reason says which
+            result["reason"] = f"as rendered with {accepted}"
         heat, copy = _paths(pair, report)
         write_atomic(heat, result.pop("heatmap_png"))
         write_atomic(copy, image)

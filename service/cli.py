@@ -360,8 +360,8 @@ def cmd_grade(args: argparse.Namespace) -> int:
             raise _outgrown(args, exc) from None
         try:
             graded = pipeline.grade_png(reference, image, args.tolerance, args.max_fraction,
-                                        kind if args.heatmap else None, legend=True,
-                                        scene=None if args.no_diagnosis else lambda: scene)
+                                        kind if args.heatmap else None, legend=True, scene=lambda: scene,
+                                        checks=pipeline.Checks(diagnose=not args.no_diagnosis))
         except grading.ImageError as exc:
             raise CliError(f"{args.image}: {exc}") from None
         result, heat = graded.as_dict(), graded.heatmap
@@ -422,6 +422,23 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
         print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
     if not args.quiet:
         print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
+    return 0
+
+
+def cmd_autograder(args: argparse.Namespace) -> int:
+    """Exit 0 when the bundle is written, 2 when the TA's input is unusable (nothing is written then)."""
+    from .autograder import build
+    from .submissions import ClassError
+
+    if not args.output.endswith(".zip"):
+        raise CliError(f"{args.output}: Gradescope takes the autograder as a zip; name the output *.zip")
+    try:
+        built = build(Path(args.scenes), Path(args.output), Path(args.tasks) if args.tasks else None,
+                      Path(args.student_scenes) if args.student_scenes else None)
+    except ClassError as exc:
+        raise CliError(printable(str(exc))) from None
+    print(printable(f"{args.output}: {len(built.tasks)} tasks ({', '.join(built.tasks)}), {built.references} "
+                    f"references rendered, {built.size / 1e6:.1f} MB; upload it as the assignment's autograder"))
     return 0
 
 
@@ -633,6 +650,20 @@ def build_parser() -> argparse.ArgumentParser:
     limits(p)
     remote(p, cluster=True)
     p.set_defaults(func=cmd_grade_class)
+
+    p = command("autograder", "write a Gradescope autograder (setup.sh, run_autograder) for a course's scenes",
+                description="SCENES/<task>.json are the tasks. Writes a zip to upload to Gradescope as a "
+                            "programming assignment's autograder: it installs phongray (setup.sh) and grades the "
+                            "PNG images a student uploads, one per task, with a test per task (run_autograder). "
+                            "The references are rendered now. Exit 0 when written, 2 when the TA's input is "
+                            "unusable.")
+    p.add_argument("scenes", metavar="SCENES_DIR", help="a <task>.json per task")
+    p.add_argument("-o", "--output", metavar="AUTOGRADER.zip", required=True, help="the zip to write")
+    p.add_argument("--tasks", metavar="TASKS.json", help="per task its points, thresholds and accepted variants")
+    p.add_argument("--student-scenes", metavar="DIR", help="students' own scenes, <student>/<task>.json, "
+                                                           "<student> being their Gradescope email, its part "
+                                                           "before the @, student id or name")
+    p.set_defaults(func=cmd_autograder)
 
     p = command("serve", "run the HTTP service (settings from PHONGRAY_* variables, see docs/service.md)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on")

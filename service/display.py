@@ -35,7 +35,7 @@ def percent(fraction: float) -> str:
 
 def describe(result: dict[str, Any]) -> list[str]:
     """A grade as lines for a person: the verdict (with its reason when it failed), then the numbers in units."""
-    lines = ["PASS" if result["passed"] else f"FAIL: {result['reason']}"]
+    lines = [_pass(result) if result["passed"] else f"FAIL: {result['reason']}"]
     psnr = "identical images" if result["psnr"] is None else f"{result['psnr']:.2f} dB"
     lines += [
         f"  off even nearby: {percent(result['fraction_off_nearby'])} of the pixels "
@@ -46,6 +46,12 @@ def describe(result: dict[str, Any]) -> list[str]:
         f"  size: {result['width']}×{result['height']}; reference sha256 {result['reference_sha256']}",
     ]
     return lines + explained(result.get("diagnosis"))
+
+
+def _pass(result: dict[str, Any]) -> str:
+    """PASS, and the accepted variant it passed as ("PASS, as rendered with a 1e-3 ray offset")."""
+    accepted = result.get("accepted")
+    return f"PASS, as rendered with {accepted}" if accepted else "PASS"
 
 
 def explained(diagnosis: dict[str, Any] | None) -> list[str]:

@@ -3,8 +3,8 @@
 A pair that passes scores its task's points, a missing or invalid one 0.  A failing one scores 0, unless the
 tasks file gives its task ``deductions`` by mistake id (``{"no-shadows": 1}``) and the image's one fault is
 such a mistake: it passes against the reference rendered with that mistake (:mod:`service.diagnosis`).  It
-then scores the points less the deduction, never below 0; an image that several mistakes explain alike gets
-the smallest of their deductions.
+then scores the points less the deduction (at most the points, :mod:`service.taskfile`); an image that several
+mistakes explain alike gets the smallest of their deductions.
 """
 
 from __future__ import annotations

@@ -44,6 +44,10 @@ class GradeAnswer(BaseModel):
     reason: str = Field(description="why it failed, in words; empty when it passed")
     diagnosis: Diagnosis | None = Field(description="what the student most likely got wrong; null when it "
                                                     "passed or diagnose=false")
+    accepted: str | None = Field(None, examples=["a 1e-3 ray offset"],
+                                 description="the accepted variant of the reference it passed against (an "
+                                             "honest tracer's ray offset); null when it passed against the "
+                                             "reference itself, or failed")
 
 
 class Cause(BaseModel):

@@ -70,19 +70,39 @@ class Graded:
     grade: grading.Grade
     heatmap: bytes | None  # PNG, when one was asked for
     diagnosis: dict[str, Any] | None = None  # of a failing grade, when one was asked for (Diagnosis.as_dict)
+    accepted: str | None = None  # the accepted variant it passed as ("a 1e-3 ray offset"), None: the reference
 
     def as_dict(self) -> dict[str, Any]:
-        """The grade's numbers, its ``reason`` (why it failed; empty when it passed) and its ``diagnosis``
-        (what the student most likely got wrong; null when it passed or none was asked for)."""
-        return {**self.grade.as_dict(), "reason": self.grade.reason, "diagnosis": self.diagnosis}
+        """The grade's numbers, its ``reason`` (why it failed; empty when it passed), its ``diagnosis``
+        (what the student most likely got wrong; null when it passed or none was asked for) and the accepted
+        variant it passed as (``accepted``; null when it passed against the reference or failed)."""
+        return {**self.grade.as_dict(), "reason": self.grade.reason, "diagnosis": self.diagnosis,
+                "accepted": self.accepted}
+
+
+@dataclass(frozen=True)
+class Checks:
+    """What a failing grade is checked for: the accepted variants (name → largest amount; None: the
+    defaults, ``{}``: none), and then, when it fails them too, the diagnosis (``diagnose``)."""
+
+    accepted: dict[str, float] | None = None
+    diagnose: bool = True
 
 
 def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
-            threads: int | None = None, cancel: Callable[[], bool] | None = None) -> Graded:
-    """``graded`` with the diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene
-    rendered with each classic mistake and its passes, cached by canonical scene, compared with the
-    submission.  A passing grade comes back as it is."""
+            threads: int | None = None, cancel: Callable[[], bool] | None = None,
+            checks: Checks = Checks()) -> Graded:
+    """``graded`` passed against an accepted variant (:mod:`service.accepting`), or else with the diagnosis of
+    a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic mistake and its
+    passes, cached by canonical scene, compared with the submission.  A passing grade comes back as it is."""
     if graded.grade.passed:
+        return graded
+    from .accepting import Failing, accept
+
+    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, threads, cancel)
+    if found_variant is not None:
+        return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
+    if not checks.diagnose:
         return graded
     from .diagnosis import CACHE, diagnose, renders_of
     from .scenekey import scene_key
@@ -113,15 +133,16 @@ def compare(reference_png: bytes, submitted: np.ndarray, tolerance: float, max_f
 
 def grade_png(reference_png: bytes, image: bytes, tolerance: float, max_fraction: float,
               heatmap: Kind | None = None, legend: bool = False, scene: Callable[[], Scene] | None = None,
-              threads: int | None = None) -> Graded:
-    """A submitted image's grade against a reference PNG, diagnosed when it fails and the reference's scene
-    is given (``scene()``, called only then); :class:`grading.ImageError` when it cannot be graded."""
+              threads: int | None = None, checks: Checks = Checks()) -> Graded:
+    """A submitted image's grade against a reference PNG; when it fails and the reference's scene is given
+    (``scene()``, called only then), graded against the accepted variants and diagnosed as ``checks`` say
+    (:func:`explain`); :class:`grading.ImageError` when it cannot be graded."""
     pixels = decode_png(reference_png)
     submitted = read_image(image, (pixels.shape[1], pixels.shape[0]))
     graded = compare(reference_png, submitted, tolerance, max_fraction, heatmap, legend, reference=pixels)
     if scene is None or graded.grade.passed:
         return graded
-    return explain(scene(), graded, pixels, submitted, threads)
+    return explain(scene(), graded, pixels, submitted, threads, checks=checks)
 
 
 #: the largest reference ``phongray compare`` decodes (the service's default max_pixels)

@@ -108,13 +108,26 @@ def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[s
         mine = [r for r in rows if r["student"] == student]
         write_atomic(report / "gradescope" / student / "results.json",
                      _text(json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n"))
+    _drop_stale_results(report / "gradescope", set(students))
     write_atomic(report / "index.html", _text(render_html(rows, ignored, students, list(tasks), headline)))
+
+
+def _drop_stale_results(folder: Path, students: set[str]) -> None:
+    """Remove the ``results.json`` an earlier run into this report wrote for a student who is not in this one
+    (another class's, or a name since changed), lest it be uploaded with this class's."""
+    with contextlib.suppress(OSError), os.scandir(folder) as entries:
+        stale = [e.name for e in entries if e.name not in students and e.is_dir(follow_symlinks=False)]
+    for name in stale:
+        with contextlib.suppress(OSError):
+            (folder / name / "results.json").unlink()
+            (folder / name).rmdir()
 
 
 def test_output(row: dict[str, Any]) -> str:
     """What a student reads of one task: the verdict and its reason or numbers, and the likely mistake."""
     if row["status"] == "pass":
-        return (f"passed: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
+        how = f", {row['reason']}" if row.get("reason") else ""  # (as rendered with an accepted variant)
+        return (f"passed{how}: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
                 f"(at most {percent(row['max_fraction'])} may be)")
     likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
     credit = f"\n{partial(row)}" if row.get("deducted") else ""
@@ -211,7 +224,7 @@ def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], stud
     for total in totals(rows, students):
         cells = []
         for task in tasks:
-            anchor = f"p-{_url(total.student)}-{_url(task)}"
+            anchor = f"p-{_url(total.student)}/{_url(task)}"  # (a "/" is in no name: no two pairs share one)
             cells.append(_cell(by[(total.student, task)], anchor))
             details.append(_detail(by[(total.student, task)], anchor))
         cells.append(f'<td class="total">{total.total:g} / {total.out_of:g}</td>')

@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import stat
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
+from .lms import LAYOUTS, Owner, TaskNames, composed, file_owner, folder_owner, student_names
 
 
 class ClassError(Exception):
@@ -135,20 +136,24 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
              limit: int = DEFAULT_LIMIT) -> Batch:
     """Every (student, task) pair of the class, each submission read (at most ``limit`` bytes) through the
     folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
-    unusable, or a submissions folder in which no student is found."""
+    unusable, a submissions folder in which no student is found (or whose one folder holds the class), or a
+    student's own scenes under another name than the student's."""
     scene_files = [e for e in _entries(scenes) if e.is_file()]
-    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if e.name.endswith(".json")}
+    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if _scene(e.name)}
     if not tasks:
         raise ClassError(f"{scenes}: no task scenes (<task>.json)")
-    ignored = [(str(scenes / e.name), "not a task scene (<task>.json)") for e in scene_files
-               if not e.name.endswith(".json")]
-    own = _student_scenes(student_scenes, tasks) if student_scenes is not None else {}
+    ignored = [(str(scenes / e.name), HIDDEN if _hidden(e.name) else "not a task scene (<task>.json)")
+               for e in scene_files if not _scene(e.name)]
+    own = _student_scenes(student_scenes, tasks, ignored) if student_scenes is not None else {}
     with Folder.root(submissions) as root:
         sources = _sources(root, ignored)
         if not sources:
             raise ClassError(f"{submissions}: no student found; expected {LAYOUTS}")
         names = TaskNames(tasks)
+        _not_one_level_up(root, sources, names)
         found = {student: _student(root, source, names, limit, ignored) for student, source in sources.items()}
+    if student_scenes is not None:
+        _scenes_name_students(student_scenes, own, sources)
     ids = {student: source.id for student, source in sources.items()}
     pairs = []
     students = sorted({*found, *own})
@@ -243,6 +248,37 @@ def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
     return out
 
 
+def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames) -> None:
+    """A submissions folder whose one folder holds a class (an export unpacked into a folder of its own, and that
+    folder's parent given): :class:`ClassError`, not a class of one student with every image "2 files; keep
+    one" or missing.  The folder holds a class when two of its entries are two students' by an LMS's naming, or
+    two of its folders each hold an image for one task (a student's part1/spheres.png and part2/lights.png
+    are one student's)."""
+    if len(sources) != 1:
+        return
+    (source,) = sources.values()
+    if source.files or len(source.folders) != 1 or source.id:  # (a folder named by an LMS is a student's)
+        return
+    (name,) = source.folders
+    try:
+        with root.sub(name) as folder:
+            entries = folder.entries()
+            lms = {(o.name, o.id) for e in entries
+                   if (o := folder_owner(e.name) if e.folder else file_owner(e.name)) is not None and o.id}
+            held: dict[str, int] = {}  # task → how many of the folders hold its image
+            for entry in (e for e in entries if e.folder and len(lms) < 2 and max(held.values(), default=0) < 2):
+                with folder.sub(entry.name) as below:
+                    for task in {n.task for n in map(names.match, (e.name for e in below.entries()))
+                                 if n.task is not None and n.ext == "png"}:
+                        held[task] = held.get(task, 0) + 1
+    except OSError:  # (a folder that cannot be read: the student's row says so)
+        return
+    if len(lms) >= 2 or max(held.values(), default=0) >= 2:
+        kind = "an LMS's export" if len(lms) >= 2 else "a folder per student"
+        raise ClassError(f"{root.shown}: its one folder, {name}, holds the submissions of several students "
+                         f"({kind}): give {root.shown / name} as the submissions folder")
+
+
 @dataclass
 class Submitted:
     """What a student's files give one task: the file graded and its bytes, or the row that says why not."""
@@ -274,6 +310,16 @@ class Candidate:
             return Submitted(self.shown, rel, self.folder.read(self.name, limit))
         except UntrustedFileError as exc:
             return Submitted(self.shown, rel, row={"status": "invalid", "reason": f"{self.shown}: {exc}"})
+
+
+#: the most files a reason names (a student's folder may hold thousands: the report stays readable)
+LISTED = 5
+
+
+def _listed(files: list[str]) -> str:
+    """``a, b, c`` or, past :data:`LISTED`, ``a, b, c, d, e and 995 more``."""
+    more = len(files) - LISTED
+    return ", ".join(files[:LISTED]) + (f" and {more} more" if more > 0 else "")
 
 
 def _invalid(reason: str) -> Submitted:
@@ -328,7 +374,7 @@ class _Walk:
             options.sort(key=lambda o: o.rank)
             best = [o for o in options if o.rank == options[0].rank]
             if len(best) > 1:
-                found[task] = _invalid(f"{len(best)} files for {task}: {', '.join(str(o.shown) for o in best)}; "
+                found[task] = _invalid(f"{len(best)} files for {task}: {_listed([str(o.shown) for o in best])}; "
                                        f"keep one")
                 continue
             found[task] = options[0].read(limit)
@@ -339,7 +385,7 @@ class _Walk:
                 found[task] = _invalid(f"no {task}.png found; {'; '.join(self.unreadable)}")
             elif task not in found and task in self.near:
                 found[task] = Submitted(row={"status": "missing", "reason": f"no {task}.png (found "
-                                             f"{', '.join(self.near[task])}: did you mean {task}.png?)"})
+                                             f"{_listed(self.near[task])}: did you mean {task}.png?)"})
         return found
 
 
@@ -368,16 +414,57 @@ def _student(root: Folder, source: Source, names: TaskNames, limit: int,
         return walk.chosen(sorted(names.tasks), limit)
 
 
-def _student_scenes(folder: Path, tasks: dict[str, Path]) -> dict[str, dict[str, Path]]:
-    """``<student>/<task>.json`` of the TA's folder of students' own scenes; a file for no task stops the run."""
+def _hidden(name: str) -> bool:
+    """A file no one means as a scene or a student: hidden (``.DS_Store``, the ``._spheres.json`` a Mac's archive
+    leaves beside each file, an editor's ``.#spheres.json``), or an archive tool's folder (``__MACOSX``)."""
+    return name.startswith(".") or name in NOT_STUDENTS
+
+
+def _scene(name: str) -> bool:
+    return name.endswith(".json") and not _hidden(name)
+
+
+HIDDEN = "a hidden file or an archive tool's (never a scene)"
+
+
+def _student_scenes(folder: Path, tasks: dict[str, Path],
+                    ignored: list[tuple[str, str]]) -> dict[str, dict[str, Path]]:
+    """``<student>/<task>.json`` of the TA's folder of students' own scenes, by the student's name (composed, as
+    the submissions' are); a file for no task stops the run (a hidden one is ``ignored``)."""
     out: dict[str, dict[str, Path]] = {}
     for entry in _entries(folder):
+        if _hidden(entry.name):
+            ignored.append((str(folder / entry.name), HIDDEN))
+            continue
         if not entry.is_dir():
             raise ClassError(f"{folder / entry.name}: expected a folder per student (<student>/<task>.json)")
         for file in _entries(folder / entry.name):
             path = folder / entry.name / file.name
+            if _hidden(file.name):
+                ignored.append((str(path), HIDDEN))
+                continue
             task = file.name[:-5] if file.name.endswith(".json") else None
             if task not in tasks:
                 raise ClassError(f"{path}: names no task (the tasks are {', '.join(sorted(tasks))})")
-            out.setdefault(entry.name, {})[task] = path
+            out.setdefault(composed(entry.name), {})[task] = path
     return out
+
+
+def _scenes_name_students(folder: Path, own: dict[str, dict[str, Path]], sources: dict[str, Source]) -> None:
+    """A student's own scenes are under the student's name as the report gives it; a folder named otherwise for
+    a student of the submissions (another case, Moodle's folder name, a name without the id that tells two
+    students apart, or with an id that is not needed) stops the run: that student would be graded against the
+    task's scene, and a student of that name who sent nothing listed beside them.  (A student with no
+    submission at all is no mistake.)"""
+    def key(name: str) -> str:
+        return re.sub(r" \(\d+\)$", "", folder_owner(name).name).casefold()
+
+    keys: dict[str, set[str]] = {}
+    for student in sources:
+        keys.setdefault(key(student), set()).add(student)
+    for name in sorted(own):
+        meant = sorted(keys.get(key(name), set()))
+        if name not in sources and meant:
+            raise ClassError(f"{folder / name}: no student {name} among the submissions (did you mean "
+                             f"{' or '.join(meant)}? a student's own scenes go in a folder of the name the "
+                             f"report gives them)")

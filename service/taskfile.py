@@ -1,7 +1,8 @@
 """The optional tasks file of a class: per task, its points, its own grading thresholds and its deductions.
 
 ```json
-{"spheres": {"points": 10, "tolerance": 3, "deductions": {"no-shadows": 4}}, "mirror": {"points": 5}}
+{"spheres": {"points": 10, "tolerance": 3, "deductions": {"no-shadows": 4}}, "mirror": {"points": 5},
+ "glass": {"accepted": {"normal-offset": 0.002}}}
 ```
 
 A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS`): an image whose one fault is that
@@ -26,15 +27,21 @@ from tracer.variants import VARIANTS
 from .lms import did_you_mean
 from .submissions import ClassError
 
+#: a number of the TA's: a JSON number, finite (a string "5", true or 1e400 is a mistake, not 5, 1 or infinity)
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+
 
 class TaskSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    points: Annotated[float, Field(ge=0)] = 1.0
-    tolerance: Annotated[float, Field(ge=0, le=255)] | None = None  # None: the command's --tolerance
-    max_fraction: Annotated[float, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
+    points: Annotated[Number, Field(ge=0)] = 1.0
+    tolerance: Annotated[Number, Field(ge=0, le=255)] | None = None  # None: the command's --tolerance
+    max_fraction: Annotated[Number, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
     visibility: Literal["visible", "hidden", "after_due_date", "after_published"] = "visible"  # Gradescope's
-    deductions: dict[str, Annotated[float, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
+    deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
+    #: the accepted variants of honest tracers, name → largest amount × the scene's size (None: the defaults,
+    #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
+    accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None
 
 
 _FILE = TypeAdapter(dict[str, TaskSettings])
@@ -70,10 +77,16 @@ def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSetti
 
 
 def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> None:
-    """Every deduction names a mistake the diagnosis knows (else the run stops, with the nearest id)."""
+    """Every deduction names a mistake the diagnosis knows and takes at most the task's points (else the
+    run stops, naming the place; a misspelt id with the nearest one)."""
     problems = [(f"{task}.deductions.{mistake}", f"no such mistake{did_you_mean(mistake, VARIANTS)} (the ids "
                                                  f"are in docs/grading.md)")
                 for task, settings in sorted(given.items()) for mistake in settings.deductions
                 if mistake not in VARIANTS]
+    problems += [(f"{task}.deductions.{mistake}", f"must be ≤ the task's points, {settings.points:g}"
+                                                  + ("" if "points" in settings.model_fields_set else
+                                                     " (points not given: the default)"))
+                 for task, settings in sorted(given.items()) for mistake, less in settings.deductions.items()
+                 if less > settings.points]
     if problems:
         raise ClassError("; ".join(as_lines(str(path), problems, text)))

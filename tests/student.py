@@ -21,7 +21,53 @@ import reference as ref
 MISTAKES = ("no-shadows", "shadow-acne", "blinn-phong", "specular-behind", "gamma", "no-attenuation",
             "no-ambient", "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel",
             "horizontal-fov", "area-not-divided", "spot-radians", "depth-plus-one", "depth-minus-one",
-            "ior-inverted")
+            "ior-inverted", "offset-too-large")
+
+
+@dataclass(frozen=True)
+class Offset:
+    """How the student starts shadow and secondary rays off the surface, ``amount`` × the scene's size: along
+    the normal, to the side the ray leaves by (``along="normal"``), or by a t_min, ignoring hits nearer than it
+    (``along="ray"``: for a ray that starts on the surface, the same as starting ``amount`` along itself).  The
+    student's rays then carry no identity of the surface they leave: the offset is all that keeps them off it."""
+
+    amount: float
+    along: str = "normal"
+
+
+#: the three offset styles of honest tracers the grade accepts
+STYLES = {"offset 1e-3": Offset(1e-3), "t_min 1e-3": Offset(1e-3, "ray"), "offset 1e-4": Offset(1e-4)}
+#: the mistake of an offset far too large
+TOO_LARGE = Offset(2e-2)
+
+
+def size_of(scene) -> float:  # noqa: ANN001
+    """The largest side of the box around the spheres and triangles (planes not counted; 1 with none)."""
+    points = []
+    for obj in scene.objects:
+        if obj.type == "sphere":
+            points += [np.array(obj.center) - obj.radius, np.array(obj.center) + obj.radius]
+        elif obj.type == "triangle":
+            points += [np.array(v) for v in obj.vertices]
+        elif obj.type == "mesh":
+            points += [np.array(v) for v in obj.vertices]
+    if not points:
+        return 1.0
+    box = np.array(points, dtype=np.float64)
+    return float(np.max(box.max(axis=0) - box.min(axis=0))) or 1.0
+
+
+def spawn(p: np.ndarray, to: np.ndarray, n: np.ndarray, start: np.ndarray, off: Offset | None,
+          size: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where rays from points p along ``to`` start, and the surface each leaves (−1: none), in the student's
+    offset style (None: on the surface, leaving it by identity)."""
+    if off is None:
+        return p, start
+    step = off.amount * size
+    if off.along == "ray":
+        return p + step * to, np.full(len(p), -1)
+    side = np.where(_dot(to, n) < 0, -step, step)
+    return p + side[:, None] * n, np.full(len(p), -1)
 
 
 def _unit(a: np.ndarray) -> np.ndarray:
@@ -108,10 +154,15 @@ def eye_rays(scene, wrong: set[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return np.broadcast_to(eye, offset.shape).copy(), _unit(forward + offset), (rows * W + cols).ravel()
 
 
-def render(scene, mistakes: tuple[str, ...] | list[str] = ()) -> np.ndarray:  # noqa: ANN001, C901
-    """The student's ``(H, W, 3) uint8`` image of a validated scene, with the named mistakes made."""
+def render(scene, mistakes: tuple[str, ...] | list[str] = (), style: Offset | None = None  # noqa: ANN001, C901
+           ) -> np.ndarray:
+    """The student's ``(H, W, 3) uint8`` image of a validated scene, with the named mistakes made, its shadow
+    and secondary rays started in offset ``style`` (None: on the surface, leaving it by identity)."""
     wrong = set(mistakes)
     assert wrong <= set(MISTAKES), wrong - set(MISTAKES)
+    if "offset-too-large" in wrong:
+        style = TOO_LARGE
+    size = size_of(scene)
     img = scene.image
     surfaces = ref.surfaces_of(scene)
     ambient, lights = lamps(scene, wrong)
@@ -153,7 +204,7 @@ def render(scene, mistakes: tuple[str, ...] | list[str] = ()) -> np.ndarray:  # 
             gets = (strength > 0) & ((nl > 0) | ("specular-behind" in wrong))
             if "no-shadows" not in wrong and gets.any():
                 rows = np.flatnonzero(gets)
-                origin, leaving = p[rows], which[rows]
+                origin, leaving = spawn(p[rows], to[rows], n[rows], which[rows], style, size)
                 if "shadow-acne" in wrong:  # the ray starts where the hit was computed, and may hit its surface
                     speck = (np.floor(np.abs(origin).sum(axis=1) * 977.0) % 2 == 1)[:, None]
                     origin = origin - np.where(speck, 1e-7, 0.0) * n[rows]
@@ -180,10 +231,11 @@ def render(scene, mistakes: tuple[str, ...] | list[str] = ()) -> np.ndarray:  # 
         k = 1 - eta * eta * (1 - cos_in * cos_in)
         bent = eta[:, None] * d[t] + (eta * cos_in - np.sqrt(np.maximum(k, 0)))[:, None] * facing
         bounced = d[t] - 2 * _dot(d[t], facing)[:, None] * facing
-        o = np.concatenate([p[r], p[t]])
         d = np.concatenate([mirror, _unit(np.where((k < 0)[:, None], bounced, bent))])
+        o, start = spawn(np.concatenate([p[r], p[t]]), d, np.concatenate([n[r], n[t]]),
+                         np.concatenate([which[r], which[t]]), style, size)
         weight = np.concatenate([weight[r] * kr[r], weight[t] * kt[t]])
-        pixel, start = np.concatenate([pixel[r], pixel[t]]), np.concatenate([which[r], which[t]])
+        pixel = np.concatenate([pixel[r], pixel[t]])
     linear = np.clip(total / img.samples**2, 0.0, 1.0).reshape(img.height, img.width, 3)
     if "gamma" in wrong:
         linear = linear ** (1 / 2.2)

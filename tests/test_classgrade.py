@@ -386,6 +386,17 @@ def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_p
     ('{"lamps": {"points": 2,\n "deductions": {"no-shadow": 1}}}',
      ":2: lamps.deductions.no-shadow: no such mistake (did you mean 'no-shadows'?) (the ids are in docs/grading.md)"),
     ('{"lamps": {"deductions": {"gamma": -1}}}', ":1: lamps.deductions.gamma: must be ≥ 0"),
+    # a number as a string, a boolean, a number too large to be finite: the TA's mistake, not 5, 1 or infinity
+    ('{"lamps": {"points": "5"}}', ":1: lamps.points: must be a number"),
+    ('{"lamps": {"points": true}}', ":1: lamps.points: must be a number"),
+    ('{"lamps": {"tolerance": "3"}}', ":1: lamps.tolerance: must be a number"),
+    ('{"lamps": {"points": 1e400}}', ":1: lamps.points: must be a finite number"),
+    ('{"lamps": {"points": 2, "deductions": {"gamma": "1"}}}', ":1: lamps.deductions.gamma: must be a number"),
+    # a deduction larger than the task's points (given, or the default 1)
+    ('{"lamps": {"points": 2,\n "deductions": {"gamma": 5}}}',
+     ":2: lamps.deductions.gamma: must be ≤ the task's points, 2"),
+    ('{"lamps": {"deductions": {"gamma": 4}}}',
+     ":1: lamps.deductions.gamma: must be ≤ the task's points, 1 (points not given: the default)"),
 ])
 def test_a_bad_tasks_file_stops_the_run(klass, tmp_path, capsys, content, says):
     scenes, subs, _ = klass
@@ -425,7 +436,7 @@ def mistaken(tmp_path_factory):
     return report, {r["student"]: r for r in outcome.rows}
 
 
-DEDUCTIONS = {"no-attenuation": 1.5, "image-flipped": 9, "no-specular": 0.25}
+DEDUCTIONS = {"no-attenuation": 1.5, "image-flipped": 4, "no-specular": 0.25}
 
 
 def test_an_image_whose_one_fault_has_a_deduction_scores_the_points_less_it(mistaken):
@@ -436,7 +447,7 @@ def test_an_image_whose_one_fault_has_a_deduction_scores_the_points_less_it(mist
         expected = 4.0 if mistake is None else max(0.0, 4 - DEDUCTIONS[mistake]) if mistake in DEDUCTIONS else 0.0
         assert row["score"] == expected and row["points"] == 4.0, (student, row["score"])
         assert row["deducted"] == (mistake if mistake in DEDUCTIONS else None)
-    assert rows["dee"]["score"] == 0.0 and rows["ivy"]["score"] == 0.0  # never below 0; nothing sent: 0
+    assert rows["dee"]["score"] == 0.0 and rows["ivy"]["score"] == 0.0  # all points deducted; nothing sent: 0
 
 
 def test_the_gradebook_the_totals_and_gradescope_agree(mistaken):

@@ -9,6 +9,7 @@ import csv
 import json
 import os
 import resource
+import shutil
 import signal
 import socket
 import stat
@@ -686,3 +687,77 @@ def test_bidirectional_controls_in_names_are_shown_escaped(tmp_path):
         assert shown in text, file
     assert f"{shown}/notes.png: matches no task" in (report / "index.html").read_text()
     assert rows(report)[name]["status"] == "pass"
+
+
+def test_no_two_pairs_of_the_html_report_share_an_anchor(tmp_path):
+    """Student 'ada' and task 'x-spheres', student 'ada-x' and task 'spheres': each cell opens its own pair."""
+    import re
+
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "ada-x": b""})
+    (scenes / "x-spheres.json").write_text((scenes / "spheres.json").read_text())
+    (subs / "ada" / "x-spheres.png").write_bytes(right)
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    page = (report / "index.html").read_text()
+    ids = re.findall(r'<section class="pair" id="([^"]+)"', page)
+    assert len(ids) == 4 == len(set(ids)), ids
+    assert sorted(re.findall(r'<td class="[^"]*"><a href="#([^"]+)"', page)) == sorted(ids)
+
+
+def test_a_rerun_into_the_same_report_leaves_no_results_of_a_student_not_in_it(tmp_path):
+    """The TA graded the wrong folder (or a student's name changed) and runs again into the same report: no
+    results.json of a student of the first run is left in gradescope/ to be uploaded with this class's."""
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    (report / "gradescope" / "notes.txt").write_text("the TA's own")
+    (subs / "bob").rename(subs / "Bob Brown_7_assignsubmission_file_")
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    assert sorted(os.listdir(report / "gradescope")) == ["Bob Brown", "ada", "notes.txt"]
+    assert json.loads((report / "gradescope" / "Bob Brown" / "results.json").read_text())["score"] == 1.0
+
+
+def test_a_folder_of_thousands_of_resubmissions_gives_a_short_reason(tmp_path):
+    """Every one of 3000 spheres-N.png is a candidate: the reason names a few, not 3000 paths in every file of
+    the report (and every Gradescope output)."""
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
+    (subs / "bob" / "spheres.png").unlink()
+    for n in range(3000):
+        (subs / "bob" / f"spheres-{n}.png").write_bytes(b"")
+        (subs / "bob" / f"sphere-{n}.png").write_bytes(b"")
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    reason = rows(report)["bob"]["reason"]
+    assert reason.startswith("3000 files for spheres: ") and reason.endswith(" and 2995 more; keep one")
+    assert len(reason) < 1000 and (report / "index.html").stat().st_size < 1_000_000
+    (subs / "bob" / "spheres-0.png").unlink()
+    for n in range(1, 3000):
+        (subs / "bob" / f"spheres-{n}.png").unlink()
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    reason = rows(report)["bob"]["reason"]
+    assert reason.startswith("no spheres.png (found sphere-") and reason.endswith(
+        " and 2995 more: did you mean spheres.png?)") and len(reason) < 1000
+
+
+@pytest.mark.parametrize("broken", [
+    lambda png: png[:100],  # cut short (a copy that failed)
+    lambda png: b"version https://git-lfs.github.com/spec/v1\noid sha256:0\nsize 1\n",  # a Git LFS pointer
+])
+def test_a_kept_reference_that_does_not_decode_is_rendered_again(tmp_path, broken):
+    scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
+    report = tmp_path / "report"
+    classgrade.grade_class(scenes, subs, report, jobs=1)
+    (ref,) = (report / "references").iterdir()
+    ref.write_bytes(broken(ref.read_bytes()))
+    shutil.rmtree(report / "resume")
+    outcome = classgrade.grade_class(scenes, subs, report, jobs=1)
+    assert outcome.renders == 1 and [r["status"] for r in outcome.rows] == ["pass", "pass"]
+    assert ref.read_bytes() == right
+
+
+def test_a_name_of_255_bytes_that_composing_would_lengthen_is_graded(tmp_path):
+    """NFC decomposes U+0958: 85 of them (255 bytes) would be 510 bytes, no file name of the report's."""
+    name = "\u0958" * 85
+    scenes, subs, _ = make_class(tmp_path, {name: b"", "bob": b""})
+    outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=1)
+    assert [(r["student"], r["status"]) for r in outcome.rows] == [("bob", "pass"), (name, "pass")]

@@ -294,3 +294,174 @@ def test_a_tasks_own_name_comes_before_a_resubmissions_suffix():
         ("cornell-2", True), ("Cornell", True), ("box", True), ("box", False), (None, False), (None, False)]
     assert names.near("cornel.PNG") == "Cornell"
     assert names.near("Box-2-final.png") is None and names.near("notes.txt") is None
+
+
+def test_a_name_spelt_decomposed_is_the_same_student_as_the_tas_composed_one(tmp_path):
+    """An archive unpacked on a Mac spells José decomposed (NFD), the TA's student-scenes folder composed (NFC):
+    one student, graded against their own scene, never a second José with nothing sent."""
+    import unicodedata
+
+    nfd, nfc = (unicodedata.normalize(form, "José García") for form in ("NFD", "NFC"))
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    put(tmp_path, f"{nfd}_555_assignsubmission_file_/Cornell.png", b"png")
+    put(tmp_path, f"{nfd}ez/Cornell.png", b"png")  # (a folder per student, too: Joséez)
+    (tmp_path / "own" / nfc).mkdir(parents=True)
+    (tmp_path / "own" / nfc / "Cornell.json").write_text("{}")
+    (tmp_path / "own" / f"{nfc}ez").mkdir(parents=True)
+    (tmp_path / "own" / f"{nfc}ez" / "Cornell.json").write_text("{}")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert [(p.student, p.own, p.file, p.row, p.lms_id) for p in batch.pairs] == [
+        (nfc, True, "Cornell.png", {}, "555"), (f"{nfc}ez", True, "Cornell.png", {}, "")]
+
+
+@pytest.mark.parametrize("folder, meant", [
+    ("ADA", "ada"),  # another case
+    ("Eve Ng_777_assignsubmission_file_", "Eve Ng"),  # Moodle's folder name
+    ("Bo Li", "Bo Li (17) or Bo Li (18)"),  # without the id that tells two students apart
+    ("Eve Ng (777)", "Eve Ng"),  # with an id that one Eve Ng does not need
+])
+def test_student_scenes_under_another_name_than_the_students_stop_the_run(tmp_path, folder, meant):
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for student in ("ada", "Eve Ng_777_assignsubmission_file_", "Bo Li_17_assignsubmission_file_",
+                    "Bo Li_18_assignsubmission_file_"):
+        put(tmp_path, f"{student}/Cornell.png", b"png")
+    (tmp_path / "own" / folder).mkdir(parents=True)
+    (tmp_path / "own" / folder / "Cornell.json").write_text("{}")
+    with pytest.raises(ClassError) as caught:
+        discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert str(caught.value).startswith(f"{tmp_path}/own/{folder}: no student {folder} among the submissions "
+                                        f"(did you mean {meant}?")
+    # a student of their own scene who sent nothing is no mistake: missing
+    (tmp_path / "own" / folder).rename(tmp_path / "own" / "zed")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert [(p.own, p.row["status"]) for p in batch.pairs if p.student == "zed"] == [(True, "missing")]
+
+
+def test_a_name_a_student_gave_themselves_never_makes_them_another_student(tmp_path):
+    """Moodle lets a student edit their own name: 'Bo Li_17_assignsubmission_file_' or 'Bo Li (17)' names a
+    second student, never the first Bo Li, whose image stays theirs alone (not '2 files; keep one')."""
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for folder, data in [("Bo Li_17_assignsubmission_file_", b"bo"), ("Bo Li_18_assignsubmission_file_", b"other"),
+                         ("Bo Li_17_assignsubmission_file__66_assignsubmission_file_", b"mallory"),
+                         ("Bo Li (17)_99_assignsubmission_file_", b"trudy")]:
+        put(tmp_path, f"{folder}/Cornell.png", data)
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert {p.student: (p.lms_id, p.data, p.row) for p in batch.pairs} == {
+        "Bo Li (17)": ("17", b"bo", {}), "Bo Li (18)": ("18", b"other", {}),
+        "Bo Li_17_assignsubmission_file_": ("66", b"mallory", {}), "Bo Li (17) (99)": ("99", b"trudy", {})}
+
+
+def test_the_files_a_macs_archive_leaves_in_the_tas_folders_are_ignored(tmp_path):
+    """A class folder zipped on a Mac and unpacked elsewhere holds ._Cornell.json (AppleDouble, binary) beside
+    each file, .DS_Store and __MACOSX/: never a task or a student's scene, so no reason to stop the run."""
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for junk in ("scenes/._Cornell.json", "scenes/.DS_Store", "own/.DS_Store", "own/ada/._Cornell.json",
+                 "own/__MACOSX/ada/._Cornell.json"):
+        (tmp_path / junk).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / junk).write_bytes(b"\x00\x05\x16\x07")
+    (tmp_path / "own" / "ada" / "Cornell.json").write_text("{}")
+    put(tmp_path, "ada/Cornell.png", b"png")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
+    assert list(batch.tasks) == ["Cornell"] and [(p.student, p.own) for p in batch.pairs] == [("ada", True)]
+    assert sorted(dict(batch.ignored)) == [f"{tmp_path}/{junk}" for junk in (
+        "own/.DS_Store", "own/__MACOSX", "own/ada/._Cornell.json", "scenes/.DS_Store", "scenes/._Cornell.json")]
+
+
+def test_a_report_folder_that_is_the_scenes_folder_or_in_the_student_scenes_stops_the_run(task, tmp_path, capsys):
+    """Its report.json would be a task, or its gradescope/ folder a student of their own scenes, next time."""
+    from service.cli import main
+
+    right = with_task(task, tmp_path)
+    put(tmp_path, "ada/Cornell.png", right)
+    (tmp_path / "own" / "ada").mkdir(parents=True)
+    common = ["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "--student-scenes",
+              str(tmp_path / "own"), "-o"]
+    assert main([*common, str(tmp_path / "scenes")]) == 2
+    assert capsys.readouterr().err == (f"phongray: {tmp_path}/scenes: the report folder is the scenes folder (its "
+                                       f"report.json would be read as a task); write it elsewhere\n")
+    for inside in (tmp_path / "own", tmp_path / "own" / "report"):
+        assert main([*common, str(inside)]) == 2
+        assert capsys.readouterr().err == (
+            f"phongray: {inside}: the report folder is inside the --student-scenes folder {tmp_path}/own (it would "
+            f"be read as a student's scenes); write it elsewhere\n")
+    assert sorted(os.listdir(tmp_path / "scenes")) == ["Cornell.json"] and os.listdir(tmp_path / "own") == ["ada"]
+
+
+@pytest.mark.parametrize("layout, files", [
+    ("an LMS's export", ["Ada Adams_1_assignsubmission_file_/Cornell.png", "Bo Li_2_assignsubmission_file_/x.png"]),
+    ("an LMS's export", ["adamsada_LATE_1_7_Cornell.png", "libo_2_8_Cornell-1.png"]),
+    ("a folder per student", ["ada/Cornell.png", "bo/cornell.PNG", "cy/notes.txt"]),
+])
+def test_a_class_unpacked_into_a_folder_of_its_own_stops_the_run(tmp_path, capsys, layout, files):
+    """The TA gave the folder an export was unpacked into: one 'student' with every image '2 files; keep one' or
+    missing would be graded; the run stops, naming the folder to give."""
+    from service.cli import main
+
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    for file in files:
+        put(tmp_path, f"hw3/{file}", b"png")
+    assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(tmp_path / "r")]) == 2
+    assert capsys.readouterr().err == (f"phongray: {tmp_path}/subs: its one folder, hw3, holds the submissions of "
+                                       f"several students ({layout}): give {tmp_path}/subs/hw3 as the submissions "
+                                       f"folder\n")
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_class_of_one_student_with_a_folder_deeper_is_graded(tmp_path):
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    (tmp_path / "scenes" / "box.json").write_text("{}")
+    put(tmp_path, "ada/hw3/Cornell.png", b"png")
+    put(tmp_path, "ada/part2/box.png", b"box")
+    put(tmp_path, "ada/old/notes.png", b"png")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert [(p.student, p.file, p.data) for p in batch.pairs] == [("ada", "hw3/Cornell.png", b"png"),
+                                                                  ("ada", "part2/box.png", b"box")]
+    # one Moodle student's draft/ and final/: that student's two files, not a class
+    (tmp_path / "subs" / "ada").rename(tmp_path / "subs" / "Ada Adams_1_assignsubmission_file_")
+    put(tmp_path, "Ada Adams_1_assignsubmission_file_/old/Cornell.png", b"old")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert [(p.student, p.row.get("status")) for p in batch.pairs] == [("Ada Adams", "invalid"), ("Ada Adams", None)]
+    assert batch.pairs[0].row["reason"].startswith("2 files for Cornell: ")
+
+
+def test_a_file_name_spelt_decomposed_is_the_tasks():
+    """A Mac's archive spells café.png decomposed (NFD); the TA's scene café.json is composed (NFC)."""
+    import unicodedata
+
+    from service.lms import TaskNames
+
+    nfc, nfd = (unicodedata.normalize(form, "café") for form in ("NFC", "NFD"))
+    names = TaskNames([nfc, "box"])
+    assert [(n.task, n.exact) for n in map(names.match, [f"{nfd}.png", f"{nfd.upper()}-1.PNG", "box.png"])] == [
+        (nfc, True), (nfc, False), ("box", True)]
+    assert TaskNames([nfd]).match(f"{nfc}.png").task == nfd and names.near(f"{nfd}s.png") == nfc
+
+
+def test_two_students_whose_names_differ_only_in_case_are_told_apart_by_their_ids(tmp_path):
+    """On a Mac's or Windows's file system the report's folders of 'Ada Adams' and 'ada adams' are one: each
+    would overwrite the other's results.json, heat-maps and copies."""
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "Cornell.json").write_text("{}")
+    put(tmp_path, "Ada Adams_1_assignsubmission_file_/Cornell.png", b"first")
+    put(tmp_path, "ada adams_2_assignsubmission_file_/Cornell.png", b"second")
+    put(tmp_path, "Bo Li_3_assignsubmission_file_/Cornell.png", b"third")
+    batch = discover(tmp_path / "scenes", tmp_path / "subs")
+    assert {p.student: p.data for p in batch.pairs} == {"Ada Adams (1)": b"first", "ada adams (2)": b"second",
+                                                        "Bo Li": b"third"}
+
+
+def test_a_resubmitted_copy_of_a_download_is_its_tasks():
+    """A browser saved 'Spheres (1).png' and Canvas added its '-1' on a resubmission: 'Spheres (1)-1.png'."""
+    from service.lms import TaskNames
+
+    names = TaskNames(["spheres", "cornell-3", "cornell"])
+    assert [names.match(n).task for n in ["Spheres (1)-1.png", "spheres-2 (3).PNG", "cornell-3-1.png",
+                                          "cornell-4-1.png", "spheres-x-1.png"]] == [
+        "spheres", "spheres", "cornell-3", "cornell", None]
+    assert names.near("sphere (1)-2.png") == "spheres"

@@ -109,6 +109,10 @@ def _plain():
     flat = copy.deepcopy(EVERYTHING)
     flat["image"]["max_depth"] = 0
     out["no bounce"] = flat
+    still = copy.deepcopy(dark)  # no shadow ray and no secondary ray: an offset moves nothing
+    for m in still["materials"].values():
+        m["reflectance"] = m["transmittance"] = 0.0
+    out["ambient light only, no mirror, no glass"] = still
     return out
 
 

@@ -37,7 +37,7 @@ from .lights import LIGHT_TYPES, Emitter, illuminate
 from .passes import BRANCH_PASS, Tally
 from .rays import Among, Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, phong, planes_holding
-from .variants import Options
+from .variants import Options, Spawn
 from .vec import columns, dot, minus, rows_of, scaled
 from .world import World, max_abs, unit
 
@@ -115,6 +115,8 @@ class DirectLight:
         self.stop, self.count = stop, count
         #: the emitters some flat surface's plane holds (where N·L is rounding noise: light_in_plane)
         self.holds = planes_holding(world, world.emitters)
+        #: where shadow rays start, off the surface in a variant of a student's offset (None: at the hit point)
+        self.spawn: Spawn | None = None
 
     def shade(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray, tally: Tally | None = None,
               work: Work | None = None) -> np.ndarray:
@@ -348,13 +350,16 @@ class DirectLight:
         shadow_dirs = np.ascontiguousarray(pick(to_light))
         # from the exact hit point, leaving its surface by identity, to the light itself
         rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(mag_points))
+        if self.spawn is not None:  # a student's offset: off the surface
+            rays = self.spawn.leaving(rays, pick(hit.normal))
         if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
             below = np.ones(n, dtype=bool) if opt.acne_everywhere else \
                 ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
             lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
         bounds, tris = self.cone_bounds, self.world.triangles
-        cones = among is None and bounds is not None and not opt.acne
+        # (the cones' proofs are of rays through the light's point, which offset rays are not)
+        cones = among is None and bounds is not None and not opt.acne and self.spawn is None
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
             if cones:

@@ -121,9 +121,12 @@ class Renderer:
             self.cone_bounds = bounds_of(self.world) if spheres_and_triangles <= CONE_MAX else None
             # the proofs of which points a light reaches hold for the shadow rays of the format (not a variant's
             # without them, or with acne)
-            proofs = bounds_of(self.world) if options.shadows and not options.acne else None
+            #: where shadow and secondary rays start: off the surface in a variant of a student's offset
+            self.spawn = options.spawn(scene)
+            proofs = bounds_of(self.world) if options.shadows and not options.acne and not self.spawn else None
             self.shading = DirectLight(self.world, options, self.intersector, groups, proofs, self.cone_bounds,
                                        self._stop, self._count)
+            self.shading.spawn = self.spawn
         self.intersector.check = self._stop
 
     @property
@@ -394,6 +397,8 @@ class Renderer:
         both = np.concatenate([r, t])
         points = rows_of(hit.point, both)
         rays = Rays(points, out, hit.kind[both], hit.index[both], max_abs(points) + self.world.origin_mag)
+        if self.spawn is not None:  # a student's offset: off the surface
+            rays = self.spawn.leaving(rays, rows_of(hit.normal, both))
         branch = None
         if work.branch is not None:  # the passes follow each branch of the tree from the first hit on
             branch = work.branch[both] if work.depth > 0 else \

@@ -12,6 +12,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
 
+import numpy as np
+
+from .rays import Rays
+
 
 @dataclass(frozen=True)
 class Options:
@@ -34,10 +38,16 @@ class Options:
     spot_degrees: bool = True  # a spot's cutoff read in degrees (False: radians, as a mix-up does)
     depth_offset: int = 0  # max_depth read as max_depth + this
     ior_inverted: bool = False  # η = ior entering and 1/ior leaving
+    offset: float = 0.0  # shadow and secondary rays start this far off the hit point, × the scene's size
+    offset_along: str = "normal"  # "normal": along the surface's normal; "ray": along the ray (a t_min)
 
     @property
     def reference(self) -> bool:
         return self == REFERENCE
+
+    def spawn(self, scene: Any) -> Spawn | None:
+        """Where this render's shadow and secondary rays start (None: at the hit point, as the format says)."""
+        return Spawn(self.offset * scene_size(scene), self.offset_along) if self.offset else None
 
     def changes(self) -> list[str]:
         """The fields this departs from the reference in."""
@@ -45,6 +55,51 @@ class Options:
 
 
 REFERENCE = Options()
+
+
+def scene_size(scene: Any) -> float:
+    """The largest side of the box around the scene's spheres and triangles (planes are unbounded and not
+    counted); 1 for a scene of planes alone.  A ray offset of a student's tracer is measured against it."""
+    lows, highs = [], []
+    for obj in scene.objects:
+        if obj.type == "sphere":
+            centre = np.array(obj.center, dtype=np.float64)
+            lows.append(centre - obj.radius)
+            highs.append(centre + obj.radius)
+        elif obj.type in ("triangle", "mesh"):
+            corners = obj.rows("vertices") if obj.type == "mesh" else np.array(obj.vertices, dtype=np.float64)
+            if len(corners):
+                lows.append(corners.min(axis=0))
+                highs.append(corners.max(axis=0))
+    if not lows:
+        return 1.0
+    side = float(np.max(np.max(highs, axis=0) - np.min(lows, axis=0)))
+    return side if 0 < side < np.inf else 1.0
+
+
+@dataclass(frozen=True)
+class Spawn:
+    """A student's way of starting shadow and secondary rays off the surface: ``amount`` (local units) along the
+    geometric normal, to the side the ray leaves by (``along="normal"``), or along the ray itself
+    (``along="ray"``: the same as ignoring hits nearer than ``amount``, a t_min, since the ray starts on the
+    surface).  As a student's rays do, the moved rays carry no identity of the surface they leave: the offset
+    alone keeps them off it, and they are traced as rays from anywhere are (a camera inside the scene's).
+
+    Guarantee: each origin moves by exactly ``amount`` and never to the other side of the surface it leaves
+    than the one its direction points to (the normal's sign is taken from the direction)."""
+
+    amount: float
+    along: str
+
+    def leaving(self, rays: Rays, geometric: np.ndarray) -> Rays:
+        """``rays`` (from hit points, leaving surfaces of normals ``geometric``, (N, 3)) moved off them."""
+        points, dirs = rays.origins, rays.dirs
+        if self.along == "ray":
+            moved = points + self.amount * dirs
+        else:
+            side = np.where(np.einsum("ij,ij->i", dirs, geometric) < 0, -self.amount, self.amount)
+            moved = points + side[:, None] * geometric
+        return Rays.leaving(moved, dirs, 0.0, mag=rays.mag)
 
 #: name → (options, what a student did)
 VARIANTS: dict[str, tuple[Options, str]] = {
@@ -65,7 +120,40 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "depth-plus-one": (Options(depth_offset=1), "max_depth off by one (one bounce too many)"),
     "depth-minus-one": (Options(depth_offset=-1), "max_depth off by one (one bounce too few)"),
     "ior-inverted": (Options(ior_inverted=True), "the index of refraction inverted"),
+    "offset-too-large": (Options(offset=2e-2), "shadow and secondary rays offset too far from the surface "
+                                               "(2e-2 of the scene's size)"),
 }
+
+#: the ways of honest tracers a grade accepts besides the reference, by default: name → how far (× the scene's
+#: size) at most.  A task may narrow or widen them (``accepted`` in a class's tasks file).
+ACCEPTED_DEFAULT: dict[str, float] = {"normal-offset": 1e-3, "t-min": 1e-3}
+
+#: accepted variant → (the option that sets its amount, what it is in words)
+ACCEPTED_KINDS: dict[str, tuple[str, str]] = {"normal-offset": ("normal", "ray offset"),
+                                              "t-min": ("ray", "t_min")}
+
+
+def _short(x: float) -> str:
+    """``1e-3`` for 0.001, ``2.5e-3`` for 0.0025: an amount as a course writes it."""
+    mantissa, exponent = f"{x:.2e}".split("e")
+    return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+
+
+#: each accepted variant is rendered at its largest amount and at each half of it down to this many rungs
+RUNGS = 4
+
+
+def accepted_options(accepted: dict[str, float]) -> list[list[tuple[str, Options]]]:
+    """Per accepted variant of ``accepted`` (name → largest amount), the renders it makes, each with its words
+    ("a 1e-3 ray offset"): its largest amount and halves of it, :data:`RUNGS` in all, largest first; an amount of
+    0 is the reference alone and makes none."""
+    out = []
+    for name, amount in sorted(accepted.items()):
+        along, words = ACCEPTED_KINDS[name]
+        rungs = [amount / 2**k for k in range(RUNGS)] if amount > 0 else []
+        out.append([(f"a {_short(a)} {words}", Options(offset=a, offset_along=along)) for a in rungs])
+    return [rungs for rungs in out if rungs]
+
 
 #: mistakes whose effect varies from point to point (a student's acne speckles in its own pattern): name →
 #: the options of the mistake's far end.  An image with the mistake lies between the reference and that
@@ -121,6 +209,8 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     # η is read only where a refracted ray is spawned: no glass, no bounce, or ior 1 (1/1 is 1)
     "ior-inverted": lambda scene: scene.image.max_depth == 0 or not _materials(
         scene, lambda m: m.transmittance > 0 and m.ior != 1.0),
+    # an offset moves only shadow rays (of a light that is not ambient) and mirror or refracted rays
+    "offset-too-large": lambda scene: not _lit(scene) and (scene.image.max_depth == 0 or not _bounces(scene)),
 }
 
 

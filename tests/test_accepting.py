@@ -1,0 +1,205 @@
+"""Accepted variants: honest tracers' ray offsets pass, the classic mistakes still fail.
+
+The students are tests/student.py's tracer, written from the scene format, in
+the three common offset styles and with each classic mistake; the key cells of
+the calibration (every example and the Cornell-box homework) are checked here.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import student
+
+from schemas import load_scene
+from service import accepting, pipeline
+from service.grading import grade
+from service.submissions import ClassError
+from service.taskfile import load_tasks
+from tracer import Renderer, encode_png
+from tracer.variants import Options, scene_size
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+WHITTED = EXAMPLES / "04_whitted.json"
+CORNELL = EXAMPLES / "course" / "scenes" / "cornell.json"
+
+
+def _scene(path: Path):  # noqa: ANN202
+    return load_scene(path.read_bytes())
+
+
+def _graded(scene, image: np.ndarray, checks: pipeline.Checks | None = None) -> pipeline.Graded:  # noqa: ANN001
+    reference = encode_png(Renderer(scene).pixels())
+    return pipeline.grade_png(reference, encode_png(image), 2.0, 0.001, scene=lambda: scene,
+                              checks=checks or pipeline.Checks())
+
+
+@pytest.fixture(scope="module")
+def whitted():  # noqa: ANN201
+    return _scene(WHITTED)
+
+
+@pytest.fixture(scope="module")
+def whitted_reference(whitted) -> np.ndarray:  # noqa: ANN001
+    return Renderer(whitted).pixels()
+
+
+def test_an_honest_normal_offset_fails_the_reference_and_passes_as_its_variant(whitted, whitted_reference):
+    honest = student.render(whitted, style=student.STYLES["offset 1e-3"])
+    assert not grade(whitted_reference, honest, "").passed  # the reference alone fails it (0.37 % off)
+    graded = _graded(whitted, honest)
+    assert graded.grade.passed and graded.accepted == "a 1e-3 ray offset"
+    assert graded.as_dict()["accepted"] == "a 1e-3 ray offset" and graded.diagnosis is None
+
+
+@pytest.mark.parametrize("style", sorted(student.STYLES))
+def test_each_honest_style_passes_the_whitted_example(whitted, style):
+    assert _graded(whitted, student.render(whitted, style=student.STYLES[style])).grade.passed
+
+
+@pytest.mark.parametrize("amount", [1.5e-4, 3e-4, 7e-4])
+def test_any_offset_up_to_the_largest_passes_as_the_amount_it_comes_closest_to(whitted, whitted_reference, amount):
+    """The variant is rendered at 1e-3 and its halves; an amount between them passes against their range."""
+    honest = student.render(whitted, style=student.Offset(amount))
+    assert not grade(whitted_reference, honest, "").passed
+    graded = _graded(whitted, honest, pipeline.Checks(diagnose=False))
+    assert graded.grade.passed and graded.accepted is not None and graded.accepted.endswith(" ray offset")
+
+
+def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_reference):
+    honest = student.render(whitted, style=student.STYLES["offset 1e-3"])
+    verdict = grade(whitted_reference, honest, "")
+    pixels = honest.shape[0] * honest.shape[1]
+    assert accepting.envelope_off([whitted_reference], honest, 2.0) == round(verdict.fraction_off_nearby * pixels)
+
+
+@pytest.mark.parametrize("made", [{"style": student.STYLES["offset 1e-3"]}, {"mistakes": ["no-shadows"]},
+                                  {"mistakes": ["offset-too-large"]}, {"style": student.Offset(7e-4)}])
+def test_a_first_look_at_a_few_rows_bounds_the_whole_count(whitted, whitted_reference, made):
+    from tracer.variants import ACCEPTED_DEFAULT, accepted_options
+
+    image = student.render(whitted, **made)
+    pair = accepting.Failing(whitted_reference, image, grade(whitted_reference, image, ""))
+    for rungs in accepted_options(ACCEPTED_DEFAULT):
+        whole = accepting.envelope_off([whitted_reference] + [Renderer(whitted, o).pixels() for _, o in rungs],
+                                       image, 2.0)
+        assert accepting.first_look(whitted, rungs, pair, accepting.Look("", None, None)) <= whole
+
+
+def test_a_clearly_wrong_image_renders_no_whole_variant(whitted, whitted_reference, monkeypatch):
+    wrong = student.render(whitted, ["no-shadows"])
+    monkeypatch.setattr(accepting, "KEPT_RENDERS", accepting._Kept())  # (none kept from the tests before)
+    monkeypatch.setattr(accepting, "_render", lambda *a: pytest.fail("a whole variant was rendered"))
+    failed = grade(whitted_reference, wrong, "")
+    assert accepting.accept(whitted, accepting.Failing(whitted_reference, wrong, failed)) is None
+
+
+def test_an_offset_far_too_large_fails_and_is_named(whitted):
+    wrong = student.render(whitted, ["offset-too-large"])
+    graded = _graded(whitted, wrong)
+    assert not graded.grade.passed and graded.accepted is None
+    assert graded.diagnosis is not None and graded.diagnosis["causes"][0]["variant"] == "offset-too-large"
+
+
+@pytest.mark.parametrize("mistake", student.MISTAKES)
+def test_no_classic_mistake_is_turned_into_a_pass(whitted, whitted_reference, mistake):
+    """The verdict with the accepted variants is the reference's: a mistake the scene shows fails, one it cannot
+    show (no spot: a spot's cutoff in radians) passed already."""
+    wrong = student.render(whitted, [mistake])
+    alone = grade(whitted_reference, wrong, "").passed
+    assert _graded(whitted, wrong, pipeline.Checks(diagnose=False)).grade.passed == alone
+
+
+def test_the_cornell_homework_passes_an_honest_offset_and_fails_a_large_one():
+    scene = _scene(CORNELL)
+    honest = _graded(scene, student.render(scene, style=student.STYLES["offset 1e-3"]))
+    assert honest.grade.passed and honest.accepted == "a 1e-3 ray offset"
+    assert not _graded(scene, student.render(scene, ["offset-too-large"]), pipeline.Checks(diagnose=False)
+                       ).grade.passed
+
+
+def test_a_task_narrows_and_widens_its_accepted_variants(whitted):
+    honest = student.render(whitted, style=student.STYLES["offset 1e-3"])
+    assert not _graded(whitted, honest, pipeline.Checks(accepted={}, diagnose=False)).grade.passed
+    wider = student.render(whitted, style=student.Offset(4e-3))
+    assert not _graded(whitted, wider, pipeline.Checks(diagnose=False)).grade.passed
+    widened = _graded(whitted, wider, pipeline.Checks(accepted={"normal-offset": 4e-3}, diagnose=False))
+    assert widened.grade.passed and widened.accepted == "a 4e-3 ray offset"
+    only_t_min = _graded(whitted, honest, pipeline.Checks(accepted={"t-min": 1e-3}, diagnose=False))
+    assert not only_t_min.grade.passed
+
+
+def test_a_passing_image_renders_no_variant(whitted, whitted_reference, monkeypatch):
+    def refuse(*args, **kw):  # noqa: ANN002, ANN003, ANN202
+        raise AssertionError("an accepted variant was rendered for a passing image")
+
+    monkeypatch.setattr(accepting, "accept", refuse)
+    assert _graded(whitted, whitted_reference).grade.passed
+
+
+def test_the_variant_is_the_reference_with_its_rays_moved_off_the_surface(whitted, whitted_reference):
+    """An offset of 0 is the reference itself; the t_min variant moves rays by exactly its amount."""
+    assert np.array_equal(Renderer(whitted, Options(offset=0.0)).pixels(), whitted_reference)
+    assert scene_size(whitted) == pytest.approx(4.3)  # the two balls' box: z from −2.7 to 1.6, its widest side
+    for style, along in (("offset 1e-3", "normal"), ("t_min 1e-3", "ray")):
+        variant = Renderer(whitted, Options(offset=1e-3, offset_along=along)).pixels()
+        assert grade(variant, student.render(whitted, style=student.STYLES[style]), "").fraction_off_nearby == 0
+
+
+def test_a_tasks_file_names_the_accepted_variants_it_knows(tmp_path):
+    tasks = {"cornell": CORNELL}
+    good = tmp_path / "tasks.json"
+    good.write_text('{"cornell": {"accepted": {"t-min": 0.002}}}')
+    assert load_tasks(good, tasks)["cornell"].accepted == {"t-min": 0.002}
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"cornell": {"accepted": {"epsilon": 0.002}}}')
+    with pytest.raises(ClassError, match="bad.json"):
+        load_tasks(bad, tasks)
+
+
+def test_grade_says_which_variant_it_passed_as_even_without_a_diagnosis(whitted, tmp_path, capsys):
+    from service.cli import main
+
+    honest = tmp_path / "honest.png"
+    honest.write_bytes(encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"])))
+    for extra in ([], ["--no-diagnosis"]):
+        assert main(["grade", str(WHITTED), str(honest), *extra]) == 0
+        assert capsys.readouterr().out.splitlines()[0] == "PASS, as rendered with a 1e-3 ray offset"
+
+
+def test_post_grade_gives_the_accepted_variant(whitted):
+    from fastapi.testclient import TestClient
+
+    from service.app import create_app
+    from service.settings import Settings
+
+    honest = encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"]))
+    api = TestClient(create_app(Settings()))
+    spec = api.get("/openapi.json").json()
+    assert "accepted" in spec["components"]["schemas"]["GradeAnswer"]["properties"]
+    body = api.post("/grade", files={"scene": ("s.json", WHITTED.read_bytes(), "application/json"),
+                                     "image": ("i.png", honest, "image/png")}).json()
+    assert body["passed"] is True and body["accepted"] == "a 1e-3 ray offset" and body["diagnosis"] is None
+
+
+def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, tmp_path):
+    import json
+    import shutil
+
+    from service.classgrade import grade_class
+
+    (tmp_path / "scenes").mkdir()
+    shutil.copyfile(WHITTED, tmp_path / "scenes" / "whitted.json")
+    (tmp_path / "subs" / "ada").mkdir(parents=True)
+    (tmp_path / "subs" / "ada" / "whitted.png").write_bytes(
+        encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"])))
+    rows = {}
+    for name, accepted in (("defaults", None), ("none", {})):
+        tasks = tmp_path / f"{name}.json"
+        tasks.write_text(json.dumps({"whitted": {} if accepted is None else {"accepted": accepted}}))
+        (row,) = grade_class(tmp_path / "scenes", tmp_path / "subs", tmp_path / name, jobs=1, tasks_file=tasks).rows
+        rows[name] = row
+    assert (rows["defaults"]["status"], rows["defaults"]["reason"]) == ("pass", "as rendered with a 1e-3 ray offset")
+    assert rows["none"]["status"] == "fail"
