@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
+from collections.abc import Callable
 
 
 class RenderCache:
-    def __init__(self, max_bytes: int):
+    """``others()``: the bytes other caches of the worker hold in the same budget of ``max_bytes`` (the
+    diagnosis's renders): a new entry makes room among this cache's own."""
+
+    def __init__(self, max_bytes: int, others: Callable[[], int] = lambda: 0):
         self.max_bytes = max_bytes
+        self.others = others
         self._items: OrderedDict[str, bytes] = OrderedDict()
         self._size = 0
         self._lock = threading.Lock()
@@ -31,7 +36,8 @@ class RenderCache:
             return key in self._items
 
     def put(self, key: str, value: bytes) -> None:
-        if len(value) > self.max_bytes:
+        room = self.max_bytes - self.others()
+        if len(value) > room:
             return
         with self._lock:
             old = self._items.pop(key, None)
@@ -39,7 +45,7 @@ class RenderCache:
                 self._size -= len(old)
             self._items[key] = value
             self._size += len(value)
-            while self._size > self.max_bytes:
+            while self._size > room:
                 _, evicted = self._items.popitem(last=False)
                 self._size -= len(evicted)
 

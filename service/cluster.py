@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from tracer.budget import Budget
 
 INSTALL = "--cluster needs Dask distributed: pip install 'phongray[cluster]'"
+T = TypeVar("T")
 #: pixels per band of a cluster render (a 3840×2160 image is 32 bands)
 BAND_PIXELS = 1 << 18
 #: seconds to wait for a cluster's first worker, unless ``--cluster-wait`` or ``PHONGRAY_CLUSTER_WAIT`` says
@@ -129,3 +130,23 @@ def render(client: Any, scene: bytes, width: int, height: int,
         return np.concatenate(client.gather(parts), axis=0)
     finally:
         client.cancel([f for f in parts if not f.done()])
+
+
+def run(client: Any, task: Callable[..., T], *args: Any, cancelled: Callable[[], bool] = lambda: False,
+        poll: float = 0.05) -> T:
+    """``task(*args)`` as one task on the cluster; ``cancelled()`` is polled while waiting and, once true, the
+    task is cancelled and :class:`tracer.RenderCancelled` is raised (a task already running on a worker stops
+    at the deadline it was given).  An exception of the task is raised here."""
+    from tracer import RenderCancelled
+
+    future = client.submit(task, *args, pure=False)
+    try:
+        while not future.done():
+            if cancelled():
+                raise RenderCancelled("the work was cancelled")
+            time.sleep(poll)
+        result: T = future.result()
+        return result
+    finally:
+        if not future.done():
+            client.cancel([future])

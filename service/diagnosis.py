@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tracer.passes import LIGHT_TERMS
+from tracer.passes import ADDITIVE, LIGHT_TERMS
 from tracer.variants import BOUNDS, REFERENCE, VARIANTS, Options, unchanged
 
 from .display import percent
@@ -35,6 +35,7 @@ from .grading import Grade, grade
 
 if TYPE_CHECKING:
     from tracer import Renderer
+    from tracer.render import Fold
 
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
 #: failing pixels
@@ -115,8 +116,9 @@ class Renders:
     rows: Callable[[str, np.ndarray], np.ndarray] | None = None
     #: name of BOUNDS, row numbers → those rows of the mistake's far end, rendered alone (:func:`outside_at_least`)
     bound_rows: Callable[[str, np.ndarray], np.ndarray] | None = None
-    #: pixel numbers → the first hits' passes (``object``, ``diffuse:K``, ``specular:K``) at those pixels alone
-    at: Callable[[np.ndarray], dict[str, np.ndarray]] | None = None
+    #: pixel numbers, fold → the first hits' ``object`` at those pixels alone; their ``diffuse:K`` and
+    #: ``specular:K`` go to the fold, a block at a time (:data:`tracer.render.Fold`)
+    at: Callable[[np.ndarray, Fold], np.ndarray] | None = None
     #: name → whether the scene cannot show that mistake (its render is the reference's, bit for bit)
     unchanged: Callable[[str], bool] | None = None
     #: called when a diagnosis is over, in its thread: lets go of what was prepared only for its renders
@@ -124,6 +126,24 @@ class Renders:
     #: sets the cancel of the diagnosis this thread runs (``cancel`` is every thread's): two diagnoses of one
     #: cached scene, in two threads, each stop on their own
     cancel_in_thread: Callable[[Callable[[], bool] | None], None] | None = None
+    #: hands the columns of the term fit (``background``, ``ambient``, ``reflection``, ``refraction``,
+    #: ``diffuse:K``, ``specular:K``, each ``(pixels, 3)``) to a fold, a block of pixels at a time, in order
+    #: (:data:`tracer.render.Fold`): the whole image's passes are never needed at once
+    blocks: Callable[[Fold], None] | None = None
+    #: the bytes of the arrays these renders hold (what a cache of them counts)
+    nbytes: Callable[[], int] | None = None
+
+    def check(self) -> None:
+        """Raises :class:`tracer.RenderCancelled` once the current diagnosis's cancel says to stop (its deadline,
+        or its client gone): polled between the stages that render nothing (grading, the fit)."""
+        cancel = self.cancel if self.polled is None else self.polled()
+        if cancel is not None and cancel():
+            from tracer import RenderCancelled
+
+            raise RenderCancelled("diagnosis cancelled")
+
+    #: the current thread's cancel (set by ``cancel_in_thread``), else ``cancel``
+    polled: Callable[[], Callable[[], bool] | None] | None = None
 
 
 def term_words(term: dict[str, Any]) -> str:
@@ -194,6 +214,7 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
         return renders.unchanged is None or not renders.unchanged(name)
 
     for name in filter(shown, VARIANTS):
+        renders.check()
         if name in BOUNDS and renders.bound is not None:
             continue  # (a speckled mistake is scored against its far end below, not by its own render)
         # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot pass
@@ -216,15 +237,18 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
 
     later_bounds: list[str] = []  # speckled mistakes that cannot pass, but may come closest if none passes
     for name in filter(shown, BOUNDS) if renders.bound is not None else ():
+        renders.check()
         least = outside_at_least(name, reference, submitted, verdict, renders, cannot_pass)
         if (least is not None and cannot_pass(least)) or not score_speckled(name, cannot_pass):
             later_bounds.append(name)
     if not any(c.passes for c in scored):  # then the closest is named: score what may come closest
         for name in later:
+            renders.check()
             least = off_at_least(name, submitted, verdict, renders, cannot_come_closest)  # (every row looked at)
             if least is None or not cannot_come_closest(least):
                 score(name, cannot_come_closest)
         for name in later_bounds:
+            renders.check()
             least = outside_at_least(name, reference, submitted, verdict, renders, cannot_come_closest)
             if least is None or not cannot_come_closest(least):
                 score_speckled(name, cannot_come_closest)
@@ -235,7 +259,9 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
     elif scored and scored[0].fraction_off_nearby <= CLOSEST_SHARE * verdict.fraction_off_nearby:
         out.causes, out.closest = scored[:1], True
     if not passing:  # a mistake that explains the image leaves no term to fit
+        renders.check()
         out.terms = fit_terms(submitted, renders)
+    renders.check()
     out.objects, out.lights = where(reference, submitted, verdict, renders)
     return out
 
@@ -440,6 +466,16 @@ def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, to
     return float(outside.mean())
 
 
+#: a fit whose matrix (the used values × the terms) takes at most this is solved on the matrix itself; a larger
+#: one on a factor of its Gram matrix, summed a block of pixels at a time (:class:`_Fit`)
+FIT_MATRIX_BYTES = 32 << 20
+#: ... and at most this many terms (each try of a term sums all the others over every row)
+FIT_MATRIX_TERMS = 64
+#: pixels per block when the fit's columns are taken from passes held whole
+FIT_BLOCK_PIXELS = 1 << 14
+BASE_TERMS = ("background", "ambient", "reflection", "refraction")
+
+
 def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
     """The additive terms out of scale, most out of scale first, by forward selection of least squares fits.
 
@@ -449,46 +485,120 @@ def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
     told apart by one fit of every coefficient, so the coefficients start at 1 and are freed one at a time:
     each round frees the term whose non-negative fit (with the terms freed before it) leaves the smallest
     residual, and stops when that does not at least halve the residual or the residual is down to rounding.
-    """
-    columns: list[tuple[str, int | None, np.ndarray]] = []
-    base = renders.passes(["background", "ambient", "reflection", "refraction"], None)
-    for name in ("background", "ambient", "reflection", "refraction"):
-        columns.append((name, None, base[name]))
-    for k, kind in enumerate(renders.lights):
-        if kind == "ambient":
-            continue
-        own = renders.passes(["diffuse", "specular"], k)
-        columns += [("diffuse", k, own["diffuse"]), ("specular", k, own["specular"])]
-    total = sum(c for _, _, c in columns)
-    sub = submitted.astype(np.float64) / 255.0
-    use = (total < 1.0 - 1e-3) & (sub > 0) & (sub < 1)  # neither image clips there: the values are linear
-    if use.sum() < 16:
-        return []
-    energy = np.array([c[use].sum() for _, _, c in columns])
+
+    The passes come a block of pixels at a time (:attr:`Renders.blocks`), and the fit holds the used values
+    while they take at most :data:`FIT_MATRIX_BYTES` (then it solves on them, as one matrix); past that, it
+    keeps only the Gram matrix MᵀM of M = [terms | submission], summed block by block, and solves on a factor
+    F of it (FᵀF = MᵀM): ‖M z‖ = ‖F z‖ for every z, so every fit and residual is the same least squares
+    problem on (terms + 1) rows instead of the used values (the same answer up to rounding), and memory does
+    not grow with the pixels."""
+    columns = [(name, None) for name in BASE_TERMS] + [
+        (term, k) for k, kind in enumerate(renders.lights) if kind != "ambient" for term in ("diffuse", "specular")]
+    fit = _Fit([name if k is None else f"{name}:{k}" for name, k in columns],
+               submitted.reshape(-1, 3).astype(np.float64) / 255.0, renders.check)
+    if renders.blocks is not None:
+        renders.blocks(fit.fold)
+    else:  # (renders without blocks: the whole passes, as one block)
+        base = renders.passes(list(BASE_TERMS), None)
+        whole = {name: base[name].reshape(-1, 3) for name in BASE_TERMS}
+        for k, kind in enumerate(renders.lights):
+            if kind != "ambient":
+                own = renders.passes(["diffuse", "specular"], k)
+                whole |= {f"{t}:{k}": own[t].reshape(-1, 3) for t in ("diffuse", "specular")}
+        fit.fold(0, whole)
+    free, coef = fit.solve()
+    terms = [Term(columns[i][0], columns[i][1], float(c)) for i, c in zip(free, coef)
+             if abs(c - 1.0) > TERM_SLACK]
+    return sorted(terms, key=lambda t: -abs(t.scale - 1.0))
+
+
+class _Fit:
+    """The term fit of :func:`fit_terms`, fed a block of pixels at a time (:meth:`fold`), then :meth:`solve`."""
+
+    def __init__(self, names: list[str], submitted: np.ndarray, check: Callable[[], None]):
+        self.names, self.sub, self.check = names, submitted, check
+        self.rows: list[np.ndarray] = []  # the used values of each block, (m_i, n): while they are small
+        self.values: list[np.ndarray] = []  # the submission's there, (m_i,)
+        self.held = 0
+        self.gram: np.ndarray | None = None  # once they are not: MᵀM of M = [terms | submission], (n + 1, n + 1)
+        self.energy = np.zeros(len(names))
+        self.used = 0
+
+    def fold(self, first: int, part: dict[str, np.ndarray]) -> None:
+        self.check()
+        cols = [part[name] for name in self.names]
+        total = sum(cols)  # (in the order the whole image's sum takes: the same values)
+        sub = self.sub[first:first + len(cols[0])]
+        use = (total < 1.0 - 1e-3) & (sub > 0) & (sub < 1)  # neither image clips there: the values are linear
+        count = int(use.sum())
+        if count == 0:
+            return
+        a = np.stack([c[use] for c in cols], axis=1)
+        b = sub[use]
+        self.used += count
+        if self.gram is None:
+            self.rows.append(a)
+            self.values.append(b)
+            self.held += a.nbytes + b.nbytes
+            if self.held <= FIT_MATRIX_BYTES and len(self.names) <= FIT_MATRIX_TERMS:
+                return
+            a, b = np.concatenate(self.rows), np.concatenate(self.values)
+            self.rows, self.values, self.gram = [], [], np.zeros((len(self.names) + 1,) * 2)
+        self.energy += a.sum(axis=0)
+        m = np.column_stack([a, b])
+        self.gram += m.T @ m
+
+    def solve(self) -> tuple[list[int], np.ndarray]:
+        """The terms freed and their coefficients."""
+        if self.used < 16:
+            return [], np.zeros(0)
+        if self.gram is None:  # the used values themselves: one matrix
+            a, b = np.concatenate(self.rows), np.concatenate(self.values)
+            energy = np.array([np.ascontiguousarray(a[:, i]).sum() for i in range(a.shape[1])])
+            return _forward(a, b, energy, None, self.check)
+        # a factor F of the Gram matrix (FᵀF = MᵀM, from its eigenvectors: it may be singular, a term zero
+        # everywhere), whose rows stand for the used values: ‖M z‖ = ‖F z‖ for every z
+        self.check()
+        values, vectors = np.linalg.eigh(self.gram)
+        f = np.sqrt(np.maximum(values, 0.0))[:, None] * vectors.T
+        return _forward(f[:, :-1], f[:, -1], self.energy, self.used, self.check)
+
+
+def _forward(a: np.ndarray, b: np.ndarray, energy: np.ndarray, used: int | None,
+             check: Callable[[], None]) -> tuple[list[int], np.ndarray]:
+    """Forward selection over the columns of ``a`` against ``b``: the used values themselves (``used`` None), or
+    the rows of their triangular factor, which give the same sums of squares, over ``used`` values."""
     keep = [i for i, e in enumerate(energy) if e > TERM_FLOOR * energy.sum()]
-    a = np.stack([c[use] for _, _, c in columns], axis=1)
-    b = sub[use]
+    n = a.shape[1]
+    every = None if used is None else a.sum(axis=1)  # (R's rows are few: the others' sum from the whole's)
+
+    def rms(r: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(r ** 2))) if used is None else float(np.sqrt(np.sum(r ** 2) / used))
 
     def fitted(free: list[int]) -> tuple[float, np.ndarray]:
-        fixed = [i for i in range(len(columns)) if i not in free]
-        rest = b - a[:, fixed].sum(axis=1)
+        if every is None:
+            rest = b - a[:, [i for i in range(n) if i not in free]].sum(axis=1)
+        else:
+            rest = b - (every - a[:, free].sum(axis=1))
         coef = nnls(a[:, free], rest)
-        return float(np.sqrt(np.mean((a[:, free] @ coef - rest) ** 2))), coef
+        return rms(a[:, free] @ coef - rest), coef
 
     free: list[int] = []
     coef = np.zeros(0)
-    residual = float(np.sqrt(np.mean((a.sum(axis=1) - b) ** 2)))
+    residual = rms(a.sum(axis=1) - b)
     while residual > ROUNDING and len(free) < MAX_TERMS:
-        tries = [(fitted(free + [i]), i) for i in keep if i not in free]
+        tries = []
+        for i in keep:
+            if i not in free:
+                check()
+                tries.append((fitted(free + [i]), i))
         if not tries:
             break
         (best, best_coef), i = min(tries, key=lambda t: t[0][0])
         if best > 0.5 * residual:
             break
         free, coef, residual = free + [i], best_coef, best
-    terms = [Term(columns[i][0], columns[i][1], float(c)) for i, c in zip(free, coef)
-             if abs(c - 1.0) > TERM_SLACK]
-    return sorted(terms, key=lambda t: -abs(t.scale - 1.0))
+    return free, coef
 
 
 def nnls(a: np.ndarray, b: np.ndarray, rounds: int = 200) -> np.ndarray:
@@ -517,35 +627,41 @@ def nnls(a: np.ndarray, b: np.ndarray, rounds: int = 200) -> np.ndarray:
 
 def where(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
           renders: Renders) -> tuple[list[Share], list[Share]]:
-    """The objects the failing pixels show and the lights that fall on them, each with its share."""
+    """The objects the failing pixels show and the lights that fall on them, each with its share.  The lights'
+    terms at the failing pixels come a block at a time and are counted as they come, never held for all the
+    lights at once."""
     diff = np.max(np.abs(reference.astype(np.int16) - submitted.astype(np.int16)), axis=2) > verdict.tolerance
     count = int(diff.sum())
     if count == 0:
         return [], []
+    lit_by = np.zeros(len(renders.lights), dtype=np.int64)  # failing pixels each light falls on
+    shining = [k for k, kind in enumerate(renders.lights) if kind != "ambient"]
+
+    def fold(first: int, part: dict[str, np.ndarray]) -> None:
+        renders.check()
+        for k in shining:
+            lit_by[k] += int(np.count_nonzero((part[f"diffuse:{k}"] + part[f"specular:{k}"]).max(axis=1) > 1.0 / 255))
+
     if renders.at is not None:  # the passes of the failing pixels alone
-        at = renders.at(np.flatnonzero(diff))
-
-        def there(name: str, light: int | None) -> np.ndarray:
-            return at[name if light is None else f"{name}:{light}"]
+        found = renders.at(np.flatnonzero(diff), fold)
     else:
-        def there(name: str, light: int | None) -> np.ndarray:
-            return renders.passes([name], light)[name][diff]
-
-    found = there("object", None)
+        found = renders.passes(["object"], None)["object"][diff]
+        there: dict[str, np.ndarray] = {}
+        for k in shining:
+            own = renders.passes(["diffuse", "specular"], k)
+            there |= {f"diffuse:{k}": own["diffuse"][diff], f"specular:{k}": own["specular"][diff]}
+        fold(0, there)
     objects = [Share(int(k), renders.objects[int(k)] if k >= 0 else "background", float(np.mean(found == k)))
                for k in np.unique(found)]
-    lights = []
-    for k, kind in enumerate(renders.lights):
-        if kind == "ambient":
-            continue
-        lit = (there("diffuse", k) + there("specular", k)).max(axis=1) > 1.0 / 255
-        if lit.any():
-            lights.append(Share(k, kind, float(lit.mean())))
+    lights = [Share(k, renders.lights[k], int(lit_by[k]) / len(found)) for k in shining if lit_by[k]]
     return (sorted(objects, key=lambda s: -s.share), sorted(lights, key=lambda s: -s.share))
 
 
 #: the variants made from the reference's own linear colour, with no render of their own
 DERIVED = ("gamma", "image-flipped")
+#: the whole image's passes (every light's terms included) are kept for the scene's later diagnoses when they
+#: take at most this; a larger scene's fit and lights are rendered again for each, folded as they come
+WHOLE_PASSES_BYTES = 64 << 20
 
 
 def renders_of(scene: Any, threads: int | None = None) -> Renders:
@@ -593,33 +709,76 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
         renderer: Renderer = last.renderer
         return renderer
 
-    def passes() -> dict[str, np.ndarray]:
-        if "all" not in made:
-            cancel = polled()
-            if cancel is not None and cancel():
-                from tracer import RenderCancelled
+    height, width, total = scene.image.height, scene.image.width, scene.image.width * scene.image.height
+    shining = sum(light.type != "ambient" for light in scene.lights)
+    #: whether the whole image's passes, every light's terms included, are small enough to keep (then one render
+    #: serves every later fit of the scene); else each fit renders them again, folded as they come
+    whole = total * 3 * 8 * (len(ADDITIVE) + 2 + 2 * shining) <= WHOLE_PASSES_BYTES
 
-                raise RenderCancelled("diagnosis cancelled")
+    def passes() -> dict[str, np.ndarray]:  # the whole image's passes, held (a scene small enough, or no blocks)
+        if "all" not in made:
+            out.check()
             made["all"] = prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=polled())
         return made["all"]
 
+    def images() -> dict[str, np.ndarray]:
+        """The reference's pixels from its linear colour, and its gamma variant: from the passes held, or from a
+        render folded as it comes (all it keeps are these)."""
+        if "images" not in made:
+            if whole or "all" in made:
+                colour = passes()["colour"]
+                made["images"] = {"reference": quantize(colour),
+                                  "gamma": quantize(np.clip(colour, 0.0, None) ** (1.0 / 2.2))}
+            else:
+                folded(None)
+        return made["images"]
+
+    def folded(fold: Fold | None) -> None:
+        """A render of the whole image's passes, each chunk to ``fold`` and to the reference's images."""
+        out.check()
+        mine = "images" not in made
+        reference, gamma = (np.empty((total, 3), dtype=np.uint8) for _ in range(2))
+
+        def each(first: int, part: dict[str, np.ndarray]) -> None:
+            if mine:  # as Renderer.pixels stores each chunk's colour (and a gamma variant's)
+                reference[first:first + len(part["colour"])] = quantize(part["colour"])
+                gamma[first:first + len(part["colour"])] = quantize(np.clip(part["colour"], 0.0, None) ** (1.0 / 2.2))
+            if fold is not None:
+                fold(first, part)
+
+        prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=polled(), fold=each)
+        if mine:
+            made["images"] = {"reference": reference.reshape(height, width, 3),
+                              "gamma": gamma.reshape(height, width, 3)}
+
+    def blocks(fold: Fold) -> None:
+        if not whole:
+            folded(fold)
+            return
+        every = passes()
+        for first in range(0, total, FIT_BLOCK_PIXELS):
+            fold(first, {name: plane.reshape(total, -1)[first:first + FIT_BLOCK_PIXELS]
+                         for name, plane in every.items() if name not in ("object", "colour")})
+
+    def made_whole() -> bool:  # the reference's images are at hand, without a render
+        return "images" in made or "all" in made
+
     def variant(name: str) -> np.ndarray:
         if name not in variants:
-            if name == "gamma" and "all" in made:  # as Renderer.pixels stores a gamma variant's chunk colour
-                variants[name] = quantize(np.clip(passes()["colour"], 0.0, None) ** (1.0 / 2.2))
+            if name == "gamma" and made_whole():  # as Renderer.pixels stores a gamma variant's chunk colour
+                variants[name] = images()["gamma"]
                 kept.pop(name, None)
-            elif name == "image-flipped" and "all" in made:  # the reference's rows, bottom to top
-                variants[name] = quantize(passes()["colour"])[::-1]
+            elif name == "image-flipped" and made_whole():  # the reference's rows, bottom to top
+                variants[name] = images()["reference"][::-1]
                 kept.pop(name, None)
             elif unchanged(name, scene):
-                variants[name] = quantize(passes()["colour"])
+                variants[name] = images()["reference"]
             elif name in kept:  # the rows not yet rendered
                 rows(name, np.arange(height))
             else:
                 variants[name] = prepared(VARIANTS[name][0]).pixels(threads=threads, cancel=polled())
         return variants[name]
 
-    height = scene.image.height
     #: per variant (and per far end), its rows rendered so far, until it is whole
     kept: dict[str, dict[int, np.ndarray]] = {}
     guard = threading.Lock()
@@ -647,14 +806,14 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
         return np.stack([have[r] for r in numbers.tolist()])
 
     def rows(name: str, numbers: np.ndarray) -> np.ndarray:
-        if name in variants or (name in DERIVED and "all" in made) or unchanged(name, scene):
+        if name in variants or (name in DERIVED and made_whole()) or unchanged(name, scene):
             return variant(name)[numbers]
         return kept_rows(name, name, VARIANTS[name][0], variants, numbers)
 
     def bound(name: str) -> np.ndarray:
         if name not in bounds:
             if unchanged(name, scene):
-                bounds[name] = quantize(passes()["colour"])
+                bounds[name] = images()["reference"]
             elif "bound:" + name in kept:  # the rows not yet rendered
                 bound_rows(name, np.arange(height))
             else:
@@ -666,27 +825,40 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
             return bound(name)[numbers]
         return kept_rows("bound:" + name, name, BOUNDS[name], bounds, numbers)
 
-    width, total = scene.image.width, scene.image.width * scene.image.height
     spent = [0]  # pixels whose passes were rendered alone so far
 
-    def at(pixels: np.ndarray) -> dict[str, np.ndarray]:
+    def at(pixels: np.ndarray, fold: Fold) -> np.ndarray:
         # pixels alone while they add up to at most the image (a scene diagnosed once renders only its failing
-        # pixels); past that, the whole image once, and kept
-        if "all" in made or spent[0] + len(pixels) > total:
+        # pixels); past that, the whole image once, and kept, when it is small enough to keep
+        if "all" in made or (whole and spent[0] + len(pixels) > total):
             rows, cols = np.divmod(pixels, width)
-            return {name: plane[rows, cols] for name, plane in passes().items()}
+            there = {name: plane[rows, cols] for name, plane in passes().items() if name != "colour"}
+            fold(0, there)
+            return there["object"]
         spent[0] += len(pixels)
-        return prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=polled(), pixels=pixels,
-                                                    first_hits=True)
+        found = np.empty(len(pixels), dtype=np.int64)
+
+        def each(first: int, part: dict[str, np.ndarray]) -> None:
+            found[first:first + len(part["object"])] = part["object"]
+            fold(first, part)
+
+        prepared(REFERENCE).diagnosis_passes(threads=threads, cancel=polled(), pixels=pixels, first_hits=True,
+                                             fold=each)
+        return found
 
     def of(names: list[str], light: int | None) -> dict[str, np.ndarray]:
         every = passes()
         return {name: every[name if light is None or name not in LIGHT_TERMS else f"{name}:{light}"]
                 for name in names}
 
+    def nbytes() -> int:
+        return held_bytes([*list(variants.values()), *list(bounds.values()),
+                           *(r for rows in list(kept.values()) for r in list(rows.values())),
+                           *(a for planes in list(made.values()) for a in list(planes.values()))])
+
     out = Renders(variant, of, [light.type for light in scene.lights], [obj.type for obj in scene.objects], bound,
                   rows=rows, bound_rows=bound_rows, at=at, unchanged=lambda name: unchanged(name, scene),
-                  done=done, cancel_in_thread=cancel_in_thread)
+                  done=done, cancel_in_thread=cancel_in_thread, blocks=blocks, nbytes=nbytes, polled=polled)
     return out
 
 
@@ -699,34 +871,72 @@ def renders_needed(scene: Any) -> int:
     return len(shown) + 2
 
 
+def held_bytes(arrays: list[np.ndarray]) -> int:
+    """The bytes of the memory ``arrays`` hold, each buffer once (a view counts as its base)."""
+    roots: dict[int, int] = {}
+    for a in arrays:
+        while isinstance(a.base, np.ndarray):
+            a = a.base
+        roots[id(a)] = a.nbytes
+    return sum(roots.values())
+
+
 #: the largest image whose diagnosis renders are kept for the next pair of the same scene
 CACHED_PIXELS = 640 * 480
 
 
 class Cached:
     """The :class:`Renders` of the last few scenes diagnosed, by canonical scene key: a class's failing pairs
-    of one task (or a student's resubmissions) share one set of variant renders."""
+    of one task (or a student's resubmissions) share one set of variant renders.  With ``room``, the arrays
+    they hold are counted (:attr:`Renders.nbytes`) and held to ``room()`` bytes, the oldest scenes let go
+    first (:meth:`trim`): the service counts them in one budget with its cache of answers."""
 
-    def __init__(self, scenes: int = 4):
+    def __init__(self, scenes: int = 4, room: Callable[[], int] | None = None):
         self.scenes = scenes
+        self.room = room
         self.held: dict[str, Renders] = {}
         self.made = 0  # Renders built (a miss each)
+        self._lock = threading.Lock()
 
     def get(self, key: str, make: Callable[[], Renders], pixels: int = 0) -> Renders:
         """The renders of scene ``key``, made by ``make()`` unless held; a scene of more than
         :data:`CACHED_PIXELS` pixels is not held (its variants would crowd out everything else)."""
-        if key in self.held:
-            self.held[key] = self.held.pop(key)  # most recently used last
-            return self.held[key]
-        self.made += 1
+        with self._lock:
+            if key in self.held:
+                self.held[key] = self.held.pop(key)  # most recently used last
+                return self.held[key]
+            self.made += 1
         renders = make()
         if pixels > CACHED_PIXELS:
             return renders
-        self.held[key] = renders
-        while len(self.held) > self.scenes:
-            self.held.pop(next(iter(self.held)))
+        with self._lock:
+            self.held[key] = renders
+            while len(self.held) > self.scenes:
+                self.held.pop(next(iter(self.held)))
         return renders
 
+    @property
+    def size(self) -> int:
+        """The bytes the scenes held hold."""
+        with self._lock:
+            held = list(self.held.values())
+        return sum(r.nbytes() for r in held if r.nbytes is not None)
 
-#: this process's renders for diagnosis (the CLI, each class worker, each service worker)
+    def trim(self) -> None:
+        """Let go of the oldest scenes until what is held fits in ``room()`` (after a diagnosis, whose renders
+        have grown)."""
+        if self.room is None:
+            return
+        while True:
+            with self._lock:
+                sizes = [(key, r.nbytes() if r.nbytes is not None else 0) for key, r in self.held.items()]
+                if not sizes or sum(size for _, size in sizes) <= max(self.room(), 0):
+                    return
+                self.held.pop(sizes[0][0], None)
+
+    def __len__(self) -> int:
+        return len(self.held)
+
+
+#: this process's renders for diagnosis (the CLI, each class worker; each service worker has its own, counted)
 CACHE = Cached()

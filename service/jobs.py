@@ -20,9 +20,9 @@ from tracer import OverBudget, RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
 
 from .cache import RenderCache
-from .diagnosis import unavailable
-from .limits import budget, check_body, check_raw, check_scene, outgrown
-from .passes import Format
+from .diagnosis import Cached, unavailable
+from .limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
+from .passes import Format, PassFile
 from .pipeline import Graded, explain, with_overrides
 from .rendering import render_pixels
 from .scenekey import scene_key
@@ -37,8 +37,38 @@ class TooSlow(Exception):
     """The render ran past the time limit."""
 
 
+class OutOfMemory(Busy):
+    """The work ran out of memory as it ran (the worker's other work held it): stopped, its memory let go, and
+    answered as a busy slot is, to be tried again."""
+
+
 class ClusterDown(Exception):
     """The Dask cluster the renders go to cannot be reached."""
+
+
+class AnswersFull(Busy):
+    """The pass answers this worker holds leave no room for another now (``max_answer_bytes``)."""
+
+
+class Answers:
+    """The bytes of the answers one worker holds at once (made, or being sent), at most ``total``: each takes
+    its price before it is made, and gives it back once sent, or dropped with its client."""
+
+    def __init__(self, total: int):
+        self.total = total
+        self.held = 0
+        self._lock = threading.Lock()
+
+    def take(self, size: int) -> bool:
+        with self._lock:
+            if self.held + size > self.total:
+                return False
+            self.held += size
+            return True
+
+    def give(self, size: int) -> None:
+        with self._lock:
+            self.held -= size
 
 
 @dataclass(frozen=True)
@@ -70,7 +100,10 @@ class RenderService:
     def __init__(self, settings: Settings):
         tune_allocator(arenas=1)  # before any pool thread starts, so that release_if_grown hands back all it can
         self.settings = settings
-        self.cache = RenderCache(settings.cache_bytes)
+        # one budget of cache_bytes for every cached array of the worker: answers and the diagnosis's renders
+        self.diagnoses = Cached(room=lambda: settings.cache_bytes - self.cache.size)
+        self.cache = RenderCache(settings.cache_bytes, others=lambda: self.diagnoses.size)
+        self.answers = Answers(settings.max_answer_bytes)
         self.slots = threading.BoundedSemaphore(settings.max_concurrent_renders)
         self.threads = settings.render_threads or os.cpu_count() or 1
         self.grading = anyio.CapacityLimiter(settings.max_concurrent_renders)  # decoding and comparing images
@@ -121,38 +154,86 @@ class RenderService:
         self.cache.put(job.key, data)
         return data
 
-    def pass_file(self, job: Job, name: str, light: int | None, fmt: Format) -> bytes:
+    def pass_file(self, job: Job, name: str, light: int | None, fmt: Format,
+                  gone: Callable[[], bool] = lambda: False) -> tuple[PassFile, int]:
         """Render pass ``name`` of a job (of light ``light``) as a PNG or ``.npy`` file (:mod:`service.passes`),
-        from the cache or rendered in a render slot within ``render_timeout``.  Raises Busy, TooSlow, LimitError
-        when it outgrows its budget, or ValueError for a light the scene does not have."""
+        from the cache, or rendered in a render slot within ``render_timeout`` (on the cluster when there is
+        one), and the bytes of :attr:`answers` it holds: the caller gives them back once it is sent.  Priced up
+        front (:func:`service.passes.price`): LimitError when it could never fit in ``max_answer_bytes``,
+        AnswersFull when it does not now.  Raises Busy, TooSlow, ClusterDown, RenderCancelled once ``gone()``
+        (its client left), LimitError when it outgrows its render budget (:func:`service.limits.budget`), or
+        ValueError for a light the scene does not have."""
         from . import passes
 
+        media = "application/x-npy" if fmt == "npy" else "image/png"
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
         cached = self.cache.get(key)
         if cached is not None:
-            return cached
-        with self._slot() as late:
-            try:
-                data = passes.encoded(name, passes.values(job.scene, name, light, self.threads, cancel=late,
-                                                          budget=budget(job.scene, self.settings)), fmt)
-            except RenderCancelled:
-                raise TooSlow() from None
-            except OverBudget as exc:
-                raise outgrown(exc, self.settings) from None
-        self.cache.put(key, data)
-        return data
+            return passes.PassFile(b"", cached, media), 0
+        price = passes.price(job.scene, name, fmt)
+        if price > self.answers.total:
+            raise LimitError(f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt} "
+                             f"holds about {price} bytes, more than the limit max_answer_bytes = "
+                             f"{self.answers.total}")
+        if not self.answers.take(price):
+            raise AnswersFull()
+        held = price
+        try:
+            with self._slot() as late:
+                stop = lambda: late() or gone()  # noqa: E731
+                try:
+                    if self.settings.cluster:
+                        from .cluster import run
 
-    def explain(self, job: Job, graded: Graded, reference: np.ndarray, submitted: np.ndarray) -> Graded:
+                        data = run(self._client(), passes.pass_task, job.scene.model_dump_json().encode(), name,
+                                   light, fmt, self.settings.render_timeout, cancelled=stop)
+                        made = passes.PassFile(b"", data, media)
+                    else:
+                        made = passes.as_file(name, passes.values(job.scene, name, light, self.threads, stop,
+                                                                  budget=budget(job.scene, self.settings)), fmt)
+                except RenderCancelled:
+                    if gone():
+                        raise
+                    raise TooSlow() from None
+                except OverBudget as exc:
+                    raise outgrown(exc, self.settings) from None
+                except MemoryError:
+                    raise OutOfMemory() from None
+            self.answers.give(held - made.size)  # (what the making held beyond the file itself)
+            held = made.size
+            if made.size <= self.cache.max_bytes // 4:  # (a small answer is kept; a large one would crowd out all)
+                self.cache.put(key, made.joined())
+            return made, held
+        except BaseException:
+            self.answers.give(held)
+            raise
+
+    def explain(self, job: Job, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
+                gone: Callable[[], bool] = lambda: False) -> Graded:
         """``graded`` with the diagnosis of a failing grade, rendered in one of this worker's render slots
-        within ``render_timeout``; when no slot is free or time runs out, a diagnosis that says so."""
+        within ``render_timeout`` (on the cluster when there is one); when no slot is free or time runs out, a
+        diagnosis that says so.  RenderCancelled once ``gone()``: its client left, no one reads the answer.
+        ClusterDown when the cluster has no worker, as for a render."""
         if graded.grade.passed:
             return graded
         try:
             with self._slot() as late:
-                return explain(job.scene, graded, reference, submitted, self.threads, cancel=late)
+                stop = lambda: late() or gone()  # noqa: E731
+                if self.settings.cluster:
+                    from .cluster import run
+
+                    return run(self._client(), explain_task, job.scene.model_dump_json().encode(), graded,
+                               reference, submitted, self.settings.render_timeout, cancelled=stop)
+                return explain(job.scene, graded, reference, submitted, self.threads, cancel=stop,
+                               cache=self.diagnoses)
         except Busy:
             return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
+        except MemoryError:
+            return replace(graded, diagnosis=unavailable("its renders ran out of memory beside the worker's other "
+                                                         "work; grade again for one"))
         except RenderCancelled:
+            if gone():
+                raise
             return replace(graded, diagnosis=unavailable(
                 f"its renders ran past the limit render_timeout = {self.settings.render_timeout:g} s"))
 
@@ -171,7 +252,21 @@ class RenderService:
             raise ClusterDown(str(exc)) from None
         return self._dask
 
-    def status(self) -> dict[str, Any]:
+    def status(self) -> dict[str, Any]:  # (on the event loop: counters only, nothing that waits)
         return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size,
+                "diagnosis_scenes": len(self.diagnoses), "answer_bytes": self.answers.held,
                 "cache_hits": self.cache.hits,
                 "renders": self.renders}
+
+
+def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
+                 seconds: float) -> Graded:
+    """A diagnosis on a Dask worker (:meth:`RenderService.explain`), within ``seconds`` of its start there; one
+    that runs past them says so, as the service's own does."""
+    from schemas import load_scene
+
+    deadline = time.monotonic() + seconds
+    try:
+        return explain(load_scene(scene), graded, reference, submitted, 1, cancel=lambda: time.monotonic() > deadline)
+    except RenderCancelled:
+        return replace(graded, diagnosis=unavailable(f"its renders ran past the limit render_timeout = {seconds:g} s"))

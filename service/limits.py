@@ -102,16 +102,30 @@ def estimated_cost(scene: Scene) -> float:
     return camera_rays(scene) * (tree.rays + tree.hits * light_samples(scene)) * per_ray_factor(scene)
 
 
+#: exact tests of a ray against a sphere or a triangle a render may make per unit of ``max_cost``: the examples, the
+#: Cornell homework, the 10,000-sphere field and nested glass make at most 2.7 (``tests/test_limits.py``); a
+#: scene whose rays each meet thousands of surfaces its per-ray factor does not see (huge spheres beside tiny
+#: ones, tested against every ray; spheres nested around a point the camera looks at) makes over 1,000.  At the
+#: slowest rate measured, 5·10⁶ tests a second, 4 × 10⁸ tests take 80 s, within the 120 s render_timeout
+TESTS_PER_COST = 4.0
+
+
 def budget(scene: Scene, settings: Settings) -> Budget:
     """What a render of ``scene`` may spend as it runs: its rays, counted, times its per-ray factor within
-    ``max_cost``, and its rays in flight within ``max_ray_bytes``."""
-    return Budget(rays=settings.max_cost / per_ray_factor(scene), ray_bytes=settings.max_ray_bytes)
+    ``max_cost``, its exact tests of rays against surfaces within :data:`TESTS_PER_COST` × ``max_cost``, and its
+    rays in flight within ``max_ray_bytes``."""
+    return Budget(rays=settings.max_cost / per_ray_factor(scene), ray_bytes=settings.max_ray_bytes,
+                  tests=settings.max_cost * TESTS_PER_COST)
 
 
 #: what to say of each budget a render may outgrow: the setting, and what the scene can do about it
 OUTGROWN = {"rays": ("max_cost", "it needs more rays than the service traces for one image: lower image.max_depth "
                                  "(mirrors and glass that see each other multiply the rays at every bounce), "
                                  "image.samples, the image's size or the area lights' samples"),
+            "tests": ("max_cost", "its rays meet more surfaces than the service tests for one image (spheres or "
+                                  "triangles far larger than the rest are tested against every ray, and so are "
+                                  "surfaces nested around one another): lower the image's size, image.samples or "
+                                  "the number of such surfaces"),
             "memory": ("max_ray_bytes", "its rays in flight need more memory than the service allows for one "
                                         "image: lower image.max_depth or image.samples")}
 

@@ -91,10 +91,11 @@ class Checks:
 
 def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
             threads: int | None = None, cancel: Callable[[], bool] | None = None,
-            checks: Checks = Checks()) -> Graded:
+            checks: Checks = Checks(), cache: Any = None) -> Graded:
     """``graded`` passed against an accepted variant (:mod:`service.accepting`), or else with the diagnosis of
     a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic mistake and its
-    passes, cached by canonical scene, compared with the submission.  A passing grade comes back as it is."""
+    passes, cached by canonical scene (in ``cache``, a :class:`service.diagnosis.Cached`: this process's by
+    default), compared with the submission.  A passing grade comes back as it is."""
     if graded.grade.passed:
         return graded
     from .accepting import Failing, accept
@@ -107,12 +108,16 @@ def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.n
     from .diagnosis import CACHE, diagnose, renders_of
     from .scenekey import scene_key
 
-    renders = CACHE.get(scene_key(scene), lambda: renders_of(scene, threads), scene.image.width * scene.image.height)
+    held = CACHE if cache is None else cache
+    renders = held.get(scene_key(scene), lambda: renders_of(scene, threads), scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
         renders.cancel_in_thread(cancel)
     else:
         renders.cancel = cancel
-    found = diagnose(reference, submitted, graded.grade, renders)
+    try:
+        found = diagnose(reference, submitted, graded.grade, renders)
+    finally:
+        held.trim()  # (what it rendered counted, cancelled or not)
     return Graded(graded.grade, graded.heatmap, found.as_dict())
 
 

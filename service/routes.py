@@ -4,10 +4,11 @@ event loop, and turns outcomes into status codes; none of them knows any physics
 from __future__ import annotations
 
 import json
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar, get_args
 
 import anyio
 from fastapi import APIRouter, Query, Request, Response
@@ -21,9 +22,10 @@ from tracer.memory import release
 
 from . import grading, pipeline
 from .heatmap import Kind
-from .jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted, prepare
+from .jobs import AnswersFull, Busy, ClusterDown, Job, OutOfMemory, RenderService, TooSlow, parse_counted, prepare
 from .limits import LimitError
 from .models import ErrorAnswer, GradeAnswer, ValidAnswer
+from .passes import PassFile
 
 router = APIRouter()
 T = TypeVar("T")
@@ -132,7 +134,11 @@ class _Flight:
 def _unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
     """503 with Retry-After for a render that cannot be had now: the slots busy, past its time, no cluster."""
     settings = service.settings
-    detail = ("every render slot is busy; try again shortly" if isinstance(exc, Busy) else
+    detail = (f"the pass answers this worker holds leave no room for this one now (max_answer_bytes = "
+              f"{settings.max_answer_bytes}); try again shortly" if isinstance(exc, AnswersFull) else
+              "the render ran out of memory beside this worker's other work; try again shortly"
+              if isinstance(exc, OutOfMemory) else
+              "every render slot is busy; try again shortly" if isinstance(exc, Busy) else
               f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
               if isinstance(exc, TooSlow) else "the render cluster cannot be reached; try again shortly")
     return HTTPProblem(503, detail, headers={"Retry-After": str(settings.retry_after)})
@@ -178,6 +184,9 @@ async def _png(request: Request, job: Job) -> bytes:
         tasks.cancel_scope.cancel()
     if not gone.is_set():
         flight.waiting -= 1
+    if not gone.is_set() and isinstance(flight.failure, RenderCancelled):
+        # the flight stopped when every client waiting on it had left, as this one joined it: render again
+        return await _png(request, job)
     failure = RenderCancelled("client closed the request") if gone.is_set() else flight.failure
     result = flight.result
     try:
@@ -209,12 +218,17 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
                        format: Annotated[Literal["png", "npy"], Query(description="with pass: a PNG to look "
                                          "at, or the values as a NumPy .npy array")] = "png") -> Response:
     _require_json(request)
+    if pass_ is None:  # (as the command line refuses --light or an .npy file without --pass)
+        for option in ("format", "light"):
+            if option in request.query_params:
+                raise HTTPProblem(422, f"{option}: applies to a render pass only; add pass=NAME (one of "
+                                       f"{', '.join(get_args(PassName))}) or leave {option} out")
     service: RenderService = request.app.state.service
     body = await request.body()
     job = await anyio.to_thread.run_sync(_prepare, body, {"width": width, "height": height, "samples": samples},
                                          service, limiter=service.parsing)
     if pass_ is not None:
-        return await _pass(service, job, pass_, light, format)
+        return await _pass(request, job, pass_, light, format)
     headers = {"ETag": job.etag, "Cache-Control": "no-cache"}
     if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
         return Response(status_code=304, headers=headers)
@@ -225,16 +239,101 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
     return Response(data, media_type="image/png", headers=headers)
 
 
-async def _pass(service: RenderService, job: Job, name: str, light: int | None, fmt: Literal["png", "npy"]
-                ) -> Response:
+async def _pass(request: Request, job: Job, name: str, light: int | None, fmt: Literal["png", "npy"]) -> Response:
+    service: RenderService = request.app.state.service
+
+    def work(gone: Callable[[], bool]) -> tuple[PassFile, int]:
+        return _answering(lambda: service.pass_file(job, name, light, fmt, gone), "")
+
     try:
-        data = await anyio.to_thread.run_sync(service.pass_file, job, name, light, fmt, limiter=service.grading)
+        made, held = await _watched(request, work, service.grading)
     except ValueError as exc:  # a light the scene does not have
         raise HTTPProblem(422, str(exc)) from None
-    except (Busy, TooSlow) as exc:
+    except (Busy, TooSlow, ClusterDown) as exc:
         raise _unavailable(exc, service) from None
-    media = "application/x-npy" if fmt == "npy" else "image/png"
-    return Response(data, media_type=media, headers={"Cache-Control": "no-cache"})
+    return Streamed(made, service.settings.send_timeout, lambda: service.answers.give(held))
+
+
+class Gone(Exception):
+    """The client left: nobody reads the answer."""
+
+
+async def _watched(request: Request, work: Callable[[Callable[[], bool]], T], limiter: Any) -> T:
+    """``work(gone)`` on a pool thread (of ``limiter``), where ``gone()`` turns true once the client has left,
+    looked at every :data:`DISCONNECT_POLL` seconds: the work polls it and stops (a 499, which nobody reads)."""
+    left = threading.Event()
+
+    async def watch() -> None:
+        while not await request.is_disconnected():
+            await anyio.sleep(DISCONNECT_POLL)
+        left.set()
+
+    failure: BaseException | None = None
+    async with anyio.create_task_group() as tasks:
+        tasks.start_soon(watch)
+        try:
+            result = await anyio.to_thread.run_sync(work, left.is_set, limiter=limiter)
+        except Exception as exc:  # re-raised below, outside the task group (which would wrap it in a group)
+            failure = exc
+        tasks.cancel_scope.cancel()
+    if isinstance(failure, RenderCancelled) and left.is_set():
+        raise HTTPProblem(499, "client closed the request") from None
+    if failure is not None:
+        raise failure
+    return result
+
+
+class Streamed(Response):
+    """A large answer sent a chunk at a time (:meth:`service.passes.PassFile.chunks`), never joined: each chunk
+    must be taken by the client within ``timeout`` seconds (``send_timeout``), else the connection is dropped;
+    either way ``done()`` runs once it is over (the answer's memory is let go and its budget given back)."""
+
+    def __init__(self, file: PassFile, timeout: float, done: Callable[[], None]):
+        super().__init__(media_type=file.media)
+        self.file: PassFile | None = file
+        self.timeout, self.done = timeout, done
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        file = self.file
+        assert file is not None
+        self.file = None
+        try:
+            await send({"type": "http.response.start", "status": 200, "headers": [
+                (b"content-type", file.media.encode()), (b"content-length", str(file.size).encode()),
+                (b"cache-control", b"no-cache")]})
+            for piece in file.chunks():
+                with anyio.move_on_after(self.timeout) as waiting:
+                    await send({"type": "http.response.body", "body": piece, "more_body": True})
+                if waiting.cancelled_caught:
+                    await _drop(scope)
+                    return
+                if await _left(receive):  # (a send to a closed connection returns at once: stop copying)
+                    return
+                await anyio.sleep(0)  # (a turn of the event loop between chunks, for the other requests)
+            await send({"type": "http.response.body", "body": b"", "more_body": False})
+        finally:
+            del file
+            self.done()
+
+
+async def _left(receive: Any) -> bool:
+    """Whether the client has gone, looked at without waiting (as :meth:`Request.is_disconnected` looks)."""
+    with anyio.CancelScope() as look:
+        look.cancel()
+        message = await receive()
+        return bool(message.get("type") == "http.disconnect")
+    return False
+
+
+async def _drop(scope: Any) -> None:
+    """Close a connection whose client does not read, dropping what is queued for it (``phongray.abort``, set by
+    :class:`service.server.Protocol`); where there is no such hook, by failing the answer."""
+    abort = scope.get("phongray.abort")
+    if abort is None:
+        raise Gone("the client did not read the answer within send_timeout")
+    abort()
+    for _ in range(3):  # (the connection's loss is taken in first: the server then logs no unfinished answer)
+        await anyio.sleep(0)
 
 
 @router.post("/validate", openapi_extra=SCENE_BODY, summary="Check a scene; list every error with its place",
@@ -288,8 +387,14 @@ async def grade(request: Request, format: Literal["json", "png"] = "json",
     png = await _png(request, job)
     drawn = heatmap if format == "png" else None
     explain = job if diagnose and format == "json" else None
-    return await anyio.to_thread.run_sync(_compare, png, decoded, drawn, legend, tolerance, max_fraction,
-                                          service, explain, limiter=service.grading)
+
+    def work(gone: Callable[[], bool]) -> Response:
+        return _compare(png, decoded, drawn, legend, tolerance, max_fraction, service, explain, gone)
+
+    try:
+        return await _watched(request, work, service.grading)
+    except ClusterDown as exc:
+        raise _unavailable(exc, service) from None
 
 
 def _read_image(image: bytes, size: tuple[int, int]) -> Any:
@@ -301,7 +406,8 @@ def _read_image(image: bytes, size: tuple[int, int]) -> Any:
 
 
 def _compare(png: bytes, decoded: list[Any], heatmap: Kind | None, legend: bool, tolerance: float,
-             max_fraction: float, service: RenderService, explain: Job | None) -> Response:
+             max_fraction: float, service: RenderService, explain: Job | None,
+             gone: Callable[[], bool] = lambda: False) -> Response:
     """Grade the submission in ``decoded`` (taken out of it, so that nothing else holds its pixels), or draw its
     heat-map, diagnose a failing grade of ``explain``'s scene, and hand the memory of the images back to the OS
     before answering."""
@@ -310,7 +416,7 @@ def _compare(png: bytes, decoded: list[Any], heatmap: Kind | None, legend: bool,
         reference = decode_png(png)
         graded = pipeline.compare(png, submitted, tolerance, max_fraction, heatmap, legend, reference=reference)
         if explain is not None:
-            graded = service.explain(explain, graded, reference, submitted)
+            graded = service.explain(explain, graded, reference, submitted, gone)
         if graded.heatmap is not None:
             return Response(graded.heatmap, media_type="image/png")
         return JSONResponse(graded.as_dict())

@@ -23,8 +23,10 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import gc
 import socket
+import struct
 from typing import Any
 
 import h11
@@ -46,6 +48,24 @@ class Protocol(H11Protocol):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         super().connection_made(transport)
         self._await_headers()
+        app = self.app
+
+        def drop() -> None:
+            # a reset, not a close: the kernel's send buffer is let go too (a close would keep delivering it, a
+            # few MiB, to a client that does not read), and the client sees the connection end
+            sock = transport.get_extra_info("socket")
+            if sock is not None:
+                with contextlib.suppress(OSError):
+                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            transport.abort()
+
+        async def with_abort(scope: Any, receive: Any, send: Any) -> None:
+            # an answer's sender may drop a client that does not read (service.routes.Streamed): the connection
+            # is reset and what is queued for it let go, where close() would wait for the client
+            scope["phongray.abort"] = drop
+            await app(scope, receive, send)
+
+        self.app = with_abort
 
     def data_received(self, data: bytes) -> None:
         super().data_received(data)

@@ -102,3 +102,90 @@ def test_a_huge_max_depth_costs_no_memory_of_its_own():
     data["image"]["max_depth"] = 10**9
     deep = Renderer(schemas.validate_scene(data))
     assert deep.pixels(threads=1, budget=Budget(rays=1e9)).shape == shallow.shape
+
+
+def test_a_render_past_its_budget_of_exact_tests_stops_naming_them():
+    """Spheres far larger than the rest are tested against every ray: the tests are counted, whatever the rays."""
+    objs = [{"type": "sphere", "material": "m", "center": [k * 0.01, 0, 0], "radius": 0.001} for k in range(40)]
+    objs += [{"type": "sphere", "material": "m", "center": [0, 0, -1000 - k], "radius": 500.0} for k in range(39)]
+    scene = schemas.validate_scene({"camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]},
+                                    "image": {"width": 32, "height": 32}, "materials": {"m": {}}, "objects": objs,
+                                    "lights": [{"type": "point", "color": 1, "position": [0, 50, 0]}]})
+    whole = Renderer(scene)
+    whole.pixels(threads=1)
+    assert whole.tests >= 32 * 32 * 39
+    renderer = Renderer(scene)
+    with pytest.raises(OverBudget) as stopped:
+        renderer.pixels(threads=1, budget=Budget(tests=whole.tests / 2))
+    assert stopped.value.what == "tests"
+
+
+def test_the_foresight_sees_the_chunks_not_begun():
+    """Many chunks, each a small share of the budget, that make a render far over it: each chunk's own tree
+    foresees little, so the foresight also extends what the chunks begun spend per camera ray to those not
+    begun (nested glass at depth 12 and 1024² ran into the service's render_timeout on a loaded machine)."""
+    scene = schemas.validate_scene(nested_glass_and_mirror(8, 64))
+    whole = Renderer(scene)
+    whole.pixels(threads=1, chunk_rays=256)
+    renderer = Renderer(scene)
+    with pytest.raises(OverBudget) as stopped:
+        renderer.pixels(threads=1, chunk_rays=256, budget=Budget(rays=whole.spent / 20))
+    assert stopped.value.foreseen
+    assert renderer.spent < whole.spent / 20 / 2
+
+
+def test_a_budget_it_stays_within_foresees_no_more_than_it_spends():
+    """The tightest budget an honest render fits (its own count) does not stop it: what the chunks begun spend
+    per camera ray, extended to the rest, stays within FORESIGHT times the budget."""
+    scene = schemas.validate_scene(nested_glass_and_mirror(8, 48))
+    whole = Renderer(scene)
+    image = whole.pixels(threads=2, chunk_rays=64)
+    again = Renderer(scene).pixels(threads=2, chunk_rays=64, budget=Budget(rays=whole.spent))
+    assert np.array_equal(image, again)
+
+
+WIDE_SCRIPT = """
+import json, sys
+import schemas
+from tracer import Renderer
+renderer = Renderer(schemas.validate_scene(json.loads(sys.stdin.read())))
+renderer.camera.rays(0, 4096)
+renderer.camera.rays(16777216 - 4096, 16777216)
+print(next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmHWM:")) // 1024)
+"""
+
+
+@pytest.mark.parametrize("size", [(16777216, 1), (1, 16777216)])
+def test_an_image_of_one_row_or_column_holds_no_table_of_its_size(size):
+    """16777216 × 1 pixels (within max_pixels = 4096²) with 2×2 samples: the camera's per-column tables took
+    800 MiB before the first ray, and a render peaked at 1.4 GiB; the columns of each batch are made instead."""
+    data = {"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+            "image": {"width": size[0], "height": size[1], "samples": 2}, "materials": {"m": {}},
+            "objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
+            "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}]}
+    out = subprocess.run([sys.executable, "-c", WIDE_SCRIPT], input=json.dumps(data), capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert int(out.stdout) < 400
+
+
+@pytest.mark.parametrize("name", ["08_antialiased", "06_orthographic"])
+def test_the_camera_rays_are_the_same_made_per_batch(name, monkeypatch):
+    from tracer import camera
+
+    scene = schemas.validate_scene(scene_dict(name))
+    tabled = Renderer(scene).pixels(threads=2, chunk_rays=5000)
+    monkeypatch.setattr(camera, "TABLE_MAX", 0)
+    assert np.array_equal(Renderer(scene).pixels(threads=2, chunk_rays=5000), tabled)
+
+
+@pytest.mark.parametrize("look", [-2.0, -2.3, -2.6])
+def test_a_render_whose_work_lies_in_its_first_rows_is_not_stopped_within_its_budget(look):
+    """Nested glass in the top 4 to 13 rows of 64, one row a chunk: the first chunks, extended to the rest,
+    foresaw 5 to 9 times what the render spends, and stopped it at its own count."""
+    data = nested_glass_and_mirror(8, 64)
+    data["camera"]["look_at"] = [0, look, 0]
+    scene = schemas.validate_scene(data)
+    whole = Renderer(scene)
+    image = whole.pixels(threads=1, chunk_rays=64)
+    assert np.array_equal(Renderer(scene).pixels(threads=1, chunk_rays=64, budget=Budget(rays=whole.spent)), image)

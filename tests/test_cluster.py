@@ -278,3 +278,49 @@ def test_a_class_graded_three_ways_gives_one_report(dask, tmp_path):
     assert statuses == ["pass", "fail", "pass", "fail", "invalid"]
     assert (tmp_path / "cluster" / "report.json").read_bytes() == local
     assert (tmp_path / "server" / "report.json").read_bytes() == local
+
+
+def test_passes_and_diagnoses_on_a_cluster_with_no_workers_answer_503_as_renders_do(idle_scheduler, tmp_path):
+    # with PHONGRAY_CLUSTER set, passes and diagnoses ran in the API process, and a pass answered 200 while the
+    # cluster had no worker
+    body = (SCENES / "01_three_spheres.json").read_bytes()
+    with running_server(tmp_path, cluster=idle_scheduler) as (url, _):
+        for path in ("/render?pass=diffuse", "/render?pass=normal&format=npy"):
+            req = urllib.request.Request(url + path, body, {"content-type": "application/json"})
+            with pytest.raises(urllib.error.HTTPError) as answer:
+                urllib.request.urlopen(req, timeout=60)
+            answer.value.close()
+            assert answer.value.code == 503, path
+
+
+def test_a_pass_and_a_diagnosis_on_the_cluster_are_the_local_ones(dask, tmp_path):
+    import io
+
+    from PIL import Image
+
+    from service import passes
+    from service.diagnosis import diagnose, renders_of
+    from service.grading import grade
+
+    address, _ = dask
+    body = (SCENES / "02_all_lights.json").read_bytes()
+    scene = schemas.load_scene(body)
+    local = passes.encoded("normal", passes.values(scene, "normal"), "npy")
+    reference = tracer.render(scene)
+    dim = tracer.render(scene.model_copy(update={"lights": scene.lights[:1]}))
+    buf = io.BytesIO()
+    Image.fromarray(dim).save(buf, format="PNG")
+    verdict = grade(reference, dim, "")
+    expected = diagnose(reference, dim, verdict, renders_of(scene)).as_dict()
+    with running_server(tmp_path, cluster=address) as (url, proc):
+        req = urllib.request.Request(url + "/render?pass=normal&format=npy", body, {"content-type": "application/json"})
+        with urllib.request.urlopen(req, timeout=120) as res:
+            assert res.read() == local
+        boundary = "b0undary"
+        form = (f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n'.encode() + body +
+                f'\r\n--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="s.png"\r\n'
+                f'Content-Type: image/png\r\n\r\n'.encode() + buf.getvalue() + f"\r\n--{boundary}--\r\n".encode())
+        kind = {"content-type": f"multipart/form-data; boundary={boundary}"}
+        req = urllib.request.Request(url + "/grade", form, kind)
+        with urllib.request.urlopen(req, timeout=300) as res:
+            assert json.loads(res.read())["diagnosis"] == json.loads(json.dumps(expected))

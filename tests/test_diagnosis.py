@@ -224,7 +224,7 @@ def test_where_renders_the_failing_pixels_alone_as_the_whole_pass_render_has_the
     verdict = grade(reference, student, "")
     rendered = []
     at = renders.at
-    renders.at = lambda pixels: rendered.append(len(pixels)) or at(pixels)
+    renders.at = lambda pixels, fold: rendered.append(len(pixels)) or at(pixels, fold)
     found = diagnosis_where(reference, student, verdict, renders)
     whole = diagnosis_where(reference, student, verdict, dataclasses_replace(renders, at=None))
     failing = np.abs(reference.astype(int) - student.astype(int)).max(axis=2) > verdict.tolerance

@@ -180,3 +180,44 @@ def test_the_estimate_is_within_ten_times_of_the_work_on_generated_scenes():
         renderer.pixels(threads=1)
         counted = renderer.spent * per_ray_factor(generated)
         assert counted / 10 < estimated_cost(generated) < counted * 10, (family, seed)
+
+
+def huge_beside_tiny(width=64, height=48):
+    """5,001 tiny spheres and 4,999 spheres far larger than the median: those are tested against every ray, so
+    each ray makes 5,000 exact tests while the per-ray factor (log2 of 10,000 spheres) prices it at 2.7."""
+    objs = [{"type": "sphere", "material": "m", "center": [(k % 70) * 0.01 - 0.35, (k // 70) * 0.01 - 0.35, 0],
+             "radius": 0.001} for k in range(5001)]
+    objs += [{"type": "sphere", "material": "m", "center": [0, 0, -1000 - k], "radius": 500.0 + k * 0.01}
+             for k in range(4999)]
+    return {"camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]}, "image": {"width": width, "height": height},
+            "materials": {"m": {}}, "objects": objs, "lights": [{"type": "point", "color": 1, "position": [0, 50, 0]}]}
+
+
+def test_rays_that_each_meet_thousands_of_surfaces_are_stopped_naming_the_setting():
+    """Its rays are few (1.3·10⁴ of cost) but their exact tests are 2.4·10⁷: at 640×480 the render took 64 s for
+    a cost of 1.6·10⁶, and twice that size ran into render_timeout (503) instead of the budget (422).  The exact
+    tests are counted as well, 4 per unit of max_cost."""
+    api = TestClient(create_app(Settings(max_cost=1e6)))
+    res = api.post("/render", content=json.dumps(huge_beside_tiny()), headers=JSON)
+    assert res.status_code == 422, res.text[:300]
+    assert "PHONGRAY_MAX_COST" in res.json()["detail"] and "surfaces" in res.json()["detail"]
+
+
+@pytest.mark.parametrize("name", ["04_whitted", "01_three_spheres", "05_mesh", "08_antialiased"])
+def test_honest_scenes_make_few_exact_tests_per_unit_of_cost(name):
+    from service.limits import TESTS_PER_COST
+
+    scene = schemas.validate_scene(scene_dict(name))
+    renderer = Renderer(scene)
+    renderer.pixels(threads=2)
+    assert renderer.tests <= TESTS_PER_COST / 4 * renderer.spent * per_ray_factor(scene)
+
+
+def test_the_homework_and_nested_glass_make_few_exact_tests_per_unit_of_cost():
+    from service.limits import TESTS_PER_COST
+
+    for data in (homework(160, 120), nested_glass_and_mirror(7, 64)):
+        scene = schemas.validate_scene(data)
+        renderer = Renderer(scene)
+        renderer.pixels(threads=2)
+        assert renderer.tests <= TESTS_PER_COST * 0.75 * renderer.spent * per_ray_factor(scene)

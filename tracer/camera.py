@@ -9,6 +9,9 @@ from schemas import Camera, Image
 from .vec import plus
 from .world import unit
 
+#: the most values (pixels × sub-samples of one row, or of one column) a per-column or per-row table may hold
+TABLE_MAX = 1 << 20
+
 
 class CameraRays:
     """Generates the rays of a range of pixels, each with its n×n regular grid of sub-samples."""
@@ -39,19 +42,28 @@ class CameraRays:
         """
         return self.rays_of(np.arange(start, stop, dtype=np.int64))
 
-    def _tables(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    def _products(self, index: np.ndarray, size: int, scale: float, vector: np.ndarray, flip: bool
+                  ) -> list[np.ndarray]:
+        """Per entry of ``index`` (a column, or a row when ``flip``) and sub-sample, each component of
+        ``x·right`` (or ``y·up``): three ``(len(index), n)`` arrays, each value as the contract's equations
+        compute it."""
+        offsets = (np.arange(self.n, dtype=np.float64) + self.offset) / self.n
+        s = (index.astype(np.float64)[:, None] + offsets[None, :]) / size
+        if flip:
+            y = (1.0 - 2.0 * s) * scale * self.h
+            return [y * vector[k] for k in range(3)]
+        x = (2.0 * s - 1.0) * scale * self.h
+        return [vector[k] * x for k in range(3)]
+
+    def _tables(self) -> tuple[list[np.ndarray] | None, list[np.ndarray] | None]:
         """Per column and sub-sample column, each component of ``x·right`` (three (W, n) tables); per row and
-        sub-sample row, each component of ``y·up`` (three (H, n)): each value as the contract's equations
-        compute it, made once per render."""
-        if self._across is None or self._down is None:
-            n, W, H = self.n, self.width, self.height
-            offsets = (np.arange(n, dtype=np.float64) + self.offset) / n
-            sx = (np.arange(W, dtype=np.float64)[:, None] + offsets[None, :]) / W
-            sy = (np.arange(H, dtype=np.float64)[:, None] + offsets[None, :]) / H
-            x = (2.0 * sx - 1.0) * self.scale_x * self.h
-            y = (1.0 - 2.0 * sy) * self.scale_y * self.h
-            self._across = [self.right[k] * x for k in range(3)]
-            self._down = [y * self.up[k] for k in range(3)]
+        sub-sample row, each component of ``y·up`` (three (H, n)): made once per render, when no larger than
+        :data:`TABLE_MAX` (a 16777216 × 1 image's would take 400 MiB per sub-sample; past it, the products of
+        each batch's own columns or rows are made, the same values)."""
+        if self._across is None and self.width * self.n <= TABLE_MAX:
+            self._across = self._products(np.arange(self.width), self.width, self.scale_x, self.right, False)
+        if self._down is None and self.height * self.n <= TABLE_MAX:
+            self._down = self._products(np.arange(self.height), self.height, self.scale_y, self.up, True)
         return self._across, self._down
 
     def rays_of(self, pixel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -63,6 +75,12 @@ class CameraRays:
         n = self.n
         across, down = self._tables()
         col, row = pixel % self.width, pixel // self.width
+        if across is None:  # (a table too large to keep: this batch's columns alone, indexed from 0)
+            col, cols = np.unique(col, return_inverse=True)[::-1]
+            across = self._products(cols, self.width, self.scale_x, self.right, False)
+        if down is None:
+            row, rows = np.unique(row, return_inverse=True)[::-1]
+            down = self._products(rows, self.height, self.scale_y, self.up, True)
         count = len(pixel) * n * n
         plane = np.empty((3, count)).T  # (rays, 3), its columns contiguous
         for k in range(3):  # ray (p, b, a): down[row_p, b] + across[col_p, a]

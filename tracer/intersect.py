@@ -24,7 +24,7 @@ from .rays import Among, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
 from .vec import along, divided, dot, minus, most, rows_of
-from .walk import NO_HIT, Best, Walk
+from .walk import NO_HIT, Best, Walk, _ignored
 from .world import World, median_of, unit
 
 __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE", "TRIANGLE"]
@@ -92,6 +92,7 @@ class Intersector:
         self.walker = Walk(world, walked_tris, walked_spheres, lines) \
             if len(walked_tris) + len(walked_spheres) else None
         self._check: Callable[[], None] = _nothing
+        self._tested: Callable[[int], None] = _ignored
 
     @property
     def check(self) -> Callable[[], None]:
@@ -103,6 +104,18 @@ class Intersector:
         self._check = value
         if self.walker is not None:
             self.walker.check = value
+
+    @property
+    def tested(self) -> Callable[[int], None]:
+        """Told how many exact tests of a ray against a sphere or a triangle each batch makes (the walk's and
+        the direct ones; planes are priced per ray)."""
+        return self._tested
+
+    @tested.setter
+    def tested(self, value: Callable[[int], None]) -> None:
+        self._tested = value
+        if self.walker is not None:
+            self.walker.tested = value
 
     @property
     def bvh(self) -> Bvh | None:
@@ -199,6 +212,7 @@ class Intersector:
             a, b = int(starts[g]), int(starts[g + 1])
             kind, k, rows = int(among.kind[a]), int(among.index[a]), among.rows[a:b]
             sub = shadows.take(rows) if shadows is not None else None
+            self._tested(len(rows))
             t, u, v = self._surface_t(kind, k, rays.take(rows), sub)
             if shadows is not None:
                 best.block(rows, t)
@@ -216,11 +230,14 @@ class Intersector:
             yield PLANE, k, *self._surface_t(PLANE, k, rays, shadows)
         if among is not None:
             return
+        self._tested(len(rays) * (len(self.direct_spheres) + len(self.direct_triangles)))
         for m, k in enumerate(self.direct_spheres.tolist()):
             if m % 64 == 63:
                 self.check()
             yield SPHERE, k, *self._surface_t(SPHERE, k, rays, shadows)
-        for k in self.direct_triangles.tolist():
+        for m, k in enumerate(self.direct_triangles.tolist()):
+            if m % 64 == 63:
+                self.check()
             yield TRIANGLE, k, *self._surface_t(TRIANGLE, k, rays, shadows)
 
     def _surface_t(self, kind: int, k: int, rays: Rays, shadows: Shadows | None

@@ -70,6 +70,11 @@ CONE_MAX = 32
 
 #: the most point lights (lights plus area-light samples) one render will shade with
 MAX_LIGHT_SAMPLES = 1 << 20
+#: the most bytes a chunk's tally of diagnosis passes holds (:meth:`Renderer.diagnosis_passes`): every light's
+#: terms per sub-sample, so a scene of many lights takes fewer pixels per chunk
+TALLY_BYTES = 8 << 20
+#: what :meth:`Renderer.diagnosis_passes` hands each chunk's passes to: the chunk's first position, its passes
+Fold = Callable[[int, dict[str, np.ndarray]], None]
 
 
 class ImageTooLarge(ValueError):
@@ -128,11 +133,17 @@ class Renderer:
                                        self._stop, self._count)
             self.shading.spawn = self.spawn
         self.intersector.check = self._stop
+        self.intersector.tested = self._count.tested
 
     @property
     def spent(self) -> int:
         """What the budget counted of the last render (:class:`tracer.budget.RayCount`)."""
         return self._count.total
+
+    @property
+    def tests(self) -> int:
+        """The exact tests of rays against spheres and triangles the last render made (its budget's ``tests``)."""
+        return self._count.tests
 
     # -- whole image -------------------------------------------------------
     def pixels(self, threads: int | None = None, chunk_rays: int | None = None,
@@ -158,6 +169,7 @@ class Renderer:
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, end)) for a in range(first, end, per_chunk)]
         out = np.empty((total, 3), dtype=np.uint8)
+        self._count.plan(total * img.samples * img.samples)
 
         stopped = False
 
@@ -208,27 +220,31 @@ class Renderer:
         total = img.width * img.height
         per_chunk = max(1, chunk_rays // (img.samples * img.samples))
         bounds = [(a, min(a + per_chunk, total)) for a in range(0, total, per_chunk)]
+        self._count.plan(total * img.samples * img.samples)
         counted = int(np.count_nonzero(self.emitter_light == light)) if light is not None else len(self.emitter_light)
 
-        def work(bound: tuple[int, int]) -> dict[str, np.ndarray]:
+        whole: dict[str, np.ndarray] = {}
+        made = threading.Lock()
+
+        def work(bound: tuple[int, int]) -> None:
             a, b = bound
             if cancel is not None and cancel():
                 raise RenderCancelled("render cancelled")
             s = img.samples * img.samples
             tally = Tally(tuple(names), (b - a) * s, s, light, self.emitter_light)
             self.chunk(a, b, tally)
-            return tally.result((b - a, s), counted)
+            for name, part in tally.result((b - a, s), counted).items():  # each chunk into its place: no copies
+                with made:
+                    if name not in whole:
+                        whole[name] = np.empty((total, *part.shape[1:]), dtype=part.dtype)
+                whole[name][a:b] = part
 
-        parts = _mapped(work, bounds, workers)
-        out = {}
-        for name in names:
-            whole = np.concatenate([p[name] for p in parts])
-            out[name] = whole.reshape(img.height, img.width, *whole.shape[1:])
-        return out
+        _mapped(work, bounds, workers)
+        return {name: whole[name].reshape(img.height, img.width, *whole[name].shape[1:]) for name in names}
 
     def diagnosis_passes(self, threads: int | None = None, chunk_rays: int | None = None,
                          cancel: Callable[[], bool] | None = None, pixels: np.ndarray | None = None,
-                         first_hits: bool = False) -> dict[str, np.ndarray]:
+                         first_hits: bool = False, fold: Fold | None = None) -> dict[str, np.ndarray]:
         """In one render, what a diagnosis needs of the reference scene: the additive passes, ``object``, every
         light's ``diffuse:K`` and ``specular:K`` (and their sums), and ``colour``, the image's linear colour
         per pixel ``(H, W, 3)``, the very values :meth:`pixels` quantizes (the passes change no colour).
@@ -236,13 +252,19 @@ class Renderer:
         With ``pixels`` (pixel numbers, row by row from the top left), of those pixels alone, each pass
         ``(len(pixels), …)``: the very values of the whole render's (every pixel is computed alone).  With
         ``first_hits``, only what the camera rays' first hits give (``object`` and the lights' terms), their
-        very values, from camera rays alone: no mirror or refracted ray is traced."""
+        very values, from camera rays alone: no mirror or refracted ray is traced.
+
+        With ``fold``, each chunk's passes go to ``fold(first, passes)`` in order as they come (``first``: the
+        position of the chunk's first pixel among those rendered), none is kept, and the answer is empty: memory
+        stays a few chunks' whatever the image and the lights.  A chunk's tally holds at most
+        :data:`TALLY_BYTES` (fewer pixels per chunk for many lights; the same values)."""
         img = self.scene.image
         workers, chunk_rays = _chunking(threads, chunk_rays)
         self.slice_rays = chunk_rays
         total = img.width * img.height
         s = img.samples * img.samples
-        per_chunk = max(1, chunk_rays // s)
+        terms = len(ADDITIVE) + 2 + 2 * len(set(self.emitter_light.tolist()))  # planes of a chunk's tally
+        per_chunk = max(1, min(chunk_rays // s, TALLY_BYTES // (terms * 3 * 8 * s)))
         if pixels is None:
             parts: list[tuple[int, int, np.ndarray | None]] = [(a, min(a + per_chunk, total), None)
                                                                for a in range(0, total, per_chunk)]
@@ -264,6 +286,12 @@ class Renderer:
 
         if not parts:
             parts = [(0, 0, np.zeros(0, dtype=np.int64))]
+        if fold is not None:
+            firsts = np.cumsum([0] + [b - a for a, b, _ in parts])
+            for group in range(0, len(parts), workers):  # a group of chunks at a time, folded in order
+                for first, part in zip(firsts[group:], _mapped(work, parts[group:group + workers], workers)):
+                    fold(int(first), part)
+            return {}
         done = _mapped(work, parts, workers)
         out = {}
         for name in done[0]:

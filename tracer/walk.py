@@ -52,6 +52,10 @@ def _nothing() -> None:
     return None
 
 
+def _ignored(n: int) -> None:
+    return None
+
+
 def gathered(*columns: np.ndarray) -> np.ndarray:
     """``(N, k)`` and ``(N,)`` arrays side by side in one ``(N, Σk)`` array, so that the walk gathers a ray's
     (or a primitive's) values with one row copy instead of one per array: pairs reach all over the tables, and
@@ -164,6 +168,8 @@ class Walk:
     def __init__(self, world: World, tris: np.ndarray, spheres: np.ndarray, lines: Sightlines | None):
         #: called between walk passes and slices of exact tests; raises to stop a render
         self.check: Callable[[], None] = _nothing
+        #: told how many exact tests each batch makes (:meth:`tracer.budget.RayCount.tested`)
+        self.tested: Callable[[int], None] = _ignored
         tr, sp = world.triangles, world.spheres
         self.n_tri = len(tris)
         self.prim_index = np.concatenate([tris, spheres]).astype(np.int64)
@@ -211,6 +217,7 @@ class Walk:
               shadows: Shadows | None) -> None:
         """Test BVH primitives ``prims`` exactly against rays ``rows`` (pairs; either may repeat); ``table`` holds
         each ray's origin, direction and magnitude in one row (:func:`gathered`)."""
+        self.tested(len(prims))
         tri = prims < self.n_tri
         n_tri = int(np.count_nonzero(tri))
         for is_tri, count in ((True, n_tri), (False, len(prims) - n_tri)):
