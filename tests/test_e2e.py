@@ -358,7 +358,7 @@ def try_out(page, operation: str):
 def test_swagger_ui_works_offline_and_tries_render_validate_and_grade(server, browser, tmp_path):
     page = offline_page(browser, server)
     page.goto(server + "/docs")
-    page.wait_for_selector(".opblock", timeout=60_000)
+    page.wait_for_selector(".opblock", timeout=20_000)
     assert page.locator(".opblock-summary-path").all_inner_texts() == ["/render", "/validate", "/grade", "/schema",
                                                                         "/healthz"]
     op = try_out(page, "render_scene_render_post")
@@ -366,13 +366,13 @@ def test_swagger_ui_works_offline_and_tries_render_validate_and_grade(server, br
     assert json.loads(stub) == json.loads(SCENE)
     op.locator("button.execute").click()
     image = op.locator(".live-responses-table img").first
-    image.wait_for(timeout=60_000)
+    image.wait_for(timeout=20_000)
     assert image.evaluate("i => i.naturalWidth") == 160
 
     op = try_out(page, "validate_validate_post")
     op.locator("textarea.body-param__text").fill(SCENE.decode().replace('"radius": 0.9', '"radius": -0.9'))
     op.locator("button.execute").click()
-    op.locator(".live-responses-table .response-col_status").first.wait_for(timeout=60_000)
+    op.locator(".live-responses-table .response-col_status").first.wait_for(timeout=20_000)
     assert "objects[2].radius" in op.locator(".live-responses-table").inner_text()
 
     png = tmp_path / "reference.png"
@@ -381,7 +381,7 @@ def test_swagger_ui_works_offline_and_tries_render_validate_and_grade(server, br
     op.locator("tr[data-property-name=scene] input").fill(SCENE.decode())  # the form's scene field, as text
     op.locator("tr[data-property-name=image] input[type=file]").set_input_files(str(png))
     op.locator("button.execute").click()
-    op.locator(".live-responses-table .response-col_status").first.wait_for(timeout=60_000)
+    op.locator(".live-responses-table .response-col_status").first.wait_for(timeout=20_000)
     assert '"passed": true' in op.locator(".live-responses-table").inner_text()
     page.screenshot(path=str(tmp_path / "swagger.png"))
     assert page.outside == []
