@@ -64,6 +64,24 @@ def suggestion(name: Any, known: Any) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
+#: keys people write for a model's field of another name, which no spelling distance finds
+_MEANT = {models.Material: {"color": "diffuse", "colour": "diffuse"}}
+#: what a colour that is neither an array nor a number is told
+COLOUR = "must be an array of 3 numbers [r, g, b] or one number (a grey: 0.5 means [0.5, 0.5, 0.5])"
+
+
+def _key_suggestion(name: Any, model: Any) -> str:
+    meant = _MEANT.get(model, {}).get(name)
+    return f" (did you mean '{meant}'?)" if meant else suggestion(name, model.model_fields)
+
+
+def _is_colour(loc: tuple[Any, ...]) -> bool:
+    """Whether ``loc`` is a colour field (an RGB triple, or one number for a grey)."""
+    model = _model_at(loc[:-1]) if loc else None
+    field = model.model_fields.get(loc[-1]) if model is not None else None
+    return field is not None and any(getattr(m, "func", None) is models._expand_grey for m in field.metadata)
+
+
 def _model_at(loc: tuple[Any, ...]) -> Any:
     """The model whose fields the location ``loc`` lies among (union tags included), or None."""
     parts = list(loc)
@@ -87,7 +105,7 @@ def _message(err: dict[str, Any]) -> str:
         return "required"
     if kind == "extra_forbidden":
         model = _model_at(tuple(err["loc"][:-1]))
-        return "unknown key" + (suggestion(err["loc"][-1], model.model_fields) if model is not None else "")
+        return "unknown key" + (_key_suggestion(err["loc"][-1], model) if model is not None else "")
     if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
         op = {"greater_than": ">", "greater_than_equal": "≥", "less_than": "<", "less_than_equal": "≤"}[kind]
         bound = next(iter(ctx.values()))
@@ -109,7 +127,7 @@ def _message(err: dict[str, Any]) -> str:
     if kind == "too_short":
         return f"{_has(ctx.get('actual_length'))}, expected at least {ctx.get('min_length')}"
     if kind in ("tuple_type", "list_type"):
-        return "must be an array"
+        return COLOUR if _is_colour(tuple(err["loc"])) else "must be an array"
     if kind in ("dict_type", "model_type", "model_attributes_type"):
         return "must be an object"
     if kind == "literal_error":
@@ -180,6 +198,40 @@ def _int(text: str) -> int:
 YIELDING_PARSE = 256 * 1024
 
 
+#: the parser's words for a syntax error, in plain ones (by the start of the parser's message)
+_PLAIN = {"Expecting ',' delimiter": "a comma is missing between two items",
+          "Expecting ':' delimiter": "a ':' is missing after the key",
+          "Expecting property name": 'a key must be a string in double quotes ("name")',
+          "Expecting value": 'a value is expected here (a number, a "string", true, false, null, [...] or {...})',
+          "Unterminated string": 'a string is not closed (its closing " is missing)',
+          "Invalid control character": "a line break or tab inside a string (write it as \\n or \\t)",
+          "Extra data": "more text after the end of the JSON document",
+          "Invalid \\escape": "an unknown escape after a backslash in a string (in a path, write \\\\ or /)"}
+
+
+def syntax_error(exc: json.JSONDecodeError) -> str:
+    """A JSON syntax error in plain words, ending ``at line L column C`` (the place it concerns), with what JSON
+    does not allow that people often write: comments, a comma after the last item, single quotes."""
+    doc, pos = exc.doc, exc.pos
+    if not doc.strip():  # (bytes that decode to no text at all: UTF-16 or UTF-32 marks)
+        return "invalid JSON: no JSON text in the document (is it UTF-8?)"
+    before = doc[:pos].rstrip()
+    if doc.startswith(("//", "/*", "#"), pos):
+        what = "a comment (JSON has no comments: delete it)"
+    elif before.endswith(",") and doc.startswith(("}", "]"), pos):
+        pos = len(before) - 1
+        what = f"a comma after the last item, before '{doc[exc.pos]}' (JSON allows none there: delete it)"
+    elif doc.startswith("'", pos):
+        what = "a string in single quotes (JSON strings take double quotes: \"name\")"
+    elif pos >= len(doc.rstrip()):
+        what = "the document ends too early (a closing '}', ']' or '\"' is missing)"
+    else:
+        what = next((plain for start, plain in _PLAIN.items() if exc.msg.startswith(start)), exc.msg)
+    line = doc.count("\n", 0, pos) + 1
+    column = pos - doc.rfind("\n", 0, pos)
+    return f"invalid JSON: {what} at line {line} column {column}"
+
+
 def parse_json(text: str | bytes, shared: bool = True) -> Any:
     """Strict JSON: no NaN/Infinity tokens, no duplicate keys; errors as SceneError.
 
@@ -187,10 +239,12 @@ def parse_json(text: str | bytes, shared: bool = True) -> Any:
     command-line run): then even a long document parses at full speed."""
     yielding = shared and len(text) > YIELDING_PARSE
     numbers: dict[str, Any] = {"parse_float": _float, "parse_int": _int} if yielding else {}
+    if not text or text.isspace():
+        raise SceneError([("", "invalid JSON: the document is empty")])
     try:
         return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates, **numbers)
     except json.JSONDecodeError as exc:
-        raise SceneError([("", f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}")]) from None
+        raise SceneError([("", syntax_error(exc))]) from None
     except UnicodeDecodeError:
         raise SceneError([("", "invalid JSON: the document is not UTF-8 text")]) from None
     except RecursionError:

@@ -110,11 +110,17 @@ def as_lines(name: str, problems: list[tuple[str, str]], text: bytes | str) -> l
     return format_located(name, located(problems, text))
 
 
+def _line_order(error: dict[str, object]) -> float:
+    line = error.get("line")
+    return float(line) if isinstance(line, int) else float("inf")
+
+
 def format_located(name: str, errors: list[dict[str, object]]) -> list[str]:
     """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as :func:`located`
-    and the service's answers give them)."""
+    and the service's answers give them), in the order of their lines (those of no line, such as a missing
+    top-level key, last)."""
     out = []
-    for e in errors:
+    for e in sorted(errors, key=_line_order):
         what = f"{e.get('path')}: {e.get('message')}" if e.get("path") else str(e.get("message"))
         out.append(f"{name}:{e['line']}: {what}" if e.get("line") else f"{name}: {what}")
     return out

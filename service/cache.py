@@ -30,6 +30,11 @@ class RenderCache:
             self.hits += 1
             return value
 
+    def __contains__(self, key: str) -> bool:
+        """Whether ``key`` is held now (not counted as a hit or a miss, nor made recent)."""
+        with self._lock:
+            return key in self._items
+
     def put(self, key: str, value: bytes) -> None:
         room = self.max_bytes - self.others()
         if len(value) > room:

@@ -78,11 +78,12 @@ def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | N
 
 
 def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float,
-               scene: bytes | None = None, accepted: dict[str, float] | None = None) -> dict[str, Any]:
+               scene: bytes | None = None, accepted: dict[str, float] | None = None, diagnose: bool = True
+               ) -> dict[str, Any]:
     """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"`` and,
     given the reference's ``scene`` text, a failing one graded again against the task's ``accepted`` variants
-    (None: the defaults) and the likely mistake of one that fails them too; or an invalid row whose reason
-    lacks only the file's name."""
+    (None: the defaults) and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid row
+    whose reason lacks only the file's name."""
     from schemas import load_scene
 
     from . import grading, pipeline
@@ -90,17 +91,18 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
     try:
         graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict",
                                     scene=None if scene is None else lambda: load_scene(scene), threads=1,
-                                    checks=pipeline.Checks(accepted=accepted))
+                                    checks=pipeline.Checks(accepted=accepted, diagnose=diagnose))
     except grading.ImageError as exc:
         return {"status": "invalid", "reason": str(exc)}
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
 
 
 def _local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float,
-                 accepted: dict[str, float] | None = None) -> dict[str, Any]:
+                 accepted: dict[str, float] | None = None, diagnose: bool = True) -> dict[str, Any]:
     """:func:`grade_task` with the scene's text first, as the service's grade task takes it (the reference is
-    already rendered: the scene is for the accepted variants and the diagnosis of a failing pair)."""
-    return grade_task(reference, image, tolerance, max_fraction, scene, accepted)
+    already rendered: the scene is for the accepted variants and, unless not to ``diagnose``, the diagnosis of
+    a failing pair)."""
+    return grade_task(reference, image, tolerance, max_fraction, scene, accepted, diagnose)
 
 
 def _server_render(server: str, api_key: str | None, scene: bytes, limits: Settings | None = None
@@ -120,14 +122,15 @@ def _server_render(server: str, api_key: str | None, scene: bytes, limits: Setti
 
 
 def _server_grade(server: str, api_key: str | None, scene: bytes, reference: bytes, image: bytes,
-                  tolerance: float, max_fraction: float, accepted: dict[str, float] | None = None
-                  ) -> dict[str, Any]:
+                  tolerance: float, max_fraction: float, accepted: dict[str, float] | None = None,
+                  diagnose: bool = True) -> dict[str, Any]:
     """:func:`grade_task` by a running service (which renders the same reference, from its cache, and accepts
     its own default variants: a task's ``accepted`` is for local grading)."""
 
     from .client import ServerError, post_form
 
-    fields = {"scene": scene, "tolerance": repr(tolerance), "max_fraction": repr(max_fraction)}
+    fields = {"scene": scene, "tolerance": repr(tolerance), "max_fraction": repr(max_fraction),
+              "diagnose": "true" if diagnose else "false"}
     files = {"image": ("submission.png", image, "image/png")}
     try:
         result = json.loads(_patient(post_form, server, "/grade", fields, files, api_key=api_key))
@@ -300,6 +303,7 @@ class _Backend:
         self.faults: tuple[type[BaseException], ...] = ()
         self.render: Callable[..., Any] = partial(render_task, limits=limits)
         self.grade: Callable[..., Any] = _local_grade
+        self.diagnose = True  # whether a failing pair's likely mistake is named (see no_diagnosis)
         if server:
             from .client import ServerError, check
 
@@ -320,6 +324,10 @@ class _Backend:
             self.faults = (BrokenProcessPool,)
             self._pool()
 
+    def no_diagnosis(self) -> None:
+        """Grade without naming failing pairs' likely mistakes (--no-diagnosis)."""
+        self.grade, self.diagnose = partial(self.grade, diagnose=False), False
+
     def _pool(self) -> None:
         context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
         self.executor = futures.ProcessPoolExecutor(
@@ -328,13 +336,14 @@ class _Backend:
 
     def _connect(self, timeout: float = 10.0) -> None:
         """A client of the scheduler (a new one when the old has lost it) with a worker, and its executor."""
-        from .cluster import client, wait_for_workers
+        from .cluster import client, connect_timeout, wait_for_workers
 
         assert self.cluster is not None
+        started = time.monotonic()
         if self.client is None or getattr(self.client, "status", "running") != "running":
             self._close_client()
-            self.client = client(self.cluster, timeout)
-        wait_for_workers(self.client, self.cluster, self.cluster_wait)
+            self.client = client(self.cluster, connect_timeout(timeout, self.cluster_wait))
+        wait_for_workers(self.client, self.cluster, self.cluster_wait, time.monotonic() - started)
         self.executor = self.client.get_executor(retries=2)
 
     def _close_client(self) -> None:
@@ -434,7 +443,8 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
                 jobs: int | None = None, server: str | None = None, cluster: str | None = None,
                 progress: Callable[[int, int], None] | None = None, api_key: str | None = None,
                 student_scenes: Path | None = None, tasks_file: Path | None = None,
-                cluster_wait: float = 30.0, limits: bool = False) -> Outcome:
+                cluster_wait: float = 30.0, limits: bool = False, diagnose: bool = True
+                ) -> Outcome:
     """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away.  The
     TA's scenes are trusted: held to the service's limits (``PHONGRAY_*``) only with ``limits``.
     Raises :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a
@@ -449,7 +459,7 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
     _writable(report)
     try:
         return _run(batch, tasks, scene_of_key, texts, report, tolerance, max_fraction, jobs, server, cluster,
-                    progress, api_key, cluster_wait, started, settings, limits)
+                    progress, api_key, cluster_wait, started, settings, limits, diagnose)
     except Exception:
         if made:  # a run stopped by a fault of the TA's leaves no empty report folder behind
             with contextlib.suppress(OSError):
@@ -460,7 +470,8 @@ def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float 
 def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, Path], texts: dict[Path, bytes],
          report: Path, tolerance: float, max_fraction: float, jobs: int | None, server: str | None,
          cluster: str | None, progress: Callable[[int, int], None] | None, api_key: str | None,
-         cluster_wait: float, started: float, settings: Settings, limits: bool) -> Outcome:
+         cluster_wait: float, started: float, settings: Settings, limits: bool, diagnose: bool = True
+         ) -> Outcome:
     """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report (the
     renders held to the service's limits ``settings`` with ``limits``)."""
     todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
@@ -477,6 +488,8 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
 
     backend = _Backend(server, cluster, jobs, len(todo) + len(needed), api_key, cluster_wait,
                        settings if limits else None)
+    if not diagnose:
+        backend.no_diagnosis()
     try:
         references = _render_all(backend, needed, refs, texts, report)
         _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts)
@@ -488,10 +501,21 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
         backend.close(wait=False)
         raise
     backend.close()
+    _drop_stale_references(report, refs)
     rows = [_row(p, refs, report, tasks) for p in batch.pairs]
     outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - started)
     write_report(report, rows, batch.ignored, batch.students, tasks, outcome.summary())
     return outcome
+
+
+def _drop_stale_references(report: Path, refs: dict[str, Path]) -> None:
+    """An earlier run's references of scenes that are no longer the batch's (a scene changed, a task gone)
+    are removed: the report's references folder holds this batch's and no other."""
+    current = set(refs.values())
+    with contextlib.suppress(OSError):
+        for old in (report / "references").glob("*.png"):
+            if old not in current:
+                old.unlink()
 
 
 def _usable(reference: Path) -> bool:
@@ -561,6 +585,8 @@ def _grade_all(backend: _Backend, todo: list[Pair], references: dict[str, bytes]
         thresholds = (tolerance if own.tolerance is None else own.tolerance,
                       max_fraction if own.max_fraction is None else own.max_fraction)
         stamp = journal.stamp(pair.key, hashlib.sha256(image).hexdigest(), *thresholds)
+        if not backend.diagnose:  # a grade without its likely mistake is not one a diagnosing run may take
+            stamp["diagnosis"] = False
         if own.accepted is not None:
             stamp["accepted"] = own.accepted
         row = _resumed(pair, report, stamp)

@@ -235,6 +235,7 @@ def _render_pass(args: argparse.Namespace) -> int:
         _png_name(args.output)
     overrides = {"width": args.width, "height": args.height, "samples": args.samples}
     text = _read(args.scene)
+    started = time.perf_counter()
     if args.server:
         from .client import post_json
 
@@ -253,6 +254,11 @@ def _render_pass(args: argparse.Namespace) -> int:
         except OverBudget as exc:
             raise _outgrown(args, exc) from None
     _write(args.output, data)
+    if not args.quiet:
+        of = "" if args.pass_ not in passes.OF_A_LIGHT else " of every light" if args.light is None else \
+            f" of light {args.light}"
+        print(f"{args.output}: the {args.pass_} pass{of} ({'values' if fmt == 'npy' else 'PNG'}) in "
+              f"{time.perf_counter() - started:.3f} s", file=sys.stderr)
     return 0
 
 
@@ -397,12 +403,14 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     if args.server and args.cluster:
         raise CliError("--server and --cluster: choose one")
     bar = ProgressBar(unit="pairs")
+    bar.enabled = bar.enabled and not args.quiet
     try:
         outcome = grade_class(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
                               args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
                               progress=bar, api_key=args.api_key,
                               student_scenes=Path(args.student_scenes) if args.student_scenes else None,
                               tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
+                              diagnose=not args.no_diagnosis,
                               limits=args.limits)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
         raise CliError(printable(str(exc))) from None
@@ -412,7 +420,8 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
         bar.close()
     for name, why in outcome.ignored:
         print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
-    print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
+    if not args.quiet:
+        print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
     return 0
 
 
@@ -436,6 +445,9 @@ def cmd_autograder(args: argparse.Namespace) -> int:
 def cmd_serve(args: argparse.Namespace) -> int:
     import socket
 
+    from .settings import Settings
+
+    Settings.from_env()  # a PHONGRAY_* setting of the wrong type is told as itself, before the port is taken
     try:  # a port that cannot be had is one line here, not uvicorn's traceback in a worker
         with socket.create_server((args.host, args.port)):
             pass
@@ -557,6 +569,11 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--max-fraction", type=float, default=0.001,
                        help="fraction of pixels that may be off even against their 3×3 neighbourhood (0–1)")
 
+    def no_diagnosis(p: argparse.ArgumentParser, what: str = "") -> None:
+        p.add_argument("--no-diagnosis", action="store_true",
+                       help=what or "skip naming the likely mistake of a failing image (it renders the scene once "
+                                    "per classic mistake)")
+
     def verdict(p: argparse.ArgumentParser) -> None:
         thresholds(p)
         p.add_argument("--heatmap", metavar="OUT.png", help="write the heat-map here: the pixels that decided the "
@@ -593,9 +610,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene JSON file")
     p.add_argument("image", help="the submitted PNG")
     verdict(p)
-    p.add_argument("--no-diagnosis", action="store_true",
-                   help="skip naming the likely mistake of a failing image (it renders the scene once per "
-                        "classic mistake)")
+    no_diagnosis(p)
     limits(p)
     remote(p)
     p.set_defaults(func=cmd_grade)
@@ -606,6 +621,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("reference", help="the reference PNG")
     p.add_argument("image", help="the PNG to grade")
     verdict(p)
+    no_diagnosis(p, "accepted as grade accepts it: without a scene, compare never names a likely mistake")
     p.set_defaults(func=cmd_compare)
 
     p = command("grade-class", "grade every student's images of every task; write a report",
@@ -627,6 +643,10 @@ def build_parser() -> argparse.ArgumentParser:
                                                          '"deductions": {"no-shadows": 4}}}')
     thresholds(p)
     p.add_argument("--jobs", type=_positive_int, help="processes (default: all cores; with --server, 4 requests)")
+    no_diagnosis(p, "skip naming the likely mistake of each failing image (it renders the scene once per "
+                    "classic mistake): a faster run, with an empty 'likely' column")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors and ignored files (no "
+                                                              "progress bar, no summary line)")
     limits(p)
     remote(p, cluster=True)
     p.set_defaults(func=cmd_grade_class)

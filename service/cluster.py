@@ -55,16 +55,26 @@ def client(address: str, timeout: float = 10.0) -> Any:
         raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
 
 
+#: the shortest wait for a scheduler's answer, whatever --cluster-wait says (0 waits for no worker, not no answer)
+MIN_CONNECT = 1.0
+
+
+def connect_timeout(timeout: float, wait: float) -> float:
+    """How long to wait for the scheduler to answer: within ``--cluster-wait`` (``wait``), so that an unreachable
+    scheduler is told after about ``wait`` seconds, not after Dask's own ``timeout`` as well."""
+    return min(timeout, max(wait, MIN_CONNECT))
+
+
 def workers(client_: Any) -> int:
     """How many workers the client's scheduler has now."""
     return len(client_.scheduler_info().get("workers", {}))
 
 
-def wait_for_workers(client_: Any, address: str, wait: float) -> None:
+def wait_for_workers(client_: Any, address: str, wait: float, spent: float = 0.0) -> None:
     """Return once the cluster has a worker; :class:`ClusterError` after ``wait`` seconds without one (work sent
-    to a cluster with no workers would wait forever)."""
+    to a cluster with no workers would wait forever), ``spent`` of them already gone (on connecting)."""
     try:
-        client_.wait_for_workers(1, timeout=max(wait, 0.001))
+        client_.wait_for_workers(1, timeout=max(wait - spent, 0.001))
     except (TimeoutError, OSError):
         raise ClusterError(f"the Dask scheduler at {address} has no workers (none joined within {wait:g} s; "
                            f"start some with 'dask worker {address}', or wait longer with --cluster-wait)") from None
@@ -72,11 +82,13 @@ def wait_for_workers(client_: Any, address: str, wait: float) -> None:
 
 @contextlib.contextmanager
 def connect(address: str, timeout: float = 10.0, wait: float | None = None) -> Iterator[Any]:
-    """:func:`client`, closed afterwards; with ``wait``, once it has a worker (:func:`wait_for_workers`)."""
-    client_ = client(address, timeout)
+    """:func:`client`, closed afterwards; with ``wait``, once it has a worker (:func:`wait_for_workers`), the
+    connection and the worker both within ``wait`` seconds."""
+    started = time.monotonic()
+    client_ = client(address, timeout if wait is None else connect_timeout(timeout, wait))
     try:
         if wait is not None:
-            wait_for_workers(client_, address, wait)
+            wait_for_workers(client_, address, wait, time.monotonic() - started)
         yield client_
     finally:
         client_.close()

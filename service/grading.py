@@ -90,8 +90,8 @@ def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
             return _scaled(np.asarray(img.convert("RGB")), low)
     except ImageError:
         raise
-    except Exception as exc:  # Pillow raises many kinds for broken files
-        raise ImageError(f"image is truncated or corrupt ({type(exc).__name__})") from None
+    except Exception:  # Pillow raises many kinds for broken files
+        raise ImageError(CORRUPT) from None
 
 
 #: the modes Pillow gives a 16-bit grayscale PNG (by version and byte order); Pillow's own conversion to 8 bits
@@ -147,14 +147,20 @@ def _scaled(high: np.ndarray, low: np.ndarray | None) -> np.ndarray:
     return out
 
 
+#: what a PNG whose data cannot be decoded is told (whichever of Pillow's many errors it raised)
+CORRUPT = "image is truncated or corrupt: its data ends early or is damaged; export it again as a PNG"
+
+
 def declared_size(data: bytes, max_pixels: int | None = None) -> tuple[int, int]:
     """``(width, height)`` as a PNG's header declares it, before anything is decompressed; :class:`ImageError`
     for what is not a PNG (naming the format it is, where known) or declares more than ``max_pixels``."""
+    if not data:
+        raise ImageError("image is empty (0 bytes)")
     if not data.startswith(b"\x89PNG\r\n\x1a\n"):
         kind = sniff(data)
         raise ImageError(f"image is {kind}; PNG required" if kind else "image is not a PNG")
     if len(data) < 24 or data[12:16] != b"IHDR":
-        raise ImageError("image is truncated or corrupt (no IHDR header)")
+        raise ImageError("image is truncated or corrupt: it ends before its PNG header; export it again as a PNG")
     size = (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"))
     if max_pixels is not None and size[0] * size[1] > max_pixels:
         raise ImageError(f"image is {size[0]}×{size[1]} pixels, more than the {max_pixels} phongray compares")
@@ -181,7 +187,9 @@ def _opaque(alpha: np.ndarray) -> None:
     count = int(np.count_nonzero(clear))
     if count:
         y, x = (int(v) for v in np.argwhere(clear)[0])
-        raise ImageError(f"image has {count} pixels that are not fully opaque (the first at x = {x}, y = {y}); "
+        which = "1 pixel that is" if count == 1 else f"{count} pixels that are"
+        where = "at" if count == 1 else "the first at"
+        raise ImageError(f"image has {which} not fully opaque ({where} x = {x}, y = {y}); "
                          f"submit an opaque PNG (no alpha channel, or alpha 255 everywhere)")
 
 

@@ -37,13 +37,30 @@ from schemas import Scene
 from tracer import Renderer, encode_png
 from tracer.budget import UNLIMITED, Budget
 from tracer.image import quantize
-from tracer.passes import ADDITIVE, NAMES
+from tracer.passes import ADDITIVE, LIGHT_TERMS, NAMES
 
 Format = Literal["png", "npy"]
 #: the darkest grey of a depth pass (the farthest hit); black is kept for nothing hit
 FAR_GREY = 48.0
 #: the golden-ratio step between the hues of consecutive object indices
 HUE_STEP = 0.6180339887498949
+
+
+#: the passes that can be of one light (``light=K``)
+OF_A_LIGHT = (*LIGHT_TERMS, "shadow")
+
+
+def check(scene: Scene, name: str, light: int | None) -> None:
+    """ValueError for a light asked of a pass that has none, or of a light whose pass would be black for want
+    of the term (an ambient light has no diffuse, specular or shadow)."""
+    if light is None or not 0 <= light < len(scene.lights):
+        return  # (every light; or one the scene does not have, which the tracer names)
+    if name not in OF_A_LIGHT:
+        raise ValueError(f"light: the {name} pass is the whole scene's, not a light's (only {', '.join(OF_A_LIGHT)} "
+                         f"take a light)")
+    if scene.lights[light].type == "ambient":
+        raise ValueError(f"light: lights[{light}] is an ambient light, which has no {name} (it lights every point "
+                         f"alike, unshadowed, in the ambient pass); choose another light, or no light")
 
 
 #: bytes per pixel of each pass's values (float64, three channels or one; object int64)
@@ -72,8 +89,9 @@ def price(scene: Scene, name: str, fmt: Format) -> int:
 def values(scene: Scene, name: str, light: int | None = None, threads: int | None = None,
            cancel: Callable[[], bool] | None = None, budget: Budget = UNLIMITED) -> np.ndarray:
     """The pass ``name`` of ``scene`` (of light ``light`` alone where that applies), as the tracer gives it,
-    within ``budget`` (else :class:`tracer.OverBudget`).  ValueError names an unknown pass or a light the scene
-    does not have."""
+    within ``budget`` (else :class:`tracer.OverBudget`).  ValueError names an unknown pass, a light the scene
+    does not have, or a light the pass cannot be of."""
+    check(scene, name, light)
     wanted = [name, "object"] if name in ("normal", "depth") else [name]
     out = Renderer(scene).passes(wanted, light, threads=threads, cancel=cancel, budget=budget)
     if name == "normal":  # nothing hit: no normal (the tracer leaves zeros there), in place

@@ -234,6 +234,7 @@ async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1
     if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
         return Response(status_code=304, headers=headers)
     started = time.perf_counter()
+    headers["X-Cache"] = "hit" if job.key in service.cache else "miss"  # (the playground says "from cache")
     data = await _png(request, job)
     headers["X-Render-Seconds"] = f"{time.perf_counter() - started:.4f}"
     return Response(data, media_type="image/png", headers=headers)

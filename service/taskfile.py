@@ -20,7 +20,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 
 from schemas import SceneError, parse_json
-from schemas.errors import problems_from_validation
+from schemas.errors import problems_from_validation, suggestion
 from schemas.locate import as_lines
 from tracer.variants import VARIANTS
 
@@ -47,6 +47,12 @@ class TaskSettings(BaseModel):
 _FILE = TypeAdapter(dict[str, TaskSettings])
 
 
+def _suggested(problems: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    """An unknown key of a task's settings with the closest setting's name (``tolerence`` → ``tolerance``)."""
+    return [(where, what + suggestion(where.rsplit(".", 1)[-1], TaskSettings.model_fields) if what == "unknown key"
+             else what) for where, what in problems]
+
+
 def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSettings]:
     """Every task's settings: from the file at ``path`` where it names the task, else the defaults."""
     given: dict[str, TaskSettings] = {}
@@ -60,10 +66,12 @@ def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSetti
         except SceneError as exc:
             raise ClassError("; ".join(as_lines(str(path), exc.problems, text))) from None
         except ValidationError as exc:
-            raise ClassError("; ".join(as_lines(str(path), problems_from_validation(exc), text))) from None
+            problems = _suggested(problems_from_validation(exc))
+            raise ClassError("; ".join(as_lines(str(path), problems, text))) from None
         unknown = sorted(set(given) - set(tasks))
         if unknown:
-            raise ClassError(f"{path}: no task {', '.join(unknown)} (the tasks are {', '.join(sorted(tasks))})")
+            named = ", ".join(name + suggestion(name, tasks) for name in unknown)
+            raise ClassError(f"{path}: no task {named} (the tasks are {', '.join(sorted(tasks))})")
         _known_mistakes(path, given, text)
     return {task: given.get(task, TaskSettings()) for task in tasks}
 

@@ -1,7 +1,10 @@
-"""Attacks on a real two-worker server over loopback: each is answered with the right 4xx (or shed) in bounded
-time, while /healthz keeps answering in under 100 ms, no worker is killed, and memory returns to its baseline.
+"""Attacks on a real two-worker server over loopback: each is answered with the right 4xx (or shed), while
+/healthz keeps answering, no worker is killed, and memory returns to its baseline.
 
-With ``PHONGRAY_ATTACK_TABLE=FILE`` set, the measurements are also written to FILE as a Markdown table.
+The bounds on time here are generous (a busy laptop passes them): they catch a hang, not a slowdown.  The
+latency budgets (/healthz under 100 ms throughout, each refusal within its seconds) are the bench's:
+``python -m bench.budgets`` runs these tests on a quiet machine and checks what they measured.  With
+``PHONGRAY_ATTACK_TABLE=FILE`` set, the measurements are also written to FILE as a Markdown table.
 """
 
 import io
@@ -18,10 +21,12 @@ from PIL import Image
 
 from bench.stalls import png_rgba16
 
-from helpers import scene_dict
+from helpers import measured, scene_dict
 from server import running_server
 
-HEALTHZ_MS = 100
+#: the longest /healthz may take while the server is attacked, here: not its budget (100 ms, in
+#: bench/budgets.py) but a stall's bound, 30 times it, that a busy machine's scheduling does not reach
+HEALTHZ_STALL_MS = 3000
 TIMEOUTS = {"header_timeout": "2", "body_timeout": "2", "keep_alive": "2"}
 TABLE: list[dict] = []
 
@@ -114,9 +119,11 @@ def attack(server: Server, name: str, action, settle: float = 0.3):
     row = {"attack": name, "status": status, "seconds": seconds, "healthz_ms": 1000 * probe.worst,
            "before": before, "after": after, "restarts": server.starts() - starts}
     TABLE.append(row)
+    measured(f"attack {name}: worst /healthz (ms)", row["healthz_ms"])
+    measured(f"attack {name}: answered (s)", seconds)
     assert probe.failures == 0, row
     assert row["restarts"] == 0, row
-    assert row["healthz_ms"] < HEALTHZ_MS, row
+    assert row["healthz_ms"] < HEALTHZ_STALL_MS, row
     assert after <= 1.1 * before + 8, row  # within 10 % (and a few pages) of the baseline
     return row
 
@@ -175,7 +182,7 @@ def multipart(fields: dict[str, tuple[bytes, str | None]]) -> tuple[bytes, str]:
 def test_a_million_empty_objects_to_validate(server):
     body = json.dumps({**scene_dict("01_three_spheres"), "objects": [{}] * 1_000_000}).encode()
     row = attack(server, "10⁶ empty objects (3 MB) → /validate", lambda: post(server, "/validate", body)[0])
-    assert row["status"] == 413 and row["seconds"] < 2
+    assert row["status"] == 413 and row["seconds"] < 20  # refused from the first bytes, not after parsing 3 MB
 
 
 def test_a_mesh_of_string_vertices_to_render(server):
@@ -187,7 +194,7 @@ def test_a_mesh_of_string_vertices_to_render(server):
         assert b"max_vertices" in text
         return status
     row = attack(server, '600,000 ["","",""] vertices (6.6 MB) → /render', send)
-    assert row["status"] == 422 and row["seconds"] < 5
+    assert row["status"] == 422 and row["seconds"] < 50
 
 
 def test_many_wrong_objects_get_a_short_error_list(server):
@@ -252,7 +259,7 @@ def test_a_decompression_bomb_graded_against_a_cached_reference(server):
         assert json.loads(text)["max_error"] == 0
         return status
     row = attack(server, "16-bit RGBA 4096² deflate bomb (0.2 MB) → /grade, reference cached", send)
-    assert row["status"] == 200 and row["seconds"] < 10
+    assert row["status"] == 200 and row["seconds"] < 100
 
 
 def refused_form(server: Server, name: str, fields: dict, says: bytes) -> int:
@@ -302,7 +309,7 @@ def test_an_endless_chunked_body_is_cut_and_the_connection_closed(server):
             reply = sock.recv(1 << 16)
             return int(reply.split()[1]) if reply else "closed"
     row = attack(server, "endless chunked body → /render", send)
-    assert row["status"] in (413, "closed") and sent["bytes"] < 64 << 20 and row["seconds"] < 5
+    assert row["status"] in (413, "closed") and sent["bytes"] < 64 << 20  # cut (the sending stops at 10 s)
 
 
 def hold(server: Server, count: int, first: bytes, trickle: bytes | None, seconds: float) -> int:
@@ -368,7 +375,7 @@ def test_a_body_at_a_byte_a_second_gets_408(server):
                     sock.sendall(b" ")
             return "still open"
     row = attack(server, "a body at one byte a second → /render", send)
-    assert row["status"] == 408 and row["seconds"] < 5
+    assert row["status"] == 408  # (within the loop's 10 s: the body's deadline is 2 s)
 
 
 def test_an_idle_kept_alive_connection_is_closed(server):
@@ -381,7 +388,7 @@ def test_an_idle_kept_alive_connection_is_closed(server):
                 pass
             return f"closed after {time.monotonic() - started:.1f} s"
     row = attack(server, "idle kept-alive connection", send)
-    assert 1.5 < row["seconds"] < 4
+    assert 1.5 < row["seconds"] < 10  # after keep_alive = 2 s (not before), and not never (the socket's 10 s)
 
 
 @pytest.mark.parametrize("kind", [None, "text/plain"])

@@ -4,6 +4,7 @@ import csv
 import json
 import shutil
 import urllib.request
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -170,6 +171,46 @@ def test_a_rerun_reuses_its_references_and_gives_the_same_report(klass, tmp_path
     again = grade(klass, report)
     assert first.renders == 3 and again.renders == 0
     assert (report / "report.json").read_bytes() == before
+
+
+def test_a_rerun_after_a_scene_changed_leaves_no_stale_reference(klass, tmp_path):
+    """The changed task's old reference is gone; the other task's (unchanged) is kept, not rendered again."""
+    scenes, subs, own = klass
+    changed = tmp_path / "scenes"
+    shutil.copytree(scenes, changed)
+    report = tmp_path / "report"
+    grade((changed, subs, own), report)
+    before = {p.name for p in (report / "references").glob("*.png")}
+    data = json.loads((changed / "lamps.json").read_text())
+    data["image"]["background"] = [0.2, 0.1, 0.0]
+    (changed / "lamps.json").write_text(json.dumps(data))
+    again = grade((changed, subs, own), report)
+    after = {p.name for p in (report / "references").glob("*.png")}
+    assert again.renders == 1 and len(after) == len(before) == 3 and len(after - before) == 1
+    listed = {Path(r["reference"]).name for r in json.loads((report / "report.json").read_text()) if r["reference"]}
+    assert listed == after
+
+
+def test_the_cli_without_diagnosis_and_quiet(klass, tmp_path, capsys):
+    """--no-diagnosis: the failing pairs name no likely mistake; -q: no summary line (errors and ignored files
+    are still told)."""
+    scenes, subs, own = klass
+    report = tmp_path / "r"
+    args = ["grade-class", str(scenes), str(subs), "-o", str(report), "--jobs", "2", "--student-scenes", str(own)]
+    assert main(args) == 0
+    assert "14 pairs: " in capsys.readouterr().out
+    diagnosed = {r["student"] + "/" + r["task"]: r["likely"] for r in json.loads((report / "report.json").read_text())}
+    assert diagnosed["bad/lamps"]
+    plain = tmp_path / "plain"
+    assert main([*args[:4], str(plain), *args[5:], "--no-diagnosis", "-q"]) == 0
+    out, err = capsys.readouterr()
+    assert out == "" and "ignored: " in err
+    rows = json.loads((plain / "report.json").read_text())
+    assert sum(r["status"] == "fail" for r in rows) == 3 and not any(r["likely"] for r in rows)
+    assert main([*args[:4], str(plain), *args[5:], "-q"]) == 0  # again, diagnosing: not the kept grades taken
+    capsys.readouterr()
+    again = {r["student"] + "/" + r["task"]: r["likely"] for r in json.loads((plain / "report.json").read_text())}
+    assert again == diagnosed
 
 
 def test_an_interrupted_rerun_leaves_every_report_file_whole(klass, tmp_path, monkeypatch):
@@ -339,8 +380,9 @@ def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_p
 
 @pytest.mark.parametrize("content, says", [
     ('{"lamps": {"points": -1}}', ":1: lamps.points: must be ≥ 0"),
-    ('{"lampz": {}}', ": no task lampz (the tasks are balls, lamps)"),
-    ('{"lamps": {"tolerence": 3}}', ":1: lamps.tolerence: unknown key"),
+    ('{"lampz": {}}', ": no task lampz (did you mean 'lamps'?) (the tasks are balls, lamps)"),
+    ('{"lamps": {"tolerence": 3}}', ":1: lamps.tolerence: unknown key (did you mean 'tolerance'?)"),
+    ('{"lamps": {"point": 3}}', ":1: lamps.point: unknown key (did you mean 'points'?)"),
     ('{"lamps": {"points": 2,\n "deductions": {"no-shadow": 1}}}',
      ":2: lamps.deductions.no-shadow: no such mistake (did you mean 'no-shadows'?) (the ids are in docs/grading.md)"),
     ('{"lamps": {"deductions": {"gamma": -1}}}', ":1: lamps.deductions.gamma: must be ≥ 0"),

@@ -94,6 +94,20 @@ def test_validate_prints_names_that_are_not_valid_unicode(tmp_path):
     assert b"unknown material '\\ud800'" in result.stdout
 
 
+def test_validate_prints_its_errors_in_the_order_of_their_lines(tmp_path, capsys):
+    """The unknown material (found after the fields' errors) comes first, on its line."""
+    data = json.loads((SCENES / "01_three_spheres.json").read_text())
+    data["objects"][0]["material"] = "glod"
+    data["objects"][2]["radius"] = -1
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(data, indent=2))
+    assert main(["validate", str(bad)]) == 1
+    printed = capsys.readouterr().out.splitlines()
+    numbers = [int(line.split(":")[1]) for line in printed]
+    assert len(printed) == 2 and numbers == sorted(numbers) and numbers[0] < numbers[1]
+    assert "objects[0].material: unknown material 'glod'" in printed[0] and "radius: must be > 0" in printed[1]
+
+
 def test_schema_prints_json(capsys):
     assert main(["schema"]) == 0
     assert json.loads(capsys.readouterr().out)["type"] == "object"
@@ -195,11 +209,11 @@ def test_validate_prints_the_json_line_of_every_problem(tmp_path, capsys):
                    ' "materials": {"gold": {}},\n "objects": [{"type": "sphere", "material": "glod",\n'
                    '   "center": [0, 0, 0], "radius": -1}]}\n')
     assert main(["validate", str(bad)]) == 1
-    assert capsys.readouterr().out.splitlines() == [
-        f"{bad}:6: objects[0].radius: must be > 0",
+    assert capsys.readouterr().out.splitlines() == [  # in the order of their lines
         f"{bad}:1: camera.look_at: required",
         f"{bad}:2: camera.look_At: unknown key (did you mean 'look_at'?)",
-        f"{bad}:5: objects[0].material: unknown material 'glod' (did you mean 'gold'?)"]
+        f"{bad}:5: objects[0].material: unknown material 'glod' (did you mean 'gold'?)",
+        f"{bad}:6: objects[0].radius: must be > 0"]
     syntax = tmp_path / "syntax.json"
     syntax.write_text('{"camera": {\n  "x": 1,,\n}}')
     assert main(["validate", str(syntax)]) == 1
@@ -429,6 +443,14 @@ def test_an_image_is_read_no_further_than_the_limit(files, service_url, capsys, 
                                            "(PHONGRAY_MAX_IMAGE_BYTES)\n")
 
 
+def test_compare_takes_grades_options(files, capsys):
+    """--no-diagnosis, as grade takes it (compare has no scene, so names no mistake either way)."""
+    for extra in ([], ["--no-diagnosis"]):
+        assert main(["compare", str(files / "right.png"), str(files / "dark.png"), "--json", *extra]) == 1
+        result = json.loads(capsys.readouterr().out)
+        assert result["passed"] is False and result["diagnosis"] is None
+
+
 def test_compare_grades_two_images_without_a_scene(files, capsys, tmp_path):
     assert main(["compare", str(files / "right.png"), str(files / "right.png"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["max_error"] == 0
@@ -479,10 +501,16 @@ def test_serve_on_a_port_in_use_is_one_line(tmp_path):
     assert b"Traceback" not in done.stderr
 
 
-def test_a_wrong_setting_in_the_environment_is_one_line():
-    done = subprocess.run([sys.executable, "-m", "service.cli", "serve"], capture_output=True, timeout=60,
-                          env={**os.environ, "PHONGRAY_MAX_PIXELS": "lots"})
-    assert done.returncode == 2 and done.stderr.startswith(b"phongray: PHONGRAY_MAX_PIXELS: ")
+def test_a_wrong_setting_in_the_environment_is_one_line_told_before_the_port_is_taken():
+    """The setting is checked first: on a port already in use (as 8000 is when another server runs), the wrong
+    setting is what is told, not "address already in use"."""
+    import socket
+
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = taken.getsockname()[1]
+        done = subprocess.run([sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
+                              capture_output=True, timeout=60, env={**os.environ, "PHONGRAY_MAX_PIXELS": "lots"})
+    assert done.returncode == 2 and done.stderr.startswith(b"phongray: PHONGRAY_MAX_PIXELS: "), done.stderr
     assert done.stderr.count(b"\n") == 1
 
 
@@ -507,6 +535,30 @@ def test_with_a_cluster_dask_logs_nothing_of_its_own(tmp_path, capsys):
                  "--cluster", f"tcp://127.0.0.1:{free}", "--cluster-wait", "1"]) == 2
     assert capsys.readouterr().err.startswith("phongray: ")
     assert not logging.getLogger("distributed.client").isEnabledFor(logging.ERROR)
+
+
+@pytest.mark.parametrize("command", ["render", "grade-class"])
+@pytest.mark.parametrize("wait, asked", [("5", 5.0), ("0", 1.0), ("60", 10.0)])
+def test_cluster_wait_bounds_the_wait_for_an_unreachable_scheduler(command, wait, asked, tmp_path, capsys,
+                                                                    monkeypatch):
+    """--cluster-wait 5 gives the scheduler 5 s to answer (not Dask's own 10 s, and then 5 s more for a
+    worker); 0 still lets it answer (in 1 s); a longer wait keeps Dask's 10 s for the answer."""
+    import distributed
+
+    given = []
+
+    def unreachable(address, timeout, **kw):
+        given.append(timeout)
+        raise OSError(f"Timed out trying to connect to {address} after {timeout:g} s")
+
+    monkeypatch.setattr(distributed, "Client", unreachable)
+    address = f"tcp://127.0.0.1:{socket_free_port()}"
+    args = (["render", str(SCENES / "07_spotlights.json"), "-o", str(tmp_path / "x.png")] if command == "render"
+            else ["grade-class", "examples/class/scenes", "examples/class/submissions", "-o", str(tmp_path / "r")])
+    monkeypatch.chdir(SCENES.parent.parent)
+    assert main([*args, "--cluster", address, "--cluster-wait", wait]) == 2
+    assert given == [asked]
+    assert f"cannot reach the Dask scheduler at {address}" in capsys.readouterr().err
 
 
 def socket_free_port() -> int:

@@ -198,6 +198,82 @@ def test_playground_marks_a_syntax_error(server, browser):
     page.close()
 
 
+def test_playground_asks_before_replacing_an_edited_scene_and_keeps_it_over_a_reload(server, browser):
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    asked: list[str] = []
+    answer = {"accept": False}
+
+    def on_dialog(dialog):
+        asked.append(dialog.message)
+        dialog.accept() if answer["accept"] else dialog.dismiss()
+
+    page.on("dialog", on_dialog)
+    page.select_option("#examples", "02_all_lights")  # not edited: replaced without a question
+    assert asked == [] and '"spot"' in page.input_value("#scene")
+    edited = page.input_value("#scene").replace('"width": 160', '"width": 161', 1)
+    page.fill("#scene", edited)
+    page.select_option("#examples", "04_whitted")  # edited: asked, and "no" keeps the edits
+    assert len(asked) == 1 and "04_whitted" in asked[0]
+    assert page.input_value("#scene") == edited and page.input_value("#examples") == "02_all_lights"
+    page.reload()
+    assert page.input_value("#scene") == edited  # the edits survive a reload
+    answer["accept"] = True
+    page.select_option("#examples", "04_whitted")
+    assert len(asked) == 2 and '"reflectance"' in page.input_value("#scene")
+    page.reload()
+    assert '"reflectance"' in page.input_value("#scene") and page.input_value("#examples") == "04_whitted"
+    assert page.outside == []
+    page.close()
+
+
+def test_playground_opens_a_scene_file(server, browser, tmp_path):
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    scene = tmp_path / "mine.json"
+    scene.write_text((SCENES / "07_spotlights.json").read_text())
+    assert page.locator("#open").is_visible()
+    page.set_input_files("#file", str(scene))
+    page.wait_for_function("() => document.getElementById('scene').value.includes('spot')", timeout=10_000)
+    assert page.input_value("#scene") == scene.read_text()
+    page.close()
+
+
+def test_playground_says_from_cache_for_a_cached_image(server, browser):
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    data = json.loads(page.input_value("#scene"))
+    data["image"]["background"] = [0.013, 0.021, 0.034]  # a scene no other test rendered
+    page.fill("#scene", json.dumps(data, indent=2))
+    for says in ("rendered in ", "from cache"):
+        page.evaluate("document.getElementById('info').textContent = ''")
+        page.click("#render")
+        page.wait_for_function("() => document.getElementById('info').textContent.includes('px')", timeout=20_000)
+        assert says in page.inner_text("#info")
+    assert "0.000 s" not in page.inner_text("#info")
+    page.close()
+
+
+def test_playground_lists_errors_in_line_order_and_clears_them_as_the_scene_is_edited(server, browser):
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    data = json.loads(page.input_value("#scene"))
+    data["objects"][0]["material"] = "glod"  # found after the fields' errors, but on an earlier line
+    data["objects"][-1]["radius"] = -1
+    page.fill("#scene", json.dumps(data, indent=2))
+    page.click("#render")
+    page.wait_for_selector("#errors li", timeout=20_000)
+    items = page.locator("#errors li").all_inner_texts()
+    lines = [int(item.split(":")[0].removeprefix("line ")) for item in items]
+    assert len(items) == 2 and lines == sorted(lines) and "unknown material" in items[0], items
+    assert page.locator("#gutter .bad").count() == 2
+    page.focus("#scene")
+    page.keyboard.press("End")
+    page.keyboard.type(" ")
+    assert page.locator("#errors li").count() == 0 and page.locator("#gutter .bad").count() == 0
+    page.close()
+
+
 def variant_png(text: bytes, name: str) -> bytes:
     import schemas
     import tracer

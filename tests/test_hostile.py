@@ -1,4 +1,8 @@
-"""Hostile input against a real server: each refused fast, with a 4xx that says why, in bounded memory."""
+"""Hostile input against a real server: each refused, with a 4xx that says why, in bounded memory, and not
+after the work it would cost.
+
+The bounds on time here catch a hang on a busy machine; the budgets (a refusal within 1 s, ...) are checked
+on a quiet one by ``python -m bench.budgets``, from what these tests measure."""
 
 import io
 import json
@@ -11,10 +15,12 @@ from PIL import Image
 
 from tracer.image import png_chunk
 
-from helpers import SCENES
+from helpers import SCENES, measured
 from server import rss_mib, running_server
 
 SCENE = (SCENES / "01_three_spheres.json").read_bytes()
+#: seconds: ten times a refusal's budget (1 s), so a refusal that waited for the work it refuses still fails
+REFUSED_WITHIN = 10.0
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +29,7 @@ def server(tmp_path_factory):
         yield url, proc
 
 
-def raw_request(url, head: bytes, body_chunks=(), read_timeout=5.0):
+def raw_request(url, head: bytes, body_chunks=(), read_timeout=60.0):
     """Send a hand-made HTTP request; return (status, headers+body text, seconds)."""
     host, port = url.removeprefix("http://").split(":")
     started = time.perf_counter()
@@ -67,7 +73,8 @@ def test_100_mb_body_is_refused_from_its_header(server):
     url, _ = server
     head = b"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: 100000000\r\n\r\n"
     status, text, seconds = raw_request(url, head, [b"{" + b" " * 65535])
-    assert status == 413 and "max_body_bytes" in text and seconds < 1
+    measured("hostile a 100 MB Content-Length: answered (s)", seconds)
+    assert status == 413 and "max_body_bytes" in text and seconds < REFUSED_WITHIN
 
 
 def test_endless_chunked_body_is_cut_at_the_limit(server):
@@ -75,7 +82,8 @@ def test_endless_chunked_body_is_cut_at_the_limit(server):
     head = b"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nTransfer-Encoding: chunked\r\n\r\n"
     chunk = b"%x\r\n" % (1 << 20) + b" " * (1 << 20) + b"\r\n"
     status, text, seconds = raw_request(url, head, [chunk] * 12)
-    assert status == 413 and seconds < 2
+    measured("hostile an endless chunked body: answered (s)", seconds)
+    assert status == 413 and seconds < 2 * REFUSED_WITHIN
 
 
 @pytest.mark.parametrize("name, body, says", [
@@ -97,8 +105,9 @@ def test_endless_chunked_body_is_cut_at_the_limit(server):
 def test_hostile_scene_is_refused_fast(server, name, body, says):
     url, _ = server
     status, text, seconds = post(url, "/render", body)
+    measured(f"hostile scene {name}: answered (s)", seconds)
     assert 400 <= status < 500 and says in text, (name, status, text[-300:])
-    assert seconds < 1, (name, seconds)
+    assert seconds < REFUSED_WITHIN, (name, seconds)
 
 
 def test_huge_but_finite_numbers_render_finite_pixels(server):
@@ -108,7 +117,8 @@ def test_huge_but_finite_numbers_render_finite_pixels(server):
     data["lights"].append({"type": "point", "position": [-1e308, 1e308, 1e308], "color": 1e308,
                            "attenuation": [1e-308, 0, 1e308]})
     status, text, seconds = post(url, "/render", json.dumps(data).encode())
-    assert status == 200 and seconds < 5
+    measured("hostile huge but finite numbers: rendered (s)", seconds)
+    assert status == 200 and seconds < 5 * REFUSED_WITHIN
 
 
 def png_bomb() -> bytes:
@@ -137,7 +147,8 @@ def test_hostile_images_are_refused_fast(server, name, image, says):
     url, _ = server
     body, kind = multipart(SCENE, image)
     status, text, seconds = post(url, "/grade", body, kind)
-    assert status == 422 and says in text and seconds < 1, (name, status, text[-300:])
+    measured(f"hostile image {name}: answered (s)", seconds)
+    assert status == 422 and says in text and seconds < REFUSED_WITHIN, (name, status, text[-300:])
 
 
 @pytest.mark.parametrize("path, kind", [("/render", "text/plain"), ("/validate", "application/xml"),
@@ -145,7 +156,8 @@ def test_hostile_images_are_refused_fast(server, name, image, says):
 def test_wrong_content_types_are_415(server, path, kind):
     url, _ = server
     status, _, seconds = post(url, path, SCENE, kind)
-    assert status == 415 and seconds < 1
+    measured(f"hostile content type {kind} to {path}: answered (s)", seconds)
+    assert status == 415 and seconds < REFUSED_WITHIN
 
 
 def test_memory_stays_bounded_through_the_barrage(server):

@@ -82,3 +82,35 @@ def test_a_pass_as_npy_is_plain_array_bytes_and_the_same_every_time(tmp_path):
     data = (tmp_path / "d1.npy").read_bytes()
     assert data == (tmp_path / "d2.npy").read_bytes() and npy(data).shape == (30, 40, 3)
     assert npy(data).dtype == np.float64 and npy(data).max() > 0
+
+
+@pytest.mark.parametrize("name, light, says", [
+    ("normal", 1, "light: the normal pass is the whole scene's, not a light's (only diffuse, specular, shadow take "
+                  "a light)"),
+    ("object", 0, "light: the object pass is the whole scene's"),
+    ("shadow", 0, "light: lights[0] is an ambient light, which has no shadow"),
+    ("diffuse", 0, "light: lights[0] is an ambient light, which has no diffuse"),
+])
+def test_a_light_a_pass_cannot_be_of_is_refused_the_same_by_the_cli_and_http(api, tmp_path, capsys, name, light,
+                                                                               says):
+    assert json.loads(SCENE)["lights"][0]["type"] == "ambient"
+    (tmp_path / "s.json").write_bytes(SCENE)
+    out = tmp_path / "p.png"
+    assert main(["render", str(tmp_path / "s.json"), "--pass", name, "--light", str(light), "-o", str(out)]) == 2
+    assert capsys.readouterr().err.startswith(f"phongray: {tmp_path / 's.json'}: {says}") and not out.exists()
+    res = api.post(f"/render?pass={name}&light={light}", content=SCENE, headers={"content-type": "application/json"})
+    assert res.status_code == 422 and res.json()["detail"].startswith(says)
+
+
+def test_a_pass_prints_one_summary_line_unless_quiet(tmp_path, capsys):
+    (tmp_path / "s.json").write_bytes(SCENE)
+    out = tmp_path / "shadow.png"
+    args = ["render", str(tmp_path / "s.json"), "--pass", "shadow", "--light", "4", "--width", "40", "--height", "30",
+            "-o", str(out)]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(f"{out}: the shadow pass of light 4 (PNG) in ") and err.endswith(" s\n")
+    assert err.count("\n") == 1
+    assert main(["render", str(tmp_path / "s.json"), "--pass", "depth", "-o", str(tmp_path / "d.npy")]) == 0
+    assert capsys.readouterr().err.startswith(f"{tmp_path / 'd.npy'}: the depth pass (values) in ")
+    assert main([*args, "-q"]) == 0 and capsys.readouterr().err == ""

@@ -268,3 +268,40 @@ def test_the_json_schema_allows_colour_shorthands_and_refuses_what_the_format_re
         assert not validator.is_valid(wrong), wrong
         with pytest.raises(schemas.SceneError):
             schemas.validate_scene(wrong)
+
+
+@pytest.mark.parametrize("text, says", [
+    ('{"camera": {},\n "image": {"width": 1,}}', "a comma after the last item, before '}' (JSON allows none there: "
+                                                 "delete it) at line 2 column 22"),
+    ('[1,\n 2,\n]', "a comma after the last item, before ']' (JSON allows none there: delete it) at line 2 column 3"),
+    ('{\n  // the camera\n  "camera": {}}', "a comment (JSON has no comments: delete it) at line 2 column 3"),
+    ('/* a scene */ {}', "a comment (JSON has no comments: delete it) at line 1 column 1"),
+    ("{'camera': {}}", "a string in single quotes (JSON strings take double quotes: \"name\") at line 1 column 2"),
+    ('{"camera": {} "image": {}}', "a comma is missing between two items at line 1 column 15"),
+    ('{"camera": {}', "the document ends too early (a closing '}', ']' or '\"' is missing) at line 1 column 14"),
+    ("", "the document is empty"),
+    (" \n ", "the document is empty"),
+])
+def test_json_syntax_errors_are_told_in_plain_words_with_line_and_column(text, says):
+    with pytest.raises(schemas.SceneError) as info:
+        schemas.load_scene(text)
+    assert str(info.value) == "invalid JSON: " + says
+    assert "Expecting" not in str(info.value) and "delimiter" not in str(info.value)
+
+
+def test_a_colour_that_is_a_word_is_told_the_two_forms_it_may_take():
+    data = minimal(materials={"m": {"diffuse": "white"}}, lights=[{"type": "point", "position": [0, 1, 0],
+                                                                   "color": "warm"}])
+    data["image"]["background"] = "black"
+    colour = "must be an array of 3 numbers [r, g, b] or one number (a grey: 0.5 means [0.5, 0.5, 0.5])"
+    assert sorted(problems(data)) == [f"image.background: {colour}", f"lights[0].color: {colour}",
+                                      f"materials.m.diffuse: {colour}"]
+    camera = minimal(materials={"m": {}})
+    camera["camera"]["position"] = "here"  # not a colour: an array, and only an array
+    assert problems(camera) == ["camera.position: must be an array"]
+
+
+@pytest.mark.parametrize("key", ["color", "colour"])
+def test_a_materials_color_key_is_pointed_to_diffuse(key):
+    assert problems(minimal(materials={"m": {key: [1, 0, 0]}})) == [
+        f"materials.m.{key}: unknown key (did you mean 'diffuse'?)"]

@@ -13,6 +13,7 @@ from PIL import Image
 
 import schemas
 import tracer
+from service import grading
 from service.app import create_app
 from service.settings import Settings
 from tracer.image import png_chunk
@@ -48,6 +49,15 @@ def test_render_gives_the_same_bytes_as_the_cli_path(api, reference_png):
     assert res.status_code == 200 and res.headers["content-type"] == "image/png"
     assert res.content == reference_png
     assert float(res.headers["x-render-seconds"]) >= 0
+
+
+def test_a_render_says_whether_it_came_from_the_cache(api):
+    data = json.loads(SCENE)
+    data["image"]["background"] = [0.011, 0.0, 0.0]  # rendered by no other test
+    body = json.dumps(data)
+    first, second = (api.post("/render", content=body, headers=JSON) for _ in range(2))
+    assert (first.headers["x-cache"], second.headers["x-cache"]) == ("miss", "hit")
+    assert first.content == second.content
 
 
 def test_etag_and_if_none_match(api):
@@ -213,7 +223,7 @@ def test_one_pixel_shift_is_forgiven_by_the_neighbourhood_measure(api, reference
 @pytest.mark.parametrize("image, says", [
     (png_of(np.zeros((10, 10, 3), np.uint8)), "10×10 pixels, the scene is 160×120"),
     (b"GIF89a" + b"\0" * 100, "image is a GIF; PNG required"),
-    (b"", "not a PNG"),
+    (b"", "image is empty (0 bytes)"),
 ])
 def test_bad_submissions_are_422(api, image, says):
     res = grade(api, image=image)
@@ -222,7 +232,9 @@ def test_bad_submissions_are_422(api, image, says):
 
 def test_truncated_png_is_422(api, reference_png):
     res = grade(api, image=reference_png[: len(reference_png) // 2])
-    assert res.status_code == 422 and "truncated or corrupt" in res.json()["detail"]
+    detail = res.json()["detail"]
+    assert res.status_code == 422 and detail.endswith(grading.CORRUPT), detail  # plain words, no class name
+    assert "Error" not in detail
 
 
 def test_png_bomb_is_refused_before_decoding(api):

@@ -1,12 +1,16 @@
-"""Requests for a scene already being rendered wait without a thread, and share its outcome."""
+"""Requests for a scene already being rendered wait without a thread, and share its outcome; /healthz answers
+meanwhile (within a stall's bound here; its budget, 100 ms, is checked by ``python -m bench.budgets``)."""
 
 import http.client
 import json
 import threading
 import time
 
-from helpers import scene_dict
+from helpers import measured, scene_dict
 from server import running_server
+
+#: ms: not /healthz's budget (100 ms, the bench's) but 30 times it, a stall that a busy machine does not reach
+HEALTHZ_STALL_MS = 3000
 
 
 def post_render(url: str, body: bytes, timeout: float = 60.0) -> int:
@@ -61,7 +65,9 @@ def test_identical_concurrent_requests_render_once_and_all_get_the_image(tmp_pat
     with running_server(tmp_path, render_threads="1") as (url, _):
         statuses, latencies = burst(url, slow_scene(200), 100)
         assert statuses == [200] * 100
-        assert latencies and max(latencies) < 100, sorted(latencies)[-5:]  # /healthz answered throughout, fast
+        assert latencies, "no /healthz asked while the renders waited"
+        measured("100 identical renders at once: worst /healthz (ms)", max(latencies))
+        assert max(latencies) < HEALTHZ_STALL_MS, sorted(latencies)[-5:]  # /healthz answered throughout
         assert health(url)["renders"] == 1
 
 
