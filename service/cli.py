@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from .display import ProgressBar, describe, printable
+from .display import ProgressBar, counted, describe, printable
 
 #: tracer.passes.NAMES, here so that the parser needs no tracer import (a test keeps them equal)
 PASS_NAMES = ("background", "ambient", "diffuse", "specular", "reflection", "refraction", "shadow", "normal",
@@ -437,8 +437,9 @@ def cmd_autograder(args: argparse.Namespace) -> int:
                       Path(args.student_scenes) if args.student_scenes else None)
     except ClassError as exc:
         raise CliError(printable(str(exc))) from None
-    print(printable(f"{args.output}: {len(built.tasks)} tasks ({', '.join(built.tasks)}), {built.references} "
-                    f"references rendered, {built.size / 1e6:.1f} MB; upload it as the assignment's autograder"))
+    print(printable(f"{args.output}: {counted(len(built.tasks), 'task')} ({', '.join(built.tasks)}), "
+                    f"{counted(built.references, 'reference')} rendered, {built.size / 1e6:.1f} MB; upload it as "
+                    "the assignment's autograder"))
     return 0
 
 

@@ -123,3 +123,8 @@ class ProgressBar:
         if self.shown and ProgressBar.active is self:
             sys.stderr.write("\n")
         ProgressBar.active = None
+
+
+def counted(n: int, noun: str) -> str:
+    """``n`` and the noun, plural but for one: "1 pair", "3 pairs", "0 references"."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"

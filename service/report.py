@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from .display import percent
+from .display import counted, percent
 from .gradebook import gradebook_csv, partial, totals
 from .heatmap import LEGEND
 from .taskfile import TaskSettings
@@ -87,8 +87,8 @@ def neutral_cell(value: Any) -> Any:
 
 def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
     counts = {s: sum(r["status"] == s for r in rows) for s in STATUSES}
-    return (f"{len(rows)} pairs: {counts['pass']} passed, {counts['fail']} failed, {counts['missing']} missing, "
-            f"{counts['invalid']} invalid; {renders} references rendered; {seconds:.1f} s")
+    return (f"{counted(len(rows), 'pair')}: {counts['pass']} passed, {counts['fail']} failed, {counts['missing']} "
+            f"missing, {counts['invalid']} invalid; {counted(renders, 'reference')} rendered; {seconds:.1f} s")
 
 
 def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str],

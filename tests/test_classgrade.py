@@ -500,3 +500,11 @@ def test_the_mistake_ids_are_documented_and_in_grade_json(mistaken, tmp_path, ca
     assert main(["grade", "--json", str(scene), str(report.parent / "subs" / "bob" / "lamps.png")]) == 1
     diagnosis = json.loads(capsys.readouterr().out)["diagnosis"]
     assert diagnosis["causes"][0]["variant"] == "no-attenuation" and diagnosis["causes"][0]["passes"]
+
+
+def test_the_summary_counts_one_pair_and_one_reference_in_the_singular():
+    from service.report import summary
+    one = summary([{"status": "pass"}], 1, 0.5)
+    assert one.startswith("1 pair: 1 passed") and "; 1 reference rendered;" in one
+    two = summary([{"status": "pass"}, {"status": "fail"}], 2, 0.5)
+    assert two.startswith("2 pairs: 1 passed, 1 failed") and "; 2 references rendered;" in two
