@@ -33,7 +33,7 @@ def client(**settings):
     return TestClient(create_app(Settings(**settings)))
 
 
-@pytest.mark.parametrize("query, named", [("format=npy", "format"), ("light=0", "light")])
+@pytest.mark.parametrize("query, named", [("format=npy", "format"), ("light=1", "light")])
 def test_a_pass_option_without_a_pass_is_refused_naming_it(query, named):
     res = client().post(f"/render?{query}", content=SCENE, headers=JSON)
     assert res.status_code == 422, res.status_code
