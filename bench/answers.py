@@ -41,9 +41,12 @@ from PIL import Image
 SCENES = Path(__file__).parent.parent / "tests" / "scenes"
 
 
-def many_lights(lights: int = 100, width: int = 640, height: int = 480) -> dict[str, Any]:
-    grid = [{"type": "point", "position": [x * 0.6 - 2.4, 3, z * 0.6 - 1], "color": [0.01, 0.01, 0.01]}
-            for x in range(10) for z in range(lights // 10)]
+def many_lights(lights: int = 100, width: int = 640, height: int = 480, columns: int = 10,
+                colour: float = 0.01) -> dict[str, Any]:
+    """A floor and a ball under a grid of ``columns`` × ``lights // columns`` dim point lights (and an ambient
+    one): the diagnosis's attack scene, whose light terms grow with lights × pixels."""
+    grid = [{"type": "point", "position": [x * 0.6 - 2.4, 3, z * 0.6 - 1], "color": [colour, colour, colour]}
+            for x in range(columns) for z in range(lights // columns)]
     return {"camera": {"position": [0, 2, 6], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov": 50},
             "image": {"width": width, "height": height, "samples": 1, "max_depth": 1, "background": [0.1, 0.1, 0.2]},
             "materials": {"m": {"diffuse": [0.8, 0.7, 0.6], "specular": [0.3, 0.3, 0.3], "shininess": 20,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import schemas
+from bench.answers import many_lights as bench_scene
 from service import diagnosis
 from service.diagnosis import Cached, diagnose, renders_of
 from service.grading import grade
@@ -15,16 +16,8 @@ from tracer import RenderCancelled, Renderer
 
 
 def many_lights(lights: int, width: int = 160, height: int = 120) -> dict:
-    """A floor and a ball under a grid of dim point lights (and an ambient one)."""
-    grid = [{"type": "point", "position": [x * 0.6 - 2.4, 3, z * 0.6 - 1], "color": [0.02, 0.02, 0.02]}
-            for x in range(8) for z in range(lights // 8)]
-    return {"camera": {"position": [0, 2, 6], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov": 50},
-            "image": {"width": width, "height": height, "samples": 1, "max_depth": 1, "background": [0.1, 0.1, 0.2]},
-            "materials": {"m": {"diffuse": [0.8, 0.7, 0.6], "specular": [0.3, 0.3, 0.3], "shininess": 20,
-                                "ambient": [0.1, 0.1, 0.1]}},
-            "objects": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"},
-                        {"type": "sphere", "center": [0, 1, 0], "radius": 1, "material": "m"}],
-            "lights": [{"type": "ambient", "color": [0.2, 0.2, 0.2]}] + grid}
+    """A floor and a ball under a grid of dim point lights (and an ambient one): the bench's attack scene, smaller."""
+    return bench_scene(lights, width, height, columns=8, colour=0.02)
 
 
 @pytest.fixture(scope="module")
