@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 #: (name, file under tracer/, text, replacement)
 MUTANTS = [
     ("the origin's part of a cell is not tested", "walk.py",
-     "            self._test(best, *cells.pairs(inside, cell, but), table, from_prim, shadows)\n",
+     "            self._test_cells(best, inside, cell, but, table, from_prim, shadows)\n",
      "            pass\n"),
     ("a hit anywhere settles a ray at its start", "walk.py",
      "settled = np.isfinite(best.t[inside]) & (best.t[inside] <= start[inside])",
@@ -34,8 +34,8 @@ MUTANTS = [
      "settled = np.isfinite(best.t[live]) & (best.t[live] <= leave)",
      "settled = np.isfinite(best.t[live])"),
     ("a crossing tests only the crossed primitive", "walk.py",
-     "            self._test(best, *pairs, table, from_prim, shadows)\n",
-     "            self._test(best, live, prim, table, from_prim, shadows)\n"),
+     "            self._test_cells(best, live[fresh], region[fresh],\n",
+     "            if False: self._test_cells(best, live[fresh], region[fresh],\n"),
     ("the walk jumps a part further than the part it tested", "walk.py",
      "start[live] = np.fmax(start[live] + tau + p.step, leave)",
      "start[live] = np.fmax(start[live] + tau + p.step, 2 * leave - start[live] - tau)"),
