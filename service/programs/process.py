@@ -1,0 +1,134 @@
+"""Running one sandboxed command to its end: the wall-time limit, the output kept, the time used.
+
+The command starts in a process group of its own; at the wall-time limit (or when its standard output grows
+past what is kept) the group is killed with ``SIGKILL``.  That kills bubblewrap, and with it, through
+``--die-with-parent``, the sandbox's first process: when the first process of a PID namespace dies, the kernel
+kills every other process in it, so no process of the run outlives it (a daemon started with ``setsid`` and a
+double fork included).  Standard error is read as it comes and only its end kept; standard output (a build's
+tar stream) is kept up to a limit.  The wall and CPU time are measured by the parent (``wait4``'s usage: the
+CPU time of the command and of the processes reaped in it).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import threading
+import time
+from dataclasses import dataclass
+from typing import IO
+
+#: bytes read from a pipe at a time
+CHUNK = 65536
+
+
+@dataclass(frozen=True)
+class Command:
+    """What to run, where, and how much of its output to keep."""
+
+    argv: list[str]
+    cwd: str
+    env: dict[str, str]
+    wall_seconds: float
+    stdout_bytes: int  # standard output kept (beyond it, the command is killed); 0: none is expected
+    stderr_bytes: int  # the end of standard error kept
+
+
+@dataclass(frozen=True)
+class Finished:
+    """How a command ended: its wait status, whether the parent killed it and why, and what it printed."""
+
+    status: int  # the raw wait status
+    timed_out: bool
+    stdout_overflow: bool
+    stdout: bytes
+    stderr_tail: bytes
+    wall_seconds: float
+    cpu_seconds: float
+
+    @property
+    def exit_code(self) -> int | None:
+        return os.waitstatus_to_exitcode(self.status) if os.WIFEXITED(self.status) else None
+
+
+class _Head:
+    """The first ``limit`` bytes of a pipe; past them, ``overflowed`` and ``stop`` set (the command is killed)."""
+
+    def __init__(self, limit: int, stop: threading.Event):
+        self.limit, self.stop, self.size, self.overflowed = limit, stop, 0, False
+        self.parts: list[bytes] = []
+
+    def read(self, pipe: IO[bytes]) -> None:
+        while chunk := pipe.read1(CHUNK):  # type: ignore[attr-defined]
+            if self.size + len(chunk) > self.limit:
+                self.overflowed = True
+                self.stop.set()
+                break
+            self.parts.append(chunk)
+            self.size += len(chunk)
+        pipe.close()
+
+
+class _Tail:
+    """The last ``limit`` bytes of a pipe."""
+
+    def __init__(self, limit: int):
+        self.limit, self.data = limit, b""
+
+    def read(self, pipe: IO[bytes]) -> None:
+        while chunk := pipe.read1(CHUNK):  # type: ignore[attr-defined]
+            self.data = (self.data + chunk)[-self.limit:]
+        pipe.close()
+
+
+#: how long the parent waits, once the command has ended, for the rest of its output: only a process that
+#: escaped the group (possible without the sandbox) still holds the pipes then, and is not waited for
+DRAIN_SECONDS = 2.0
+
+
+def _kill(pid: int) -> None:
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
+def _start(command: Command) -> subprocess.Popen[bytes]:
+    return subprocess.Popen(command.argv, cwd=command.cwd, env=command.env, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+
+
+def run_command(command: Command) -> Finished:
+    """Run ``command`` to its end (or the parent's kill), and say how it ended.  The command's process group
+    is killed once it has ended, before it is reaped (``WNOWAIT``), so that its id cannot have been reused."""
+    start = time.monotonic()
+    proc = _start(command)
+    stop, timed_out = threading.Event(), threading.Event()
+    head, tail = _Head(command.stdout_bytes, stop), _Tail(command.stderr_bytes)
+    assert proc.stdout is not None and proc.stderr is not None
+    readers = [threading.Thread(target=head.read, args=(proc.stdout,), daemon=True),
+               threading.Thread(target=tail.read, args=(proc.stderr,), daemon=True)]
+    for reader in readers:
+        reader.start()
+
+    def watch() -> None:
+        if not stop.wait(command.wall_seconds):
+            timed_out.set()
+            _kill(proc.pid)
+        elif head.overflowed:
+            _kill(proc.pid)
+
+    threading.Thread(target=watch, daemon=True).start()
+    try:
+        os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
+    finally:
+        _kill(proc.pid)  # (whatever is left of the group, on an exception too)
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        stop.set()
+    wall = time.monotonic() - start
+    for reader in readers:
+        reader.join(DRAIN_SECONDS)
+    return Finished(status, timed_out.is_set(), head.overflowed, b"".join(head.parts), tail.data, wall,
+                    usage.ru_utime + usage.ru_stime)

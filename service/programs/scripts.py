@@ -1,0 +1,44 @@
+"""The shell lines that run a student's command in its sandbox, and the CPU time they report back.
+
+In the sandbox a shell fills the working folder with the copy of the student's folder, runs the command (its
+own child: a program killed by a signal ends the shell with ``128 + n``, as bubblewrap reports it), and then
+writes to standard error, after a marker line, the CPU time of the command and of every process it waited for
+(the shell's ``times``).  The parent cannot measure that itself: bubblewrap's first process does not reap
+the sandbox's first process, so none of the program's CPU time reaches the parent's ``wait4``.  The line is
+written through the program's standard error, so a program can forge it: the CPU time shown is then wrong,
+but the CPU-time *limit* is the kernel's (``RLIMIT_CPU``) and not affected.  A program killed at the
+wall-time limit reports no time (its CPU time is then the part the parent saw, :func:`split_times`).
+"""
+
+from __future__ import annotations
+
+import re
+
+from .sandbox import SUBMISSION
+
+MARK = "--- phongray: CPU time of the program ---"
+_REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
+#: fill the working folder (sandboxed runs only)
+FILL = f"cp -R {SUBMISSION}/. . || exit 125; "
+#: a run: the command, then its CPU time
+RUN = f'"$@"; s=$?; {_REPORT}; exit $s'
+#: a build: the command with its output on standard error, its CPU time, then (built) the folder as a tar stream
+BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || tar -cf - . || s=125; exit $s'
+_TIME = re.compile(r"(\d+)m([\d.]+)s")
+
+
+def script(body: str, sandboxed: bool) -> str:
+    return (FILL if sandboxed else "") + body
+
+
+def split_times(stderr: bytes, seen: float) -> tuple[str, float]:
+    """Standard error without the report of CPU time, and that time (user and system, of the command and its
+    children); ``seen`` (what the parent measured) when there is no report, or it says less."""
+    text = stderr.decode("utf-8", "replace")
+    head, mark, report = text.rpartition(f"\n{MARK}\n")
+    if not mark:
+        return text, seen
+    lines = report.splitlines()
+    found = _TIME.findall(lines[1]) if len(lines) > 1 else []
+    cpu = sum(int(m) * 60 + float(s) for m, s in found)
+    return head, max(cpu, seen)
