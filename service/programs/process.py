@@ -11,7 +11,9 @@ CPU time of the command and of the processes reaped in it).
 
 from __future__ import annotations
 
+import json
 import os
+import select
 import signal
 import subprocess
 import threading
@@ -31,8 +33,9 @@ class Command:
     cwd: str
     env: dict[str, str]
     wall_seconds: float
-    stdout_bytes: int  # standard output kept (beyond it, the command is killed); 0: none is expected
+    stdout_bytes: int  # standard output kept (beyond it, the command is killed)
     stderr_bytes: int  # the end of standard error kept
+    info: tuple[int, int] | None = None  # a pipe (read, write) bubblewrap writes its --info-fd to
 
 
 @dataclass(frozen=True)
@@ -94,9 +97,47 @@ def _kill(pid: int) -> None:
         pass
 
 
+#: seconds the parent waits for the sandbox's first process to end once bubblewrap has (it kills the
+#: sandbox's other processes first): far more than killing a few dozen processes takes
+TEARDOWN_SECONDS = 30.0
+
+
 def _start(command: Command) -> subprocess.Popen[bytes]:
-    return subprocess.Popen(command.argv, cwd=command.cwd, env=command.env, stdin=subprocess.DEVNULL,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    fds = () if command.info is None else (command.info[1],)
+    try:
+        return subprocess.Popen(command.argv, cwd=command.cwd, env=command.env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+                                pass_fds=fds)
+    finally:
+        if command.info is not None:
+            os.close(command.info[1])
+
+
+def _sandbox_pidfd(info: tuple[int, int] | None) -> int | None:
+    """A pidfd of the sandbox's first process, from bubblewrap's ``--info-fd`` (``{"child-pid": N}``, written
+    as soon as it is started, while bubblewrap is its parent and it cannot have been reaped); None when
+    there is none (bubblewrap failed, or the process is gone already)."""
+    if info is None:
+        return None
+    with os.fdopen(info[0], "rb") as pipe:
+        text = pipe.read(4096)  # (to its end: bubblewrap closes it once it has written, at its start)
+    try:
+        return os.pidfd_open(int(json.loads(text)["child-pid"]))
+    except (ValueError, KeyError, TypeError, OSError):
+        return None
+
+
+def _await_teardown(pidfd: int | None) -> None:
+    """Wait until the sandbox's first process has ended: the kernel has then killed every other process of
+    its PID namespace (it ends only once they are gone), so none outlives the run."""
+    if pidfd is None:
+        return
+    try:
+        poller = select.poll()
+        poller.register(pidfd, select.POLLIN)
+        poller.poll(TEARDOWN_SECONDS * 1000)
+    finally:
+        os.close(pidfd)
 
 
 def run_command(command: Command) -> Finished:
@@ -120,13 +161,16 @@ def run_command(command: Command) -> Finished:
             _kill(proc.pid)
 
     threading.Thread(target=watch, daemon=True).start()
+    pidfd = None
     try:
+        pidfd = _sandbox_pidfd(command.info)
         os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
     finally:
         _kill(proc.pid)  # (whatever is left of the group, on an exception too)
         _, status, usage = os.wait4(proc.pid, 0)
         proc.returncode = os.waitstatus_to_exitcode(status)
         stop.set()
+        _await_teardown(pidfd)
     wall = time.monotonic() - start
     for reader in readers:
         reader.join(DRAIN_SECONDS)

@@ -106,9 +106,10 @@ def _command(mounts: Mounts, limits: Limits, sandbox: bool, words: list[str],
     prefix = [*limits.prlimit_argv(), *as_user(uid)]
     shell = ["/bin/sh", "-c", script(body, sandbox), "sh", *words]
     if sandbox:
-        argv = [*prefix, *bwrap_argv(find_bwrap(), mounts, limits), *shell]
+        info = os.pipe()
+        argv = [*prefix, *bwrap_argv(find_bwrap(), mounts, limits), "--info-fd", str(info[1]), *shell]
         return Command(argv, "/", {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}, limits.wall_seconds,
-                       limits.workdir_bytes, limits.stderr_bytes)
+                       limits.workdir_bytes, limits.stderr_bytes, info)
     env = {**ENVIRONMENT, "HOME": str(mounts.submission)}
     return Command([*prefix, *shell], str(mounts.submission), env, limits.wall_seconds, limits.workdir_bytes,
                    limits.stderr_bytes)

@@ -3,7 +3,8 @@
 Inside the sandbox a program sees, read-only, the system's programs and libraries (``/usr`` and the links
 or folders ``/bin``, ``/lib``, ... beside it) and of ``/etc`` only what programs need to start (the dynamic
 linker's cache and configuration, the ``alternatives`` links); ``/proc`` of its own processes, a minimal
-``/dev``, and two size-limited tmpfs folders: ``/tmp`` and its working folder ``/home/student``, filled with
+``/dev`` (read-only but for its devices), and three size-limited tmpfs folders, the only places it can write
+files: ``/tmp``, ``/dev/shm`` and its working folder ``/home/student``, filled with
 a copy of its private copy of the student's folder (bound read-only at ``/submission``).  Its one scene is
 ``/scene/<name>``, read-only, and its output the one file ``/out/output.png``, which exists and is the only
 file of the machine it can write to.  There is no network (an empty network namespace: not even the
@@ -111,8 +112,9 @@ def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
             "--hostname", "sandbox", *_environment(), *_system(),
             "--proc", "/proc", "--dev", "/dev",
             "--size", str(limits.output_bytes), "--tmpfs", "/tmp",
+            "--size", str(limits.output_bytes), "--tmpfs", "/dev/shm",
             "--perms", "0700", "--size", str(limits.workdir_bytes), "--tmpfs", HOME,
             "--ro-bind", str(mounts.submission), SUBMISSION, "--bind", str(mounts.output), OUTPUT]
     if mounts.scene is not None:
         args += ["--ro-bind", str(mounts.scene), f"{SCENE_DIR}/{mounts.scene_name}"]
-    return [*args, "--remount-ro", "/", "--chdir", HOME]
+    return [*args, "--remount-ro", "/dev", "--remount-ro", "/", "--chdir", HOME]

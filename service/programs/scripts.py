@@ -20,8 +20,8 @@ MARK = "--- phongray: CPU time of the program ---"
 _REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
 #: fill the working folder (sandboxed runs only)
 FILL = f"cp -R {SUBMISSION}/. . || exit 125; "
-#: a run: the command, then its CPU time
-RUN = f'"$@"; s=$?; {_REPORT}; exit $s'
+#: a run: the command (its standard output joined to its standard error), then its CPU time
+RUN = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
 #: a build: the command with its output on standard error, its CPU time, then (built) the folder as a tar stream
 BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || tar -cf - . || s=125; exit $s'
 _TIME = re.compile(r"(\d+)m([\d.]+)s")
