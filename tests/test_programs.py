@@ -16,7 +16,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from service.programs import BuildStep, Limits, ProgramRun, Reason, SandboxMissing, build_program, run_program
+from service.programs import (
+    BuildStep,
+    Limits,
+    ProgramRun,
+    Reason,
+    SandboxUnavailable,
+    build_program,
+    check_sandbox,
+    run_program,
+)
 from service.programs.sandbox import UID_BASE, UID_SPAN
 
 #: a small PNG writer every test program starts with: write_png(path) writes a 4×3 red image
@@ -57,14 +66,18 @@ def run(course: Path, body: str, limits: Limits = QUICK, sandbox: bool = True):
                                   course / "scenes" / "spheres.json", limits, sandbox))
 
 
-def left_running(word: str) -> list[str]:
+def left_running(word: str | None = None) -> list[str]:
     """The processes on the machine whose command line holds ``word``, or that run as a sandbox's user, not
     counting zombies: the sandbox's first process, once dead, is not reaped by bubblewrap but by the
     machine's init, a moment later (a zombie runs nothing and holds no memory)."""
     ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
-    return [line for line in ps.splitlines()
-            if not line.split()[1].startswith("Z")
-            and ((word in line and "ps -eo" not in line) or UID_BASE <= int(line.split()[0]) < UID_BASE + UID_SPAN)]
+    left = []
+    for line in ps.splitlines():
+        uid, stat, args = line.split(None, 2)
+        sandboxed = UID_BASE <= int(uid) < UID_BASE + UID_SPAN
+        if not stat.startswith("Z") and (sandboxed or (word is not None and word in args and "ps -eo" not in args)):
+            left.append(line)
+    return left
 
 
 def runs_on_disk() -> set[str]:
@@ -77,7 +90,7 @@ def nothing_left():
     before = runs_on_disk()
     yield
     assert runs_on_disk() <= before
-    assert left_running("render.py") == []
+    assert left_running() == []
 
 
 def test_an_honest_program_renders_its_scene(course):
@@ -253,7 +266,7 @@ def test_a_folder_larger_than_the_limit_is_not_run(course):
 
 def test_without_bubblewrap_only_an_unsandboxed_run_goes_on(course, monkeypatch):
     monkeypatch.setattr(shutil, "which", lambda name: None)
-    with pytest.raises(SandboxMissing, match="--no-sandbox"):
+    with pytest.raises(SandboxUnavailable, match="--no-sandbox"):
         run(course, "write_png(output)\n")
     outcome = run(course, "write_png(output)\n", sandbox=False)
     assert outcome.reason is Reason.OK and "without a sandbox" in (outcome.warning or "")
@@ -292,3 +305,29 @@ def test_a_program_writes_only_its_own_folders(course):
     assert outcome.reason is Reason.OK
     wrote = {line.split()[1] for line in outcome.stderr_tail.splitlines() if line.startswith("WROTE")}
     assert wrote == {"/tmp/x", "/dev/shm/x", "x"}
+
+
+def test_a_sandbox_that_cannot_start_stops_the_batch_with_bubblewraps_words(course, monkeypatch):
+    folder = Path(tempfile.mkdtemp(prefix="fake-bwrap-"))  # (one the sandbox's user can run a program from)
+    folder.chmod(0o755)
+    fake = folder / "bwrap"
+    fake.write_text("#!/bin/sh\necho 'bwrap: No permissions to create new namespace' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setattr("service.programs.runner.find_bwrap", lambda: str(fake))
+    with pytest.raises(SandboxUnavailable, match="cannot start here: bwrap: No permissions"):
+        run(course, "write_png(output)\n")
+    with pytest.raises(SandboxUnavailable, match="cannot start here"):
+        check_sandbox()
+    shutil.rmtree(folder)
+
+
+def test_check_sandbox_passes_where_bubblewrap_works():
+    check_sandbox()
+
+
+def test_a_program_cannot_pass_for_a_sandbox_that_did_not_start(course):
+    outcome = run(course, """\
+        print("bwrap: No permissions to create new namespace", file=sys.stderr)
+        sys.exit(1)
+        """)
+    assert outcome.reason is Reason.CRASHED and outcome.detail == "crashed (exit 1)"

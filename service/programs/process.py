@@ -144,7 +144,12 @@ def run_command(command: Command) -> Finished:
     """Run ``command`` to its end (or the parent's kill), and say how it ended.  The command's process group
     is killed once it has ended, before it is reaped (``WNOWAIT``), so that its id cannot have been reused."""
     start = time.monotonic()
-    proc = _start(command)
+    try:
+        proc = _start(command)
+    except BaseException:
+        if command.info is not None:
+            os.close(command.info[0])
+        raise
     stop, timed_out = threading.Event(), threading.Event()
     head, tail = _Head(command.stdout_bytes, stop), _Tail(command.stderr_bytes)
     assert proc.stdout is not None and proc.stderr is not None

@@ -4,7 +4,7 @@ Each run gets a temporary folder of its own on the machine, removed when the run
 private copy of the student's folder (:mod:`service.programs.folder`), a copy of the scene, and the empty
 output file.  The sandbox (:mod:`service.programs.sandbox`) shows the program those and the system's
 programs, nothing else; the limits (:class:`~service.programs.limits.Limits`) bound what it uses.  Without
-bubblewrap, a run stops with :class:`~service.programs.sandbox.SandboxMissing` unless it was asked to run
+bubblewrap, a run stops with :class:`~service.programs.sandbox.SandboxUnavailable` unless it was asked to run
 unsandboxed, and then every outcome carries a warning.
 """
 
@@ -26,7 +26,7 @@ from .limits import Limits
 from .outcome import Reason, RunOutcome, failure
 from .process import Command, Finished, run_command
 from .sandbox import ENVIRONMENT, OUTPUT, SCENE_DIR, UNSANDBOXED, Mounts, as_user, bwrap_argv, find_bwrap, sandbox_uid
-from .scripts import BUILD, RUN, script, split_times
+from .scripts import BUILD, BUILD_IN_PLACE, RUN, not_started, script, split_times
 
 
 def command_argv(template: str, scene: str = "", output: str = "") -> list[str]:
@@ -101,18 +101,37 @@ def _prepare(root: Path, folder: Path, scene: Path | None, limits: Limits) -> Mo
                   output)
 
 
-def _command(mounts: Mounts, limits: Limits, sandbox: bool, words: list[str],
-             uid: int, body: str) -> Command:
-    prefix = [*limits.prlimit_argv(), *as_user(uid)]
-    shell = ["/bin/sh", "-c", script(body, sandbox), "sh", *words]
-    if sandbox:
-        info = os.pipe()
-        argv = [*prefix, *bwrap_argv(find_bwrap(), mounts, limits), "--info-fd", str(info[1]), *shell]
-        return Command(argv, "/", {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}, limits.wall_seconds,
-                       limits.workdir_bytes, limits.stderr_bytes, info)
-    env = {**ENVIRONMENT, "HOME": str(mounts.submission)}
-    return Command([*prefix, *shell], str(mounts.submission), env, limits.wall_seconds, limits.workdir_bytes,
-                   limits.stderr_bytes)
+@dataclass(frozen=True)
+class _Session:
+    """One sandboxed (or not) command in its run folder: what it is given and how it is limited."""
+
+    mounts: Mounts
+    limits: Limits
+    sandbox: bool
+    uid: int
+
+
+def _command(session: _Session, words: list[str], body: str) -> Command:
+    limits = session.limits
+    prefix = [*limits.prlimit_argv(), *as_user(session.uid)]
+    shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
+    if not session.sandbox:
+        env = {**ENVIRONMENT, "HOME": str(session.mounts.submission)}
+        return Command([*prefix, *shell], str(session.mounts.submission), env, limits.wall_seconds,
+                       limits.workdir_bytes, limits.stderr_bytes)
+    bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
+    info = os.pipe()
+    return Command([*prefix, *bwrap, "--info-fd", str(info[1]), *shell], "/",
+                   {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}, limits.wall_seconds, limits.workdir_bytes,
+                   limits.stderr_bytes, info)
+
+
+def _execute(session: _Session, words: list[str], body: str) -> Finished:
+    """Run the command; :class:`SandboxUnavailable` when the sandbox could not even start."""
+    finished = run_command(_command(session, words, body))
+    if session.sandbox:
+        not_started(finished)
+    return finished
 
 
 def _outcome(reason: Reason, detail: str, finished: Finished | None, warning: str | None,
@@ -137,55 +156,63 @@ def _read_output(path: Path, limits: Limits) -> tuple[Reason, str, bytes | None]
     return Reason.OK, "ok", data
 
 
-def run_program(run: ProgramRun) -> RunOutcome:
-    """Run the program once on its scene, and say how it went (its image when it wrote one).
-    :class:`~service.programs.sandbox.SandboxMissing` when it should be sandboxed and bubblewrap is missing."""
-    if run.sandbox:
+@contextmanager
+def _session(folder: Path, scene: Path | None, limits: Limits, sandbox: bool) -> Iterator[_Session]:
+    """The run's folder (removed when the run ends, however it ends), given to the run's user.
+    :class:`FolderTooLarge` when the student's folder is over the limit; :class:`SandboxUnavailable` when the
+    run is to be sandboxed and bubblewrap is missing."""
+    if sandbox:
         find_bwrap()
-    warning = None if run.sandbox else UNSANDBOXED
     uid = sandbox_uid()
     with _scratch() as root:
-        try:
-            mounts = _prepare(root, run.folder, run.scene, run.limits)
-        except FolderTooLarge as exc:
-            return _outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning)
-        scene = f"{SCENE_DIR}/{run.scene.name}" if run.sandbox else str(root / "scene.json")
-        output = OUTPUT if run.sandbox else str(mounts.output)
+        mounts = _prepare(root, folder, scene, limits)
         chown_tree(root, uid)
-        words = command_argv(run.command, scene, output)
-        finished = run_command(_command(mounts, run.limits, run.sandbox, words, uid, RUN))
-        failed = failure(finished, run.limits)
-        if failed is not None:
-            return _outcome(*failed, finished, warning)
-        reason, detail, image = _read_output(mounts.output, run.limits)
-        return _outcome(reason, detail, finished, warning, image)
+        yield _Session(mounts, limits, sandbox, uid)
+
+
+def run_program(run: ProgramRun) -> RunOutcome:
+    """Run the program once on its scene, and say how it went (its image when it wrote one).
+    :class:`SandboxUnavailable` when it is to be sandboxed and the sandbox is missing or cannot start."""
+    warning = None if run.sandbox else UNSANDBOXED
+    try:
+        with _session(run.folder, run.scene, run.limits, run.sandbox) as session:
+            scene = f"{SCENE_DIR}/{run.scene.name}" if run.sandbox else str(session.mounts.scene)
+            output = OUTPUT if run.sandbox else str(session.mounts.output)
+            finished = _execute(session, command_argv(run.command, scene, output), RUN)
+            failed = failure(finished, run.limits)
+            if failed is not None:
+                return _outcome(*failed, finished, warning)
+            reason, detail, image = _read_output(session.mounts.output, run.limits)
+            return _outcome(reason, detail, finished, warning, image)
+    except FolderTooLarge as exc:
+        return _outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning)
 
 
 def build_program(step: BuildStep, into: Path) -> Built:
-    """Build the program once, its result unpacked into the empty folder ``into`` (which the caller owns and
-    removes); the runs then use it as their folder."""
-    if step.sandbox:
-        find_bwrap()
+    """Build the program once, its result put into the empty folder ``into`` (which the caller owns and
+    removes): the runs then use it as their folder.  :class:`SandboxUnavailable` as for :func:`run_program`."""
     warning = None if step.sandbox else UNSANDBOXED
-    uid = sandbox_uid()
-    with _scratch() as root:
-        try:
-            mounts = _prepare(root, step.folder, None, step.limits)
-        except FolderTooLarge as exc:
-            return Built(_outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning), None)
-        chown_tree(root, uid)
-        words = command_argv(step.command)
-        finished = run_command(_command(mounts, step.limits, step.sandbox, words, uid, BUILD))
-        failed = failure(finished, step.limits)
-        if finished.stdout_overflow:
-            failed = Reason.FOLDER_TOO_LARGE, "the built folder is larger than the limit"
-        if failed is not None:
-            return Built(_outcome(*failed, finished, warning), None)
-        try:
+    try:
+        with _session(step.folder, None, step.limits, step.sandbox) as session:
+            finished = _execute(session, command_argv(step.command), BUILD if step.sandbox else BUILD_IN_PLACE)
+            failed = failure(finished, step.limits)
+            if finished.stdout_overflow:
+                failed = Reason.FOLDER_TOO_LARGE, "the built folder is larger than the limit"
+            if failed is not None:
+                return Built(_outcome(*failed, finished, warning), None)
             if step.sandbox:
                 unpack(finished.stdout, into, step.limits.workdir_bytes)
             else:
-                copy_folder(mounts.submission, into, step.limits.workdir_bytes)
-        except FolderTooLarge as exc:
-            return Built(_outcome(Reason.FOLDER_TOO_LARGE, str(exc), finished, warning), None)
-        return Built(_outcome(Reason.OK, "built", finished, warning), into)
+                copy_folder(session.mounts.submission, into, step.limits.workdir_bytes)
+            return Built(_outcome(Reason.OK, "built", finished, warning), into)
+    except FolderTooLarge as exc:
+        return Built(_outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning), None)
+
+
+def check_sandbox() -> None:
+    """Start one sandbox that runs ``true``: :class:`SandboxUnavailable`, with bubblewrap's own words, where
+    it cannot (bubblewrap missing, or user namespaces not allowed, as in a container without the right),
+    so that a batch can stop before its first student rather than fail each."""
+    with tempfile.TemporaryDirectory(prefix="phongray-check-") as empty:
+        Path(empty, "scene.json").write_text("{}")
+        run_program(ProgramRun(Path(empty), "true", Path(empty, "scene.json"), Limits(wall_seconds=30.0)))

@@ -40,8 +40,8 @@ ENVIRONMENT = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": HOME, "LANG": "C.
 UID_BASE, UID_SPAN = 1_900_000_000, 100_000_000
 
 
-class SandboxMissing(Exception):
-    """bubblewrap is not installed, and the run was not explicitly unsandboxed."""
+class SandboxUnavailable(Exception):
+    """A run is to be sandboxed and cannot be: bubblewrap is not installed, or cannot start a sandbox here."""
 
 
 MISSING = ("bubblewrap (bwrap) is not installed, and students' programs only run in its sandbox: install it "
@@ -51,10 +51,10 @@ UNSANDBOXED = ("WARNING: run without a sandbox: the program could read and write
 
 
 def find_bwrap() -> str:
-    """The path of ``bwrap``; :class:`SandboxMissing` when there is none."""
+    """The path of ``bwrap``; :class:`SandboxUnavailable` when there is none."""
     found = shutil.which("bwrap")
     if found is None:
-        raise SandboxMissing(MISSING)
+        raise SandboxUnavailable(MISSING)
     return found
 
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import re
 
-from .sandbox import SUBMISSION
+from .process import Finished
+from .sandbox import SUBMISSION, SandboxUnavailable
 
 MARK = "--- phongray: CPU time of the program ---"
 _REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
@@ -24,11 +25,26 @@ FILL = f"cp -R {SUBMISSION}/. . || exit 125; "
 RUN = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
 #: a build: the command with its output on standard error, its CPU time, then (built) the folder as a tar stream
 BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || tar -cf - . || s=125; exit $s'
+#: a build without a sandbox, in the run's folder on the machine (copied from there)
+BUILD_IN_PLACE = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
+#: how the commands before the student's own fail, in their own words, when the sandbox cannot start
+SETUP_FAILURES = ("bwrap:", "prlimit:", "setpriv:")
 _TIME = re.compile(r"(\d+)m([\d.]+)s")
 
 
 def script(body: str, sandboxed: bool) -> str:
     return (FILL if sandboxed else "") + body
+
+
+def not_started(finished: Finished) -> None:
+    """:class:`SandboxUnavailable` when the sandbox never started the student's command: bubblewrap (or the
+    commands before it) exited with an error of its own (1, or 126/127 for a command it could not run), and
+    the shell never reported.  A program cannot make its run look like that: the shell reports unless it is
+    killed, and then the run ends with a status above 128 or by a signal."""
+    text = finished.stderr_tail.decode("utf-8", "replace").strip()
+    code = finished.exit_code
+    if code is not None and 0 < code <= 128 and MARK not in text and text.startswith(SETUP_FAILURES):
+        raise SandboxUnavailable(f"the sandbox cannot start here: {text.splitlines()[-1]}")
 
 
 def split_times(stderr: bytes, seen: float) -> tuple[str, float]:
