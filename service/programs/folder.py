@@ -18,6 +18,9 @@ from ..submissions import Folder, UntrustedFileError
 
 #: how deep a student's folders are followed (deeper ones are skipped, as links are)
 MAX_DEPTH = 32
+#: bytes each file or folder counts for besides its content (a tar header's size), so that a folder of a
+#: million empty files is over the limit too
+ENTRY_BYTES = 512
 
 
 class FolderTooLarge(Exception):
@@ -29,7 +32,7 @@ class _Budget:
         self.left = limit
 
     def take(self, size: int) -> None:
-        self.left -= size
+        self.left -= size + ENTRY_BYTES
         if self.left < 0:
             raise FolderTooLarge("the student's folder is larger than the limit")
 
@@ -41,15 +44,26 @@ def _write_new(path: Path, data: bytes) -> None:
         f.write(data)
 
 
+def _mode(source: Folder, name: str) -> int:
+    """The copy's mode: executable (by its owner only) when the student's file is."""
+    try:
+        executable = os.stat(name, dir_fd=source.fd, follow_symlinks=False).st_mode & 0o111
+    except OSError:
+        executable = 0
+    return 0o700 if executable else 0o600
+
+
 def _copy(source: Folder, target: Path, budget: _Budget, depth: int) -> None:
-    for entry in source.entries():
+    try:
+        entries = source.entries()
+    except OSError:  # (a folder that cannot be listed is copied empty)
+        return
+    for entry in entries:
         if entry.link:
             continue
         if entry.folder:
             if depth < MAX_DEPTH:
-                (target / entry.name).mkdir(mode=0o700)
-                with source.sub(entry.name) as sub:
-                    _copy(sub, target / entry.name, budget, depth + 1)
+                _copy_folder(source, entry.name, target, budget, depth)
             continue
         try:
             data = source.read(entry.name, max(budget.left, 0))
@@ -59,8 +73,19 @@ def _copy(source: Folder, target: Path, budget: _Budget, depth: int) -> None:
             continue  # a FIFO, a device, a file that cannot be read: not part of the program
         budget.take(len(data))
         _write_new(target / entry.name, data)
-        mode = os.stat(entry.name, dir_fd=source.fd, follow_symlinks=False).st_mode
-        os.chmod(target / entry.name, 0o700 if mode & 0o111 else 0o600)
+        os.chmod(target / entry.name, _mode(source, entry.name))
+
+
+def _copy_folder(source: Folder, name: str, target: Path, budget: _Budget, depth: int) -> None:
+    """Copy the folder ``name`` of ``source``; one that cannot be opened (or is a link now) is left out."""
+    try:
+        sub = source.sub(name)
+    except OSError:
+        return
+    with sub:
+        budget.take(0)
+        (target / name).mkdir(mode=0o700)
+        _copy(sub, target / name, budget, depth + 1)
 
 
 def copy_folder(student: Path, target: Path, limit: int) -> None:
@@ -89,16 +114,22 @@ def unpack(stream: bytes, target: Path, limit: int) -> None:
             name = _safe_name(member.name)
             if name is None or not (member.isdir() or member.isreg()):
                 continue
-            path = target / name
-            os.makedirs(path.parent, mode=0o700, exist_ok=True)  # (only folders are ever made in target)
-            if member.isdir():
-                os.makedirs(path, mode=0o700, exist_ok=True)
+            budget.take(member.size if member.isreg() else 0)
+            try:
+                _unpack_member(tar, member, target / name)
+            except OSError:  # (a name that is both a file and a folder in the stream: the first one stays)
                 continue
-            budget.take(member.size)
-            extracted = tar.extractfile(member)
-            if extracted is not None and not path.exists():
-                _write_new(path, extracted.read())
-                os.chmod(path, 0o700 if member.mode & 0o111 else 0o600)
+
+
+def _unpack_member(tar: tarfile.TarFile, member: tarfile.TarInfo, path: Path) -> None:
+    os.makedirs(path.parent, mode=0o700, exist_ok=True)  # (only folders and regular files are made in target)
+    if member.isdir():
+        os.makedirs(path, mode=0o700, exist_ok=True)
+        return
+    extracted = tar.extractfile(member)
+    if extracted is not None:
+        _write_new(path, extracted.read())
+        os.chmod(path, 0o700 if member.mode & 0o111 else 0o600)
 
 
 def chown_tree(root: Path, uid: int) -> None:

@@ -19,6 +19,7 @@ import numpy as np
 
 from .limits import Limits
 from .process import Finished
+from .scripts import split_times
 
 
 class Reason(StrEnum):
@@ -89,8 +90,8 @@ def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     code = finished.exit_code
     if sig is None and code == 0:
         return None
-    tail = finished.stderr_tail.decode("utf-8", "replace")
-    if sig == signal.SIGXCPU or (sig == signal.SIGKILL and finished.cpu_seconds >= limits.cpu_seconds):
+    tail, cpu = split_times(finished.stderr_tail, finished.cpu_seconds)
+    if sig == signal.SIGXCPU or (sig == signal.SIGKILL and cpu >= limits.cpu_seconds):
         return Reason.CPU_TIME, f"used the CPU-time limit of {limits.cpu_seconds} s; killed"
     if sig == signal.SIGXFSZ or any(word in tail for word in FILE_SIZE_WORDS):
         return Reason.OUTPUT_TOO_LARGE, f"wrote more than the output limit of {limits.output_bytes} bytes"
