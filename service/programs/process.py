@@ -140,9 +140,56 @@ def _await_teardown(pidfd: int | None) -> None:
         os.close(pidfd)
 
 
+class _Group:
+    """The command's process group, killed at most until it is reaped (so never a group that reused its id)."""
+
+    def __init__(self, pid: int):
+        self.pid, self.lock, self.reaped = pid, threading.Lock(), False
+
+    def kill(self) -> None:
+        with self.lock:
+            if not self.reaped:
+                _kill(self.pid)
+
+    def reap(self) -> tuple[int, float]:
+        """Kill what is left of the group and reap the command, once it has ended: its wait status and the
+        CPU time it and the processes it reaped used."""
+        os.waitid(os.P_PID, self.pid, os.WEXITED | os.WNOWAIT)
+        with self.lock:
+            _kill(self.pid)
+            _, status, usage = os.wait4(self.pid, 0)
+            self.reaped = True
+        return status, usage.ru_utime + usage.ru_stime
+
+
+def _watch(group: _Group, head: _Head, stop: threading.Event, wall: float) -> threading.Event:
+    """Kill the group at the wall-time limit (the event returned is then set) or once ``head`` overflows."""
+    timed_out = threading.Event()
+
+    def watch() -> None:
+        if not stop.wait(wall):
+            timed_out.set()
+            group.kill()
+        elif head.overflowed:
+            group.kill()
+
+    threading.Thread(target=watch, daemon=True).start()
+    return timed_out
+
+
+def _read(proc: subprocess.Popen[bytes], head: _Head, tail: _Tail) -> list[threading.Thread]:
+    assert proc.stdout is not None and proc.stderr is not None
+    readers = [threading.Thread(target=head.read, args=(proc.stdout,), daemon=True),
+               threading.Thread(target=tail.read, args=(proc.stderr,), daemon=True)]
+    for reader in readers:
+        reader.start()
+    return readers
+
+
 def run_command(command: Command) -> Finished:
-    """Run ``command`` to its end (or the parent's kill), and say how it ended.  The command's process group
-    is killed once it has ended, before it is reaped (``WNOWAIT``), so that its id cannot have been reused."""
+    """Run ``command`` to its end (or the parent's kill), and say how it ended; when it is a sandbox, wait
+    until every process in it has ended too.  Its process group is killed once it has ended, before it is
+    reaped, so that the group's id cannot have been reused."""
     start = time.monotonic()
     try:
         proc = _start(command)
@@ -150,34 +197,22 @@ def run_command(command: Command) -> Finished:
         if command.info is not None:
             os.close(command.info[0])
         raise
-    stop, timed_out = threading.Event(), threading.Event()
-    head, tail = _Head(command.stdout_bytes, stop), _Tail(command.stderr_bytes)
-    assert proc.stdout is not None and proc.stderr is not None
-    readers = [threading.Thread(target=head.read, args=(proc.stdout,), daemon=True),
-               threading.Thread(target=tail.read, args=(proc.stderr,), daemon=True)]
-    for reader in readers:
-        reader.start()
-
-    def watch() -> None:
-        if not stop.wait(command.wall_seconds):
-            timed_out.set()
-            _kill(proc.pid)
-        elif head.overflowed:
-            _kill(proc.pid)
-
-    threading.Thread(target=watch, daemon=True).start()
+    stop = threading.Event()
+    head, tail, group = _Head(command.stdout_bytes, stop), _Tail(command.stderr_bytes), _Group(proc.pid)
+    readers = _read(proc, head, tail)
+    timed_out = _watch(group, head, stop, command.wall_seconds)
     pidfd = None
     try:
         pidfd = _sandbox_pidfd(command.info)
-        os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
+    except BaseException:
+        group.kill()
+        raise
     finally:
-        _kill(proc.pid)  # (whatever is left of the group, on an exception too)
-        _, status, usage = os.wait4(proc.pid, 0)
+        status, cpu = group.reap()
         proc.returncode = os.waitstatus_to_exitcode(status)
         stop.set()
         _await_teardown(pidfd)
     wall = time.monotonic() - start
     for reader in readers:
         reader.join(DRAIN_SECONDS)
-    return Finished(status, timed_out.is_set(), head.overflowed, b"".join(head.parts), tail.data, wall,
-                    usage.ru_utime + usage.ru_stime)
+    return Finished(status, timed_out.is_set(), head.overflowed, b"".join(head.parts), tail.data, wall, cpu)
