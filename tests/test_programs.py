@@ -331,3 +331,17 @@ def test_a_program_cannot_pass_for_a_sandbox_that_did_not_start(course):
         sys.exit(1)
         """)
     assert outcome.reason is Reason.CRASHED and outcome.detail == "crashed (exit 1)"
+
+
+@pytest.mark.parametrize(("command", "error"), [("python3 'render.py {scene} {output}", "No closing quotation"),
+                                                 ("python3 render.py {scene}", "names no {output}"),
+                                                 ("", "the command is empty")])
+def test_a_command_template_that_cannot_run_is_refused_before_any_run(course, command, error):
+    with pytest.raises(ValueError, match=error):
+        ProgramRun(course / "subs" / "ann", command, course / "scenes" / "spheres.json")
+
+
+@pytest.mark.parametrize(("command", "error"), [("make 'all", "No closing quotation"), ("", "the command is empty")])
+def test_a_build_command_that_cannot_run_is_refused(course, command, error):
+    with pytest.raises(ValueError, match=error):
+        BuildStep(course / "subs" / "ann", command)

@@ -52,6 +52,12 @@ class ProgramRun:
     limits: Limits = field(default_factory=Limits)
     sandbox: bool = True
 
+    def __post_init__(self) -> None:
+        """ValueError, with the template, for a command that cannot be split or names no ``{output}``."""
+        command_argv(self.command)
+        if "{output}" not in self.command:
+            raise ValueError(f"command {self.command!r}: it names no {{output}}, the file the program writes")
+
 
 @dataclass(frozen=True)
 class BuildStep:
@@ -61,6 +67,9 @@ class BuildStep:
     command: str
     limits: Limits = field(default_factory=Limits)
     sandbox: bool = True
+
+    def __post_init__(self) -> None:
+        command_argv(self.command)
 
 
 @dataclass(frozen=True)
@@ -215,4 +224,4 @@ def check_sandbox() -> None:
     so that a batch can stop before its first student rather than fail each."""
     with tempfile.TemporaryDirectory(prefix="phongray-check-") as empty:
         Path(empty, "scene.json").write_text("{}")
-        run_program(ProgramRun(Path(empty), "true", Path(empty, "scene.json"), Limits(wall_seconds=30.0)))
+        run_program(ProgramRun(Path(empty), "true {output}", Path(empty, "scene.json"), Limits(wall_seconds=30.0)))
