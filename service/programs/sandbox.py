@@ -4,8 +4,8 @@ Inside the sandbox a program sees, read-only, the system's programs and librarie
 or folders ``/bin``, ``/lib``, ... beside it) and of ``/etc`` only what programs need to start (the dynamic
 linker's cache and configuration, the ``alternatives`` links); ``/proc`` of its own processes, a minimal
 ``/dev`` (read-only but for its devices), and three size-limited tmpfs folders, the only places it can write
-files: ``/tmp``, ``/dev/shm`` and its working folder ``/home/student``, filled with
-a copy of its private copy of the student's folder (bound read-only at ``/submission``).  Its one scene is
+files: ``/tmp``, ``/dev/shm`` and its working folder ``/home/student``, which the sandbox's shell first fills
+from the run's private copy of the student's folder (bound read-only at ``/submission``).  Its one scene is
 ``/scene/<name>``, read-only, and its output the one file ``/out/output.png``, which exists and is the only
 file of the machine it can write to.  There is no network (an empty network namespace: not even the
 loopback of the host), no other process of the machine, no home or work folder, nothing of the TA's
