@@ -165,7 +165,10 @@ def test_an_endless_loop_is_stopped_at_the_wall_time_limit(course):
 def test_a_loop_is_stopped_at_the_cpu_time_limit(course):
     outcome = run(course, "while True: pass\n", Limits(wall_seconds=60.0, cpu_seconds=1))
     assert outcome.reason is Reason.CPU_TIME
-    assert outcome.cpu_seconds >= 0.99  # (the sandbox's report: the kernel stopped it at 1 s, shown to 0.01 s)
+    # the time comes from the sandbox's report (the parent's own wait4 sees almost none of it: bubblewrap does
+    # not reap the sandbox); the kernel's accounting of the limit and the shell's `times` differ by ticks, so
+    # the test asks for most of the second, which without the report would read a few milliseconds
+    assert outcome.cpu_seconds > 0.5
 
 
 def test_the_process_limit_bites(course):
