@@ -121,14 +121,15 @@ PLAIN = _plain()
 
 @pytest.mark.parametrize("case", sorted(PLAIN))
 def test_a_variant_the_scene_cannot_show_renders_as_the_reference(case):
-    from tracer.variants import BOUNDS, unchanged
+    from tracer.variants import BOUNDS, MORE_VARIANTS, unchanged
 
     scene = schemas.validate_scene(PLAIN[case])
     reference = Renderer(scene).pixels()
-    said = [name for name in [*VARIANTS, *BOUNDS] if unchanged(name, scene)]
+    every = {name: options for name, (options, _) in (VARIANTS | MORE_VARIANTS).items()} | BOUNDS
+    said = [name for name in every if unchanged(name, scene)]
     assert said, f"no rule holds for {case}"
     for name in said:
-        options = VARIANTS[name][0] if name in VARIANTS else BOUNDS[name]
+        options = every[name]
         assert np.array_equal(Renderer(scene, options).pixels(), reference), name
 
 

@@ -302,11 +302,25 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
         scene, lambda m: m.transmittance > 0 and m.ior != 1.0),
     # an offset moves only shadow rays (of a light that is not ambient) and mirror or refracted rays
     "offset-too-large": lambda scene: not _lit(scene) and (scene.image.max_depth == 0 or not _bounces(scene)),
+    # -- of MORE_VARIANTS --
+    # the local colour is multiplied by 1 − k_r = 1 exactly where k_r = 0
+    "reflection-blended": lambda scene: not _materials(scene, lambda m: m.reflectance > 0),
+    # the scene read with samples 1 is the scene
+    "samples-ignored": lambda scene: scene.image.samples == 1,
+    # exponent 0 read for an exponent of 0
+    "spot-exponent-ignored": lambda scene: all(light.exponent == 0 for light in scene.lights if light.type == "spot"),
+    # white read for white
+    "light-colour-ignored": lambda scene: all(tuple(light.color) == (1.0, 1.0, 1.0) for light in scene.lights
+                                              if light.type != "ambient"),
+    # the normal is read only where a refracted ray is spawned
+    "exit-normal-not-flipped": lambda scene: scene.image.max_depth == 0 or not _materials(
+        scene, lambda m: m.transmittance > 0),
 }
 
 
 def unchanged(name: str, scene: Any) -> bool:
-    """Whether variant ``name`` (of :data:`VARIANTS`, or its far end in :data:`BOUNDS`) renders ``scene`` exactly
-    as the reference does, by the rules of :data:`UNCHANGED` (a variant without a rule: False)."""
+    """Whether variant ``name`` (of :data:`VARIANTS` or :data:`MORE_VARIANTS`, or a far end in :data:`BOUNDS`)
+    renders ``scene`` exactly as the reference does, by the rules of :data:`UNCHANGED` (a variant without a rule:
+    False)."""
     rule = UNCHANGED.get(name)
     return bool(rule is not None and rule(scene))
