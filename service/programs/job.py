@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import shutil
 import stat
 import tempfile
 from collections.abc import Callable, Iterator
@@ -29,7 +30,8 @@ from typing import Any
 from .experiment import Thresholds, experiment
 from .limits import Limits
 from .outcome import RunOutcome
-from .runner import BuildStep, ProgramRun, build_program, run_program
+from .runner import BuildStep, ProgramRun, build_program, command_argv, run_program
+from .sandbox import ENVIRONMENT
 
 
 @dataclass(frozen=True)
@@ -43,10 +45,24 @@ class Program:
     sandbox: bool = True
 
     def __post_init__(self) -> None:
-        """ValueError for a command that cannot be run (the TA's mistake, before any student is run)."""
+        """ValueError for a command that cannot be run (the TA's mistake, found before any student is run):
+        one that cannot be split, a run that names no ``{output}``, or a command whose program is a name
+        (not a path into the student's folder) that no folder of the sandbox's ``PATH`` holds."""
         ProgramRun(Path("."), self.run, Path("scene.json"))
         if self.build is not None:
             BuildStep(Path("."), self.build)
+        for command in (self.run, self.build):
+            if command is not None:
+                _installed(command)
+
+
+def _installed(command: str) -> None:
+    """The command's program, when a bare name (``python3``, ``make``), is in the sandbox's ``PATH``: the
+    system's ``/usr`` is what a sandboxed program sees, so a name missing here is missing for every student."""
+    first = command_argv(command)[0]
+    if "/" not in first and "{" not in first and shutil.which(first, path=ENVIRONMENT["PATH"]) is None:
+        raise ValueError(f"command {command!r}: no program {first!r} in {ENVIRONMENT['PATH']} (what a student's "
+                         f"program finds in its sandbox); install it, or name it by its path")
 
 
 @dataclass(frozen=True)
@@ -75,17 +91,22 @@ class ProgramJob:
     tasks: tuple[TaskScene, ...]
 
 
+#: how much of the end of a run's output (its standard error) a grade keeps for the TA
+OUTPUT_KEPT = 2000
+
+
 def run_info(outcome: RunOutcome) -> dict[str, Any]:
-    """A run's end as the report keeps it (never its image)."""
-    return {"reason": str(outcome.reason), "detail": outcome.detail, "stderr": outcome.stderr_tail[-2000:],
-            "wall_seconds": round(outcome.wall_seconds, 3), "cpu_seconds": round(outcome.cpu_seconds, 3),
-            "warning": outcome.warning}
+    """A run's end as a grade keeps it, plain values only: ``run`` (its reason's word: ``ok``, ``timeout``,
+    ...), ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold
+    what the program read of a hidden scene), ``run_seconds`` and ``run_warning`` (a run without a sandbox)."""
+    return {"run": str(outcome.reason), "run_output": outcome.stderr_tail[-OUTPUT_KEPT:],
+            "run_seconds": round(outcome.wall_seconds, 3), "run_warning": outcome.warning}
 
 
 def failed_run(outcome: RunOutcome, what: str = "the run") -> dict[str, Any]:
     """The grade of a pair whose run (or build) failed: a failing pair, its reason in words."""
     return {"status": "fail", "passed": False, "reason": f"{what} failed: {outcome.reason}: {outcome.detail}",
-            "diagnosis": None, "run": run_info(outcome)}
+            "diagnosis": None, **run_info(outcome)}
 
 
 def _grade_image(task: TaskScene, image: bytes) -> dict[str, Any]:
@@ -107,16 +128,17 @@ def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunO
 
 
 def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, Any]:
-    """One task: the run, its image graded (with ``image``, the bytes graded, and ``run``, how it went), and a
-    failing one diagnosed by experiment (``experiment``: sentences, the likeliest first)."""
+    """One task: the run, its image graded (with ``image``, the bytes graded, and how the run went:
+    :func:`run_info`), and a failing image diagnosed by experiment (``experiment``: its sentences, the
+    likeliest first, joined by "; "; a run that failed is not asked more).  An image that cannot be read as
+    a PNG is an invalid pair, as an uploaded one is."""
     outcome = run(task.scene)
     if not outcome.ok or outcome.image is None:
-        result = failed_run(outcome)
-    else:
-        result = {**_grade_image(task, outcome.image), "image": outcome.image, "run": run_info(outcome)}
+        return failed_run(outcome)
+    result = {**_grade_image(task, outcome.image), "image": outcome.image, **run_info(outcome)}
     if task.diagnose and result["status"] == "fail":
-        result["experiment"] = experiment(task.scene, outcome.image if outcome.ok else None, run,
-                                          task.thresholds).sentences
+        said = experiment(task.scene, outcome.image, run, task.thresholds).sentences
+        result["experiment"] = "; ".join(said) or None
     return result
 
 
@@ -153,21 +175,21 @@ def digest(folder: Path, program: Program) -> str:
         dirs.sort()
         for name in sorted(files):
             path = Path(root, name)
-            sha.update(f"{path.relative_to(folder)}\0".encode())
             with contextlib.suppress(OSError):
-                left = _hash_file(path, sha, left)
+                left = _hash_file(path, path.relative_to(folder), sha, left)
             if left < 0:
                 return sha.hexdigest()
     return sha.hexdigest()
 
 
-def _hash_file(path: Path, sha: Any, left: int) -> int:
-    """Add a regular file's bytes to ``sha`` (not a link's, a FIFO's or a device's), at most ``left`` + 1 of
-    them; what is left of the budget (negative: over it)."""
+def _hash_file(path: Path, name: Path, sha: Any, left: int) -> int:
+    """Add a regular file's name and bytes to ``sha`` (not a link's, a FIFO's or a device's), at most
+    ``left`` + 1 bytes; what is left of the budget (negative: over it)."""
     fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
     with os.fdopen(fd, "rb") as f:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             return left
+        sha.update(f"{name}\0".encode("utf-8", "surrogateescape"))
         while left >= 0 and (chunk := f.read(1 << 20)):
             sha.update(chunk)
             left -= len(chunk)
