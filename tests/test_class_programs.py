@@ -36,7 +36,8 @@ HOSTILE = {
     "link": 'import os, sys\nif "glass" in sys.argv[1]:\n    os.remove(sys.argv[2])\n'
             '    os.symlink("/etc/passwd", sys.argv[2])\n',
     "snoop": 'import sys\nfor path in ("{scenes}/spot.json", "{scenes}/notes.txt", "{other}/tracer.py",\n'
-             '             "{other}/mistakes.txt"):\n    try:\n        print("LEAK", open(path).read(), file=sys.stderr)\n'
+             '             "{other}/mistakes.txt"):\n    try:\n'
+             '        print("LEAK", open(path).read(), file=sys.stderr)\n'
              '    except OSError as exc:\n        print("refused", exc, file=sys.stderr)\n',
     "network": 'import socket, sys\ntry:\n    socket.create_connection(("127.0.0.1", {port}), timeout=2)\n'
                '    print("LEAK connected", file=sys.stderr)\nexcept OSError as exc:\n'
