@@ -454,7 +454,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             pass
     except OSError as exc:
         raise CliError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}") from None
-    from .server import serve
+    from .http.server import serve
 
     serve(args.host, args.port, args.workers)
     return 0

@@ -16,15 +16,15 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from schemas import Scene
+from service.heatmap import LEGEND
+from service.http.jobs import RenderService
+from service.http.middleware import ApiKey, BodyLimit, Framing
+from service.http.routes import HTTPProblem, SafeJSONResponse, problem_response, router
+from service.settings import Settings
 
-from .heatmap import LEGEND
-from .jobs import RenderService
-from .middleware import ApiKey, BodyLimit, Framing
-from .routes import HTTPProblem, SafeJSONResponse, problem_response, router
-from .settings import Settings
-
-STATIC = Path(__file__).parent / "static"
-EXAMPLE = Path(__file__).parent / "static" / "example.json"
+#: the playground's page and the example scene, shipped as package data of service
+STATIC = Path(__file__).parent.parent / "static"
+EXAMPLE = STATIC / "example.json"
 DOCS_ASSETS = Path(fastapi_offline.__file__).parent / "static"
 #: the docs pages may load nothing from elsewhere: the browser does not even try
 SAME_ORIGIN = ("default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
@@ -34,7 +34,7 @@ SAME_ORIGIN = ("default-src 'self'; script-src 'self' 'unsafe-inline'; style-src
 def examples() -> dict[str, str]:
     """The playground's examples: every scene of the project's examples/ folder ($PHONGRAY_EXAMPLES, the source
     tree's, or ./examples as in the Docker image), else the one scene the package ships."""
-    for folder in (os.environ.get("PHONGRAY_EXAMPLES"), Path(__file__).parent.parent / "examples",
+    for folder in (os.environ.get("PHONGRAY_EXAMPLES"), Path(__file__).parents[2] / "examples",
                    Path.cwd() / "examples"):
         if folder and Path(folder).is_dir():
             found = {p.stem: p.read_text() for p in sorted(Path(folder).glob("*.json"))}

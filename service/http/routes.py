@@ -17,15 +17,24 @@ from starlette.datastructures import UploadFile
 
 from schemas import SceneError, json_schema, validate_scene
 from schemas.locate import located
+from service import grading, pipeline
+from service.heatmap import Kind
+from service.http.jobs import (
+    AnswersFull,
+    Busy,
+    ClusterDown,
+    Job,
+    OutOfMemory,
+    RenderService,
+    TooSlow,
+    parse_counted,
+    prepare,
+)
+from service.http.models import ErrorAnswer, GradeAnswer, ValidAnswer
+from service.limits import LimitError
+from service.passes import PassFile
 from tracer import ImageTooLarge, RenderCancelled, decode_png
 from tracer.memory import release
-
-from . import grading, pipeline
-from .heatmap import Kind
-from .jobs import AnswersFull, Busy, ClusterDown, Job, OutOfMemory, RenderService, TooSlow, parse_counted, prepare
-from .limits import LimitError
-from .models import ErrorAnswer, GradeAnswer, ValidAnswer
-from .passes import PassFile
 
 router = APIRouter()
 T = TypeVar("T")
@@ -34,7 +43,7 @@ T = TypeVar("T")
 DISCONNECT_POLL = 0.25
 
 #: the request example: a real scene of examples/ (the one the package ships), so that "Try it out" renders
-EXAMPLE_TEXT = (Path(__file__).parent / "static" / "example.json").read_text()
+EXAMPLE_TEXT = (Path(__file__).parent.parent / "static" / "example.json").read_text()
 SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {
     "schema": {"$ref": "#/components/schemas/Scene"}, "example": json.loads(EXAMPLE_TEXT)}}}}
 GRADE_BODY = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {

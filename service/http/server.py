@@ -33,9 +33,9 @@ import h11
 import uvicorn
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
-from . import balance
-from .app import create_app
-from .settings import Settings
+from service import balance
+from service.http.app import create_app
+from service.settings import Settings
 
 
 class Protocol(H11Protocol):
@@ -113,7 +113,7 @@ def serve(host: str, port: int, workers: int) -> None:
     the fewest (:mod:`service.balance`)."""
     settings = Settings.from_env()
     with balance.board_for(workers) as board:
-        uvicorn.run("service.server:worker_app", factory=True, host=host, port=port, workers=workers,
+        uvicorn.run("service.http.server:worker_app", factory=True, host=host, port=port, workers=workers,
                     http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
                     limit_concurrency=settings.max_connections,
                     loop="service.balance:balanced_loop" if board is not None else "auto")
