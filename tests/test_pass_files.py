@@ -11,7 +11,7 @@ import schemas
 from service import passes
 from service.cli import PASS_NAMES, main
 from service.http.app import create_app
-from service.http.routes import PassName
+from service.http.routers.render import PassName
 from service.settings import Settings
 from tracer import Renderer, decode_png
 from tracer.image import quantize

@@ -132,7 +132,7 @@ class RenderService:
         the render outgrows its budget (:func:`service.limits.budget`).
 
         Concurrent requests for one scene are joined before they get here (one flight per scene in
-        :mod:`service.routes`), so each scene is rendered once."""
+        :mod:`service.http.waiting`), so each scene is rendered once."""
         cached = self.cache.get(job.key)
         if cached is not None:
             return cached

@@ -60,7 +60,7 @@ class Protocol(H11Protocol):
             transport.abort()
 
         async def with_abort(scope: Any, receive: Any, send: Any) -> None:
-            # an answer's sender may drop a client that does not read (service.routes.Streamed): the connection
+            # an answer's sender may drop a client that does not read (service.http.waiting.Streamed): the connection
             # is reset and what is queued for it let go, where close() would wait for the client
             scope["phongray.abort"] = drop
             await app(scope, receive, send)
