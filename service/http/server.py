@@ -7,7 +7,7 @@
 * A deadline for the request line and headers (``header_timeout``): uvicorn
   waits for them forever, so a client trickling a header byte a second would
   hold its connection open for as long as it likes.  (The body's deadline is in
-  :class:`service.middleware.BodyLimit`; idle kept-alive connections are closed
+  :class:`service.http.middleware.BodyLimit`; idle kept-alive connections are closed
   by uvicorn after ``keep_alive``; ``max_connections`` is uvicorn's
   ``limit_concurrency``.)
 * With several workers, each connection goes to the worker holding the

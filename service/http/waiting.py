@@ -165,7 +165,7 @@ async def _left(receive: Any) -> bool:
 
 async def _drop(scope: Any) -> None:
     """Close a connection whose client does not read, dropping what is queued for it (``phongray.abort``, set by
-    :class:`service.server.Protocol`); where there is no such hook, by failing the answer."""
+    :class:`service.http.server.Protocol`); where there is no such hook, by failing the answer."""
     abort = scope.get("phongray.abort")
     if abort is None:
         raise Gone("the client did not read the answer within send_timeout")
