@@ -92,13 +92,13 @@ class Checks:
 def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
             threads: int | None = None, cancel: Callable[[], bool] | None = None,
             checks: Checks = Checks(), cache: Any = None) -> Graded:
-    """``graded`` passed against an accepted variant (:mod:`service.accepting`), or else with the diagnosis of
+    """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the diagnosis of
     a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic mistake and its
     passes, cached by canonical scene (in ``cache``, a :class:`service.diagnosis.Cached`: this process's by
     default), compared with the submission.  A passing grade comes back as it is."""
     if graded.grade.passed:
         return graded
-    from .accepting import Failing, accept
+    from .diagnosis.accepting import Failing, accept
 
     found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, threads, cancel)
     if found_variant is not None:

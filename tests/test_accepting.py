@@ -14,7 +14,8 @@ import pytest
 import student
 
 from schemas import load_scene
-from service import accepting, pipeline
+from service import pipeline
+from service.diagnosis import accepting
 from service.grading import grade
 from service.submissions import ClassError
 from service.taskfile import load_tasks
