@@ -23,7 +23,7 @@ from .cache import RenderCache
 from .diagnosis import Cached, unavailable
 from .limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
 from .passes import Format, PassFile
-from .pipeline import Graded, explain, with_overrides
+from .pipeline import Graded, Run, explain, with_overrides
 from .rendering import render_pixels
 from .scenekey import scene_key
 from .settings import Settings
@@ -224,8 +224,8 @@ class RenderService:
 
                     return run(self._client(), explain_task, job.scene.model_dump_json().encode(), graded,
                                reference, submitted, self.settings.render_timeout, cancelled=stop)
-                return explain(job.scene, graded, reference, submitted, self.threads, cancel=stop,
-                               cache=self.diagnoses)
+                return explain(job.scene, graded, reference, submitted,
+                               run=Run(self.threads, cancel=stop, cache=self.diagnoses))
         except Busy:
             return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
         except MemoryError:
@@ -267,6 +267,7 @@ def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted:
 
     deadline = time.monotonic() + seconds
     try:
-        return explain(load_scene(scene), graded, reference, submitted, 1, cancel=lambda: time.monotonic() > deadline)
+        return explain(load_scene(scene), graded, reference, submitted,
+                       run=Run(1, cancel=lambda: time.monotonic() > deadline))
     except RenderCancelled:
         return replace(graded, diagnosis=unavailable(f"its renders ran past the limit render_timeout = {seconds:g} s"))

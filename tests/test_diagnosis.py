@@ -363,7 +363,7 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
 
     from bench.scenes import example
     from service.diagnosis import CACHE
-    from service.pipeline import Graded, explain
+    from service.pipeline import Graded, Run, explain
     from tracer import RenderCancelled
 
     scene = schemas.validate_scene(example("01_three_spheres", 40, 30))
@@ -377,8 +377,8 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
     def run(name, cancel):
         both.wait()
         try:
-            results[name] = explain(scene, Graded(verdict, None), reference, submitted, threads=1,
-                                    cancel=cancel).diagnosis
+            found = explain(scene, Graded(verdict, None), reference, submitted, run=Run(1, cancel)).diagnosis
+            results[name] = None if found is None else found.as_dict()
         except RenderCancelled:
             results[name] = "cancelled"
 
@@ -414,3 +414,20 @@ def test_acnes_far_end_in_bands_is_whole_or_given_up_only_when_too_much_lies_out
             else:
                 assert np.array_equal(banded, whole), (name, enough)
     assert given_up >= 3
+
+
+def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_words():
+    from service.diagnosis import Cause, Diagnosis, Share, Term, headline, unavailable
+
+    found = Diagnosis([Cause("no-shadows", "no shadow rays", 0.3, False)], True, [Term("diffuse", 1, 0.02)],
+                      [Share(0, "sphere", 0.75), Share(-1, "background", 0.25)], [Share(1, "point", 0.5)])
+    assert Diagnosis.from_dict(found.as_dict()) == found
+    assert headline(found) == "no shadow rays (closest)" and headline(None) == ""
+    termed = Diagnosis(terms=[Term("diffuse", 1, 0.02)])
+    assert termed.headline() == "the diffuse of light 1 term is missing (×0.02)"
+    assert termed.sentence() == "Likely: the diffuse of light 1 term is missing (about ×0.02 of the reference's)"
+    assert Diagnosis().headline() == "no known mistake fits"
+    late = unavailable("every render slot is busy")
+    assert late.as_dict() == {"sentence": "No diagnosis: every render slot is busy", "closest": False,
+                              "causes": [], "terms": [], "objects": [], "lights": []}
+    assert Diagnosis.from_dict(late.as_dict()) == late and late.headline() == late.sentence()
