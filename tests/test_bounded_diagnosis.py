@@ -9,7 +9,7 @@ import pytest
 
 import schemas
 from bench.answers import many_lights as bench_scene
-from service.diagnosis import Cached, cache, diagnose, fit, renders_of
+from service.diagnosis import Cached, diagnose, fit, rendered, renders_of
 from service.grading import grade
 from tracer import RenderCancelled, Renderer
 
@@ -58,7 +58,7 @@ def test_the_fit_in_blocks_finds_the_terms_the_one_matrix_finds(monkeypatch):
     verdict = grade(reference, wrong, "")
     whole = diagnose(reference, wrong, verdict, renders_of(scene)).terms
     monkeypatch.setattr(fit, "FIT_MATRIX_BYTES", 0)
-    monkeypatch.setattr(cache, "WHOLE_PASSES_BYTES", 0)
+    monkeypatch.setattr(rendered, "WHOLE_PASSES_BYTES", 0)
     folded = diagnose(reference, wrong, verdict, renders_of(scene)).terms
     assert whole and [(t.name, t.light) for t in folded] == [(t.name, t.light) for t in whole]
     assert np.allclose([t.scale for t in folded], [t.scale for t in whole], rtol=0, atol=1e-6)

@@ -18,15 +18,16 @@ Three kinds of evidence, each from renders of the reference scene:
 Everything here is pure: the renders come in through a :class:`Renders`.  The modules, one concept each:
 :mod:`.records` (what a diagnosis says, and its words), :mod:`.renders` (what it needs rendered),
 :mod:`.causes` (the variants scored, :func:`diagnose`), :mod:`.looks` (variants ruled out from a few rows),
-:mod:`.fit` (the terms out of scale), :mod:`.where` (the objects and lights), :mod:`.cache` (the renders of a
-scene, made when first asked for and kept for the last few scenes) and :mod:`.accepting` (the accepted
-variants a failing image is graded against before it is diagnosed).
+:mod:`.fit` (the terms out of scale), :mod:`.where` (the objects and lights), :mod:`.rendered` (the renders
+of a scene, made when first asked for), :mod:`.cache` (those of the last few scenes, kept) and
+:mod:`.accepting` (the accepted variants a failing image is graded against before it is diagnosed).
 """
 
-from .cache import CACHE, Cached, renders_needed, renders_of
+from .cache import CACHE, Cached
 from .causes import diagnose
 from .looks import sampled_rows
 from .records import Cause, Diagnosis, Share, Term, headline, term_words, unavailable
+from .rendered import renders_needed, renders_of
 from .renders import Renders
 
 __all__ = ["CACHE", "Cached", "Cause", "Diagnosis", "Renders", "Share", "Term", "diagnose", "headline",
