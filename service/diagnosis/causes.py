@@ -52,83 +52,107 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
     out = Diagnosis()
     if verdict.passed:
         return out
-    pixels = submitted.shape[0] * submitted.shape[1]
-
-    # whether a variant with at least ``off`` pixels off (even nearby) cannot pass, or cannot be named the
-    # closest either: decided as the grade and the naming decide them, on the share of the pixels
-    def cannot_pass(off: int) -> bool:
-        return off / pixels > verdict.max_fraction
-
-    def cannot_come_closest(off: int) -> bool:
-        return cannot_pass(off) and off / pixels > CLOSEST_SHARE * verdict.fraction_off_nearby
-
-    scored: list[Cause] = []
-    later: list[str] = []  # variants that cannot pass, but may come closest if none passes
-
-    def score(name: str, beyond: Callable[[int], bool]) -> bool:
-        """Scores variant ``name``, unless its render shows on the way a count of off pixels ``beyond`` says
-        is too many (then False: it cannot pass, or come closest, whichever ``beyond`` decides)."""
-        image = whole_unless_off(name, submitted, verdict, renders, beyond)
-        if image is None:
-            return False
-        if np.array_equal(image, reference):  # the mistake changes nothing in this scene: no evidence
-            return True
-        g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
-        scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
-        return True
-
-    def shown(name: str) -> bool:  # a mistake the scene cannot show is no evidence of anything: not rendered
-        return renders.unchanged is None or not renders.unchanged(name)
-
-    for name in filter(shown, VARIANTS):
-        renders.check()
-        if name in BOUNDS and renders.bound is not None:
-            continue  # (a speckled mistake is scored against its far end below, not by its own render)
-        # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot pass
-        # is scored only if none passes, and then only if it may come closest
-        least = None if name in BOUNDS else off_at_least(name, submitted, verdict, renders, cannot_pass)
-        if (least is not None and cannot_pass(least)) or not score(name, cannot_pass):
-            later.append(name)
-    def score_speckled(name: str, beyond: Callable[[int], bool]) -> bool:
-        """Scores speckled mistake ``name``, unless its far end shows on the way a count of pixels outside that
-        ``beyond`` says is too many (then False, as :func:`score`)."""
-        # the variant's own speckles are one pattern of many: only lying between the reference and the far
-        # end, in speckles, is evidence of the mistake
-        far = bound_unless_outside(name, reference, submitted, verdict, renders, beyond)
-        if far is None:
-            return False
-        outside = speckled(reference, far, submitted, verdict.tolerance)
-        if outside is not None:
-            scored.append(Cause(name, VARIANTS[name][1], outside, outside <= verdict.max_fraction))
-        return True
-
-    later_bounds: list[str] = []  # speckled mistakes that cannot pass, but may come closest if none passes
-    for name in filter(shown, BOUNDS) if renders.bound is not None else ():
-        renders.check()
-        least = outside_at_least(name, reference, submitted, verdict, renders, cannot_pass)
-        if (least is not None and cannot_pass(least)) or not score_speckled(name, cannot_pass):
-            later_bounds.append(name)
-    if not any(c.passes for c in scored):  # then the closest is named: score what may come closest
-        for name in later:
-            renders.check()
-            least = off_at_least(name, submitted, verdict, renders, cannot_come_closest)  # (every row looked at)
-            if least is None or not cannot_come_closest(least):
-                score(name, cannot_come_closest)
-        for name in later_bounds:
-            renders.check()
-            least = outside_at_least(name, reference, submitted, verdict, renders, cannot_come_closest)
-            if least is None or not cannot_come_closest(least):
-                score_speckled(name, cannot_come_closest)
-    scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
-    passing = [c for c in scored if c.passes]
-    if passing:
-        out.causes = passing
-    elif scored and scored[0].fraction_off_nearby <= CLOSEST_SHARE * verdict.fraction_off_nearby:
-        out.causes, out.closest = scored[:1], True
-    if not passing:  # a mistake that explains the image leaves no term to fit
+    scoring = _Scoring(reference, submitted, verdict, renders)
+    later, later_bounds = scoring.first_round()
+    if not any(c.passes for c in scoring.scored):  # then the closest is named: score what may come closest
+        scoring.closest_round(later, later_bounds)
+    out.causes, out.closest = scoring.named()
+    if not any(c.passes for c in out.causes):  # a mistake that explains the image leaves no term to fit
         renders.check()
         out.terms = fit_terms(submitted, renders)
     renders.check()
     out.objects, out.lights = where(reference, submitted, verdict, renders)
     return out
 
+
+class _Scoring:
+    """The classic mistakes of one diagnosis scored against the submission (``scored``), in two rounds: first
+    every mistake that may pass, then, when none does, those that may come closest."""
+
+    def __init__(self, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders):
+        self.reference, self.submitted, self.verdict, self.renders = reference, submitted, verdict, renders
+        self.pixels = submitted.shape[0] * submitted.shape[1]
+        self.scored: list[Cause] = []
+
+    # whether a variant with at least ``off`` pixels off (even nearby) cannot pass, or cannot be named the
+    # closest either: decided as the grade and the naming decide them, on the share of the pixels
+    def cannot_pass(self, off: int) -> bool:
+        return off / self.pixels > self.verdict.max_fraction
+
+    def cannot_come_closest(self, off: int) -> bool:
+        return self.cannot_pass(off) and off / self.pixels > CLOSEST_SHARE * self.verdict.fraction_off_nearby
+
+    def shown(self, name: str) -> bool:  # a mistake the scene cannot show is no evidence of anything: not rendered
+        return self.renders.unchanged is None or not self.renders.unchanged(name)
+
+    def score(self, name: str, beyond: Callable[[int], bool]) -> bool:
+        """Scores variant ``name``, unless its render shows on the way a count of off pixels ``beyond`` says
+        is too many (then False: it cannot pass, or come closest, whichever ``beyond`` decides)."""
+        image = whole_unless_off(name, self.submitted, self.verdict, self.renders, beyond)
+        if image is None:
+            return False
+        if np.array_equal(image, self.reference):  # the mistake changes nothing in this scene: no evidence
+            return True
+        g = grade(image, self.submitted, "", self.verdict.tolerance, self.verdict.max_fraction)
+        self.scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
+        return True
+
+    def score_speckled(self, name: str, beyond: Callable[[int], bool]) -> bool:
+        """Scores speckled mistake ``name``, unless its far end shows on the way a count of pixels outside that
+        ``beyond`` says is too many (then False, as :meth:`score`)."""
+        # the variant's own speckles are one pattern of many: only lying between the reference and the far
+        # end, in speckles, is evidence of the mistake
+        far = bound_unless_outside(name, self.reference, self.submitted, self.verdict, self.renders, beyond)
+        if far is None:
+            return False
+        outside = speckled(self.reference, far, self.submitted, self.verdict.tolerance)
+        if outside is not None:
+            self.scored.append(Cause(name, VARIANTS[name][1], outside, outside <= self.verdict.max_fraction))
+        return True
+
+    def first_round(self) -> tuple[list[str], list[str]]:
+        """Scores every mistake that may pass; gives back those that cannot, but may come closest if none passes:
+        the variants, and the speckled mistakes."""
+        renders, later = self.renders, []
+        for name in filter(self.shown, VARIANTS):
+            renders.check()
+            if name in BOUNDS and renders.bound is not None:
+                continue  # (a speckled mistake is scored against its far end below, not by its own render)
+            # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot
+            # pass is scored only if none passes, and then only if it may come closest
+            least = None if name in BOUNDS else off_at_least(name, self.submitted, self.verdict, renders,
+                                                             self.cannot_pass)
+            if (least is not None and self.cannot_pass(least)) or not self.score(name, self.cannot_pass):
+                later.append(name)
+        later_bounds = []
+        for name in filter(self.shown, BOUNDS) if renders.bound is not None else ():
+            renders.check()
+            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, self.cannot_pass)
+            if (least is not None and self.cannot_pass(least)) or not self.score_speckled(name, self.cannot_pass):
+                later_bounds.append(name)
+        return later, later_bounds
+
+    def closest_round(self, later: list[str], later_bounds: list[str]) -> None:
+        """Scores those of the mistakes put off by :meth:`first_round` that may come closest."""
+        renders, closest = self.renders, self.cannot_come_closest
+        for name in later:
+            renders.check()
+            least = off_at_least(name, self.submitted, self.verdict, renders, closest)  # (every row looked at)
+            if least is None or not closest(least):
+                self.score(name, closest)
+        for name in later_bounds:
+            renders.check()
+            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, closest)
+            if least is None or not closest(least):
+                self.score_speckled(name, closest)
+
+    def named(self) -> tuple[list[Cause], bool]:
+        """The causes named, best first, and whether the first is only the closest: those passed against, or
+        else the one that comes far closer than the reference does, or none."""
+        self.scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
+        passing = [c for c in self.scored if c.passes]
+        if passing:
+            return passing, False
+        if self.scored and self.scored[0].fraction_off_nearby <= CLOSEST_SHARE * self.verdict.fraction_off_nearby:
+            return self.scored[:1], True
+        return [], False
