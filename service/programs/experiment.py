@@ -72,8 +72,9 @@ def matches(reference: bytes, image: bytes, scene: bytes, limits: Thresholds) ->
 
     try:
         graded = pipeline.grade_png(reference, image, limits.tolerance, limits.max_fraction,
-                                    scene=lambda: load_scene(scene), threads=1,
-                                    checks=pipeline.Checks(accepted=limits.accepted, diagnose=False))
+                                    explaining=pipeline.Explaining(lambda: load_scene(scene),
+                                                                   pipeline.Checks(limits.accepted, diagnose=False),
+                                                                   pipeline.Run(threads=1)))
     except grading.ImageError:
         return False
     return graded.grade.passed
