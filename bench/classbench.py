@@ -126,7 +126,7 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
     started = time.perf_counter()
     ref_png = tracer.encode_png(tracer.render(schemas.validate_scene(one), threads=1))
     t_render = time.perf_counter() - started
-    from service.classgrade import grade_task
+    from service.classgrade.tasks import grade_task
 
     image = (subs / "student00" / "lights.png").read_bytes()
     started = time.perf_counter()
@@ -166,7 +166,7 @@ def _jittered(data: dict[str, Any], student: int, task: int) -> dict[str, Any]:
 
 
 def _render_file(scene_path: str, out: str) -> float:
-    from service.classgrade import render_task
+    from service.classgrade.tasks import render_task
 
     started = time.perf_counter()
     png, why = render_task(Path(scene_path).read_bytes())

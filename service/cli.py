@@ -52,8 +52,8 @@ def _read_image(path: str) -> bytes:
     without end, such as /dev/zero, must not be read whole), the same with and without ``--server``."""
     import stat
 
+    from .classgrade.untrusted import file_kind
     from .settings import Settings
-    from .submissions import file_kind
 
     limit = Settings.from_env().max_image_bytes
     try:
@@ -396,8 +396,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_grade_class(args: argparse.Namespace) -> int:
     """Exit 0 when the batch ran (whatever the verdicts), 2 when the TA's input or set-up is unusable."""
     from .classgrade import grade_class
+    from .classgrade.errors import ClassError
     from .cluster import ClusterError
-    from .submissions import ClassError
 
     _thresholds(args)
     if args.server and args.cluster:
@@ -427,8 +427,8 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
 
 def cmd_autograder(args: argparse.Namespace) -> int:
     """Exit 0 when the bundle is written, 2 when the TA's input is unusable (nothing is written then)."""
-    from .autograder import build
-    from .submissions import ClassError
+    from .classgrade.autograder import build
+    from .classgrade.errors import ClassError
 
     if not args.output.endswith(".zip"):
         raise CliError(f"{args.output}: Gradescope takes the autograder as a zip; name the output *.zip")

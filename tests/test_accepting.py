@@ -15,9 +15,9 @@ import student
 
 from schemas import load_scene
 from service import accepting, pipeline
+from service.classgrade.errors import ClassError
+from service.classgrade.taskfile import load_tasks
 from service.grading import grade
-from service.submissions import ClassError
-from service.taskfile import load_tasks
 from tracer import Renderer, encode_png
 from tracer.variants import Options, scene_size
 

@@ -24,11 +24,12 @@ import pytest
 import schemas
 import tracer
 from service import classgrade
-from service import report as report_module
+from service.classgrade import faults, tasks
+from service.classgrade import report as report_module
+from service.classgrade.report import neutral_cell, write_atomic
 from service.cli import main
 from service.display import printable
 from service.jobs import scene_key
-from service.report import neutral_cell, write_atomic
 
 from helpers import measured, scene_dict
 from server import running_server
@@ -346,14 +347,14 @@ def killing_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float
         os.kill(os.getpid(), signal.SIGKILL)
     if image == os.environ.get("KILL_ALWAYS", "").encode():
         os.kill(os.getpid(), signal.SIGKILL)
-    return classgrade._local_grade(scene, reference, image, tolerance, max_fraction)
+    return tasks.local_grade(scene, reference, image, tolerance, max_fraction)
 
 
 def test_a_killed_pool_process_is_retried_and_the_report_is_the_same(tmp_path, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
     classgrade.grade_class(scenes, subs, tmp_path / "clean", jobs=2)
-    monkeypatch.setattr(classgrade, "_local_grade", killing_grade)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    monkeypatch.setattr(tasks, "local_grade", killing_grade)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     monkeypatch.setenv("KILL_ONCE", str(tmp_path / "killed"))
     outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=2)
     assert (tmp_path / "killed").exists()  # a pool process was killed
@@ -364,8 +365,8 @@ def test_a_killed_pool_process_is_retried_and_the_report_is_the_same(tmp_path, m
 def test_a_pool_process_killed_every_time_stops_with_one_line_and_a_rerun_resumes(tmp_path, capsys, monkeypatch):
     poison = b"poison: its grading is killed every time"
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b"", "zed": poison})
-    monkeypatch.setattr(classgrade, "_local_grade", killing_grade)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    monkeypatch.setattr(tasks, "local_grade", killing_grade)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     monkeypatch.setenv("KILL_ALWAYS", poison.decode())
     report = tmp_path / "report"
     started = time.monotonic()
@@ -487,7 +488,7 @@ class ResettingProxy:
 def test_a_server_worker_restart_during_server_is_retried(tmp_path, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
     classgrade.grade_class(scenes, subs, tmp_path / "local", jobs=1)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     with running_server(tmp_path) as (url, _):
         proxy = ResettingProxy(url, reset={2, 3, 5}, busy={6})  # 0, 1: the check (/healthz, /schema)
         try:
@@ -501,7 +502,7 @@ def test_a_server_worker_restart_during_server_is_retried(tmp_path, monkeypatch)
 
 def test_a_server_gone_for_good_stops_with_one_line_and_keeps_what_finished(tmp_path, capsys, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     report = tmp_path / "report"
     with running_server(tmp_path) as (url, _):
         proxy = ResettingProxy(url, reset_from=2 + 1 + 2)  # the check, the render, ada's grade; then all reset
@@ -598,8 +599,8 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
             time.sleep(0.02)
         _stop(scheduler)
 
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
-    monkeypatch.setattr(classgrade, "RECONNECT_TIMEOUT", 0.5, raising=False)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
+    monkeypatch.setattr(faults, "RECONNECT_TIMEOUT", 0.5)
     killer = threading.Thread(target=lose_the_scheduler, daemon=True)
     try:
         killer.start()
@@ -621,7 +622,7 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
 # -- 4: a rerun trusts nothing it did not write: resume journals, and names shown as they are -------------------
 
 def test_a_resume_row_tampered_with_or_of_another_version_is_graded_again(tmp_path):
-    from service import journal
+    from service.classgrade import journal
 
     black = tracer.encode_png(tracer.render(schemas.validate_scene({**tiny(), "objects": [], "lights": []})))
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "bob": black, "cy": b"", "dee": b""})

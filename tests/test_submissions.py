@@ -13,7 +13,9 @@ from PIL import Image
 import schemas
 import tracer
 from service import classgrade
-from service.submissions import ClassError, UntrustedFileError, discover, read_untrusted
+from service.classgrade.errors import ClassError
+from service.classgrade.submissions import discover
+from service.classgrade.untrusted import UntrustedFileError, read_untrusted
 
 from helpers import scene_dict
 
@@ -286,7 +288,7 @@ def test_a_student_folder_swapped_for_a_link_while_the_references_render_is_not_
 
 
 def test_a_tasks_own_name_comes_before_a_resubmissions_suffix():
-    from service.lms import TaskNames
+    from service.classgrade.lms import TaskNames
 
     names = TaskNames(["Cornell", "cornell-2", "box"])
     assert [(n.task, n.exact) for n in map(names.match, ["cornell-2.png", "Cornell-3.PNG", "box (12).png",
@@ -434,7 +436,7 @@ def test_a_file_name_spelt_decomposed_is_the_tasks():
     """A Mac's archive spells café.png decomposed (NFD); the TA's scene café.json is composed (NFC)."""
     import unicodedata
 
-    from service.lms import TaskNames
+    from service.classgrade.lms import TaskNames
 
     nfc, nfd = (unicodedata.normalize(form, "café") for form in ("NFC", "NFD"))
     names = TaskNames([nfc, "box"])
@@ -458,7 +460,7 @@ def test_two_students_whose_names_differ_only_in_case_are_told_apart_by_their_id
 
 def test_a_resubmitted_copy_of_a_download_is_its_tasks():
     """A browser saved 'Spheres (1).png' and Canvas added its '-1' on a resubmission: 'Spheres (1)-1.png'."""
-    from service.lms import TaskNames
+    from service.classgrade.lms import TaskNames
 
     names = TaskNames(["spheres", "cornell-3", "cornell"])
     assert [names.match(n).task for n in ["Spheres (1)-1.png", "spheres-2 (3).PNG", "cornell-3-1.png",
