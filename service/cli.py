@@ -395,7 +395,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_grade_class(args: argparse.Namespace) -> int:
     """Exit 0 when the batch ran (whatever the verdicts), 2 when the TA's input or set-up is unusable."""
-    from .classgrade import grade_class
+    from .classgrade import ClassRun, grade_class
     from .classgrade.errors import ClassError
     from .cluster import ClusterError
 
@@ -405,13 +405,14 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     bar = ProgressBar(unit="pairs")
     bar.enabled = bar.enabled and not args.quiet
     try:
-        outcome = grade_class(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
-                              args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
-                              progress=bar, api_key=args.api_key,
-                              student_scenes=Path(args.student_scenes) if args.student_scenes else None,
-                              tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
-                              diagnose=not args.no_diagnosis,
-                              limits=args.limits)
+        run = ClassRun(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
+                       args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
+                       api_key=args.api_key,
+                       student_scenes=Path(args.student_scenes) if args.student_scenes else None,
+                       tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
+                       diagnose=not args.no_diagnosis,
+                       limits=args.limits)
+        outcome = grade_class(run, progress=bar)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
         raise CliError(printable(str(exc))) from None
     except OSError as exc:

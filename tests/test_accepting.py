@@ -188,7 +188,7 @@ def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, t
     import json
     import shutil
 
-    from service.classgrade import grade_class
+    from service.classgrade import ClassRun, grade_class
 
     (tmp_path / "scenes").mkdir()
     shutil.copyfile(WHITTED, tmp_path / "scenes" / "whitted.json")
@@ -199,7 +199,8 @@ def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, t
     for name, accepted in (("defaults", None), ("none", {})):
         tasks = tmp_path / f"{name}.json"
         tasks.write_text(json.dumps({"whitted": {} if accepted is None else {"accepted": accepted}}))
-        (row,) = grade_class(tmp_path / "scenes", tmp_path / "subs", tmp_path / name, jobs=1, tasks_file=tasks).rows
+        run = ClassRun(tmp_path / "scenes", tmp_path / "subs", tmp_path / name, jobs=1, tasks_file=tasks)
+        (row,) = grade_class(run).rows
         rows[name] = row
     assert (rows["defaults"]["status"], rows["defaults"]["reason"]) == ("pass", "as rendered with a 1e-3 ray offset")
     assert rows["none"]["status"] == "fail"

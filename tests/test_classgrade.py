@@ -12,8 +12,8 @@ import pytest
 import schemas
 import tracer
 from service import classgrade
+from service.classgrade import ClassRun, submissions
 from service.classgrade import report as report_module
-from service.classgrade import submissions
 from service.cli import main
 
 from helpers import scene_dict
@@ -92,7 +92,7 @@ def cli_reason(capsys, scene, image):
 
 def grade(klass, report, **kw):
     scenes, subs, own = klass
-    return classgrade.grade_class(scenes, subs, report, jobs=2, student_scenes=own, **kw)
+    return classgrade.grade_class(ClassRun(scenes, subs, report, jobs=2, student_scenes=own, **kw))
 
 
 def test_every_status_and_reason(klass, tmp_path, capsys):
@@ -433,7 +433,7 @@ def mistaken(tmp_path_factory):
     tasks = root / "tasks.json"
     tasks.write_text(json.dumps({"lamps": {"points": 4, "deductions": DEDUCTIONS}}))
     report = root / "report"
-    outcome = classgrade.grade_class(scenes, subs, report, jobs=2, tasks_file=tasks)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, report, jobs=2, tasks_file=tasks))
     return report, {r["student"]: r for r in outcome.rows}
 
 
@@ -509,3 +509,11 @@ def test_the_summary_counts_one_pair_and_one_reference_in_the_singular():
     assert one.startswith("1 pair: 1 passed") and "; 1 reference rendered;" in one
     two = summary([{"status": "pass"}, {"status": "fail"}], 2, 0.5)
     assert two.startswith("2 pairs: 1 passed, 1 failed") and "; 2 references rendered;" in two
+
+
+def test_a_grade_record_has_the_reports_columns_in_their_order():
+    from dataclasses import fields
+
+    from service.classgrade.records import Grade
+
+    assert [f.name for f in fields(Grade)] == report_module.COLUMNS

@@ -13,6 +13,7 @@ from PIL import Image
 import schemas
 import tracer
 from service import classgrade
+from service.classgrade import ClassRun
 from service.classgrade.errors import ClassError
 from service.classgrade.submissions import discover
 from service.classgrade.untrusted import UntrustedFileError, read_untrusted
@@ -39,7 +40,7 @@ def put(root, relative, data):
 
 
 def rows_of(root, tmp_path):
-    outcome = classgrade.grade_class(root / "scenes", root / "subs", tmp_path / "report", jobs=1)
+    outcome = classgrade.grade_class(ClassRun(root / "scenes", root / "subs", tmp_path / "report", jobs=1))
     return {r["student"]: r for r in outcome.rows}, dict(outcome.ignored)
 
 
@@ -281,7 +282,7 @@ def test_a_student_folder_swapped_for_a_link_while_the_references_render_is_not_
             os.symlink("ada", subs / "eve")
             swapped.append(True)
 
-    outcome = classgrade.grade_class(tmp_path / "scenes", subs, tmp_path / "report", jobs=1, progress=swap)
+    outcome = classgrade.grade_class(ClassRun(tmp_path / "scenes", subs, tmp_path / "report", jobs=1), progress=swap)
     rows = {r["student"]: r for r in outcome.rows}
     assert swapped and rows["eve"]["status"] == "fail" and rows["ada"]["status"] == "pass"
     assert (tmp_path / "report" / "submissions" / "eve" / "Cornell.png").read_bytes() != right

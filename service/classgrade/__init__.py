@@ -18,6 +18,7 @@ for a grade), so a run stopped by a fault that persists resumes where it stopped
 """
 
 from .errors import ClassError
+from .records import ClassRun
 from .run import Outcome, grade_class
 
-__all__ = ["ClassError", "Outcome", "grade_class"]
+__all__ = ["ClassError", "ClassRun", "Outcome", "grade_class"]

@@ -273,6 +273,7 @@ def run(root: Path) -> int:
 
 def _grade(root: Path) -> dict[str, Any]:
     """The submission graded as a class of one: its results.json, as grade-class writes it."""
+    from .records import ClassRun
     from .run import grade_class
 
     course = root / "source" / COURSE
@@ -296,8 +297,8 @@ def _grade(root: Path) -> dict[str, Any]:
             shutil.copytree(course / "references", report / "references")
         tasks_file = course / "tasks.json"
         os.environ[STORED] = str(course / "variants")  # (the pool's processes inherit it)
-        grade_class(scenes, place / "submissions", report, jobs=1, student_scenes=own,
-                    tasks_file=tasks_file if tasks_file.exists() else None)
+        grade_class(ClassRun(scenes, place / "submissions", report, jobs=1, student_scenes=own,
+                    tasks_file=tasks_file if tasks_file.exists() else None))
         return json.loads((report / "gradescope" / student.name / "results.json").read_text())
 
 

@@ -56,7 +56,6 @@ class Backend:
         self.faults: tuple[type[BaseException], ...] = ()
         self.render: Callable[..., Any] = partial(tasks.render_task, limits=limits)
         self.grade: Callable[..., Any] = tasks.local_grade
-        self.diagnose = True  # whether a failing pair's likely mistake is named (see no_diagnosis)
         if server:
             from ..client import ServerError, check
 
@@ -76,10 +75,6 @@ class Backend:
             self.name = "the pool of processes"
             self.faults = (BrokenProcessPool,)
             self._pool()
-
-    def no_diagnosis(self) -> None:
-        """Grade without naming failing pairs' likely mistakes (--no-diagnosis)."""
-        self.grade, self.diagnose = partial(self.grade, diagnose=False), False
 
     def _pool(self) -> None:
         context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads

@@ -8,14 +8,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ..settings import Settings
 from . import faults
+from .records import GradeJob
 
 
-def server_render(server: str, api_key: str | None, scene: bytes, limits: Settings | None = None
-                   ) -> tuple[bytes | None, str]:
-    """:func:`render_task` by a running service (which has its own ``render_timeout``); a refusal of the scene
-    (its limits, its time) is the reason."""
+def server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes | None, str]:
+    """:func:`~service.classgrade.tasks.render_task` by a running service (which has its own
+    ``render_timeout``); a refusal of the scene (its limits, its time) is the reason."""
     from ..client import ServerError, post_json
 
     try:
@@ -28,17 +27,16 @@ def server_render(server: str, api_key: str | None, scene: bytes, limits: Settin
         return None, f"the server refuses it: {exc.detail}"
 
 
-def server_grade(server: str, api_key: str | None, scene: bytes, reference: bytes, image: bytes,
-                  tolerance: float, max_fraction: float, accepted: dict[str, float] | None = None,
-                  diagnose: bool = True) -> dict[str, Any]:
-    """:func:`grade_task` by a running service (which renders the same reference, from its cache, and accepts
-    its own default variants: a task's ``accepted`` is for local grading)."""
+def server_grade(server: str, api_key: str | None, job: GradeJob) -> dict[str, Any]:
+    """:func:`~service.classgrade.tasks.grade_task` of a pair's job by a running service (which renders the same
+    reference, from its cache, and accepts its own default variants: a task's ``accepted`` is for local
+    grading)."""
 
     from ..client import ServerError, post_form
 
-    fields = {"scene": scene, "tolerance": repr(tolerance), "max_fraction": repr(max_fraction),
-              "diagnose": "true" if diagnose else "false"}
-    files = {"image": ("submission.png", image, "image/png")}
+    fields = {"scene": job.scene, "tolerance": repr(job.tolerance), "max_fraction": repr(job.max_fraction),
+              "diagnose": "true" if job.diagnose else "false"}
+    files = {"image": ("submission.png", job.image, "image/png")}
     try:
         result = json.loads(patient(post_form, server, "/grade", fields, files, api_key=api_key))
         query = {"format": "png", "heatmap": "verdict", "legend": "false"}  # as grade_task draws it

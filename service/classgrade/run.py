@@ -6,7 +6,7 @@ import contextlib
 import hashlib
 import time
 from collections.abc import Callable
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +18,7 @@ from .checks import outside, scene_keys, writable
 from .errors import ClassError
 from .faults import run_tasks
 from .gradebook import matched, score
-from .records import Batch, Pair
+from .records import Batch, ClassRun, Grade, GradeJob, Pair
 from .report import COLUMNS, summary, write_atomic, write_report
 from .submissions import discover
 from .taskfile import TaskSettings, load_tasks
@@ -26,9 +26,12 @@ from .taskfile import TaskSettings, load_tasks
 
 @dataclass
 class Outcome:
+    """A graded class: every pair's row (as the report has it), what was ignored, the references this run
+    rendered (the others were already in the report) and its time."""
+
     rows: list[dict[str, Any]]
     ignored: list[tuple[str, str]]
-    renders: int  # references rendered by this run (the others were already in the report)
+    renders: int
     seconds: float
 
     def count(self, status: str) -> int:
@@ -37,44 +40,52 @@ class Outcome:
     def summary(self) -> str:
         return summary(self.rows, self.renders, self.seconds)
 
-def grade_class(scenes: Path, submissions: Path, report: Path, tolerance: float = 2.0, max_fraction: float = 0.001,
-                jobs: int | None = None, server: str | None = None, cluster: str | None = None,
-                progress: Callable[[int, int], None] | None = None, api_key: str | None = None,
-                student_scenes: Path | None = None, tasks_file: Path | None = None,
-                cluster_wait: float = 30.0, limits: bool = False, diagnose: bool = True
-                ) -> Outcome:
-    """Grade the class; ``server`` (a URL) or ``cluster`` (a Dask scheduler address) send the work away.  The
-    TA's scenes are trusted: held to the service's limits (``PHONGRAY_*``) only with ``limits``.
-    Raises :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a
-    fault of the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
+
+@dataclass
+class Checked:
+    """The class once the TA's input has been checked: the batch, the tasks' settings, the scene file of each
+    scene key and each file's text, the service's settings, and when the run started."""
+
+    batch: Batch
+    tasks: dict[str, TaskSettings]
+    scene_of_key: dict[str, Path]
+    texts: dict[Path, bytes]
+    settings: Settings
+    started: float
+
+
+Progress = Callable[[int, int], None]
+
+
+def grade_class(run: ClassRun, progress: Progress | None = None) -> Outcome:
+    """Grade the class; ``progress(done, total)`` is told of the pairs graded as they are.  The TA's scenes
+    are trusted: held to the service's limits (``PHONGRAY_*``) only with ``run.limits``.  Raises
+    :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a fault of
+    the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
     settings = Settings.from_env()
-    outside(report, submissions, scenes, student_scenes)
-    batch = discover(scenes, submissions, student_scenes, settings.max_image_bytes)
-    tasks = load_tasks(tasks_file, batch.tasks)
-    scene_of_key, texts = scene_keys(batch, settings if limits else None)
-    made = not report.exists()
-    writable(report)
+    outside(run.report, run.submissions, run.scenes, run.student_scenes)
+    batch = discover(run.scenes, run.submissions, run.student_scenes, settings.max_image_bytes)
+    tasks = load_tasks(run.tasks_file, batch.tasks)
+    scene_of_key, texts = scene_keys(batch, settings if run.limits else None)
+    made = not run.report.exists()
+    writable(run.report)
     try:
-        return _run(batch, tasks, scene_of_key, texts, report, tolerance, max_fraction, jobs, server, cluster,
-                    progress, api_key, cluster_wait, started, settings, limits, diagnose)
+        return _run(run, Checked(batch, tasks, scene_of_key, texts, settings, started), progress)
     except Exception:
         if made:  # a run stopped by a fault of the TA's leaves no empty report folder behind
             with contextlib.suppress(OSError):
-                report.rmdir()
+                run.report.rmdir()
         raise
 
 
-def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, Path], texts: dict[Path, bytes],
-         report: Path, tolerance: float, max_fraction: float, jobs: int | None, server: str | None,
-         cluster: str | None, progress: Callable[[int, int], None] | None, api_key: str | None,
-         cluster_wait: float, started: float, settings: Settings, limits: bool, diagnose: bool = True
-         ) -> Outcome:
+def _run(run: ClassRun, checked: Checked, progress: Progress | None) -> Outcome:
     """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report (the
-    renders held to the service's limits ``settings`` with ``limits``)."""
+    renders held to the service's limits with ``run.limits``)."""
+    batch, report = checked.batch, run.report
     todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
-    refs = {k: report / "references" / f"{k}.png" for k in scene_of_key}
-    needed = {k: scene_of_key[k] for k, path in refs.items() if not _usable(path)}
+    refs = {k: report / "references" / f"{k}.png" for k in checked.scene_of_key}
+    needed = {k: checked.scene_of_key[k] for k, path in refs.items() if not _usable(path)}
     total = len(batch.pairs)
 
     def tick() -> None:
@@ -84,25 +95,23 @@ def _run(batch: Batch, tasks: dict[str, TaskSettings], scene_of_key: dict[str, P
     tick()
     from ..client import ServerError
 
-    backend = Backend(server, cluster, jobs, len(todo) + len(needed), api_key, cluster_wait,
-                       settings if limits else None)
-    if not diagnose:
-        backend.no_diagnosis()
+    backend = Backend(run.server, run.cluster, run.jobs, len(todo) + len(needed), run.api_key, run.cluster_wait,
+                      checked.settings if run.limits else None)
     try:
-        references = _render_all(backend, needed, refs, texts, report)
-        _grade_all(backend, todo, references, refs, report, tasks, tolerance, max_fraction, tick, texts)
+        references = _render_all(backend, needed, refs, checked.texts, report)
+        _grade_all(backend, run, checked, todo, references, refs, tick)
     except ServerError as exc:  # the service went away, or stopped taking the key, in the middle of the batch
         backend.close(wait=False)
-        raise ClassError(f"--server {server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
+        raise ClassError(f"--server {run.server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
                          f"resume") from None
     except BaseException:
         backend.close(wait=False)
         raise
     backend.close()
     _drop_stale_references(report, refs)
-    rows = [_row(p, refs, report, tasks) for p in batch.pairs]
-    outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - started)
-    write_report(report, rows, batch.ignored, batch.students, tasks, outcome.summary())
+    rows = [_row(p, refs, report, checked.tasks).row() for p in batch.pairs]
+    outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - checked.started)
+    write_report(report, rows, batch.ignored, batch.students, checked.tasks, outcome.summary())
     return outcome
 
 
@@ -169,41 +178,49 @@ def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] 
     return row
 
 
-def _grade_all(backend: Backend, todo: list[Pair], references: dict[str, bytes], refs: dict[str, Path],
-               report: Path, tasks: dict[str, TaskSettings], tolerance: float, max_fraction: float,
-               tick: Callable[[], None], texts: dict[Path, bytes]) -> None:
+def _grade_all(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pair], references: dict[str, bytes],
+               refs: dict[str, Path], tick: Callable[[], None]) -> None:
     """Grade every pair on the backend (its bytes were read when the class was found); every file is written
     here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
     pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
     about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
+    grade = backend.grade
     for n, pair in enumerate(todo):
         assert pair.key is not None and pair.data is not None
-        image = pair.data
-        own = tasks[pair.task]
-        thresholds = (tolerance if own.tolerance is None else own.tolerance,
-                      max_fraction if own.max_fraction is None else own.max_fraction)
-        stamp = journal.stamp(pair.key, hashlib.sha256(image).hexdigest(), *thresholds)
-        if not backend.diagnose:  # a grade without its likely mistake is not one a diagnosing run may take
+        job = _job(run, checked, pair, references.get(pair.key, b""))
+        stamp = journal.stamp(pair.key, hashlib.sha256(job.image).hexdigest(), job.tolerance, job.max_fraction)
+        if not run.diagnose:  # a grade without its likely mistake is not one a diagnosing run may take
             stamp["diagnosis"] = False
-        if own.accepted is not None:
-            stamp["accepted"] = own.accepted
-        row = _resumed(pair, report, stamp)
+        if job.accepted is not None:
+            stamp["accepted"] = job.accepted
+        row = _resumed(pair, run.report, stamp)
         if row is not None:
             pair.row = row
             continue
         if pair.key not in references:
             references[pair.key] = refs[pair.key].read_bytes()
-        accepted = () if own.accepted is None else (own.accepted,)  # (the defaults: the call as it was)
-        pending[n] = (backend.grade, (texts[pair.scene], references[pair.key], image, *thresholds, *accepted))
-        about[n] = (pair, image, stamp)
+        pending[n] = (grade, (replace(job, reference=references[pair.key]),))
+        about[n] = (pair, job.image, stamp)
     tick()
 
     def keep(n: int, result: dict[str, Any]) -> None:
         pair, image, stamp = about[n]
-        _graded(pair, result, image, report, stamp)
+        _graded(pair, result, image, run.report, stamp)
         tick()
 
-    run_tasks(backend, pending, keep, lambda: _kept(report))
+    run_tasks(backend, pending, keep, lambda: _kept(run.report))
+
+
+def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> GradeJob:
+    """What the backend grades for a pair: its task's thresholds where the tasks file gives them, else the
+    run's."""
+    assert pair.data is not None
+    own = checked.tasks[pair.task]
+    accepted = None if own.accepted is None else {str(name): amount for name, amount in own.accepted.items()}
+    return GradeJob(checked.texts[pair.scene], reference, pair.data,
+                    run.tolerance if own.tolerance is None else own.tolerance,
+                    run.max_fraction if own.max_fraction is None else own.max_fraction,
+                    accepted, run.diagnose)
 
 
 def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stamp: dict[str, Any]) -> None:
@@ -230,7 +247,9 @@ def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
             report / "submissions" / pair.student / f"{pair.task}.png")
 
 
-def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> dict[str, Any]:
+def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> Grade:
+    """A pair's grade as the report writes it: its row, kept or just graded, with who, what, the points and
+    the report's files."""
     row: dict[str, Any] = {c: None for c in COLUMNS}
     row.update({k: v for k, v in pair.row.items() if k in row})
     row.update(student=pair.student, task=pair.task, scene="own" if pair.own else "shared")
@@ -245,4 +264,4 @@ def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskS
     if row["status"] in ("pass", "fail"):
         heat, copy = _paths(pair, report)
         row["heatmap"], row["submission"] = str(heat.relative_to(report)), str(copy.relative_to(report))
-    return row
+    return Grade(**row)

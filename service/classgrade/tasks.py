@@ -6,6 +6,7 @@ import time
 from typing import Any
 
 from ..settings import Settings
+from .records import GradeJob
 
 
 def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | None, str]:
@@ -54,10 +55,8 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
 
 
-def local_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float,
-                 accepted: dict[str, float] | None = None, diagnose: bool = True) -> dict[str, Any]:
-    """:func:`grade_task` with the scene's text first, as the service's grade task takes it (the reference is
-    already rendered: the scene is for the accepted variants and, unless not to ``diagnose``, the diagnosis of
-    a failing pair)."""
-    return grade_task(reference, image, tolerance, max_fraction, scene, accepted, diagnose)
-
+def local_grade(job: GradeJob) -> dict[str, Any]:
+    """:func:`grade_task` of a pair's job (the reference is already rendered: the scene is for the accepted
+    variants and, unless not to ``diagnose``, the diagnosis of a failing pair)."""
+    return grade_task(job.reference, job.image, job.tolerance, job.max_fraction, job.scene, job.accepted,
+                      job.diagnose)
