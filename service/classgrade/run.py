@@ -13,7 +13,7 @@ from typing import Any
 from ..diagnosis import headline
 from ..settings import Settings
 from . import journal
-from .backends import Backend
+from .backends import Backend, open_backend
 from .checks import outside, scene_keys, writable
 from .errors import ClassError
 from .faults import run_tasks
@@ -95,8 +95,7 @@ def _run(run: ClassRun, checked: Checked, progress: Progress | None) -> Outcome:
     tick()
     from ..client import ServerError
 
-    backend = Backend(run.server, run.cluster, run.jobs, len(todo) + len(needed), run.api_key, run.cluster_wait,
-                      checked.settings if run.limits else None)
+    backend = open_backend(run, len(todo) + len(needed), checked.settings if run.limits else None)
     try:
         references = _render_all(backend, needed, refs, checked.texts, report)
         _grade_all(backend, run, checked, todo, references, refs, tick)
@@ -162,7 +161,7 @@ def _render_all(backend: Backend, needed: dict[str, Path], refs: dict[str, Path]
             write_atomic(refs[key], png)
             done[key] = png
 
-    run_tasks(backend, {key: (backend.render, (texts[scene],)) for key, scene in needed.items()}, keep,
+    run_tasks(backend, {key: (backend.render(), (texts[scene],)) for key, scene in needed.items()}, keep,
                lambda: _kept(report))
     if failures:
         raise ClassError("; ".join(sorted(failures)))
@@ -184,7 +183,7 @@ def _grade_all(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pai
     here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
     pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
     about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
-    grade = backend.grade
+    grade = backend.grade()
     for n, pair in enumerate(todo):
         assert pair.key is not None and pair.data is not None
         job = _job(run, checked, pair, references.get(pair.key, b""))
