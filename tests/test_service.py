@@ -76,6 +76,13 @@ def test_query_overrides(api):
     assert res.status_code == 422 and res.json()["errors"][0]["path"] == "query.width"
 
 
+def test_a_name_used_twice_is_a_located_422(api):
+    data = json.loads(SCENE)
+    data["lights"] = [{"type": "ambient", "color": 0.1, "name": "key"} for _ in range(2)]
+    res = api.post("/render", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and [e["path"] for e in res.json()["errors"]] == ["lights[1].name"]
+
+
 def test_overrides_replace_values_but_neither_complete_nor_mend_a_scene(api):
     """A body the JSON Schema refuses (no image.height, a samples that is no number) stays refused, whatever the
     query says."""

@@ -37,7 +37,7 @@ from .lights import LIGHT_TYPES, Emitter, illuminate
 from .passes import BRANCH_PASS, Tally
 from .rays import Among, Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, phong, planes_holding
-from .variants import Options, Spawn
+from .variants import Options, Spawn, add_clamped
 from .vec import columns, dot, minus, rows_of, scaled
 from .world import World, max_abs, unit
 
@@ -158,7 +158,7 @@ class DirectLight:
             if terms is None:
                 continue
             wd, ws, reached = terms
-            add_phong(colour, color, diffuse, specular, wd, ws)
+            (add_clamped if opt.clamp_terms else add_phong)(colour, color, diffuse, specular, wd, ws)
             if counted:
                 assert tally is not None and work is not None
                 tally.add(tally.term("diffuse", group.first), work.sample,
