@@ -6,12 +6,17 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from service.cli.common import CliError, thresholds
 from service.cli.options import Commands, command, limits, no_diagnosis, positive_int
 from service.cli.options import remote as remote_options
 from service.cli.options import thresholds as threshold_options
 from service.display import ProgressBar, counted, printable
+from service.programs.options import add_arguments as program_options
+
+if TYPE_CHECKING:
+    from service.programs.job import Program
 
 
 def cmd_grade_class(args: argparse.Namespace) -> int:
@@ -23,6 +28,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     thresholds(args)
     if args.server and args.cluster:
         raise CliError("--server and --cluster: choose one")
+    program = students_program(args)
     bar = ProgressBar(unit="pairs")
     bar.enabled = bar.enabled and not args.quiet
     try:
@@ -32,7 +38,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
                        student_scenes=Path(args.student_scenes) if args.student_scenes else None,
                        tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
                        diagnose=not args.no_diagnosis,
-                       limits=args.limits)
+                       limits=args.limits, program=program)
         outcome = grade_class(run, progress=bar)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
         raise CliError(printable(str(exc))) from None
@@ -45,6 +51,16 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
     return 0
+
+
+def students_program(args: argparse.Namespace) -> Program | None:
+    """The students' program of ``--run`` and its options (None: images); a TA's mistake in them is one line."""
+    from service.programs.options import program
+
+    try:
+        return program(args)
+    except ValueError as exc:
+        raise CliError(printable(str(exc))) from None
 
 
 def cmd_autograder(args: argparse.Namespace) -> int:
@@ -92,6 +108,7 @@ def add(sub: Commands) -> None:
                                                               "progress bar, no summary line)")
     limits(p)
     remote_options(p, cluster=True)
+    program_options(p)
     p.set_defaults(func=cmd_grade_class)
 
 

@@ -110,7 +110,7 @@ def failed_run(outcome: RunOutcome, what: str = "the run") -> dict[str, Any]:
 
 
 def _grade_image(task: TaskScene, image: bytes) -> dict[str, Any]:
-    from ..classgrade import grade_task
+    from ..classgrade.tasks import grade_task
 
     return grade_task(task.reference, image, task.tolerance, task.max_fraction, task.scene, task.accepted,
                       task.diagnose)
