@@ -267,9 +267,9 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
         diagnosis = result.pop("diagnosis", None)
         result["likely"] = headline(Diagnosis.from_dict(diagnosis) if diagnosis else None)
-        if result["likely"] is None and result.get("experiment"):  # a program's mistake found by its probes
-            result["likely"] = result["experiment"].split("; ")[0]
         result["mistakes"] = matched(diagnosis)
+        if not result["mistakes"] and result.get("experiment"):  # a program's mistake its probes found instead
+            result["likely"] = result["experiment"].split("; ")[0]
         accepted = result.pop("accepted", None)
         if accepted:  # passed as an honest tracer's variant: the reason says which
             result["reason"] = f"as rendered with {accepted}"
