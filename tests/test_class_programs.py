@@ -13,6 +13,7 @@ import threading
 from pathlib import Path
 
 import pytest
+from test_cluster import dask as cluster_fixture  # noqa: F401  (the fixture 'dask': a scheduler, two workers)
 
 from service.cli import main
 from service.programs import check_sandbox
@@ -190,3 +191,27 @@ def test_without_bubblewrap_a_class_stops_unless_asked_to_run_unsandboxed(tmp_pa
     code, rows, _ = grade(tmp_path, scenes, subs, "--no-sandbox")
     assert code == 0 and rows["honest", "spot"]["status"] == "pass"
     assert capsys.readouterr().err.count("WARNING: run without a sandbox") == 2  # one for each run
+
+
+def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listener, request):
+    """Each student's program a task of a worker's (two workers on 127.0.0.1), each run in its own sandbox."""
+    check_sandbox()
+    address = request.getfixturevalue("cluster_fixture")[0]
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "noglass", "loop", "link"])
+    here = tmp_path / "here"
+    there = tmp_path / "there"
+    for report, more in ((here, []), (there, ["--cluster", address])):
+        assert main(["grade-class", str(scenes), str(subs), "-o", str(report), "--tasks", str(tmp_path / "tasks.json"),
+                     "--run", RUN, *LIMITS, "-q", *more]) == 0
+
+    def rows(report: Path) -> list[dict]:
+        return [{k: v for k, v in r.items() if k != "run_seconds"}
+                for r in json.loads((report / "report.json").read_text())]
+
+    assert rows(there) == rows(here)
+    assert {(r["student"], r["task"]): r["status"] for r in rows(there) if r["status"] == "fail"} == {
+        ("noglass", "glass"): "fail", ("loop", "glass"): "fail", ("link", "glass"): "fail"}
+    for student in ("honest", "noglass"):
+        assert (there / "gradescope" / student / "results.json").read_text() == \
+            (here / "gradescope" / student / "results.json").read_text()
+    assert left_running() == []
