@@ -70,9 +70,10 @@ def cmd_autograder(args: argparse.Namespace) -> int:
 
     if not args.output.endswith(".zip"):
         raise CliError(f"{args.output}: Gradescope takes the autograder as a zip; name the output *.zip")
+    program = students_program(args)
     try:
         built = build(Path(args.scenes), Path(args.output), Path(args.tasks) if args.tasks else None,
-                      Path(args.student_scenes) if args.student_scenes else None)
+                      Path(args.student_scenes) if args.student_scenes else None, program)
     except ClassError as exc:
         raise CliError(printable(str(exc))) from None
     print(printable(f"{args.output}: {counted(len(built.tasks), 'task')} ({', '.join(built.tasks)}), "
@@ -125,4 +126,5 @@ def add_autograder(sub: Commands) -> None:
     p.add_argument("--student-scenes", metavar="DIR", help="students' own scenes, <student>/<task>.json, "
                                                            "<student> being their Gradescope email, its part "
                                                            "before the @, student id or name")
+    program_options(p)
     p.set_defaults(func=cmd_autograder)
