@@ -215,3 +215,18 @@ def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listen
         assert (there / "gradescope" / student / "results.json").read_text() == \
             (here / "gradescope" / student / "results.json").read_text()
     assert left_running() == []
+
+
+def test_a_second_run_resumes_and_runs_again_only_a_changed_program(tmp_path, listener):
+    """A kept grade is taken as it was (its run's time included), a failed run's too, while the program's
+    files are the same; a student whose files changed is run again."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "link", "noglass"])
+    first = grade(tmp_path, scenes, subs)[1]
+    assert first["link", "glass"]["run"] == "no-output"
+    (subs / "noglass" / "mistakes.txt").write_text("no-shadows\n")
+    second = grade(tmp_path, scenes, subs)[1]
+    for student in ("honest", "link"):
+        for task in ("spot", "glass"):
+            assert second[student, task] == first[student, task]
+    assert second["noglass", "spot"]["status"] == "fail" and "no-shadows" in second["noglass", "spot"]["mistakes"]
