@@ -24,11 +24,11 @@ from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCance
 from .camera import CameraRays
 from .cones import along_direction, on_lines, through_point
 from .culling import bounds_of
-from .direct import DirectLight, light_groups
+from .direct import DirectLight, Meter, light_groups
 from .image import quantize
 from .intersect import PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, light_samples
-from .passes import ADDITIVE, BRANCH_PASS, LIGHT_TERMS, REFLECTED, REFRACTED, Tally, check_passes
+from .passes import ADDITIVE, LIGHT_TERMS, REFLECTED, REFRACTED, UNOBSERVED, PassObserver, Tally, check_passes
 from .rays import Among, Rays, Work
 from .shading import mirror, refract, resolve_material, shading_normal
 from .sightlines import scene_sightlines
@@ -130,8 +130,11 @@ class Renderer:
             self.spawn = options.spawn(scene)
             proofs = bounds_of(self.world) if options.shadows and not options.acne and not self.spawn else None
             self.shading = DirectLight(self.world, options, self.intersector, groups, proofs, self.cone_bounds,
-                                       self._stop, self._count)
+                                       Meter(self._stop, self._count))
             self.shading.spawn = self.spawn
+        #: the index in ``scene.objects`` of each surface, by kind (the passes' ``object``)
+        self._owners = {SPHERE: self.world.spheres.object, PLANE: self.world.planes.object,
+                        TRIANGLE: self.world.triangles.object}
         self.intersector.check = self._stop
         self.intersector.tested = self._count.tested
 
@@ -369,8 +372,8 @@ class Renderer:
                 missed = best.key == NO_HIT
                 once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
                 _accumulate(acc, work.sample[missed], scaled(background, work.weight[missed]), ceiling, fixed, once)
-                if tally is not None:
-                    _tally_misses(tally, work, missed, background)
+                observer = UNOBSERVED if tally is None else PassObserver(tally, work)
+                observer.missed(missed, background)
                 rows = np.flatnonzero(~missed)
                 if len(rows) == 0:
                     continue
@@ -378,9 +381,10 @@ class Renderer:
                 dd = done.rays.dirs
                 mat = resolve_material(self.world, hit)
                 normal = shading_normal(self.world, hit, dd, self.options.flip_normals)
-                if tally is not None and work.depth == 0:
-                    _tally_first_hits(tally, self.world, hit, done, normal)
-                colour = self.shading.shade(hit, mat, normal, dd, tally, done)
+                observer = UNOBSERVED if tally is None else PassObserver(tally, done)
+                if work.depth == 0:
+                    observer.first_hits(hit, self._owners, normal)
+                colour = self.shading.shade(hit, mat, normal, dd, observer)
                 self._count.lit(len(rows) * len(self.emitter_light))
                 _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once)
                 if work.depth >= deepest:
@@ -441,34 +445,6 @@ def _mapped(work: Callable[[T], R], parts: list[T], workers: int) -> list[R]:
         return [work(part) for part in parts]
     with ThreadPoolExecutor(max_workers=min(workers, len(parts))) as pool:
         return list(pool.map(work, parts))
-
-
-def _tally_misses(tally: Tally, work: Work, missed: np.ndarray, background: np.ndarray) -> None:
-    """The background that rays ``missed`` of ``work`` bring back, to its pass."""
-    rows = np.flatnonzero(missed)
-    if len(rows) == 0:
-        return
-    if work.depth == 0:
-        tally.add("background", work.sample[rows], work.weight[rows, None] * background)
-        return
-    assert work.branch is not None
-    for branch, name in BRANCH_PASS.items():
-        sel = rows[work.branch[rows] == branch]
-        if name is not None:
-            tally.add(name, work.sample[sel], work.weight[sel, None] * background)
-
-
-def _tally_first_hits(tally: Tally, world: World, hit: Hits, work: Work, normal: np.ndarray) -> None:
-    """The geometry of the first hits (camera rays), to the debugging passes."""
-    if tally.normal is not None:
-        tally.normal[work.sample] = normal
-    if tally.depth is not None:
-        tally.depth[work.sample] = hit.t
-    if tally.object is not None:
-        owners = {SPHERE: world.spheres.object, PLANE: world.planes.object, TRIANGLE: world.triangles.object}
-        for kind, owner in owners.items():
-            sel = np.flatnonzero(hit.kind == kind)
-            tally.object[work.sample[sel]] = owner[hit.index[sel]]
 
 
 def _accumulate(acc: np.ndarray, index: np.ndarray, values: np.ndarray, ceiling: float, fixed: float,
