@@ -101,6 +101,9 @@ STAGES = [
     Stage("tracer.render", "Renderer.secondary", "reflection and refraction", _n_out),
     Stage("tracer.render", "_accumulate", "adding up", _n_second),
     Stage("tracer.render", "quantize", "quantisation", _n_first),
+    Stage("tracer.render", "Spawner.bounce", "reflection and refraction", _n_out),
+    Stage("tracer.render", "Film.add", "adding up", _n_first),
+    Stage("tracer.film", "quantize", "quantisation", _n_first),
 ]
 
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 
@@ -39,7 +38,8 @@ from .lights import LIGHT_TYPES, Emitter
 from .passes import UNOBSERVED, Observer
 from .rays import Among, Rays, Shadows
 from .shading import add_phong, planes_holding
-from .variants import Options, Spawn
+from .spawn import Spawner, picker
+from .variants import Options
 from .vec import columns, dot, rows_of, scaled
 from .world import World, max_abs
 
@@ -99,8 +99,8 @@ class DirectLight:
         self.stop, self.count = meter.stop, meter.count
         #: the emitters some flat surface's plane holds (where N·L is rounding noise: light_in_plane)
         self.holds = planes_holding(world, world.emitters)
-        #: where shadow rays start, off the surface in a variant of a student's offset (None: at the hit point)
-        self.spawn: Spawn | None = None
+        #: where shadow rays are born (the renderer's, with a variant's offset when it has one)
+        self.spawner = Spawner(world, options, None)
 
     def shade(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray,
               observer: Observer = UNOBSERVED) -> np.ndarray:
@@ -184,12 +184,10 @@ class DirectLight:
         n = len(at.nv) if rows is None else len(rows)
         if not opt.shadows:
             return np.zeros(n, dtype=bool)
-        pick: Callable[[np.ndarray], np.ndarray] = (lambda a: a) if rows is None else partial(rows_of, index=rows)
+        pick = picker(rows)
         shadow_dirs = np.ascontiguousarray(pick(reach.to_light))
         # from the exact hit point, leaving its surface by identity, to the light itself
-        rays = Rays(pick(hit.point), shadow_dirs, pick(hit.kind), pick(hit.index), pick(at.mag))
-        if self.spawn is not None:  # a student's offset: off the surface
-            rays = self.spawn.leaving(rays, pick(hit.normal))
+        rays = self.spawner.spawn(hit, at.mag, rows, shadow_dirs)
         if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
             below = np.ones(n, dtype=bool) if opt.acne_everywhere else \
                 ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
@@ -197,7 +195,7 @@ class DirectLight:
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
         bounds, tris = self.cone_bounds, self.world.triangles
         # (the cones' proofs are of rays through the light's point, which offset rays are not)
-        cones = among is None and bounds is not None and not opt.acne and self.spawn is None
+        cones = among is None and bounds is not None and not opt.acne and self.spawner.offset is None
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
             if cones:
