@@ -17,6 +17,7 @@ import numpy as np
 
 from schemas import Scene
 
+from .best import NO_HIT
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
 from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Run, chunking, ordered, parts_of
@@ -33,7 +34,6 @@ from .sightlines import scene_sightlines
 from .spawn import Spawner
 from .variants import REFERENCE, Options
 from .vec import scaled
-from .walk import NO_HIT
 from .world import World, build_world
 
 Progress = Callable[[int, int], None]
