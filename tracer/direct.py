@@ -10,7 +10,10 @@ point, 0 elsewhere).  A light's weights are summed over its emitters, and its
 colour is added once: ``color·(k_d·Σwd + k_s·Σws)``, the contract's sum over
 an area light's samples of ``color/(nu·nv)·(k_d·(N·L) + k_s·(R·V)^n)``
 gathered into one product per light (the same value to within rounding: a
-light of one emitter gets exactly its own term).
+light of one emitter gets exactly its own term).  Every emitter's terms are
+the one lighting kernel's (:mod:`tracer.kernel`), whatever its light's type;
+an area light's loop over its samples is :mod:`tracer.area`'s.  What the
+passes count is told to an observer (:class:`tracer.passes.Observer`).
 
 Shadow rays run from the exact hit point, leaving its surface by identity,
 to the light (:meth:`DirectLight.blocked`).  Two proofs spare them: in a scene
