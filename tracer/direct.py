@@ -42,7 +42,7 @@ from .passes import UNOBSERVED, Observer
 from .rays import Among, Rays, Shadows
 from .shading import add_phong, planes_holding
 from .spawn import Spawner, picker
-from .variants import Options
+from .variants import Options, add_clamped
 from .vec import columns, dot, rows_of, scaled
 from .world import World, max_abs
 
@@ -142,7 +142,7 @@ class DirectLight:
                 terms = self._one(kernel, group.first, seen)
             if terms is None:
                 continue
-            add_phong(colour, color, diffuse, specular, *terms)
+            (add_clamped if opt.clamp_terms else add_phong)(colour, color, diffuse, specular, *terms)
             observer.light(group.first, color, diffuse, specular, terms)
         observer.shaded(colour)
         return colour

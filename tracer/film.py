@@ -67,5 +67,6 @@ class Film:
 
 def stored(colour: np.ndarray, options: Options) -> np.ndarray:
     """Linear colours as the image stores them: 8-bit values (:func:`tracer.image.quantize`), after gamma 1/2.2
-    in the variant that applies it. Same shape, uint8."""
-    return quantize(colour if not options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2))
+    in the variant that applies it, and as a variant's student stores them (:meth:`tracer.variants.Options.stored`).
+    Same shape, uint8."""
+    return options.stored(quantize(colour if not options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2)))

@@ -90,6 +90,7 @@ class Renderer:
     """
 
     def __init__(self, scene: Scene, options: Options = REFERENCE):
+        scene = options.read(scene)  # (the scene itself, but in a variant that misreads it)
         _check_size(scene)
         img = scene.image
         self.scene = scene
@@ -107,6 +108,8 @@ class Renderer:
             self.world: World = build_world(scene, options)
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin, options.half_pixel,
                                      options.vertical_fov)
+            if options.left_handed:  # a variant's r = up × f (u kept): the image mirrored left to right
+                self.camera.right = -self.camera.right
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
             self.shading = self._direct_light()
         #: the index in ``scene.objects`` of each surface, by kind (the passes' ``object``)
@@ -363,6 +366,7 @@ class Renderer:
         if work.depth == 0:
             observer.first_hits(hit, self._owners, normal)
         colour = self.shading.shade(hit, mat, normal, dd, observer)
+        colour = self.options.blended(colour, self.world.materials.reflectance[mat])  # (a variant's)
         self._count.lit(len(rows) * len(self.emitter_light))
         film.add(done.sample, scaled(colour, done.weight), once)
         if work.depth >= deepest:

@@ -60,7 +60,8 @@ class Spawner:
         r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
         t = np.flatnonzero(weight * kt > 0)
         out = np.concatenate([mirror(dirs[r], normal[r]),
-                              refract(dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted)])
+                              refract(dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted,
+                                      self.options.exit_normal_flipped)])
         both = np.concatenate([r, t])
         rays = self.spawn(hit, self.magnitudes(hit), both, out)
         branch = None
