@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from schemas import load_scene
+from service.classgrade.records import GradeJob
 from service.programs import Limits, check_sandbox
 from service.programs.job import Program, ProgramJob, TaskScene, digest, grade_program
 from tracer import encode_png, render
@@ -23,7 +24,8 @@ def tasks() -> tuple[TaskScene, ...]:
     out = []
     for name in ("spot", "glass"):
         text = (HERE / f"{name}.json").read_bytes()
-        out.append(TaskScene(name, text, encode_png(render(load_scene(text), threads=1)), 2.0, 0.001))
+        reference = encode_png(render(load_scene(text), threads=1))
+        out.append(TaskScene(name, GradeJob(text, reference, b"", 2.0, 0.001)))
     return tuple(out)
 
 

@@ -88,11 +88,12 @@ def program_jobs(run: ClassRun, todo: list[Pair], task_of: Callable[[Pair], Task
         for pair in (p for p in todo if p.student == student):
             assert pair.key is not None
             task = task_of(pair)
-            stamp = {**journal.stamp(pair.key, code, task.tolerance, task.max_fraction), "program": True}
-            if not task.diagnose:
+            job = task.grading
+            stamp = {**journal.stamp(pair.key, code, job.tolerance, job.max_fraction), "program": True}
+            if not job.diagnose:
                 stamp["diagnosis"] = False
-            if task.accepted is not None:
-                stamp["accepted"] = task.accepted
+            if job.accepted is not None:
+                stamp["accepted"] = job.accepted
             row = resumed(pair, stamp)
             if row is not None:
                 pair.row = row

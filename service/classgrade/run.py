@@ -230,9 +230,7 @@ def _grade_programs(backend: Backend, run: ClassRun, checked: Checked, todo: lis
     from ..programs.job import TaskScene
 
     def task_of(pair: Pair) -> TaskScene:
-        job = _job(run, checked, pair, refs[pair.key or ""].read_bytes())
-        return TaskScene(pair.task, job.scene, job.reference, job.tolerance, job.max_fraction, job.accepted,
-                         job.diagnose)
+        return TaskScene(pair.task, _job(run, checked, pair, refs[pair.key or ""].read_bytes()))
 
     jobs = program_jobs(run, todo, task_of, lambda pair, stamp: _resumed(pair, run.report, stamp))
     tick()

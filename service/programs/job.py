@@ -3,7 +3,7 @@
 :func:`grade_program` is one task of class grading (a pool process's or a Dask worker's, all of a student's
 tasks together, so that the build is done once): it builds the program in its sandbox (when the TA gave a
 build command), runs it on each task scene, each run in a sandbox of its own, and grades each image it
-wrote exactly as an uploaded image of that task is graded (:func:`service.classgrade.grade_task`: the
+wrote exactly as an uploaded image of that task is graded (:func:`service.classgrade.tasks.local_grade`: the
 thresholds, the accepted variants, the diagnosis).  A run that fails (a timeout, memory, a crash, no output,
 an output that is a link...) makes a failing grade whose reason says so in words, and the others go on; a
 failing image is then diagnosed by experiment too (:mod:`service.programs.experiment`), within the same
@@ -23,10 +23,11 @@ import stat
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from ..classgrade.records import GradeJob
 from .experiment import Thresholds, experiment
 from .limits import Limits
 from .outcome import RunOutcome
@@ -67,19 +68,16 @@ def _installed(command: str) -> None:
 
 @dataclass(frozen=True)
 class TaskScene:
-    """One task the program renders: its name, the scene's text, its reference PNG and how it is graded."""
+    """One task the program renders: its name, and how its image is graded (the scene's text, its reference,
+    the thresholds: class grading's :class:`~service.classgrade.records.GradeJob`, its image the run's)."""
 
     task: str
-    scene: bytes
-    reference: bytes
-    tolerance: float
-    max_fraction: float
-    accepted: dict[str, float] | None = None
-    diagnose: bool = True
+    grading: GradeJob
 
     @property
     def thresholds(self) -> Thresholds:
-        return Thresholds(self.tolerance, self.max_fraction, self.accepted)
+        job = self.grading
+        return Thresholds(job.tolerance, job.max_fraction, job.accepted)
 
 
 @dataclass(frozen=True)
@@ -110,10 +108,9 @@ def failed_run(outcome: RunOutcome, what: str = "the run") -> dict[str, Any]:
 
 
 def _grade_image(task: TaskScene, image: bytes) -> dict[str, Any]:
-    from ..classgrade.tasks import grade_task
+    from ..classgrade.tasks import local_grade
 
-    return grade_task(task.reference, image, task.tolerance, task.max_fraction, task.scene, task.accepted,
-                      task.diagnose)
+    return local_grade(replace(task.grading, image=image))
 
 
 def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunOutcome]:
@@ -132,12 +129,12 @@ def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, 
     :func:`run_info`), and a failing image diagnosed by experiment (``experiment``: its sentences, the
     likeliest first, joined by "; "; a run that failed is not asked more).  An image that cannot be read as
     a PNG is an invalid pair, as an uploaded one is."""
-    outcome = run(task.scene)
+    outcome = run(task.grading.scene)
     if not outcome.ok or outcome.image is None:
         return failed_run(outcome)
     result = {**_grade_image(task, outcome.image), "image": outcome.image, **run_info(outcome)}
-    if task.diagnose and result["status"] == "fail":
-        said = experiment(task.scene, outcome.image, run, task.thresholds).sentences
+    if task.grading.diagnose and result["status"] == "fail":
+        said = experiment(task.grading.scene, outcome.image, run, task.thresholds).sentences
         result["experiment"] = "; ".join(said) or None
     return result
 
