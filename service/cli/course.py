@@ -12,8 +12,8 @@ from service.cli.common import CliError, thresholds
 from service.cli.options import Commands, command, limits, no_diagnosis, positive_int
 from service.cli.options import remote as remote_options
 from service.cli.options import thresholds as threshold_options
+from service.cli.programs import add_arguments as program_options
 from service.display import ProgressBar, counted, printable
-from service.programs.options import add_arguments as program_options
 
 if TYPE_CHECKING:
     from service.programs.job import Program
@@ -55,7 +55,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
 
 def students_program(args: argparse.Namespace) -> Program | None:
     """The students' program of ``--run`` and its options (None: images); a TA's mistake in them is one line."""
-    from service.programs.options import program
+    from service.cli.programs import program
 
     try:
         return program(args)

@@ -1,11 +1,11 @@
-"""The command line's options for students' programs (service.programs.options): sizes, limits, mistakes."""
+"""The command line's options for students' programs (service.cli.programs): sizes, limits, mistakes."""
 
 import argparse
 
 import pytest
 
+from service.cli.programs import add_arguments, program, size
 from service.programs.limits import GIB, MB
-from service.programs.options import add_arguments, program, size
 
 
 @pytest.mark.parametrize(("text", "expected"), [("2G", 2 * GIB), ("512MiB", 512 << 20), ("100MB", 100 * MB),
@@ -40,5 +40,5 @@ def test_the_defaults_are_a_courses_and_the_options_set_the_limits():
 
 
 def test_a_program_option_without_run_is_the_tas_mistake():
-    with pytest.raises(ValueError, match="--build, --no-sandbox: only with --run"):
-        program(parse("--build", "make", "--no-sandbox"))
+    with pytest.raises(ValueError, match="--build, --no-sandbox, --memory: only with --run"):
+        program(parse("--build", "make", "--no-sandbox", "--memory", "1G"))

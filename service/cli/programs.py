@@ -1,5 +1,7 @@
 """The command line's options for students' programs (``grade-class`` and ``autograder`` take the same):
 ``--run``, ``--build``, the limits and ``--no-sandbox``, made into a :class:`~service.programs.job.Program`.
+Nothing of :mod:`service.programs` is imported until a program is made (a render's start-up does not pay for
+it); an option not given takes :class:`~service.programs.limits.Limits`'s default.
 
 A size is a number of bytes with an optional unit: ``K``, ``M``, ``G`` (and ``KiB``, ``MiB``, ``GiB``) are
 powers of 1024, ``KB``, ``MB``, ``GB`` powers of 1000: ``--memory 2G`` is the default 2 GiB,
@@ -11,9 +13,10 @@ from __future__ import annotations
 import argparse
 import re
 from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
-from .job import Program
-from .limits import GIB, MB, Limits
+if TYPE_CHECKING:
+    from service.programs.job import Program
 
 UNITS = {"": 1, "K": 1 << 10, "KIB": 1 << 10, "M": 1 << 20, "MIB": 1 << 20, "G": 1 << 30, "GIB": 1 << 30,
          "KB": 1000, "MB": 1000**2, "GB": 1000**3}
@@ -53,30 +56,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="the program's command line, with {scene} and {output} (python3 render.py {scene} "
                             "{output}, ./raytracer {scene} {output})")
     group.add_argument("--build", metavar="CMD", help="a command run once per student first, in the sandbox (make)")
-    group.add_argument("--run-timeout", type=_positive(float), default=60.0, metavar="S",
+    group.add_argument("--run-timeout", type=_positive(float), metavar="S",
                        help="wall time of a run, and of a build (default: 60); the CPU time of each process is "
                             "held to the same number of seconds")
-    group.add_argument("--memory", type=size, default=2 * GIB, metavar="SIZE",
+    group.add_argument("--memory", type=size, metavar="SIZE",
                        help="address space of each process (default: 2G)")
-    group.add_argument("--processes", type=_positive(int), default=64, metavar="N",
+    group.add_argument("--processes", type=_positive(int), metavar="N",
                        help="processes and threads of a run at once (default: 64)")
-    group.add_argument("--output-size", type=size, default=100 * MB, metavar="SIZE",
+    group.add_argument("--output-size", type=size, metavar="SIZE",
                        help="any one file a program writes, and its image (default: 100MB)")
     group.add_argument("--no-sandbox", action="store_true",
                        help="run the programs without bubblewrap (only the limits apply; every run says so)")
 
 
-PROGRAM_OPTIONS = ("build", "no_sandbox")
+PROGRAM_OPTIONS = ("build", "no_sandbox", "run_timeout", "memory", "processes", "output_size")
 
 
 def program(args: argparse.Namespace) -> Program | None:
     """The options' program (None without ``--run``); ValueError, in words, for a TA's mistake: a command
     that cannot run, or a program option without ``--run``."""
     if args.run is None:
-        given = [f"--{name.replace('_', '-')}" for name in PROGRAM_OPTIONS if getattr(args, name)]
-        if given:
-            raise ValueError(f"{', '.join(given)}: only with --run (the students' program's command line)")
+        named = [f"--{name.replace('_', '-')}" for name in PROGRAM_OPTIONS if getattr(args, name)]
+        if named:
+            raise ValueError(f"{', '.join(named)}: only with --run (the students' program's command line)")
         return None
-    limits = Limits(memory_bytes=args.memory, processes=args.processes, wall_seconds=args.run_timeout,
-                    cpu_seconds=max(1, int(args.run_timeout)), output_bytes=args.output_size)
+    from service.programs.job import Program
+    from service.programs.limits import Limits
+
+    given: dict[str, Any] = {"memory_bytes": args.memory, "processes": args.processes,
+                             "output_bytes": args.output_size}
+    if args.run_timeout is not None:
+        given.update(wall_seconds=args.run_timeout, cpu_seconds=max(1, int(args.run_timeout)))
+    limits = Limits(**{name: value for name, value in given.items() if value is not None})
     return Program(args.run, args.build, limits, sandbox=not args.no_sandbox)
