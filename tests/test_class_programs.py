@@ -146,6 +146,8 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
     everything = "".join(p.read_text(errors="replace") for p in report.rglob("*") if p.is_file()
                          and p.suffix in (".json", ".csv", ".html"))
     assert "LEAK" not in everything and SECRET not in everything
+    assert "refused" in (report / "index.html").read_text()  # the TA's page shows a run's output
+    assert not any("refused" in p.read_text() for p in (report / "gradescope").rglob("*.json"))  # a student's never
     assert accepted == []
     assert left_running() == []
     assert scratch() <= before  # nothing of a run left on the disk

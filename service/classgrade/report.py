@@ -198,7 +198,8 @@ def _cell(r: dict[str, Any], anchor: str) -> str:
 
 
 def _detail(r: dict[str, Any], anchor: str) -> str:
-    """A pair's detail: the reason, the likely mistake, the score's deduction, the three images, the numbers."""
+    """A pair's detail: the reason, the likely mistake (and a program's probes' findings), the score's
+    deduction, the end of a program's output, the three images, the numbers."""
     images = "".join(
         f'<figure><img src="{_url(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
         if r[k] else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
@@ -206,10 +207,13 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     legend = _legend() if r["heatmap"] else ""
     numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
     likely = f'<p class="likely">Likely: {esc(r["likely"])}</p>' if r.get("likely") else ""
+    found = r.get("experiment")
+    probes = f"<p>By experiment: {esc(found)}</p>" if found and found != r.get("likely") else ""
+    output = f"<pre>{esc(r['run_output'])}</pre>" if r.get("run_output") else ""  # (the TA's page only)
     credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
     return (f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
-            f'</h2><p>{esc(r["reason"])}</p>{likely}{credit}<div class="images">{images}</div>{legend}'
-            f'<table class="numbers">{numbers}</table>'
+            f'</h2><p>{esc(r["reason"])}</p>{likely}{probes}{credit}{output}<div class="images">{images}</div>'
+            f'{legend}<table class="numbers">{numbers}</table>'
             f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
 
 
