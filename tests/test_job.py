@@ -97,3 +97,9 @@ def test_the_digest_follows_the_files_and_the_commands_not_the_links(tmp_path):
     assert digest(student, Program(RUN, limits=Limits())) != first
     (student / "mistakes.txt").write_text("no-shadows")
     assert digest(student, program) != first
+
+
+def test_an_output_that_is_not_a_png_is_invalid_as_an_upload_would_be(tmp_path, tasks):
+    garbage = 'import sys\nopen(sys.argv[2], "wb").write(b"GIF89a not a png")\nsys.exit(0)\n'
+    graded = grade_program(ProgramJob(folder(tmp_path, extra=garbage), Program(RUN, limits=LIMITS), tasks[:1]))
+    assert graded["spot"]["status"] == "invalid" and "experiment" not in graded["spot"]
