@@ -258,7 +258,7 @@ def _beyond(a: np.ndarray, b: np.ndarray, tolerance: float) -> float:
 
 #: rows a combination is chosen on: this share of the image's, at least :data:`LEAST_ROWS`
 ROW_SHARE = 1 / 16
-LEAST_ROWS = 4
+LEAST_ROWS = 8
 
 
 def telling_rows(reference: np.ndarray, submitted: np.ndarray, tolerance: float) -> np.ndarray:

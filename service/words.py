@@ -96,3 +96,23 @@ def objects_line(shares: list[tuple[int, float]], names: Names) -> str:
 def lights_line(shares: list[tuple[int, float]], names: Names) -> str:
     """"light 'key' 85 %, the third light (area) 40 %" for (light index, share) pairs."""
     return ", ".join(f"{names.light(k)} {round(100 * s)} %" for k, s in shares)
+
+
+def together_sentence(mistakes: list[str], fraction: float, passes: bool) -> str:
+    """"Likely two mistakes together: no shadow rays, and gamma 1/2.2 applied to the output — the submission
+    matches the reference rendered with both (0.02 % of pixels off)"."""
+    from .display import percent
+
+    count = {2: "two", 3: "three"}.get(len(mistakes), str(len(mistakes)))
+    listed = ", ".join(mistakes[:-1]) + (", and " if len(mistakes) > 2 else " and ") + mistakes[-1] \
+        if len(mistakes) > 1 else mistakes[0]
+    how = "matches" if passes else "comes closest to"
+    every = "both" if len(mistakes) == 2 else "all of them"
+    return (f"Likely {count} mistakes together: {listed} — the submission {how} the reference rendered with "
+            f"{every} ({percent(fraction)} of pixels off)")
+
+
+def nearest_sentence(what: str, share: float) -> str:
+    """"No known mistake fits exactly: most of the difference is the specular of light 'key' (about 60 %)"."""
+    return (f"No known mistake fits exactly: {share_words(share)} the difference is {what} "
+            f"(about {round(100 * share)} %)")

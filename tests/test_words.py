@@ -39,3 +39,15 @@ def test_objects_and_lights_in_words(names):
                                           (0.01, "a little of")])
 def test_shares_in_words(share, words):
     assert share_words(share) == words
+
+
+def test_mistakes_together_and_the_nearest_in_a_sentence():
+    from service.words import nearest_sentence, together_sentence
+
+    assert together_sentence(["no shadow rays", "gamma"], 0.0, True).startswith(
+        "Likely two mistakes together: no shadow rays and gamma — the submission matches the reference rendered "
+        "with both")
+    assert "a, b, and c" in together_sentence(["a", "b", "c"], 0.01, False)
+    assert "comes closest" in together_sentence(["a", "b", "c"], 0.01, False)
+    assert nearest_sentence("the specular of light 'key'", 0.62) == (
+        "No known mistake fits exactly: most of the difference is the specular of light 'key' (about 62 %)")
