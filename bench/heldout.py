@@ -6,7 +6,8 @@ image is graded and diagnosed as ``phongray grade`` does it, and the table says 
 named; ``--only EXAMPLE`` and ``--size WxH`` (64x48 by default, the student is pure Python) narrow it.  The
 student's images are kept in ``--cache`` (a folder; none: made again), by example, size and mistakes.
 
-A mistake is *visible* in an example when the student's image with it alone fails the grade; an image is
+A mistake is *visible* in an example when the student's image with it alone fails the grade (against the
+reference and every accepted variant: an image that passes is not diagnosed); an image is
 *named* when the diagnosis names every visible mistake made (as a cause it matches, or the one it comes closest
 to); an honest image must pass, with no "Likely".
 """
@@ -100,10 +101,10 @@ def cases(name: str, size: tuple[int, int], cache: Path | None) -> list[Case]:
     for made in [(), *((m,) for m in shown), *(p for p in PAIRS if all(m in shown for m in p))]:
         submitted = image(scene, name, made, cache)
         verdict = grade(reference, submitted, "")
-        if len(made) == 1:
-            fails[made[0]] = not verdict.passed
         graded = explain(scene, Graded(verdict, None), reference, submitted)
         passed = graded.grade.passed
+        if len(made) == 1:
+            fails[made[0]] = not passed
         found = graded.diagnosis if graded.diagnosis is None or isinstance(graded.diagnosis, dict) else \
             graded.diagnosis.as_dict()
         visible = tuple(m for m in made if fails.get(m, True))
