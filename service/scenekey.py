@@ -1,6 +1,6 @@
 """The canonical key of a scene: what the render cache and the diagnosis cache file a scene under.
 
-Kept apart from :mod:`service.jobs` so that what needs only the key (a diagnosis in the command line, a class
+Kept apart from :mod:`service.http.jobs` so that what needs only the key (a diagnosis in the command line, a class
 worker) does not import the service's settings.
 """
 

@@ -172,7 +172,7 @@ def test_grade_says_which_variant_it_passed_as_even_without_a_diagnosis(whitted,
 def test_post_grade_gives_the_accepted_variant(whitted):
     from fastapi.testclient import TestClient
 
-    from service.app import create_app
+    from service.http.app import create_app
     from service.settings import Settings
 
     honest = encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"]))

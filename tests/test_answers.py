@@ -16,8 +16,8 @@ from PIL import Image
 
 import schemas
 from service import passes
-from service.app import create_app
-from service.jobs import RenderService, prepare
+from service.http.app import create_app
+from service.http.jobs import RenderService, prepare
 from service.pipeline import compare
 from service.settings import Settings
 from tracer import Renderer
@@ -275,6 +275,6 @@ def test_a_pass_or_a_diagnosis_out_of_memory_is_a_503_not_a_500(monkeypatch):
     png = service.png(job)
     reference = Renderer(job.scene).pixels()
     wrong = Renderer(job.scene.model_copy(update={"lights": job.scene.lights[:1]})).pixels()
-    monkeypatch.setattr("service.jobs.explain", starved)
+    monkeypatch.setattr("service.http.jobs.explain", starved)
     explained = service.explain(job, compare(png, wrong, 2, 0.001), reference, wrong)
     assert explained.diagnosis is not None and "ran out of memory" in explained.diagnosis["sentence"]
