@@ -70,8 +70,9 @@ def cmd_grade(args: argparse.Namespace) -> int:
             raise outgrown_error(args, exc) from None
         try:
             graded = pipeline.grade_png(reference, image, args.tolerance, args.max_fraction,
-                                        kind if args.heatmap else None, legend=True, scene=lambda: scene,
-                                        checks=pipeline.Checks(diagnose=not args.no_diagnosis))
+                                        kind if args.heatmap else None, legend=True,
+                                        explaining=pipeline.Explaining(
+                                            lambda: scene, pipeline.Checks(diagnose=not args.no_diagnosis)))
         except grading.ImageError as exc:
             raise CliError(f"{args.image}: {exc}") from None
         result, heat = graded.as_dict(), graded.heatmap

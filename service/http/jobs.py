@@ -20,7 +20,7 @@ from service.diagnosis import Cached, unavailable
 from service.http.cache import RenderCache
 from service.limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
 from service.passes import Format, PassFile
-from service.pipeline import Graded, explain, with_overrides
+from service.pipeline import Graded, Run, explain, with_overrides
 from service.rendering import render_pixels
 from service.scenekey import scene_key
 from service.settings import Settings
@@ -223,8 +223,8 @@ class RenderService:
 
                     return run(self._client(), explain_task, job.scene.model_dump_json().encode(), graded,
                                reference, submitted, self.settings.render_timeout, cancelled=stop)
-                return explain(job.scene, graded, reference, submitted, self.threads, cancel=stop,
-                               cache=self.diagnoses)
+                return explain(job.scene, graded, reference, submitted,
+                               run=Run(self.threads, cancel=stop, cache=self.diagnoses))
         except Busy:
             return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
         except MemoryError:
@@ -266,6 +266,7 @@ def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted:
 
     deadline = time.monotonic() + seconds
     try:
-        return explain(load_scene(scene), graded, reference, submitted, 1, cancel=lambda: time.monotonic() > deadline)
+        return explain(load_scene(scene), graded, reference, submitted,
+                       run=Run(1, cancel=lambda: time.monotonic() > deadline))
     except RenderCancelled:
         return replace(graded, diagnosis=unavailable(f"its renders ran past the limit render_timeout = {seconds:g} s"))
