@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 import schemas
-from service.compose import merged
+from service.diagnosis.compose import merged
 from service.diagnosis import diagnose, renders_of
 from service.grading import grade
 from tracer import Renderer

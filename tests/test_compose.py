@@ -5,7 +5,7 @@ import pytest
 import student
 
 import schemas
-from service.compose import (
+from service.diagnosis.compose import (
     ALL,
     Fitted,
     Looks,

@@ -4,7 +4,7 @@ import pytest
 from test_names import SCENE
 
 import schemas
-from service.words import Names, how_bright, lights_line, names_of, objects_line, share_words, term_sentence
+from service.diagnosis.words import Names, how_bright, lights_line, names_of, objects_line, share_words, term_sentence
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +42,7 @@ def test_shares_in_words(share, words):
 
 
 def test_mistakes_together_and_the_nearest_in_a_sentence():
-    from service.words import nearest_sentence, together_sentence
+    from service.diagnosis.words import nearest_sentence, together_sentence
 
     assert together_sentence(["no shadow rays", "gamma"], 0.0, True).startswith(
         "Likely two mistakes together: no shadow rays and gamma — the submission matches the reference rendered "

@@ -31,6 +31,7 @@ from .fit import fit_terms
 from .looks import bound_unless_outside, off_at_least, outside_at_least, speckled, whole_unless_off
 from .records import Cause, Diagnosis
 from .renders import Renders
+from .together import closer, combined, nearest_causes, together_causes
 from .where import where
 
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
@@ -54,15 +55,22 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
         return out
     scoring = _Scoring(reference, submitted, verdict, renders)
     later, later_bounds = scoring.first_round()
-    if not any(c.passes for c in scoring.scored):  # then the closest is named: score what may come closest
-        scoring.closest_round(later, later_bounds)
-    out.causes, out.closest = scoring.named()
-    if not any(c.passes for c in out.causes):  # a mistake that explains the image leaves no term to fit
+    if any(c.passes for c in scoring.scored):
+        out.causes, out.closest = scoring.named()
+    else:  # no single mistake: the terms out of scale, then mistakes made together (one render)
         renders.check()
         out.terms = fit_terms(submitted, renders)
+        together = combined(reference, submitted, verdict, renders, out.terms)
+        if together is not None and together.passes:  # (mistakes that explain the image leave no term to fit)
+            out.causes, out.terms = together_causes(together), []
+        else:  # the closest is named: score what may come closest, and else the nearest explanations
+            scoring.closest_round(later, later_bounds)
+            out.causes, out.closest = closer(together, *scoring.named(), verdict)
+            if not out.causes:
+                out.causes = nearest_causes(reference, submitted, verdict, renders, out.terms)
     renders.check()
     out.objects, out.lights = where(reference, submitted, verdict, renders)
-    return out
+    return out if renders.names is None else out.worded(renders.names)
 
 
 class _Scoring:

@@ -68,13 +68,13 @@ def term_name(name: str, light: int | None, names: Names) -> str:
             "background": "the background"}.get(name, f"the {name} term")
 
 
-def term_sentence(name: str, light: int | None, scale: float, names: Names) -> str:
+def term_sentence(name: str, light: int | None, scale: float, names: Names, joined: str = " ") -> str:
     """"the specular of light 'key' is missing", "the diffuse of the second light (point) is twice as bright as
-    the reference's"."""
+    the reference's"; with ``joined=", which "``, "the specular of light 'key', which is missing"."""
     how = how_bright(scale)
     tail = "" if how == "missing" else " as the reference's"
     verb = "are" if light is None and name in ("reflection", "refraction") else "is"
-    return f"{term_name(name, light, names)} {verb} {how}{tail}"
+    return f"{term_name(name, light, names)}{joined}{verb} {how}{tail}"
 
 
 def share_words(share: float) -> str:
@@ -101,7 +101,7 @@ def lights_line(shares: list[tuple[int, float]], names: Names) -> str:
 def together_sentence(mistakes: list[str], fraction: float, passes: bool) -> str:
     """"Likely two mistakes together: no shadow rays, and gamma 1/2.2 applied to the output — the submission
     matches the reference rendered with both (0.02 % of pixels off)"."""
-    from .display import percent
+    from ..display import percent
 
     count = {2: "two", 3: "three"}.get(len(mistakes), str(len(mistakes)))
     listed = ", ".join(mistakes[:-1]) + (", and " if len(mistakes) > 2 else " and ") + mistakes[-1] \

@@ -32,7 +32,7 @@ import numpy as np
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
 if TYPE_CHECKING:
-    from .grading import Grade
+    from ..grading import Grade
 
 #: every mistake that may be named: name → (options, what the student did)
 ALL: dict[str, tuple[Options, str]] = {**VARIANTS, **MORE_VARIANTS}
@@ -324,7 +324,7 @@ def compose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, looks:
     ``numbers`` (None: :func:`telling_rows`) and confirmed by one render of them all (none when they are
     image-level mistakes alone: the reference's pixels stored with them); None when no mistake helps, or when
     the one mistake found is a classic one alone (the single-mistake diagnosis has graded it already)."""
-    from .grading import grade
+    from ..grading import grade
 
     found = image_level(reference, submitted)
     rows = _rows(reference, submitted, looks, candidates(looks, terms), (found, verdict.tolerance, numbers))
