@@ -57,6 +57,8 @@ ADD_AT_MOST = 0.7
 ADD_LEVELS = 1e-6
 #: at most this many render-level mistakes together
 MAX_TOGETHER = 3
+#: a nearest explanation that accounts for less of the difference than this accounts for nothing a person sees
+NOTHING = 0.01
 
 
 @dataclass(frozen=True)
@@ -379,7 +381,8 @@ def nearest(reference: np.ndarray, submitted: np.ndarray, looks: Looks, terms: l
             tolerance: float = 2.0) -> list[Explanation]:
     """When nothing fits: every mistake tried and every term out of scale (with the share of the difference the
     fit says it accounts for), ranked by how much of the submission's difference from the reference each
-    accounts for, most first; those that account for nothing are left out."""
+    accounts for, most first; those that account for less than :data:`NOTHING` are left out, but for the first
+    (when it accounts for anything at all)."""
     found = image_level(reference, submitted)
     rows = _rows(reference, submitted, looks, candidates(looks, [t for t, _ in terms]), (found, tolerance, None))
     base = rows.error(())
@@ -387,4 +390,5 @@ def nearest(reference: np.ndarray, submitted: np.ndarray, looks: Looks, terms: l
     if base > 0:
         out += [Explanation(max(0.0, 1.0 - rows.error((n,)) / base), n) for n in rows.deltas]
     out += [Explanation(share, term=t) for t, share in terms]
-    return sorted((e for e in out if e.share > 0), key=lambda e: -e.share)
+    ranked = sorted(out, key=lambda e: -e.share)
+    return [e for k, e in enumerate(ranked) if e.share >= NOTHING or (k == 0 and e.share > 0)]
