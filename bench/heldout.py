@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -88,6 +88,17 @@ def named(found: dict[str, Any] | None) -> tuple[str, ...]:
     return (causes[0]["variant"],) if causes and found.get("closest") and causes[0].get("variant") else ()
 
 
+def case(scene: Any, reference: np.ndarray, name: str, made: tuple[str, ...], cache: Path | None,
+         visible: tuple[str, ...]) -> Case:
+    """Example ``name``'s image by the student, with mistakes ``made`` (``visible``: those that show), graded and
+    diagnosed as ``phongray grade`` does it."""
+    submitted = image(scene, name, made, cache)
+    graded = explain(scene, Graded(grade(reference, submitted, ""), None), reference, submitted)
+    found = graded.diagnosis if graded.diagnosis is None or isinstance(graded.diagnosis, dict) else \
+        graded.diagnosis.as_dict()
+    return Case(name, made, visible, graded.grade.passed, named(found), (found or {}).get("sentence", ""))
+
+
 def cases(name: str, size: tuple[int, int], cache: Path | None) -> list[Case]:
     """Every case of one example: honest, each mistake it can show alone, and the pairs of :data:`PAIRS`."""
     from tracer.variants import unchanged
@@ -96,19 +107,15 @@ def cases(name: str, size: tuple[int, int], cache: Path | None) -> list[Case]:
     scene = schemas.validate_scene(example(name, *size))
     reference = Renderer(scene).pixels()
     shown = [m for m in oop.MISTAKES if not unchanged(m, scene)]
-    fails = {}
+    fails: dict[str, bool] = {}
     out = []
     for made in [(), *((m,) for m in shown), *(p for p in PAIRS if all(m in shown for m in p))]:
-        submitted = image(scene, name, made, cache)
-        verdict = grade(reference, submitted, "")
-        graded = explain(scene, Graded(verdict, None), reference, submitted)
-        passed = graded.grade.passed
-        if len(made) == 1:
-            fails[made[0]] = not passed
-        found = graded.diagnosis if graded.diagnosis is None or isinstance(graded.diagnosis, dict) else \
-            graded.diagnosis.as_dict()
         visible = tuple(m for m in made if fails.get(m, True))
-        out.append(Case(name, made, visible, passed, named(found), (found or {}).get("sentence", "")))
+        one = case(scene, reference, name, made, cache, visible)
+        if len(made) == 1:
+            fails[made[0]] = not one.passed
+            one = replace(one, visible=made if not one.passed else ())
+        out.append(one)
     return out
 
 
