@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 import schemas
-from service.diagnosis.compose import merged
 from service.diagnosis import diagnose, renders_of
+from service.diagnosis.compose import merged
 from service.grading import grade
 from tracer import Renderer
 from tracer.variants import VARIANTS

@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 from test_compose import small
 
+from service.classgrade.gradebook import matched
 from service.diagnosis import diagnose, renders_of
 from service.diagnosis.compose import Combination, Member, merged
 from service.diagnosis.records import Cause
 from service.diagnosis.together import closer, together_causes
 from service.display import explained
-from service.gradebook import matched
 from service.grading import grade
 from tracer import Renderer
 
