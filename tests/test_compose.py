@@ -13,13 +13,10 @@ from service.diagnosis.compose import (
     chosen,
     compatible,
     compose,
-    image_level,
     merged,
     nearest,
-    outer,
     pointed,
     telling_rows,
-    undone,
 )
 from service.grading import grade
 from tracer import Renderer
@@ -61,22 +58,6 @@ def test_options_merge_the_changed_fields_of_each_mistake():
     assert not compatible(("depth-plus-one", "depth-minus-one"))
     with pytest.raises(ValueError, match="depth_offset"):
         merged(("depth-plus-one", "depth-minus-one"))
-
-
-def test_undone_inverts_the_stored_images_flips_and_channel_swap():
-    image = np.random.default_rng(3).integers(0, 256, (6, 5, 3), dtype=np.uint8)
-    names = ("image-flipped", "camera-left-handed", "channels-swapped")
-    assert np.array_equal(undone(outer(image, names), names), image)
-    grey = outer(image, ("grayscale",))
-    assert np.array_equal(grey, Options(grayscale=True).stored(image))
-
-
-@pytest.mark.parametrize("names", [("camera-left-handed",), ("grayscale",), ("channels-swapped",),
-                                   ("image-flipped", "channels-swapped")])
-def test_image_level_mistakes_are_found_on_the_references_pixels(names):
-    reference = Renderer(small("01_three_spheres")).pixels()
-    assert set(image_level(reference, outer(reference, names))) == set(names)
-    assert image_level(reference, reference) == {}
 
 
 def test_the_fit_points_to_the_new_mistakes_it_can_see():

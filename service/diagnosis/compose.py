@@ -23,7 +23,7 @@ Pure: the renders come in through a :class:`Looks`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from itertools import combinations
 from typing import TYPE_CHECKING
 
@@ -31,24 +31,13 @@ import numpy as np
 
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
+from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
+
 if TYPE_CHECKING:
     from ..grading import Grade
 
 #: every mistake that may be named: name → (options, what the student did)
 ALL: dict[str, tuple[Options, str]] = {**VARIANTS, **MORE_VARIANTS}
-#: the mistakes of the stored image, in the order a tracer makes them (gamma before the 8 bits, then the rows,
-#: then the channels): each a change of the 8-bit image alone, tried with no render
-OUTER = ("image-flipped", "camera-left-handed", "grayscale", "channels-swapped")
-#: gamma is a change of the stored values too, but one a brighter light also makes: it is chosen with the
-#: render-level mistakes (its difference is not added: it is applied to the sum of the others')
-GAMMA = "gamma"
-#: the mistakes of the stored values alone, applied to a model of the rows rather than added to it: gamma, and
-#: the grey and channel swap that a large difference of another mistake hides from :func:`image_level`
-STORED = (GAMMA, "grayscale", "channels-swapped")
-#: an image-level mistake is kept when leaving it out makes the mean difference at least this much larger
-#: (× the difference with it): a transform that changes little (a left-right mirror of a symmetric scene) is no
-#: evidence
-KEEP_OUTER = 1.25
 #: a further render-level mistake is added to a combination when it leaves at most this share of the mean
 #: difference the combination without it leaves (each mistake of a combination accounts for a real part)
 ADD_AT_MOST = 0.7
@@ -128,57 +117,6 @@ def compatible(names: tuple[str, ...]) -> bool:
     return True
 
 
-# -- the stored image's mistakes, with no render -------------------------------------------------------------------
-
-_GAMMA = np.floor(255.0 * (np.arange(256) / 255.0) ** (1 / 2.2) + 0.5).astype(np.uint8)
-
-
-def outer(image: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-    """``image`` (..., H, W, 3) uint8 stored with the image-level mistakes ``names``.  Gamma is applied to the
-    8-bit values (an image from linear colour is within a few levels of it, more in the darkest shades: enough
-    to tell, not to confirm, which one render does)."""
-    out = _GAMMA[image] if GAMMA in names else image
-    if "image-flipped" in names:
-        out = out[..., ::-1, :, :]
-    if "camera-left-handed" in names:
-        out = out[..., :, ::-1, :]
-    return Options(grayscale="grayscale" in names, channels_swapped="channels-swapped" in names).stored(out)
-
-
-def undone(submitted: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-    """The submission with the invertible image-level mistakes of ``names`` undone (flips, the channel swap): what
-    the reference's rows are compared with.  Grey and gamma cannot be undone: they are applied to the other side."""
-    out = submitted
-    if "channels-swapped" in names and "grayscale" not in names:
-        out = out[..., ::-1]
-    if "camera-left-handed" in names:
-        out = out[:, ::-1]
-    if "image-flipped" in names:
-        out = out[::-1]
-    return out
-
-
-def _mean_difference(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.mean(np.abs(a.astype(np.float64) - b.astype(np.float64))))
-
-
-def image_level(reference: np.ndarray, submitted: np.ndarray) -> dict[str, float]:
-    """The image-level mistakes the submission shows, from the reference's pixels alone, each with the share of
-    the mean difference it takes away: the subset of :data:`OUTER` whose stored reference is nearest the
-    submission (mean difference), less each member whose leaving out makes that less than :data:`KEEP_OUTER`
-    times larger (no evidence of it)."""
-    subsets = [tuple(n for k, n in enumerate(OUTER) if mask >> k & 1) for mask in range(1 << len(OUTER))]
-    errors = {s: _mean_difference(outer(reference, s), submitted) for s in subsets}
-    best = min(subsets, key=lambda s: (errors[s], len(s)))
-    base = errors[()]
-    kept = {}
-    for n in best:
-        without = errors[tuple(m for m in best if m != n)]
-        if without >= KEEP_OUTER * errors[best] + ADD_LEVELS:
-            kept[n] = (without - errors[best]) / base if base > 0 else 0.0
-    return kept
-
-
 # -- which render-level mistakes to try: the term fit points to the new ones ---------------------------------------
 
 #: the term fit's slack: a coefficient further than this from 1 is out of scale
@@ -236,8 +174,15 @@ class Rows:
     deltas: dict[str, np.ndarray]  # mistake → its render's rows less the reference's, float
 
     tolerance: float = 2.0  # the grade's: a difference within it is no difference
+    known: dict[tuple[str, ...], float] = field(default_factory=dict)  # the errors worked out, by sorted names
 
     def error(self, names: tuple[str, ...]) -> float:
+        key = tuple(sorted(names))
+        if key not in self.known:
+            self.known[key] = self._error(key)
+        return self.known[key]
+
+    def _error(self, names: tuple[str, ...]) -> float:
         """How far the submission's rows are from the reference's with the mistakes ``names`` made, their
         differences added: the mean, over the pixels, of the largest channel difference beyond the tolerance
         (levels).  A small highlight missing weighs as its pixels do, rounding not at all."""
@@ -252,9 +197,11 @@ def _beyond(a: np.ndarray, b: np.ndarray, tolerance: float) -> float:
     """The mean over pixels of ``b`` of the largest channel difference beyond ``tolerance`` from the nearest of
     the pixel of ``a`` and its neighbours left and right (the grade forgives a shift of a pixel; rows come
     alone, so only along them)."""
-    wide = np.pad(a.astype(np.float64), ((0, 0), (1, 1), (0, 0)), mode="edge")
-    sub, w = b.astype(np.float64), b.shape[1]
-    diff = np.min([np.max(np.abs(wide[:, dx:dx + w] - sub), axis=-1) for dx in range(3)], axis=0)
+    wide = np.pad(a.astype(np.int16), ((0, 0), (1, 1), (0, 0)), mode="edge")
+    sub, w = b.astype(np.int16), b.shape[1]
+    diff = np.abs(wide[:, 0:w] - sub).max(axis=-1)
+    for dx in (1, 2):
+        np.minimum(diff, np.abs(wide[:, dx:dx + w] - sub).max(axis=-1), out=diff)
     return float(np.mean(np.maximum(diff - tolerance, 0.0)))
 
 
@@ -290,6 +237,8 @@ def chosen(rows: Rows) -> tuple[str, ...]:
     singles = sorted((rows.error((n,)), (n,)) for n in names)
     if singles and better(error, singles[0][1]) is not None:
         best, error = singles[0][1], singles[0][0]
+    # (a mistake whose difference alone takes the rows further from the submission is no part of it)
+    names = sorted(n for e, (n,) in singles if e < rows.error(()))
     pairs = sorted((rows.error(p), p) for p in combinations(names, 2) if compatible(p))
     if pairs and better(error, pairs[0][1]) is not None:
         best, error = pairs[0][1], pairs[0][0]
@@ -313,12 +262,6 @@ def shares(rows: Rows, names: tuple[str, ...]) -> dict[str, float]:
 
 
 # -- one render confirms -----------------------------------------------------------------------------------------
-
-#: how an image-level mistake shows, for its evidence
-SHOWN = {"gamma": "brightened as gamma 1/2.2 brightens it", "image-flipped": "upside down",
-         "camera-left-handed": "mirrored left to right", "grayscale": "in grey",
-         "channels-swapped": "with red and blue swapped"}
-
 
 def compose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, looks: Looks, terms: list[Fitted],
             numbers: np.ndarray | None = None) -> Combination | None:
@@ -345,6 +288,23 @@ def compose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, looks:
     members += [Member(n, ALL[n][1], found[n], f"the image is the reference's {SHOWN[n]}") for n in found]
     members.sort(key=lambda m: -m.share)
     return Combination(tuple(members), g.fraction_off_nearby, g.passed)
+
+
+def stored_only(reference: np.ndarray, submitted: np.ndarray, verdict: Grade) -> Combination | None:
+    """The image-level mistakes alone, when the submission passes against the reference's pixels stored with
+    them: found with no render at all, before any mistake is rendered (None also for the classic flip alone,
+    which the single-mistake diagnosis names as it always has)."""
+    from ..grading import grade
+
+    found = image_level(reference, submitted)
+    names = tuple(n for n in OUTER if n in found)
+    if not names or names == ("image-flipped",):
+        return None
+    g = grade(outer(reference, names), submitted, "", verdict.tolerance, verdict.max_fraction)
+    if not g.passed:
+        return None
+    members = [Member(n, ALL[n][1], found[n], f"the image is the reference's {SHOWN[n]}") for n in names]
+    return Combination(tuple(sorted(members, key=lambda m: -m.share)), g.fraction_off_nearby, True)
 
 
 def _rows(reference: np.ndarray, submitted: np.ndarray, looks: Looks, tried: dict[str, str],
