@@ -21,6 +21,8 @@ STORED = (GAMMA, "grayscale", "channels-swapped")
 #: (× the difference with it): a transform that changes little (a left-right mirror of a symmetric scene) is no
 #: evidence
 KEEP_OUTER = 1.25
+#: at most this many rows are compared to find the image-level mistakes
+SAMPLED_ROWS = 128
 #: gamma 1/2.2 of an 8-bit value, as a table
 _GAMMA = np.floor(255.0 * (np.arange(256) / 255.0) ** (1 / 2.2) + 0.5).astype(np.uint8)
 
@@ -58,16 +60,25 @@ def image_level(reference: np.ndarray, submitted: np.ndarray) -> dict[str, float
     """The image-level mistakes the submission shows, from the reference's pixels alone, each with the share of
     the mean difference it takes away: the subset of :data:`OUTER` whose stored reference is nearest the
     submission (mean difference), less each member whose leaving out makes that less than :data:`KEEP_OUTER`
-    times larger (no evidence of it)."""
+    times larger (no evidence of it).  Compared on at most :data:`SAMPLED_ROWS` rows evenly apart (all of a
+    smaller image's): these mistakes change every row alike, and what they find is confirmed by a grade of the
+    whole image (:func:`.compose.stored_only`, or the one render of a combination)."""
     subsets = [tuple(n for k, n in enumerate(OUTER) if mask >> k & 1) for mask in range(1 << len(OUTER))]
-    errors = {s: mean_difference(outer(reference, s), submitted) for s in subsets}
+    h = reference.shape[0]
+    rows = np.arange(0, h, max(1, -(-h // SAMPLED_ROWS)))  # (the rows of the submission compared)
+
+    def stored(names: tuple[str, ...]) -> np.ndarray:  # those rows of the reference stored with ``names``
+        source = reference[h - 1 - rows] if "image-flipped" in names else reference[rows]
+        return outer(source, tuple(n for n in names if n != "image-flipped"))
+
+    errors = {s: mean_difference(stored(s), submitted[rows]) for s in subsets}
     best = min(subsets, key=lambda s: (errors[s], len(s)))
     base = errors[()]
     kept = {}
     for n in best:
         without = errors[tuple(m for m in best if m != n)]
         if without > KEEP_OUTER * errors[best]:
-            kept[n] = (without - errors[best]) / base if base > 0 else 0.0
+            kept[n] = min(1.0, (without - errors[best]) / base) if base > 0 else 0.0
     return kept
 
 
