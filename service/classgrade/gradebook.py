@@ -24,10 +24,14 @@ MISTAKES = {name: words for name, (_, words) in VARIANTS.items()}
 
 def matched(diagnosis: dict[str, Any] | None) -> list[str]:
     """The ids of the mistakes a failing image matches (passes against the reference rendered with each), best
-    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it."""
+    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it; mistakes made together are
+    one id, ``no-shadows+gamma`` (two faults: no deduction of one mistake is taken for them)."""
     if not diagnosis:
         return []
-    return [c["variant"] for c in diagnosis.get("causes", []) if c.get("passes")]
+    causes = [c for c in diagnosis.get("causes", []) if c.get("passes")]
+    if causes and causes[0].get("together"):  # mistakes made together: one id for them all, which no deduction names
+        return ["+".join(c["variant"] for c in causes)]
+    return [c["variant"] for c in causes]
 
 
 @dataclass(frozen=True)
