@@ -76,3 +76,14 @@ def test_nothing_that_fits_still_has_causes_ranked_by_share(spheres):
     shares = [c.share for c in found.causes]
     assert all(s is not None for s in shares) and shares == sorted(shares, reverse=True)
     assert found.sentence().startswith("No known mistake fits exactly:")
+
+
+def test_mistakes_made_together_lose_each_ones_deduction():
+    from service.classgrade.gradebook import score
+    from service.classgrade.taskfile import TaskSettings
+
+    task = TaskSettings(points=10, deductions={"no-shadows": 3, "gamma": 2})
+    assert score({"status": "fail", "mistakes": ["no-shadows+gamma"]}, task).score == 5
+    assert score({"status": "fail", "mistakes": ["no-shadows+gamma"]}, task).deducted == "no-shadows+gamma"
+    # one of the two without a deduction: the image scores nothing, as a fault the task does not forgive
+    assert score({"status": "fail", "mistakes": ["no-shadows+blinn-phong"]}, task).score == 0
