@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import subprocess
+import tempfile
 import sys
 import zipfile
 from pathlib import Path
@@ -80,3 +81,44 @@ def test_a_program_file_that_is_not_one_is_the_tas_mistake(tmp_path: Path):
     (tmp_path / "program.json").write_bytes(program_json(Program(RUN)).replace(b'"run"', b'"rnu"'))
     with pytest.raises(ClassError, match="not a program file"):
         load_program(tmp_path)
+
+
+SNOOP = """import os, shutil, sys
+scene, output = sys.argv[1], sys.argv[2]
+for folder, _, files in os.walk({root!r}):  # the bundle's reference (its only task's), if it could be read
+    for name in files:
+        if os.path.basename(folder) == "references" and name.endswith(".png"):
+            shutil.copyfile(os.path.join(folder, name), output)
+            sys.exit(0)
+sys.exit("nothing of the autograder could be read")
+"""
+
+
+def test_without_the_sandbox_a_program_cannot_read_the_bundle(tmp_path: Path):
+    # a bundle made with --no-sandbox (a container that cannot start bubblewrap): each run is still a user of its
+    # own, and /autograder is closed to it, so the hidden references cannot be handed in as the program's output
+    course = tmp_path / "course"
+    (course / "scenes").mkdir(parents=True)
+    shutil.copyfile(HERE / "spot.json", course / "scenes" / "spot.json")
+    out = course / "autograder.zip"
+    assert main(["autograder", str(course / "scenes"), "-o", str(out), "--run", RUN, "--no-sandbox"]) == 0
+    open_place = Path(tempfile.mkdtemp(prefix="phongray-gs-"))  # (pytest's own folders are closed to others)
+    try:
+        os.chmod(open_place, 0o755)
+        root = open_place / "autograder"
+        for folder in ("source", "submission", "results"):
+            (root / folder).mkdir(parents=True)
+            os.chmod(root / folder, 0o755)
+        os.chmod(root, 0o755)
+        with zipfile.ZipFile(out) as archive:
+            archive.extractall(root / "source")
+        assert len(list((root / "source" / "course" / "references").glob("*.png"))) == 1  # (there to be stolen)
+        (root / "submission" / "tracer.py").write_text(SNOOP.format(root=str(root)))
+        env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
+        done = subprocess.run(["bash", str(root / "source" / "run_autograder")], cwd=root, env=env, text=True,
+                              capture_output=True, timeout=600)
+        results = json.loads((root / "results" / "results.json").read_text())
+    finally:
+        shutil.rmtree(open_place)
+    assert done.returncode == 0, done.stderr
+    assert results["score"] == 0 and results["tests"][0]["status"] == "failed", results

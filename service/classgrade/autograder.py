@@ -291,6 +291,8 @@ def _grade(root: Path) -> dict[str, Any]:
         raise ClassError(f"{course}: no scenes; is this a phongray autograder bundle?")
     tasks = sorted(p.name[:-5] for p in scenes.iterdir() if p.name.endswith(".json"))
     program = load_program(course)
+    if program is not None:  # the program runs as a user of its own: /autograder (hidden scenes, references,
+        os.chmod(root, 0o700)  # results) is closed to it even where no sandbox hides it (a bundle's --no-sandbox)
     with tempfile.TemporaryDirectory() as work:
         place = Path(work)
         who = _own_folder(course / "student-scenes", submitter(root))
