@@ -35,12 +35,15 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
+from tracer.bounds import bounds_of  # noqa: E402
 from tracer.cones import along_direction, on_lines, through_point  # noqa: E402
-from tracer.culling import MIXED, SEEN, TILE, Penumbra, bounds_of, classify, lit_tiles  # noqa: E402
+from tracer.culling import MIXED, SEEN, classify  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
 from tracer.lights import illuminate  # noqa: E402
+from tracer.penumbra import Penumbra  # noqa: E402
 from tracer.rays import Rays, Shadows  # noqa: E402
 from tracer.shading import shading_normal  # noqa: E402
+from tracer.tiles import TILE, lit_tiles  # noqa: E402
 
 import generator  # noqa: E402
 import reference  # noqa: E402
@@ -249,7 +252,7 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
 
 def _penumbra(out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag: np.ndarray, culled: Any,
               group: Any) -> None:
-    """An area light's mixed points' rays that tracer.culling.Penumbra decides without casting them, cast all the
+    """An area light's mixed points' rays that tracer.penumbra.Penumbra decides without casting them, cast all the
     same: each proven blocked is blocked, each left uncast and not blocked is clear."""
     world, isect = renderer.world, renderer.intersector
     mixed = np.flatnonzero(culled.state == MIXED)

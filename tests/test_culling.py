@@ -7,7 +7,9 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.culling import HIDDEN, MIXED, NORMAL_ERROR, SEEN, Bounds, _faces, bounds_of, classify
+from tracer.bounds import Bounds, bounds_of
+from tracer.culling import HIDDEN, MIXED, SEEN, _faces, classify
+from tracer.margins import NORMAL_ERROR
 from tracer.shapes import PLANE, SPHERE
 
 import generator
@@ -81,7 +83,8 @@ def test_tiles_of_neighbouring_points_proven_seen_see_every_sample():
     """Points in the order a render makes them (rows of neighbours), so that whole tiles are proven SEEN
     (tracer.culling._seen_tiles): every SEEN point is blocked by no sample of the brute force, and the tiles
     spare the per-point proofs most points."""
-    from tracer.culling import TILE, _classify, _seen_tiles
+    from tracer.culling import _classify, _seen_tiles
+    from tracer.tiles import TILE
 
     rng = np.random.default_rng(8)
     objects = [{"type": "sphere", "material": "m", "center": rng.uniform(-2, 2, 3).tolist(),

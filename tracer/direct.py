@@ -30,26 +30,24 @@ import numpy as np
 
 from schemas import AreaLight, Scene
 
+from .bounds import Bounds
 from .cones import along_direction, through_point
-from .culling import HIDDEN, MIXED, SEEN, TILE, Bounds, Penumbra, classify, lit_tiles
+from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
 from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate
 from .passes import BRANCH_PASS, Tally
+from .penumbra import Penumbra
 from .rays import Among, Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, phong, planes_holding
+from .tiles import TILE, lit_tiles
 from .variants import Options, Spawn
-from .vec import columns, dot, minus, rows_of, scaled
+from .vec import columns, dot, rows_of, scaled
 from .world import World, max_abs, unit
 
 #: the fewest lit points of a point or directional light for which tiles of them are proven lit whole
-#: (:func:`tracer.culling.lit_tiles`): the proof's 60-odd NumPy calls cost what the shadow rays of a few thousand
+#: (:func:`tracer.tiles.lit_tiles`): the proof's 60-odd NumPy calls cost what the shadow rays of a few thousand
 #: points do (measured: three spots lighting 4k points each lost 1 ms a light; 32k points gain several)
 PROVEN_LIT = 1 << 13
-
-#: a point faces away from every sample of an area light when N·(corner − P) is below this, relative to the
-#: magnitudes of the point and the corners, at every corner: far beyond the rounding of N·L (see
-#: :meth:`DirectLight._area`)
-FACING_MARGIN = 2.0**-30
 
 
 @dataclass(frozen=True)
@@ -251,7 +249,7 @@ class DirectLight:
         else:
             state, may_block, idle = np.full(n, MIXED, dtype=np.int8), None, np.zeros(n, dtype=bool)
         if not opt.specular_behind:
-            idle |= _faces_away(hit.point, at.normal, corners)
+            idle |= faces_away(hit.point, at.normal, corners)
         seen_rows = np.flatnonzero(~idle & (state == SEEN))
         mixed_rows = np.flatnonzero(~idle & (state == MIXED))
         ns, m = len(seen_rows), len(seen_rows) + len(mixed_rows)
@@ -416,12 +414,3 @@ def _factor(em: Emitter, dist: np.ndarray, safe: np.ndarray) -> np.ndarray | flo
     denom = c + lin * dist + q * dist * dist
     return np.where((dist > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
 
-
-def _faces_away(p: np.ndarray, normal: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """Points whose normal faces away from all four corners by more than rounding (and whose numbers are
-    finite). Shape (N,), bool."""
-    scale = max_abs(p) + float(np.max(np.abs(corners)))
-    towards = [dot(normal, minus(c, p)) for c in corners]
-    faces_some = np.maximum(np.maximum(towards[0], towards[1]), np.maximum(towards[2], towards[3]))
-    finite = np.isfinite(faces_some) & (scale < 1e300) & np.isfinite(dot(normal, normal))
-    return finite & (faces_some < -FACING_MARGIN * scale)

@@ -20,10 +20,10 @@ import numpy as np
 
 from schemas import Scene
 
+from .bounds import bounds_of
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
 from .cones import along_direction, on_lines, through_point
-from .culling import bounds_of
 from .direct import DirectLight, light_groups
 from .image import quantize
 from .intersect import PLANE, SPHERE, TRIANGLE, Hits, Intersector

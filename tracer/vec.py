@@ -18,6 +18,12 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
+def length(x: np.ndarray | float, y: np.ndarray | float, z: np.ndarray | float) -> np.ndarray:
+    """``|v| = √(x² + y² + z²)`` of vectors given by their components (arrays that broadcast, or floats), summed
+    in the order x, y, z as :func:`dot` sums: the one place a length is computed from columns."""
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def along(o: np.ndarray, t: np.ndarray, d: np.ndarray) -> np.ndarray:
     """``o + t·d`` per row: the points at parameters ``t (N,)`` of rays ``o + t d``. Shape (N, 3), its columns
     contiguous (as every result here)."""
