@@ -30,24 +30,18 @@ import numpy as np
 
 from schemas import AreaLight, Scene
 
-from .bounds import Bounds
-from .cones import along_direction, through_point
 from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
 from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate
 from .passes import BRANCH_PASS, Tally
 from .penumbra import Penumbra
+from .planner import ProofPlan
 from .rays import Among, Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, phong, planes_holding
 from .tiles import TILE, lit_tiles
 from .variants import Options, Spawn
 from .vec import columns, dot, rows_of, scaled
 from .world import World, max_abs, unit
-
-#: the fewest lit points of a point or directional light for which tiles of them are proven lit whole
-#: (:func:`tracer.tiles.lit_tiles`): the proof's 60-odd NumPy calls cost what the shadow rays of a few thousand
-#: points do (measured: three spots lighting 4k points each lost 1 ms a light; 32k points gain several)
-PROVEN_LIT = 1 << 13
 
 
 @dataclass(frozen=True)
@@ -102,14 +96,10 @@ class DirectLight:
     """The direct-light stage of a renderer: :meth:`shade` gives the colour of hit points."""
 
     def __init__(self, world: World, options: Options, intersector: Intersector, groups: list[LightGroup],
-                 bounds: Bounds | None, cone_bounds: Bounds | None, stop: Callable[[], None],
-                 count: Callable[[str, int], None]):
+                 plan: ProofPlan, stop: Callable[[], None], count: Callable[[str, int], None]):
         self.world, self.options, self.intersector, self.groups = world, options, intersector, groups
-        #: the surfaces as bounds for the proofs of which points a light reaches (an area light's culling, tiles of
-        #: points a light reaches whole): None without them, and every point casts every ray
-        self.bounds = bounds
-        #: the surfaces as bounds for rays through one point or along one direction (:mod:`tracer.cones`)
-        self.cone_bounds = cone_bounds
+        #: which proofs spare which shadow rays (:mod:`tracer.planner`)
+        self.plan = plan
         self.stop, self.count = stop, count
         #: the emitters some flat surface's plane holds (where N·L is rounding noise: light_in_plane)
         self.holds = planes_holding(world, world.emitters)
@@ -187,13 +177,14 @@ class DirectLight:
         if not lit.any():
             return None
         rows = np.flatnonzero(lit)
-        if self.bounds is not None and not opt.specular_behind and len(rows) >= PROVEN_LIT:
-            # tiles of points every shadow ray of which is proven clear (tracer.culling.lit_tiles) cast none; of
+        bounds = self.plan.lit_tile_bounds(len(rows))
+        if bounds is not None:
+            # tiles of points every shadow ray of which is proven clear (tracer.tiles.lit_tiles) cast none; of
             # the lit points alone when they are few
             few = 2 * len(rows) < len(lit)
             sub = hit.take(rows) if few else hit
             normal = rows_of(at.normal, rows) if few else at.normal
-            clear = np.repeat(lit_tiles(self.bounds, sub.point, sub.kind, sub.index, normal,
+            clear = np.repeat(lit_tiles(bounds, sub.point, sub.kind, sub.index, normal,
                                         None if em.kind == "directional" else em.position,
                                         em.direction if em.kind == "directional" else None), TILE)[:len(sub.t)]
             rows = rows[~clear] if few else np.flatnonzero(lit & ~clear)
@@ -242,13 +233,14 @@ class DirectLight:
         n = len(hit.t)
         if n == 0:
             return None
-        if self.bounds is not None:
-            culled = classify(self.bounds, hit.point, hit.kind, hit.index, at.normal, corners)
+        bounds = self.plan.light_bounds
+        if bounds is not None:
+            culled = classify(bounds, hit.point, hit.kind, hit.index, at.normal, corners)
             state, may_block = culled.state, culled.may_block
             idle = state == HIDDEN
         else:
             state, may_block, idle = np.full(n, MIXED, dtype=np.int8), None, np.zeros(n, dtype=bool)
-        if not opt.specular_behind:
+        if self.plan.facing:
             idle |= faces_away(hit.point, at.normal, corners)
         seen_rows = np.flatnonzero(~idle & (state == SEEN))
         mixed_rows = np.flatnonzero(~idle & (state == MIXED))
@@ -260,9 +252,9 @@ class DirectLight:
         sub = at if every else at.take(active)
         penumbra = None  # the mixed points' pairs with the bounds that may block them, decided where they can be
         if may_block is not None and len(mixed_rows):
-            assert self.bounds is not None
-            penumbra = Penumbra(self.bounds, sub.hit.point[ns:], sub.hit.kind[ns:], sub.hit.index[ns:],
-                                sub.normal[ns:], may_block[:, mixed_rows], corners, not opt.specular_behind)
+            assert bounds is not None
+            penumbra = Penumbra(bounds, sub.hit.point[ns:], sub.hit.kind[ns:], sub.hit.index[ns:],
+                                sub.normal[ns:], may_block[:, mixed_rows], corners, self.plan.facing)
         point = sub.hit.point
         # this light's buffers, each computed into in place: L, d, N·L, R·V, the specular power, the weight
         to_light, dist, tmp, nl_buf, rv, spec, weight = columns(m), *(np.empty(m) for _ in range(6))
@@ -355,21 +347,13 @@ class DirectLight:
                 ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
             lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
-        bounds, tris = self.cone_bounds, self.world.triangles
-        # (the cones' proofs are of rays through the light's point, which offset rays are not)
-        cones = among is None and bounds is not None and not opt.acne and self.spawn is None
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
-            if cones:
-                assert bounds is not None
-                among = along_direction(bounds, tris, rays.origins, -em.direction)
         else:
             mag_light = max_abs(em.position[None]) + self.world.origin_mag
             shadows = Shadows(rays, pick(dist), em.position[None], mag_light)  # one light for every ray
-            if cones:
-                assert bounds is not None
-                longest = float(np.max(shadows.reach, initial=0.0))
-                among = through_point(bounds, tris, em.position, shadow_dirs, False, longest)
+        if among is None:
+            among = self.plan.shadow_pairs(em, rays, shadows.reach)
         if opt.acne:
             return self._acne_blocked(shadows, pick(hit.kind), pick(hit.index))
         return self.intersector.occluded(shadows, among)

@@ -20,18 +20,16 @@ import numpy as np
 
 from schemas import Scene
 
-from .bounds import bounds_of
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
-from .cones import along_direction, on_lines, through_point
 from .direct import DirectLight, light_groups
 from .image import quantize
 from .intersect import PLANE, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, light_samples
 from .passes import ADDITIVE, BRANCH_PASS, LIGHT_TERMS, REFLECTED, REFRACTED, Tally, check_passes
+from .planner import plan_proofs, scene_sightlines
 from .rays import Among, Rays, Work
 from .shading import mirror, refract, resolve_material, shading_normal
-from .sightlines import scene_sightlines
 from .variants import REFERENCE, Options
 from .vec import rows_of, scaled
 from .walk import NO_HIT
@@ -63,10 +61,6 @@ MAX_PIXELS = 1 << 28
 #: the most primary rays (pixels × sub-samples) one render will cast
 MAX_PRIMARY_RAYS = 1 << 32
 
-
-#: a scene with at most this many spheres and triangles tests its camera rays and its point and directional
-#: lights' shadow rays against the surfaces their bounds allow (:mod:`tracer.cones`), with no walk
-CONE_MAX = 32
 
 #: the most point lights (lights plus area-light samples) one render will shade with
 MAX_LIGHT_SAMPLES = 1 << 20
@@ -120,17 +114,12 @@ class Renderer:
                                      options.vertical_fov)
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
             groups = light_groups(scene, self.world.origin)
-            #: the surfaces as bounds for camera and shadow rays through one point or along one direction
-            #: (:mod:`tracer.cones`), in scenes of at most CONE_MAX spheres and triangles
-            spheres_and_triangles = len(self.world.spheres.radius) + len(self.world.triangles.v0)
-            self.cone_bounds = bounds_of(self.world) if spheres_and_triangles <= CONE_MAX else None
-            # the proofs of which points a light reaches hold for the shadow rays of the format (not a variant's
-            # without them, or with acne)
             #: where shadow and secondary rays start: off the surface in a variant of a student's offset
             self.spawn = options.spawn(scene)
-            proofs = bounds_of(self.world) if options.shadows and not options.acne and not self.spawn else None
-            self.shading = DirectLight(self.world, options, self.intersector, groups, proofs, self.cone_bounds,
-                                       self._stop, self._count)
+            #: which proofs spare which rays (:mod:`tracer.planner`)
+            self.plan = plan_proofs(self.world, options, self.spawn)
+            self.shading = DirectLight(self.world, options, self.intersector, groups, self.plan, self._stop,
+                                       self._count)
             self.shading.spawn = self.spawn
         self.intersector.check = self._stop
         self.intersector.tested = self._count.tested
@@ -399,18 +388,12 @@ class Renderer:
     def _mirror_among(self, rays: Rays) -> Among | None:
         """The surfaces each mirror or refracted ray may meet (:func:`tracer.cones.on_lines`), when the scene has
         few enough and walks them (with no walk, every surface is tested against every ray already)."""
-        if self.cone_bounds is None or self.intersector.walker is None:
-            return None
-        return on_lines(self.cone_bounds, rays.origins, rays.dirs)
+        return self.plan.mirror_pairs(rays, self.intersector.walker is not None)
 
     def _camera_among(self, rays: Rays) -> Among | None:
         """The surfaces each camera ray may meet (:mod:`tracer.cones`), when the scene has few enough: from the
         eye (every perspective ray starts there, exactly), or along the view (orthographic)."""
-        if self.cone_bounds is None:
-            return None
-        if self.camera.orthographic:
-            return along_direction(self.cone_bounds, self.world.triangles, rays.origins, self.camera.forward)
-        return through_point(self.cone_bounds, self.world.triangles, self.camera.eye, rays.dirs, True)
+        return self.plan.camera_pairs(self.camera, rays)
 
     def secondary(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, work: Work) -> Work:
         """Mirror and refracted rays of the hits whose material asks for them: the next depth's work."""

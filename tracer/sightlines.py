@@ -39,10 +39,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from schemas import Scene
-
-from .camera import CameraRays
-from .lights import LIGHT_TYPES
 from .margins import MIN_SINE, NEAR
 from .vec import length
 
@@ -55,32 +51,6 @@ class Sightlines:
     directions: list[np.ndarray] = field(default_factory=list)  # each (3,) unit
     #: planes (point, unit normal) that rays start on along a direction (an orthographic camera's)
     starts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
-
-
-def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Sightlines | None:
-    """The lines of a validated scene's rays (local coordinates about ``origin``), or None when a mirror or
-    glass may send rays anywhere."""
-    used = {obj.material for obj in scene.objects}
-    used |= {checker.material for name in used if (checker := scene.materials[name].checker) is not None}
-    if scene.image.max_depth > 0 and any(scene.materials[name].reflectance > 0 or
-                                         scene.materials[name].transmittance > 0 for name in used):
-        return None
-    lines = Sightlines()
-    if camera.orthographic:
-        lines.directions.append(camera.forward)
-        lines.starts.append((camera.eye, camera.forward))
-    else:
-        lines.hulls.append(camera.eye[None])
-    for light in scene.lights:
-        kind = LIGHT_TYPES[type(light)]
-        if kind.hull is not None:
-            lines.hulls.append(kind.hull(light, origin))
-        if kind.direction is not None:
-            lines.directions.append(kind.direction(light))
-    if not all(np.all(np.isfinite(h)) for h in lines.hulls) or \
-            not all(np.all(np.isfinite(d)) for d in lines.directions):
-        return None
-    return lines
 
 
 def _same_sign(values: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
