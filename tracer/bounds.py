@@ -50,6 +50,22 @@ def bounds_of(world: World) -> Bounds | None:
                   plane_point=pl.point, plane_normal=pl.normal)
 
 
+@dataclass(frozen=True)
+class SurfacePoints:
+    """Points on the scene's surfaces, as a proof reads them: each point, the surface it lies on (``kind``,
+    ``index``: it leaves that surface by identity) and ``outward``, its normal that faces the samples it can be
+    lit by."""
+
+    point: np.ndarray  # (N, 3) local
+    kind: np.ndarray  # (N,)
+    index: np.ndarray  # (N,)
+    outward: np.ndarray  # (N, 3)
+
+    def take(self, rows: np.ndarray) -> SurfacePoints:
+        return SurfacePoints(rows_of(self.point, rows), self.kind[rows], self.index[rows],
+                             rows_of(self.outward, rows))
+
+
 def plane_clear(side: np.ndarray, reach: np.ndarray | float, far_side: np.ndarray,
                 margin: np.ndarray | float) -> np.ndarray:
     """**The plane rule.**  A plane blocks no segment from a point to any of the far points (an area light's
@@ -75,15 +91,14 @@ def centre_side(outward: np.ndarray, points: np.ndarray, centres: np.ndarray) ->
     return dot(outward, minus(points, centres))
 
 
-def inside_spheres(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-                   rows: np.ndarray) -> np.ndarray:
+def inside_spheres(b: Bounds, at: SurfacePoints, rows: np.ndarray) -> np.ndarray:
     """Of the points ``rows`` (ascending), those on a sphere seen from inside it (:func:`centre_side`
     negative): rows, ascending."""
-    rows = rows[kind[rows] == SPHERE]
+    rows = rows[at.kind[rows] == SPHERE]
     if len(rows) == 0:
         return rows
-    centre = b.center[np.searchsorted(np.flatnonzero(b.kind == SPHERE), index[rows])]
-    return rows[centre_side(rows_of(outward, rows), rows_of(points, rows), centre) < 0]
+    centre = b.center[np.searchsorted(np.flatnonzero(b.kind == SPHERE), at.index[rows])]
+    return rows[centre_side(rows_of(at.outward, rows), rows_of(at.point, rows), centre) < 0]
 
 
 def sides_of(p: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:

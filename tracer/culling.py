@@ -63,11 +63,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bounds import Bounds, face_normal, inside_spheres, plane_clear, sides_of
+from .bounds import Bounds, SurfacePoints, face_normal, inside_spheres, plane_clear, sides_of
 from .margins import MARGIN, NORMAL_ERROR
 from .shapes import PLANE
 from .tiles import TILE, inside_tiles, tiles_of
-from .vec import dot, length, minus, most, rows_of
+from .vec import dot, length, minus, most
 
 SEEN, HIDDEN, MIXED = 0, 1, 2
 
@@ -82,35 +82,32 @@ class Culled:
     may_block: np.ndarray
 
 
-def classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-             corners: np.ndarray) -> Culled:
-    """SEEN, HIDDEN or MIXED for each of ``points (N, 3)`` (on the surfaces ``kind, index``, whose normal
-    ``outward`` faces the samples a point can be lit by) and the light's parallelogram ``corners (4, 3)``,
+def classify(b: Bounds, at: SurfacePoints, corners: np.ndarray) -> Culled:
+    """SEEN, HIDDEN or MIXED for each of the points ``at`` and the light's parallelogram ``corners (4, 3)``,
     in order round it, with the bounds that may block each point's samples (of the points SEEN, none).
 
     The points go a tile at a time first (:data:`TILE` consecutive points, neighbours on the image): a tile
     proven to see every sample (:func:`_seen_tiles`) is SEEN whole, and only the others' points are
     classified one by one.  A point of a SEEN tile sees every sample whatever the per-point proof would have
     made of it, so its shading is the same."""
-    n = len(points)
+    n = len(at.point)
     if not np.all(np.isfinite(_q_normal(corners))):  # Q's plane not known well enough: no proof at all
         return Culled(np.full(n, MIXED, dtype=np.int8), np.ones((len(b.radius), n), dtype=bool))
     if n >= 4 * TILE:
-        seen = np.repeat(_seen_tiles(b, points, kind, index, outward, corners), TILE)[:n]
+        seen = np.repeat(_seen_tiles(b, at, corners), TILE)[:n]
         if seen.any():
             rest = np.flatnonzero(~seen)
             state = np.full(n, SEEN, dtype=np.int8)
             may_block = np.zeros((len(b.radius), n), dtype=bool)
             if len(rest):
-                part = _classify(b, rows_of(points, rest), kind[rest], index[rest], rows_of(outward, rest), corners)
+                part = _classify(b, at.take(rest), corners)
                 state[rest] = part.state
                 may_block[:, rest] = part.may_block
             return Culled(state, may_block)
-    return _classify(b, points, kind, index, outward, corners)
+    return _classify(b, at, corners)
 
 
-def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-                corners: np.ndarray) -> np.ndarray:
+def _seen_tiles(b: Bounds, at: SurfacePoints, corners: np.ndarray) -> np.ndarray:
     """Which tiles of :data:`TILE` consecutive points see every sample. Shape (T,), bool.
 
     **Proof.**  A tile's points lie in the ball B about the centre C of their box, of radius R (half its
@@ -122,7 +119,7 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
     reach grown by R.  A plane with B and Q strictly on one side of it, by more than R for B, blocks none.
     The own-surface rule holds for a tile whose points all lie on one surface; a tile near Q's plane, with
     points on a sphere seen from inside it, or with numbers beyond proof is left to the per-point tests."""
-    centre, reach_t, scale, one, tile_kind, tile_index = tiles_of(points, kind, index)
+    centre, reach_t, scale, one, tile_kind, tile_index = tiles_of(at)
     scale = scale + float(np.max(np.abs(corners)))
     margin_of = MARGIN * scale  # (at least every point's own margin)
     bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
@@ -146,19 +143,19 @@ def _seen_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarr
             mine = one & (tile_kind == PLANE) & (tile_index == j)
             seen &= plane_clear(sides_of(centre, p0, nrm), reach_t, q_side, m) | mine
         # a tile with points on a sphere seen from inside it: left to the per-point tests
-        seen[inside_tiles(b, points, kind, index, outward, seen)] = False
+        seen[inside_tiles(b, at, seen)] = False
     return seen  # (NaN compares False above: no proof)
 
 
-def _classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-              corners: np.ndarray) -> Culled:
+def _classify(b: Bounds, at: SurfacePoints, corners: np.ndarray) -> Culled:
     """:func:`classify`, a point at a time.
 
     Computed a bound at a time on the points' contiguous columns (``(N,)`` arrays, no ``(N, K)`` or
     ``(N, K, 3)`` temporaries): the same tests as the docstring of this module states, whose margins are far
     above the rounding of any order of the sums."""
-    n = len(points)
-    p = np.ascontiguousarray(points.T)  # (3, N): x, y and z, each contiguous
+    kind, index = at.kind, at.index
+    n = len(at.point)
+    p = np.ascontiguousarray(at.point.T)  # (3, N): x, y and z, each contiguous
     scale = np.maximum(np.maximum(np.abs(p[0]), np.abs(p[1])), np.abs(p[2])) + float(np.max(np.abs(corners)))
     # the margin of bound k at a point: MARGIN·(scale + |centre_k| + r_k), the part of bound k a constant
     margin_of = MARGIN * scale
@@ -187,9 +184,9 @@ def _classify(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
             m = MARGIN * (scale + float(np.max(np.abs(p0))))
             mine = (kind == PLANE) & (index == j)  # a point on this very plane, which it leaves
             seen &= plane_clear(sides_of(p, p0, nrm), 0.0, q_side, m) | mine
-    hidden = _hidden(b, p, kind, index, corners, q_normal, side, margin_of, bound_part) & ~flat
+    hidden = _hidden(b, p, at, corners, side, margin_of) & ~flat
     # a sphere a point lies on blocks the samples it faces only when seen from inside
-    inside = inside_spheres(b, points, kind, index, outward, np.arange(n))
+    inside = inside_spheres(b, at, np.arange(n))
     seen[inside] = False
     hidden[inside] = False
     out = np.full(n, MIXED, dtype=np.int8)
@@ -240,8 +237,8 @@ def _q_normal(corners: np.ndarray) -> np.ndarray:
     return np.array(face_normal((u[0], u[1], u[2]), corners[3] - corners[0]), dtype=np.float64)
 
 
-def _hidden(b: Bounds, p: np.ndarray, kind: np.ndarray, index: np.ndarray, corners: np.ndarray,
-            q_normal: np.ndarray, side: np.ndarray, margin_of: np.ndarray, bound_part: np.ndarray) -> np.ndarray:
+def _hidden(b: Bounds, p: np.ndarray, at: SurfacePoints, corners: np.ndarray, side: np.ndarray,
+            margin_of: np.ndarray) -> np.ndarray:
     """Points ``p (3, N)`` some solid sphere hides the whole parallelogram from. Shape (N,), bool.
 
     A sphere hides it when the point lies outside it, on the point's side of Q's plane beyond it, and every
@@ -251,6 +248,8 @@ def _hidden(b: Bounds, p: np.ndarray, kind: np.ndarray, index: np.ndarray, corne
     solid = np.flatnonzero(b.solid)
     if len(solid) == 0:
         return hidden
+    q_normal = _q_normal(corners)  # (as :func:`_classify` computes them: the same numbers)
+    bound_part = MARGIN * (np.max(np.abs(b.center), axis=1, initial=0.0) + b.radius)
     to_q = [(q[0] - p[0], q[1] - p[1], q[2] - p[2]) for q in corners]
     length_q = [length(x, y, z) for x, y, z in to_q]
     for k in solid.tolist():
@@ -260,7 +259,7 @@ def _hidden(b: Bounds, p: np.ndarray, kind: np.ndarray, index: np.ndarray, corne
         dist_c = length(tx, ty, tz)
         covered = dist_c > reach  # outside
         covered &= side * float((c - corners[0]) @ q_normal) > reach  # on P's side of Q, beyond it
-        covered &= ~((b.kind[k] == kind) & (b.index[k] == index))
+        covered &= ~((b.kind[k] == at.kind) & (b.index[k] == at.index))
         with np.errstate(invalid="ignore", divide="ignore"):
             ratio = r / dist_c
             cos_cone = np.sqrt(np.maximum(0.0, 1.0 - ratio * ratio))

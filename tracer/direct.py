@@ -30,6 +30,7 @@ import numpy as np
 
 from schemas import AreaLight, Scene
 
+from .bounds import SurfacePoints
 from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
 from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
 from .lights import LIGHT_TYPES, Emitter, illuminate
@@ -184,7 +185,7 @@ class DirectLight:
             few = 2 * len(rows) < len(lit)
             sub = hit.take(rows) if few else hit
             normal = rows_of(at.normal, rows) if few else at.normal
-            clear = np.repeat(lit_tiles(bounds, sub.point, sub.kind, sub.index, normal,
+            clear = np.repeat(lit_tiles(bounds, SurfacePoints(sub.point, sub.kind, sub.index, normal),
                                         None if em.kind == "directional" else em.position,
                                         em.direction if em.kind == "directional" else None), TILE)[:len(sub.t)]
             rows = rows[~clear] if few else np.flatnonzero(lit & ~clear)
@@ -235,7 +236,7 @@ class DirectLight:
             return None
         bounds = self.plan.light_bounds
         if bounds is not None:
-            culled = classify(bounds, hit.point, hit.kind, hit.index, at.normal, corners)
+            culled = classify(bounds, SurfacePoints(hit.point, hit.kind, hit.index, at.normal), corners)
             state, may_block = culled.state, culled.may_block
             idle = state == HIDDEN
         else:
@@ -253,8 +254,8 @@ class DirectLight:
         penumbra = None  # the mixed points' pairs with the bounds that may block them, decided where they can be
         if may_block is not None and len(mixed_rows):
             assert bounds is not None
-            penumbra = Penumbra(bounds, sub.hit.point[ns:], sub.hit.kind[ns:], sub.hit.index[ns:],
-                                sub.normal[ns:], may_block[:, mixed_rows], corners, self.plan.facing)
+            mixed = SurfacePoints(sub.hit.point[ns:], sub.hit.kind[ns:], sub.hit.index[ns:], sub.normal[ns:])
+            penumbra = Penumbra(bounds, mixed, may_block[:, mixed_rows], corners, self.plan.facing)
         point = sub.hit.point
         # this light's buffers, each computed into in place: L, d, N·L, R·V, the specular power, the weight
         to_light, dist, tmp, nl_buf, rv, spec, weight = columns(m), *(np.empty(m) for _ in range(6))

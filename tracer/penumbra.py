@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bounds import Bounds, centre_side, plane_clear, sides_of
+from .bounds import Bounds, SurfacePoints, centre_side, plane_clear, sides_of
 from .margins import MARGIN
 from .rays import Among
 from .shapes import PLANE, SPHERE
@@ -40,8 +40,8 @@ class Penumbra:
     or the point lies on it (and leaves it).  A ray whose pairs all miss and whose planes cannot block is
     clear; a ray one of whose pairs blocks is blocked; the rest are cast, against their undecided pairs."""
 
-    def __init__(self, b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-                 may_block: np.ndarray, corners: np.ndarray, facing: bool):
+    def __init__(self, b: Bounds, at: SurfacePoints, may_block: np.ndarray, corners: np.ndarray, facing: bool):
+        points, kind, index, outward = at.point, at.kind, at.index, at.outward
         self.bounds = b
         self.bound, self.point = np.nonzero(may_block)  # (P,) each: bound-major, as Among.of makes them
         p = [np.take(points[:, k], self.point) for k in range(3)]

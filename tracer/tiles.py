@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .bounds import Bounds, inside_spheres, plane_clear, sides_of
+from .bounds import Bounds, SurfacePoints, inside_spheres, plane_clear, sides_of
 from .margins import MARGIN, SLACK
 from .shapes import PLANE
 from .vec import dot, length
@@ -23,20 +23,19 @@ from .vec import dot, length
 TILE = 16
 
 
-def inside_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-                 candidate: np.ndarray) -> np.ndarray:
+def inside_tiles(b: Bounds, at: SurfacePoints, candidate: np.ndarray) -> np.ndarray:
     """The tiles, among the ``candidate`` ones (T,), with a point on a sphere seen from inside it
     (:func:`tracer.bounds.inside_spheres`): tile numbers, ascending, possibly repeated."""
-    rows = np.flatnonzero(np.repeat(candidate, TILE)[:len(kind)])
-    return inside_spheres(b, points, kind, index, outward, rows) // TILE
+    rows = np.flatnonzero(np.repeat(candidate, TILE)[:len(at.kind)])
+    return inside_spheres(b, at, rows) // TILE
 
 
-def tiles_of(points: np.ndarray, kind: np.ndarray, index: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def tiles_of(at: SurfacePoints) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per tile of :data:`TILE` consecutive points: the centre C ``(3, T)`` of the box of its points (their
     exact minima and maxima), the radius R of the ball about C that holds the box (rounded up), the largest
     magnitude of its coordinates, whether its points all lie on one surface, and that surface (its first
     point's)."""
+    points, kind, index = at.point, at.kind, at.index
     n = len(points)
     full = n // TILE * TILE
     lo, hi = np.empty((3, (n + TILE - 1) // TILE)), np.empty((3, (n + TILE - 1) // TILE))
@@ -62,8 +61,8 @@ def tiles_of(points: np.ndarray, kind: np.ndarray, index: np.ndarray
     return centre, reach, scale, one, kind[starts], index[starts]
 
 
-def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray, outward: np.ndarray,
-              position: np.ndarray | None, direction: np.ndarray | None) -> np.ndarray:
+def lit_tiles(b: Bounds, at: SurfacePoints, position: np.ndarray | None, direction: np.ndarray | None
+              ) -> np.ndarray:
     """Which tiles of :data:`TILE` consecutive points a point light at ``position`` (or a directional light
     shining along ``direction``) reaches unblocked from every point. Shape (T,), bool.
 
@@ -75,8 +74,12 @@ def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
     none when the light lies strictly on that side too (for a directional light: when u does not head
     towards the plane; a ray parallel to it never meets it).  The surface a tile's points all lie on is not
     their blocker (leaving it by identity) but for a sphere seen from inside, whose tiles, like those with
-    numbers beyond proof, are left to their rays."""
-    centre, reach_t, scale, one, tile_kind, tile_index = tiles_of(points, kind, index)
+    numbers beyond proof, are left to their rays.
+
+    **Holds for** the shadow rays of points that face the light (``outward``·L > 0), cast from the exact point
+    and leaving its surface: a ray that leaves a sphere seen from outside meets it again only heading inwards,
+    away from a light the point faces.  :meth:`tracer.planner.ProofPlan.lit_tile_bounds` applies it only so."""
+    centre, reach_t, scale, one, tile_kind, tile_index = tiles_of(at)
     if position is not None:
         scale = scale + float(np.max(np.abs(position)))
     margin_of = MARGIN * scale
@@ -114,5 +117,5 @@ def lit_tiles(b: Bounds, points: np.ndarray, kind: np.ndarray, index: np.ndarray
                 away = np.abs(c_side) > m + reach_t
                 away &= (heading == 0.0) | (np.sign(c_side) == np.sign(heading))
             seen &= away | mine
-        seen[inside_tiles(b, points, kind, index, outward, seen)] = False
+        seen[inside_tiles(b, at, seen)] = False
     return seen
