@@ -13,8 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kinds import SPHERE, TRIANGLE
 from .margins import GROWTH, NORMAL_ERROR
-from .shapes import SPHERE, TRIANGLE, plane_side
+from .shapes import plane_side
 from .vec import dot, length, minus, most, rows_of
 from .world import World
 

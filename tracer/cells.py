@@ -24,8 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .vec import highest, lowest, minus, most, plus, rows_of
-from .world import median_of
+from .vec import highest, lowest, median_of, minus, most, plus, rows_of
 
 #: the cell's edge over the largest box among those up to four times the median size
 CELL_SCALE = 1.0

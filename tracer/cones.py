@@ -47,9 +47,9 @@ from __future__ import annotations
 import numpy as np
 
 from .bounds import Bounds, face_normal
+from .kinds import TRIANGLE
 from .margins import GROWTH, MARGIN, NORMAL_ERROR, SLACK, SLACK32, STRAY
 from .rays import Among
-from .shapes import TRIANGLE
 from .vec import length
 from .world import Triangles
 

@@ -64,8 +64,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bounds import Bounds, SurfacePoints, face_normal, inside_spheres, plane_clear, sides_of
+from .kinds import PLANE
 from .margins import MARGIN, NORMAL_ERROR
-from .shapes import PLANE
 from .tiles import TILE, inside_tiles, tiles_of
 from .vec import dot, length, minus, most
 

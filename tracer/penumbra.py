@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from .bounds import Bounds, SurfacePoints, centre_side, plane_clear, sides_of
+from .kinds import PLANE, SPHERE
 from .margins import MARGIN
 from .rays import Among
-from .shapes import PLANE, SPHERE
 from .vec import length, rows_of
 
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from .bounds import Bounds, SurfacePoints, inside_spheres, plane_clear, sides_of
+from .kinds import PLANE
 from .margins import MARGIN, SLACK
-from .shapes import PLANE
 from .vec import dot, length
 
 #: consecutive points proven at once (:func:`lit_tiles`, :func:`tracer.culling.classify`): neighbours on the

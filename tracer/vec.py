@@ -127,3 +127,10 @@ def rows_of(a: np.ndarray, index: np.ndarray) -> np.ndarray:
             np.take(a[:, k], index, out=out[:, k])
         return out
     return np.take(a, index, axis=0)
+
+
+def median_of(v: np.ndarray) -> float:
+    """``np.median`` of a non-empty 1-D array, without the import of ``numpy.ma`` that it makes on first use."""
+    n = len(v)
+    part = np.partition(v, [(n - 1) // 2, n // 2])
+    return float((part[(n - 1) // 2] + part[n // 2]) / 2.0)
