@@ -10,6 +10,10 @@ FROM ${BASE}
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PATH=/opt/venv/bin:$PATH
 WORKDIR /app
 
+# bubblewrap: the sandbox students' programs run in (the container must allow user namespaces for it to start)
+RUN command -v bwrap >/dev/null \
+    || (apt-get update && apt-get install -y --no-install-recommends bubblewrap && rm -rf /var/lib/apt/lists/*)
+
 # docker/ may hold pip-cert.pem, the CA bundle the building host's pip trusts (docker/build.sh puts it there)
 COPY docker/ /tmp/docker/
 RUN python3 -m venv /opt/venv

@@ -40,8 +40,8 @@ def diagnosis_rows() -> list[dict[str, Any]]:
             verdict = grade(reference, submitted, "")
             found = explain(scene, Graded(verdict, None), reference, submitted)
             timings.append(time.perf_counter() - started)
-            causes = (found.diagnosis or {}).get("causes") or [{}]
-            named.append(None if verdict.passed else causes[0].get("variant"))
+            causes = [] if found.diagnosis is None else found.diagnosis.causes
+            named.append(None if verdict.passed or not causes else causes[0].variant)
         rows.append({"scene": name, "render_s": render_s, "renders": renders_needed(scene),
                      "cold_s": timings[0], "warm_s": timings[1], "cold_over_render": timings[0] / render_s,
                      "students": list(STUDENTS), "named": named})

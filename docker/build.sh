@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 MIRROR=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
 if ! docker image inspect phongray-base:bookworm >/dev/null 2>&1; then
   root=$(mktemp -d)
-  debootstrap --variant=minbase --include=python3,python3-venv,ca-certificates bookworm "$root" "$MIRROR"
+  debootstrap --variant=minbase --include=python3,python3-venv,ca-certificates,bubblewrap bookworm "$root" "$MIRROR"
   tar -C "$root" -c . | docker import - phongray-base:bookworm
   rm -rf "$root"
 fi

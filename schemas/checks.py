@@ -55,7 +55,21 @@ def _sub(a: Sequence[float], b: Sequence[float]) -> list[float]:
 
 
 def check_scene(scene: Scene) -> list[Problem]:
-    return [*_camera(scene), *_materials(scene), *_objects(scene), *_lights(scene)]
+    return [*_camera(scene), *_materials(scene), *_objects(scene), *_lights(scene),
+            *_names(scene.objects, "objects"), *_names(scene.lights, "lights")]
+
+
+def _names(items: Sequence[object], where: str) -> Iterator[Problem]:
+    """A name used twice in one list: the second use, pointing at the first."""
+    first: dict[str, int] = {}
+    for i, item in enumerate(items):
+        name = getattr(item, "name", None)
+        if name is None:
+            continue
+        if name in first:
+            yield f"{where}[{i}].name", f"'{name}' is already the name of {where}[{first[name]}] (names must be unique)"
+        else:
+            first[name] = i
 
 
 def unknown_material(name: str, known: object) -> str:

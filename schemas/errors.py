@@ -134,6 +134,12 @@ def _message(err: dict[str, Any]) -> str:
         return f"must be {ctx.get('expected')}"
     if kind == "string_type":
         return "must be a string"
+    if kind == "string_too_short":
+        return "must not be empty"
+    if kind == "string_too_long":
+        return f"must be at most {ctx.get('max_length')} characters long"
+    if kind == "string_pattern_mismatch":
+        return "must not contain control characters (line breaks, tabs, ...)"
     return err["msg"]
 
 

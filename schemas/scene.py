@@ -29,6 +29,12 @@ def _expand_grey(value: Any) -> Any:
 Colour = Annotated[tuple[NonNegative, NonNegative, NonNegative], BeforeValidator(
     _expand_grey, json_schema_input_type=NonNegative | tuple[NonNegative, NonNegative, NonNegative])]
 Attenuation = tuple[NonNegative, NonNegative, NonNegative]
+#: the most characters of an object's or a light's ``name`` (a name is for messages: a word or a few)
+NAME_MAX = 64
+#: an object's or a light's name (phongray's extension of the format): 1 to NAME_MAX characters, none of them a
+#: control character (a name is printed in messages to students)
+Name = Annotated[str, Field(min_length=1, max_length=NAME_MAX, pattern=r"^[^\x00-\x1f\x7f-\x9f]+$",
+                            strict=True)]
 
 
 class Strict(BaseModel):
@@ -73,6 +79,7 @@ class Material(Strict):
 class Sphere(Strict):
     type: Literal["sphere"]
     material: str
+    name: Name | None = None
     center: Vec3
     radius: Annotated[StrictFloat, Field(gt=0)]
 
@@ -80,6 +87,7 @@ class Sphere(Strict):
 class Plane(Strict):
     type: Literal["plane"]
     material: str
+    name: Name | None = None
     point: Vec3
     normal: Vec3
 
@@ -87,6 +95,7 @@ class Plane(Strict):
 class Triangle(Strict):
     type: Literal["triangle"]
     material: str
+    name: Name | None = None
     vertices: tuple[Vec3, Vec3, Vec3]
 
 
@@ -97,6 +106,7 @@ FaceIndex = Annotated[StrictInt, Field(ge=0, lt=2**31)]
 class Mesh(Strict):
     type: Literal["mesh"]
     material: str
+    name: Name | None = None
     vertices: list[Vec3]
     faces: list[tuple[FaceIndex, FaceIndex, FaceIndex]]
     normals: list[Vec3] | None = None
@@ -138,17 +148,20 @@ Object = Annotated[Sphere | Plane | Triangle | Mesh, Field(discriminator="type")
 class AmbientLight(Strict):
     type: Literal["ambient"]
     color: Colour
+    name: Name | None = None
 
 
 class DirectionalLight(Strict):
     type: Literal["directional"]
     color: Colour
+    name: Name | None = None
     direction: Vec3
 
 
 class PointLight(Strict):
     type: Literal["point"]
     color: Colour
+    name: Name | None = None
     position: Vec3
     attenuation: Attenuation = (1.0, 0.0, 0.0)
 
@@ -156,6 +169,7 @@ class PointLight(Strict):
 class SpotLight(Strict):
     type: Literal["spot"]
     color: Colour
+    name: Name | None = None
     position: Vec3
     direction: Vec3
     attenuation: Attenuation = (1.0, 0.0, 0.0)
@@ -172,6 +186,7 @@ class SpotLight(Strict):
 class AreaLight(Strict):
     type: Literal["area"]
     color: Colour
+    name: Name | None = None
     corner: Vec3
     edge_u: Vec3
     edge_v: Vec3

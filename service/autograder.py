@@ -40,7 +40,7 @@ SOURCE, COURSE = "phongray", "course"
 PACKAGES = ("schemas", "tracer", "service", "bench")
 #: a file's timestamp in the zip: the same bundle, byte for byte, from the same course
 STAMP = (2024, 1, 1, 0, 0, 0)
-#: the variable that names the bundle's accepted variants rendered beforehand (service.accepting.STORED)
+#: the variable that names the bundle's accepted variants rendered beforehand (service.diagnosis.accepting.STORED)
 STORED = "PHONGRAY_ACCEPTED_RENDERS"
 #: the largest submitted file read (as the service's max_image_bytes)
 MAX_BYTES = 16 * 1024 * 1024
@@ -126,11 +126,11 @@ def _references(scenes: dict[str, bytes]) -> dict[str, bytes]:
 def _variants(scenes: dict[str, bytes], tasks: dict[str, TaskSettings]) -> dict[str, bytes]:
     """The whole renders of each scene's accepted variants (its task's, or the defaults), rendered now so that
     a submission that fails the reference is graded against them without rendering them again in Gradescope's
-    container: ``course/variants/<scene key>/<file name>`` (:data:`service.accepting.STORED`)."""
+    container: ``course/variants/<scene key>/<file name>`` (:data:`service.diagnosis.accepting.STORED`)."""
     from tracer import Renderer, encode_png
     from tracer.variants import ACCEPTED_DEFAULT, accepted_options, unchanged
 
-    from .accepting import file_name
+    from .diagnosis.accepting import file_name
     from .pipeline import load_scene
     from .scenekey import scene_key
 

@@ -166,7 +166,7 @@ class BalancedLoop(asyncio.SelectorEventLoop):
     """An event loop whose listening sockets accept a connection only on this worker's turn (see the module).
 
     A connection is counted the moment it is accepted (before its protocol exists, a turn of the loop later),
-    and uncounted by :class:`service.server.Protocol` when it is lost."""
+    and uncounted by :class:`service.http.server.Protocol` when it is lost."""
 
     _aside_since: float | None = None
 

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from . import journal
-from .diagnosis import headline
+from .diagnosis import Diagnosis, headline
 from .gradebook import matched, score
 from .report import COLUMNS, NUMBERS, STATUSES, summary, write_atomic, write_report
 from .settings import Settings
@@ -90,8 +90,9 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
 
     try:
         graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict",
-                                    scene=None if scene is None else lambda: load_scene(scene), threads=1,
-                                    checks=pipeline.Checks(accepted=accepted, diagnose=diagnose))
+                                    explaining=None if scene is None else pipeline.Explaining(
+                                        lambda: load_scene(scene), pipeline.Checks(accepted, diagnose),
+                                        pipeline.Run(threads=1)))
     except grading.ImageError as exc:
         return {"status": "invalid", "reason": str(exc)}
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
@@ -616,7 +617,8 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
     else:
         result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
         diagnosis = result.pop("diagnosis", None)
-        result["likely"], result["mistakes"] = headline(diagnosis), matched(diagnosis)
+        result["likely"] = headline(Diagnosis.from_dict(diagnosis) if diagnosis else None)
+        result["mistakes"] = matched(diagnosis)
         accepted = result.pop("accepted", None)
         if accepted:  # passed as an honest tracer's variant: the reason says which
             result["reason"] = f"as rendered with {accepted}"

@@ -197,7 +197,7 @@ def as_file(name: str, data: np.ndarray, fmt: Format) -> PassFile:
 
 
 def pass_task(scene: bytes, name: str, light: int | None, fmt: Format, seconds: float) -> bytes:
-    """A pass file made on a Dask worker (:meth:`service.jobs.RenderService.pass_file`), stopped ``seconds``
+    """A pass file made on a Dask worker (:meth:`service.http.jobs.RenderService.pass_file`), stopped ``seconds``
     after its start there (:class:`tracer.RenderCancelled`, as the service's own render stops)."""
     import time
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import ValidationError
@@ -22,6 +22,9 @@ from tracer import decode_png
 
 from . import grading
 from .heatmap import Kind, heatmap_png
+
+if TYPE_CHECKING:
+    from .diagnosis import Cached, Diagnosis
 
 
 class BadInput(ValueError):
@@ -69,14 +72,15 @@ def scene_or_bad_input(name: str, text: bytes, overrides: dict[str, Any] | None 
 class Graded:
     grade: grading.Grade
     heatmap: bytes | None  # PNG, when one was asked for
-    diagnosis: dict[str, Any] | None = None  # of a failing grade, when one was asked for (Diagnosis.as_dict)
+    diagnosis: Diagnosis | None = None  # of a failing grade, when one was asked for
     accepted: str | None = None  # the accepted variant it passed as ("a 1e-3 ray offset"), None: the reference
 
     def as_dict(self) -> dict[str, Any]:
         """The grade's numbers, its ``reason`` (why it failed; empty when it passed), its ``diagnosis``
         (what the student most likely got wrong; null when it passed or none was asked for) and the accepted
         variant it passed as (``accepted``; null when it passed against the reference or failed)."""
-        return {**self.grade.as_dict(), "reason": self.grade.reason, "diagnosis": self.diagnosis,
+        return {**self.grade.as_dict(), "reason": self.grade.reason,
+                "diagnosis": None if self.diagnosis is None else self.diagnosis.as_dict(),
                 "accepted": self.accepted}
 
 
@@ -89,18 +93,39 @@ class Checks:
     diagnose: bool = True
 
 
-def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
-            threads: int | None = None, cancel: Callable[[], bool] | None = None,
-            checks: Checks = Checks(), cache: Any = None) -> Graded:
-    """``graded`` passed against an accepted variant (:mod:`service.accepting`), or else with the diagnosis of
-    a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic mistake and its
-    passes, cached by canonical scene (in ``cache``, a :class:`service.diagnosis.Cached`: this process's by
-    default), compared with the submission.  A passing grade comes back as it is."""
+@dataclass(frozen=True)
+class Run:
+    """How the checks of a failing grade run: on how many threads (None: every core), what stops them (true:
+    :class:`tracer.RenderCancelled`), and the cache of diagnosis renders (None: this process's,
+    :data:`service.diagnosis.CACHE`)."""
+
+    threads: int | None = None
+    cancel: Callable[[], bool] | None = None
+    cache: Cached | None = None
+
+
+@dataclass(frozen=True)
+class Explaining:
+    """What a failing grade is explained with: the reference's scene (``scene()``, called only when a grade
+    fails), what it is checked for, and how the checks run."""
+
+    scene: Callable[[], Scene]
+    checks: Checks = Checks()
+    run: Run = Run()
+
+
+def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, checks: Checks = Checks(),
+            run: Run = Run()) -> Graded:
+    """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the
+    diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic
+    mistake and its passes, cached by canonical scene (in ``run.cache``), compared with the submission.  A
+    passing grade comes back as it is."""
     if graded.grade.passed:
         return graded
-    from .accepting import Failing, accept
+    from .diagnosis.accepting import Failing, accept
 
-    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, threads, cancel)
+    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, run.threads,
+                           run.cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
@@ -108,17 +133,18 @@ def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.n
     from .diagnosis import CACHE, diagnose, renders_of
     from .scenekey import scene_key
 
-    held = CACHE if cache is None else cache
-    renders = held.get(scene_key(scene), lambda: renders_of(scene, threads), scene.image.width * scene.image.height)
+    held = CACHE if run.cache is None else run.cache
+    renders = held.get(scene_key(scene), lambda: renders_of(scene, run.threads),
+                       scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
-        renders.cancel_in_thread(cancel)
+        renders.cancel_in_thread(run.cancel)
     else:
-        renders.cancel = cancel
+        renders.cancel = run.cancel
     try:
         found = diagnose(reference, submitted, graded.grade, renders)
     finally:
         held.trim()  # (what it rendered counted, cancelled or not)
-    return Graded(graded.grade, graded.heatmap, found.as_dict())
+    return Graded(graded.grade, graded.heatmap, found)
 
 
 def read_image(data: bytes, size: tuple[int, int]) -> np.ndarray:
@@ -137,17 +163,16 @@ def compare(reference_png: bytes, submitted: np.ndarray, tolerance: float, max_f
 
 
 def grade_png(reference_png: bytes, image: bytes, tolerance: float, max_fraction: float,
-              heatmap: Kind | None = None, legend: bool = False, scene: Callable[[], Scene] | None = None,
-              threads: int | None = None, checks: Checks = Checks()) -> Graded:
-    """A submitted image's grade against a reference PNG; when it fails and the reference's scene is given
-    (``scene()``, called only then), graded against the accepted variants and diagnosed as ``checks`` say
-    (:func:`explain`); :class:`grading.ImageError` when it cannot be graded."""
+              heatmap: Kind | None = None, legend: bool = False, explaining: Explaining | None = None) -> Graded:
+    """A submitted image's grade against a reference PNG; when it fails and ``explaining`` is given, graded
+    against the accepted variants and diagnosed as it says (:func:`explain`); :class:`grading.ImageError` when
+    it cannot be graded."""
     pixels = decode_png(reference_png)
     submitted = read_image(image, (pixels.shape[1], pixels.shape[0]))
     graded = compare(reference_png, submitted, tolerance, max_fraction, heatmap, legend, reference=pixels)
-    if scene is None or graded.grade.passed:
+    if explaining is None or graded.grade.passed:
         return graded
-    return explain(scene(), graded, pixels, submitted, threads, checks=checks)
+    return explain(explaining.scene(), graded, pixels, submitted, explaining.checks, explaining.run)
 
 
 #: the largest reference ``phongray compare`` decodes (the service's default max_pixels)

@@ -18,7 +18,7 @@ sys.path.insert(1, str(Path(__file__).resolve().parent.parent))
 import student  # noqa: E402
 
 from schemas import load_scene  # noqa: E402
-from service.accepting import Failing, accept  # noqa: E402
+from service.diagnosis.accepting import Failing, accept  # noqa: E402
 from service.grading import grade  # noqa: E402
 from tracer import Renderer  # noqa: E402
 

@@ -14,7 +14,8 @@ import pytest
 import student
 
 from schemas import load_scene
-from service import accepting, pipeline
+from service import pipeline
+from service.diagnosis import accepting
 from service.grading import grade
 from service.submissions import ClassError
 from service.taskfile import load_tasks
@@ -32,8 +33,8 @@ def _scene(path: Path):  # noqa: ANN202
 
 def _graded(scene, image: np.ndarray, checks: pipeline.Checks | None = None) -> pipeline.Graded:  # noqa: ANN001
     reference = encode_png(Renderer(scene).pixels())
-    return pipeline.grade_png(reference, encode_png(image), 2.0, 0.001, scene=lambda: scene,
-                              checks=checks or pipeline.Checks())
+    return pipeline.grade_png(reference, encode_png(image), 2.0, 0.001,
+                              explaining=pipeline.Explaining(lambda: scene, checks or pipeline.Checks()))
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +101,7 @@ def test_an_offset_far_too_large_fails_and_is_named(whitted):
     wrong = student.render(whitted, ["offset-too-large"])
     graded = _graded(whitted, wrong)
     assert not graded.grade.passed and graded.accepted is None
-    assert graded.diagnosis is not None and graded.diagnosis["causes"][0]["variant"] == "offset-too-large"
+    assert graded.diagnosis is not None and graded.diagnosis.causes[0].variant == "offset-too-large"
 
 
 @pytest.mark.parametrize("mistake", student.MISTAKES)
@@ -172,7 +173,7 @@ def test_grade_says_which_variant_it_passed_as_even_without_a_diagnosis(whitted,
 def test_post_grade_gives_the_accepted_variant(whitted):
     from fastapi.testclient import TestClient
 
-    from service.app import create_app
+    from service.http.app import create_app
     from service.settings import Settings
 
     honest = encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"]))

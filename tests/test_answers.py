@@ -16,8 +16,8 @@ from PIL import Image
 
 import schemas
 from service import passes
-from service.app import create_app
-from service.jobs import RenderService, prepare
+from service.http.app import create_app
+from service.http.jobs import RenderService, prepare
 from service.pipeline import compare
 from service.settings import Settings
 from tracer import Renderer
@@ -102,7 +102,7 @@ def test_every_cached_array_of_a_worker_counts_in_one_budget():
     graded = compare(png, wrong, 2, 0.001)
     assert not graded.grade.passed
     explained = service.explain(job, graded, reference, wrong)
-    assert explained.diagnosis is not None and explained.diagnosis["sentence"]
+    assert explained.diagnosis is not None and explained.diagnosis.sentence()
     assert service.cache.size + service.diagnoses.size <= budget
     # and with room for them, the diagnosis's renders are held, counted
     roomy = RenderService(Settings(cache_bytes=256 << 20))
@@ -236,7 +236,7 @@ def test_a_diagnosis_stops_at_render_timeout_and_says_so():
     explained = service.explain(job, compare(png, noise, 2, 0.001), reference, noise)
     assert time.monotonic() - started < 10  # (ten times the deadline: stopped, not finished)
     assert explained.diagnosis is not None
-    assert explained.diagnosis["sentence"] == "No diagnosis: its renders ran past the limit render_timeout = 1 s"
+    assert explained.diagnosis.sentence() == "No diagnosis: its renders ran past the limit render_timeout = 1 s"
 
 
 def test_a_client_that_joins_a_render_as_its_last_waiter_leaves_gets_the_image(monkeypatch):
@@ -275,6 +275,6 @@ def test_a_pass_or_a_diagnosis_out_of_memory_is_a_503_not_a_500(monkeypatch):
     png = service.png(job)
     reference = Renderer(job.scene).pixels()
     wrong = Renderer(job.scene.model_copy(update={"lights": job.scene.lights[:1]})).pixels()
-    monkeypatch.setattr("service.jobs.explain", starved)
+    monkeypatch.setattr("service.http.jobs.explain", starved)
     explained = service.explain(job, compare(png, wrong, 2, 0.001), reference, wrong)
-    assert explained.diagnosis is not None and "ran out of memory" in explained.diagnosis["sentence"]
+    assert explained.diagnosis is not None and "ran out of memory" in explained.diagnosis.sentence()

@@ -9,8 +9,7 @@ import pytest
 
 import schemas
 from bench.answers import many_lights as bench_scene
-from service import diagnosis
-from service.diagnosis import Cached, diagnose, renders_of
+from service.diagnosis import Cached, diagnose, fit, rendered, renders_of
 from service.grading import grade
 from tracer import RenderCancelled, Renderer
 
@@ -58,8 +57,8 @@ def test_the_fit_in_blocks_finds_the_terms_the_one_matrix_finds(monkeypatch):
     wrong = _students_without_light_one(scene)
     verdict = grade(reference, wrong, "")
     whole = diagnose(reference, wrong, verdict, renders_of(scene)).terms
-    monkeypatch.setattr(diagnosis, "FIT_MATRIX_BYTES", 0)
-    monkeypatch.setattr(diagnosis, "WHOLE_PASSES_BYTES", 0)
+    monkeypatch.setattr(fit, "FIT_MATRIX_BYTES", 0)
+    monkeypatch.setattr(rendered, "WHOLE_PASSES_BYTES", 0)
     folded = diagnose(reference, wrong, verdict, renders_of(scene)).terms
     assert whole and [(t.name, t.light) for t in folded] == [(t.name, t.light) for t in whole]
     assert np.allclose([t.scale for t in folded], [t.scale for t in whole], rtol=0, atol=1e-6)
@@ -71,13 +70,13 @@ def test_a_cancel_stops_the_fit_between_its_blocks(crowd, monkeypatch):
     scene, reference, noise = crowd
     renders = renders_of(scene)
     began = []
-    real = diagnosis._Fit.fold
+    real = fit._Fit.fold
 
     def fold(self, first, part):
         began.append(first)
         return real(self, first, part)
 
-    monkeypatch.setattr(diagnosis._Fit, "fold", fold)
+    monkeypatch.setattr(fit._Fit, "fold", fold)
     renders.cancel = lambda: bool(began)
     started = time.monotonic()
     with pytest.raises(RenderCancelled):

@@ -1,4 +1,4 @@
-"""Diagnosis (service/diagnosis.py): a failing submission's likely mistake, terms out of scale, and where."""
+"""Diagnosis (service/diagnosis/): a failing submission's likely mistake, terms out of scale, and where."""
 
 import copy
 from dataclasses import replace as dataclasses_replace
@@ -9,13 +9,14 @@ import student
 from test_variants import EVERYTHING
 
 import schemas
-from service.diagnosis import diagnose, nnls, renders_of
-from service.diagnosis import where as diagnosis_where
+from service.diagnosis import diagnose, renders_of
+from service.diagnosis.fit import nnls
+from service.diagnosis.where import where as diagnosis_where
 from service.grading import grade
 from tracer import Renderer
 from tracer.image import quantize
 from tracer.passes import ADDITIVE
-from tracer.variants import VARIANTS
+from tracer.variants import BOUNDS, VARIANTS
 
 
 @pytest.fixture(scope="module")
@@ -166,7 +167,7 @@ def _submissions(scene, reference):
 def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
     import dataclasses
 
-    from service import diagnosis
+    from service.diagnosis import looks
 
     scene = schemas.validate_scene(EVERYTHING)
     reference = Renderer(scene).pixels()
@@ -186,9 +187,9 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
             diagnose(reference, submitted, verdict, blind).as_dict(), name
         spared += len(VARIANTS) - len(whole) + 1 - len(far)
         # and the first look at the far end's rows is a lower bound of what the whole of it counts
-        least = diagnosis.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
-        outside = diagnosis.speckled(reference, looked.bound("shadow-acne"), submitted, verdict.tolerance)
-        whole_far = Renderer(scene, diagnosis.BOUNDS["shadow-acne"]).pixels().astype(int)
+        least = looks.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
+        outside = looks.speckled(reference, looked.bound("shadow-acne"), submitted, verdict.tolerance)
+        whole_far = Renderer(scene, BOUNDS["shadow-acne"]).pixels().astype(int)
         ref, sub, tol = reference.astype(int), submitted.astype(int), verdict.tolerance
         count = int(np.any((sub < np.minimum(ref, whole_far) - tol) | (sub > np.maximum(ref, whole_far) + tol),
                            axis=2).sum())
@@ -196,14 +197,14 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         assert outside is None or outside == count / (ref.shape[0] * ref.shape[1])
         # and what the first look gives is a lower bound of what the whole grade counts
         for v in ("no-shadows", "blinn-phong", "no-ambient"):
-            least = diagnosis.off_at_least(v, submitted, verdict, looked)
+            least = looks.off_at_least(v, submitted, verdict, looked)
             g = grade(Renderer(scene, VARIANTS[v][0]).pixels(), submitted, "", verdict.tolerance)
             assert least is not None and least <= round(g.fraction_off_nearby * reference.shape[0] * reference.shape[1])
     assert spared > 2 * len(_submissions(scene, reference))
 
 
 def test_a_first_look_counts_off_pixels_as_the_grade_does():
-    from service.diagnosis import _off_nearby
+    from service.diagnosis.looks import _off_nearby
     from service.grading import nearby_difference, planes
 
     rng = np.random.default_rng(3)
@@ -232,7 +233,7 @@ def test_where_renders_the_failing_pixels_alone_as_the_whole_pass_render_has_the
 
 
 def test_a_variant_rendered_in_bands_is_its_whole_render_or_given_up_only_when_it_cannot_pass(setting):
-    from service.diagnosis import whole_unless_off
+    from service.diagnosis.looks import whole_unless_off
 
     scene, reference, _ = setting
     submitted = Renderer(scene, VARIANTS["no-shadows"][0]).pixels()
@@ -362,7 +363,7 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
 
     from bench.scenes import example
     from service.diagnosis import CACHE
-    from service.pipeline import Graded, explain
+    from service.pipeline import Graded, Run, explain
     from tracer import RenderCancelled
 
     scene = schemas.validate_scene(example("01_three_spheres", 40, 30))
@@ -376,8 +377,8 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
     def run(name, cancel):
         both.wait()
         try:
-            results[name] = explain(scene, Graded(verdict, None), reference, submitted, threads=1,
-                                    cancel=cancel).diagnosis
+            found = explain(scene, Graded(verdict, None), reference, submitted, run=Run(1, cancel)).diagnosis
+            results[name] = None if found is None else found.as_dict()
         except RenderCancelled:
             results[name] = "cancelled"
 
@@ -393,7 +394,7 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
 
 
 def test_acnes_far_end_in_bands_is_whole_or_given_up_only_when_too_much_lies_outside(setting):
-    from service.diagnosis import BOUNDS, bound_unless_outside
+    from service.diagnosis.looks import bound_unless_outside
 
     scene, reference, _ = setting
     whole = Renderer(scene, BOUNDS["shadow-acne"]).pixels()
@@ -413,3 +414,20 @@ def test_acnes_far_end_in_bands_is_whole_or_given_up_only_when_too_much_lies_out
             else:
                 assert np.array_equal(banded, whole), (name, enough)
     assert given_up >= 3
+
+
+def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_words():
+    from service.diagnosis import Cause, Diagnosis, Share, Term, headline, unavailable
+
+    found = Diagnosis([Cause("no-shadows", "no shadow rays", 0.3, False)], True, [Term("diffuse", 1, 0.02)],
+                      [Share(0, "sphere", 0.75), Share(-1, "background", 0.25)], [Share(1, "point", 0.5)])
+    assert Diagnosis.from_dict(found.as_dict()) == found
+    assert headline(found) == "no shadow rays (closest)" and headline(None) == ""
+    termed = Diagnosis(terms=[Term("diffuse", 1, 0.02)])
+    assert termed.headline() == "the diffuse of light 1 term is missing (×0.02)"
+    assert termed.sentence() == "Likely: the diffuse of light 1 term is missing (about ×0.02 of the reference's)"
+    assert Diagnosis().headline() == "no known mistake fits"
+    late = unavailable("every render slot is busy")
+    assert late.as_dict() == {"sentence": "No diagnosis: every render slot is busy", "closest": False,
+                              "causes": [], "terms": [], "objects": [], "lights": []}
+    assert Diagnosis.from_dict(late.as_dict()) == late and late.headline() == late.sentence()

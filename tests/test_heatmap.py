@@ -9,8 +9,8 @@ from fastapi.testclient import TestClient
 import schemas
 import tracer
 from service import grading, heatmap
-from service.app import create_app
 from service.cli import main
+from service.http.app import create_app
 from service.settings import Settings
 
 from helpers import SCENES, scene_dict

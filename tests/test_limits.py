@@ -11,8 +11,8 @@ from fastapi.testclient import TestClient
 from test_render import nested_glass_and_mirror
 
 import schemas
-from service.app import create_app
 from service.cli import main
+from service.http.app import create_app
 from service.limits import LimitError, beyond_limits, check_scene, estimated_cost, per_ray_factor
 from service.settings import Settings
 from tracer import Renderer
@@ -72,7 +72,7 @@ def test_a_pass_of_the_bomb_is_held_to_the_same_budget(api):
 BOMB_SCRIPT = """
 import json, sys
 from fastapi.testclient import TestClient
-from service.app import create_app
+from service.http.app import create_app
 from service.cli import main
 from service.settings import Settings
 res = TestClient(create_app(Settings())).post("/render", content=sys.stdin.read(),

@@ -51,7 +51,7 @@ print(grown >> 20, (memory.resident() - before) >> 20)
 
 
 def test_with_one_arena_a_pool_threads_freed_memory_all_goes_back():
-    """The service's setting (service.app): what a render thread freed is handed back in full by release()."""
+    """The service's setting (service.http.app): what a render thread freed is handed back in full by release()."""
     out = subprocess.run([sys.executable, "-c", ONE_ARENA_PROBE, "1"], capture_output=True, text=True, check=True)
     grown, kept = map(int, out.stdout.split())
     assert grown >= 80, out.stdout  # the arrays were resident ...

@@ -9,9 +9,9 @@ from fastapi.testclient import TestClient
 
 import schemas
 from service import passes
-from service.app import create_app
 from service.cli import PASS_NAMES, main
-from service.routes import PassName
+from service.http.app import create_app
+from service.http.routers.render import PassName
 from service.settings import Settings
 from tracer import Renderer, decode_png
 from tracer.image import quantize

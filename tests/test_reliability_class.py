@@ -27,8 +27,8 @@ from service import classgrade
 from service import report as report_module
 from service.cli import main
 from service.display import printable
-from service.jobs import scene_key
 from service.report import neutral_cell, write_atomic
+from service.scenekey import scene_key
 
 from helpers import measured, scene_dict
 from server import running_server

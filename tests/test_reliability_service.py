@@ -18,9 +18,9 @@ from starlette.testclient import TestClient
 
 from bench import bodies
 from service import client, grading
-from service.app import create_app
 from service.grading import LEVELS, _to_8bit, read_submission
-from service.middleware import Budget
+from service.http.app import create_app
+from service.http.middleware import Budget
 from service.settings import Settings
 from tracer.image import PNG_SIGNATURE, png_chunk
 

@@ -305,3 +305,44 @@ def test_a_colour_that_is_a_word_is_told_the_two_forms_it_may_take():
 def test_a_materials_color_key_is_pointed_to_diffuse(key):
     assert problems(minimal(materials={"m": {key: [1, 0, 0]}})) == [
         f"materials.m.{key}: unknown key (did you mean 'diffuse'?)"]
+
+
+# -- names (phongray's extension): optional, bounded, unique within their list ------------------------------------
+
+def _named(objects=(), lights=()):
+    sphere = {"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}
+    point = {"type": "point", "color": 1, "position": [0, 2, 3]}
+    return minimal(materials={"m": {}}, objects=[sphere | ({"name": n} if n is not None else {}) for n in objects],
+                   lights=[point | ({"name": n} if n is not None else {}) for n in lights])
+
+
+def test_objects_and_lights_may_carry_a_name():
+    s = schemas.validate_scene(_named(objects=["ball", None], lights=["key", "ball"]))
+    assert [o.name for o in s.objects] == ["ball", None] and [light.name for light in s.lights] == ["key", "ball"]
+    assert schemas.validate_scene(minimal(lights=[{"type": "ambient", "color": 0.1, "name": "fill"}])).lights[0].name
+
+
+def test_a_name_used_twice_in_a_list_is_an_error_at_the_second():
+    assert problems(_named(objects=["ball", None, "ball"])) == [
+        "objects[2].name: 'ball' is already the name of objects[0] (names must be unique)"]
+    assert problems(_named(lights=["key", "key"])) == [
+        "lights[1].name: 'key' is already the name of lights[0] (names must be unique)"]
+
+
+@pytest.mark.parametrize("name, said", [("", "must not be empty"), ("x" * 65, "must be at most 64 characters long"),
+                                        ("a\nb", "must not contain control characters"), (3, "must be a string")])
+def test_a_bad_name_is_an_error_at_its_place(name, said):
+    assert problems(_named(lights=[name])) == [f"lights[0].name: {said}" + (
+        " (line breaks, tabs, ...)" if "control" in said else "")]
+
+
+def test_a_name_changes_no_image_and_unnamed_scenes_keep_their_key():
+    from service.scenekey import scene_key
+    from tracer import Renderer
+
+    plain, named = (schemas.validate_scene(d) for d in (_named([None], [None]), _named(["ball"], ["key"])))
+    assert (Renderer(plain).pixels() == Renderer(named).pixels()).all()
+    assert scene_key(plain) != scene_key(named)  # (messages speak of the names: a cached diagnosis is per name)
+    data = _named([None], [None])
+    data["objects"][0]["name"] = data["lights"][0]["name"] = None  # a name of null is no name
+    assert scene_key(schemas.validate_scene(data)) == scene_key(plain)

@@ -14,7 +14,7 @@ from PIL import Image
 import schemas
 import tracer
 from service import grading
-from service.app import create_app
+from service.http.app import create_app
 from service.settings import Settings
 from tracer.image import png_chunk
 
@@ -74,6 +74,13 @@ def test_query_overrides(api):
     assert tracer.decode_png(res.content).shape == (24, 32, 3)
     res = api.post("/render?width=0", content=SCENE, headers=JSON)
     assert res.status_code == 422 and res.json()["errors"][0]["path"] == "query.width"
+
+
+def test_a_name_used_twice_is_a_located_422(api):
+    data = json.loads(SCENE)
+    data["lights"] = [{"type": "ambient", "color": 0.1, "name": "key"} for _ in range(2)]
+    res = api.post("/render", content=json.dumps(data), headers=JSON)
+    assert res.status_code == 422 and [e["path"] for e in res.json()["errors"]] == ["lights[1].name"]
 
 
 def test_overrides_replace_values_but_neither_complete_nor_mend_a_scene(api):
@@ -200,7 +207,7 @@ def test_a_failing_grade_comes_with_its_diagnosis_and_a_pass_without(api, refere
 
 
 def test_a_diagnosis_past_the_render_timeout_says_so():
-    from service.jobs import scene_key
+    from service.scenekey import scene_key
     from tracer.variants import VARIANTS
 
     api = client(render_timeout=0.0)
@@ -310,9 +317,9 @@ def test_a_syntax_error_is_marked_on_the_line_the_parser_names(api):
 
 
 def test_a_server_worker_freezes_what_it_holds_after_start_up():
-    """service.server.worker_app: a full garbage collection walks only what requests made, not the ~60k objects
+    """service.http.server.worker_app: a full garbage collection walks only what requests made, not the ~60k objects
     of the started app (which it would walk on the event loop's time)."""
-    probe = "import gc; from service.server import worker_app; worker_app(); print(gc.get_freeze_count())"
+    probe = "import gc; from service.http.server import worker_app; worker_app(); print(gc.get_freeze_count())"
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
     assert int(out) > 20_000
 

@@ -121,14 +121,15 @@ PLAIN = _plain()
 
 @pytest.mark.parametrize("case", sorted(PLAIN))
 def test_a_variant_the_scene_cannot_show_renders_as_the_reference(case):
-    from tracer.variants import BOUNDS, unchanged
+    from tracer.variants import BOUNDS, MORE_VARIANTS, unchanged
 
     scene = schemas.validate_scene(PLAIN[case])
     reference = Renderer(scene).pixels()
-    said = [name for name in [*VARIANTS, *BOUNDS] if unchanged(name, scene)]
+    every = {name: options for name, (options, _) in (VARIANTS | MORE_VARIANTS).items()} | BOUNDS
+    said = [name for name in every if unchanged(name, scene)]
     assert said, f"no rule holds for {case}"
     for name in said:
-        options = VARIANTS[name][0] if name in VARIANTS else BOUNDS[name]
+        options = every[name]
         assert np.array_equal(Renderer(scene, options).pixels(), reference), name
 
 
@@ -139,3 +140,95 @@ def test_every_rule_holds_somewhere_and_every_variant_the_rules_allow_shows_in_e
     assert held == set(UNCHANGED)
     scene = schemas.validate_scene(EVERYTHING)
     assert not any(unchanged(name, scene) for name in VARIANTS)  # (each changes it: the test above)
+
+
+# -- more mistakes (MORE_VARIANTS): each the render of a student's tracer that makes it (tests/student_oop.py) ----
+
+def _bright():
+    """EVERYTHING anti-aliased, with a coloured light bright enough that a term alone passes 1 and a spot of a
+    steep falloff: every mistake of MORE_VARIANTS shows in it."""
+    import copy
+
+    data = copy.deepcopy(EVERYTHING)
+    data["image"].update(samples=2)
+    data["lights"][1].update(color=[4.0, 2.0, 1.0])
+    data["lights"][2].update(exponent=8, color=[0.6, 0.9, 1.4])
+    return data
+
+
+BRIGHT = _bright()
+
+
+@pytest.fixture(scope="module")
+def bright():
+    scene = schemas.validate_scene(BRIGHT)
+    return scene, Renderer(scene).pixels()
+
+
+def _combined(*names):
+    from dataclasses import replace
+
+    from tracer.variants import MORE_VARIANTS
+
+    every = VARIANTS | MORE_VARIANTS
+    changes = {field: getattr(every[name][0], field) for name in names for field in every[name][0].changes()}
+    return replace(REFERENCE, **changes)
+
+
+@pytest.mark.parametrize("name", sorted(__import__("tracer.variants").variants.MORE_VARIANTS))
+def test_a_new_variant_is_the_image_of_a_student_who_makes_the_mistake(bright, name):
+    import student_oop
+
+    from service.grading import grade
+    from tracer.variants import MORE_VARIANTS, SENTENCES
+
+    scene, reference = bright
+    variant = Renderer(scene, MORE_VARIANTS[name][0]).pixels()
+    made = student_oop.render(scene, [name])
+    assert np.mean(np.any(variant != reference, axis=2)) > 0.001
+    assert not grade(reference, made, "").passed  # the mistake shows
+    assert grade(variant, made, "").passed  # and the variant is it
+    assert name not in VARIANTS and SENTENCES[name].endswith(".")
+
+
+@pytest.mark.parametrize("pair", [("no-shadows", "blinn-phong"), ("no-attenuation", "gamma"),
+                                  ("reflection-blended", "camera-left-handed"), ("light-colour-ignored", "grayscale"),
+                                  ("clamped-per-term", "spot-exponent-ignored")])
+def test_two_mistakes_together_are_the_variants_options_together(bright, pair):
+    import student_oop
+
+    from service.grading import grade
+
+    scene, reference = bright
+    made = student_oop.render(scene, list(pair))
+    assert grade(Renderer(scene, _combined(*pair)).pixels(), made, "").passed
+    for one in pair:
+        assert not grade(Renderer(scene, _combined(one)).pixels(), made, "").passed
+
+
+def test_the_stored_variants_are_pillows_grey_and_bgr():
+    from PIL import Image as PILImage
+
+    rgb = np.random.default_rng(7).integers(0, 256, (9, 11, 3), dtype=np.uint8)
+    grey = np.asarray(PILImage.fromarray(rgb, "RGB").convert("L"))
+    assert np.array_equal(Options(grayscale=True).stored(rgb), np.repeat(grey[..., None], 3, axis=2))
+    assert np.array_equal(Options(channels_swapped=True).stored(rgb), rgb[..., ::-1])
+    assert REFERENCE.stored(rgb) is rgb
+
+
+def test_the_mirrored_camera_is_the_image_mirrored(bright):
+    from tracer.variants import MORE_VARIANTS
+
+    scene, reference = bright
+    mirrored = Renderer(scene, MORE_VARIANTS["camera-left-handed"][0]).pixels()
+    assert np.mean(np.any(mirrored != reference[:, ::-1], axis=2)) < 0.01  # (edge pixels: rounding)
+
+
+def test_a_variant_that_misreads_the_scene_reads_a_copy():
+    scene = schemas.validate_scene(BRIGHT)
+    assert REFERENCE.read(scene) is scene
+    read = Options(samples_read=False, light_colour=False, spot_exponent=False).read(scene)
+    assert read.image.samples == 1 and scene.image.samples == 2
+    assert all(light.color == (1.0, 1.0, 1.0) for light in read.lights if light.type != "ambient")
+    assert [light.exponent for light in read.lights if light.type == "spot"] == [0.0]
+    assert read.lights[0] == scene.lights[0]  # the ambient light as it is

@@ -40,7 +40,7 @@ from .planner import ProofPlan
 from .rays import Among, Rays, Shadows, Work
 from .shading import add_phong, light_in_plane, phong, planes_holding
 from .tiles import TILE, lit_tiles
-from .variants import Options, Spawn
+from .variants import Options, Spawn, add_clamped
 from .vec import columns, dot, rows_of, scaled
 from .world import World, max_abs, unit
 
@@ -147,7 +147,7 @@ class DirectLight:
             if terms is None:
                 continue
             wd, ws, reached = terms
-            add_phong(colour, color, diffuse, specular, wd, ws)
+            (add_clamped if opt.clamp_terms else add_phong)(colour, color, diffuse, specular, wd, ws)
             if counted:
                 assert tally is not None and work is not None
                 tally.add(tally.term("diffuse", group.first), work.sample,

@@ -86,6 +86,7 @@ class Renderer:
     """
 
     def __init__(self, scene: Scene, options: Options = REFERENCE):
+        scene = options.read(scene)  # (the scene itself, but in a variant that misreads it)
         img = scene.image
         if img.width * img.height > MAX_PIXELS:
             raise ImageTooLarge(f"image: {img.width}×{img.height} pixels is more than phongray renders "
@@ -112,6 +113,8 @@ class Renderer:
             self.world: World = build_world(scene, options)
             self.camera = CameraRays(scene.camera, scene.image, self.world.origin, options.half_pixel,
                                      options.vertical_fov)
+            if options.left_handed:  # a variant's r = up × f (u kept): the image mirrored left to right
+                self.camera.right = -self.camera.right
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
             groups = light_groups(scene, self.world.origin)
             #: where shadow and secondary rays start: off the surface in a variant of a student's offset
@@ -173,8 +176,8 @@ class Renderer:
                 stopped = True
                 return 0
             colour = self.chunk(a, b)
-            out[a - first:b - first] = quantize(colour if not self.options.gamma else
-                                                np.clip(colour, 0.0, None) ** (1.0 / 2.2))
+            out[a - first:b - first] = self.options.stored(quantize(colour if not self.options.gamma else
+                                                                    np.clip(colour, 0.0, None) ** (1.0 / 2.2)))
             return b - a
 
         if workers == 1 or len(bounds) == 1:
@@ -307,7 +310,8 @@ class Renderer:
         def work(part: np.ndarray) -> np.ndarray:
             self._stop()
             colour = self.chunk(0, len(part), pixels=part)
-            return quantize(colour if not self.options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2))
+            return self.options.stored(quantize(colour if not self.options.gamma else
+                                                np.clip(colour, 0.0, None) ** (1.0 / 2.2)))
 
         out = _mapped(work, parts, workers)
         return np.concatenate(out).reshape(len(shown), img.width, 3)
@@ -370,6 +374,7 @@ class Renderer:
                 if tally is not None and work.depth == 0:
                     _tally_first_hits(tally, self.world, hit, done, normal)
                 colour = self.shading.shade(hit, mat, normal, dd, tally, done)
+                colour = self.options.blended(colour, self.world.materials.reflectance[mat])  # (a variant's)
                 self._count.lit(len(rows) * len(self.emitter_light))
                 _accumulate(acc, done.sample, scaled(colour, done.weight), ceiling, fixed, once)
                 if work.depth >= deepest:
@@ -404,7 +409,8 @@ class Renderer:
         t = np.flatnonzero(weight * kt > 0)
         # secondary rays start at the exact hit point and leave its surface by identity
         out = np.concatenate([mirror(dirs[r], normal[r]),
-                              refract(dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted)])
+                              refract(dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted,
+                                      self.options.exit_normal_flipped)])
         both = np.concatenate([r, t])
         points = rows_of(hit.point, both)
         rays = Rays(points, out, hit.kind[both], hit.index[both], max_abs(points) + self.world.origin_mag)

@@ -203,12 +203,14 @@ def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return unit(along(dirs, -2.0 * dot(dirs, normal), normal))
 
 
-def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray, inverted: bool = False) -> np.ndarray:
+def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray, inverted: bool = False,
+            exit_flipped: bool = True) -> np.ndarray:
     """Refracted unit directions by the contract's rule (mirror direction on total internal reflection); with
-    ``inverted`` (a variant's mistake) η is ior entering and 1/ior leaving."""
+    ``inverted`` (a variant's mistake) η is ior entering and 1/ior leaving; without ``exit_flipped`` (another)
+    a ray leaving uses the outward normal as w."""
     entering = dot(dirs, geometric) < 0
     eta = np.where(entering != inverted, 1.0 / ior, ior)
-    w = np.where(entering[:, None], geometric, -geometric)
+    w = np.where((entering | (not exit_flipped))[:, None], geometric, -geometric)
     c = -dot(dirs, w)
     k = 1.0 - eta * eta * (1.0 - c * c)
     root = np.sqrt(np.maximum(k, 0.0))

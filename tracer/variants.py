@@ -40,6 +40,16 @@ class Options:
     ior_inverted: bool = False  # η = ior entering and 1/ior leaving
     offset: float = 0.0  # shadow and secondary rays start this far off the hit point, × the scene's size
     offset_along: str = "normal"  # "normal": along the surface's normal; "ray": along the ray (a t_min)
+    # -- the mistakes of MORE_VARIANTS (none of them in VARIANTS yet) --
+    blend_reflection: bool = False  # local colour × (1 − k_r) before the mirror ray's k_r·colour is added
+    left_handed: bool = False  # r = unit(up × f), u = f × r: the image mirrored left to right
+    samples_read: bool = True  # image.samples read (False: one ray through each pixel's centre)
+    spot_exponent: bool = True  # a spot's exponent read (False: S = F, as if exponent were 0)
+    light_colour: bool = True  # each light's colour read (False: every light but ambient white, [1, 1, 1])
+    clamp_terms: bool = False  # each light's diffuse and specular term clamped to [0, 1] before it is added
+    exit_normal_flipped: bool = True  # a refracted ray leaving uses w = −n (False: the outward n, as entering)
+    grayscale: bool = False  # the 8-bit image stored as grey, L = 0.299 R + 0.587 G + 0.114 B (Pillow's "L")
+    channels_swapped: bool = False  # the 8-bit image stored as BGR
 
     @property
     def reference(self) -> bool:
@@ -48,6 +58,39 @@ class Options:
     def spawn(self, scene: Any) -> Spawn | None:
         """Where this render's shadow and secondary rays start (None: at the hit point, as the format says)."""
         return Spawn(self.offset * scene_size(scene), self.offset_along) if self.offset else None
+
+    def read(self, scene: Any) -> Any:
+        """``scene`` as this render's student reads it: one sample per pixel, spots without their exponent,
+        lights without their colour, as the options say; ``scene`` itself when they read it as it is (the
+        reference's path).  The copy is not validated again: each change keeps it valid (samples 1, exponent 0,
+        colour [1, 1, 1] are all in range)."""
+        if self.samples_read and self.spot_exponent and self.light_colour:
+            return scene
+        image = scene.image if self.samples_read else scene.image.model_copy(update={"samples": 1})
+        return scene.model_copy(update={"image": image, "lights": [self._light(light) for light in scene.lights]})
+
+    def _light(self, light: Any) -> Any:
+        update: dict[str, Any] = {}
+        if not self.light_colour and light.type != "ambient":
+            update["color"] = (1.0, 1.0, 1.0)
+        if not self.spot_exponent and light.type == "spot":
+            update["exponent"] = 0.0
+        return light.model_copy(update=update) if update else light
+
+    def stored(self, rows: np.ndarray) -> np.ndarray:
+        """8-bit RGB pixels ``(..., 3)`` as this render's student stores them: as grey (Pillow's ``convert("L")``,
+        exactly: ``(19595 R + 38470 G + 7471 B + 2¹⁵) >> 16``, repeated in the three channels), with red and blue
+        swapped, or (the reference) as they are."""
+        if self.grayscale:
+            wide = rows.astype(np.int64)
+            grey = (19595 * wide[..., 0] + 38470 * wide[..., 1] + 7471 * wide[..., 2] + 0x8000) >> 16
+            rows = np.repeat(grey[..., None], 3, axis=-1).astype(np.uint8)
+        return rows[..., ::-1] if self.channels_swapped else rows
+
+    def blended(self, colour: np.ndarray, reflectance: np.ndarray) -> np.ndarray:
+        """The local colour ``(N, 3)`` of hits of mirror weights ``reflectance (N,)``: × (1 − k_r) when this
+        render's student blends the mirror ray in instead of adding it, else itself."""
+        return colour * (1.0 - reflectance)[:, None] if self.blend_reflection else colour
 
     def changes(self) -> list[str]:
         """The fields this departs from the reference in."""
@@ -123,6 +166,54 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "offset-too-large": (Options(offset=2e-2), "shadow and secondary rays offset too far from the surface "
                                                "(2e-2 of the scene's size)"),
 }
+
+#: more mistakes a student's tracer written from the format makes (issue 47): name → (options, what a student
+#: did).  Not in :data:`VARIANTS`, so that the diagnosis does not try them yet: trying them changes its cost and
+#: its outcomes, which the wiring of the diagnosis decides.  A ray offset far too large is ``offset-too-large``.
+MORE_VARIANTS: dict[str, tuple[Options, str]] = {
+    "reflection-blended": (Options(blend_reflection=True), "reflection blended, (1 − k_r)·local + k_r·reflected, "
+                                                            "instead of added"),
+    "camera-left-handed": (Options(left_handed=True), "a left-handed camera basis (r = up × f): the image "
+                                                      "mirrored left to right"),
+    "samples-ignored": (Options(samples_read=False), "the scene's anti-aliasing samples ignored (one ray per "
+                                                     "pixel)"),
+    "grayscale": (Options(grayscale=True), "the image saved in grayscale"),
+    "spot-exponent-ignored": (Options(spot_exponent=False), "a spot's falloff exponent ignored"),
+    "light-colour-ignored": (Options(light_colour=False), "the lights' colours ignored (every light white)"),
+    "channels-swapped": (Options(channels_swapped=True), "red and blue swapped (the image stored as BGR)"),
+    "clamped-per-term": (Options(clamp_terms=True), "each light's diffuse and specular term clamped on its own "
+                                                    "instead of the pixel once at the end"),
+    "exit-normal-not-flipped": (Options(exit_normal_flipped=False), "refraction leaving an object with the "
+                                                                   "outward normal instead of the flipped one"),
+}
+
+#: per mistake of :data:`MORE_VARIANTS`, a sentence for the student who made it: what the image shows, what to fix
+SENTENCES: dict[str, str] = {
+    "reflection-blended": "Your mirror surfaces look too dark: the format adds k_r × the reflected colour to the "
+                          "surface's own colour; it does not mix the two by (1 − k_r).",
+    "camera-left-handed": "Your image is mirrored left to right: the camera's right vector is f × up, not "
+                          "up × f.",
+    "samples-ignored": "Your edges are jagged: the scene asks for n × n rays per pixel (image.samples), averaged.",
+    "grayscale": "Your image has no colour: save it as RGB, not in grayscale.",
+    "spot-exponent-ignored": "Your spot lights are too bright away from their axis: multiply by "
+                             "cos(angle)^exponent as well.",
+    "light-colour-ignored": "Your lights are all white: multiply each light's term by the light's colour.",
+    "channels-swapped": "Your red and blue are swapped: write the channels in the order R, G, B.",
+    "clamped-per-term": "Your highlights are too dim where lights are bright: clamp each pixel once, after "
+                        "everything is added, not each light's diffuse or specular term.",
+    "exit-normal-not-flipped": "Your glass looks wrong: when a refracted ray leaves an object, turn the normal "
+                               "inside (w = −n) and use η = ior.",
+}
+
+
+def add_clamped(colour: np.ndarray, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray,
+                wd: np.ndarray, ws: np.ndarray) -> None:
+    """:func:`tracer.shading.add_phong` of a student who clamps each term: ``colour += clip(I⊙k_d·wd) +
+    clip(I⊙k_s·ws)``, each clipped to [0, 1] per channel (the ``clamp_terms`` mistake)."""
+    for k in range(3):
+        colour[:, k] += np.clip(color[k] * diffuse[:, k] * wd, 0.0, 1.0) + np.clip(color[k] * specular[:, k] * ws,
+                                                                                   0.0, 1.0)
+
 
 #: the ways of honest tracers a grade accepts besides the reference, by default: name → how far (× the scene's
 #: size) at most.  A task may narrow or widen them (``accepted`` in a class's tasks file).
@@ -211,11 +302,25 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
         scene, lambda m: m.transmittance > 0 and m.ior != 1.0),
     # an offset moves only shadow rays (of a light that is not ambient) and mirror or refracted rays
     "offset-too-large": lambda scene: not _lit(scene) and (scene.image.max_depth == 0 or not _bounces(scene)),
+    # -- of MORE_VARIANTS --
+    # the local colour is multiplied by 1 − k_r = 1 exactly where k_r = 0
+    "reflection-blended": lambda scene: not _materials(scene, lambda m: m.reflectance > 0),
+    # the scene read with samples 1 is the scene
+    "samples-ignored": lambda scene: scene.image.samples == 1,
+    # exponent 0 read for an exponent of 0
+    "spot-exponent-ignored": lambda scene: all(light.exponent == 0 for light in scene.lights if light.type == "spot"),
+    # white read for white
+    "light-colour-ignored": lambda scene: all(tuple(light.color) == (1.0, 1.0, 1.0) for light in scene.lights
+                                              if light.type != "ambient"),
+    # the normal is read only where a refracted ray is spawned
+    "exit-normal-not-flipped": lambda scene: scene.image.max_depth == 0 or not _materials(
+        scene, lambda m: m.transmittance > 0),
 }
 
 
 def unchanged(name: str, scene: Any) -> bool:
-    """Whether variant ``name`` (of :data:`VARIANTS`, or its far end in :data:`BOUNDS`) renders ``scene`` exactly
-    as the reference does, by the rules of :data:`UNCHANGED` (a variant without a rule: False)."""
+    """Whether variant ``name`` (of :data:`VARIANTS` or :data:`MORE_VARIANTS`, or a far end in :data:`BOUNDS`)
+    renders ``scene`` exactly as the reference does, by the rules of :data:`UNCHANGED` (a variant without a rule:
+    False)."""
     rule = UNCHANGED.get(name)
     return bool(rule is not None and rule(scene))

@@ -26,7 +26,8 @@ from schemas import Scene
 from tracer import Renderer, decode_png
 from tracer.variants import ACCEPTED_DEFAULT, Options, accepted_options, unchanged
 
-from .grading import BAND, Grade, grade
+from ..grading import BAND, Grade, grade
+from .looks import sampled_rows
 
 #: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
@@ -111,7 +112,7 @@ def accept(scene: Scene, pair: Failing, accepted: dict[str, float] | None = None
 
     A scene with no light but ambient and no mirror or glass renders every offset as the reference (no shadow or
     secondary ray is cast): it renders none of them."""
-    from .scenekey import scene_key
+    from ..scenekey import scene_key
 
     if unchanged("offset-too-large", scene):
         return None
@@ -151,13 +152,11 @@ class Look:
 
 def first_look(scene: Scene, rungs: list[tuple[str, Options]], pair: Failing, how: Look) -> int:
     """A lower bound of :func:`envelope_off` for the range of ``rungs`` and the reference, from their renders of
-    a few rows alone (:func:`service.diagnosis.sampled_rows`: every 16th row with the rows either side).
+    a few rows alone (:func:`service.diagnosis.looks.sampled_rows`: every 16th row with the rows either side).
 
     Exact, not an estimate: a pixel's count depends on its 3×3 neighbourhood alone, so each sampled middle row,
     rendered with the rows above and below, gives its off pixels exactly as the whole count does, and their
     count bounds the whole image's (0 for an image too short to have middle rows)."""
-    from .diagnosis import sampled_rows
-
     middles, rows = sampled_rows(pair.submitted.shape[0])
     if not len(middles):
         return 0

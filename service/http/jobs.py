@@ -16,17 +16,16 @@ import anyio
 import numpy as np
 
 from schemas import Scene, parse_json, validate_scene
+from service.diagnosis import Cached, unavailable
+from service.http.cache import RenderCache
+from service.limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
+from service.passes import Format, PassFile
+from service.pipeline import Graded, Run, explain, with_overrides
+from service.rendering import render_pixels
+from service.scenekey import scene_key
+from service.settings import Settings
 from tracer import OverBudget, RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
-
-from .cache import RenderCache
-from .diagnosis import Cached, unavailable
-from .limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
-from .passes import Format, PassFile
-from .pipeline import Graded, explain, with_overrides
-from .rendering import render_pixels
-from .scenekey import scene_key
-from .settings import Settings
 
 
 class Busy(Exception):
@@ -133,7 +132,7 @@ class RenderService:
         the render outgrows its budget (:func:`service.limits.budget`).
 
         Concurrent requests for one scene are joined before they get here (one flight per scene in
-        :mod:`service.routes`), so each scene is rendered once."""
+        :mod:`service.http.waiting`), so each scene is rendered once."""
         cached = self.cache.get(job.key)
         if cached is not None:
             return cached
@@ -163,7 +162,7 @@ class RenderService:
         AnswersFull when it does not now.  Raises Busy, TooSlow, ClusterDown, RenderCancelled once ``gone()``
         (its client left), LimitError when it outgrows its render budget (:func:`service.limits.budget`), or
         ValueError for a light the scene does not have."""
-        from . import passes
+        from service import passes
 
         media = "application/x-npy" if fmt == "npy" else "image/png"
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
@@ -183,7 +182,7 @@ class RenderService:
                 stop = lambda: late() or gone()  # noqa: E731
                 try:
                     if self.settings.cluster:
-                        from .cluster import run
+                        from service.cluster import run
 
                         data = run(self._client(), passes.pass_task, job.scene.model_dump_json().encode(), name,
                                    light, fmt, self.settings.render_timeout, cancelled=stop)
@@ -220,12 +219,12 @@ class RenderService:
             with self._slot() as late:
                 stop = lambda: late() or gone()  # noqa: E731
                 if self.settings.cluster:
-                    from .cluster import run
+                    from service.cluster import run
 
                     return run(self._client(), explain_task, job.scene.model_dump_json().encode(), graded,
                                reference, submitted, self.settings.render_timeout, cancelled=stop)
-                return explain(job.scene, graded, reference, submitted, self.threads, cancel=stop,
-                               cache=self.diagnoses)
+                return explain(job.scene, graded, reference, submitted,
+                               run=Run(self.threads, cancel=stop, cache=self.diagnoses))
         except Busy:
             return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
         except MemoryError:
@@ -240,7 +239,7 @@ class RenderService:
     def _client(self) -> Any:
         """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the
         scheduler cannot be reached or has no workers (the render would wait for one forever)."""
-        from .cluster import ClusterError, client, workers
+        from service.cluster import ClusterError, client, workers
 
         try:
             with self._client_lock:
@@ -267,6 +266,7 @@ def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted:
 
     deadline = time.monotonic() + seconds
     try:
-        return explain(load_scene(scene), graded, reference, submitted, 1, cancel=lambda: time.monotonic() > deadline)
+        return explain(load_scene(scene), graded, reference, submitted,
+                       run=Run(1, cancel=lambda: time.monotonic() > deadline))
     except RenderCancelled:
         return replace(graded, diagnosis=unavailable(f"its renders ran past the limit render_timeout = {seconds:g} s"))

@@ -7,7 +7,7 @@
 * A deadline for the request line and headers (``header_timeout``): uvicorn
   waits for them forever, so a client trickling a header byte a second would
   hold its connection open for as long as it likes.  (The body's deadline is in
-  :class:`service.middleware.BodyLimit`; idle kept-alive connections are closed
+  :class:`service.http.middleware.BodyLimit`; idle kept-alive connections are closed
   by uvicorn after ``keep_alive``; ``max_connections`` is uvicorn's
   ``limit_concurrency``.)
 * With several workers, each connection goes to the worker holding the
@@ -33,9 +33,9 @@ import h11
 import uvicorn
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
-from . import balance
-from .app import create_app
-from .settings import Settings
+from service import balance
+from service.http.app import create_app
+from service.settings import Settings
 
 
 class Protocol(H11Protocol):
@@ -60,7 +60,7 @@ class Protocol(H11Protocol):
             transport.abort()
 
         async def with_abort(scope: Any, receive: Any, send: Any) -> None:
-            # an answer's sender may drop a client that does not read (service.routes.Streamed): the connection
+            # an answer's sender may drop a client that does not read (service.http.waiting.Streamed): the connection
             # is reset and what is queued for it let go, where close() would wait for the client
             scope["phongray.abort"] = drop
             await app(scope, receive, send)
@@ -113,7 +113,7 @@ def serve(host: str, port: int, workers: int) -> None:
     the fewest (:mod:`service.balance`)."""
     settings = Settings.from_env()
     with balance.board_for(workers) as board:
-        uvicorn.run("service.server:worker_app", factory=True, host=host, port=port, workers=workers,
+        uvicorn.run("service.http.server:worker_app", factory=True, host=host, port=port, workers=workers,
                     http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
                     limit_concurrency=settings.max_connections,
                     loop="service.balance:balanced_loop" if board is not None else "auto")

@@ -1,0 +1,158 @@
+"""What a failing submission most likely got wrong: named mistakes, terms out of scale, and where.
+
+Three kinds of evidence, each from renders of the reference scene:
+
+* **Variants.** The reference rendered with each classic mistake
+  (:data:`tracer.variants.VARIANTS`), graded against the submission with the
+  same measure as the grade itself.  A variant the submission passes against
+  is a likely cause; when none passes, one that comes far closer than the
+  reference does is named as the closest, and otherwise nothing fits.
+* **Terms.** A non-negative least-squares fit of the submission's linear
+  values against the reference's additive passes (background, ambient, each
+  light's diffuse and specular, reflection, refraction), on the pixels neither
+  image clips: a coefficient far from 1 says a term is too strong or too weak,
+  and by how much.
+* **Where.** The objects the failing pixels show (the object pass), and the
+  lights whose light falls on them.
+
+Everything here is pure: the renders come in through a :class:`Renders`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from tracer.variants import BOUNDS, VARIANTS
+
+from ..grading import Grade, grade
+from .fit import fit_terms
+from .looks import bound_unless_outside, off_at_least, outside_at_least, speckled, whole_unless_off
+from .records import Cause, Diagnosis
+from .renders import Renders
+from .where import where
+
+#: a variant that is not passed against is still named when it leaves at most this share of the reference's
+#: failing pixels
+CLOSEST_SHARE = 0.25
+
+
+def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
+    """The likely causes of a failing grade ``verdict`` of ``submitted`` against ``reference`` (a passing
+    grade gets no diagnosis: an empty one)."""
+    try:
+        return _diagnosed(reference, submitted, verdict, renders)
+    finally:  # (cancelled or not)
+        if renders.done is not None:
+            renders.done()
+
+
+def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
+    out = Diagnosis()
+    if verdict.passed:
+        return out
+    scoring = _Scoring(reference, submitted, verdict, renders)
+    later, later_bounds = scoring.first_round()
+    if not any(c.passes for c in scoring.scored):  # then the closest is named: score what may come closest
+        scoring.closest_round(later, later_bounds)
+    out.causes, out.closest = scoring.named()
+    if not any(c.passes for c in out.causes):  # a mistake that explains the image leaves no term to fit
+        renders.check()
+        out.terms = fit_terms(submitted, renders)
+    renders.check()
+    out.objects, out.lights = where(reference, submitted, verdict, renders)
+    return out
+
+
+class _Scoring:
+    """The classic mistakes of one diagnosis scored against the submission (``scored``), in two rounds: first
+    every mistake that may pass, then, when none does, those that may come closest."""
+
+    def __init__(self, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders):
+        self.reference, self.submitted, self.verdict, self.renders = reference, submitted, verdict, renders
+        self.pixels = submitted.shape[0] * submitted.shape[1]
+        self.scored: list[Cause] = []
+
+    # whether a variant with at least ``off`` pixels off (even nearby) cannot pass, or cannot be named the
+    # closest either: decided as the grade and the naming decide them, on the share of the pixels
+    def cannot_pass(self, off: int) -> bool:
+        return off / self.pixels > self.verdict.max_fraction
+
+    def cannot_come_closest(self, off: int) -> bool:
+        return self.cannot_pass(off) and off / self.pixels > CLOSEST_SHARE * self.verdict.fraction_off_nearby
+
+    def shown(self, name: str) -> bool:  # a mistake the scene cannot show is no evidence of anything: not rendered
+        return self.renders.unchanged is None or not self.renders.unchanged(name)
+
+    def score(self, name: str, beyond: Callable[[int], bool]) -> bool:
+        """Scores variant ``name``, unless its render shows on the way a count of off pixels ``beyond`` says
+        is too many (then False: it cannot pass, or come closest, whichever ``beyond`` decides)."""
+        image = whole_unless_off(name, self.submitted, self.verdict, self.renders, beyond)
+        if image is None:
+            return False
+        if np.array_equal(image, self.reference):  # the mistake changes nothing in this scene: no evidence
+            return True
+        g = grade(image, self.submitted, "", self.verdict.tolerance, self.verdict.max_fraction)
+        self.scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
+        return True
+
+    def score_speckled(self, name: str, beyond: Callable[[int], bool]) -> bool:
+        """Scores speckled mistake ``name``, unless its far end shows on the way a count of pixels outside that
+        ``beyond`` says is too many (then False, as :meth:`score`)."""
+        # the variant's own speckles are one pattern of many: only lying between the reference and the far
+        # end, in speckles, is evidence of the mistake
+        far = bound_unless_outside(name, self.reference, self.submitted, self.verdict, self.renders, beyond)
+        if far is None:
+            return False
+        outside = speckled(self.reference, far, self.submitted, self.verdict.tolerance)
+        if outside is not None:
+            self.scored.append(Cause(name, VARIANTS[name][1], outside, outside <= self.verdict.max_fraction))
+        return True
+
+    def first_round(self) -> tuple[list[str], list[str]]:
+        """Scores every mistake that may pass; gives back those that cannot, but may come closest if none passes:
+        the variants, and the speckled mistakes."""
+        renders, later = self.renders, []
+        for name in filter(self.shown, VARIANTS):
+            renders.check()
+            if name in BOUNDS and renders.bound is not None:
+                continue  # (a speckled mistake is scored against its far end below, not by its own render)
+            # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot
+            # pass is scored only if none passes, and then only if it may come closest
+            least = None if name in BOUNDS else off_at_least(name, self.submitted, self.verdict, renders,
+                                                             self.cannot_pass)
+            if (least is not None and self.cannot_pass(least)) or not self.score(name, self.cannot_pass):
+                later.append(name)
+        later_bounds = []
+        for name in filter(self.shown, BOUNDS) if renders.bound is not None else ():
+            renders.check()
+            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, self.cannot_pass)
+            if (least is not None and self.cannot_pass(least)) or not self.score_speckled(name, self.cannot_pass):
+                later_bounds.append(name)
+        return later, later_bounds
+
+    def closest_round(self, later: list[str], later_bounds: list[str]) -> None:
+        """Scores those of the mistakes put off by :meth:`first_round` that may come closest."""
+        renders, closest = self.renders, self.cannot_come_closest
+        for name in later:
+            renders.check()
+            least = off_at_least(name, self.submitted, self.verdict, renders, closest)  # (every row looked at)
+            if least is None or not closest(least):
+                self.score(name, closest)
+        for name in later_bounds:
+            renders.check()
+            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, closest)
+            if least is None or not closest(least):
+                self.score_speckled(name, closest)
+
+    def named(self) -> tuple[list[Cause], bool]:
+        """The causes named, best first, and whether the first is only the closest: those passed against, or
+        else the one that comes far closer than the reference does, or none."""
+        self.scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
+        passing = [c for c in self.scored if c.passes]
+        if passing:
+            return passing, False
+        if self.scored and self.scored[0].fraction_off_nearby <= CLOSEST_SHARE * self.verdict.fraction_off_nearby:
+            return self.scored[:1], True
+        return [], False

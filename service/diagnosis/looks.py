@@ -1,0 +1,215 @@
+"""A variant ruled out from a few of its rows: exact lower bounds of its pixels off, from first looks and bands
+of its render, and the measure a speckled mistake is scored with."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..grading import Grade
+from .renders import Renders
+
+#: how much, on average, a speckled mistake's reach towards its far end changes from a pixel to the next
+SPECKLE = 0.2
+
+
+#: a variant is first rendered on one row in this many (with the rows either side), and rendered whole only if
+#: those rows do not already rule it out (:func:`off_at_least`)
+SAMPLE_EVERY = 16
+#: the first look takes one row in this many of those, and the rest only when it does not settle the variant
+FIRST_LOOK = 4
+
+
+def sampled_rows(height: int, every: int = SAMPLE_EVERY) -> tuple[np.ndarray, np.ndarray]:
+    """The middle rows a first look grades (every ``every``-th, none on the image's edge), and every row it
+    renders for them: each middle row with the rows above and below."""
+    middles = np.arange(every // 2, height - 1, every)
+    middles = middles[middles >= 1]
+    return middles, (middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
+
+
+def _looks(height: int) -> list[np.ndarray]:
+    """The sampled middle rows (:func:`sampled_rows`) in the goes a first look takes them: one in
+    :data:`FIRST_LOOK` first, then the rest (none for an image too short to have middle rows)."""
+    middles, _ = sampled_rows(height)
+    first = middles[FIRST_LOOK // 2::FIRST_LOOK]
+    return [look for look in (first, np.setdiff1d(middles, first)) if len(look)]
+
+
+def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
+                 beyond: Callable[[int], bool] | None = None) -> int | None:
+    """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
+    look at a few of its rows (None when :class:`Renders` has no rows to give); once ``beyond`` says the count
+    is too many, no more rows are looked at.
+
+    Exact, not a sample's estimate: a pixel is off nearby when every variant pixel in its 3×3 neighbourhood
+    differs from it by more than the tolerance, so each sampled middle row, rendered with the rows above and
+    below, gives its off pixels exactly as the whole grade counts them; their count bounds the whole image's.
+    A variant whose bound exceeds what passing allows cannot pass, and one whose bound exceeds the closest's
+    share cannot be named closest (:func:`diagnose`).  The rows are looked at in two goes, one in
+    :data:`FIRST_LOOK` of them first: a bound from some of the rows is a bound too, and most variants are
+    settled by it."""
+    if renders.rows is None:
+        return None
+    h, w, _ = submitted.shape
+    looks = _looks(h)
+    if not looks:
+        return None
+    off = 0
+    for look in looks:
+        rows = (look[:, None] + np.arange(-1, 2)[None, :]).ravel()
+        bands = renders.rows(name, rows).reshape(len(look), 3, w, 3)
+        off += _off_nearby(bands, submitted[look], verdict.tolerance)
+        if beyond is not None and beyond(off):
+            break
+    return off
+
+
+#: a variant's whole render comes in this many bands of rows, each band's off pixels counted as it comes
+BANDS = 4
+
+
+def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
+                     beyond: Callable[[int], bool] | None = None) -> np.ndarray | None:
+    """Variant ``name``'s whole image, rendered a band of rows at a time; None as soon as ``beyond`` says the
+    pixels of ``submitted`` off even nearby in the rows so far are too many.
+
+    Exact, as :func:`off_at_least` is: a row whose neighbours above and below have come too gives its off
+    pixels exactly as the whole grade counts them, so the count so far is a lower bound of the whole
+    image's; ``beyond`` decides on it as the grade decides on the whole count (the share of the pixels, the
+    same division), so once it says too many, the variant cannot pass (or come closest): the rest of it is
+    not rendered.  The bands come in the order of :func:`_bands`, so that a mistake confined to one part of the image
+    shows early; a variant that may pass is rendered whole, each row once (:class:`Renders` keeps the rows of
+    the first looks too)."""
+    if renders.rows is None or beyond is None:
+        return renders.variant(name)
+    h = submitted.shape[0]
+    image = np.empty_like(submitted)
+    came, counted = np.zeros(h, dtype=bool), np.zeros(h, dtype=bool)
+    everywhere = np.arange(h)
+    above, below = np.maximum(everywhere - 1, 0), np.minimum(everywhere + 1, h - 1)
+    off = 0
+    for band in _bands(h):
+        image[band] = renders.rows(name, band)
+        came[band] = True
+        ready = np.flatnonzero(came & came[above] & came[below] & ~counted)
+        if len(ready) == 0:
+            continue
+        counted[ready] = True
+        bands = np.stack([image[above[ready]], image[ready], image[below[ready]]], axis=1)
+        off += _off_nearby(bands, submitted[ready], verdict.tolerance)
+        if beyond(off):
+            return None
+    return image
+
+
+def _bands(height: int, bands: int = BANDS) -> list[np.ndarray]:
+    """The rows of an image ``height`` tall in ``bands`` bands (none empty), in the order a whole render takes
+    them: each next band as far as it can be from those before (0, 4, 2, 6, 1, 5, 3, 7 of eight), so that a
+    mistake confined to one part of the image shows early."""
+    order = [0]
+    while len(order) < bands:
+        step = len(order)
+        order += [k + bands // (2 * step) for k in order] if bands % (2 * step) == 0 else \
+            [k for k in range(bands) if k not in order]
+    edges = np.linspace(0, height, bands + 1).round().astype(np.int64)
+    return [np.arange(edges[k], edges[k + 1]) for k in order[:bands] if edges[k + 1] > edges[k]]
+
+
+def bound_unless_outside(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
+                         renders: Renders, beyond: Callable[[int], bool] | None = None) -> np.ndarray | None:
+    """Speckled mistake ``name``'s far end, whole, rendered a band of rows at a time as
+    :func:`whole_unless_off` renders a variant; None as soon as ``beyond`` says the pixels of ``submitted``
+    outside the reference and the far end in the bands so far are too many.
+
+    Exact, as :func:`outside_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
+    count so far is a lower bound of :func:`speckled`'s, decided on as it decides (the share of the pixels):
+    once too many, the mistake cannot pass (or come closest), and the rest of its far end is not rendered."""
+    assert renders.bound is not None
+    if renders.bound_rows is None or beyond is None:
+        return renders.bound(name)
+    image = np.empty_like(submitted)
+    off = 0
+    for band in _bands(submitted.shape[0]):
+        image[band] = renders.bound_rows(name, band)
+        off += _outside(reference[band], image[band], submitted[band], verdict.tolerance)
+        if beyond(off):
+            return None
+    return image
+
+
+def _outside(reference: np.ndarray, far: np.ndarray, submitted: np.ndarray, tolerance: float) -> int:
+    """How many pixels of ``submitted`` lie outside the reference and the far end, each channel within
+    ``tolerance`` (as :func:`speckled` counts them)."""
+    ref, low, sub = (a.astype(np.int16) for a in (reference, far, submitted))
+    return int(np.count_nonzero(np.any((sub < np.minimum(ref, low) - tolerance) |
+                                       (sub > np.maximum(ref, low) + tolerance), axis=2)))
+
+
+def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int:
+    """How many pixels of the submitted rows ``middles (k, W, 3)`` are off even nearby against the variant's
+    ``bands (k, 3, W, 3)`` (each middle row with the rows above and below): every variant pixel in the 3×3
+    neighbourhood (the row's ends repeated) differs from it by more than ``tolerance`` in some channel, as
+    :func:`service.grading.grade` counts them."""
+    k, _, w, _ = bands.shape
+    # channel planes, as the grade compares them: (3, k, 3, W + 2) and (3, k, W), differences in uint8
+    padded = np.ascontiguousarray(np.moveaxis(np.pad(bands, ((0, 0), (0, 0), (1, 1), (0, 0)), mode="edge"), 3, 0))
+    sub = np.ascontiguousarray(np.moveaxis(middles, 2, 0))
+    best = np.full((k, w), 255, dtype=np.uint8)
+    for dy in range(3):
+        for dx in range(3):
+            near = padded[:, :, dy, dx:dx + w]
+            diff = [np.maximum(near[c], sub[c]) - np.minimum(near[c], sub[c]) for c in range(3)]
+            np.minimum(best, np.maximum(np.maximum(diff[0], diff[1]), diff[2]), out=best)
+    return int(np.count_nonzero(best > tolerance))
+
+
+def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
+                     beyond: Callable[[int], bool] | None = None) -> int | None:
+    """For a speckled mistake ``name`` of :data:`tracer.variants.BOUNDS`: a lower bound of how many pixels of
+    ``submitted`` lie outside the reference and the mistake's far end (:func:`speckled`'s share, as a count),
+    from a look at the sampled middle rows of the far end (None when :class:`Renders` has no rows to give);
+    once ``beyond`` says the count is too many, no more rows are looked at.
+
+    Exact, as :func:`off_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
+    sampled rows give their outside pixels exactly as :func:`speckled` counts them, and their count bounds
+    the whole image's.  A mistake whose bound exceeds what passing allows cannot pass, and one whose bound
+    exceeds the closest's share cannot be named closest: its far end is rendered whole only when it can."""
+    if renders.bound_rows is None:
+        return None
+    looks = _looks(submitted.shape[0])
+    if not looks:
+        return None
+    off = 0
+    for look in looks:
+        off += _outside(reference[look], renders.bound_rows(name, look), submitted[look], verdict.tolerance)
+        if beyond is not None and beyond(off):
+            break
+    return off
+
+
+def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, tolerance: float) -> float | None:
+    """For a mistake that varies from point to point: the share of pixels that do not lie between the
+    reference and the mistake's far end ``bound`` (within the tolerance, every channel), when the submission
+    departs from the reference towards it in speckles; None when it does not.
+
+    Speckles: where the submission departs, how far it goes towards the bound (0 at the reference, 1 at the
+    bound) changes from one pixel to the next by at least :data:`SPECKLE` on average.  A smooth departure
+    (a light missing, a term too weak) changes slowly, and is not this mistake."""
+    ref, low, sub = (a.astype(np.int16) for a in (reference, bound, submitted))
+    outside = np.any((sub < np.minimum(ref, low) - tolerance) | (sub > np.maximum(ref, low) + tolerance), axis=2)
+    gap = (low - ref).astype(np.float64)
+    channel = np.argmax(np.abs(gap), axis=2)[..., None]
+    span = np.take_along_axis(gap, channel, axis=2)[..., 0]
+    moved = np.take_along_axis((sub - ref).astype(np.float64), channel, axis=2)[..., 0]
+    can = np.abs(span) > tolerance
+    departs = can & (np.abs(moved) > tolerance)
+    if departs.sum() < 16:
+        return None
+    share = np.where(can, moved / np.where(can, span, 1.0), 0.0)
+    pairs = can[:, 1:] & can[:, :-1]
+    if not pairs.any() or float(np.abs(np.diff(share, axis=1))[pairs].mean()) < SPECKLE:
+        return None
+    return float(outside.mean())
+

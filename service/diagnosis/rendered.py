@@ -1,0 +1,271 @@
+"""The renders of one scene its diagnoses ask for, made when first asked for and kept as they come
+(:func:`renders_of`, a :class:`SceneRenders` behind a :class:`Renders`)."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from tracer.passes import ADDITIVE, LIGHT_TERMS
+from tracer.variants import BOUNDS, REFERENCE, VARIANTS, Options, unchanged
+
+from .fit import FIT_BLOCK_PIXELS
+from .renders import Renders
+
+if TYPE_CHECKING:
+    from tracer import Renderer
+    from tracer.render import Fold
+
+
+#: the variants made from the reference's own linear colour, with no render of their own
+DERIVED = ("gamma", "image-flipped")
+#: the whole image's passes (every light's terms included) are kept for the scene's later diagnoses when they
+#: take at most this; a larger scene's fit and lights are rendered again for each, folded as they come
+WHOLE_PASSES_BYTES = 64 << 20
+
+
+def renders_of(scene: Any, threads: int | None = None) -> Renders:
+    """:class:`Renders` of a validated scene, rendered here when first asked for; its ``cancel()`` true stops a
+    render with :class:`tracer.RenderCancelled`.
+
+    One render gives every pass, every light's terms and the image's linear colour
+    (:meth:`tracer.Renderer.diagnosis_passes`); from that colour come, exactly as their own renders would make
+    them, the gamma variant (each pixel's colour to the power 1/2.2, then stored) and the flipped image, and
+    the reference itself stands for every variant the scene cannot show (:func:`tracer.variants.unchanged`).
+    Only the other variants are rendered, each once.
+
+    That render is made only when something needs the whole image's passes (a fit of the terms, a variant
+    made from the colour).  Until then the passes of the failing pixels come alone (``at``), at most the
+    image's worth of them in all, and the gamma and flipped variants are rendered, first a few rows of
+    them, like any other: the same pixels either way."""
+    made = SceneRenders(scene, threads)
+    made.out = Renders(made.variant, made.of, [light.type for light in scene.lights],
+                       [obj.type for obj in scene.objects], made.bound, rows=made.rows, bound_rows=made.bound_rows,
+                       at=made.at, unchanged=made.unchanged, done=made.done, cancel_in_thread=made.cancel_in_thread,
+                       blocks=made.blocks, nbytes=made.nbytes, polled=made.polled)
+    return made.out
+
+
+class SceneRenders:
+    """What :func:`renders_of` renders of one scene, and keeps: the variants and far ends whole, the rows of
+    those not yet whole, and the reference's passes and images (``made``).  Its methods are the callables of
+    the :class:`Renders` it stands behind (``out``), whose ``cancel`` and ``check`` it polls."""
+
+    out: Renders
+
+    def __init__(self, scene: Any, threads: int | None):
+        self.scene, self.threads = scene, threads
+        self.variants: dict[str, np.ndarray] = {}
+        self.bounds: dict[str, np.ndarray] = {}
+        #: the reference's passes (``all``) and images (``images``: ``reference``, ``gamma``), once made
+        self.made: dict[str, dict[str, np.ndarray]] = {}
+        #: per variant (and per far end), its rows rendered so far, until it is whole
+        self.kept: dict[str, dict[int, np.ndarray]] = {}
+        self.guard = threading.Lock()
+        self.last = threading.local()  # per thread, the last scene prepared and its options
+        self.asked = threading.local()  # per thread, the cancel of the diagnosis it runs (these may be shared)
+        self.spent = 0  # pixels whose passes were rendered alone so far
+        self.height, self.width = scene.image.height, scene.image.width
+        self.total = self.height * self.width
+        shining = sum(light.type != "ambient" for light in scene.lights)
+        #: whether the whole image's passes, every light's terms included, are small enough to keep (then one
+        #: render serves every later fit of the scene); else each fit renders them again, folded as they come
+        self.whole = self.total * 3 * 8 * (len(ADDITIVE) + 2 + 2 * shining) <= WHOLE_PASSES_BYTES
+
+    # -- the diagnosis this thread runs ------------------------------------------------------------------------
+
+    def polled(self) -> Callable[[], bool] | None:
+        mine: Callable[[], bool] | None = getattr(self.asked, "cancel", None)
+        return mine if mine is not None else self.out.cancel
+
+    def cancel_in_thread(self, cancel: Callable[[], bool] | None) -> None:
+        self.asked.cancel = cancel
+
+    def done(self) -> None:
+        self.last.__dict__.clear()
+        self.asked.__dict__.clear()
+
+    def prepared(self, options: Options) -> Renderer:
+        """The scene prepared with ``options``.  A variant's first look, its second and its whole render come one
+        after another: one preparation of the scene (its world, its Embree scene) serves them all.  One per
+        thread, and only the last: threads share no renderer; and none is held once a diagnosis is over,
+        cancelled or not (:meth:`done`)."""
+        from tracer import Renderer
+
+        if getattr(self.last, "options", None) != options:
+            self.last.__dict__.clear()  # (the last one let go of before the next is built)
+            self.last.renderer = Renderer(self.scene, options)
+            self.last.options = options
+        renderer: Renderer = self.last.renderer
+        return renderer
+
+    def unchanged(self, name: str) -> bool:
+        return unchanged(name, self.scene)
+
+    # -- the reference's passes and images ---------------------------------------------------------------------
+
+    def passes(self) -> dict[str, np.ndarray]:
+        """The whole image's passes, held (a scene small enough, or no blocks)."""
+        if "all" not in self.made:
+            self.out.check()
+            self.made["all"] = self.prepared(REFERENCE).diagnosis_passes(threads=self.threads, cancel=self.polled())
+        return self.made["all"]
+
+    def images(self) -> dict[str, np.ndarray]:
+        """The reference's pixels from its linear colour, and its gamma variant: from the passes held, or from a
+        render folded as it comes (all it keeps are these)."""
+        from tracer.image import quantize
+
+        if "images" not in self.made:
+            if self.whole or "all" in self.made:
+                colour = self.passes()["colour"]
+                self.made["images"] = {"reference": quantize(colour),
+                                       "gamma": quantize(np.clip(colour, 0.0, None) ** (1.0 / 2.2))}
+            else:
+                self.folded(None)
+        return self.made["images"]
+
+    def folded(self, fold: Fold | None) -> None:
+        """A render of the whole image's passes, each chunk to ``fold`` and to the reference's images."""
+        from tracer.image import quantize
+
+        self.out.check()
+        mine = "images" not in self.made
+        reference, gamma = (np.empty((self.total, 3), dtype=np.uint8) for _ in range(2))
+
+        def each(first: int, part: dict[str, np.ndarray]) -> None:
+            if mine:  # as Renderer.pixels stores each chunk's colour (and a gamma variant's)
+                reference[first:first + len(part["colour"])] = quantize(part["colour"])
+                gamma[first:first + len(part["colour"])] = quantize(np.clip(part["colour"], 0.0, None) ** (1.0 / 2.2))
+            if fold is not None:
+                fold(first, part)
+
+        self.prepared(REFERENCE).diagnosis_passes(threads=self.threads, cancel=self.polled(), fold=each)
+        if mine:
+            self.made["images"] = {"reference": reference.reshape(self.height, self.width, 3),
+                                   "gamma": gamma.reshape(self.height, self.width, 3)}
+
+    def blocks(self, fold: Fold) -> None:
+        if not self.whole:
+            self.folded(fold)
+            return
+        every, total = self.passes(), self.total
+        for first in range(0, total, FIT_BLOCK_PIXELS):
+            fold(first, {name: plane.reshape(total, -1)[first:first + FIT_BLOCK_PIXELS]
+                         for name, plane in every.items() if name not in ("object", "colour")})
+
+    def made_whole(self) -> bool:
+        """Whether the reference's images are at hand, without a render."""
+        return "images" in self.made or "all" in self.made
+
+    def at(self, pixels: np.ndarray, fold: Fold) -> np.ndarray:
+        """Pixels alone while they add up to at most the image (a scene diagnosed once renders only its failing
+        pixels); past that, the whole image once, and kept, when it is small enough to keep."""
+        if "all" in self.made or (self.whole and self.spent + len(pixels) > self.total):
+            rows, cols = np.divmod(pixels, self.width)
+            there = {name: plane[rows, cols] for name, plane in self.passes().items() if name != "colour"}
+            fold(0, there)
+            return there["object"]
+        self.spent += len(pixels)
+        found = np.empty(len(pixels), dtype=np.int64)
+
+        def each(first: int, part: dict[str, np.ndarray]) -> None:
+            found[first:first + len(part["object"])] = part["object"]
+            fold(first, part)
+
+        self.prepared(REFERENCE).diagnosis_passes(threads=self.threads, cancel=self.polled(), pixels=pixels,
+                                                  first_hits=True, fold=each)
+        return found
+
+    def of(self, names: list[str], light: int | None) -> dict[str, np.ndarray]:
+        every = self.passes()
+        return {name: every[name if light is None or name not in LIGHT_TERMS else f"{name}:{light}"]
+                for name in names}
+
+    # -- the variants and the far ends -------------------------------------------------------------------------
+
+    def variant(self, name: str) -> np.ndarray:
+        variants = self.variants
+        if name not in variants:
+            if name == "gamma" and self.made_whole():  # as Renderer.pixels stores a gamma variant's chunk colour
+                variants[name] = self.images()["gamma"]
+                self.kept.pop(name, None)
+            elif name == "image-flipped" and self.made_whole():  # the reference's rows, bottom to top
+                variants[name] = self.images()["reference"][::-1]
+                self.kept.pop(name, None)
+            elif self.unchanged(name):
+                variants[name] = self.images()["reference"]
+            elif name in self.kept:  # the rows not yet rendered
+                self.rows(name, np.arange(self.height))
+            else:
+                variants[name] = self.prepared(VARIANTS[name][0]).pixels(threads=self.threads, cancel=self.polled())
+        return variants[name]
+
+    def kept_rows(self, key: str, name: str, options: Options, wholes: dict[str, np.ndarray],
+                  numbers: np.ndarray) -> np.ndarray:
+        """Rows ``numbers`` of a render: its rows are kept as they come (first looks, bands), under ``key``, and
+        are not rendered again; once every row has come, they are its whole image, ``wholes[name]``."""
+        with self.guard:
+            if name in wholes:
+                return wholes[name][numbers]
+            have = dict(self.kept.get(key, {}))
+        todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
+        if len(todo):
+            fresh = self.prepared(options).pixels_of_rows(todo, threads=self.threads, cancel=self.polled())
+            with self.guard:
+                if name in wholes:  # (made whole meanwhile, in another thread)
+                    return wholes[name][numbers]
+                mine = self.kept.setdefault(key, {})
+                mine.update(zip(todo.tolist(), fresh))
+                have = dict(mine)
+                if len(mine) == self.height:
+                    wholes[name] = np.stack([mine[r] for r in range(self.height)])
+                    self.kept.pop(key)
+        return np.stack([have[r] for r in numbers.tolist()])
+
+    def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        if name in self.variants or (name in DERIVED and self.made_whole()) or self.unchanged(name):
+            return self.variant(name)[numbers]
+        return self.kept_rows(name, name, VARIANTS[name][0], self.variants, numbers)
+
+    def bound(self, name: str) -> np.ndarray:
+        if name not in self.bounds:
+            if self.unchanged(name):
+                self.bounds[name] = self.images()["reference"]
+            elif "bound:" + name in self.kept:  # the rows not yet rendered
+                self.bound_rows(name, np.arange(self.height))
+            else:
+                self.bounds[name] = self.prepared(BOUNDS[name]).pixels(threads=self.threads, cancel=self.polled())
+        return self.bounds[name]
+
+    def bound_rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        if name in self.bounds or self.unchanged(name):
+            return self.bound(name)[numbers]
+        return self.kept_rows("bound:" + name, name, BOUNDS[name], self.bounds, numbers)
+
+    def nbytes(self) -> int:
+        return held_bytes([*list(self.variants.values()), *list(self.bounds.values()),
+                           *(r for rows in list(self.kept.values()) for r in list(rows.values())),
+                           *(a for planes in list(self.made.values()) for a in list(planes.values()))])
+
+
+#: the most renders a diagnosis may need: the variants the scene can show (gamma and the flipped image too, when
+#: the pass render is not there to make them from), a speckled mistake's far end in place of the mistake itself,
+#: the failing pixels' first hits, and one render for every pass.  Most diagnoses need far fewer: a first look at
+#: a few rows of a variant (:func:`off_at_least`) or a band of it (:func:`whole_unless_off`) may spare the rest
+def renders_needed(scene: Any) -> int:
+    shown = [name for name in [*(v for v in VARIANTS if v not in BOUNDS), *BOUNDS] if not unchanged(name, scene)]
+    return len(shown) + 2
+
+
+def held_bytes(arrays: list[np.ndarray]) -> int:
+    """The bytes of the memory ``arrays`` hold, each buffer once (a view counts as its base)."""
+    roots: dict[int, int] = {}
+    for a in arrays:
+        while isinstance(a.base, np.ndarray):
+            a = a.base
+        roots[id(a)] = a.nbytes
+    return sum(roots.values())

@@ -1,0 +1,141 @@
+"""The private copy of a student's folder a program runs in, made without trusting anything in it.
+
+The copy holds the student's regular files and folders only: a link is skipped, never followed (it could name
+the TA's files, or another student's), and so is a FIFO, a socket or a device.  The copy stops, with
+:class:`FolderTooLarge`, once it would hold more than a limit of bytes, so a student cannot fill the disk
+of the machine that grades.  A build's result comes back out of its sandbox as a tar stream
+(:func:`unpack`), read with the same rules.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tarfile
+from pathlib import Path, PurePosixPath
+
+from ..submissions import Folder, UntrustedFileError
+
+#: how deep a student's folders are followed (deeper ones are skipped, as links are)
+MAX_DEPTH = 32
+#: bytes each file or folder counts for besides its content (a tar header's size), so that a folder of a
+#: million empty files is over the limit too
+ENTRY_BYTES = 512
+
+
+class FolderTooLarge(Exception):
+    """The student's folder (or what a build left in it) holds more than the limit allows."""
+
+
+class _Budget:
+    def __init__(self, limit: int):
+        self.left = limit
+
+    def take(self, size: int) -> None:
+        self.left -= size + ENTRY_BYTES
+        if self.left < 0:
+            raise FolderTooLarge("the student's folder is larger than the limit")
+
+
+def _write_new(path: Path, data: bytes) -> None:
+    """A new regular file at ``path`` (never through a link, never over an existing file)."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+    with os.fdopen(fd, "wb") as f:
+        f.write(data)
+
+
+def _mode(source: Folder, name: str) -> int:
+    """The copy's mode: executable (by its owner only) when the student's file is."""
+    try:
+        executable = os.stat(name, dir_fd=source.fd, follow_symlinks=False).st_mode & 0o111
+    except OSError:
+        executable = 0
+    return 0o700 if executable else 0o600
+
+
+def _copy(source: Folder, target: Path, budget: _Budget, depth: int) -> None:
+    try:
+        entries = source.entries()
+    except OSError:  # (a folder that cannot be listed is copied empty)
+        return
+    for entry in entries:
+        if entry.link:
+            continue
+        if entry.folder:
+            if depth < MAX_DEPTH:
+                _copy_folder(source, entry.name, target, budget, depth)
+            continue
+        try:
+            data = source.read(entry.name, max(budget.left, 0))
+        except UntrustedFileError as exc:
+            if "larger than the limit" in str(exc):
+                raise FolderTooLarge("the student's folder is larger than the limit") from None
+            continue  # a FIFO, a device, a file that cannot be read: not part of the program
+        budget.take(len(data))
+        _write_new(target / entry.name, data)
+        os.chmod(target / entry.name, _mode(source, entry.name))
+
+
+def _copy_folder(source: Folder, name: str, target: Path, budget: _Budget, depth: int) -> None:
+    """Copy the folder ``name`` of ``source``; one that cannot be opened (or is a link now) is left out."""
+    try:
+        sub = source.sub(name)
+    except OSError:
+        return
+    with sub:
+        budget.take(0)
+        (target / name).mkdir(mode=0o700)
+        _copy(sub, target / name, budget, depth + 1)
+
+
+def copy_folder(student: Path, target: Path, limit: int) -> None:
+    """Copy the student's folder into the empty folder ``target``: regular files and folders only, at most
+    ``limit`` bytes of files (:class:`FolderTooLarge` beyond).  Files keep their executable bit, as a
+    program built by the student needs it."""
+    with Folder.root(student) as root:
+        _copy(root, target, _Budget(limit), 0)
+
+
+def _safe_name(name: str) -> PurePosixPath | None:
+    path = PurePosixPath(name)
+    parts = [p for p in path.parts if p not in ("", ".")]
+    if path.is_absolute() or ".." in parts or not parts:
+        return None
+    return PurePosixPath(*parts)
+
+
+def unpack(stream: bytes, target: Path, limit: int) -> None:
+    """Unpack a build's result, a tar stream made in its sandbox, into the empty folder ``target``: folders
+    and regular files only (links, devices and names leaving the folder are skipped), at most ``limit``
+    bytes of files."""
+    budget = _Budget(limit)
+    with tarfile.open(fileobj=io.BytesIO(stream), mode="r:") as tar:
+        for member in tar:
+            name = _safe_name(member.name)
+            if name is None or not (member.isdir() or member.isreg()):
+                continue
+            budget.take(member.size if member.isreg() else 0)
+            try:
+                _unpack_member(tar, member, target / name)
+            except OSError:  # (a name that is both a file and a folder in the stream: the first one stays)
+                continue
+
+
+def _unpack_member(tar: tarfile.TarFile, member: tarfile.TarInfo, path: Path) -> None:
+    os.makedirs(path.parent, mode=0o700, exist_ok=True)  # (only folders and regular files are made in target)
+    if member.isdir():
+        os.makedirs(path, mode=0o700, exist_ok=True)
+        return
+    extracted = tar.extractfile(member)
+    if extracted is not None:
+        _write_new(path, extracted.read())
+        os.chmod(path, 0o700 if member.mode & 0o111 else 0o600)
+
+
+def chown_tree(root: Path, uid: int) -> None:
+    """Give ``root`` and everything in it to ``uid`` (the sandbox's user), when this process may."""
+    if os.geteuid() != 0:
+        return
+    os.chown(root, uid, uid, follow_symlinks=False)
+    for path in root.rglob("*"):
+        os.chown(path, uid, uid, follow_symlinks=False)

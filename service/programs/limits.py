@@ -1,0 +1,53 @@
+"""The limits a student's program runs within, and how each is put on it.
+
+CPU time, memory, processes and file size are resource limits (``setrlimit``) that the sandbox and every
+process in it inherit; wall time is the parent's (:mod:`service.programs.process` kills the whole sandbox);
+the output size is also the size of the tmpfs folders a program can write to (:mod:`service.programs.sandbox`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+GIB = 1 << 30
+MB = 1000 * 1000
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What one run (or one build) of a student's program may use; the defaults are a course's.
+
+    ``memory_bytes`` is each process's address space (``RLIMIT_AS``), ``processes`` the processes of the run's
+    user at once (``RLIMIT_NPROC``: it bites because the program runs as an unprivileged user of its own,
+    :func:`service.programs.sandbox.sandbox_uid`), ``cpu_seconds`` each process's CPU time (``RLIMIT_CPU``),
+    ``wall_seconds`` the whole run from start to end, ``output_bytes`` any one file written (``RLIMIT_FSIZE``) and
+    the image read back; ``folder_bytes`` the private copy of the student's folder (and of a build's result);
+    ``stderr_bytes`` how much of the end of the program's output is kept to show."""
+
+    memory_bytes: int = 2 * GIB
+    processes: int = 64
+    wall_seconds: float = 60.0
+    cpu_seconds: int = 60
+    output_bytes: int = 100 * MB
+    folder_bytes: int = 100 * MB
+    stderr_bytes: int = 4096
+
+    def __post_init__(self) -> None:
+        for name in ("memory_bytes", "processes", "wall_seconds", "cpu_seconds", "output_bytes", "folder_bytes",
+                     "stderr_bytes"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, not {getattr(self, name)!r}")
+
+    def prlimit_argv(self) -> list[str]:
+        """``prlimit`` (util-linux) setting these limits, soft and hard, on the command that follows it.  The CPU
+        limit's hard value is one second above the soft one, so a program first gets ``SIGXCPU`` (which
+        :mod:`service.programs.outcome` names) and is killed a second later if it ignores it."""
+        return ["prlimit", f"--as={self.memory_bytes}", f"--nproc={self.processes}",
+                f"--cpu={self.cpu_seconds}:{self.cpu_seconds + 1}", f"--fsize={self.output_bytes}",
+                "--core=0", "--"]
+
+    @property
+    def workdir_bytes(self) -> int:
+        """The size of the tmpfs that is the program's working folder: the copy of its folder and room for
+        what it writes there, at most :attr:`output_bytes` more."""
+        return self.folder_bytes + self.output_bytes

@@ -1,0 +1,101 @@
+"""How a run of a student's program ended, in a word a report can show: :class:`Reason`, :class:`RunOutcome`.
+
+A run that the parent stopped is a timeout; one that ended by a signal or an exit status other than 0 is
+named by the limit it ran into when that is known from the signal (``SIGXCPU``: CPU time; ``SIGXFSZ``: a file
+too large) or, as a program that handles the failure itself exits with an error instead, from the usual
+messages at the end of its standard error (Python's ``MemoryError``, C++'s ``std::bad_alloc``, ``File too
+large``, ...): those words are the program's, so a program can make its crash read as another reason, but
+never turn a failure into a success.  A run that succeeded is then judged by its output file.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from .limits import Limits
+from .process import Finished
+from .scripts import split_times
+
+
+class Reason(StrEnum):
+    OK = "ok"
+    TIMEOUT = "timeout"
+    CPU_TIME = "cpu-time"
+    MEMORY = "memory"
+    OUTPUT_TOO_LARGE = "output-too-large"
+    CRASHED = "crashed"
+    NO_OUTPUT = "no-output"
+    OUTPUT_NOT_REGULAR = "output-not-a-regular-file"
+    FOLDER_TOO_LARGE = "folder-too-large"
+
+
+#: the end of standard error's words for running out of memory, and for writing a file past the limit
+MEMORY_WORDS = ("MemoryError", "std::bad_alloc", "Cannot allocate memory", "out of memory")
+FILE_SIZE_WORDS = ("File too large", "No space left on device")
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    """The end of one run: why (``reason``, and ``detail`` in words), the image it wrote (its bytes, read as an
+    untrusted file, or None), the end of its standard error, the time it took, and the warning to show with
+    it (a run without a sandbox)."""
+
+    reason: Reason
+    detail: str
+    image: bytes | None = None
+    stderr_tail: str = ""
+    wall_seconds: float = 0.0
+    cpu_seconds: float = 0.0
+    warning: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.reason is Reason.OK
+
+    def pixels(self) -> np.ndarray:
+        """The image's pixels, decoded as an uploaded image's are (:func:`tracer.image.decode_png`)."""
+        from tracer.image import decode_png
+
+        if self.image is None:
+            raise ValueError(f"the run wrote no image ({self.detail})")
+        return decode_png(self.image)
+
+
+def _signal_name(number: int) -> str:
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
+
+
+def _signal(finished: Finished) -> int | None:
+    """The signal that ended the program: the wait status's (the sandbox killed), or the shell's ``128 + n``
+    for its command's (a status above 128 that a program chose itself reads as a signal too)."""
+    code = finished.exit_code
+    if code is None:
+        return os.WTERMSIG(finished.status)
+    return code - 128 if code > 128 else None
+
+
+def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
+    """Why the run failed, before its output is looked at; None when it exited with status 0."""
+    if finished.timed_out:
+        return Reason.TIMEOUT, f"still running at the wall-time limit of {limits.wall_seconds:g} s; killed"
+    sig = _signal(finished)
+    code = finished.exit_code
+    if sig is None and code == 0:
+        return None
+    tail, cpu = split_times(finished.stderr_tail, finished.cpu_seconds)
+    if sig == signal.SIGXCPU or (sig == signal.SIGKILL and cpu >= limits.cpu_seconds):
+        return Reason.CPU_TIME, f"used the CPU-time limit of {limits.cpu_seconds} s; killed"
+    if sig == signal.SIGXFSZ or any(word in tail for word in FILE_SIZE_WORDS):
+        return Reason.OUTPUT_TOO_LARGE, f"wrote more than the output limit of {limits.output_bytes} bytes"
+    ended = f"killed by {_signal_name(sig)}" if sig is not None else f"exit {code}"
+    if any(word in tail for word in MEMORY_WORDS):
+        return Reason.MEMORY, f"ran out of memory (limit {limits.memory_bytes} bytes; {ended})"
+    return Reason.CRASHED, f"crashed ({ended})"

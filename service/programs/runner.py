@@ -1,0 +1,227 @@
+"""Run a student's program on one scene (:func:`run_program`), after building it once (:func:`build_program`).
+
+Each run gets a temporary folder of its own on the machine, removed when the run ends however it ends: the
+private copy of the student's folder (:mod:`service.programs.folder`), a copy of the scene, and the empty
+output file.  The sandbox (:mod:`service.programs.sandbox`) shows the program those and the system's
+programs, nothing else; the limits (:class:`~service.programs.limits.Limits`) bound what it uses.  Without
+bubblewrap, a run stops with :class:`~service.programs.sandbox.SandboxUnavailable` unless it was asked to run
+unsandboxed, and then every outcome carries a warning.
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import shutil
+import stat
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..submissions import UntrustedFileError, read_untrusted
+from .folder import FolderTooLarge, chown_tree, copy_folder, unpack
+from .limits import Limits
+from .outcome import Reason, RunOutcome, failure
+from .process import Command, Finished, run_command
+from .sandbox import ENVIRONMENT, OUTPUT, SCENE_DIR, UNSANDBOXED, Mounts, as_user, bwrap_argv, find_bwrap, sandbox_uid
+from .scripts import BUILD, BUILD_IN_PLACE, RUN, not_started, script, split_times
+
+
+def command_argv(template: str, scene: str = "", output: str = "") -> list[str]:
+    """The words of a command ``template`` (shell quoting, no shell), ``{scene}`` and ``{output}`` replaced
+    in each; ValueError on a template that cannot be split or is empty."""
+    try:
+        words = shlex.split(template)
+    except ValueError as exc:
+        raise ValueError(f"command {template!r}: {exc}") from None
+    if not words:
+        raise ValueError("the command is empty")
+    return [w.replace("{scene}", scene).replace("{output}", output) for w in words]
+
+
+@dataclass(frozen=True)
+class ProgramRun:
+    """One run: the student's folder (or a build's result), the command template (``{scene}``, ``{output}``),
+    the one scene it renders, its limits, and whether it runs in the sandbox (off only on purpose)."""
+
+    folder: Path
+    command: str
+    scene: Path
+    limits: Limits = field(default_factory=Limits)
+    sandbox: bool = True
+
+    def __post_init__(self) -> None:
+        """ValueError, with the template, for a command that cannot be split or names no ``{output}``."""
+        command_argv(self.command)
+        if "{output}" not in self.command:
+            raise ValueError(f"command {self.command!r}: it names no {{output}}, the file the program writes")
+
+
+@dataclass(frozen=True)
+class BuildStep:
+    """The build of a student's program (``make``), run once in the same kind of sandbox as its runs."""
+
+    folder: Path
+    command: str
+    limits: Limits = field(default_factory=Limits)
+    sandbox: bool = True
+
+    def __post_init__(self) -> None:
+        command_argv(self.command)
+
+
+@dataclass(frozen=True)
+class Built:
+    """A build's end: its outcome, and the built folder the runs then use (None when the build failed)."""
+
+    outcome: RunOutcome
+    folder: Path | None
+
+
+def _remove(root: Path) -> None:
+    """Remove ``root`` and everything in it, also folders a program made unreadable (without a sandbox)."""
+    def retry(function: Callable[[str], object], path: str, _exc: object) -> None:
+        os.chmod(os.path.dirname(path), stat.S_IRWXU)
+        function(path)
+
+    shutil.rmtree(root, onerror=retry)
+
+
+@contextmanager
+def _scratch() -> Iterator[Path]:
+    root = Path(tempfile.mkdtemp(prefix="phongray-run-"))
+    try:
+        yield root
+    finally:
+        _remove(root)
+
+
+def _prepare(root: Path, folder: Path, scene: Path | None, limits: Limits) -> Mounts:
+    """The run's folder: the copy of the student's, the scene's copy and the empty output file."""
+    (root / "submission").mkdir(mode=0o700)
+    copy_folder(folder, root / "submission", limits.folder_bytes)
+    if scene is not None:
+        shutil.copyfile(scene, root / "scene.json")
+    output = root / "output.png"
+    output.touch(mode=0o600)
+    return Mounts(root / "submission", root / "scene.json" if scene else None, scene.name if scene else "",
+                  output)
+
+
+@dataclass(frozen=True)
+class _Session:
+    """One sandboxed (or not) command in its run folder: what it is given and how it is limited."""
+
+    mounts: Mounts
+    limits: Limits
+    sandbox: bool
+    uid: int
+
+
+def _command(session: _Session, words: list[str], body: str) -> Command:
+    limits = session.limits
+    prefix = [*limits.prlimit_argv(), *as_user(session.uid)]
+    shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
+    if not session.sandbox:
+        env = {**ENVIRONMENT, "HOME": str(session.mounts.submission)}
+        return Command([*prefix, *shell], str(session.mounts.submission), env, limits.wall_seconds,
+                       limits.workdir_bytes, limits.stderr_bytes)
+    bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
+    info = os.pipe()
+    return Command([*prefix, *bwrap, "--info-fd", str(info[1]), *shell], "/",
+                   {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}, limits.wall_seconds, limits.workdir_bytes,
+                   limits.stderr_bytes, info)
+
+
+def _execute(session: _Session, words: list[str], body: str) -> Finished:
+    """Run the command; :class:`SandboxUnavailable` when the sandbox could not even start."""
+    finished = run_command(_command(session, words, body))
+    if session.sandbox:
+        not_started(finished)
+    return finished
+
+
+def _outcome(reason: Reason, detail: str, finished: Finished | None, warning: str | None,
+             image: bytes | None = None) -> RunOutcome:
+    if finished is None:
+        return RunOutcome(reason, detail, warning=warning)
+    tail, cpu = split_times(finished.stderr_tail, finished.cpu_seconds)
+    return RunOutcome(reason, detail, image, tail, finished.wall_seconds, cpu, warning)
+
+
+def _read_output(path: Path, limits: Limits) -> tuple[Reason, str, bytes | None]:
+    try:
+        data = read_untrusted(path, limits.output_bytes)
+    except UntrustedFileError as exc:
+        if "larger than the limit" in str(exc):
+            return Reason.OUTPUT_TOO_LARGE, f"output larger than the limit of {limits.output_bytes} bytes", None
+        if "cannot read" in str(exc):
+            return Reason.NO_OUTPUT, f"no output file ({exc})", None
+        return Reason.OUTPUT_NOT_REGULAR, f"the output is {exc}", None
+    if not data:
+        return Reason.NO_OUTPUT, "the program wrote nothing to its output file", None
+    return Reason.OK, "ok", data
+
+
+@contextmanager
+def _session(folder: Path, scene: Path | None, limits: Limits, sandbox: bool) -> Iterator[_Session]:
+    """The run's folder (removed when the run ends, however it ends), given to the run's user.
+    :class:`FolderTooLarge` when the student's folder is over the limit; :class:`SandboxUnavailable` when the
+    run is to be sandboxed and bubblewrap is missing."""
+    if sandbox:
+        find_bwrap()
+    uid = sandbox_uid()
+    with _scratch() as root:
+        mounts = _prepare(root, folder, scene, limits)
+        chown_tree(root, uid)
+        yield _Session(mounts, limits, sandbox, uid)
+
+
+def run_program(run: ProgramRun) -> RunOutcome:
+    """Run the program once on its scene, and say how it went (its image when it wrote one).
+    :class:`SandboxUnavailable` when it is to be sandboxed and the sandbox is missing or cannot start."""
+    warning = None if run.sandbox else UNSANDBOXED
+    try:
+        with _session(run.folder, run.scene, run.limits, run.sandbox) as session:
+            scene = f"{SCENE_DIR}/{run.scene.name}" if run.sandbox else str(session.mounts.scene)
+            output = OUTPUT if run.sandbox else str(session.mounts.output)
+            finished = _execute(session, command_argv(run.command, scene, output), RUN)
+            failed = failure(finished, run.limits)
+            if failed is not None:
+                return _outcome(*failed, finished, warning)
+            reason, detail, image = _read_output(session.mounts.output, run.limits)
+            return _outcome(reason, detail, finished, warning, image)
+    except FolderTooLarge as exc:
+        return _outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning)
+
+
+def build_program(step: BuildStep, into: Path) -> Built:
+    """Build the program once, its result put into the empty folder ``into`` (which the caller owns and
+    removes): the runs then use it as their folder.  :class:`SandboxUnavailable` as for :func:`run_program`."""
+    warning = None if step.sandbox else UNSANDBOXED
+    try:
+        with _session(step.folder, None, step.limits, step.sandbox) as session:
+            finished = _execute(session, command_argv(step.command), BUILD if step.sandbox else BUILD_IN_PLACE)
+            failed = failure(finished, step.limits)
+            if finished.stdout_overflow:
+                failed = Reason.FOLDER_TOO_LARGE, "the built folder is larger than the limit"
+            if failed is not None:
+                return Built(_outcome(*failed, finished, warning), None)
+            if step.sandbox:
+                unpack(finished.stdout, into, step.limits.workdir_bytes)
+            else:
+                copy_folder(session.mounts.submission, into, step.limits.workdir_bytes)
+            return Built(_outcome(Reason.OK, "built", finished, warning), into)
+    except FolderTooLarge as exc:
+        return Built(_outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning), None)
+
+
+def check_sandbox() -> None:
+    """Start one sandbox that runs ``true``: :class:`SandboxUnavailable`, with bubblewrap's own words, where
+    it cannot (bubblewrap missing, or user namespaces not allowed, as in a container without the right),
+    so that a batch can stop before its first student rather than fail each."""
+    with tempfile.TemporaryDirectory(prefix="phongray-check-") as empty:
+        Path(empty, "scene.json").write_text("{}")
+        run_program(ProgramRun(Path(empty), "true {output}", Path(empty, "scene.json"), Limits(wall_seconds=30.0)))

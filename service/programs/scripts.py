@@ -1,0 +1,60 @@
+"""The shell lines that run a student's command in its sandbox, and the CPU time they report back.
+
+In the sandbox a shell fills the working folder with the copy of the student's folder, runs the command (its
+own child: a program killed by a signal ends the shell with ``128 + n``, as bubblewrap reports it), and then
+writes to standard error, after a marker line, the CPU time of the command and of every process it waited for
+(the shell's ``times``).  The parent cannot measure that itself: bubblewrap's first process does not reap
+the sandbox's first process, so none of the program's CPU time reaches the parent's ``wait4``.  The line is
+written through the program's standard error, so a program can forge it: the CPU time shown is then wrong,
+but the CPU-time *limit* is the kernel's (``RLIMIT_CPU``) and not affected.  A program killed at the
+wall-time limit reports no time (its CPU time is then the part the parent saw, :func:`split_times`).
+"""
+
+from __future__ import annotations
+
+import re
+
+from .process import Finished
+from .sandbox import SUBMISSION, SandboxUnavailable
+
+MARK = "--- phongray: CPU time of the program ---"
+_REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
+#: fill the working folder (sandboxed runs only)
+FILL = f"cp -R {SUBMISSION}/. . || exit 125; "
+#: a run: the command (its standard output joined to its standard error), then its CPU time
+RUN = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
+#: a build: the command with its output on standard error, its CPU time, then (built) the folder as a tar stream
+BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || tar -cf - . || s=125; exit $s'
+#: a build without a sandbox, in the run's folder on the machine (copied from there)
+BUILD_IN_PLACE = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
+#: how the commands before the student's own fail, in their own words, when the sandbox cannot start
+SETUP_FAILURES = ("bwrap:", "prlimit:", "setpriv:")
+_TIME = re.compile(r"(\d+)m([\d.]+)s")
+
+
+def script(body: str, sandboxed: bool) -> str:
+    return (FILL if sandboxed else "") + body
+
+
+def not_started(finished: Finished) -> None:
+    """:class:`SandboxUnavailable` when the sandbox never started the student's command: bubblewrap (or the
+    commands before it) exited with an error of its own (1, or 126/127 for a command it could not run), and
+    the shell never reported.  A program cannot make its run look like that: the shell reports unless it is
+    killed, and then the run ends with a status above 128 or by a signal."""
+    text = finished.stderr_tail.decode("utf-8", "replace").strip()
+    code = finished.exit_code
+    if code is not None and 0 < code <= 128 and MARK not in text and text.startswith(SETUP_FAILURES):
+        raise SandboxUnavailable(f"the sandbox cannot start here: {text.splitlines()[-1]}")
+
+
+def split_times(stderr: bytes, seen: float) -> tuple[str, float]:
+    """Standard error without the report of CPU time, and that time (user and system, of the command and its
+    children); ``seen`` (what the parent measured) when there is no report, or it says less."""
+    text = stderr.decode("utf-8", "replace")
+    head, mark, report = text.rpartition(f"\n{MARK}\n")
+    if not mark:
+        return text, seen
+    lines = report.splitlines()
+    found = _TIME.findall(lines[1]) if len(lines) > 1 else []
+    cpu = sum(int(m) * 60 + float(s) for m, s in found)
+    return head, max(cpu, seen)

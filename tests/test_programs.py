@@ -1,0 +1,351 @@
+"""Students' programs in the sandbox (service.programs): an honest one renders, hostile ones are contained.
+
+Each program is a Python script written here into a student's folder and run by the system's python3 in
+the sandbox (a program sees /usr, not this project's virtual environment: it writes its PNG with zlib and
+struct).  Each test asserts the outcome's reason, and what a hostile program could see or leave behind."""
+
+import os
+import shutil
+import socket
+import subprocess
+import tempfile
+import textwrap
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from service.programs import (
+    BuildStep,
+    Limits,
+    ProgramRun,
+    Reason,
+    SandboxUnavailable,
+    build_program,
+    check_sandbox,
+    run_program,
+)
+from service.programs.sandbox import UID_BASE, UID_SPAN
+
+#: a small PNG writer every test program starts with: write_png(path) writes a 4×3 red image
+PRELUDE = textwrap.dedent("""\
+    import os, socket, struct, sys, time, zlib
+    def write_png(path):
+        def chunk(kind, data):
+            return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+        rows = b"".join(b"\\0" + b"\\xff\\0\\0" * 4 for _ in range(3))
+        with open(path, "wb") as f:
+            f.write(b"\\x89PNG\\r\\n\\x1a\\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 4, 3, 8, 2, 0, 0, 0))
+                    + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+    scene, output = sys.argv[1], sys.argv[2]
+    """)
+SECRET = "TA-SECRET-7f3a91"
+#: short limits, so that a hostile program is stopped in seconds
+QUICK = Limits(wall_seconds=5.0, cpu_seconds=10, memory_bytes=512 << 20, output_bytes=8 << 20,
+               folder_bytes=4 << 20)
+
+
+@pytest.fixture
+def course(tmp_path):
+    """The TA's scene folder (with a secret reference) and a class of two students: 'ann' (the one run) and
+    'bob', whose folder holds his own secret."""
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "spheres.json").write_text('{"scene": "spheres"}\n')
+    (scenes / "reference.txt").write_text(SECRET)
+    for name in ("ann", "bob"):
+        (tmp_path / "subs" / name).mkdir(parents=True)
+    (tmp_path / "subs" / "bob" / "render.py").write_text(f"# {SECRET}\n")
+    return tmp_path
+
+
+def run(course: Path, body: str, limits: Limits = QUICK, sandbox: bool = True):
+    (course / "subs" / "ann" / "render.py").write_text(PRELUDE + textwrap.dedent(body))
+    return run_program(ProgramRun(course / "subs" / "ann", "python3 render.py {scene} {output}",
+                                  course / "scenes" / "spheres.json", limits, sandbox))
+
+
+def left_running(word: str | None = None) -> list[str]:
+    """The processes on the machine whose command line holds ``word``, or that run as a sandbox's user, not
+    counting zombies: the sandbox's first process, once dead, is not reaped by bubblewrap but by the
+    machine's init, a moment later (a zombie runs nothing and holds no memory)."""
+    ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
+    left = []
+    for line in ps.splitlines():
+        uid, stat, args = line.split(None, 2)
+        sandboxed = UID_BASE <= int(uid) < UID_BASE + UID_SPAN
+        if not stat.startswith("Z") and (sandboxed or (word is not None and word in args and "ps -eo" not in args)):
+            left.append(line)
+    return left
+
+
+def runs_on_disk() -> set[str]:
+    return {p.name for p in Path(tempfile.gettempdir()).glob("phongray-run-*")}
+
+
+@pytest.fixture(autouse=True)
+def nothing_left():
+    """After every test: no run's folder left on the disk, no sandboxed process left running."""
+    before = runs_on_disk()
+    yield
+    assert runs_on_disk() <= before
+    assert left_running() == []
+
+
+def test_an_honest_program_renders_its_scene(course):
+    outcome = run(course, """\
+        print(open(scene).read(), os.listdir("."), file=sys.stderr)
+        write_png(output)
+        """)
+    assert outcome.reason is Reason.OK and outcome.warning is None
+    assert '{"scene": "spheres"}' in outcome.stderr_tail and "['render.py']" in outcome.stderr_tail
+    assert np.array_equal(outcome.pixels()[0, 0], [255, 0, 0]) and outcome.pixels().shape == (3, 4, 3)
+    assert outcome.wall_seconds > 0
+
+
+def test_what_a_program_sees_of_the_machine(course):
+    targets = [course / "scenes" / "reference.txt", course / "subs" / "bob" / "render.py", course, "/work",
+               "/root", "/etc/passwd", "/etc/shadow", "/tmp", str(Path(__file__).resolve())]
+    (course / "subs" / "ann" / "peek").symlink_to(course / "scenes" / "reference.txt")
+    outcome = run(course, f"""\
+        for path in {[str(t) for t in targets]!r} + ["peek", "/scene"]:
+            try:
+                seen = os.listdir(path) if os.path.isdir(path) else open(path).read()
+            except OSError as exc:
+                seen = type(exc).__name__
+            print("SAW", path, seen, file=sys.stderr)
+        write_png(output)
+        """)
+    assert outcome.reason is Reason.OK
+    assert SECRET not in outcome.stderr_tail
+    seen = dict(line.split(" ", 2)[1:] for line in outcome.stderr_tail.splitlines() if line.startswith("SAW"))
+    for target in targets:
+        assert seen[str(target)] in ("FileNotFoundError", "[]"), (target, seen[str(target)])
+    assert seen["peek"] == "FileNotFoundError"  # the student's link was not copied
+    assert seen["/scene"] == "['spheres.json']"
+
+
+def test_no_network_not_even_the_machines_loopback(course):
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen()
+    listener.settimeout(3.0)
+    port = listener.getsockname()[1]
+    accepted: list[object] = []
+    thread = threading.Thread(target=lambda: accepted.append(_accept(listener)))
+    thread.start()
+    outcome = run(course, f"""\
+        try:
+            socket.create_connection(("127.0.0.1", {port}), timeout=2).sendall(b"{SECRET}")
+            print("CONNECTED", file=sys.stderr)
+        except OSError as exc:
+            print("REFUSED", exc, file=sys.stderr)
+        write_png(output)
+        """)
+    thread.join()
+    listener.close()
+    assert outcome.reason is Reason.OK and "REFUSED" in outcome.stderr_tail
+    assert accepted == [None]
+
+
+def _accept(listener: socket.socket) -> object:
+    try:
+        return listener.accept()
+    except TimeoutError:
+        return None
+
+
+def test_an_endless_loop_is_stopped_at_the_wall_time_limit(course):
+    outcome = run(course, "while True: pass\n", Limits(wall_seconds=2.0, cpu_seconds=60))
+    assert outcome.reason is Reason.TIMEOUT and outcome.image is None
+    assert 2.0 <= outcome.wall_seconds < 30
+
+
+def test_a_loop_is_stopped_at_the_cpu_time_limit(course):
+    outcome = run(course, "while True: pass\n", Limits(wall_seconds=60.0, cpu_seconds=1))
+    assert outcome.reason is Reason.CPU_TIME
+    # the time comes from the sandbox's report (the parent's own wait4 sees almost none of it: bubblewrap does
+    # not reap the sandbox); the kernel's accounting of the limit and the shell's `times` differ by ticks, so
+    # the test asks for most of the second, which without the report would read a few milliseconds
+    assert outcome.cpu_seconds > 0.5
+
+
+def test_the_process_limit_bites(course):
+    outcome = run(course, """\
+        made = 0
+        try:
+            while made < 200:
+                if os.fork() == 0:
+                    time.sleep(30)
+                    os._exit(0)
+                made += 1
+        except OSError as exc:
+            print("FORKS", made, exc, file=sys.stderr)
+        write_png(output)
+        """, Limits(processes=16, wall_seconds=20.0))
+    assert outcome.reason is Reason.OK  # (the run ends when the program does: its children with it)
+    made = int(outcome.stderr_tail.split("FORKS ")[1].split()[0])
+    assert 0 < made < 16
+
+
+def test_a_fork_bomb_is_contained_and_nothing_is_left_running(course):
+    outcome = run(course, """\
+        while True:
+            try:
+                os.fork()
+            except OSError:
+                pass
+        """, Limits(processes=32, wall_seconds=3.0))
+    assert outcome.reason is Reason.TIMEOUT
+    # (the autouse fixture checks that no process of the run is left)
+
+
+def test_a_memory_hog_runs_out_of_memory(course):
+    outcome = run(course, """\
+        hoard = []
+        while True:
+            hoard.append(bytearray(16 << 20))
+        """, Limits(memory_bytes=256 << 20))
+    assert outcome.reason is Reason.MEMORY
+
+
+def test_a_5_GB_output_file_is_stopped_at_the_output_limit(course):
+    outcome = run(course, """\
+        with open(output, "wb") as f:
+            for _ in range(5 * 1024):
+                f.write(b"x" * (1 << 20))
+        """)
+    assert outcome.reason is Reason.OUTPUT_TOO_LARGE
+
+
+def test_many_files_fill_only_their_own_tmpfs(course):
+    outcome = run(course, """\
+        for i in range(5 * 1024):
+            with open(f"junk{i}", "wb") as f:
+                f.write(b"x" * (4 << 20))
+        """)
+    assert outcome.reason is Reason.OUTPUT_TOO_LARGE and "No space left" in outcome.stderr_tail
+
+
+def test_a_daemon_left_running_is_gone_after_the_run(course):
+    outcome = run(course, """\
+        if os.fork() == 0:
+            os.setsid()
+            if os.fork() == 0:
+                os.execvp("sleep", ["sleep", "987.654"])
+            os._exit(0)
+        os.wait()
+        write_png(output)
+        """)
+    assert outcome.reason is Reason.OK
+    assert left_running("987.654") == []
+
+
+def test_an_output_that_is_a_link_to_etc_passwd_is_not_read(course):
+    body = """\
+        try:
+            os.remove(output)
+            os.symlink("/etc/passwd", output)
+        except OSError as exc:
+            print("CANNOT", exc, file=sys.stderr)
+        """
+    outcome = run(course, body)
+    assert outcome.reason is Reason.NO_OUTPUT and "CANNOT" in outcome.stderr_tail  # (its output is a mount)
+    unsandboxed = run(course, body, sandbox=False)
+    assert unsandboxed.reason is Reason.OUTPUT_NOT_REGULAR and unsandboxed.image is None
+    assert "symbolic link" in unsandboxed.detail and unsandboxed.warning
+
+
+def test_a_crash_is_named_by_its_exit_status_or_signal(course):
+    assert run(course, "sys.exit(3)\n").detail == "crashed (exit 3)"
+    crashed = run(course, "os.kill(os.getpid(), 11)\n")
+    assert crashed.reason is Reason.CRASHED and crashed.detail == "crashed (killed by SIGSEGV)"
+
+
+def test_a_folder_larger_than_the_limit_is_not_run(course):
+    (course / "subs" / "ann" / "data.bin").write_bytes(b"\0" * (QUICK.folder_bytes + 1))
+    assert run(course, "write_png(output)\n").reason is Reason.FOLDER_TOO_LARGE
+
+
+def test_without_bubblewrap_only_an_unsandboxed_run_goes_on(course, monkeypatch):
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    with pytest.raises(SandboxUnavailable, match="--no-sandbox"):
+        run(course, "write_png(output)\n")
+    outcome = run(course, "write_png(output)\n", sandbox=False)
+    assert outcome.reason is Reason.OK and "without a sandbox" in (outcome.warning or "")
+
+
+def test_a_build_runs_once_and_its_result_is_what_runs(course, tmp_path):
+    ann = course / "subs" / "ann"
+    (ann / "Makefile").write_text("render.py: template.py\n\tsed s/COLOUR/ff/ template.py > render.py\n"
+                                  "\tln -s /etc/passwd passwd\n")
+    (ann / "template.py").write_text(PRELUDE + "write_png(output)  # COLOUR\n")
+    built = build_program(BuildStep(ann, "make", QUICK), tmp_path / "built")
+    assert built.outcome.reason is Reason.OK and built.folder is not None
+    assert sorted(os.listdir(built.folder)) == ["Makefile", "render.py", "template.py"]  # (not the link)
+    assert "# ff" in (built.folder / "render.py").read_text()
+    outcome = run_program(ProgramRun(built.folder, "python3 render.py {scene} {output}",
+                                     course / "scenes" / "spheres.json", QUICK))
+    assert outcome.reason is Reason.OK
+
+
+def test_a_failed_build_says_why(course, tmp_path):
+    (course / "subs" / "ann" / "Makefile").write_text("all:\n\techo broken >&2; exit 2\n")
+    built = build_program(BuildStep(course / "subs" / "ann", "make", QUICK), tmp_path / "built")
+    assert built.folder is None and built.outcome.reason is Reason.CRASHED and "broken" in built.outcome.stderr_tail
+
+
+def test_a_program_writes_only_its_own_folders(course):
+    outcome = run(course, """\
+        for path in ["/x", "/dev/x", "/usr/x", "/submission/x", "/scene/x", "/out/x", "/tmp/x", "/dev/shm/x", "x"]:
+            try:
+                open(path, "w").close()
+                print("WROTE", path)
+            except OSError as exc:
+                print("REFUSED", path, exc.strerror)
+        write_png(output)
+        """)
+    assert outcome.reason is Reason.OK
+    wrote = {line.split()[1] for line in outcome.stderr_tail.splitlines() if line.startswith("WROTE")}
+    assert wrote == {"/tmp/x", "/dev/shm/x", "x"}
+
+
+def test_a_sandbox_that_cannot_start_stops_the_batch_with_bubblewraps_words(course, monkeypatch):
+    folder = Path(tempfile.mkdtemp(prefix="fake-bwrap-"))  # (one the sandbox's user can run a program from)
+    folder.chmod(0o755)
+    fake = folder / "bwrap"
+    fake.write_text("#!/bin/sh\necho 'bwrap: No permissions to create new namespace' >&2\nexit 1\n")
+    fake.chmod(0o755)
+    monkeypatch.setattr("service.programs.runner.find_bwrap", lambda: str(fake))
+    with pytest.raises(SandboxUnavailable, match="cannot start here: bwrap: No permissions"):
+        run(course, "write_png(output)\n")
+    with pytest.raises(SandboxUnavailable, match="cannot start here"):
+        check_sandbox()
+    shutil.rmtree(folder)
+
+
+def test_check_sandbox_passes_where_bubblewrap_works():
+    check_sandbox()
+
+
+def test_a_program_cannot_pass_for_a_sandbox_that_did_not_start(course):
+    outcome = run(course, """\
+        print("bwrap: No permissions to create new namespace", file=sys.stderr)
+        sys.exit(1)
+        """)
+    assert outcome.reason is Reason.CRASHED and outcome.detail == "crashed (exit 1)"
+
+
+@pytest.mark.parametrize(("command", "error"), [("python3 'render.py {scene} {output}", "No closing quotation"),
+                                                 ("python3 render.py {scene}", "names no {output}"),
+                                                 ("", "the command is empty")])
+def test_a_command_template_that_cannot_run_is_refused_before_any_run(course, command, error):
+    with pytest.raises(ValueError, match=error):
+        ProgramRun(course / "subs" / "ann", command, course / "scenes" / "spheres.json")
+
+
+@pytest.mark.parametrize(("command", "error"), [("make 'all", "No closing quotation"), ("", "the command is empty")])
+def test_a_build_command_that_cannot_run_is_refused(course, command, error):
+    with pytest.raises(ValueError, match=error):
+        BuildStep(course / "subs" / "ann", command)

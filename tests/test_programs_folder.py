@@ -1,0 +1,69 @@
+"""The private copy of a student's folder (service.programs.folder): links, FIFOs and names leaving the folder
+are left out, and a folder over its limit (in bytes, or in files) is refused."""
+
+import io
+import os
+import tarfile
+
+import pytest
+
+from service.programs.folder import ENTRY_BYTES, FolderTooLarge, copy_folder, unpack
+
+
+def test_the_copy_holds_regular_files_and_folders_only(tmp_path):
+    student, copy = tmp_path / "ann", tmp_path / "copy"
+    (student / "src").mkdir(parents=True)
+    copy.mkdir()
+    (student / "src" / "main.c").write_text("int main() { return 0; }\n")
+    (student / "raytracer").write_bytes(b"\x7fELF")
+    (student / "raytracer").chmod(0o755)
+    (tmp_path / "secret.txt").write_text("the TA's")
+    (student / "link").symlink_to(tmp_path / "secret.txt")
+    (student / "folder-link").symlink_to(tmp_path)
+    os.mkfifo(student / "pipe")
+    copy_folder(student, copy, 1 << 20)
+    assert sorted(str(p.relative_to(copy)) for p in copy.rglob("*")) == ["raytracer", "src", "src/main.c"]
+    assert os.access(copy / "raytracer", os.X_OK) and not os.access(copy / "src" / "main.c", os.X_OK)
+
+
+def test_a_folder_over_the_limit_is_refused_in_bytes_or_in_files(tmp_path):
+    student = tmp_path / "ann"
+    for folder in (student, tmp_path / "copy", tmp_path / "copy2"):
+        folder.mkdir()
+    (student / "big").write_bytes(b"\0" * 2048)
+    with pytest.raises(FolderTooLarge):
+        copy_folder(student, tmp_path / "copy", 1024)
+    (student / "big").unlink()
+    for i in range(10):
+        (student / f"empty{i}").touch()
+    with pytest.raises(FolderTooLarge):
+        copy_folder(student, tmp_path / "copy2", 5 * ENTRY_BYTES)
+
+
+def _tar(members: list[tuple[tarfile.TarInfo, bytes]]) -> bytes:
+    out = io.BytesIO()
+    with tarfile.open(fileobj=out, mode="w") as tar:
+        for info, data in members:
+            info.size = len(data)
+            tar.addfile(info, io.BytesIO(data) if info.isreg() else None)
+    return out.getvalue()
+
+
+def _member(name: str, kind: bytes = tarfile.REGTYPE, target: str = "") -> tarfile.TarInfo:
+    info = tarfile.TarInfo(name)
+    info.type, info.linkname, info.mode = kind, target, 0o755
+    return info
+
+
+def test_a_builds_result_is_unpacked_without_links_or_escapes(tmp_path):
+    stream = _tar([(_member("./bin/raytracer"), b"built"), (_member("../escaped"), b"x"),
+                   (_member("/etc/escaped"), b"x"), (_member("passwd", tarfile.SYMTYPE, "/etc/passwd"), b""),
+                   (_member("hard", tarfile.LNKTYPE, "bin/raytracer"), b""), (_member("bin/raytracer/x"), b"x")])
+    target = tmp_path / "built"
+    target.mkdir()
+    unpack(stream, target, 1 << 20)
+    assert sorted(str(p.relative_to(target)) for p in target.rglob("*")) == ["bin", "bin/raytracer"]
+    assert (target / "bin" / "raytracer").read_bytes() == b"built" and os.access(target / "bin/raytracer", os.X_OK)
+    assert not (tmp_path / "escaped").exists()
+    with pytest.raises(FolderTooLarge):
+        unpack(_tar([(_member("big"), b"\0" * 4096)]), tmp_path / "small", 1024)
