@@ -33,7 +33,7 @@ from schemas import AreaLight, Scene
 from .bounds import SurfacePoints
 from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
 from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
-from .lights import LIGHT_TYPES, Emitter, illuminate
+from .lights import LIGHT_TYPES, Emitter, area_corners, illuminate
 from .passes import BRANCH_PASS, Tally
 from .penumbra import Penumbra
 from .planner import ProofPlan
@@ -62,11 +62,7 @@ def light_groups(scene: Scene, origin: np.ndarray) -> list[LightGroup]:
     for k, light in enumerate(scene.lights):
         count = LIGHT_TYPES[type(light)].count(light)
         if count:
-            corners = None
-            if isinstance(light, AreaLight):
-                c = np.asarray(light.corner, dtype=np.float64) - origin
-                u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
-                corners = np.stack([c, c + u, c + u + v, c + v])
+            corners = area_corners(light, origin) if isinstance(light, AreaLight) else None
             groups.append(LightGroup(k, first, first + count, corners))
         first += count
     return groups

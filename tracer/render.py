@@ -25,7 +25,7 @@ from .camera import CameraRays
 from .direct import DirectLight, light_groups
 from .image import quantize
 from .intersect import PLANE, SPHERE, TRIANGLE, Hits, Intersector
-from .lights import LIGHT_TYPES, light_samples
+from .lights import LIGHT_TYPES, emitter_count
 from .passes import ADDITIVE, BRANCH_PASS, LIGHT_TERMS, REFLECTED, REFRACTED, Tally, check_passes
 from .planner import plan_proofs, scene_sightlines
 from .rays import Among, Rays, Work
@@ -94,7 +94,7 @@ class Renderer:
         if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
             raise ImageTooLarge(f"image: {img.width}×{img.height} pixels × {img.samples}² sub-samples is more "
                                 f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})")
-        lights = light_samples(scene.lights)
+        lights = emitter_count(scene.lights)
         if lights > MAX_LIGHT_SAMPLES:
             raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
                                 f"({MAX_LIGHT_SAMPLES})")
