@@ -16,7 +16,7 @@ from typing import Any
 
 import schemas
 import tracer
-from service.classgrade import grade_class
+from service.classgrade import ClassRun, grade_class
 
 TASKS = {"spheres": "01_three_spheres", "lights": "02_all_lights", "mirror": "04_whitted", "spots": "07_spotlights"}
 STUDENTS = 40
@@ -70,8 +70,8 @@ def class_rows(work: Path, port: int) -> list[dict[str, Any]]:
         proc = _serve(port) if mode == "server" else None
         try:
             started = time.perf_counter()
-            outcome = grade_class(scenes, subs, work / f"report-{mode}", server=f"http://127.0.0.1:{port}"
-                                  if proc else None, student_scenes=work / "class" / "own")
+            outcome = grade_class(ClassRun(scenes, subs, work / f"report-{mode}", server=f"http://127.0.0.1:{port}"
+                                  if proc else None, student_scenes=work / "class" / "own"))
             seconds = time.perf_counter() - started
         finally:
             if proc:
@@ -102,7 +102,7 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
     local_4k = time.perf_counter() - started
     if local_class is None:
         started = time.perf_counter()
-        grade_class(scenes / "scenes", subs, work / "report-local-again", student_scenes=scenes / "own")
+        grade_class(ClassRun(scenes / "scenes", subs, work / "report-local-again", student_scenes=scenes / "own"))
         local_class_s = time.perf_counter() - started
     else:
         local_class_s = local_class["seconds"]
@@ -115,8 +115,8 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
             cluster_4k = time.perf_counter() - started
             identical = tracer.encode_png(pixels) == local_png
         started = time.perf_counter()
-        outcome = grade_class(scenes / "scenes", subs, work / "report-cluster", cluster=lc.scheduler_address,
-                              student_scenes=scenes / "own")
+        outcome = grade_class(ClassRun(scenes / "scenes", subs, work / "report-cluster", cluster=lc.scheduler_address,
+                              student_scenes=scenes / "own"))
         cluster_class = time.perf_counter() - started
     assert identical and outcome.count("pass") == len(outcome.rows)
     pairs, refs = len(outcome.rows), outcome.renders
@@ -126,7 +126,7 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
     started = time.perf_counter()
     ref_png = tracer.encode_png(tracer.render(schemas.validate_scene(one), threads=1))
     t_render = time.perf_counter() - started
-    from service.classgrade import grade_task
+    from service.classgrade.tasks import grade_task
 
     image = (subs / "student00" / "lights.png").read_bytes()
     started = time.perf_counter()
@@ -166,7 +166,7 @@ def _jittered(data: dict[str, Any], student: int, task: int) -> dict[str, Any]:
 
 
 def _render_file(scene_path: str, out: str) -> float:
-    from service.classgrade import render_task
+    from service.classgrade.tasks import render_task
 
     started = time.perf_counter()
     png, why = render_task(Path(scene_path).read_bytes())
@@ -228,7 +228,7 @@ def per_student_row(work: Path, share_failing: float = 0.0) -> dict[str, Any]:
         with ProcessPoolExecutor(workers) as pool:
             list(pool.map(_render_wrong, *zip(*wrong)))
     started = time.perf_counter()
-    outcome = grade_class(scenes, subs, root / "report", student_scenes=own)
+    outcome = grade_class(ClassRun(scenes, subs, root / "report", student_scenes=own))
     seconds = time.perf_counter() - started
     assert outcome.count("fail") == len(wrong) and outcome.count("pass") == len(outcome.rows) - len(wrong), \
         outcome.summary()

@@ -70,7 +70,7 @@ def _direct_light(module: str, shade: str, area: str, blocked: str) -> list[Stag
     return [Stage(module, shade, "direct light", _n_out),
             Stage(module, "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
             *(Stage(module, name, "shading", per_light=True)
-              for name in ("illuminate", "light_in_plane", "phong", "add_phong")),
+              for name in ("illuminate", "light_in_plane", "phong", "add_phong", "Kernel.reach", "Kernel.terms")),
             Stage(module, area, "area light", per_light=True),
             Stage(module, blocked, "shadow rays", _n_out, per_light=True)]
 
@@ -94,12 +94,16 @@ STAGES = [
     Stage("tracer.direct", "along_direction", "cones", lambda a, r: len(a[2])),
     Stage("tracer.render", "resolve_material", "materials and checker", _n_out),
     Stage("tracer.render", "shading_normal", "shading normals", _n_out),
-    *_direct_light("tracer.direct", "DirectLight.shade", "DirectLight._area", "DirectLight.blocked"),
+    *_direct_light("tracer.direct", "DirectLight.shade", "area_terms", "DirectLight.blocked"),
+    Stage("tracer.area", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
     # (an older tracer's, where direct light was the renderer's own: profiled when the bench runs it)
     *_direct_light("tracer.render", "Renderer.direct", "Renderer._area_light", "Renderer._blocked"),
     Stage("tracer.render", "Renderer.secondary", "reflection and refraction", _n_out),
     Stage("tracer.render", "_accumulate", "adding up", _n_second),
     Stage("tracer.render", "quantize", "quantisation", _n_first),
+    Stage("tracer.render", "Spawner.bounce", "reflection and refraction", _n_out),
+    Stage("tracer.render", "Film.add", "adding up", _n_first),
+    Stage("tracer.film", "quantize", "quantisation", _n_first),
 ]
 
 
@@ -137,6 +141,10 @@ class Clock:
             self.light = self.light_of.get(id(args[6][0]), "lights[?]")
         elif stage.name == "DirectLight._area":
             self.light = self.light_of.get(id(args[0]), "lights[?]")
+        elif stage.name == "area_terms":  # (its light group)
+            self.light = self.light_of.get(id(args[1]), "lights[?]")
+        elif stage.name == "Kernel.reach":  # (its emitter)
+            self.light = self.light_of.get(id(args[0]), "lights[?]")
         parent = self.stack[-1] if self.stack else ()
         if stage.per_light and parent[:1] == ("direct light",):
             parent = (self.light,)
@@ -164,8 +172,8 @@ def instrumented(clock: Clock) -> Iterator[None]:
         *path, attr = stage.name.split(".")
         owner: Any = module
         for part in path:
-            owner = getattr(owner, part)
-        if not hasattr(owner, attr):  # (a stage an older tracer does not have, when profiling it)
+            owner = getattr(owner, part, None)
+        if owner is None or not hasattr(owner, attr):  # (a stage an older tracer does not have, when profiling it)
             continue
         original = owner.__dict__[attr] if isinstance(owner, type) else getattr(owner, attr)
 

@@ -80,7 +80,7 @@ def render_forked(scene: Scene, workers: int, progress: Callable[[int, int], Non
     from concurrent.futures.process import BrokenProcessPool
     from multiprocessing import get_context
 
-    from .classgrade import _die_with_parent
+    from .classgrade.backends import die_with_parent
 
     img = scene.image
     count = min(img.height, workers * BANDS_PER_PROCESS)
@@ -90,7 +90,7 @@ def render_forked(scene: Scene, workers: int, progress: Callable[[int, int], Non
     _FORKED["scene"] = scene
     parts = []
     # each process dies with this one, however this one ends (a supervisor's SIGTERM or SIGKILL to it alone)
-    pool = ProcessPoolExecutor(workers, mp_context=get_context("fork"), initializer=_die_with_parent,
+    pool = ProcessPoolExecutor(workers, mp_context=get_context("fork"), initializer=die_with_parent,
                                initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
     try:
         for part in pool.map(_band, bands):

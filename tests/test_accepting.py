@@ -15,10 +15,10 @@ import student
 
 from schemas import load_scene
 from service import pipeline
+from service.classgrade.errors import ClassError
+from service.classgrade.taskfile import load_tasks
 from service.diagnosis import accepting
 from service.grading import grade
-from service.submissions import ClassError
-from service.taskfile import load_tasks
 from tracer import Renderer, encode_png
 from tracer.variants import Options, scene_size
 
@@ -189,7 +189,7 @@ def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, t
     import json
     import shutil
 
-    from service.classgrade import grade_class
+    from service.classgrade import ClassRun, grade_class
 
     (tmp_path / "scenes").mkdir()
     shutil.copyfile(WHITTED, tmp_path / "scenes" / "whitted.json")
@@ -200,7 +200,8 @@ def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, t
     for name, accepted in (("defaults", None), ("none", {})):
         tasks = tmp_path / f"{name}.json"
         tasks.write_text(json.dumps({"whitted": {} if accepted is None else {"accepted": accepted}}))
-        (row,) = grade_class(tmp_path / "scenes", tmp_path / "subs", tmp_path / name, jobs=1, tasks_file=tasks).rows
+        run = ClassRun(tmp_path / "scenes", tmp_path / "subs", tmp_path / name, jobs=1, tasks_file=tasks)
+        (row,) = grade_class(run).rows
         rows[name] = row
     assert (rows["defaults"]["status"], rows["defaults"]["reason"]) == ("pass", "as rendered with a 1e-3 ray offset")
     assert rows["none"]["status"] == "fail"

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from service.autograder import task_files
+from service.classgrade.autograder import task_files
 from service.cli import main
 
 CLASS = Path(__file__).resolve().parent.parent / "examples" / "class"
@@ -45,7 +45,7 @@ def test_the_bundle_has_gradescopes_two_scripts_at_its_root_and_phongray_beside_
         info = {i.filename: i for i in archive.infolist()}
     for script in ("setup.sh", "run_autograder"):
         assert info[script].external_attr >> 16 & 0o111, script  # executable
-    assert "phongray/pyproject.toml" in info and "phongray/service/autograder.py" in info
+    assert "phongray/pyproject.toml" in info and "phongray/service/classgrade/autograder.py" in info
     assert {n for n in info if n.startswith("course/scenes/")} == {
         f"course/scenes/{t}.json" for t in ("lights", "mirror", "spheres")}
     assert len([n for n in info if n.startswith("course/references/")]) == 3

@@ -12,7 +12,8 @@ import pytest
 import schemas
 import tracer
 from service import classgrade
-from service import report as report_module
+from service.classgrade import ClassRun, submissions
+from service.classgrade import report as report_module
 from service.cli import main
 
 from helpers import scene_dict
@@ -91,7 +92,7 @@ def cli_reason(capsys, scene, image):
 
 def grade(klass, report, **kw):
     scenes, subs, own = klass
-    return classgrade.grade_class(scenes, subs, report, jobs=2, student_scenes=own, **kw)
+    return classgrade.grade_class(ClassRun(scenes, subs, report, jobs=2, student_scenes=own, **kw))
 
 
 def test_every_status_and_reason(klass, tmp_path, capsys):
@@ -112,7 +113,7 @@ def test_every_status_and_reason(klass, tmp_path, capsys):
     assert rows[("none", "lamps")]["reason"] == "no lamps.png"
     assert sorted(outcome.ignored) == [
         (f"{scenes}/README.txt", "not a task scene (<task>.json)"),
-        (f"{subs}/cheat/balls.json", classgrade.SCENE_IGNORED), (f"{subs}/junk/essay.docx", "matches no task")]
+        (f"{subs}/cheat/balls.json", submissions.SCENE_IGNORED), (f"{subs}/junk/essay.docx", "matches no task")]
     assert rows[("bad", "lamps")]["fraction_off_nearby"] > 0.01 and rows[("good", "lamps")]["max_error"] == 0
     assert outcome.renders == 3  # two shared scenes and one student's own
 
@@ -130,7 +131,7 @@ def test_a_student_cannot_change_their_task_from_the_command_line(klass, tmp_pat
     assert main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")]) == 0
     rows = by_pair(json.loads((tmp_path / "r" / "report.json").read_text()))
     assert rows[("cheat", "balls")]["status"] == "fail" and rows[("cheat", "balls")]["scene"] == "shared"
-    assert f"ignored: {subs}/cheat/balls.json: {classgrade.SCENE_IGNORED}" in capsys.readouterr().err
+    assert f"ignored: {subs}/cheat/balls.json: {submissions.SCENE_IGNORED}" in capsys.readouterr().err
 
 
 def test_fail_rows_give_their_reason(klass, tmp_path):
@@ -150,7 +151,7 @@ def test_the_report_files_agree_and_link_what_exists(klass, tmp_path):
         table = list(csv.DictReader(f))
     assert [(r["student"], r["task"], r["status"]) for r in table] == [(r["student"], r["task"], r["status"])
                                                                        for r in rows]
-    assert list(table[0]) == classgrade.COLUMNS
+    assert list(table[0]) == report_module.COLUMNS
     for r in rows:
         for key in ("reference", "submission", "heatmap"):
             if r[key]:
@@ -241,7 +242,7 @@ def test_the_cli_prints_a_summary_and_exits_0_even_with_failures(klass, tmp_path
                  "--student-scenes", str(own)]) == 0
     out, err = capsys.readouterr()
     assert "14 pairs: 6 passed, 3 failed, 3 missing, 2 invalid" in out
-    assert f"ignored: {subs}/cheat/balls.json: {classgrade.SCENE_IGNORED}" in err.splitlines()
+    assert f"ignored: {subs}/cheat/balls.json: {submissions.SCENE_IGNORED}" in err.splitlines()
 
 
 def test_the_same_report_through_a_running_service(klass, tmp_path):
@@ -432,7 +433,7 @@ def mistaken(tmp_path_factory):
     tasks = root / "tasks.json"
     tasks.write_text(json.dumps({"lamps": {"points": 4, "deductions": DEDUCTIONS}}))
     report = root / "report"
-    outcome = classgrade.grade_class(scenes, subs, report, jobs=2, tasks_file=tasks)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, report, jobs=2, tasks_file=tasks))
     return report, {r["student"]: r for r in outcome.rows}
 
 
@@ -503,8 +504,16 @@ def test_the_mistake_ids_are_documented_and_in_grade_json(mistaken, tmp_path, ca
 
 
 def test_the_summary_counts_one_pair_and_one_reference_in_the_singular():
-    from service.report import summary
+    from service.classgrade.report import summary
     one = summary([{"status": "pass"}], 1, 0.5)
     assert one.startswith("1 pair: 1 passed") and "; 1 reference rendered;" in one
     two = summary([{"status": "pass"}, {"status": "fail"}], 2, 0.5)
     assert two.startswith("2 pairs: 1 passed, 1 failed") and "; 2 references rendered;" in two
+
+
+def test_a_grade_record_has_the_reports_columns_in_their_order():
+    from dataclasses import fields
+
+    from service.classgrade.records import Grade
+
+    assert [f.name for f in fields(Grade)] == report_module.COLUMNS

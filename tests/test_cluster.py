@@ -17,6 +17,7 @@ import pytest
 import schemas
 import tracer
 from service import classgrade, cluster
+from service.classgrade import ClassRun
 from service.cli import main
 
 from helpers import SCENES, measured, scene_dict
@@ -103,8 +104,8 @@ def test_the_class_report_on_the_cluster_equals_the_local_one(dask, tmp_path):
         (subs / student).mkdir(parents=True)
         (subs / student / "balls.png").write_bytes(image)
     (subs / "d").mkdir()
-    local = classgrade.grade_class(scenes, subs, tmp_path / "local", jobs=2)
-    remote = classgrade.grade_class(scenes, subs, tmp_path / "remote", cluster=address)
+    local = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "local", jobs=2))
+    remote = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "remote", cluster=address))
     assert remote.rows == local.rows
     assert (tmp_path / "remote" / "report.json").read_bytes() == (tmp_path / "local" / "report.json").read_bytes()
 
@@ -135,8 +136,8 @@ def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
             killed.append(finished)
 
     thread = threading.Thread(target=lambda: outcome.setdefault(
-        "o", classgrade.grade_class(scenes, subs, tmp_path / "report", cluster=address, progress=progress,
-                                    student_scenes=tmp_path / "own")))
+        "o", classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", cluster=address,
+                                            student_scenes=tmp_path / "own"), progress=progress)))
     thread.start()
     thread.join(timeout=300)
     assert not thread.is_alive()
@@ -269,10 +270,10 @@ def test_a_class_graded_three_ways_gives_one_report(dask, tmp_path):
         (subs / student / name).parent.mkdir(parents=True, exist_ok=True)
         (subs / student / name).write_bytes(image)
     kw = {"student_scenes": tmp_path / "own"}
-    classgrade.grade_class(scenes, subs, tmp_path / "local", jobs=2, **kw)
-    classgrade.grade_class(scenes, subs, tmp_path / "cluster", cluster=address, **kw)
+    classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "local", jobs=2, **kw))
+    classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "cluster", cluster=address, **kw))
     with running_server(tmp_path) as (url, _):
-        classgrade.grade_class(scenes, subs, tmp_path / "server", server=url, **kw)
+        classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "server", server=url, **kw))
     local = (tmp_path / "local" / "report.json").read_bytes()
     statuses = [r["status"] for r in json.loads(local)]
     assert statuses == ["pass", "fail", "pass", "fail", "invalid"]

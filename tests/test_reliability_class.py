@@ -24,10 +24,12 @@ import pytest
 import schemas
 import tracer
 from service import classgrade
-from service import report as report_module
+from service.classgrade import ClassRun, faults, tasks
+from service.classgrade import report as report_module
+from service.classgrade.records import GradeJob
+from service.classgrade.report import neutral_cell, write_atomic
 from service.cli import main
 from service.display import printable
-from service.report import neutral_cell, write_atomic
 from service.scenekey import scene_key
 
 from helpers import measured, scene_dict
@@ -211,7 +213,7 @@ def test_a_name_of_stray_bytes_does_not_stop_the_report(tmp_path):
     scenes, subs, right = make_class(tmp_path, {"ada": b""})
     os.mkdir(os.fsencode(subs) + b"/bad\xff")
     (Path(os.fsdecode(os.fsencode(subs) + b"/bad\xff")) / "spheres.png").write_bytes(right)
-    outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=1)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", jobs=1))
     assert {r["student"]: r["status"] for r in outcome.rows} == {"ada": "pass", "bad\udcff": "pass"}
     assert rows(tmp_path / "report")["bad\udcff"]["status"] == "pass"  # written as its JSON escape, read back
     assert "bad\\udcff" in (tmp_path / "report" / "report.csv").read_text()
@@ -262,7 +264,7 @@ def test_an_unreadable_file_or_folder_is_that_students_row(tmp_path):
     (subs / "nosub" / "hw3").mkdir()
     (subs / "nosub" / "hw3" / "spheres.png").write_bytes(right)
     with unreadable(subs / "noread" / "spheres.png", subs / "nodir", subs / "nosub" / "hw3"):
-        outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=1)
+        outcome = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", jobs=1))
     got = {r["student"]: r for r in outcome.rows}
     assert got["ada"]["status"] == "pass"
     assert got["noread"]["status"] == "invalid"
@@ -287,7 +289,7 @@ def test_the_copy_in_the_report_is_the_bytes_that_were_graded(tmp_path):
             swapped.append(True)
             (subs / "ada" / "spheres.png").write_bytes(b"not the graded bytes")
 
-    outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=1, progress=swap)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", jobs=1), progress=swap)
     assert len(swapped) == 2 and outcome.rows[0]["status"] == "pass"
     assert (tmp_path / "report" / "submissions" / "ada" / "spheres.png").read_bytes() == right
 
@@ -337,25 +339,25 @@ def test_a_render_past_the_services_timeout_stops_the_run_naming_the_file(tmp_pa
 
 # -- 4: faults retried with backoff, finished work never lost ------------------------------------------------
 
-def killing_grade(scene: bytes, reference: bytes, image: bytes, tolerance: float, max_fraction: float) -> dict:
+def killing_grade(job: GradeJob) -> dict:
     """The grade task, in a pool process that is killed (as the OOM killer would) while it grades: once per
     marker of $KILL_ONCE, or always for an image of $KILL_ALWAYS's bytes."""
     marker = os.environ.get("KILL_ONCE")
     if marker and not os.path.exists(marker):
         Path(marker).write_text("killed")
         os.kill(os.getpid(), signal.SIGKILL)
-    if image == os.environ.get("KILL_ALWAYS", "").encode():
+    if job.image == os.environ.get("KILL_ALWAYS", "").encode():
         os.kill(os.getpid(), signal.SIGKILL)
-    return classgrade._local_grade(scene, reference, image, tolerance, max_fraction)
+    return tasks.local_grade(job)
 
 
 def test_a_killed_pool_process_is_retried_and_the_report_is_the_same(tmp_path, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
-    classgrade.grade_class(scenes, subs, tmp_path / "clean", jobs=2)
-    monkeypatch.setattr(classgrade, "_local_grade", killing_grade)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "clean", jobs=2))
+    monkeypatch.setattr(tasks, "local_grade", killing_grade)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     monkeypatch.setenv("KILL_ONCE", str(tmp_path / "killed"))
-    outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=2)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", jobs=2))
     assert (tmp_path / "killed").exists()  # a pool process was killed
     assert [r["status"] for r in outcome.rows] == ["pass", "pass"]
     assert (tmp_path / "report" / "report.json").read_bytes() == (tmp_path / "clean" / "report.json").read_bytes()
@@ -364,8 +366,8 @@ def test_a_killed_pool_process_is_retried_and_the_report_is_the_same(tmp_path, m
 def test_a_pool_process_killed_every_time_stops_with_one_line_and_a_rerun_resumes(tmp_path, capsys, monkeypatch):
     poison = b"poison: its grading is killed every time"
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b"", "zed": poison})
-    monkeypatch.setattr(classgrade, "_local_grade", killing_grade)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    monkeypatch.setattr(tasks, "local_grade", killing_grade)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     monkeypatch.setenv("KILL_ALWAYS", poison.decode())
     report = tmp_path / "report"
     started = time.monotonic()
@@ -378,7 +380,7 @@ def test_a_pool_process_killed_every_time_stops_with_one_line_and_a_rerun_resume
     kept = {p: p.stat().st_mtime_ns for p in (report / "resume").rglob("*.json")}
     assert {p.parent.name for p in kept} == {"ada", "ben"}
     monkeypatch.delenv("KILL_ALWAYS")
-    outcome = classgrade.grade_class(scenes, subs, report, jobs=1)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     assert outcome.renders == 0 and [r["status"] for r in outcome.rows] == ["pass", "pass", "invalid"]
     assert {p: p.stat().st_mtime_ns for p in kept} == kept  # the finished grades were not graded again
 
@@ -486,12 +488,12 @@ class ResettingProxy:
 
 def test_a_server_worker_restart_during_server_is_retried(tmp_path, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
-    classgrade.grade_class(scenes, subs, tmp_path / "local", jobs=1)
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "local", jobs=1))
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     with running_server(tmp_path) as (url, _):
         proxy = ResettingProxy(url, reset={2, 3, 5}, busy={6})  # 0, 1: the check (/healthz, /schema)
         try:
-            outcome = classgrade.grade_class(scenes, subs, tmp_path / "remote", server=proxy.url, jobs=1)
+            outcome = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "remote", server=proxy.url, jobs=1))
         finally:
             proxy.close()
     assert proxy.count >= 2 + 1 + 4 + 4  # the check, a render, two requests per grade, the retries
@@ -501,7 +503,7 @@ def test_a_server_worker_restart_during_server_is_retried(tmp_path, monkeypatch)
 
 def test_a_server_gone_for_good_stops_with_one_line_and_keeps_what_finished(tmp_path, capsys, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
     report = tmp_path / "report"
     with running_server(tmp_path) as (url, _):
         proxy = ResettingProxy(url, reset_from=2 + 1 + 2)  # the check, the render, ada's grade; then all reset
@@ -515,7 +517,7 @@ def test_a_server_gone_for_good_stops_with_one_line_and_keeps_what_finished(tmp_
         assert said.startswith(f"--server {proxy.url}: cannot reach {proxy.url}/grade")
         assert "(after 4 retries)" in said and said.endswith(
             f"1 references and 1 grades are kept in {report}: run again to resume")
-        outcome = classgrade.grade_class(scenes, subs, report, server=url, jobs=1)  # the rerun resumes
+        outcome = classgrade.grade_class(ClassRun(scenes, subs, report, server=url, jobs=1))  # the rerun resumes
     assert outcome.renders == 0 and [r["status"] for r in outcome.rows] == ["pass", "pass"]
 
 
@@ -598,8 +600,8 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
             time.sleep(0.02)
         _stop(scheduler)
 
-    monkeypatch.setattr(classgrade, "BACKOFF", 0.01, raising=False)
-    monkeypatch.setattr(classgrade, "RECONNECT_TIMEOUT", 0.5, raising=False)
+    monkeypatch.setattr(faults, "BACKOFF", 0.01)
+    monkeypatch.setattr(faults, "RECONNECT_TIMEOUT", 0.5)
     killer = threading.Thread(target=lose_the_scheduler, daemon=True)
     try:
         killer.start()
@@ -621,12 +623,12 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
 # -- 4: a rerun trusts nothing it did not write: resume journals, and names shown as they are -------------------
 
 def test_a_resume_row_tampered_with_or_of_another_version_is_graded_again(tmp_path):
-    from service import journal
+    from service.classgrade import journal
 
     black = tracer.encode_png(tracer.render(schemas.validate_scene({**tiny(), "objects": [], "lights": []})))
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "bob": black, "cy": b"", "dee": b""})
     report = tmp_path / "report"
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     before = (report / "report.json").read_bytes()
     files = {s: report / "resume" / s / "spheres.json" for s in ("ada", "bob", "cy", "dee")}
     kept = {s: json.loads(p.read_text()) for s, p in files.items()}
@@ -641,7 +643,7 @@ def test_a_resume_row_tampered_with_or_of_another_version_is_graded_again(tmp_pa
                 "row": {**kept["dee"]["row"], "status": "fail", "passed": False}}}
     for student, data in tampered.items():
         files[student].write_text(json.dumps(data))
-    outcome = classgrade.grade_class(scenes, subs, report, jobs=1)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     assert (report / "report.json").read_bytes() == before  # each graded again, as it was
     assert [r["status"] for r in outcome.rows] == ["pass", "fail", "pass", "pass"]
     assert "<script>" not in (report / "index.html").read_text()
@@ -679,7 +681,7 @@ def test_bidirectional_controls_in_names_are_shown_escaped(tmp_path):
     scenes, subs, _ = make_class(tmp_path, {name: b"", "bob": b""})
     (subs / name / "notes.png").write_bytes(b"")  # an ignored file of theirs, listed in the HTML
     report = tmp_path / "report"
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     shown = "ada" + "".join(f"\\u{ord(c):04x}{i}" for i, c in enumerate(BIDI))
     for file in ("index.html", "report.csv", "gradebook.csv"):
         text = (report / file).read_text()
@@ -697,7 +699,7 @@ def test_no_two_pairs_of_the_html_report_share_an_anchor(tmp_path):
     (scenes / "x-spheres.json").write_text((scenes / "spheres.json").read_text())
     (subs / "ada" / "x-spheres.png").write_bytes(right)
     report = tmp_path / "report"
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     page = (report / "index.html").read_text()
     ids = re.findall(r'<section class="pair" id="([^"]+)"', page)
     assert len(ids) == 4 == len(set(ids)), ids
@@ -709,10 +711,10 @@ def test_a_rerun_into_the_same_report_leaves_no_results_of_a_student_not_in_it(t
     results.json of a student of the first run is left in gradescope/ to be uploaded with this class's."""
     scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
     report = tmp_path / "report"
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     (report / "gradescope" / "notes.txt").write_text("the TA's own")
     (subs / "bob").rename(subs / "Bob Brown_7_assignsubmission_file_")
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     assert sorted(os.listdir(report / "gradescope")) == ["Bob Brown", "ada", "notes.txt"]
     assert json.loads((report / "gradescope" / "Bob Brown" / "results.json").read_text())["score"] == 1.0
 
@@ -726,14 +728,14 @@ def test_a_folder_of_thousands_of_resubmissions_gives_a_short_reason(tmp_path):
         (subs / "bob" / f"spheres-{n}.png").write_bytes(b"")
         (subs / "bob" / f"sphere-{n}.png").write_bytes(b"")
     report = tmp_path / "report"
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     reason = rows(report)["bob"]["reason"]
     assert reason.startswith("3000 files for spheres: ") and reason.endswith(" and 2995 more; keep one")
     assert len(reason) < 1000 and (report / "index.html").stat().st_size < 1_000_000
     (subs / "bob" / "spheres-0.png").unlink()
     for n in range(1, 3000):
         (subs / "bob" / f"spheres-{n}.png").unlink()
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     reason = rows(report)["bob"]["reason"]
     assert reason.startswith("no spheres.png (found sphere-") and reason.endswith(
         " and 2995 more: did you mean spheres.png?)") and len(reason) < 1000
@@ -746,11 +748,11 @@ def test_a_folder_of_thousands_of_resubmissions_gives_a_short_reason(tmp_path):
 def test_a_kept_reference_that_does_not_decode_is_rendered_again(tmp_path, broken):
     scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
     report = tmp_path / "report"
-    classgrade.grade_class(scenes, subs, report, jobs=1)
+    classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     (ref,) = (report / "references").iterdir()
     ref.write_bytes(broken(ref.read_bytes()))
     shutil.rmtree(report / "resume")
-    outcome = classgrade.grade_class(scenes, subs, report, jobs=1)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     assert outcome.renders == 1 and [r["status"] for r in outcome.rows] == ["pass", "pass"]
     assert ref.read_bytes() == right
 
@@ -759,5 +761,5 @@ def test_a_name_of_255_bytes_that_composing_would_lengthen_is_graded(tmp_path):
     """NFC decomposes U+0958: 85 of them (255 bytes) would be 510 bytes, no file name of the report's."""
     name = "\u0958" * 85
     scenes, subs, _ = make_class(tmp_path, {name: b"", "bob": b""})
-    outcome = classgrade.grade_class(scenes, subs, tmp_path / "report", jobs=1)
+    outcome = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", jobs=1))
     assert [(r["student"], r["status"]) for r in outcome.rows] == [("bob", "pass"), (name, "pass")]

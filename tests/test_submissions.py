@@ -13,7 +13,10 @@ from PIL import Image
 import schemas
 import tracer
 from service import classgrade
-from service.submissions import ClassError, UntrustedFileError, discover, read_untrusted
+from service.classgrade import ClassRun
+from service.classgrade.errors import ClassError
+from service.classgrade.submissions import discover
+from service.classgrade.untrusted import UntrustedFileError, read_untrusted
 
 from helpers import scene_dict
 
@@ -37,7 +40,7 @@ def put(root, relative, data):
 
 
 def rows_of(root, tmp_path):
-    outcome = classgrade.grade_class(root / "scenes", root / "subs", tmp_path / "report", jobs=1)
+    outcome = classgrade.grade_class(ClassRun(root / "scenes", root / "subs", tmp_path / "report", jobs=1))
     return {r["student"]: r for r in outcome.rows}, dict(outcome.ignored)
 
 
@@ -279,14 +282,14 @@ def test_a_student_folder_swapped_for_a_link_while_the_references_render_is_not_
             os.symlink("ada", subs / "eve")
             swapped.append(True)
 
-    outcome = classgrade.grade_class(tmp_path / "scenes", subs, tmp_path / "report", jobs=1, progress=swap)
+    outcome = classgrade.grade_class(ClassRun(tmp_path / "scenes", subs, tmp_path / "report", jobs=1), progress=swap)
     rows = {r["student"]: r for r in outcome.rows}
     assert swapped and rows["eve"]["status"] == "fail" and rows["ada"]["status"] == "pass"
     assert (tmp_path / "report" / "submissions" / "eve" / "Cornell.png").read_bytes() != right
 
 
 def test_a_tasks_own_name_comes_before_a_resubmissions_suffix():
-    from service.lms import TaskNames
+    from service.classgrade.lms import TaskNames
 
     names = TaskNames(["Cornell", "cornell-2", "box"])
     assert [(n.task, n.exact) for n in map(names.match, ["cornell-2.png", "Cornell-3.PNG", "box (12).png",
@@ -434,7 +437,7 @@ def test_a_file_name_spelt_decomposed_is_the_tasks():
     """A Mac's archive spells café.png decomposed (NFD); the TA's scene café.json is composed (NFC)."""
     import unicodedata
 
-    from service.lms import TaskNames
+    from service.classgrade.lms import TaskNames
 
     nfc, nfd = (unicodedata.normalize(form, "café") for form in ("NFC", "NFD"))
     names = TaskNames([nfc, "box"])
@@ -458,7 +461,7 @@ def test_two_students_whose_names_differ_only_in_case_are_told_apart_by_their_id
 
 def test_a_resubmitted_copy_of_a_download_is_its_tasks():
     """A browser saved 'Spheres (1).png' and Canvas added its '-1' on a resubmission: 'Spheres (1)-1.png'."""
-    from service.lms import TaskNames
+    from service.classgrade.lms import TaskNames
 
     names = TaskNames(["spheres", "cornell-3", "cornell"])
     assert [names.match(n).task for n in ["Spheres (1)-1.png", "spheres-2 (3).PNG", "cornell-3-1.png",

@@ -12,7 +12,7 @@ import numpy as np
 if TYPE_CHECKING:
     from PIL import ImageFile
 
-#: colours are summed in fixed point (:func:`tracer.render._accumulate`), a hair below their float value; a
+#: colours are summed in fixed point (:meth:`tracer.film.Film.add`), a hair below their float value; a
 #: value that lies on a rounding boundary (a background of 0.3 is 76.5 levels) still rounds up, as in float
 NUDGE = 2.0**-22
 

@@ -19,12 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .best import NO_HIT, Best
 from .embree import Bvh
 from .rays import Among, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
 from .vec import along, divided, dot, median_of, minus, most, rows_of
-from .walk import NO_HIT, Best, Walk, _ignored
+from .walk import Walk, _ignored
 from .world import World, unit
 
 __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE", "TRIANGLE"]

@@ -19,7 +19,7 @@ import numpy as np
 from schemas.scene import AmbientLight, AreaLight, DirectionalLight, PointLight, SpotLight
 
 from .variants import REFERENCE, Options
-from .vec import divided, dot, minus
+from .vec import columns, dot_into
 
 F64 = np.float64
 
@@ -128,23 +128,52 @@ def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray,
 
     f is zero wherever the light gives nothing: a point at the light's own
     position, a zero attenuation denominator, or outside a spot's cone.
+    (:func:`illuminate_into`, into arrays of their own.)
     """
     n = len(points)
+    to_light, dist, safe = columns(n), np.empty(n), np.empty(n)
+    factor = illuminate_into(em, points, to_light, dist, safe)
+    return to_light, dist, np.broadcast_to(factor, (n,)).astype(F64)
+
+
+def illuminate_into(em: Emitter, points: np.ndarray, to_light: np.ndarray, dist: np.ndarray,
+                    safe: np.ndarray) -> np.ndarray | float:
+    """L into ``to_light (N, 3)`` (its columns contiguous) and d into ``dist (N,)``, a column at a time, with
+    ``safe (N,)`` as scratch; returns the factor f, one number when it is the same at every point (a light
+    without attenuation and cone, or a directional light).  L is ``(P − p) / d`` (divided by 1 where d = 0),
+    d is ``√((P − p)·(P − p))`` summed x, y, z; for a directional light L is −direction and d is ∞."""
     if em.kind == "directional":
-        return np.broadcast_to(-em.direction, (n, 3)), np.full(n, np.inf), np.ones(n)
-    v = minus(em.position, points)
-    d = np.sqrt(dot(v, v))
-    safe_d = np.where(d > 0, d, 1.0)
-    L = divided(v, safe_d)
-    c, lin, q = em.attenuation
-    if lin == 0 and q == 0:  # c + 0·d + (0·d)·d is c wherever d is finite (at d = ∞, NaN: no light); fewer passes
-        factor = np.where((d > 0) & (d < np.inf), 1.0 / c if c > 0 else 0.0, 0.0)
-    else:
-        denom = c + lin * d + q * d * d
-        factor = np.where((d > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
+        for k in range(3):
+            to_light[:, k] = -em.direction[k]
+        dist.fill(np.inf)
+        return 1.0
+    for k in range(3):
+        np.subtract(em.position[k], points[:, k], out=to_light[:, k])
+    dot_into(dist, to_light, to_light, safe)
+    np.sqrt(dist, out=dist)
+    factor = attenuation(em, dist, safe)
+    for k in range(3):
+        to_light[:, k] /= safe
     if em.is_spot:
-        factor = factor * spot_factor(em, -L)
-    return L, d, factor
+        factor = factor * spot_factor(em, -to_light)
+    return factor
+
+
+def attenuation(em: Emitter, dist: np.ndarray, safe: np.ndarray) -> np.ndarray | float:
+    """An emitter's intensity factor ``1 / (c + l·d + q·d²)`` at distances ``dist`` (a point light's, before any
+    cone; 0 at d = 0 and where the denominator is not positive), and the distances to divide ``L`` by into
+    ``safe`` (1 where d = 0).  One number when every distance is positive and finite and ``l = q = 0``."""
+    np.copyto(safe, dist)
+    shortest = float(dist.min(initial=np.inf))
+    if not shortest > 0:
+        safe[~(dist > 0)] = 1.0
+    c, lin, q = em.attenuation
+    if lin == 0 and q == 0:  # c + 0·d + (0·d)·d is c wherever d is finite (at d = ∞, NaN: no light)
+        if shortest > 0 and float(dist.max(initial=0.0)) < np.inf:
+            return 1.0 / c if c > 0 else 0.0
+        return np.where((dist > 0) & (dist < np.inf), 1.0 / c if c > 0 else 0.0, 0.0)
+    denom = c + lin * dist + q * dist * dist
+    return np.where((dist > 0) & (denom > 0), 1.0 / np.where(denom > 0, denom, 1.0), 0.0)
 
 
 def spot_factor(em: Emitter, from_light: np.ndarray) -> np.ndarray:

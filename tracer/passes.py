@@ -24,8 +24,16 @@ a pass does not depend on threads or chunks either; a pass saturates at
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from .kernel import Seen, unseen
+from .rays import Work
+from .vec import scaled
+
+if TYPE_CHECKING:
+    from .intersect import Hits
 
 ADDITIVE = ("background", "ambient", "diffuse", "specular", "reflection", "refraction")
 DEBUG = ("shadow", "normal", "depth", "object")
@@ -138,3 +146,102 @@ class Tally:
             side = int(round(s ** 0.5))
             out["object"] = self.object.reshape(n, s)[:, (side // 2) * side + side // 2]
         return out
+
+
+class Observer:
+    """What the stages of a render tell the passes; this one notes nothing (a render without passes).  Every
+    stage calls it unconditionally: the passes are an observer of the render, not a branch of its stages."""
+
+    def missed(self, missed: np.ndarray, background: np.ndarray) -> None:
+        """The rays ``missed`` (bool, of the work batch) bring back the ``background``."""
+
+    def first_hits(self, hit: Hits, owners: dict[int, np.ndarray], normal: np.ndarray) -> None:
+        """The camera rays' first hits (only the rays that hit), with the shading ``normal`` there; ``owners``:
+        the object of each surface, by kind."""
+
+    def ambient(self, colour: np.ndarray) -> None:
+        """The ambient term of the hit points (only the rays that hit)."""
+
+    def seen(self, emitter: int) -> Seen:
+        """The observer of how many of this light's emitters (its first: ``emitter``) reach each point."""
+        return unseen
+
+    def light(self, emitter: int, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray,
+              terms: tuple[np.ndarray, np.ndarray]) -> None:
+        """A light's (its first emitter: ``emitter``) terms ``Σwd, Σws``, of colour ``color``, at points of
+        ``k_d = diffuse`` and ``k_s = specular``."""
+
+    def shaded(self, colour: np.ndarray) -> None:
+        """The direct light of the hit points, whole."""
+
+
+#: the observer that notes nothing
+UNOBSERVED = Observer()
+
+
+class PassObserver(Observer):
+    """The passes of one work batch of a chunk (:class:`tracer.rays.Work`): each stage's contributions to the
+    ``tally``, at the batch's sub-samples and weights; the light's terms only at the first hit."""
+
+    def __init__(self, tally: Tally, work: Work):
+        self.tally, self.work = tally, work
+        self.first = work.depth == 0
+
+    def missed(self, missed: np.ndarray, background: np.ndarray) -> None:
+        work, tally = self.work, self.tally
+        rows = np.flatnonzero(missed)
+        if len(rows) == 0:
+            return
+        if self.first:
+            tally.add("background", work.sample[rows], work.weight[rows, None] * background)
+            return
+        assert work.branch is not None
+        for branch, name in BRANCH_PASS.items():
+            sel = rows[work.branch[rows] == branch]
+            if name is not None:
+                tally.add(name, work.sample[sel], work.weight[sel, None] * background)
+
+    def first_hits(self, hit: Hits, owners: dict[int, np.ndarray], normal: np.ndarray) -> None:
+        tally, sample = self.tally, self.work.sample
+        if tally.normal is not None:
+            tally.normal[sample] = normal
+        if tally.depth is not None:
+            tally.depth[sample] = hit.t
+        if tally.object is not None:
+            for kind, owner in owners.items():
+                sel = np.flatnonzero(hit.kind == kind)
+                tally.object[sample[sel]] = owner[hit.index[sel]]
+
+    def ambient(self, colour: np.ndarray) -> None:
+        if self.first:
+            self.tally.add("ambient", self.work.sample, scaled(colour, self.work.weight))
+
+    def seen(self, emitter: int) -> Seen:
+        visible = self.tally.visible
+        if not self.first or visible is None or not self.tally.counts(emitter):
+            return unseen
+        sample = self.work.sample
+
+        def count(weight: np.ndarray, facing: np.ndarray, rows: np.ndarray | None) -> None:
+            assert visible is not None
+            np.add.at(visible, sample if rows is None else sample[rows], (weight > 0) & facing)
+
+        return count
+
+    def light(self, emitter: int, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray,
+              terms: tuple[np.ndarray, np.ndarray]) -> None:
+        tally, work = self.tally, self.work
+        if not self.first or not tally.counts(emitter):
+            return
+        wd, ws = terms
+        tally.add(tally.term("diffuse", emitter), work.sample, scaled(color * scaled(diffuse, wd), work.weight))
+        tally.add(tally.term("specular", emitter), work.sample, scaled(color * scaled(specular, ws), work.weight))
+
+    def shaded(self, colour: np.ndarray) -> None:
+        work = self.work
+        if work.branch is None or self.first:
+            return
+        for branch, name in BRANCH_PASS.items():
+            sel = np.flatnonzero(work.branch == branch)
+            if name is not None and len(sel):
+                self.tally.add(name, work.sample[sel], scaled(colour[sel], work.weight[sel]))

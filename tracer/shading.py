@@ -175,25 +175,11 @@ def planes_holding(world: World, emitters: list[Emitter]) -> np.ndarray:
     return out
 
 
-def phong(shininess: np.ndarray, nl: np.ndarray, rv: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``weight · (N·L)`` and ``weight · max(0, R·V)^n`` per point: times ``k_d`` and ``k_s``, the diffuse and the
-    specular term, whose sum is the Phong term (:func:`add_phong`). Each (N,).
-
-    ``shininess (N,)`` holds the hit points' exponents; ``nl = N·L`` and
-    ``rv = R·V``; ``weight (N,)`` carries the light's intensity factor and is
-    zero where the light does not reach (N·L ≤ 0, shadowed, outside a cone).
-    ``max(0, R·V)^n`` is 0 where R·V ≤ 0, also for n = 0.
-    """
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        spec = np.where(rv > 0, np.power(np.where(rv > 0, rv, 1.0), shininess), 0.0)
-    return weight * nl, weight * spec
-
-
 def add_phong(colour: np.ndarray, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray, wd: np.ndarray,
               ws: np.ndarray) -> None:
     """``colour += color · (k_d · wd + k_s · ws)`` in place, a column at a time (a light's ``color (3,)``
-    broadcast over the rows of ``(N, 3)`` arrays would loop three times per row), with ``wd, ws`` from
-    :func:`phong` and ``diffuse, specular (N, 3)`` the points' k_d and k_s."""
+    broadcast over the rows of ``(N, 3)`` arrays would loop three times per row), with ``wd, ws`` a light's
+    terms (:class:`tracer.kernel.Kernel`) and ``diffuse, specular (N, 3)`` the points' k_d and k_s."""
     for k in range(3):
         colour[:, k] += color[k] * (diffuse[:, k] * wd + specular[:, k] * ws)
 

@@ -24,6 +24,16 @@ def length(x: np.ndarray | float, y: np.ndarray | float, z: np.ndarray | float) 
     return np.sqrt(x * x + y * y + z * z)
 
 
+def dot_into(out: np.ndarray, a: np.ndarray, b: np.ndarray, tmp: np.ndarray) -> np.ndarray:
+    """``a·b`` per row of two ``(N, 3)`` arrays into ``out``, summed in the order x, y, z (as :func:`dot`), with
+    ``tmp`` as scratch. Returns ``out``."""
+    np.multiply(a[:, 0], b[:, 0], out=out)
+    for k in (1, 2):
+        np.multiply(a[:, k], b[:, k], out=tmp)
+        out += tmp
+    return out
+
+
 def along(o: np.ndarray, t: np.ndarray, d: np.ndarray) -> np.ndarray:
     """``o + t·d`` per row: the points at parameters ``t (N,)`` of rays ``o + t d``. Shape (N, 3), its columns
     contiguous (as every result here)."""

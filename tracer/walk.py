@@ -20,14 +20,16 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 
+from .best import Best, slab
 from .cells import Cells, build_cells
 from .embree import Bvh, frame
 from .proxies import Proxies, build_proxies
 from .rays import Rays, Shadows, shared_rows
-from .shapes import MISS, SPHERE, TRIANGLE, sphere_t, triangle_t
+from .shapes import SPHERE, TRIANGLE, sphere_t, triangle_t
 from .sightlines import Sightlines, plain_triangles
 from .vec import along, highest, lowest, rows_of
 from .world import World
@@ -38,8 +40,6 @@ PAIR_SLICE = 1 << 16
 PAIR_GROUP = 1 << 20
 #: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
 INSIDE = 2.0**-24
-#: a ray's key (:class:`Best`) while it has hit nothing
-NO_HIT = _NONE = np.iinfo(np.int64).max
 #: a walk over primitives worth at most this many sphere tests per ray (a triangle counts :data:`TRIANGLE_COST`)
 #: tests every primitive against each ray its broad phase keeps, instead of walking the cells
 #: (:meth:`Walk.walk_few`): the cells' bookkeeping costs more than a few exact tests
@@ -69,95 +69,6 @@ def _columns_of(rows: np.ndarray) -> np.ndarray:
     view whose x, y and z (all :mod:`tracer.vec` reads) are contiguous, faster to compute on than the rows'
     own strided columns (measured: a triangle test 4.7 ms against 11.4 ms on 100k pairs, 2.7 ms to copy)."""
     return np.ascontiguousarray(rows.T)
-
-
-def slab(origins: np.ndarray, dirs: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Where each ray's line enters and leaves the box ``lo..hi`` (empty when enter > leave). Each (N,).
-
-    An axis at a time, on 1-D columns.  Along an axis the ray does not move on (a zero direction), the
-    slab is all of the line when the origin lies in it (closed) and none of it otherwise."""
-    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-    n = len(origins)
-    near, far = np.full(n, -np.inf), np.full(n, np.inf)
-    t0, t1, inv = np.empty(n), np.empty(n), np.empty(n)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for a in range(3):  # in place: a few passes per axis and no temporaries
-            o, d = origins[:, a], dirs[:, a]
-            la, ha = (lo[..., a], hi[..., a])
-            np.divide(1.0, d, out=inv)
-            np.subtract(la, o, out=t0)
-            t0 *= inv
-            np.subtract(ha, o, out=t1)
-            t1 *= inv
-            flat = d == 0
-            if flat.any():
-                inside = (o >= la) & (o <= ha)
-                t0[flat] = np.where(inside[flat], -np.inf, np.inf)  # outside: both inf, the slab is empty
-                t1[flat] = np.inf
-            np.maximum(near, np.minimum(t0, t1), out=near)
-            np.minimum(far, np.maximum(t0, t1), out=far)
-    return near, far
-
-
-class Best:
-    """Running best hit per ray, updated so that the answer never depends on the order candidates come in."""
-
-    def __init__(self, limit: np.ndarray):
-        n = len(limit)
-        self.t = limit.astype(np.float64, copy=True)
-        self.key = np.full(n, _NONE, dtype=np.int64)
-        self.uv = np.zeros((n, 2))
-
-    def offer(self, rows: np.ndarray, t: np.ndarray, kind: int | np.ndarray, index: np.ndarray,
-              u: np.ndarray | None = None, v: np.ndarray | None = None, unique: bool = False) -> None:
-        """Offer hits ``t`` of surfaces (kind, index) to rays ``rows``; rows may repeat unless ``unique``."""
-        hit = np.isfinite(t)
-        if not np.any(hit):
-            return
-        rows, t, index = rows[hit], t[hit], index[hit]
-        kinds = np.broadcast_to(kind, hit.shape)[hit]
-        key = (kinds.astype(np.int64) << 48) | index.astype(np.int64)
-        if unique or len(rows) <= 1 or bool(np.all(rows[1:] > rows[:-1])):  # one hit per ray (as usual)
-            pick = np.arange(len(rows))
-        else:
-            order = np.lexsort((key, t, rows))
-            first = np.r_[True, rows[order][1:] != rows[order][:-1]]
-            pick = order[first]
-        r, tt, kk = rows[pick], t[pick], key[pick]
-        better = (tt < self.t[r]) | ((tt == self.t[r]) & (kk < self.key[r]))
-        r, pick = r[better], pick[better]
-        self.t[r], self.key[r] = tt[better], kk[better]
-        if u is not None and v is not None:
-            self.uv[r, 0], self.uv[r, 1] = u[hit][pick], v[hit][pick]
-
-    def offer_all(self, t: np.ndarray, kind: int, index: int, u: np.ndarray | None = None,
-                  v: np.ndarray | None = None) -> None:
-        """:meth:`offer` of one surface's hits ``t`` to every ray, in order (each ray once): the same rule, a
-        finite hit taken where it is nearer or, as near, of a smaller key, with no rows gathered."""
-        key = (int(kind) << 48) | int(index)
-        with np.errstate(invalid="ignore"):
-            better = t < self.t
-            better |= (t == self.t) & (key < self.key)
-            better &= np.isfinite(t)
-        np.copyto(self.t, t, where=better)
-        np.copyto(self.key, key, where=better)
-        if u is not None and v is not None:
-            np.copyto(self.uv[:, 0], u, where=better)
-            np.copyto(self.uv[:, 1], v, where=better)
-
-    def block(self, rows: np.ndarray, t: np.ndarray) -> None:
-        """For an any-hit walk, where only whether a ray's ``t`` falls below its limit matters: lower the
-        rays ``rows`` (which may repeat) to hits ``t`` nearer than they have."""
-        nearer = t < self.t[rows]
-        self.t[rows[nearer]] = t[nearer]  # (of a repeated row, any of its nearer hits: each blocks it)
-
-    @property
-    def kind(self) -> np.ndarray:
-        return np.where(self.key == _NONE, MISS, self.key >> 48).astype(np.int8)
-
-    @property
-    def index(self) -> np.ndarray:
-        return np.where(self.key == _NONE, -1, self.key & ((1 << 48) - 1))
 
 
 class Walk:
@@ -383,18 +294,34 @@ class Walk:
         if self.few:
             self.walk_few(best, rays, shadows)
             return
-        p, bvh, cells = self.proxies, self.bvh, self.cells
+        w = self._begin(best, rays, shadows)
+        p, live = self.proxies, w.open_rows(np.arange(len(rays)))
+        if w.any_hit and len(live):  # broad phase: a ray that crosses no proxy before its light is clear
+            s, limit, t_out = w.start[live], w.limit, w.t_out
+            far = np.minimum(limit[live] + p.slack, t_out[live]) - s
+            o_l, d_l = rows_of(rays.origins, live), rows_of(rays.dirs, live)
+            live = live[self.bvh.any_hit(along(o_l, s, d_l), d_l, far)]
+        for step in range(self.max_steps):
+            if len(live) == 0:
+                break
+            self.check()
+            live = w.open_rows(self._pass(w, live, step))
+        if len(live):  # (not seen: each pass consumes a crossing) every primitive, rather than a wrong answer
+            every = np.arange(len(self.prim_index))
+            self._test(best, np.repeat(live, len(every)), np.tile(every, len(live)), w.table, w.from_prim, shadows)
+
+    def _begin(self, best: Best, rays: Rays, shadows: Shadows | None) -> Walking:
+        """A walk's start (:meth:`walk`): where each ray starts, and the part of a cell holding the origin of a
+        ray that leaves a BVH primitive tested already."""
+        cells = self.cells
         assert cells is not None  # (made for every walk but a few primitives')
         any_hit = shadows is not None
         o, d = rays.origins, rays.dirs
-        n = len(o)
         from_prim = self._from_prim(rays)
-        limit = best.t.copy()
-        table = gathered(o, d, rays.mag)
         t_in, t_out = slab(o, d, self.box_lo, self.box_hi)
-        start = t_in.copy()
-        # the region each ray tested last (a part of a cell; rounding may report a part twice)
-        last = np.full(n, -2, dtype=np.int64)
+        w = Walking(best, shadows, best.t.copy(), gathered(o, d, rays.mag), from_prim, t_out, t_in.copy(),
+                    np.full(len(o), -2, dtype=np.int64), rays, any_hit)
+        start, table = w.start, w.table
         inside = np.flatnonzero(from_prim >= 0)
         if len(inside):  # every proxy that contains an origin meets the origin's part of a cell: test them now
             cell, lo, hi = cells.locate(rows_of(o, inside))
@@ -403,55 +330,69 @@ class Walk:
             but = self._with_mates(np.where(q < self.n_tri, q, -1), np.full(len(q), any_hit))
             self._test_cells(best, inside, cell, but, table, from_prim, shadows)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
-            last[inside] = cell
+            w.last[inside] = cell
             if not any_hit:  # a hit inside the origin's part is the nearest there is
                 settled = np.isfinite(best.t[inside]) & (best.t[inside] <= start[inside])
                 start[inside[settled]] = np.inf
+        return w
 
-        def open_rows(rows: np.ndarray) -> np.ndarray:
-            if any_hit:
-                rows = rows[~(best.t[rows] < limit[rows])]
-            end = np.minimum(best.t[rows], t_out[rows])
-            return rows[(start[rows] < end) & (end > 0)]
-
-        live = open_rows(np.arange(n))
-        if any_hit and len(live):  # broad phase: a ray that crosses no proxy before its light is clear
-            s = start[live]
-            far = np.minimum(limit[live] + p.slack, t_out[live]) - s
-            o_l, d_l = rows_of(o, live), rows_of(d, live)
-            live = live[bvh.any_hit(along(o_l, s, d_l), d_l, far)]
+    def _pass(self, w: Walking, live: np.ndarray, step: int) -> np.ndarray:
+        """One pass of a walk (:meth:`walk`'s step) for the rays ``live``: the nearest crossing of each, its part
+        of a cell tested, the walk moved on past it.  Returns the rays still walking (before
+        :meth:`Walking.open_rows`)."""
+        p, cells, best, shadows, any_hit = self.proxies, self.cells, w.best, w.shadows, w.any_hit
+        assert cells is not None
+        start, last, limit, table, from_prim = w.start, w.last, w.limit, w.table, w.from_prim
         first = any_hit or self.mates is not None  # test the crossed primitive before the rest of its region
-        for step in range(self.max_steps):
-            if len(live) == 0:
-                break
-            self.check()
-            s = start[live]
-            # a plain triangle hit before best.t may be crossed in float32 up to p.slack after it
-            far = np.minimum(best.t[live] + p.slack, t_out[live]) - s
-            o_l, d_l = rows_of(o, live), rows_of(d, live)
-            face, tau = bvh.nearest(along(o_l, s, d_l), d_l, far)
-            found = np.flatnonzero(face >= 0)
-            live, face, tau, s = live[found], face[found], tau[found], s[found]
-            o_l, d_l = rows_of(o_l, found), rows_of(d_l, found)
-            prim = p.owner[face]
-            # after the first pass, the few rays left (grazing a surface, say) step a whole cell at a time
-            region, lo, hi = cells.locate(along(o_l, s + tau, d_l), whole=step > 0)
-            fresh = last[live] != region
-            if first:  # the primitive crossed first: a ray it blocks needs no more
-                rows = live[fresh]
-                self._test(best, rows, prim[fresh], table, from_prim, shadows)
-                if any_hit:
-                    fresh[fresh] = ~(best.t[rows] < limit[rows])
-            self._test_cells(best, live[fresh], region[fresh],
-                             self._tested(best, live[fresh], prim[fresh], any_hit) if first else None, table,
-                             from_prim, shadows)
-            last[live] = region
-            leave = slab(o_l, d_l, lo, hi)[1]
-            start[live] = np.fmax(start[live] + tau + p.step, leave)
-            if not any_hit:  # a hit before the ray leaves the part is the nearest there is
-                settled = np.isfinite(best.t[live]) & (best.t[live] <= leave)
-                live = live[~settled]
-            live = open_rows(live)
-        if len(live):  # (not seen: each pass consumes a crossing) every primitive, rather than a wrong answer
-            every = np.arange(len(self.prim_index))
-            self._test(best, np.repeat(live, len(every)), np.tile(every, len(live)), table, from_prim, shadows)
+        s = start[live]
+        # a plain triangle hit before best.t may be crossed in float32 up to p.slack after it
+        far = np.minimum(best.t[live] + p.slack, w.t_out[live]) - s
+        o_l, d_l = rows_of(w.rays.origins, live), rows_of(w.rays.dirs, live)
+        face, tau = self.bvh.nearest(along(o_l, s, d_l), d_l, far)
+        found = np.flatnonzero(face >= 0)
+        live, face, tau, s = live[found], face[found], tau[found], s[found]
+        o_l, d_l = rows_of(o_l, found), rows_of(d_l, found)
+        prim = p.owner[face]
+        # after the first pass, the few rays left (grazing a surface, say) step a whole cell at a time
+        region, lo, hi = cells.locate(along(o_l, s + tau, d_l), whole=step > 0)
+        fresh = last[live] != region
+        if first:  # the primitive crossed first: a ray it blocks needs no more
+            rows = live[fresh]
+            self._test(best, rows, prim[fresh], table, from_prim, shadows)
+            if any_hit:
+                fresh[fresh] = ~(best.t[rows] < limit[rows])
+        self._test_cells(best, live[fresh], region[fresh],
+                         self._tested(best, live[fresh], prim[fresh], any_hit) if first else None, table,
+                         from_prim, shadows)
+        last[live] = region
+        leave = slab(o_l, d_l, lo, hi)[1]
+        start[live] = np.fmax(start[live] + tau + p.step, leave)
+        if not any_hit:  # a hit before the ray leaves the part is the nearest there is
+            settled = np.isfinite(best.t[live]) & (best.t[live] <= leave)
+            live = live[~settled]
+        return live
+
+
+@dataclass
+class Walking:
+    """One walk under way (:meth:`Walk.walk`): its rays and their best hits, and where each ray's walk is."""
+
+    best: Best
+    shadows: Shadows | None  # the shadow query the rays are of
+    limit: np.ndarray  # (N,) each ray's best hit (or its light) when the walk began
+    table: np.ndarray  # the rays' origins, directions and magnitudes, a row each (gathered)
+    from_prim: np.ndarray  # (N,) the BVH primitive each ray leaves, −1 for none
+    t_out: np.ndarray  # (N,) where each ray's line leaves the BVH's box
+    start: np.ndarray  # (N,) where each ray's walk goes on from
+    last: np.ndarray  # (N,) the part of a cell each ray tested last (rounding may report a part twice)
+    rays: Rays
+    any_hit: bool  # a shadow walk: any hit before the light will do
+
+    def open_rows(self, rows: np.ndarray) -> np.ndarray:
+        """The rays of ``rows`` still walking: not blocked (a shadow ray), and with some way left before their
+        best hit (or light) and the BVH box's exit."""
+        best, start = self.best, self.start
+        if self.any_hit:
+            rows = rows[~(best.t[rows] < self.limit[rows])]
+        end = np.minimum(best.t[rows], self.t_out[rows])
+        return rows[(start[rows] < end) & (end > 0)]

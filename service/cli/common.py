@@ -35,8 +35,8 @@ def read_image(path: str) -> bytes:
     without end, such as /dev/zero, must not be read whole), the same with and without ``--server``."""
     import stat
 
+    from service.classgrade.untrusted import file_kind
     from service.settings import Settings
-    from service.submissions import file_kind
 
     limit = Settings.from_env().max_image_bytes
     try:

@@ -16,9 +16,9 @@ from service.display import ProgressBar, counted, printable
 
 def cmd_grade_class(args: argparse.Namespace) -> int:
     """Exit 0 when the batch ran (whatever the verdicts), 2 when the TA's input or set-up is unusable."""
-    from service.classgrade import grade_class
+    from service.classgrade import ClassRun, grade_class
+    from service.classgrade.errors import ClassError
     from service.cluster import ClusterError
-    from service.submissions import ClassError
 
     thresholds(args)
     if args.server and args.cluster:
@@ -26,13 +26,14 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     bar = ProgressBar(unit="pairs")
     bar.enabled = bar.enabled and not args.quiet
     try:
-        outcome = grade_class(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
-                              args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
-                              progress=bar, api_key=args.api_key,
-                              student_scenes=Path(args.student_scenes) if args.student_scenes else None,
-                              tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
-                              diagnose=not args.no_diagnosis,
-                              limits=args.limits)
+        run = ClassRun(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
+                       args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
+                       api_key=args.api_key,
+                       student_scenes=Path(args.student_scenes) if args.student_scenes else None,
+                       tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
+                       diagnose=not args.no_diagnosis,
+                       limits=args.limits)
+        outcome = grade_class(run, progress=bar)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
         raise CliError(printable(str(exc))) from None
     except OSError as exc:
@@ -48,8 +49,8 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
 
 def cmd_autograder(args: argparse.Namespace) -> int:
     """Exit 0 when the bundle is written, 2 when the TA's input is unusable (nothing is written then)."""
-    from service.autograder import build
-    from service.submissions import ClassError
+    from service.classgrade.autograder import build
+    from service.classgrade.errors import ClassError
 
     if not args.output.endswith(".zip"):
         raise CliError(f"{args.output}: Gradescope takes the autograder as a zip; name the output *.zip")

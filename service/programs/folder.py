@@ -14,7 +14,8 @@ import os
 import tarfile
 from pathlib import Path, PurePosixPath
 
-from ..submissions import Folder, UntrustedFileError
+from ..classgrade.submissions import Folder
+from ..classgrade.untrusted import UntrustedFileError
 
 #: how deep a student's folders are followed (deeper ones are skipped, as links are)
 MAX_DEPTH = 32

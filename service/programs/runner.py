@@ -20,7 +20,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..submissions import UntrustedFileError, read_untrusted
+from ..classgrade.untrusted import UntrustedFileError, read_untrusted
 from .folder import FolderTooLarge, chown_tree, copy_folder, unpack
 from .limits import Limits
 from .outcome import Reason, RunOutcome, failure

@@ -2,7 +2,7 @@
 
 ``SCENES/<task>.json`` are the tasks and ``STUDENT_SCENES/<student>/<task>.json`` (optional) a student's own
 scene for a task: both folders are the TA's.  ``SUBMISSIONS`` holds the students' files as a
-learning-management system downloads them (:mod:`service.lms`): a folder per student (Moodle's
+learning-management system downloads them (:mod:`service.classgrade.lms`): a folder per student (Moodle's
 ``<name>_<id>_assignsubmission_file_`` too) where the image of a task is ``<task>.png`` or one folder deeper
 (``frank/hw3/spheres.png``), or Canvas's flat ``<login>_<id>_<id>_<task>.png``; a name is matched regardless of
 case and of a resubmission's suffix.  A submitted file that is no PNG (``spheres.jpg``) is graded, and so
@@ -15,105 +15,25 @@ could swap for a link while the references render; every byte read from a studen
 
 from __future__ import annotations
 
-import errno
 import os
 import re
-import stat
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .lms import LAYOUTS, Owner, TaskNames, composed, file_owner, folder_owner, student_names
-
-
-class ClassError(Exception):
-    """Input of the teaching assistant's that the batch cannot use: the run stops before any grading."""
-
-
-class UntrustedFileError(ValueError):
-    """A student's file that cannot be read as a submission (a link, not a regular file, too large)."""
-
+from .errors import ClassError
+from .folders import HIDDEN, NOT_STUDENTS, hidden, is_scene, own_scenes, sorted_entries
+from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
+from .records import Batch, Pair
+from .untrusted import UntrustedFileError, read_untrusted
 
 #: extensions of images other than PNG: such a file named after a task is that task's (wrong) submission
 OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "heif", "avif"}
-#: folders an archive tool leaves beside the students' (never a student)
-NOT_STUDENTS = {"__MACOSX"}
 #: the most bytes read of a submission when no limit is given (the service's max_image_bytes)
 DEFAULT_LIMIT = 16 << 20
 SCENE_IGNORED = ("a scene among the submissions is not used (a student's own scene comes from the TA's "
                  "--student-scenes folder)")
-
-
-def file_kind(mode: int) -> str:
-    """What a file that is not a regular one is, in words (from its ``st_mode``)."""
-    return ("a symbolic link; links in submissions are not followed" if stat.S_ISLNK(mode)
-            else "a folder, not a file" if stat.S_ISDIR(mode)
-            else "a FIFO, not a regular file" if stat.S_ISFIFO(mode)
-            else "a device, not a regular file" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
-            else "not a regular file")
-
-
-def read_untrusted(path: Path | str, limit: int, dir_fd: int | None = None) -> bytes:
-    """The bytes of a file in a student's folder: a regular file, not through a link, at most ``limit`` bytes
-    (``path`` a name in the folder open as ``dir_fd``, when given).  :class:`UntrustedFileError` says why not.
-    The file is looked at before it is opened (a FIFO or a device is never opened), opened without following a
-    link and without blocking, and checked again once open (the same file, still regular); no more than
-    ``limit + 1`` bytes are ever read."""
-    try:
-        before = os.stat(path, dir_fd=dir_fd, follow_symlinks=False)
-    except OSError as exc:
-        raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
-    if not stat.S_ISREG(before.st_mode):
-        raise UntrustedFileError(file_kind(before.st_mode))
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, dir_fd=dir_fd)
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:  # (a link put in its place since it was looked at)
-            raise UntrustedFileError(file_kind(stat.S_IFLNK)) from None
-        raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "rb") as f:
-            now = os.fstat(f.fileno())
-            if not stat.S_ISREG(now.st_mode) or (now.st_dev, now.st_ino) != (before.st_dev, before.st_ino):
-                raise UntrustedFileError(f"{file_kind(now.st_mode)} (it changed while it was read)"
-                                         if not stat.S_ISREG(now.st_mode) else "changed while it was read")
-            data = f.read(limit + 1)
-    except OSError as exc:  # EIO, EISDIR, ...: the student's file, not the batch's fault
-        raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
-    if len(data) > limit:
-        raise UntrustedFileError(f"larger than the limit max_image_bytes = {limit} bytes")
-    return data
-
-
-@dataclass
-class Pair:
-    student: str
-    task: str
-    image: Path | None  # the submitted file, as the report names it; None: missing
-    scene: Path  # the student's own scene (the TA's), or the task's
-    own: bool
-    key: str | None = None  # the canonical scene hash
-    file: str | None = None  # the submitted file, relative to the student's folder (spheres.png, hw3/Spheres.PNG)
-    row: dict[str, Any] = field(default_factory=dict)
-    data: bytes | None = None  # the submitted bytes, read once, when the class was found
-    lms_id: str = ""  # the student's id in the learning-management system's export (Canvas's, Moodle's), if any
-
-
-@dataclass
-class Batch:
-    tasks: dict[str, Path]
-    students: list[str]
-    pairs: list[Pair]
-    ignored: list[tuple[str, str]]  # (file, why it is not graded)
-
-
-def _entries(folder: Path) -> list[os.DirEntry[str]]:
-    try:
-        with os.scandir(folder) as it:
-            return sorted(it, key=lambda e: e.name)
-    except OSError as exc:
-        raise ClassError(f"{folder}: cannot read: {exc.strerror or exc}") from None
 
 
 def _is_link(entry: os.DirEntry[str]) -> bool:
@@ -138,13 +58,13 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
     folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
     unusable, a submissions folder in which no student is found (or whose one folder holds the class), or a
     student's own scenes under another name than the student's."""
-    scene_files = [e for e in _entries(scenes) if e.is_file()]
-    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if _scene(e.name)}
+    scene_files = [e for e in sorted_entries(scenes) if e.is_file()]
+    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if is_scene(e.name)}
     if not tasks:
         raise ClassError(f"{scenes}: no task scenes (<task>.json)")
-    ignored = [(str(scenes / e.name), HIDDEN if _hidden(e.name) else "not a task scene (<task>.json)")
-               for e in scene_files if not _scene(e.name)]
-    own = _student_scenes(student_scenes, tasks, ignored) if student_scenes is not None else {}
+    ignored = [(str(scenes / e.name), HIDDEN if hidden(e.name) else "not a task scene (<task>.json)")
+               for e in scene_files if not is_scene(e.name)]
+    own = own_scenes(student_scenes, tasks, ignored) if student_scenes is not None else {}
     with Folder.root(submissions) as root:
         sources = _sources(root, ignored)
         if not sources:
@@ -412,42 +332,6 @@ def _student(root: Folder, source: Source, names: TaskNames, limit: int,
             for entry in entries:
                 walk.look(folder, entry, depth, given.get(entry.name) if folder is root else None)
         return walk.chosen(sorted(names.tasks), limit)
-
-
-def _hidden(name: str) -> bool:
-    """A file no one means as a scene or a student: hidden (``.DS_Store``, the ``._spheres.json`` a Mac's archive
-    leaves beside each file, an editor's ``.#spheres.json``), or an archive tool's folder (``__MACOSX``)."""
-    return name.startswith(".") or name in NOT_STUDENTS
-
-
-def _scene(name: str) -> bool:
-    return name.endswith(".json") and not _hidden(name)
-
-
-HIDDEN = "a hidden file or an archive tool's (never a scene)"
-
-
-def _student_scenes(folder: Path, tasks: dict[str, Path],
-                    ignored: list[tuple[str, str]]) -> dict[str, dict[str, Path]]:
-    """``<student>/<task>.json`` of the TA's folder of students' own scenes, by the student's name (composed, as
-    the submissions' are); a file for no task stops the run (a hidden one is ``ignored``)."""
-    out: dict[str, dict[str, Path]] = {}
-    for entry in _entries(folder):
-        if _hidden(entry.name):
-            ignored.append((str(folder / entry.name), HIDDEN))
-            continue
-        if not entry.is_dir():
-            raise ClassError(f"{folder / entry.name}: expected a folder per student (<student>/<task>.json)")
-        for file in _entries(folder / entry.name):
-            path = folder / entry.name / file.name
-            if _hidden(file.name):
-                ignored.append((str(path), HIDDEN))
-                continue
-            task = file.name[:-5] if file.name.endswith(".json") else None
-            if task not in tasks:
-                raise ClassError(f"{path}: names no task (the tasks are {', '.join(sorted(tasks))})")
-            out.setdefault(composed(entry.name), {})[task] = path
-    return out
 
 
 def _scenes_name_students(folder: Path, own: dict[str, dict[str, Path]], sources: dict[str, Source]) -> None:

@@ -6,10 +6,10 @@
 ```
 
 A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS`): an image whose one fault is that
-mistake scores the task's points less the deduction (:mod:`service.gradebook`).
+mistake scores the task's points less the deduction (:mod:`service.classgrade.gradebook`).
 
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
-teaching assistant's: a mistake in it stops the run (:class:`~service.submissions.ClassError`).
+teaching assistant's: a mistake in it stops the run (:class:`~service.classgrade.errors.ClassError`).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from schemas.errors import problems_from_validation, suggestion
 from schemas.locate import as_lines
 from tracer.variants import VARIANTS
 
+from .errors import ClassError
 from .lms import did_you_mean
-from .submissions import ClassError
 
 #: a number of the TA's: a JSON number, finite (a string "5", true or 1e400 is a mistake, not 5, 1 or infinity)
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]

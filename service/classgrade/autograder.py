@@ -29,8 +29,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .submissions import ClassError, UntrustedFileError, read_untrusted
+from .errors import ClassError
 from .taskfile import TaskSettings, load_tasks
+from .untrusted import UntrustedFileError, read_untrusted
 
 #: where Gradescope lays the autograder out, unless PHONGRAY_AUTOGRADER_ROOT says otherwise
 ROOT = "/autograder"
@@ -103,8 +104,8 @@ def _references(scenes: dict[str, bytes]) -> dict[str, bytes]:
     from schemas import SceneError
     from tracer import ImageTooLarge, encode_png, render
 
-    from .pipeline import load_scene
-    from .scenekey import scene_key
+    from ..pipeline import load_scene
+    from ..scenekey import scene_key
 
     out: dict[str, bytes] = {}
     problems: list[str] = []
@@ -130,9 +131,9 @@ def _variants(scenes: dict[str, bytes], tasks: dict[str, TaskSettings]) -> dict[
     from tracer import Renderer, encode_png
     from tracer.variants import ACCEPTED_DEFAULT, accepted_options, unchanged
 
-    from .diagnosis.accepting import file_name
-    from .pipeline import load_scene
-    from .scenekey import scene_key
+    from ..diagnosis.accepting import file_name
+    from ..pipeline import load_scene
+    from ..scenekey import scene_key
 
     out: dict[str, bytes] = {}
     for name, text in scenes.items():
@@ -176,7 +177,7 @@ def _pyproject() -> str:
         f"dependencies = {json.dumps(needs)}", "", "[project.scripts]", 'phongray = "service.cli:main"', "",
         "[tool.setuptools]", 'py-modules = ["phongray"]', "", "[tool.setuptools.packages.find]",
         f"include = {json.dumps([p + '*' for p in PACKAGES])}", "", "[tool.setuptools.package-data]",
-        'service = ["static/*", "gradescope/*"]', ""])
+        'service = ["static/*"]', '"service.classgrade" = ["gradescope/*"]', ""])
 
 
 def _script(name: str) -> bytes:
@@ -272,7 +273,8 @@ def run(root: Path) -> int:
 
 def _grade(root: Path) -> dict[str, Any]:
     """The submission graded as a class of one: its results.json, as grade-class writes it."""
-    from .classgrade import grade_class
+    from .records import ClassRun
+    from .run import grade_class
 
     course = root / "source" / COURSE
     scenes = course / "scenes"
@@ -295,8 +297,8 @@ def _grade(root: Path) -> dict[str, Any]:
             shutil.copytree(course / "references", report / "references")
         tasks_file = course / "tasks.json"
         os.environ[STORED] = str(course / "variants")  # (the pool's processes inherit it)
-        grade_class(scenes, place / "submissions", report, jobs=1, student_scenes=own,
-                    tasks_file=tasks_file if tasks_file.exists() else None)
+        grade_class(ClassRun(scenes, place / "submissions", report, jobs=1, student_scenes=own,
+                    tasks_file=tasks_file if tasks_file.exists() else None))
         return json.loads((report / "gradescope" / student.name / "results.json").read_text())
 
 
@@ -336,7 +338,7 @@ def _write(path: Path, results: dict[str, Any]) -> None:
 
 
 def main() -> int:
-    """``python -m service.autograder``: what ``run_autograder`` runs."""
+    """``python -m service.classgrade.autograder``: what ``run_autograder`` runs."""
     return run(Path(os.environ.get("PHONGRAY_AUTOGRADER_ROOT") or ROOT))
 
 

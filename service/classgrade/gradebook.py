@@ -3,8 +3,8 @@
 A pair that passes scores its task's points, a missing or invalid one 0.  A failing one scores 0, unless the
 tasks file gives its task ``deductions`` by mistake id (``{"no-shadows": 1}``) and the image's one fault is
 such a mistake: it passes against the reference rendered with that mistake (:mod:`service.diagnosis`).  It
-then scores the points less the deduction (at most the points, :mod:`service.taskfile`); an image that several
-mistakes explain alike gets the smallest of their deductions.
+then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`); an image
+that several mistakes explain alike gets the smallest of their deductions.
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[s
                   cell: Any = lambda v: v) -> str:
     """``gradebook.csv``: a row per student (their name and, from a Canvas or Moodle export, the LMS's id, to
     match on import), a column per task (its score) and the total; ``cell`` makes a text cell safe to open
-    (:func:`service.report.safe_cell`)."""
+    (:func:`service.classgrade.report.safe_cell`)."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_MINIMAL)
     writer.writerow(["student", "id", *map(cell, tasks), "total"])

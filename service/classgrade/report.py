@@ -21,9 +21,9 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from .display import counted, percent
+from ..display import counted, percent
+from ..heatmap import LEGEND
 from .gradebook import gradebook_csv, partial, totals
-from .heatmap import LEGEND
 from .taskfile import TaskSettings
 
 #: the numbers of a graded pair, in report.csv's order

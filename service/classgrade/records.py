@@ -1,0 +1,115 @@
+"""The records of class grading: the run's options, a pair of a student and a task, the job a backend grades,
+the batch of pairs found in the class's folders, and a pair's grade as the report writes it."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+
+@dataclass(frozen=True)
+class ClassRun:
+    """What ``grade-class`` is asked to do: the TA's folders, the thresholds, and where the work runs.  A
+    ``server`` (a URL) or a ``cluster`` (a Dask scheduler's address) sends the work away, else a pool of
+    ``jobs`` processes grades here; with ``limits`` the TA's scenes are held to the service's limits."""
+
+    scenes: Path
+    submissions: Path
+    report: Path
+    tolerance: float = 2.0
+    max_fraction: float = 0.001
+    jobs: int | None = None
+    server: str | None = None
+    cluster: str | None = None
+    api_key: str | None = None
+    student_scenes: Path | None = None
+    tasks_file: Path | None = None
+    cluster_wait: float = 30.0
+    limits: bool = False
+    diagnose: bool = True
+
+
+@dataclass
+class Pair:
+    """A student and a task: what the student submitted for it, the scene it is graded against, and (once
+    graded, or when nothing can be) its row of results."""
+
+    student: str
+    task: str
+    image: Path | None  # the submitted file, as the report names it; None: missing
+    scene: Path  # the student's own scene (the TA's), or the task's
+    own: bool
+    key: str | None = None  # the canonical scene hash
+    file: str | None = None  # the submitted file, relative to the student's folder (spheres.png, hw3/Spheres.PNG)
+    row: dict[str, Any] = field(default_factory=dict)
+    data: bytes | None = None  # the submitted bytes, read once, when the class was found
+    lms_id: str = ""  # the student's id in the learning-management system's export (Canvas's, Moodle's), if any
+
+
+@dataclass(frozen=True)
+class GradeJob:
+    """What a backend grades for one pair, bytes only (so that it crosses to a pool process, a Dask worker or a
+    service alike): the scene's text, its reference PNG, the submitted image, the thresholds, the task's
+    accepted variants (None: the defaults) and whether a failing image's likely mistake is named.
+
+    The submission is an image; another kind (a student's program, to be run before it is graded) would be
+    another field here, made into the image by the backend's task before the same grading."""
+
+    scene: bytes
+    reference: bytes
+    image: bytes
+    tolerance: float
+    max_fraction: float
+    accepted: dict[str, float] | None = None
+    diagnose: bool = True
+
+
+@dataclass
+class Batch:
+    """The class as found in its folders: the tasks' scenes, the students, every pair, and what was ignored."""
+
+    tasks: dict[str, Path]
+    students: list[str]
+    pairs: list[Pair]
+    ignored: list[tuple[str, str]]  # (file, why it is not graded)
+
+
+@dataclass
+class Grade:
+    """A pair's grade as the report writes it: who and what, the verdict and why, the likely mistakes, the
+    points, the thresholds, the comparison's numbers and the files beside the report.  Its fields are the
+    report's columns in their order (:data:`~service.classgrade.report.COLUMNS`); :meth:`row` is the dict
+    report.json, report.csv and the HTML are written from."""
+
+    student: str
+    lms_id: str
+    task: str
+    status: str
+    reason: str
+    likely: str | None
+    mistakes: list[str]
+    scene: str
+    file: str | None
+    passed: bool | None
+    points: float
+    score: float
+    deducted: str | None
+    tolerance: float | None
+    max_fraction: float | None
+    mean_abs_error: float | None
+    rmse: float | None
+    psnr: float | None
+    max_error: float | None
+    fraction_off: float | None
+    fraction_off_nearby: float | None
+    width: int | None
+    height: int | None
+    reference_sha256: str | None
+    reference: str | None
+    submission: str | None
+    heatmap: str | None
+
+    def row(self) -> dict[str, Any]:
+        """The grade as the report's row: its columns, in order."""
+        return asdict(self)

@@ -1,0 +1,267 @@
+"""A class graded: the TA's input checked, the references rendered, every pair graded, the report written."""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import time
+from collections.abc import Callable
+from dataclasses import astuple, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from ..diagnosis import Diagnosis, headline
+from ..settings import Settings
+from . import journal
+from .backends import Backend, open_backend
+from .checks import outside, scene_keys, writable
+from .errors import ClassError
+from .faults import run_tasks
+from .gradebook import matched, score
+from .records import Batch, ClassRun, Grade, GradeJob, Pair
+from .report import COLUMNS, summary, write_atomic, write_report
+from .submissions import discover
+from .taskfile import TaskSettings, load_tasks
+
+
+@dataclass
+class Outcome:
+    """A graded class: every pair's row (as the report has it), what was ignored, the references this run
+    rendered (the others were already in the report) and its time."""
+
+    rows: list[dict[str, Any]]
+    ignored: list[tuple[str, str]]
+    renders: int
+    seconds: float
+
+    def count(self, status: str) -> int:
+        return sum(r["status"] == status for r in self.rows)
+
+    def summary(self) -> str:
+        return summary(self.rows, self.renders, self.seconds)
+
+
+@dataclass
+class Checked:
+    """The class once the TA's input has been checked: the batch, the tasks' settings, the scene file of each
+    scene key and each file's text, the service's settings, and when the run started."""
+
+    batch: Batch
+    tasks: dict[str, TaskSettings]
+    scene_of_key: dict[str, Path]
+    texts: dict[Path, bytes]
+    settings: Settings
+    started: float
+
+
+Progress = Callable[[int, int], None]
+
+
+def grade_class(run: ClassRun, progress: Progress | None = None) -> Outcome:
+    """Grade the class; ``progress(done, total)`` is told of the pairs graded as they are.  The TA's scenes
+    are trusted: held to the service's limits (``PHONGRAY_*``) only with ``run.limits``.  Raises
+    :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a fault of
+    the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
+    started = time.perf_counter()
+    settings = Settings.from_env()
+    outside(run.report, run.submissions, run.scenes, run.student_scenes)
+    batch = discover(run.scenes, run.submissions, run.student_scenes, settings.max_image_bytes)
+    tasks = load_tasks(run.tasks_file, batch.tasks)
+    scene_of_key, texts = scene_keys(batch, settings if run.limits else None)
+    made = not run.report.exists()
+    writable(run.report)
+    try:
+        return _run(run, Checked(batch, tasks, scene_of_key, texts, settings, started), progress)
+    except Exception:
+        if made:  # a run stopped by a fault of the TA's leaves no empty report folder behind
+            with contextlib.suppress(OSError):
+                run.report.rmdir()
+        raise
+
+
+def _run(run: ClassRun, checked: Checked, progress: Progress | None) -> Outcome:
+    """:func:`grade_class` once the TA's input has been checked: render what is missing, grade, report (the
+    renders held to the service's limits with ``run.limits``)."""
+    batch, report = checked.batch, run.report
+    todo = [p for p in batch.pairs if not p.row]  # (a missing or unreadable pair has its row from discover)
+    refs = {k: report / "references" / f"{k}.png" for k in checked.scene_of_key}
+    needed = {k: checked.scene_of_key[k] for k, path in refs.items() if not _usable(path)}
+    total = len(batch.pairs)
+
+    def tick() -> None:
+        if progress:
+            progress(sum(bool(p.row) for p in batch.pairs), total)
+
+    tick()
+    from ..client import ServerError
+
+    backend = open_backend(run, len(todo) + len(needed), checked.settings if run.limits else None)
+    try:
+        references = _render_all(backend, needed, refs, checked.texts, report)
+        _grade_all(backend, run, checked, todo, references, refs, tick)
+    except ServerError as exc:  # the service went away, or stopped taking the key, in the middle of the batch
+        backend.close(wait=False)
+        raise ClassError(f"--server {run.server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
+                         f"resume") from None
+    except BaseException:
+        backend.close(wait=False)
+        raise
+    backend.close()
+    _drop_stale_references(report, refs)
+    rows = [_row(p, refs, report, checked.tasks).row() for p in batch.pairs]
+    outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - checked.started)
+    write_report(report, rows, batch.ignored, batch.students, checked.tasks, outcome.summary())
+    return outcome
+
+
+def _drop_stale_references(report: Path, refs: dict[str, Path]) -> None:
+    """An earlier run's references of scenes that are no longer the batch's (a scene changed, a task gone)
+    are removed: the report's references folder holds this batch's and no other."""
+    current = set(refs.values())
+    with contextlib.suppress(OSError):
+        for old in (report / "references").glob("*.png"):
+            if old not in current:
+                old.unlink()
+
+
+def _usable(reference: Path) -> bool:
+    """A reference an earlier run kept that decodes (one cut short, or a Git LFS pointer where a course's bundle
+    was copied from, is rendered again rather than failing every pair of its scene)."""
+    from tracer import decode_png
+
+    try:
+        decode_png(reference.read_bytes())
+    except Exception:  # (Pillow raises many kinds for a broken file; a missing one is OSError)
+        return False
+    return True
+
+
+def _kept(report: Path) -> str:
+    """What a stopped run leaves for the next: its references and grades, counted."""
+    def count(folder: str) -> int:
+        with contextlib.suppress(OSError):
+            return sum(1 for _ in (report / folder).rglob("*.json" if folder == journal.RESUME else "*.png"))
+        return 0
+
+    return f"{count('references')} references and {count(journal.RESUME)} grades are kept in {report}"
+
+
+def _render_all(backend: Backend, needed: dict[str, Path], refs: dict[str, Path], texts: dict[Path, bytes],
+                report: Path) -> dict[str, bytes]:
+    """Every reference the batch lacks, rendered and kept as each comes; one that cannot be rendered stops the
+    run (once the others are kept)."""
+    done: dict[str, bytes] = {}
+    failures = []
+
+    def keep(key: str, result: tuple[bytes | None, str]) -> None:
+        png, failure = result
+        if png is None:
+            failures.append(f"{needed[key]}: {failure}")
+        else:
+            write_atomic(refs[key], png)
+            done[key] = png
+
+    run_tasks(backend, {key: (backend.render(), (texts[scene],)) for key, scene in needed.items()}, keep,
+               lambda: _kept(report))
+    if failures:
+        raise ClassError("; ".join(sorted(failures)))
+    return done
+
+
+def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] | None:
+    """The row of a grade an earlier run finished for the same reference, the same bytes and the same
+    thresholds (with its heat-map and copy in place), or None (:mod:`service.classgrade.journal` checks the rest)."""
+    row = journal.kept(journal.path(report, pair.student, pair.task), stamp)
+    if row is not None and row["status"] in ("pass", "fail") and not all(p.exists() for p in _paths(pair, report)):
+        return None
+    return row
+
+
+def _grade_all(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pair], references: dict[str, bytes],
+               refs: dict[str, Path], tick: Callable[[], None]) -> None:
+    """Grade every pair on the backend (its bytes were read when the class was found); every file is written
+    here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
+    pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
+    about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
+    grade = backend.grade()
+    for n, pair in enumerate(todo):
+        assert pair.key is not None and pair.data is not None
+        job = _job(run, checked, pair, references.get(pair.key, b""))
+        stamp = journal.stamp(pair.key, hashlib.sha256(job.image).hexdigest(), job.tolerance, job.max_fraction)
+        if not run.diagnose:  # a grade without its likely mistake is not one a diagnosing run may take
+            stamp["diagnosis"] = False
+        if job.accepted is not None:
+            stamp["accepted"] = job.accepted
+        row = _resumed(pair, run.report, stamp)
+        if row is not None:
+            pair.row = row
+            continue
+        if pair.key not in references:
+            references[pair.key] = refs[pair.key].read_bytes()
+        pending[n] = (grade, (replace(job, reference=references[pair.key]),))
+        about[n] = (pair, job.image, stamp)
+    tick()
+
+    def keep(n: int, result: dict[str, Any]) -> None:
+        pair, image, stamp = about[n]
+        _graded(pair, result, image, run.report, stamp)
+        tick()
+
+    run_tasks(backend, pending, keep, lambda: _kept(run.report))
+
+
+def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> GradeJob:
+    """What the backend grades for a pair: its task's thresholds where the tasks file gives them, else the
+    run's."""
+    assert pair.data is not None
+    own = checked.tasks[pair.task]
+    accepted = None if own.accepted is None else {str(name): amount for name, amount in own.accepted.items()}
+    return GradeJob(checked.texts[pair.scene], reference, pair.data,
+                    run.tolerance if own.tolerance is None else own.tolerance,
+                    run.max_fraction if own.max_fraction is None else own.max_fraction,
+                    accepted, run.diagnose)
+
+
+def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stamp: dict[str, Any]) -> None:
+    """Keep a grade task's row; write its heat-map and the copy of the submission (the very bytes graded), then
+    the grade itself, for a run that resumes."""
+    if result["status"] == "invalid":
+        pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
+    else:
+        result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
+        diagnosis = result.pop("diagnosis", None)
+        result["likely"] = headline(Diagnosis.from_dict(diagnosis) if diagnosis else None)
+        result["mistakes"] = matched(diagnosis)
+        accepted = result.pop("accepted", None)
+        if accepted:  # passed as an honest tracer's variant: the reason says which
+            result["reason"] = f"as rendered with {accepted}"
+        heat, copy = _paths(pair, report)
+        write_atomic(heat, result.pop("heatmap_png"))
+        write_atomic(copy, image)
+        pair.row = result
+    journal.keep(journal.path(report, pair.student, pair.task), stamp, pair.row)
+
+
+def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
+    return (report / "heatmaps" / pair.student / f"{pair.task}.png",
+            report / "submissions" / pair.student / f"{pair.task}.png")
+
+
+def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> Grade:
+    """A pair's grade as the report writes it: its row, kept or just graded, with who, what, the points and
+    the report's files."""
+    row: dict[str, Any] = {c: None for c in COLUMNS}
+    row.update({k: v for k, v in pair.row.items() if k in row})
+    row.update(student=pair.student, task=pair.task, scene="own" if pair.own else "shared")
+    row["reason"] = row["reason"] or ""
+    row["points"] = tasks[pair.task].points
+    row["mistakes"] = row["mistakes"] or []
+    row["score"], row["deducted"] = astuple(score(row, tasks[pair.task]))
+    row["file"], row["lms_id"] = pair.file, pair.lms_id
+    ref = refs.get(pair.key or "")
+    if ref is not None and ref.exists():
+        row["reference"] = str(ref.relative_to(report))
+    if row["status"] in ("pass", "fail"):
+        heat, copy = _paths(pair, report)
+        row["heatmap"], row["submission"] = str(heat.relative_to(report)), str(copy.relative_to(report))
+    return Grade(**row)

@@ -1,0 +1,72 @@
+"""The film: a chunk's sub-samples summed in fixed point, and the pixels they make, linear or as stored bytes.
+
+Every contribution (a ray's background, a hit's direct light, times the
+weight it carries) is added as an integer in units of ``1/fixed``, so the
+sums, and the bytes of the image, do not depend on the order in which slices,
+chunks or threads deliver them.  Contributions are never negative, so a
+sub-sample at or above ``ceiling`` (twice the sub-samples of a pixel) already
+saturates its pixel and is clamped there; NaN counts as nothing.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .image import quantize
+from .variants import Options
+
+#: the most rays a slice of a chunk's ray tree holds for which the fixed-point unit is the same whatever the slice
+#: (the renderer's chunks on several threads: :data:`tracer.render.CHUNK_RAYS`): larger slices leave more room
+UNIT_RAYS = 1 << 16
+
+
+class Film:
+    """The sums of ``pixels`` pixels of ``per_pixel`` sub-samples each, added to by slices of at most
+    ``slice_rays`` rays."""
+
+    def __init__(self, pixels: int, per_pixel: int, slice_rays: int):
+        n = pixels * per_pixel
+        self.pixels, self.per_pixel = pixels, per_pixel
+        self.acc = np.zeros((3, n), dtype=np.int64).T  # (n, 3), its columns contiguous (add)
+        self.ceiling = float(2 * per_pixel)  # a sub-sample this bright saturates its pixel: sums are clamped there
+        # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum (for slices
+        # of up to UNIT_RAYS, one unit whatever the slice: the same sums, and bytes, for every size)
+        room = math.ceil(math.log2(max(slice_rays, UNIT_RAYS)))
+        self.fixed = 2.0 ** (48 - math.ceil(math.log2(self.ceiling)) - max(0, room - 14))
+
+    def add(self, index: np.ndarray, values: np.ndarray, fresh: bool = False) -> None:
+        """``acc[index] += values (len(index), 3)`` in fixed point; repeated indices are summed.
+
+        ``fresh`` says that no index repeats and that the film holds nothing yet at ``index`` (a camera ray's
+        contribution, its sample's first), so the sum is the value itself, at most ``ceiling``: a plain
+        scatter instead of ``np.add.at``."""
+        if not len(index):
+            return
+        ceiling, fixed = self.ceiling, self.fixed
+        cap = np.int64(ceiling * fixed)
+        for k in range(3):  # a column at a time: 1-D gathers and scatters
+            # clipped into 0..ceiling, NaN to 0 (fmax drops a NaN, as nan_to_num and then clip would), in place
+            v = np.fmax(values[:, k], 0.0)
+            np.fmin(v, ceiling, out=v)
+            v *= fixed
+            units = np.rint(v, out=v).astype(np.int64)
+            column = self.acc[:, k]
+            if fresh:
+                column[index] = units
+            else:
+                np.add.at(column, index, units)
+                np.minimum(column, cap, out=column)
+
+    def colour(self) -> np.ndarray:
+        """Each pixel's linear colour: the mean of its sub-samples. Shape (pixels, 3)."""
+        per_pixel = self.acc.reshape(self.pixels, self.per_pixel, 3).sum(axis=1)  # integers: exact in any order
+        return per_pixel.astype(np.float64) / (self.fixed * self.per_pixel)
+
+
+def stored(colour: np.ndarray, options: Options) -> np.ndarray:
+    """Linear colours as the image stores them: 8-bit values (:func:`tracer.image.quantize`), after gamma 1/2.2
+    in the variant that applies it, and as a variant's student stores them (:meth:`tracer.variants.Options.stored`).
+    Same shape, uint8."""
+    return options.stored(quantize(colour if not options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2)))

@@ -1,0 +1,72 @@
+"""Where every secondary ray is born: shadow rays towards a light, mirror and refracted rays.
+
+A secondary ray starts at the exact float64 hit point and carries the
+identity of the surface it leaves (:mod:`tracer.shapes`: a plane or triangle
+is never hit again, a sphere left outward never, inward only at its far
+root), with the world magnitude of its origin, which scales the rounding that
+decides whether it lies on another surface.  No epsilon moves it; only a
+variant of a student's offset (:class:`tracer.variants.Spawn`) moves it off
+the surface, as that student's tracer did.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .intersect import Hits
+from .passes import REFLECTED, REFRACTED
+from .rays import Rays, Work
+from .shading import mirror, refract
+from .variants import Options, Spawn
+from .vec import rows_of
+from .world import World, max_abs
+
+
+def picker(rows: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
+    """The rows ``rows`` of an array (None: all of them, in order, with no copy)."""
+    if rows is None:
+        return lambda a: a
+    return lambda a: rows_of(a, rows)
+
+
+class Spawner:
+    """Every secondary ray of a render: :meth:`spawn` is the one place a ray leaving a surface is made."""
+
+    def __init__(self, world: World, options: Options, offset: Spawn | None):
+        self.world, self.options = world, options
+        #: where rays start, off the surface in a variant of a student's offset (None: at the hit point)
+        self.offset = offset
+
+    def spawn(self, hit: Hits, mag: np.ndarray, rows: np.ndarray | None, dirs: np.ndarray) -> Rays:
+        """Rays along ``dirs (len(rows), 3)`` from the hit points ``rows`` of ``hit`` (None: all, in order),
+        leaving their surfaces by identity; ``mag (N,)`` the world magnitudes of all of ``hit``'s points."""
+        pick = picker(rows)
+        rays = Rays(pick(hit.point), dirs, pick(hit.kind), pick(hit.index), pick(mag))
+        if self.offset is not None:  # a student's offset: off the surface
+            rays = self.offset.leaving(rays, pick(hit.normal))
+        return rays
+
+    def magnitudes(self, hit: Hits) -> np.ndarray:
+        """The world magnitudes of the hit points, where their rays start. Shape (N,)."""
+        return max_abs(hit.point) + self.world.origin_mag
+
+    def bounce(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, work: Work) -> Work:
+        """Mirror and refracted rays of the hits whose material asks for them: the next depth's work."""
+        m = self.world.materials
+        kr, kt = m.reflectance[mat], m.transmittance[mat]
+        dirs, weight = work.rays.dirs, work.weight
+        r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
+        t = np.flatnonzero(weight * kt > 0)
+        out = np.concatenate([mirror(dirs[r], normal[r]),
+                              refract(dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted,
+                                      self.options.exit_normal_flipped)])
+        both = np.concatenate([r, t])
+        rays = self.spawn(hit, self.magnitudes(hit), both, out)
+        branch = None
+        if work.branch is not None:  # the passes follow each branch of the tree from the first hit on
+            branch = work.branch[both] if work.depth > 0 else \
+                np.concatenate([np.full(len(r), REFLECTED), np.full(len(t), REFRACTED)]).astype(np.int8)
+        return Work(rays, work.sample[both], np.concatenate([weight[r] * kr[r], weight[t] * kt[t]]), work.depth + 1,
+                    branch)
