@@ -26,6 +26,7 @@ import numpy as np
 
 import schemas
 from service.diagnosis import diagnose, renders_of
+from service.diagnosis.compose import merged
 from service.grading import grade
 from tracer import Renderer
 from tracer.variants import VARIANTS
@@ -60,7 +61,11 @@ def diagnoses(width: int, height: int) -> Iterator[tuple[str, dict[str, Any] | N
             yield f"{name}/{student}", found
 
 
-def calls(students: tuple[str, ...] = ("no-shadows", "blinn-phong", "no-ambient", "no-half-pixel"),
+#: the students of ``--calls`` unless ``--students`` says: four classic mistakes
+CALLS = ("no-shadows", "blinn-phong", "no-ambient", "no-half-pixel")
+
+
+def calls(students: tuple[str, ...] = CALLS,
           width: int = 320, height: int = 240) -> None:
     """Prints where a cold diagnosis (one thread, as a class's worker runs it) spends its time, per example and
     student: each kind of render it asks for, by variant, as seconds and as a share of the reference render."""
@@ -89,7 +94,7 @@ def calls(students: tuple[str, ...] = ("no-shadows", "blinn-phong", "no-ambient"
             reference = Renderer(scene).pixels(threads=1)
             render_s = time.perf_counter() - started
             for student in students:
-                submitted = Renderer(scene, VARIANTS[student][0]).pixels(threads=1)
+                submitted = Renderer(scene, merged(student.split("+"))).pixels(threads=1)
                 verdict = grade(reference, submitted, "")
                 spent.clear()
                 count.clear()
@@ -112,9 +117,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("file", nargs="?", type=Path, help="what the diagnoses say (JSON): written, or checked against")
     parser.add_argument("--size", default="160x120", help="the examples' size, WxH (default 160x120)")
     parser.add_argument("--calls", action="store_true", help="where one cold diagnosis spends its time, instead")
+    parser.add_argument("--students", help="with --calls: the students' mistakes, comma-separated, a student's "
+                        "several joined by + (no-shadows+gamma); default: four classic ones")
     args = parser.parse_args(argv)
     if args.calls:
-        calls()
+        calls(tuple(args.students.split(",")) if args.students else CALLS)
         return 0
     if args.action is None or args.file is None:
         parser.error("write FILE or check FILE (or --calls)")

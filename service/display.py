@@ -55,28 +55,47 @@ def _pass(result: dict[str, Any]) -> str:
 
 
 def explained(diagnosis: dict[str, Any] | None) -> list[str]:
-    """A diagnosis (:meth:`service.diagnosis.Diagnosis.as_dict`) as lines: its sentence, then the evidence."""
+    """A diagnosis (:meth:`service.diagnosis.Diagnosis.as_dict`) as lines: its sentence, then the evidence, in a
+    student's words where the diagnosis has them (objects and lights by name or place)."""
     if not diagnosis:
         return []
     lines = [diagnosis["sentence"]]
-    others = diagnosis["causes"][1:4]
-    if others:
+    causes = diagnosis["causes"]
+    if causes and causes[0].get("together"):
+        lines += [f"  {c['mistake']}: {c['evidence']}" for c in causes if c.get("evidence")]
+        causes = []
+    elif causes and causes[0].get("share") is not None and not causes[0]["passes"]:  # the nearest explanations
+        lines += [f"  also: {c['mistake']} (about {round(100 * c['share'])} %)" for c in causes[1:4]]
+        causes = []
+    if causes[1:4]:
         lines.append("  also close: " + "; ".join(f"{c['mistake']} ({percent(c['fraction_off_nearby'])} off)"
-                                                  for c in others))
+                                                  for c in causes[1:4]))
     for t in diagnosis["terms"][:3]:
-        what = t["name"] if t["light"] is None else f"{t['name']} of light {t['light']}"
-        lines.append(f"  term: {what} ×{t['scale']:.2f} of the reference's")
+        lines.append(f"  term: {_term(t)}")
     if diagnosis["objects"]:
         lines.append("  failing pixels show: " + ", ".join(
             f"{_shown(s)} {percent(s['share'])}" for s in diagnosis["objects"][:4]))
     if diagnosis["lights"]:
-        lines.append("  lit there by: " + ", ".join(f"lights[{s['index']}] ({s['kind']}) {percent(s['share'])}"
+        lines.append("  lit there by: " + ", ".join(f"{_lit(s)} {percent(s['share'])}"
                                                     for s in diagnosis["lights"][:4]))
     return lines
 
 
 def _shown(share: dict[str, Any]) -> str:
+    if share.get("words"):
+        return str(share["words"])
     return "the background" if share["index"] < 0 else f"objects[{share['index']}] ({share['kind']})"
+
+
+def _term(term: dict[str, Any]) -> str:
+    if term.get("words"):
+        return str(term["words"])
+    what = term["name"] if term["light"] is None else f"{term['name']} of light {term['light']}"
+    return f"{what} ×{term['scale']:.2f} of the reference's"
+
+
+def _lit(share: dict[str, Any]) -> str:
+    return str(share["words"]) if share.get("words") else f"lights[{share['index']}] ({share['kind']})"
 
 
 def _clock(seconds: float) -> str:

@@ -302,7 +302,9 @@ def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
     assert page.inner_text("#verdict").startswith("FAIL: ") and "off even nearby" in page.inner_text("#verdict")
     legend = page.inner_text("#legend")
     assert "brighter than the reference" in legend and "darker than the reference" in legend
-    assert page.is_visible("#diagnosis") and page.inner_text("#likely").startswith("Likely: the ")
+    # (a light left out: no mistake fits; most of the difference is that light's terms, in a student's words)
+    assert page.is_visible("#diagnosis") and page.inner_text("#likely").startswith(
+        ("Likely: the ", "No known mistake fits exactly: most of the difference is the "))
     unshadowed = tmp_path / "unshadowed.png"
     unshadowed.write_bytes(variant_png(SCENE, "no-shadows"))
     page.set_input_files("#upload", str(unshadowed))
@@ -310,7 +312,7 @@ def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
                            timeout=30_000)
     page.wait_for_function("() => { const i = document.getElementById('grade-heat-map'); "
                            "return i && i.naturalWidth === 160; }", timeout=20_000)
-    assert "failing pixels show: objects[" in page.inner_text("#evidence")
+    assert "failing pixels show: the first " in page.inner_text("#evidence")  # (objects by place and kind)
     shot(page, "playground-grade.png", tmp_path)
     assert page.outside == []
     page.close()

@@ -232,3 +232,25 @@ def test_the_diagnosis_passes_hold_the_images_own_colour():
     assert np.array_equal(quantize(got["colour"]), Renderer(scene).pixels(chunk_rays=256))
     lights = [k for k, light in enumerate(scene.lights) if light.type != "ambient"]
     assert sum(got[f"diffuse:{k}"] for k in lights) == pytest.approx(got["diffuse"], abs=1e-12)
+
+
+def _image_peak(side: int) -> int:
+    """The peak of memory (traced) rendering a ``side``² image on one thread."""
+    import tracemalloc
+
+    data = scene_dict("01_three_spheres")
+    data["image"].update(width=side, height=side)
+    renderer = Renderer(schemas.validate_scene(data))
+    tracemalloc.start()
+    try:
+        renderer.pixels(threads=1)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_an_image_holds_its_own_bytes_not_every_pixels_number():
+    # the image is 3 bytes a pixel; its pixel numbers as int64 would be 8 more a pixel if held whole (they were,
+    # for a while): what grows with the image must be the image, the chunks' work does not grow
+    grown = (1024 * 1024 - 512 * 512) * 3
+    assert _image_peak(1024) - _image_peak(512) < 1.5 * grown

@@ -19,6 +19,8 @@ from .film import UNIT_RAYS
 
 T = TypeVar("T")
 R = TypeVar("R")
+#: the pixels of a chunk: their numbers (row by row from the top left), or a range of them
+Pixels = np.ndarray | range
 
 #: rays per chunk on several threads: large enough for NumPy to be efficient (and for its long loops, which let
 #: go of the GIL, to outweigh the interpreter's share), small enough to bound memory.  Measured on two threads:
@@ -46,9 +48,16 @@ class Run:
     per_chunk: int
 
 
-def parts_of(pixel: np.ndarray, per_chunk: int) -> list[np.ndarray]:
-    """``pixel`` cut into chunks of at most ``per_chunk`` pixels, in order."""
+def parts_of(pixel: Pixels, per_chunk: int) -> list[Pixels]:
+    """``pixel`` cut into chunks of at most ``per_chunk`` pixels, in order.  A ``range`` of pixels stays a
+    range, chunk by chunk: a whole image's pixel numbers are never held at once (as int64 they would be 8 bytes
+    a pixel, more than the 3 of the image itself); :func:`pixel_numbers` makes a chunk's when it is traced."""
     return [pixel[a:a + per_chunk] for a in range(0, len(pixel), per_chunk)]
+
+
+def pixel_numbers(part: Pixels) -> np.ndarray:
+    """The pixel numbers of a chunk, as int64."""
+    return np.arange(part.start, part.stop, dtype=np.int64) if isinstance(part, range) else part
 
 
 def ordered(work: Callable[[T], R], parts: list[T], workers: int) -> Iterable[R]:

@@ -20,7 +20,7 @@ from schemas import Scene
 from .best import NO_HIT
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
-from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Run, chunking, ordered, parts_of
+from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Pixels, Run, chunking, ordered, parts_of, pixel_numbers
 from .direct import DirectLight, Meter, light_groups
 from .film import Film, stored
 from .intersect import PLANE, SPHERE, TRIANGLE, Intersector
@@ -151,7 +151,7 @@ class Renderer:
         if not 0 <= top <= bottom <= img.height:
             raise ValueError(f"rows {top}..{bottom} are not within 0..{img.height}")
         run = self._begin(threads, chunk_rays, cancel, budget)
-        pixel = np.arange(top * img.width, bottom * img.width, dtype=np.int64)
+        pixel = range(top * img.width, bottom * img.width)
         self._count.plan(len(pixel) * img.samples * img.samples)
         out = np.empty((len(pixel), 3), dtype=np.uint8)
         done = 0
@@ -195,7 +195,7 @@ class Renderer:
         s = img.samples * img.samples
         whole: dict[str, np.ndarray] = {}
 
-        def work(part: np.ndarray) -> dict[str, np.ndarray]:
+        def work(part: Pixels) -> dict[str, np.ndarray]:
             tally = Tally(tuple(names), len(part) * s, s, light, self.emitter_light)
             self.chunk(0, len(part), tally, pixels=part)
             return tally.result((len(part), s), counted)
@@ -206,7 +206,7 @@ class Renderer:
                     whole[name] = np.empty((total, *part.shape[1:]), dtype=part.dtype)
                 whole[name][first:first + len(part)] = part
 
-        self._drive(parts_of(np.arange(total, dtype=np.int64), run.per_chunk), work, run, each)
+        self._drive(parts_of(range(total), run.per_chunk), work, run, each)
         return {name: whole[name].reshape(img.height, img.width, *whole[name].shape[1:]) for name in names}
 
     def diagnosis_passes(self, threads: int | None = None, chunk_rays: int | None = None,
@@ -230,11 +230,10 @@ class Renderer:
         s = img.samples * img.samples
         terms = len(ADDITIVE) + 2 + 2 * len(set(self.emitter_light.tolist()))  # planes of a chunk's tally
         per_chunk = max(1, min(run.per_chunk, TALLY_BYTES // (terms * 3 * 8 * s)))
-        picked = np.arange(img.width * img.height, dtype=np.int64) if pixels is None else \
-            np.asarray(pixels, dtype=np.int64)
+        picked: Pixels = range(img.width * img.height) if pixels is None else np.asarray(pixels, dtype=np.int64)
         names = ("object", *LIGHT_TERMS) if first_hits else (*ADDITIVE, "object")
 
-        def work(part: np.ndarray) -> dict[str, np.ndarray]:
+        def work(part: Pixels) -> dict[str, np.ndarray]:
             tally = Tally(names, len(part) * s, s, None, self.emitter_light, by_light=True)
             colour = self.chunk(0, len(part), tally, pixels=part, depth=0 if first_hits else None)
             if not first_hits:  # (with the camera rays alone, not the image's colour)
@@ -262,18 +261,18 @@ class Renderer:
         self.slice_rays = rays
         return Run(workers, max(1, rays // (self.scene.image.samples ** 2)))
 
-    def _stored(self, part: np.ndarray) -> np.ndarray:
+    def _stored(self, part: Pixels) -> np.ndarray:
         """The stored bytes of the pixels ``part``. Shape (len(part), 3), uint8."""
         return stored(self.chunk(0, len(part), pixels=part), self.options)
 
-    def _drive(self, parts: list[np.ndarray], work: Callable[[np.ndarray], R], run: Run,
+    def _drive(self, parts: list[Pixels], work: Callable[[Pixels], R], run: Run,
                each: Callable[[int, R], None] | None = None) -> list[R]:
         """``work`` of every chunk of pixels, on up to ``run.workers`` threads, at most that many chunks ahead of
         the one handed on; each result goes to ``each(first, result)`` in order (``first``: the position of the
         chunk's first pixel), or, without ``each``, all are returned in order.  Every chunk polls the render's
         stop first, which raises :class:`RenderCancelled` or :class:`OverBudget`, and the render ends there."""
 
-        def polled(part: np.ndarray) -> R:
+        def polled(part: Pixels) -> R:
             self._stop()
             return work(part)
 
@@ -287,7 +286,7 @@ class Renderer:
         return kept
 
     # -- one chunk: the stage order ----------------------------------------------------------------------------
-    def chunk(self, start: int, stop: int, tally: Tally | None = None, pixels: np.ndarray | None = None,
+    def chunk(self, start: int, stop: int, tally: Tally | None = None, pixels: Pixels | None = None,
               depth: int | None = None) -> np.ndarray:
         """Linear colour of pixels ``start..stop`` (mean of their sub-samples), or of the pixels ``pixels`` (then
         ``stop − start`` of them). Shape (stop − start, 3).
@@ -304,7 +303,8 @@ class Renderer:
         s = self.scene.image.samples ** 2
         deepest = self.max_depth if depth is None else min(depth, self.max_depth)
         with np.errstate(all="ignore"):
-            origins, dirs = self.camera.rays(start, stop) if pixels is None else self.camera.rays_of(pixels)
+            origins, dirs = self.camera.rays(start, stop) if pixels is None else \
+                self.camera.rays_of(pixel_numbers(pixels))
             n = len(origins)
             self._count("primary", n)
             film = Film(stop - start, s, self.slice_rays)

@@ -24,10 +24,14 @@ MISTAKES = {name: words for name, (_, words) in VARIANTS.items()}
 
 def matched(diagnosis: dict[str, Any] | None) -> list[str]:
     """The ids of the mistakes a failing image matches (passes against the reference rendered with each), best
-    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it."""
+    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it; mistakes made together are
+    one id, ``no-shadows+gamma`` (two faults: each one's deduction is taken, see :func:`score`)."""
     if not diagnosis:
         return []
-    return [c["variant"] for c in diagnosis.get("causes", []) if c.get("passes")]
+    causes = [c for c in diagnosis.get("causes", []) if c.get("passes")]
+    if causes and causes[0].get("together"):  # mistakes made together: one id for them all
+        return ["+".join(c["variant"] for c in causes)]
+    return [c["variant"] for c in causes]
 
 
 @dataclass(frozen=True)
@@ -42,11 +46,20 @@ def score(row: dict[str, Any], task: TaskSettings) -> Score:
         return Score(task.points)
     if row["status"] != "fail":
         return Score(0.0)
-    options = sorted((task.deductions[m], m) for m in row.get("mistakes") or [] if m in task.deductions)
+    options = sorted((less, m) for m in row.get("mistakes") or [] if (less := _deduction(m, task)) is not None)
     if not options:
         return Score(0.0)
     least, mistake = options[0]
     return Score(max(0.0, task.points - least), mistake)
+
+
+def _deduction(mistake: str, task: TaskSettings) -> float | None:
+    """What the task deducts for a mistake, or for mistakes made together (``a+b``) the sum of each one's: None
+    when one of them has no deduction (the image then scores nothing, as an unnamed fault does)."""
+    parts = mistake.split("+")
+    if any(part not in task.deductions for part in parts):
+        return None
+    return sum(task.deductions[part] for part in parts)
 
 
 def partial(row: dict[str, Any]) -> str:

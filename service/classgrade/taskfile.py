@@ -5,8 +5,8 @@
  "glass": {"accepted": {"normal-offset": 0.002}}}
 ```
 
-A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS`): an image whose one fault is that
-mistake scores the task's points less the deduction (:mod:`service.classgrade.gradebook`).
+A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS` and ``MORE_VARIANTS``): an image whose
+one fault is that mistake scores the task's points less the deduction (:mod:`service.classgrade.gradebook`).
 
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
 teaching assistant's: a mistake in it stops the run (:class:`~service.classgrade.errors.ClassError`).
@@ -22,7 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 from schemas import SceneError, parse_json
 from schemas.errors import problems_from_validation, suggestion
 from schemas.locate import as_lines
-from tracer.variants import VARIANTS
+from tracer.variants import MORE_VARIANTS, VARIANTS
 
 from .errors import ClassError
 from .lms import did_you_mean
@@ -79,10 +79,11 @@ def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSetti
 def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> None:
     """Every deduction names a mistake the diagnosis knows and takes at most the task's points (else the
     run stops, naming the place; a misspelt id with the nearest one)."""
-    problems = [(f"{task}.deductions.{mistake}", f"no such mistake{did_you_mean(mistake, VARIANTS)} (the ids "
+    known = {**VARIANTS, **MORE_VARIANTS}
+    problems = [(f"{task}.deductions.{mistake}", f"no such mistake{did_you_mean(mistake, known)} (the ids "
                                                  f"are in docs/grading.md)")
                 for task, settings in sorted(given.items()) for mistake in settings.deductions
-                if mistake not in VARIANTS]
+                if mistake not in known]
     problems += [(f"{task}.deductions.{mistake}", f"must be ≤ the task's points, {settings.points:g}"
                                                   + ("" if "points" in settings.model_fields_set else
                                                      " (points not given: the default)"))

@@ -27,10 +27,12 @@ import numpy as np
 from tracer.variants import BOUNDS, VARIANTS
 
 from ..grading import Grade, grade
+from .compose import stored_only
 from .fit import fit_terms
 from .looks import bound_unless_outside, off_at_least, outside_at_least, speckled, whole_unless_off
 from .records import Cause, Diagnosis
 from .renders import Renders
+from .together import closer, combined, nearest_causes, together_causes
 from .where import where
 
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
@@ -52,17 +54,34 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
     out = Diagnosis()
     if verdict.passed:
         return out
-    scoring = _Scoring(reference, submitted, verdict, renders)
-    later, later_bounds = scoring.first_round()
-    if not any(c.passes for c in scoring.scored):  # then the closest is named: score what may come closest
-        scoring.closest_round(later, later_bounds)
-    out.causes, out.closest = scoring.named()
-    if not any(c.passes for c in out.causes):  # a mistake that explains the image leaves no term to fit
-        renders.check()
-        out.terms = fit_terms(submitted, renders)
+    stored = stored_only(reference, submitted, verdict)  # (grey, mirrored, BGR: found with no render)
+    if stored is not None:
+        out.causes = together_causes(stored)
+    else:
+        _named(out, reference, submitted, verdict, renders)
     renders.check()
     out.objects, out.lights = where(reference, submitted, verdict, renders)
-    return out
+    return out if renders.names is None else out.worded(renders.names)
+
+
+def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> None:
+    """``out``'s causes (and terms): a single classic mistake passed against; else the terms out of scale, then
+    mistakes made together (one render); else the closest; else the nearest explanations."""
+    scoring = _Scoring(reference, submitted, verdict, renders)
+    later, later_bounds = scoring.first_round()
+    if any(c.passes for c in scoring.scored):
+        out.causes, out.closest = scoring.named()
+        return
+    renders.check()
+    out.terms = fit_terms(submitted, renders)
+    together = combined(reference, submitted, verdict, renders, out.terms)
+    if together is not None and together.passes:  # (mistakes that explain the image leave no term to fit)
+        out.causes, out.terms = together_causes(together), []
+        return
+    scoring.closest_round(later, later_bounds)  # the closest is named: score what may come closest
+    out.causes, out.closest = closer(together, *scoring.named(), verdict)
+    if not out.causes:
+        out.causes = nearest_causes(reference, submitted, verdict, renders, out.terms)
 
 
 class _Scoring:

@@ -60,7 +60,7 @@ def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
                 whole |= {f"{t}:{k}": own[t].reshape(-1, 3) for t in ("diffuse", "specular")}
         fit.fold(0, whole)
     free, coef = fit.solve()
-    terms = [Term(columns[i][0], columns[i][1], float(c)) for i, c in zip(free, coef)
+    terms = [Term(columns[i][0], columns[i][1], float(c), fit.share(i, float(c))) for i, c in zip(free, coef)
              if abs(c - 1.0) > TERM_SLACK]
     return sorted(terms, key=lambda t: -abs(t.scale - 1.0))
 
@@ -76,6 +76,8 @@ class _Fit:
         self.gram: np.ndarray | None = None  # once they are not: MᵀM of M = [terms | submission], (n + 1, n + 1)
         self.energy = np.zeros(len(names))
         self.used = 0
+        self.magnitude = np.zeros(len(names))  # Σ |term| over the used values, per term
+        self.gap = 0.0  # Σ |submission − reference| over the used values
 
     def fold(self, first: int, part: dict[str, np.ndarray]) -> None:
         self.check()
@@ -89,6 +91,8 @@ class _Fit:
         a = np.stack([c[use] for c in cols], axis=1)
         b = sub[use]
         self.used += count
+        self.magnitude += np.abs(a).sum(axis=0)
+        self.gap += float(np.abs(b - a.sum(axis=1)).sum())
         if self.gram is None:
             self.rows.append(a)
             self.values.append(b)
@@ -100,6 +104,11 @@ class _Fit:
         self.energy += a.sum(axis=0)
         m = np.column_stack([a, b])
         self.gram += m.T @ m
+
+    def share(self, term: int, scale: float) -> float:
+        """How much of the submission's difference from the reference (Σ |difference| over the used values) term
+        ``term`` at ``scale`` accounts for: |scale − 1| × Σ |term|, at most all of it."""
+        return min(1.0, abs(scale - 1.0) * float(self.magnitude[term]) / self.gap) if self.gap > 0 else 0.0
 
     def solve(self) -> tuple[list[int], np.ndarray]:
         """The terms freed and their coefficients."""

@@ -3,21 +3,34 @@ are, and the words for it (a sentence for a person, a headline for a report's ce
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
-from ..display import percent
+from tracer.variants import SENTENCES
 
-#: a term fitted below this is missing, not just too weak
-MISSING = 0.05
+from ..display import percent
+from .words import Names, nearest_sentence, term_sentence, together_sentence
 
 
 @dataclass(frozen=True)
 class Cause:
-    variant: str  # a name of tracer.variants.VARIANTS
-    mistake: str  # what the student did, in words
-    fraction_off_nearby: float  # the submission against the reference rendered with the mistake
+    #: a name of tracer.variants.VARIANTS or MORE_VARIANTS; for a nearest explanation that is a term,
+    #: ``term:NAME`` or ``term:NAME:LIGHT`` (``term:specular:1``)
+    variant: str
+    mistake: str  # what the student did, in words (a nearest explanation: what the difference is)
+    fraction_off_nearby: float  # the submission against the reference rendered with the mistake (or mistakes)
     passes: bool  # the submission passes against that render
+    together: list[str] = field(default_factory=list)  # the other mistakes it was rendered with (a combination)
+    share: float | None = None  # of the submission's difference from the reference, what this accounts for
+    evidence: str = ""  # why it is named, in words
+
+    def as_dict(self) -> dict[str, Any]:
+        """As JSON: the four first fields always, the others only when set (a single mistake's are as before)."""
+        out = asdict(self)
+        for key, empty in (("together", []), ("share", None), ("evidence", "")):
+            if out[key] == empty:
+                del out[key]
+        return out
 
 
 @dataclass(frozen=True)
@@ -25,6 +38,8 @@ class Term:
     name: str  # "ambient", "diffuse", "specular", ... ; light-specific ones name their light
     light: int | None  # index in scene.lights, or None
     scale: float  # the fitted coefficient: 1 is right
+    share: float | None = None  # of the submission's difference from the reference, what this term accounts for
+    words: str = ""  # for a student: "the specular of light 'key' is missing"
 
 
 @dataclass(frozen=True)
@@ -32,6 +47,7 @@ class Share:
     index: int  # index in scene.objects (or scene.lights)
     kind: str  # the object's or light's type
     share: float  # of the failing pixels
+    words: str = ""  # for a student: "sphere 'ball'", "the third light (area)"
 
 
 @dataclass
@@ -43,33 +59,59 @@ class Diagnosis:
     lights: list[Share] = field(default_factory=list)
     unavailable: str | None = None  # why no diagnosis could be made (:func:`unavailable`); None: it was made
 
+    @property
+    def together(self) -> bool:
+        """The causes are mistakes made together (rendered at once)."""
+        return bool(self.causes and self.causes[0].together)
+
+    @property
+    def nearest(self) -> bool:
+        """The causes are only the nearest explanations: none passed against, none the closest."""
+        return bool(self.causes) and not self.closest and not any(c.passes for c in self.causes)
+
     def sentence(self) -> str:
-        """One sentence for a person: the likely mistake and the evidence, that nothing fits, or why there is no
-        diagnosis."""
+        """One sentence for a person: the likely mistake (or mistakes made together) and the evidence, the
+        nearest explanation, or why there is no diagnosis."""
         if self.unavailable is not None:
             return f"No diagnosis: {self.unavailable}"
+        if self.nearest:
+            return nearest_sentence(self.causes[0].mistake, self.causes[0].share or 0.0)
+        if self.together:
+            first = self.causes[0]
+            return together_sentence([c.mistake for c in self.causes], first.fraction_off_nearby, first.passes)
         if self.causes:
             c = self.causes[0]
             how = "matches" if not self.closest else "comes closest to"
+            advice = f". {SENTENCES[c.variant]}" if c.variant in SENTENCES else ""  # (a new mistake's advice)
             return (f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake "
-                    f"({percent(c.fraction_off_nearby)} of pixels off)")
+                    f"({percent(c.fraction_off_nearby)} of pixels off){advice}")
         if self.terms:
-            return f"Likely: {term_words(self.terms[0])} (about ×{self.terms[0].scale:.2f} of the reference's)"
+            return f"Likely: {term_words(self.terms[0])}"
         return "No known mistake fits: compare the heat-map with the reference"
 
     def headline(self) -> str:
-        """A few words for a report's cell: the likely mistake, the term out of scale, that nothing fits, or why
-        there is no diagnosis."""
+        """A few words for a report's cell: the likely mistake (mistakes made together joined by +), the nearest
+        explanation, the term out of scale, that nothing fits, or why there is no diagnosis."""
+        if self.nearest:
+            return "nearest: " + self.causes[0].mistake
         if self.causes:
-            return self.causes[0].mistake + (" (closest)" if self.closest else "")
+            shown = self.causes if self.together else self.causes[:1]
+            return " + ".join(c.mistake for c in shown) + (" (closest)" if self.closest else "")
         if self.terms:
-            return f"{term_words(self.terms[0])} (×{self.terms[0].scale:.2f})"
+            return term_words(self.terms[0])
         return self.sentence() if self.unavailable is not None else "no known mistake fits"
+
+    def worded(self, names: Names) -> Diagnosis:
+        """This diagnosis with its terms, objects and lights in a student's words (names in quotes, or places)."""
+        self.terms = [replace(t, words=term_sentence(t.name, t.light, t.scale, names)) for t in self.terms]
+        self.objects = [replace(s, words=names.object(s.index)) for s in self.objects]
+        self.lights = [replace(s, words=names.light(s.index)) for s in self.lights]
+        return self
 
     def as_dict(self) -> dict[str, Any]:
         """As the service and the command line give it (JSON): the sentence, then the evidence."""
         return {"sentence": self.sentence(), "closest": self.closest,
-                "causes": [asdict(c) for c in self.causes], "terms": [asdict(t) for t in self.terms],
+                "causes": [c.as_dict() for c in self.causes], "terms": [asdict(t) for t in self.terms],
                 "objects": [asdict(s) for s in self.objects], "lights": [asdict(s) for s in self.lights]}
 
     @classmethod
@@ -82,10 +124,11 @@ class Diagnosis:
 
 
 def term_words(term: Term) -> str:
-    """``the diffuse of light 1 term is missing`` for a term."""
-    what = term.name if term.light is None else f"{term.name} of light {term.light}"
-    how = "missing" if term.scale < MISSING else "too strong" if term.scale > 1 else "too weak"
-    return f"the {what} term is {how}"
+    """A term out of scale in words: its student's words when it has them ("the specular of light 'key' is
+    missing"), else by index ("the diffuse of lights[1] is twice as bright as the reference's")."""
+    if term.words:
+        return term.words
+    return term_sentence(term.name, term.light, term.scale, Names((), ()))
 
 
 def headline(found: Diagnosis | None) -> str:

@@ -10,10 +10,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from tracer.passes import ADDITIVE, LIGHT_TERMS
-from tracer.variants import BOUNDS, REFERENCE, VARIANTS, Options, unchanged
+from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
 
 from .fit import FIT_BLOCK_PIXELS
 from .renders import Renders
+from .words import names_of
 
 if TYPE_CHECKING:
     from tracer import Renderer
@@ -45,8 +46,14 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     made.out = Renders(made.variant, made.of, [light.type for light in scene.lights],
                        [obj.type for obj in scene.objects], made.bound, rows=made.rows, bound_rows=made.bound_rows,
                        at=made.at, unchanged=made.unchanged, done=made.done, cancel_in_thread=made.cancel_in_thread,
-                       blocks=made.blocks, nbytes=made.nbytes, polled=made.polled)
+                       blocks=made.blocks, nbytes=made.nbytes, polled=made.polled, render=made.render,
+                       names=names_of(scene))
     return made.out
+
+
+def options_of(name: str) -> Options:
+    """The options of a classic mistake (:data:`VARIANTS`) or a new one (:data:`MORE_VARIANTS`)."""
+    return VARIANTS[name][0] if name in VARIANTS else MORE_VARIANTS[name][0]
 
 
 class SceneRenders:
@@ -201,7 +208,7 @@ class SceneRenders:
             elif name in self.kept:  # the rows not yet rendered
                 self.rows(name, np.arange(self.height))
             else:
-                variants[name] = self.prepared(VARIANTS[name][0]).pixels(threads=self.threads, cancel=self.polled())
+                variants[name] = self.prepared(options_of(name)).pixels(threads=self.threads, cancel=self.polled())
         return variants[name]
 
     def kept_rows(self, key: str, name: str, options: Options, wholes: dict[str, np.ndarray],
@@ -227,9 +234,15 @@ class SceneRenders:
         return np.stack([have[r] for r in numbers.tolist()])
 
     def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        """Rows of a classic mistake's render (:data:`VARIANTS`), or of a new one's (:data:`MORE_VARIANTS`), kept."""
         if name in self.variants or (name in DERIVED and self.made_whole()) or self.unchanged(name):
             return self.variant(name)[numbers]
-        return self.kept_rows(name, name, VARIANTS[name][0], self.variants, numbers)
+        return self.kept_rows(name, name, options_of(name), self.variants, numbers)
+
+    def render(self, options: Options) -> np.ndarray:
+        """The whole image with ``options`` (mistakes made together): rendered each time it is asked for (a
+        combination is confirmed once per diagnosis, and rarely the same twice)."""
+        return self.prepared(options).pixels(threads=self.threads, cancel=self.polled())
 
     def bound(self, name: str) -> np.ndarray:
         if name not in self.bounds:

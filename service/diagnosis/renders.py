@@ -10,6 +10,9 @@ import numpy as np
 
 if TYPE_CHECKING:
     from tracer.render import Fold
+    from tracer.variants import Options
+
+    from .words import Names
 
 
 @dataclass
@@ -55,4 +58,9 @@ class Renders:
 
     #: the current thread's cancel (set by ``cancel_in_thread``), else ``cancel``
     polled: Callable[[], Callable[[], bool] | None] | None = None
+    #: options → the whole image rendered with them (mistakes made together, :mod:`.compose`); None: no
+    #: combination is tried
+    render: Callable[[Options], np.ndarray] | None = None
+    #: how a student is told of the scene's objects and lights (:mod:`.words`); None: by index
+    names: Names | None = None
 

@@ -51,23 +51,34 @@ class GradeAnswer(BaseModel):
 
 
 class Cause(BaseModel):
-    variant: str = Field(examples=["no-shadows"], description="a classic mistake's name")
+    variant: str = Field(examples=["no-shadows"], description="a mistake's id; for a nearest explanation that is "
+                                                              "a term, term:NAME or term:NAME:LIGHT")
     mistake: str = Field(examples=["no shadow rays"])
     fraction_off_nearby: float = Field(description="the submission graded against the reference rendered with "
-                                                   "the mistake")
+                                                   "the mistake (with the others of a combination)")
     passes: bool = Field(description="the submission passes against that render")
+    together: list[str] | None = Field(None, description="the other mistakes it was rendered with (mistakes made "
+                                                         "together); absent for a single mistake")
+    share: float | None = Field(None, description="of the submission's difference from the reference, what this "
+                                                  "accounts for (a combination's or a nearest explanation's)")
+    evidence: str | None = Field(None, description="why it is named, in words")
 
 
 class Term(BaseModel):
     name: Literal["background", "ambient", "diffuse", "specular", "reflection", "refraction"]
     light: int | None = Field(description="the index in lights of a light's own term")
     scale: float = Field(description="the fitted coefficient against the reference's term: 1 is right")
+    share: float | None = Field(None, description="of the submission's difference from the reference, what this "
+                                                  "term accounts for")
+    words: str = Field("", examples=["the specular of light 'key' is missing"], description="for a student")
 
 
 class Share(BaseModel):
     index: int = Field(description="the index in objects (or lights); -1 for the background")
     kind: str
     share: float = Field(description="of the failing pixels")
+    words: str = Field("", examples=["sphere 'ball'", "the third light (area)"],
+                       description="for a student: its name in quotes, else its place and kind")
 
 
 class Diagnosis(BaseModel):

@@ -1,0 +1,354 @@
+"""Mistakes that come together: which two or three mistakes made a failing image, confirmed by one render.
+
+A student with two bugs fails against the reference rendered with either one.  Rendering every combination of
+the mistakes would cost a render per pair; instead the failing image itself says which to try:
+
+* **Image-level mistakes** (the image flipped, mirrored left to right, stored as grey, with red and blue
+  swapped, gamma 1/2.2) are tried on the reference's own pixels, with no render: each is a change of the stored
+  image (:data:`OUTER`), and every subset of them is compared with the submission at once.  Those found are
+  undone on the submission (flips and the channel swap) or applied to what it is compared with (grey, gamma).
+* **Render-level mistakes** change the light of the image; what each changes is taken from rows of its render
+  that the single-mistake diagnosis already looked at (:attr:`Looks.rows`).  The differences of mistakes
+  made together add up, all but exactly (each mistake changes one term of a sum of terms): the submission
+  less the reference is fitted with the sum of the differences of one, two or three mistakes, on those rows.
+  The new mistakes of :data:`tracer.variants.MORE_VARIANTS` are looked at only where the term fit points to
+  them (:func:`pointed`): the fit says which to try.
+* **One render** of the merged options (:func:`merged`) confirms the combination with the grade's own
+  measure, or leaves it the closest.
+
+When nothing fits, :func:`nearest` ranks the explanations by how much of the difference each accounts for.
+Pure: the renders come in through a :class:`Looks`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, replace
+from itertools import combinations
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
+
+from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
+
+if TYPE_CHECKING:
+    from ..grading import Grade
+
+#: every mistake that may be named: name → (options, what the student did)
+ALL: dict[str, tuple[Options, str]] = {**VARIANTS, **MORE_VARIANTS}
+#: a further render-level mistake is added to a combination when it leaves at most this share of the mean
+#: difference the combination without it leaves (each mistake of a combination accounts for a real part)
+ADD_AT_MOST = 0.7
+#: ... and makes the mean difference at least this much smaller, in 8-bit levels beyond the tolerance: more than
+#: the rounding of a float sum, so that a mistake that changes nothing in those rows is never added
+ADD_LEVELS = 1e-6
+#: at most this many render-level mistakes together
+MAX_TOGETHER = 3
+#: a nearest explanation that accounts for less of the difference than this accounts for nothing a person sees
+NOTHING = 0.01
+
+
+@dataclass(frozen=True)
+class Looks:
+    """What a composition needs of the scene: rows of a mistake's render, one whole render of merged options,
+    and which mistakes the scene can show at all."""
+
+    rows: Callable[[str, np.ndarray], np.ndarray]  # a name of ALL, row numbers → those rows, (k, W, 3) uint8
+    render: Callable[[Options], np.ndarray]  # options → the whole image (H, W, 3) uint8
+    shown: Callable[[str], bool]  # name → whether the scene can show the mistake (else it renders the reference)
+    lights: tuple[str, ...]  # the scene's light types, in order
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """A term of the fit out of scale (as :func:`service.diagnosis.fit_terms` finds them)."""
+
+    name: str  # "ambient", "diffuse", "specular", "reflection", "refraction", "background"
+    light: int | None  # index in scene.lights, or None
+    scale: float  # the fitted coefficient: 1 is right
+
+
+@dataclass(frozen=True)
+class Member:
+    """One mistake of a combination, with its evidence: how much of the difference it accounts for."""
+
+    variant: str
+    mistake: str
+    share: float  # of the submission's mean difference from the reference, what adding it takes away
+    evidence: str  # in words: why it was tried
+
+
+@dataclass(frozen=True)
+class Combination:
+    """Mistakes made together, and the submission graded against the reference rendered with all of them."""
+
+    members: tuple[Member, ...]
+    fraction_off_nearby: float
+    passes: bool
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(m.variant for m in self.members)
+
+
+def merged(names: tuple[str, ...] | list[str]) -> Options:
+    """The options of mistakes made together: the changed fields of each mistake's options, on the reference's.
+    ValueError for two that change one field differently (one bounce too many and too few)."""
+    update: dict[str, object] = {}
+    for name in names:
+        options = ALL[name][0]
+        for f in fields(options):
+            value = getattr(options, f.name)
+            if value != getattr(REFERENCE, f.name):
+                if update.get(f.name, value) != value:
+                    raise ValueError(f"{name} and another mistake both change {f.name}")
+                update[f.name] = value
+    return replace(REFERENCE, **update)  # type: ignore[arg-type]
+
+
+def compatible(names: tuple[str, ...]) -> bool:
+    """Whether the mistakes can be made together (no field changed two ways)."""
+    try:
+        merged(names)
+    except ValueError:
+        return False
+    return True
+
+
+# -- which render-level mistakes to try: the term fit points to the new ones ---------------------------------------
+
+#: the term fit's slack: a coefficient further than this from 1 is out of scale
+SLACK = 0.15
+
+
+def pointed(terms: list[Fitted], lights: tuple[str, ...]) -> dict[str, str]:
+    """The new render-level mistakes (:data:`tracer.variants.MORE_VARIANTS`) the fitted terms point to, each with
+    the term that points to it, in words: a spot's term too strong (its exponent ignored), a light's term out of
+    scale (its colour ignored), a light's term too weak (clamped per term; reflections blended, which darken
+    the local colour of a mirror), the refractions out of scale (the normal leaving glass)."""
+    out: dict[str, str] = {}
+    for t in terms:
+        what = f"{t.name}:{t.light}" if t.light is not None else t.name
+        kind = lights[t.light] if t.light is not None and 0 <= t.light < len(lights) else None
+        if kind == "spot" and t.scale > 1 + SLACK:
+            out.setdefault("spot-exponent-ignored", what)
+        if kind is not None:
+            out.setdefault("light-colour-ignored", what)
+        if t.scale < 1 - SLACK and t.name in ("diffuse", "specular", "ambient"):
+            out.setdefault("clamped-per-term", what)
+            out.setdefault("reflection-blended", what)
+        if t.name == "reflection":
+            out.setdefault("reflection-blended", what)
+        if t.name == "refraction":
+            out.setdefault("exit-normal-not-flipped", what)
+    return out
+
+
+def candidates(looks: Looks, terms: list[Fitted]) -> dict[str, str]:
+    """The render-level mistakes to try, each with why: every classic one the scene can show (the single-mistake
+    diagnosis has looked at them already), the new ones the fit points to (:func:`pointed`), or every new one
+    the scene can show when the fit has no term out of scale (the difference is in no term's scale: the fit
+    cannot point), and the scene's samples ignored when it asks for more than one (aliasing is no term's).  A
+    speckled mistake (shadow acne) is never one of a combination: its own speckles are not the student's."""
+    out = {name: "" for name in VARIANTS if name not in OUTER and name not in BOUNDS and looks.shown(name)}
+    out |= {name: "" for name in STORED}
+    new = pointed(terms, looks.lights) if terms else {name: "" for name in MORE_VARIANTS if name not in OUTER}
+    out |= {name: f"the fit's {what}" if what else "" for name, what in new.items() if looks.shown(name)}
+    if looks.shown("samples-ignored"):
+        out["samples-ignored"] = "the scene's samples per pixel"
+    return out
+
+
+# -- the differences of mistakes add up ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Rows:
+    """The rows a combination is chosen on: the reference's, the submission's (image-level mistakes undone), and
+    the image-level mistakes applied to every model of them (grey, gamma)."""
+
+    reference: np.ndarray  # (k, W, 3) uint8
+    submitted: np.ndarray  # (k, W, 3) uint8
+    outer: tuple[str, ...]  # "grayscale", or none
+    deltas: dict[str, np.ndarray]  # mistake → its render's rows less the reference's, float
+
+    tolerance: float = 2.0  # the grade's: a difference within it is no difference
+    known: dict[tuple[str, ...], float] = field(default_factory=dict)  # the errors worked out, by sorted names
+
+    def error(self, names: tuple[str, ...]) -> float:
+        key = tuple(sorted(names))
+        if key not in self.known:
+            self.known[key] = self._error(key)
+        return self.known[key]
+
+    def _error(self, names: tuple[str, ...]) -> float:
+        """How far the submission's rows are from the reference's with the mistakes ``names`` made, their
+        differences added: the mean, over the pixels, of the largest channel difference beyond the tolerance
+        (levels).  A small highlight missing weighs as its pixels do, rounding not at all."""
+        model = self.reference.astype(np.float64) + sum((self.deltas[n] for n in names if n not in STORED),
+                                                        np.zeros(1))
+        stored = np.floor(np.clip(model, 0.0, 255.0) + 0.5).astype(np.uint8)
+        return _beyond(outer(stored, (*self.outer, *(n for n in names if n in STORED))), self.submitted,
+                       self.tolerance)
+
+
+def _beyond(a: np.ndarray, b: np.ndarray, tolerance: float) -> float:
+    """The mean over pixels of ``b`` of the largest channel difference beyond ``tolerance`` from the nearest of
+    the pixel of ``a`` and its neighbours left and right (the grade forgives a shift of a pixel; rows come
+    alone, so only along them)."""
+    wide = np.pad(a.astype(np.int16), ((0, 0), (1, 1), (0, 0)), mode="edge")
+    sub, w = b.astype(np.int16), b.shape[1]
+    diff = np.abs(wide[:, 0:w] - sub).max(axis=-1)
+    for dx in (1, 2):
+        np.minimum(diff, np.abs(wide[:, dx:dx + w] - sub).max(axis=-1), out=diff)
+    return float(np.mean(np.maximum(diff - tolerance, 0.0)))
+
+
+#: rows a combination is chosen on: this share of the image's, at least :data:`LEAST_ROWS`
+ROW_SHARE = 1 / 16
+LEAST_ROWS = 8
+
+
+def telling_rows(reference: np.ndarray, submitted: np.ndarray, tolerance: float) -> np.ndarray:
+    """The rows a combination is chosen on, :data:`ROW_SHARE` of them: in each of as many bands of the image, the
+    row where the submission departs most from the reference (by :func:`_beyond`), so that a small highlight
+    missing and a shadow far from it are both seen; in order."""
+    h = reference.shape[0]
+    k = min(h, max(LEAST_ROWS, round(ROW_SHARE * h)))
+    diff = np.max(np.abs(reference.astype(np.int16) - submitted.astype(np.int16)), axis=-1)
+    weight = np.maximum(diff - tolerance, 0).sum(axis=1)
+    edges = np.linspace(0, h, k + 1).round().astype(np.int64)
+    return np.array([a + int(np.argmax(weight[a:b])) for a, b in zip(edges[:-1], edges[1:]) if b > a])
+
+
+def chosen(rows: Rows) -> tuple[str, ...]:
+    """The render-level mistakes, at most :data:`MAX_TOGETHER`, whose differences added explain the rows: the
+    best one, then the best pair if it leaves at most :data:`ADD_AT_MOST` of what the one leaves, then a third
+    likewise; each at least :data:`ADD_LEVELS` better.  Empty when no mistake helps."""
+    names = sorted(rows.deltas)
+    best: tuple[str, ...] = ()
+    error = rows.error(())
+
+    def better(than: float, names: tuple[str, ...]) -> float | None:
+        e = rows.error(names)
+        return e if e <= ADD_AT_MOST * than and than - e >= ADD_LEVELS else None
+
+    singles = sorted((rows.error((n,)), (n,)) for n in names)
+    if singles and better(error, singles[0][1]) is not None:
+        best, error = singles[0][1], singles[0][0]
+    # (a mistake whose difference alone takes the rows further from the submission is no part of it)
+    names = sorted(n for e, (n,) in singles if e < rows.error(()))
+    pairs = sorted((rows.error(p), p) for p in combinations(names, 2) if compatible(p))
+    if pairs and better(error, pairs[0][1]) is not None:
+        best, error = pairs[0][1], pairs[0][0]
+    while 2 <= len(best) < MAX_TOGETHER:
+        more = sorted((rows.error((*best, n)), (*best, n)) for n in names if n not in best
+                      and compatible((*best, n)))
+        if not more or better(error, more[0][1]) is None:
+            break
+        best, error = more[0][1], more[0][0]
+    return best
+
+
+def shares(rows: Rows, names: tuple[str, ...]) -> dict[str, float]:
+    """Per mistake of ``names``, the share of the submission's whole mean difference (no mistake made) that
+    making it takes away, the others made."""
+    base = rows.error(())
+    if base <= 0:
+        return {n: 0.0 for n in names}
+    full = rows.error(names)
+    return {n: max(0.0, (rows.error(tuple(m for m in names if m != n)) - full) / base) for n in names}
+
+
+# -- one render confirms -----------------------------------------------------------------------------------------
+
+def compose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, looks: Looks, terms: list[Fitted],
+            numbers: np.ndarray | None = None) -> Combination | None:
+    """The mistakes made together that explain a failing ``submitted`` (graded ``verdict``), chosen on rows
+    ``numbers`` (None: :func:`telling_rows`) and confirmed by one render of them all (none when they are
+    image-level mistakes alone: the reference's pixels stored with them); None when no mistake helps, or when
+    the one mistake found is a classic one alone (the single-mistake diagnosis has graded it already)."""
+    from ..grading import grade
+
+    found = image_level(reference, submitted)
+    rows = _rows(reference, submitted, looks, candidates(looks, terms), (found, verdict.tolerance, numbers))
+    inner = chosen(rows)
+    names = (*inner, *found)
+    if not names or (len(names) == 1 and names[0] in VARIANTS):
+        return None
+    if all(n in STORED or n in OUTER for n in names) and GAMMA not in names:
+        image = outer(reference, names)  # (exact for all but the mirror, which is within a level)
+    else:
+        image = looks.render(merged(names))
+    g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
+    inner_shares = shares(rows, inner)
+    tried = candidates(looks, terms)
+    members = [Member(n, ALL[n][1], inner_shares[n], _why(tried[n], inner_shares[n])) for n in inner]
+    members += [Member(n, ALL[n][1], found[n], f"the image is the reference's {SHOWN[n]}") for n in found]
+    members.sort(key=lambda m: -m.share)
+    return Combination(tuple(members), g.fraction_off_nearby, g.passed)
+
+
+def stored_only(reference: np.ndarray, submitted: np.ndarray, verdict: Grade) -> Combination | None:
+    """The image-level mistakes alone, when the submission passes against the reference's pixels stored with
+    them: found with no render at all, before any mistake is rendered (None also for the classic flip alone,
+    which the single-mistake diagnosis names as it always has)."""
+    from ..grading import grade
+
+    found = image_level(reference, submitted)
+    names = tuple(n for n in OUTER if n in found)
+    if not names or names == ("image-flipped",):
+        return None
+    g = grade(outer(reference, names), submitted, "", verdict.tolerance, verdict.max_fraction)
+    if not g.passed:
+        return None
+    members = [Member(n, ALL[n][1], found[n], f"the image is the reference's {SHOWN[n]}") for n in names]
+    return Combination(tuple(sorted(members, key=lambda m: -m.share)), g.fraction_off_nearby, True)
+
+
+def _rows(reference: np.ndarray, submitted: np.ndarray, looks: Looks, tried: dict[str, str],
+          how: tuple[dict[str, float], float, np.ndarray | None]) -> Rows:
+    """The :class:`Rows` of a submission with the image-level mistakes ``found`` (undone on it, or, grey,
+    applied to the models), the render-level mistakes ``tried`` each rendered on the rows (gamma applied)."""
+    found, tolerance, numbers = how
+    grey = ("grayscale",) if "grayscale" in found else ()
+    sub = undone(submitted, tuple(found))
+    if numbers is None:
+        numbers = telling_rows(outer(reference, grey), sub, tolerance)
+    ref_rows = reference[numbers].astype(np.float64)
+    deltas = {n: np.zeros(1) if n in STORED else looks.rows(n, numbers).astype(np.float64) - ref_rows
+              for n in tried if n not in found}
+    return Rows(reference[numbers], sub[numbers], grey, deltas, tolerance)
+
+
+def _why(pointer: str, share: float) -> str:
+    accounts = f"accounts for {round(100 * share)} % of the difference"
+    return f"{pointer} out of scale; the mistake {accounts}" if pointer.startswith("the fit") else \
+        f"the mistake {accounts}"
+
+
+@dataclass(frozen=True)
+class Explanation:
+    """A part of the difference, and how much of it: a mistake's (``variant``) or a term's (``term``)."""
+
+    share: float
+    variant: str | None = None
+    term: Fitted | None = None
+
+
+def nearest(reference: np.ndarray, submitted: np.ndarray, looks: Looks, terms: list[tuple[Fitted, float]],
+            tolerance: float = 2.0) -> list[Explanation]:
+    """When nothing fits: every mistake tried and every term out of scale (with the share of the difference the
+    fit says it accounts for), ranked by how much of the submission's difference from the reference each
+    accounts for, most first; those that account for less than :data:`NOTHING` are left out, but for the first
+    (when it accounts for anything at all)."""
+    found = image_level(reference, submitted)
+    rows = _rows(reference, submitted, looks, candidates(looks, [t for t, _ in terms]), (found, tolerance, None))
+    base = rows.error(())
+    out = [Explanation(share, n) for n, share in found.items()]
+    if base > 0:
+        out += [Explanation(max(0.0, 1.0 - rows.error((n,)) / base), n) for n in rows.deltas]
+    out += [Explanation(share, term=t) for t, share in terms]
+    ranked = sorted(out, key=lambda e: -e.share)
+    return [e for k, e in enumerate(ranked) if e.share >= NOTHING or (k == 0 and e.share > 0)]

@@ -1,0 +1,103 @@
+"""The diagnosis's last steps (issue 47): when no single classic mistake passes, the mistakes made together
+(:mod:`.compose`), and when nothing fits, the nearest explanations, ranked by how much of the difference each
+accounts for: a failing image's diagnosis never ends with no cause at all.
+
+The renders come from the diagnosis's own (:class:`.renders.Renders`): rows of a classic mistake's render are
+those its first looks rendered (kept), rows of a new one are rendered and kept the same way.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .compose import ALL, Combination, Explanation, Fitted, Looks, compose, nearest
+from .records import Cause, Term
+from .renders import Renders
+from .words import Names, term_sentence
+
+if TYPE_CHECKING:
+    from ..grading import Grade
+
+#: a combination not passed against is still named the closest when it leaves at most this share of the
+#: reference's failing pixels (as a single mistake is, :data:`.causes.CLOSEST_SHARE`)
+CLOSEST_SHARE = 0.25
+#: at most this many nearest explanations are listed
+NEAREST = 5
+
+
+def looks_of(renders: Renders) -> Looks | None:
+    """The :class:`Looks` of a diagnosis's renders (rows of whole variants when they render no rows alone: the
+    same pixels); None when they cannot render a combination."""
+    if renders.render is None:
+        return None
+    unchanged, variant = renders.unchanged, renders.variant
+    rows = renders.rows if renders.rows is not None else lambda name, numbers: variant(name)[numbers]
+    return Looks(rows, renders.render, lambda name: unchanged is None or not unchanged(name), tuple(renders.lights))
+
+
+def fitted(terms: list[Term]) -> list[Fitted]:
+    return [Fitted(t.name, t.light, t.scale) for t in terms]
+
+
+def combined(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
+             terms: list[Term]) -> Combination | None:
+    """The mistakes made together the submission matches or comes nearest (:func:`.compose.compose`); None
+    when no mistake helps, the one found is a classic one alone, or the renders cannot make a combination."""
+    looks = looks_of(renders)
+    if looks is None:
+        return None
+    renders.check()
+    return compose(reference, submitted, verdict, looks, fitted(terms))
+
+
+def together_causes(combination: Combination) -> list[Cause]:
+    """The causes of a combination, one per mistake, each with the combination's grade and its evidence."""
+    names = combination.names
+    return [Cause(m.variant, m.mistake, combination.fraction_off_nearby, combination.passes,
+                  [n for n in names if n != m.variant], m.share, m.evidence) for m in combination.members]
+
+
+def closer(combination: Combination | None, causes: list[Cause], closest: bool,
+           verdict: Grade) -> tuple[list[Cause], bool]:
+    """The causes named when nothing passes: the combination when it comes closer than the closest single
+    mistake (and far closer than the reference, as :data:`CLOSEST_SHARE` says), else the causes as they are."""
+    if combination is None:
+        return causes, closest
+    best = causes[0].fraction_off_nearby if causes else np.inf
+    near = combination.fraction_off_nearby <= CLOSEST_SHARE * verdict.fraction_off_nearby
+    if combination.passes or (near and combination.fraction_off_nearby < best):
+        return together_causes(combination), not combination.passes
+    return causes, closest
+
+
+def explanation_words(e: Explanation, names: Names) -> str:
+    """What a nearest explanation says the difference is: "the specular of light 'key', which is missing", "what
+    no shadow rays changes"."""
+    if e.term is not None:
+        return term_sentence(e.term.name, e.term.light, e.term.scale, names, ", which ")
+    return f"what {ALL[e.variant or ''][1]} changes"
+
+
+def nearest_causes(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
+                   terms: list[Term]) -> list[Cause]:
+    """The nearest explanations as causes, none passed against, most of the difference first: a mistake by its
+    id, a term as ``term:NAME`` or ``term:NAME:LIGHT``, each with its share of the difference and its words."""
+    looks = looks_of(renders)
+    shared = [(f, t.share) for f, t in zip(fitted(terms), terms) if t.share]
+    if looks is None:
+        ranked = sorted((Explanation(share, term=f) for f, share in shared), key=lambda e: -e.share)
+    else:
+        renders.check()
+        ranked = nearest(reference, submitted, looks, shared, verdict.tolerance)
+    names = renders.names or Names((), ())
+    out = []
+    for e in ranked[:NEAREST]:
+        if e.term is not None:
+            variant = "term:" + (e.term.name if e.term.light is None else f"{e.term.name}:{e.term.light}")
+        else:
+            variant = e.variant or ""
+        out.append(Cause(variant, explanation_words(e, names), verdict.fraction_off_nearby, False, [], e.share,
+                         f"accounts for about {round(100 * e.share)} % of the difference"))
+    return out

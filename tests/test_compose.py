@@ -1,0 +1,135 @@
+"""Mistakes made together (service/compose.py): chosen on rows, confirmed by one render, ranked when none fits."""
+
+import numpy as np
+import pytest
+import student
+
+import schemas
+from service.diagnosis.compose import (
+    ALL,
+    Fitted,
+    Looks,
+    Rows,
+    chosen,
+    compatible,
+    compose,
+    merged,
+    nearest,
+    pointed,
+    telling_rows,
+)
+from service.grading import grade
+from tracer import Renderer
+from tracer.variants import REFERENCE, Options, unchanged
+
+from helpers import scene_dict
+
+
+def small(name: str, width: int = 64, height: int = 48) -> schemas.Scene:
+    data = scene_dict(name)
+    data["image"].update(width=width, height=height)
+    return schemas.validate_scene(data)
+
+
+class Counted:
+    """:class:`Looks` of a scene from the tracer, counting the whole renders asked for."""
+
+    def __init__(self, scene):  # noqa: ANN001
+        self.scene, self.whole, self.made = scene, [], {}
+
+    def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        if name not in self.made:
+            self.made[name] = Renderer(self.scene, ALL[name][0]).pixels()
+        return self.made[name][numbers]
+
+    def render(self, options: Options) -> np.ndarray:
+        self.whole.append(options)
+        return Renderer(self.scene, options).pixels()
+
+    def looks(self) -> Looks:
+        return Looks(self.rows, self.render, lambda name: not unchanged(name, self.scene),
+                     tuple(light.type for light in self.scene.lights))
+
+
+def test_options_merge_the_changed_fields_of_each_mistake():
+    both = merged(("no-shadows", "blinn-phong", "grayscale"))
+    assert both == Options(shadows=False, blinn=True, grayscale=True)
+    assert merged(()) == REFERENCE
+    assert not compatible(("depth-plus-one", "depth-minus-one"))
+    with pytest.raises(ValueError, match="depth_offset"):
+        merged(("depth-plus-one", "depth-minus-one"))
+
+
+def test_the_fit_points_to_the_new_mistakes_it_can_see():
+    lights = ("ambient", "spot", "point")
+    found = pointed([Fitted("diffuse", 1, 2.0), Fitted("refraction", None, 0.5)], lights)
+    assert "spot-exponent-ignored" in found and "exit-normal-not-flipped" in found
+    assert "clamped-per-term" not in found  # (nothing too weak)
+    assert "clamped-per-term" in pointed([Fitted("specular", 2, 0.5)], lights)
+
+
+def test_telling_rows_span_the_image_and_find_a_departure():
+    reference = np.zeros((64, 8, 3), dtype=np.uint8)
+    submitted = reference.copy()
+    submitted[37, 3] = 200
+    rows = telling_rows(reference, submitted, 2)
+    assert len(rows) == 8 and 37 in rows and np.all(np.diff(rows) > 0)
+
+
+def test_the_differences_of_two_mistakes_add_up_on_rows():
+    scene = small("02_all_lights")
+    counted = Counted(scene)
+    reference = Renderer(scene).pixels()
+    submitted = Renderer(scene, merged(("no-shadows", "blinn-phong"))).pixels()
+    numbers = telling_rows(reference, submitted, 2)
+    deltas = {n: counted.rows(n, numbers).astype(float) - reference[numbers]
+              for n in ("no-shadows", "blinn-phong", "no-ambient", "no-attenuation")}
+    rows = Rows(reference[numbers], submitted[numbers], (), deltas)
+    assert set(chosen(rows)) == {"no-shadows", "blinn-phong"}
+    assert rows.error(("no-shadows", "blinn-phong")) < rows.error(("no-shadows",)) < rows.error(())
+
+
+@pytest.mark.parametrize("name, made", [("01_three_spheres", ("no-shadows", "blinn-phong")),
+                                        ("02_all_lights", ("no-attenuation", "gamma")),
+                                        ("04_whitted", ("no-ambient", "no-specular")),
+                                        ("05_mesh", ("no-shadows", "gamma"))])
+def test_two_mistakes_of_the_first_student_are_named_with_one_render(name, made):
+    scene = small(name)
+    counted = Counted(scene)
+    reference = Renderer(scene).pixels()
+    submitted = student.render(scene, made)
+    verdict = grade(reference, submitted, "")
+    assert not verdict.passed
+    found = compose(reference, submitted, verdict, counted.looks(), [])
+    assert found is not None and found.passes and set(found.names) == set(made)
+    assert len(counted.whole) == 1
+    assert all(0 < m.share <= 1 and m.evidence for m in found.members)
+
+
+@pytest.mark.parametrize("made", [("grayscale",), ("camera-left-handed",), ("channels-swapped",)])
+def test_an_image_level_mistake_alone_needs_no_render(made):
+    scene = small("01_three_spheres")
+    counted = Counted(scene)
+    reference = Renderer(scene).pixels()
+    submitted = Renderer(scene, merged(made)).pixels()
+    verdict = grade(reference, submitted, "")
+    found = compose(reference, submitted, verdict, counted.looks(), [])
+    assert found is not None and found.passes and found.names == made
+    assert counted.whole == []
+
+
+def test_a_classic_mistake_alone_is_left_to_the_single_mistake_diagnosis():
+    scene = small("01_three_spheres")
+    reference = Renderer(scene).pixels()
+    submitted = Renderer(scene, merged(("no-shadows",))).pixels()
+    assert compose(reference, submitted, grade(reference, submitted, ""), Counted(scene).looks(), []) is None
+
+
+def test_nearest_explanations_are_ranked_by_their_share_of_the_difference():
+    scene = small("01_three_spheres")
+    reference = Renderer(scene).pixels()
+    submitted = np.clip(Renderer(scene, merged(("no-shadows",))).pixels().astype(int) + 9, 0, 255).astype(np.uint8)
+    ranked = nearest(reference, submitted, Counted(scene).looks(), [(Fitted("ambient", None, 3.0), 0.2)])
+    assert ranked and ranked[0].variant == "no-shadows"
+    assert [e.share for e in ranked] == sorted((e.share for e in ranked), reverse=True)
+    assert any(e.term is not None and e.term.name == "ambient" for e in ranked)
