@@ -1,6 +1,6 @@
 """Direct light at hit points: the ambient term, then every light's Phong terms where the light reaches.
 
-A light is one :class:`LightGroup` of emitters (:mod:`tracer.lights`): a
+A light is one :class:`tracer.lights.LightGroup` of emitters: a
 point light, a spot or a directional light is one emitter, an area light its
 grid of samples, all of one colour.  For each emitter: L, d and the intensity
 factor at every point, shadow rays for the points it may light, and the
@@ -30,13 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from schemas import AreaLight, Scene
-
 from .area import area_terms
 from .bounds import SurfacePoints
 from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
 from .kernel import Kernel, Points, Reach, Seen
-from .lights import LIGHT_TYPES, Emitter, area_corners
+from .lights import Emitter, LightGroup
 from .passes import UNOBSERVED, Observer
 from .planner import ProofPlan
 from .rays import Among, Rays, Shadows
@@ -46,29 +44,6 @@ from .tiles import TILE, lit_tiles
 from .variants import Options, add_clamped
 from .vec import columns, dot, rows_of, scaled
 from .world import World, max_abs
-
-
-@dataclass(frozen=True)
-class LightGroup:
-    """One light of the scene as the emitters ``first..end − 1`` it became (all of one colour)."""
-
-    light: int  # its index in ``scene.lights``
-    first: int
-    end: int
-    #: an area light's parallelogram: its four local corners, in order round it; None for the other lights
-    corners: np.ndarray | None = None
-
-
-def light_groups(scene: Scene, origin: np.ndarray) -> list[LightGroup]:
-    """The scene's lights that emit (every type but ambient), in order, with their emitters' span."""
-    groups, first = [], 0
-    for k, light in enumerate(scene.lights):
-        count = LIGHT_TYPES[type(light)].count(light)
-        if count:
-            corners = area_corners(light, origin) if isinstance(light, AreaLight) else None
-            groups.append(LightGroup(k, first, first + count, corners))
-        first += count
-    return groups
 
 
 @dataclass(frozen=True)
