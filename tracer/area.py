@@ -17,8 +17,9 @@ import numpy as np
 
 from .bounds import SurfacePoints
 from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
-from .kernel import Kernel, Points, Reach, Seen
+from .kernel import Kernel, Points, Reach
 from .lights import Emitter, LightGroup
+from .passes import Seen
 from .penumbra import Penumbra
 from .planner import ProofPlan
 from .rays import Among

@@ -32,12 +32,12 @@ import numpy as np
 
 from .area import area_terms
 from .bounds import SurfacePoints
-from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
-from .kernel import Kernel, Points, Reach, Seen
+from .intersect import MISS, SPHERE, TRIANGLE, Intersector
+from .kernel import Kernel, Points, Reach
 from .lights import Emitter, LightGroup
-from .passes import UNOBSERVED, Observer
+from .passes import UNOBSERVED, Observer, Seen
 from .planner import ProofPlan
-from .rays import Among, Rays, Shadows
+from .rays import Among, Hits, Rays, Shadows
 from .shading import add_phong, planes_holding
 from .spawn import Spawner, picker
 from .tiles import TILE, lit_tiles

@@ -15,9 +15,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .intersect import Hits
 from .passes import REFLECTED, REFRACTED
-from .rays import Rays, Work
+from .rays import Hits, Rays, Work
 from .shading import mirror, refract
 from .variants import Options, Spawn
 from .vec import rows_of
