@@ -40,10 +40,11 @@ from .planner import ProofPlan
 from .rays import Among, Hits, Rays, Shadows
 from .shading import add_phong, planes_holding
 from .spawn import Spawner, picker
+from .surfaces import max_abs
 from .tiles import TILE, lit_tiles
 from .variants import Options, add_clamped
 from .vec import columns, dot, rows_of, scaled
-from .world import World, max_abs
+from .world import World
 
 
 @dataclass(frozen=True)

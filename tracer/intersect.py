@@ -23,9 +23,10 @@ from .embree import Bvh
 from .rays import Among, Hits, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
+from .surfaces import unit
 from .vec import along, divided, dot, median_of, minus, most, rows_of
 from .walk import Walk, _ignored
-from .world import World, unit
+from .world import World
 
 __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE", "TRIANGLE"]
 

@@ -27,9 +27,10 @@ import numpy as np
 from .lights import Emitter, illuminate_into
 from .rays import Hits
 from .shading import light_in_plane
+from .surfaces import unit
 from .variants import Options
 from .vec import columns, dot, dot_into, rows_of
-from .world import World, unit
+from .world import World
 
 
 @dataclass

@@ -36,8 +36,9 @@ from .cones import along_direction, on_lines, through_point
 from .lights import LIGHT_TYPES, Emitter
 from .rays import Among, Rays
 from .sightlines import Sightlines
+from .surfaces import Triangles
 from .variants import Options, Spawn
-from .world import Triangles, World
+from .world import World
 
 #: a scene with at most this many spheres and triangles tests its camera rays and its point and directional
 #: lights' shadow rays against the surfaces their bounds allow (:mod:`tracer.cones`), with no walk

@@ -18,9 +18,10 @@ import numpy as np
 from .passes import REFLECTED, REFRACTED
 from .rays import Hits, Rays, Work
 from .shading import mirror, refract
+from .surfaces import max_abs
 from .variants import Options, Spawn
 from .vec import rows_of
-from .world import World, max_abs
+from .world import World
 
 
 def picker(rows: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
