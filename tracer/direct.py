@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .area import area_terms
 from .bounds import SurfacePoints
 from .intersect import MISS, SPHERE, TRIANGLE, Intersector
 from .kernel import Kernel, Points, Reach
@@ -46,6 +45,10 @@ from .variants import Options, add_clamped
 from .vec import columns, dot, rows_of, scaled
 from .world import World
 
+#: an area light's terms ``Σwd, Σws`` at the points, summed over its samples, or None where it reaches none
+#: (:func:`tracer.area.area_terms`): the direct-light stage, the light, the points and the observer of its reach
+AreaTerms = Callable[["DirectLight", LightGroup, Points, Seen], "tuple[np.ndarray, np.ndarray] | None"]
+
 
 @dataclass(frozen=True)
 class Meter:
@@ -60,8 +63,10 @@ class DirectLight:
     """The direct-light stage of a renderer: :meth:`shade` gives the colour of hit points."""
 
     def __init__(self, world: World, options: Options, intersector: Intersector, groups: list[LightGroup],
-                 plan: ProofPlan, meter: Meter):
+                 plan: ProofPlan, meter: Meter, area: AreaTerms):
         self.world, self.options, self.intersector, self.groups = world, options, intersector, groups
+        #: an area light's loop over its samples (:func:`tracer.area.area_terms`), given by the renderer
+        self.area = area
         #: which proofs spare which shadow rays (:mod:`tracer.planner`)
         self.plan = plan
         self.stop, self.count = meter.stop, meter.count
@@ -101,7 +106,7 @@ class DirectLight:
                 continue
             seen = observer.seen(group.first)
             if group.corners is not None:
-                terms = area_terms(self, group, at, seen)
+                terms = self.area(self, group, at, seen)
             else:
                 kernel = kernel or Kernel(self.world, opt, at)
                 terms = self._one(kernel, group.first, seen)

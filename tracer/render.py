@@ -17,6 +17,7 @@ import numpy as np
 
 from schemas import Scene
 
+from .area import area_terms
 from .best import NO_HIT
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
@@ -120,7 +121,7 @@ class Renderer:
         #: which proofs spare which rays (:mod:`tracer.planner`)
         self.plan = plan_proofs(world, options, self.spawner.offset)
         shading = DirectLight(world, options, self.intersector, light_groups(self.scene, world.origin), self.plan,
-                              Meter(self._stop, self._count))
+                              Meter(self._stop, self._count), area_terms)
         shading.spawner = self.spawner
         return shading
 
