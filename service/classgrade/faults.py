@@ -43,8 +43,9 @@ class Executing(Protocol):
     def reset(self) -> None: ...
 
 
-def run_tasks(backend: Executing, tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
-               done: Callable[[Any, Any], None], kept: Callable[[], str]) -> None:
+def run_tasks(backend: Executing,  # noqa: C901 (every fault of a task, retried in one loop)
+              tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
+              done: Callable[[Any, Any], None], kept: Callable[[], str]) -> None:
     """Run every task on the backend; ``done(key, result)`` keeps each result as it comes (so that no finished
     work is lost, whatever happens next).  A fault of the executor (``backend.faults``) is retried
     :data:`RETRIES` times with backoff on a new one, with only the unfinished tasks; then the run stops with
