@@ -19,7 +19,7 @@ from service.classgrade.bundled import load_program, program_json
 from service.classgrade.errors import ClassError
 from service.cli import main
 from service.programs import Limits, check_sandbox
-from service.programs.job import Program
+from service.programs.program import Program
 
 HERE = Path(__file__).parent / "programs"
 RUN = "python3 tracer.py {scene} {output}"

@@ -14,7 +14,7 @@ from tracer import Renderer
 from tracer.bounds import bounds_of
 from tracer.cones import along_direction, through_point
 from tracer.shapes import SPHERE, TRIANGLE, sphere_t, triangle_t
-from tracer.world import unit
+from tracer.surfaces import unit
 
 
 def scene_of(rng, scale=1.0, shift=0.0):

@@ -13,8 +13,9 @@ import tracer.walk
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector
 from tracer.rays import Shadows
 from tracer.shapes import plane_t, sphere_t, triangle_t
+from tracer.surfaces import max_abs
 from tracer.walk import Best
-from tracer.world import build_world, max_abs
+from tracer.world import build_world
 
 
 @pytest.fixture(autouse=True)

@@ -5,9 +5,10 @@ import numpy as np
 
 import schemas
 from tracer import Renderer
-from tracer.intersect import PLANE, Hits
+from tracer.intersect import PLANE
 from tracer.kernel import Kernel, Points
 from tracer.lights import build_emitters
+from tracer.rays import Hits
 from tracer.variants import REFERENCE, VARIANTS
 
 

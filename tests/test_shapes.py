@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from tracer.shapes import on_tolerance, plane_t, sphere_t, triangle_t
+from tracer.surfaces import unit
 from tracer.vec import along, dot, minus
-from tracer.world import unit
 
 UP = np.array([0, 1.0, 0])
 TRI = (np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))

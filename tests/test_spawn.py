@@ -5,8 +5,8 @@ import numpy as np
 
 import schemas
 from tracer import Renderer
-from tracer.intersect import SPHERE, Hits
-from tracer.rays import Rays, Work
+from tracer.intersect import SPHERE
+from tracer.rays import Hits, Rays, Work
 from tracer.spawn import Spawner
 from tracer.variants import REFERENCE, Spawn
 

@@ -11,17 +11,39 @@ per light by :mod:`tracer.direct`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from .bounds import SurfacePoints
 from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
-from .kernel import Kernel, Points, Seen
+from .kernel import Kernel, Points, Reach
+from .lights import Emitter, LightGroup
+from .passes import Seen
 from .penumbra import Penumbra
+from .planner import ProofPlan
+from .rays import Among
+from .variants import Options
+from .world import World
 
-if TYPE_CHECKING:
-    from .direct import DirectLight, LightGroup
+
+class DirectLight(Protocol):
+    """What an area light's loop takes from the direct-light stage (:class:`tracer.direct.DirectLight`): the
+    world, options and proofs of the render, the emitters flat surfaces hold, the budget's poll and count, and
+    the shadow rays."""
+
+    world: World
+    options: Options
+    plan: ProofPlan
+    holds: np.ndarray  # (E,) bool: the emitters some flat surface's plane holds
+
+    def stop(self) -> None: ...
+
+    def count(self, name: str, rays: int) -> None: ...
+
+    def blocked(self, at: Points, rows: np.ndarray | None, reach: Reach, em: Emitter,
+                among: Among | None = None) -> np.ndarray: ...
+
 
 @dataclass
 class Sorted:

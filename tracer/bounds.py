@@ -10,14 +10,15 @@ plane.  What the proofs share is here, written once, each with the error it brin
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from .kinds import SPHERE, TRIANGLE
 from .margins import GROWTH, NORMAL_ERROR
 from .shapes import plane_side
+from .surfaces import Planes, Spheres, Triangles
 from .vec import dot, length, minus, most, rows_of
-from .world import World
 
 #: the most surface bounds a scene may have for the proofs to be worth their cost per point
 MAX_BOUNDS = 64
@@ -36,7 +37,20 @@ class Bounds:
     plane_normal: np.ndarray  # (Q, 3)
 
 
-def bounds_of(world: World) -> Bounds | None:
+class Surfaces(Protocol):
+    """What :func:`bounds_of` reads of a world (:class:`tracer.world.World`): its surfaces."""
+
+    @property
+    def spheres(self) -> Spheres: ...
+
+    @property
+    def triangles(self) -> Triangles: ...
+
+    @property
+    def planes(self) -> Planes: ...
+
+
+def bounds_of(world: Surfaces) -> Bounds | None:
     """The world's surfaces as bounds, or None when there are more than :data:`MAX_BOUNDS` of them."""
     sp, tr, pl = world.spheres, world.triangles, world.planes
     if len(sp.radius) + len(tr.v0) + len(pl.normal) > MAX_BOUNDS:

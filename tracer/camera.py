@@ -6,8 +6,8 @@ import numpy as np
 
 from schemas import Camera, Image
 
+from .surfaces import unit
 from .vec import plus
-from .world import unit
 
 #: the most values (pixels × sub-samples of one row, or of one column) a per-column or per-row table may hold
 TABLE_MAX = 1 << 20

@@ -50,8 +50,8 @@ from .bounds import Bounds, face_normal
 from .kinds import TRIANGLE
 from .margins import GROWTH, MARGIN, NORMAL_ERROR, SLACK, SLACK32, STRAY
 from .rays import Among
+from .surfaces import Triangles
 from .vec import length
-from .world import Triangles
 
 
 def _pairs(kinds: list[int], indices: list[int], rows: list[np.ndarray]) -> Among:

@@ -1,6 +1,6 @@
 """Direct light at hit points: the ambient term, then every light's Phong terms where the light reaches.
 
-A light is one :class:`LightGroup` of emitters (:mod:`tracer.lights`): a
+A light is one :class:`tracer.lights.LightGroup` of emitters: a
 point light, a spot or a directional light is one emitter, an area light its
 grid of samples, all of one colour.  For each emitter: L, d and the intensity
 factor at every point, shadow rays for the points it may light, and the
@@ -30,45 +30,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from schemas import AreaLight, Scene
-
-from .area import area_terms
 from .bounds import SurfacePoints
-from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
-from .kernel import Kernel, Points, Reach, Seen
-from .lights import LIGHT_TYPES, Emitter, area_corners
-from .passes import UNOBSERVED, Observer
+from .intersect import MISS, SPHERE, TRIANGLE, Intersector
+from .kernel import Kernel, Points, Reach
+from .lights import Emitter, LightGroup
+from .passes import UNOBSERVED, Observer, Seen
 from .planner import ProofPlan
-from .rays import Among, Rays, Shadows
+from .rays import Among, Hits, Rays, Shadows
 from .shading import add_phong, planes_holding
 from .spawn import Spawner, picker
+from .surfaces import max_abs
 from .tiles import TILE, lit_tiles
 from .variants import Options, add_clamped
 from .vec import columns, dot, rows_of, scaled
-from .world import World, max_abs
+from .world import World
 
-
-@dataclass(frozen=True)
-class LightGroup:
-    """One light of the scene as the emitters ``first..end − 1`` it became (all of one colour)."""
-
-    light: int  # its index in ``scene.lights``
-    first: int
-    end: int
-    #: an area light's parallelogram: its four local corners, in order round it; None for the other lights
-    corners: np.ndarray | None = None
-
-
-def light_groups(scene: Scene, origin: np.ndarray) -> list[LightGroup]:
-    """The scene's lights that emit (every type but ambient), in order, with their emitters' span."""
-    groups, first = [], 0
-    for k, light in enumerate(scene.lights):
-        count = LIGHT_TYPES[type(light)].count(light)
-        if count:
-            corners = area_corners(light, origin) if isinstance(light, AreaLight) else None
-            groups.append(LightGroup(k, first, first + count, corners))
-        first += count
-    return groups
+#: an area light's terms ``Σwd, Σws`` at the points, summed over its samples, or None where it reaches none
+#: (:func:`tracer.area.area_terms`): the direct-light stage, the light, the points and the observer of its reach
+AreaTerms = Callable[["DirectLight", LightGroup, Points, Seen], "tuple[np.ndarray, np.ndarray] | None"]
 
 
 @dataclass(frozen=True)
@@ -84,8 +63,10 @@ class DirectLight:
     """The direct-light stage of a renderer: :meth:`shade` gives the colour of hit points."""
 
     def __init__(self, world: World, options: Options, intersector: Intersector, groups: list[LightGroup],
-                 plan: ProofPlan, meter: Meter):
+                 plan: ProofPlan, meter: Meter, area: AreaTerms):
         self.world, self.options, self.intersector, self.groups = world, options, intersector, groups
+        #: an area light's loop over its samples (:func:`tracer.area.area_terms`), given by the renderer
+        self.area = area
         #: which proofs spare which shadow rays (:mod:`tracer.planner`)
         self.plan = plan
         self.stop, self.count = meter.stop, meter.count
@@ -125,7 +106,7 @@ class DirectLight:
                 continue
             seen = observer.seen(group.first)
             if group.corners is not None:
-                terms = area_terms(self, group, at, seen)
+                terms = self.area(self, group, at, seen)
             else:
                 kernel = kernel or Kernel(self.world, opt, at)
                 terms = self._one(kernel, group.first, seen)

@@ -15,18 +15,18 @@ the exact float64 hit point and never hit that surface there (see
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 
 import numpy as np
 
 from .best import NO_HIT, Best
 from .embree import Bvh
-from .rays import Among, Rays, Shadows
+from .rays import Among, Hits, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
+from .surfaces import unit
 from .vec import along, divided, dot, median_of, minus, most, rows_of
 from .walk import Walk, _ignored
-from .world import World, unit
+from .world import World
 
 __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE", "TRIANGLE"]
 
@@ -40,24 +40,6 @@ MANY = 4096
 #: the BVH is a large share) 9.7 against 11.3 ms of one core, equal at 320×240 and at 1080p; with more, the
 #: BVH's broad phase (:meth:`tracer.walk.Walk.walk_few`) spares more tests than building it costs
 DIRECT_MAX = 3
-
-
-@dataclass
-class Hits:
-    """The first surface hit by each ray of a batch of N rays."""
-
-    t: np.ndarray  # (N,) ray parameter, inf for a miss
-    kind: np.ndarray  # (N,) MISS, SPHERE, PLANE or TRIANGLE
-    index: np.ndarray  # (N,) index within its kind, -1 for a miss
-    point: np.ndarray  # (N, 3) local hit point, on the surface
-    normal: np.ndarray  # (N, 3) unit geometric normal (outward for spheres)
-    bary: np.ndarray  # (N, 2) barycentric u, v for triangles
-    material: np.ndarray  # (N,) material id before the checker
-
-    def take(self, rows: np.ndarray) -> Hits:
-        """The hits of the rays ``rows`` only, as contiguous arrays."""
-        return Hits(self.t[rows], self.kind[rows], self.index[rows], rows_of(self.point, rows),
-                    rows_of(self.normal, rows), rows_of(self.bary, rows), self.material[rows])
 
 
 def _nothing() -> None:

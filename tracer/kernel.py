@@ -20,17 +20,17 @@ there and multiplied by 0.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from .intersect import Hits
 from .lights import Emitter, illuminate_into
+from .rays import Hits
 from .shading import light_in_plane
+from .surfaces import unit
 from .variants import Options
 from .vec import columns, dot, dot_into, rows_of
-from .world import World, unit
+from .world import World
 
 
 @dataclass
@@ -61,16 +61,6 @@ class Reach:
     facing: np.ndarray  # (N,) bool: N·L > 0
     lit: np.ndarray  # (N,) bool: where a shadow ray decides whether the emitter lights the point
     weight: np.ndarray  # (N,) the factor where lit, 0 elsewhere: the caller zeroes it where a shadow ray is blocked
-
-
-#: an observer of how many emitters reach each point and face it: called per emitter with a :class:`Reach`'s
-#: ``weight`` (after the shadows) and ``facing``, and the rows among the points shaded that they are of (None: all
-#: of them, in order)
-Seen = Callable[[np.ndarray, np.ndarray, "np.ndarray | None"], None]
-
-
-def unseen(weight: np.ndarray, facing: np.ndarray, rows: np.ndarray | None) -> None:
-    """The observer that counts nothing."""
 
 
 class Kernel:

@@ -4,7 +4,8 @@ Every non-ambient light becomes one or more :class:`Emitter` records: a
 directional light, a point light, a spot, or one sample of an area light
 (a point light of ``color / (nu·nv)``).  Ambient light is summed separately.
 :data:`LIGHT_TYPES` is the one list of the light types: what each becomes,
-how many emitters, and where its shadow rays run (:mod:`tracer.sightlines`).
+how many emitters, and where its shadow rays run (:mod:`tracer.sightlines`);
+:func:`light_groups` gives each light of a scene as its span of emitters.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from schemas.scene import AmbientLight, AreaLight, DirectionalLight, PointLight, SpotLight
+from schemas.scene import AmbientLight, AreaLight, DirectionalLight, PointLight, Scene, SpotLight
 
 from .variants import REFERENCE, Options
 from .vec import columns, dot_into
@@ -184,3 +185,26 @@ def spot_factor(em: Emitter, from_light: np.ndarray) -> np.ndarray:
         ramp = np.where(s >= em.cos_inner, 1.0, (s - em.cos_outer) / (span if span > 0 else 1.0))
         powered = np.where(s > 0, np.power(np.maximum(s, 0.0), em.exponent), 0.0 if em.exponent > 0 else 1.0)
     return np.where(s < em.cos_outer, 0.0, powered * ramp)
+
+
+@dataclass(frozen=True)
+class LightGroup:
+    """One light of the scene as the emitters ``first..end − 1`` it became (all of one colour)."""
+
+    light: int  # its index in ``scene.lights``
+    first: int
+    end: int
+    #: an area light's parallelogram: its four local corners, in order round it; None for the other lights
+    corners: np.ndarray | None = None
+
+
+def light_groups(scene: Scene, origin: np.ndarray) -> list[LightGroup]:
+    """The scene's lights that emit (every type but ambient), in order, with their emitters' span."""
+    groups, first = [], 0
+    for k, light in enumerate(scene.lights):
+        count = LIGHT_TYPES[type(light)].count(light)
+        if count:
+            corners = area_corners(light, origin) if isinstance(light, AreaLight) else None
+            groups.append(LightGroup(k, first, first + count, corners))
+        first += count
+    return groups

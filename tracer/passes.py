@@ -23,17 +23,13 @@ a pass does not depend on threads or chunks either; a pass saturates at
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .kernel import Seen, unseen
-from .rays import Work
+from .rays import Hits, Work
 from .vec import scaled
-
-if TYPE_CHECKING:
-    from .intersect import Hits
 
 ADDITIVE = ("background", "ambient", "diffuse", "specular", "reflection", "refraction")
 DEBUG = ("shadow", "normal", "depth", "object")
@@ -45,6 +41,16 @@ CEILING = 1024.0
 #: the ray-tree branches a contribution comes from: the first hit, its mirror ray, its refracted ray
 FIRST, REFLECTED, REFRACTED = 0, 1, 2
 BRANCH_PASS = {FIRST: None, REFLECTED: "reflection", REFRACTED: "refraction"}
+
+
+#: an observer of how many emitters reach each point and face it: called per emitter with a
+#: :class:`tracer.kernel.Reach`'s ``weight`` (after the shadows) and ``facing``, and the rows among the points
+#: shaded that they are of (None: all of them, in order)
+Seen = Callable[[np.ndarray, np.ndarray, "np.ndarray | None"], None]
+
+
+def unseen(weight: np.ndarray, facing: np.ndarray, rows: np.ndarray | None) -> None:
+    """The observer that counts nothing."""
 
 
 def check_passes(names: list[str], light: int | None, lights: int) -> None:

@@ -36,8 +36,9 @@ from .cones import along_direction, on_lines, through_point
 from .lights import LIGHT_TYPES, Emitter
 from .rays import Among, Rays
 from .sightlines import Sightlines
+from .surfaces import Triangles
 from .variants import Options, Spawn
-from .world import Triangles, World
+from .world import World
 
 #: a scene with at most this many spheres and triangles tests its camera rays and its point and directional
 #: lights' shadow rays against the surfaces their bounds allow (:mod:`tracer.cones`), with no walk
@@ -57,7 +58,8 @@ class ProofPlan:
     #: (:mod:`tracer.cones`); None where the scene has too many surfaces
     cone_bounds: Bounds | None
     #: the surfaces as bounds for which points a light reaches (:mod:`tracer.tiles`, :mod:`tracer.culling`,
-    #: :mod:`tracer.penumbra`); None where shadow rays are not the format's, or the scene has too many surfaces
+    #: :mod:`tracer.penumbra`); None where shadow rays are not the format's, where points not facing a light
+    #: may be lit (their own surface may block them), or the scene has too many surfaces
     light_bounds: Bounds | None
     #: shadow rays start at the exact hit point, leaving its surface by identity, and end at the light
     exact_shadows: bool
@@ -104,8 +106,12 @@ def plan_proofs(world: World, options: Options, spawn: Spawn | None) -> ProofPla
     spheres_and_triangles = len(world.spheres.radius) + len(world.triangles.v0)
     cone_bounds = bounds_of(world) if spheres_and_triangles <= CONE_MAX else None
     exact = not options.acne and spawn is None
-    light_bounds = bounds_of(world) if options.shadows and exact else None
-    return ProofPlan(world.triangles, cone_bounds, light_bounds, exact, not options.specular_behind)
+    facing = not options.specular_behind
+    # the proofs of which points a light reaches (tiles, classify, penumbra) exempt a point's own surface, which
+    # holds only for rays of points facing the light: with the variant lighting points from behind, its sphere
+    # may block them
+    light_bounds = bounds_of(world) if options.shadows and exact and facing else None
+    return ProofPlan(world.triangles, cone_bounds, light_bounds, exact, facing)
 
 
 def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Sightlines | None:

@@ -124,3 +124,21 @@ class Work:
     def slices(self, size: int) -> list[Work]:
         """The batch cut into slices of at most ``size`` rays, in order."""
         return [self.take(np.arange(k, min(k + size, len(self)))) for k in range(0, len(self), size)]
+
+
+@dataclass
+class Hits:
+    """The first surface hit by each ray of a batch of N rays."""
+
+    t: np.ndarray  # (N,) ray parameter, inf for a miss
+    kind: np.ndarray  # (N,) MISS, SPHERE, PLANE or TRIANGLE
+    index: np.ndarray  # (N,) index within its kind, -1 for a miss
+    point: np.ndarray  # (N, 3) local hit point, on the surface
+    normal: np.ndarray  # (N, 3) unit geometric normal (outward for spheres)
+    bary: np.ndarray  # (N, 2) barycentric u, v for triangles
+    material: np.ndarray  # (N,) material id before the checker
+
+    def take(self, rows: np.ndarray) -> Hits:
+        """The hits of the rays ``rows`` only, as contiguous arrays."""
+        return Hits(self.t[rows], self.kind[rows], self.index[rows], rows_of(self.point, rows),
+                    rows_of(self.normal, rows), rows_of(self.bary, rows), self.material[rows])

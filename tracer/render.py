@@ -17,14 +17,15 @@ import numpy as np
 
 from schemas import Scene
 
+from .area import area_terms
 from .best import NO_HIT
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
 from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Pixels, Run, chunking, ordered, parts_of, pixel_numbers
-from .direct import DirectLight, Meter, light_groups
+from .direct import DirectLight, Meter
 from .film import Film, stored
 from .intersect import PLANE, SPHERE, TRIANGLE, Intersector
-from .lights import LIGHT_TYPES, emitter_count
+from .lights import LIGHT_TYPES, emitter_count, light_groups
 from .passes import ADDITIVE, LIGHT_TERMS, UNOBSERVED, PassObserver, Tally, check_passes
 from .planner import plan_proofs, scene_sightlines
 from .rays import Among, Rays, Work
@@ -120,7 +121,7 @@ class Renderer:
         #: which proofs spare which rays (:mod:`tracer.planner`)
         self.plan = plan_proofs(world, options, self.spawner.offset)
         shading = DirectLight(world, options, self.intersector, light_groups(self.scene, world.origin), self.plan,
-                              Meter(self._stop, self._count))
+                              Meter(self._stop, self._count), area_terms)
         shading.spawner = self.spawner
         return shading
 

@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .intersect import PLANE, TRIANGLE, Hits
+from .kinds import PLANE, TRIANGLE
 from .lights import Emitter
+from .rays import Hits
 from .shapes import PARALLEL, on_tolerance
+from .surfaces import max_abs, unit
 from .vec import along, dot, rows_of
-from .world import World, max_abs, unit
+from .world import World
 
 
 def resolve_material(world: World, hits: Hits) -> np.ndarray:

@@ -15,13 +15,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .intersect import Hits
 from .passes import REFLECTED, REFRACTED
-from .rays import Rays, Work
+from .rays import Hits, Rays, Work
 from .shading import mirror, refract
+from .surfaces import max_abs
 from .variants import Options, Spawn
 from .vec import rows_of
-from .world import World, max_abs
+from .world import World
 
 
 def picker(rows: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
@@ -29,6 +29,22 @@ def picker(rows: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
     if rows is None:
         return lambda a: a
     return lambda a: rows_of(a, rows)
+
+
+def offset(spawn: Spawn, rays: Rays, geometric: np.ndarray) -> Rays:
+    """``rays`` (from hit points, leaving surfaces of normals ``geometric``, (N, 3)) moved off them by a student's
+    offset ``spawn``.  As a student's rays do, the moved rays carry no identity of the surface they leave: the
+    offset alone keeps them off it, and they are traced as rays from anywhere are (a camera inside the scene's).
+
+    Guarantee: each origin moves by exactly ``spawn.amount`` and never to the other side of the surface it
+    leaves than the one its direction points to (the normal's sign is taken from the direction)."""
+    points, dirs = rays.origins, rays.dirs
+    if spawn.along == "ray":
+        moved = points + spawn.amount * dirs
+    else:
+        side = np.where(np.einsum("ij,ij->i", dirs, geometric) < 0, -spawn.amount, spawn.amount)
+        moved = points + side[:, None] * geometric
+    return Rays.leaving(moved, dirs, 0.0, mag=rays.mag)
 
 
 class Spawner:
@@ -45,7 +61,7 @@ class Spawner:
         pick = picker(rows)
         rays = Rays(pick(hit.point), dirs, pick(hit.kind), pick(hit.index), pick(mag))
         if self.offset is not None:  # a student's offset: off the surface
-            rays = self.offset.leaving(rays, pick(hit.normal))
+            rays = offset(self.offset, rays, pick(hit.normal))
         return rays
 
     def magnitudes(self, hit: Hits) -> np.ndarray:

@@ -14,8 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from .rays import Rays
-
 
 @dataclass(frozen=True)
 class Options:
@@ -125,24 +123,10 @@ class Spawn:
     """A student's way of starting shadow and secondary rays off the surface: ``amount`` (local units) along the
     geometric normal, to the side the ray leaves by (``along="normal"``), or along the ray itself
     (``along="ray"``: the same as ignoring hits nearer than ``amount``, a t_min, since the ray starts on the
-    surface).  As a student's rays do, the moved rays carry no identity of the surface they leave: the offset
-    alone keeps them off it, and they are traced as rays from anywhere are (a camera inside the scene's).
-
-    Guarantee: each origin moves by exactly ``amount`` and never to the other side of the surface it leaves
-    than the one its direction points to (the normal's sign is taken from the direction)."""
+    surface).  The rays are moved by :func:`tracer.spawn.offset`."""
 
     amount: float
     along: str
-
-    def leaving(self, rays: Rays, geometric: np.ndarray) -> Rays:
-        """``rays`` (from hit points, leaving surfaces of normals ``geometric``, (N, 3)) moved off them."""
-        points, dirs = rays.origins, rays.dirs
-        if self.along == "ray":
-            moved = points + self.amount * dirs
-        else:
-            side = np.where(np.einsum("ij,ij->i", dirs, geometric) < 0, -self.amount, self.amount)
-            moved = points + side[:, None] * geometric
-        return Rays.leaving(moved, dirs, 0.0, mag=rays.mag)
 
 #: name → (options, what a student did)
 VARIANTS: dict[str, tuple[Options, str]] = {

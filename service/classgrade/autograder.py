@@ -35,7 +35,7 @@ from .taskfile import TaskSettings, load_tasks
 from .untrusted import UntrustedFileError, read_untrusted
 
 if TYPE_CHECKING:
-    from ..programs.job import Program
+    from ..programs.program import Program
 
 #: where Gradescope lays the autograder out, unless PHONGRAY_AUTOGRADER_ROOT says otherwise
 ROOT = "/autograder"

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 from .errors import ClassError
 
 if TYPE_CHECKING:
-    from ..programs.job import Program
+    from ..programs.program import Program
 
 #: the program's commands and limits, in the bundle's course folder
 PROGRAM_FILE = "program.json"
@@ -35,7 +35,7 @@ def load_program(course: Path) -> Program | None:
     """The bundle's program options (None: an image assignment); :class:`ClassError` for a file that is not
     one this phongray writes."""
     from ..programs import Limits
-    from ..programs.job import Program
+    from ..programs.program import Program
 
     path = course / PROGRAM_FILE
     if not path.exists():

@@ -7,12 +7,9 @@ import concurrent.futures as futures
 import time
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from .errors import ClassError
-
-if TYPE_CHECKING:
-    from .backends import Backend
 
 #: a fault of the pool, the cluster or the server (a lost connection) is retried this many times ...
 RETRIES = 4
@@ -35,7 +32,18 @@ def one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def run_tasks(backend: Backend,  # noqa: C901 (every fault of a task, retried in one loop)
+class Executing(Protocol):
+    """What :func:`run_tasks` needs of where the work runs (a :class:`service.classgrade.backends.Backend`):
+    its name in a message, its executor, what a fault of the executor raises, and a new executor after one."""
+
+    name: str
+    faults: tuple[type[BaseException], ...]
+    executor: futures.Executor | None
+
+    def reset(self) -> None: ...
+
+
+def run_tasks(backend: Executing,  # noqa: C901 (every fault of a task, retried in one loop)
               tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
               done: Callable[[Any, Any], None], kept: Callable[[], str]) -> None:
     """Run every task on the backend; ``done(key, result)`` keeps each result as it comes (so that no finished

@@ -1,13 +1,15 @@
 """The teaching assistant's folders listed: their entries in order, the files no one means (hidden, an archive
-tool's), and the students' own scenes."""
+tool's), the students' own scenes, and a folder opened once and read through (:class:`Folder`)."""
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import ClassError
 from .lms import composed
+from .untrusted import read_untrusted
 
 #: folders an archive tool leaves beside the students' (never a student)
 NOT_STUDENTS = {"__MACOSX"}
@@ -67,3 +69,64 @@ def own_scenes(folder: Path, tasks: dict[str, Path],
                 raise ClassError(f"{path}: names no task (the tasks are {', '.join(sorted(tasks))})")
             out.setdefault(composed(entry.name), {})[task] = path
     return out
+
+
+def _is_link(entry: os.DirEntry[str]) -> bool:
+    try:
+        return entry.is_symlink()
+    except OSError:
+        return False
+
+
+def _is_folder(entry: os.DirEntry[str]) -> bool:
+    """A folder itself, not a link to one (an entry that cannot be looked at is taken as a file: reading it says
+    why it cannot be graded)."""
+    try:
+        return entry.is_dir(follow_symlinks=False)
+    except OSError:
+        return False
+
+
+@dataclass(frozen=True)
+class Entry:
+    name: str
+    folder: bool  # a folder itself, not a link to one
+    link: bool
+
+
+class Folder:
+    """A folder opened once and held: the TA's submissions folder, or a student's (opened without following a
+    link, ``O_NOFOLLOW``, through the folder it is in).  Its entries are listed, its folders opened and its
+    files read through it, never by a second lookup of a path, which a student could have swapped for a link
+    meanwhile."""
+
+    def __init__(self, fd: int, shown: Path, rel: str = ""):
+        self.fd, self.shown, self.rel = fd, shown, rel  # rel: the path below the student's folder ("hw3/")
+
+    @classmethod
+    def root(cls, path: Path) -> Folder:
+        """The TA's submissions folder (a link to it is the TA's, and followed)."""
+        try:
+            return cls(os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC), path)
+        except OSError as exc:
+            raise ClassError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+    def sub(self, name: str, student: bool = False) -> Folder:
+        """A folder in this one (OSError when it cannot be opened, or is a link now); ``student``: a student's
+        own folder, the one its files' paths start from."""
+        fd = os.open(name, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=self.fd)
+        return Folder(fd, self.shown / name, "" if student else f"{self.rel}{name}/")
+
+    def entries(self) -> list[Entry]:
+        """What the folder holds, sorted by name (OSError when it cannot be listed)."""
+        with os.scandir(self.fd) as it:
+            return sorted((Entry(e.name, _is_folder(e), _is_link(e)) for e in it), key=lambda e: e.name)
+
+    def read(self, name: str, limit: int) -> bytes:
+        return read_untrusted(name, limit, dir_fd=self.fd)
+
+    def __enter__(self) -> Folder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        os.close(self.fd)

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from ..programs.job import Program
+    from ..programs.program import Program
 
 
 @dataclass(frozen=True)

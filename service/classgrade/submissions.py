@@ -15,7 +15,6 @@ could swap for a link while the references render; every byte read from a studen
 
 from __future__ import annotations
 
-import os
 import re
 from contextlib import ExitStack
 from dataclasses import dataclass, field
@@ -23,10 +22,10 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ClassError
-from .folders import NOT_STUDENTS, own_scenes, task_scenes
+from .folders import NOT_STUDENTS, Entry, Folder, own_scenes, task_scenes
 from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
 from .records import Batch, Pair
-from .untrusted import UntrustedFileError, read_untrusted
+from .untrusted import UntrustedFileError
 
 #: extensions of images other than PNG: such a file named after a task is that task's (wrong) submission
 OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "heif", "avif"}
@@ -34,22 +33,6 @@ OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "hei
 DEFAULT_LIMIT = 16 << 20
 SCENE_IGNORED = ("a scene among the submissions is not used (a student's own scene comes from the TA's "
                  "--student-scenes folder)")
-
-
-def _is_link(entry: os.DirEntry[str]) -> bool:
-    try:
-        return entry.is_symlink()
-    except OSError:
-        return False
-
-
-def _is_folder(entry: os.DirEntry[str]) -> bool:
-    """A folder itself, not a link to one (an entry that cannot be looked at is taken as a file: reading it says
-    why it cannot be graded)."""
-    try:
-        return entry.is_dir(follow_symlinks=False)
-    except OSError:
-        return False
 
 
 def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None,
@@ -80,51 +63,6 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
             mine.get(task, Submitted(row={"status": "missing", "reason": f"no {task}.png"})).fill(pair)
             pairs.append(pair)
     return Batch(tasks, students, pairs, ignored)
-
-
-@dataclass(frozen=True)
-class Entry:
-    name: str
-    folder: bool  # a folder itself, not a link to one
-    link: bool
-
-
-class Folder:
-    """A folder opened once and held: the TA's submissions folder, or a student's (opened without following a
-    link, ``O_NOFOLLOW``, through the folder it is in).  Its entries are listed, its folders opened and its
-    files read through it, never by a second lookup of a path, which a student could have swapped for a link
-    meanwhile."""
-
-    def __init__(self, fd: int, shown: Path, rel: str = ""):
-        self.fd, self.shown, self.rel = fd, shown, rel  # rel: the path below the student's folder ("hw3/")
-
-    @classmethod
-    def root(cls, path: Path) -> Folder:
-        """The TA's submissions folder (a link to it is the TA's, and followed)."""
-        try:
-            return cls(os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC), path)
-        except OSError as exc:
-            raise ClassError(f"{path}: cannot read: {exc.strerror or exc}") from None
-
-    def sub(self, name: str, student: bool = False) -> Folder:
-        """A folder in this one (OSError when it cannot be opened, or is a link now); ``student``: a student's
-        own folder, the one its files' paths start from."""
-        fd = os.open(name, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC, dir_fd=self.fd)
-        return Folder(fd, self.shown / name, "" if student else f"{self.rel}{name}/")
-
-    def entries(self) -> list[Entry]:
-        """What the folder holds, sorted by name (OSError when it cannot be listed)."""
-        with os.scandir(self.fd) as it:
-            return sorted((Entry(e.name, _is_folder(e), _is_link(e)) for e in it), key=lambda e: e.name)
-
-    def read(self, name: str, limit: int) -> bytes:
-        return read_untrusted(name, limit, dir_fd=self.fd)
-
-    def __enter__(self) -> Folder:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        os.close(self.fd)
 
 
 @dataclass

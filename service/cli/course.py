@@ -16,7 +16,7 @@ from service.cli.programs import add_arguments as program_options
 from service.display import ProgressBar, counted, printable
 
 if TYPE_CHECKING:
-    from service.programs.job import Program
+    from service.programs.program import Program
 
 
 def cmd_grade_class(args: argparse.Namespace) -> int:

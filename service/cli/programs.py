@@ -16,7 +16,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from service.programs.job import Program
+    from service.programs.program import Program
 
 UNITS = {"": 1, "K": 1 << 10, "KIB": 1 << 10, "M": 1 << 20, "MIB": 1 << 20, "G": 1 << 30, "GIB": 1 << 30,
          "KB": 1000, "MB": 1000**2, "GB": 1000**3}
@@ -80,8 +80,8 @@ def program(args: argparse.Namespace) -> Program | None:
         if named:
             raise ValueError(f"{', '.join(named)}: only with --run (the students' program's command line)")
         return None
-    from service.programs.job import Program
     from service.programs.limits import Limits
+    from service.programs.program import Program
 
     given: dict[str, Any] = {"memory_bytes": args.memory, "processes": args.processes,
                              "output_bytes": args.output_size}

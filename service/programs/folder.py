@@ -14,7 +14,7 @@ import os
 import tarfile
 from pathlib import Path, PurePosixPath
 
-from ..classgrade.submissions import Folder
+from ..classgrade.folders import Folder
 from ..classgrade.untrusted import UntrustedFileError
 
 #: how deep a student's folders are followed (deeper ones are skipped, as links are)

@@ -1,0 +1,43 @@
+"""How the TA runs every student's program (:class:`Program`), checked when it is made: a command that cannot be
+run is the TA's mistake, found before any student is run."""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .limits import Limits
+from .runner import BuildStep, ProgramRun, command_argv
+from .sandbox import ENVIRONMENT
+
+
+@dataclass(frozen=True)
+class Program:
+    """How the TA runs every student's program: the command template (``{scene}``, ``{output}``), the build
+    command run once first (None: none), the limits, and the sandbox (off only on purpose)."""
+
+    run: str
+    build: str | None = None
+    limits: Limits = field(default_factory=Limits)
+    sandbox: bool = True
+
+    def __post_init__(self) -> None:
+        """ValueError for a command that cannot be run (the TA's mistake, found before any student is run):
+        one that cannot be split, a run that names no ``{output}``, or a command whose program is a name
+        (not a path into the student's folder) that no folder of the sandbox's ``PATH`` holds."""
+        ProgramRun(Path("."), self.run, Path("scene.json"))
+        if self.build is not None:
+            BuildStep(Path("."), self.build)
+        for command in (self.run, self.build):
+            if command is not None:
+                _installed(command)
+
+
+def _installed(command: str) -> None:
+    """The command's program, when a bare name (``python3``, ``make``), is in the sandbox's ``PATH``: the
+    system's ``/usr`` is what a sandboxed program sees, so a name missing here is missing for every student."""
+    first = command_argv(command)[0]
+    if "/" not in first and "{" not in first and shutil.which(first, path=ENVIRONMENT["PATH"]) is None:
+        raise ValueError(f"command {command!r}: no program {first!r} in {ENVIRONMENT['PATH']} (what a student's "
+                         f"program finds in its sandbox); install it, or name it by its path")
