@@ -19,7 +19,7 @@ LONG_FUNCTIONS = frozenset({
 })
 MANY_PARAMETERS = frozenset({  # the exact tests of rays against one kind of shape, each ray batch's columns apart
     "tracer/shapes.py:triangle_t", "tracer/shapes.py:sphere_t", "tracer/shapes.py:plane_t",
-    "tracer/shapes.py:plane_separates", "tracer/proxies.py:build_proxies",
+    "tracer/proxies.py:build_proxies",
 })
 
 

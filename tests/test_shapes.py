@@ -125,7 +125,7 @@ def test_ray_leaving_a_triangle_or_lying_in_its_plane_misses_it():
 
 
 def test_a_plane_separates_a_segment_exactly_when_its_ends_lie_on_opposite_sides():
-    from tracer.shapes import plane_separates
+    from tracer.shapes import Segments, plane_separates
 
     point, normal = np.zeros(3), np.array([0.0, 1.0, 0.0])
     origins = np.array([[0.0, 1e-3, 0.0], [0.0, 1e-3, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 0.0], [5.0, -1.0, 0.0]])
@@ -135,12 +135,13 @@ def test_a_plane_separates_a_segment_exactly_when_its_ends_lie_on_opposite_sides
                      [0.0, -3.0, 0.0],  # starts on the plane (the surface it leaves)
                      [5.0, 1.0, 0.0]])  # straight through
     mag_o, mag_e = np.max(np.abs(origins), axis=1), np.max(np.abs(ends), axis=1)
-    got = plane_separates(origins, ends, point, normal, mag_o, mag_e, 0.0)
+    got = plane_separates(Segments(origins, ends, mag_o, mag_e), point, normal, 0.0)
     assert got.tolist() == [True, False, False, False, True]
     leaving = np.array([False, False, False, False, True])
-    assert plane_separates(origins, ends, point, normal, mag_o, mag_e, 0.0, leaving).tolist()[-1] is False
+    assert plane_separates(Segments(origins, ends, mag_o, mag_e), point, normal, 0.0, leaving).tolist()[-1] is False
     # one light shared by every row
-    shared = plane_separates(origins, np.array([[0.0, -1.0, 0.0]]), point, normal, mag_o, np.array([1.0]), 0.0)
+    one = Segments(origins, np.array([[0.0, -1.0, 0.0]]), mag_o, np.array([1.0]))
+    shared = plane_separates(one, point, normal, 0.0)
     assert shared.tolist() == [True, True, True, False, False]
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from .best import NO_HIT, Best
 from .embree import Bvh
 from .rays import Among, Hits, Rays, Shadows
-from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
+from .shapes import MISS, PLANE, SPHERE, TRIANGLE, Segments, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
 from .surfaces import unit
 from .vec import along, divided, dot, median_of, minus, most, rows_of
@@ -139,9 +139,9 @@ class Intersector:
         if ends is not None and mag_e is not None:  # a plane blocks a segment exactly when it separates its ends
             pl = self.world.planes
             fk, fi = rays.from_kind, rays.from_index
+            segments = Segments(rays.origins, ends, rays.mag, mag_e)
             for k in range(len(pl.normal)):
-                blocked |= plane_separates(rays.origins, ends, pl.point[k], pl.normal[k], rays.mag, mag_e,
-                                           pl.mag[k], (fk == PLANE) & (fi == k))
+                blocked |= plane_separates(segments, pl.point[k], pl.normal[k], pl.mag[k], (fk == PLANE) & (fi == k))
         for _, _, t, _, _ in self._direct(rays, shadows, among):
             blocked |= t < reach
         if among is not None:

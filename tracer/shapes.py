@@ -19,6 +19,8 @@ distance picked by hand.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 # the surface kinds (:mod:`tracer.kinds`), named here too for the exact tests' callers
@@ -141,23 +143,32 @@ def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np
     return np.where(~skip & (denom != 0) & (t > 0) & np.isfinite(t), t, np.inf)
 
 
-def plane_separates(origins: np.ndarray, ends: np.ndarray, point: np.ndarray, normal: np.ndarray,
-                    mag_origin: np.ndarray, mag_end: np.ndarray, mag_plane: float,
+@dataclass(frozen=True)
+class Segments:
+    """Segments from ``origins (N, 3)`` to ``ends`` (``(N, 3)``, or ``(1, 3)`` for one light shared by every
+    segment), with the magnitudes of each end's coordinates, for the tolerance of a point on a plane."""
+
+    origins: np.ndarray
+    ends: np.ndarray
+    mag_origin: np.ndarray
+    mag_end: np.ndarray
+
+
+def plane_separates(segments: Segments, point: np.ndarray, normal: np.ndarray, mag_plane: float,
                     leaving: np.ndarray | None = None) -> np.ndarray:
-    """True where the plane lies strictly between each origin and its end (a light): the segment between
-    them crosses it. Shape (N,), bool.
+    """True where the plane lies strictly between each segment's origin and its end (a light): the segment
+    crosses it. Shape (N,), bool.
 
     Decided by the signs of the two ends' distances from the plane, which is
     exact where computing the crossing's ``t`` is not (a segment nearly
     parallel to the plane).  An end on the plane (within :func:`on_tolerance`),
-    or an origin leaving it, is never blocked by it.  ``ends`` is ``(N, 3)``,
-    or ``(1, 3)`` for one light shared by every ray.
+    or an origin leaving it, is never blocked by it.
     """
     n = np.asarray(normal, dtype=np.float64)
-    side_o, side_e = plane_side(origins, point, n), plane_side(ends, point, n)
+    side_o, side_e = plane_side(segments.origins, point, n), plane_side(segments.ends, point, n)
     out = (side_o > 0) != (side_e > 0)
-    out &= np.abs(side_o) > on_tolerance(mag_origin, mag_plane)
-    out &= np.abs(side_e) > on_tolerance(mag_end, mag_plane)
+    out &= np.abs(side_o) > on_tolerance(segments.mag_origin, mag_plane)
+    out &= np.abs(side_e) > on_tolerance(segments.mag_end, mag_plane)
     if leaving is not None:
         out &= ~leaving
     return out
