@@ -14,7 +14,6 @@ MODULE_LINES, FUNCTION_LINES, PARAMETERS = 400, 80, 7
 #: functions allowed past FUNCTION_LINES or PARAMETERS, each until it is split (a name added here must say why
 #: it cannot be yet)
 LONG_FUNCTIONS = frozenset({
-    "tracer/cells.py:build_cells",  # the cells' build, one pass of sorting and bounds
     "tracer/sightlines.py:plain_triangles",  # the sightlines' test, its steps share many arrays
 })
 MANY_PARAMETERS = frozenset({  # the exact tests of rays against one kind of shape, each ray batch's columns apart

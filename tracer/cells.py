@@ -171,25 +171,11 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells:
     only decides how many members a part holds."""
     n = len(lo)
     lo, hi = lo - reach, hi + reach
-    extent = most(hi - lo)
-    median = median_of(extent)
-    ordinary = extent <= 4.0 * median
-    origin = lowest(lo)
-    span_all = float(np.max(highest(hi) - origin))
-    size = max(CELL_SCALE * float(np.max(extent[ordinary])), span_all * 2.0**-20, float(np.max(extent)) * 2.0**-20)
-    if not size > 0:
-        size = 1.0
-    while True:  # at most ~20 doublings: at a size of the whole span, every box has one registration
-        top = np.floor((highest(hi) - origin) / size)
-        dims = top.astype(np.int64) + 1
-        k_lo = np.clip(np.floor((lo - origin) / size), 0, dims - 1).astype(np.int64)
-        k_hi = np.clip(np.floor((hi - origin) / size), 0, dims - 1).astype(np.int64)
-        span = k_hi - k_lo + 1
-        count = span[:, 0] * span[:, 1] * span[:, 2]
-        total = int(count.sum())
-        if total <= BUDGET_PER * n + (1 << 20) or np.all(dims == 1):
-            break
-        size *= 2.0
+    origin, size = _grid(lo, hi)
+    dims, k_lo, k_hi = _box_cells(lo, hi, origin, size)
+    span = k_hi - k_lo + 1
+    count = span[:, 0] * span[:, 1] * span[:, 2]
+    total = int(count.sum())
     cells = Cells(origin=origin, size=size, dims=dims, keys=np.zeros(0, np.int64), start=np.zeros(1, np.int64),
                   members=np.zeros(0, np.int64), parts=np.zeros(0, np.uint64))
     # the parts each box's ends lie in, within the first and the last cell of its span along each axis
@@ -247,6 +233,34 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells:
     cells.members = owner[order]
     cells.parts = part[order]
     return cells
+
+
+def _box_cells(lo: np.ndarray, hi: np.ndarray, origin: np.ndarray, size: float
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The grid's cells along each axis, and the first and last cell each box ``lo..hi`` comes into."""
+    dims = np.floor((highest(hi) - origin) / size).astype(np.int64) + 1
+    k_lo = np.clip(np.floor((lo - origin) / size), 0, dims - 1).astype(np.int64)
+    k_hi = np.clip(np.floor((hi - origin) / size), 0, dims - 1).astype(np.int64)
+    return dims, k_lo, k_hi
+
+
+def _grid(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """The grid's corner and its cells' size for boxes ``lo..hi`` (reach already added): the size of
+    :func:`build_cells`, doubled until the registrations fit the budget."""
+    n = len(lo)
+    extent = most(hi - lo)
+    ordinary = extent <= 4.0 * median_of(extent)
+    origin = lowest(lo)
+    span_all = float(np.max(highest(hi) - origin))
+    size = max(CELL_SCALE * float(np.max(extent[ordinary])), span_all * 2.0**-20, float(np.max(extent)) * 2.0**-20)
+    if not size > 0:
+        size = 1.0
+    while True:  # at most ~20 doublings: at a size of the whole span, every box has one registration
+        dims, k_lo, k_hi = _box_cells(lo, hi, origin, size)
+        span = k_hi - k_lo + 1
+        if int((span[:, 0] * span[:, 1] * span[:, 2]).sum()) <= BUDGET_PER * n + (1 << 20) or np.all(dims == 1):
+            return origin, size
+        size *= 2.0
 
 
 def stable_order(keys: np.ndarray, bound: int) -> np.ndarray:
