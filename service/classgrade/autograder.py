@@ -27,11 +27,15 @@ import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_json
 from .errors import ClassError
 from .taskfile import TaskSettings, load_tasks
 from .untrusted import UntrustedFileError, read_untrusted
+
+if TYPE_CHECKING:
+    from ..programs.job import Program
 
 #: where Gradescope lays the autograder out, unless PHONGRAY_AUTOGRADER_ROOT says otherwise
 ROOT = "/autograder"
@@ -58,9 +62,11 @@ class Built:
 
 # -- the bundle ------------------------------------------------------------------------------------------------
 
-def build(scenes: Path, out: Path, tasks_file: Path | None = None, student_scenes: Path | None = None) -> Built:
-    """Write the autograder zip ``out`` for the task scenes in ``scenes``; :class:`ClassError` for a fault of
-    the TA's (an invalid scene or tasks file, a scene that does not render), before anything is written."""
+def build(scenes: Path, out: Path, tasks_file: Path | None = None, student_scenes: Path | None = None,
+          program: Program | None = None) -> Built:
+    """Write the autograder zip ``out`` for the task scenes in ``scenes`` (with a ``program``, for students'
+    programs: :mod:`.bundled`); :class:`ClassError` for a fault of the TA's (an invalid scene or tasks file, a
+    scene that does not render), before anything is written."""
     from .submissions import discover
 
     with tempfile.TemporaryDirectory() as empty:  # (the TA's folders checked as a class of one empty folder)
@@ -74,7 +80,10 @@ def build(scenes: Path, out: Path, tasks_file: Path | None = None, student_scene
             files[f"{COURSE}/student-scenes/{student}/{path.name}"] = _read(path)
     if tasks_file is not None:
         files[f"{COURSE}/tasks.json"] = _read(tasks_file)
-    scenes_of = {name: text for name, text in files.items() if name.endswith(".json") and "/tasks.json" not in name}
+    if program is not None:
+        files[f"{COURSE}/{PROGRAM_FILE}"] = program_json(program)
+    scenes_of = {name: text for name, text in files.items()
+                 if name.endswith(".json") and not name.endswith(("/tasks.json", f"/{PROGRAM_FILE}"))}
     references = _references(scenes_of)
     files.update({f"{COURSE}/references/{key}.png": png for key, png in references.items()})
     files.update(_variants(scenes_of, load_tasks(tasks_file, batch.tasks)))
@@ -281,12 +290,17 @@ def _grade(root: Path) -> dict[str, Any]:
     if not scenes.is_dir():
         raise ClassError(f"{course}: no scenes; is this a phongray autograder bundle?")
     tasks = sorted(p.name[:-5] for p in scenes.iterdir() if p.name.endswith(".json"))
+    program = load_program(course)
+    if program is not None:  # the program runs as a user of its own: /autograder (hidden scenes, references,
+        os.chmod(root, 0o700)  # results) is closed to it even where no sandbox hides it (a bundle's --no-sandbox)
     with tempfile.TemporaryDirectory() as work:
         place = Path(work)
         who = _own_folder(course / "student-scenes", submitter(root))
         student = place / "submissions" / (who or "submission")
         student.mkdir(parents=True)
-        for line in _lay_out(root / "submission", student, tasks):
+        laid = (_lay_out(root / "submission", student, tasks) if program is None
+                else lay_out_program(root / "submission", student, program))
+        for line in laid:
             print(line)
         own = None
         if who is not None:
@@ -298,7 +312,7 @@ def _grade(root: Path) -> dict[str, Any]:
         tasks_file = course / "tasks.json"
         os.environ[STORED] = str(course / "variants")  # (the pool's processes inherit it)
         grade_class(ClassRun(scenes, place / "submissions", report, jobs=1, student_scenes=own,
-                    tasks_file=tasks_file if tasks_file.exists() else None))
+                    tasks_file=tasks_file if tasks_file.exists() else None, program=program))
         return json.loads((report / "gradescope" / student.name / "results.json").read_text())
 
 

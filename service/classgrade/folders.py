@@ -34,6 +34,18 @@ def is_scene(name: str) -> bool:
 HIDDEN = "a hidden file or an archive tool's (never a scene)"
 
 
+def task_scenes(scenes: Path) -> tuple[dict[str, Path], list[tuple[str, str]]]:
+    """The tasks of a scenes folder, ``<task>.json`` each, and its other files, ignored (and why);
+    :class:`ClassError` when there is no task."""
+    scene_files = [e for e in sorted_entries(scenes) if e.is_file()]
+    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if is_scene(e.name)}
+    if not tasks:
+        raise ClassError(f"{scenes}: no task scenes (<task>.json)")
+    ignored = [(str(scenes / e.name), HIDDEN if hidden(e.name) else "not a task scene (<task>.json)")
+               for e in scene_files if not is_scene(e.name)]
+    return tasks, ignored
+
+
 def own_scenes(folder: Path, tasks: dict[str, Path],
                     ignored: list[tuple[str, str]]) -> dict[str, dict[str, Path]]:
     """``<student>/<task>.json`` of the TA's folder of students' own scenes, by the student's name (composed, as

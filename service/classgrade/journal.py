@@ -88,11 +88,15 @@ def _scalar(value: Any) -> bool:
 def valid_row(row: Any) -> bool:
     """A row as a grade of this version keeps it: ``{"status": "invalid", "reason": text}``, or a graded one
     with every number of its type, ``passed`` agreeing with its status, and known mistake ids (a key of its
-    own, such as a newer grade may give, only as a plain value)."""
+    own, such as a newer grade may give, only as a plain value); or a program's failed run: a failing row of
+    plain values and no numbers."""
     if not isinstance(row, dict) or row.get("status") not in KEPT:
         return False
     if row["status"] == "invalid":
         return set(row) == {"status", "reason"} and isinstance(row["reason"], str)
+    if row.get("run") not in (None, "ok"):  # a program's run that failed: its reason and the run's end, no numbers
+        return (row["status"] == "fail" and row.get("passed") is False and isinstance(row.get("reason"), str)
+                and row.get("mistakes") == [] and all(_scalar(row[k]) for k in set(row) - {"mistakes"}))
     return (GRADED <= set(row) and all(_scalar(row[k]) for k in set(row) - GRADED)
             and row["passed"] is (row["status"] == "pass")
             and all(_number(row[k]) for k in FLOATS)

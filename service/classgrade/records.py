@@ -5,14 +5,18 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ..programs.job import Program
 
 
 @dataclass(frozen=True)
 class ClassRun:
     """What ``grade-class`` is asked to do: the TA's folders, the thresholds, and where the work runs.  A
     ``server`` (a URL) or a ``cluster`` (a Dask scheduler's address) sends the work away, else a pool of
-    ``jobs`` processes grades here; with ``limits`` the TA's scenes are held to the service's limits."""
+    ``jobs`` processes grades here; with ``limits`` the TA's scenes are held to the service's limits.  With a
+    ``program``, each student's folder holds a program to run on the task scenes (:mod:`.programs`)."""
 
     scenes: Path
     submissions: Path
@@ -28,6 +32,7 @@ class ClassRun:
     cluster_wait: float = 30.0
     limits: bool = False
     diagnose: bool = True
+    program: Program | None = None  # the students' programs to run (--run); None: they handed in images
 
 
 @dataclass
@@ -109,6 +114,10 @@ class Grade:
     reference: str | None
     submission: str | None
     heatmap: str | None
+    experiment: str | None = None  # a program's: what its answers to the probes show (.programs)
+    run: str | None = None  # a program's: how its run ended, in a word (ok, timeout, memory, ...)
+    run_seconds: float | None = None
+    run_output: str | None = None  # the end of the run's output: the TA's, never shown to a student
 
     def row(self) -> dict[str, Any]:
         """The grade as the report's row: its columns, in order."""

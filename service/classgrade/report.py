@@ -29,9 +29,12 @@ from .taskfile import TaskSettings
 #: the numbers of a graded pair, in report.csv's order
 NUMBERS = ["mean_abs_error", "rmse", "psnr", "max_error", "fraction_off", "fraction_off_nearby", "width", "height",
            "reference_sha256"]
+#: the columns of a program's run (grade-class --run; empty for an image)
+PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output"]
 #: the columns of report.csv (and the keys of each row of report.json), in order
 COLUMNS = ["student", "lms_id", "task", "status", "reason", "likely", "mistakes", "scene", "file", "passed", "points",
-           "score", "deducted", "tolerance", "max_fraction", *NUMBERS, "reference", "submission", "heatmap"]
+           "score", "deducted", "tolerance", "max_fraction", *NUMBERS, "reference", "submission", "heatmap",
+           *PROGRAM_COLUMNS]
 STATUSES = ("pass", "fail", "missing", "invalid")
 
 
@@ -123,15 +126,23 @@ def _drop_stale_results(folder: Path, students: set[str]) -> None:
             (folder / name).rmdir()
 
 
-def test_output(row: dict[str, Any]) -> str:
-    """What a student reads of one task: the verdict and its reason or numbers, and the likely mistake."""
+def test_output(row: dict[str, Any], show: str = "images") -> str:
+    """What a student reads of one task, as its ``show`` (tasks.json) allows: the verdict alone
+    (``verdict-only``); with its reason or numbers (``verdict``); and the likely mistake, what a program's
+    probes found and the partial credit (``diagnosis``, ``images``).  Never a program's output."""
+    if show == "verdict-only":
+        return "passed" if row["status"] == "pass" else ("failed" if row["status"] == "fail" else row["status"])
     if row["status"] == "pass":
         how = f", {row['reason']}" if row.get("reason") else ""  # (as rendered with an accepted variant)
         return (f"passed{how}: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
                 f"(at most {percent(row['max_fraction'])} may be)")
+    if show == "verdict":
+        return f"{row['status']}: {row['reason']}"
     likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
+    found = row.get("experiment")
+    probes = f"\nBy experiment: {found}" if found and found != row.get("likely") else ""
     credit = f"\n{partial(row)}" if row.get("deducted") else ""
-    return f"{row['status']}: {row['reason']}{likely}{credit}"
+    return f"{row['status']}: {row['reason']}{likely}{probes}{credit}"
 
 
 def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
@@ -150,7 +161,8 @@ def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> di
     """One student's results in Gradescope's autograder format (``results.json``): the total ``score`` and a
     test per task with its ``name``, ``score``, ``max_score``, ``status``, ``output`` and ``visibility``."""
     tests = [{"name": r["task"], "score": r["score"], "max_score": r["points"],
-              "status": "passed" if r["status"] == "pass" else "failed", "output": test_output(r),
+              "status": "passed" if r["status"] == "pass" else "failed",
+              "output": test_output(r, tasks[r["task"]].show),
               "visibility": tasks[r["task"]].visibility} for r in rows]
     return {"score": sum(t["score"] for t in tests), "visibility": "visible", "tests": tests}
 
@@ -186,7 +198,8 @@ def _cell(r: dict[str, Any], anchor: str) -> str:
 
 
 def _detail(r: dict[str, Any], anchor: str) -> str:
-    """A pair's detail: the reason, the likely mistake, the score's deduction, the three images, the numbers."""
+    """A pair's detail: the reason, the likely mistake (and a program's probes' findings), the score's
+    deduction, the end of a program's output, the three images, the numbers."""
     images = "".join(
         f'<figure><img src="{_url(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
         if r[k] else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
@@ -194,10 +207,13 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     legend = _legend() if r["heatmap"] else ""
     numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
     likely = f'<p class="likely">Likely: {esc(r["likely"])}</p>' if r.get("likely") else ""
+    found = r.get("experiment")
+    probes = f"<p>By experiment: {esc(found)}</p>" if found and found != r.get("likely") else ""
+    output = f"<pre>{esc(r['run_output'])}</pre>" if r.get("run_output") else ""  # (the TA's page only)
     credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
     return (f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
-            f'</h2><p>{esc(r["reason"])}</p>{likely}{credit}<div class="images">{images}</div>{legend}'
-            f'<table class="numbers">{numbers}</table>'
+            f'</h2><p>{esc(r["reason"])}</p>{likely}{probes}{credit}{output}<div class="images">{images}</div>'
+            f'{legend}<table class="numbers">{numbers}</table>'
             f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
 
 

@@ -18,6 +18,7 @@ from .checks import outside, scene_keys, writable
 from .errors import ClassError
 from .faults import run_tasks
 from .gradebook import matched, score
+from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
 from .records import Batch, ClassRun, Grade, GradeJob, Pair
 from .report import COLUMNS, summary, write_atomic, write_report
 from .submissions import discover
@@ -65,7 +66,11 @@ def grade_class(run: ClassRun, progress: Progress | None = None) -> Outcome:
     started = time.perf_counter()
     settings = Settings.from_env()
     outside(run.report, run.submissions, run.scenes, run.student_scenes)
-    batch = discover(run.scenes, run.submissions, run.student_scenes, settings.max_image_bytes)
+    if run.program is not None:
+        check_programs(run)
+        batch = discover_programs(run.scenes, run.submissions, run.student_scenes)
+    else:
+        batch = discover(run.scenes, run.submissions, run.student_scenes, settings.max_image_bytes)
     tasks = load_tasks(run.tasks_file, batch.tasks)
     scene_of_key, texts = scene_keys(batch, settings if run.limits else None)
     made = not run.report.exists()
@@ -172,15 +177,23 @@ def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] 
     """The row of a grade an earlier run finished for the same reference, the same bytes and the same
     thresholds (with its heat-map and copy in place), or None (:mod:`service.classgrade.journal` checks the rest)."""
     row = journal.kept(journal.path(report, pair.student, pair.task), stamp)
-    if row is not None and row["status"] in ("pass", "fail") and not all(p.exists() for p in _paths(pair, report)):
+    if row is not None and _has_image(row) and not all(p.exists() for p in _paths(pair, report)):
         return None
     return row
+
+
+def _has_image(row: dict[str, Any]) -> bool:
+    """A graded image's row (with its heat-map and copy), not an invalid one or a program's failed run."""
+    return row["status"] in ("pass", "fail") and row.get("run") in (None, "ok")
 
 
 def _grade_all(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pair], references: dict[str, bytes],
                refs: dict[str, Path], tick: Callable[[], None]) -> None:
     """Grade every pair on the backend (its bytes were read when the class was found); every file is written
     here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
+    if run.program is not None:
+        _grade_programs(backend, run, checked, todo, refs, tick)
+        return
     pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
     about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
     grade = backend.grade()
@@ -210,13 +223,34 @@ def _grade_all(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pai
     run_tasks(backend, pending, keep, lambda: _kept(run.report))
 
 
+def _grade_programs(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pair], refs: dict[str, Path],
+                    tick: Callable[[], None]) -> None:
+    """Grade every student's program on the backend, one task per student (:mod:`.programs`); each pair's
+    grade is kept as an image's is."""
+    from ..programs.job import TaskScene
+
+    def task_of(pair: Pair) -> TaskScene:
+        return TaskScene(pair.task, _job(run, checked, pair, refs[pair.key or ""].read_bytes()))
+
+    jobs = program_jobs(run, todo, task_of, lambda pair, stamp: _resumed(pair, run.report, stamp))
+    tick()
+
+    def keep(student: str, results: dict[str, dict[str, Any]]) -> None:
+        for pair, stamp in jobs[student][1]:
+            result = dict(results[pair.task])
+            warn(pair, result)
+            _graded(pair, result, result.pop("image", None) or b"", run.report, stamp)
+        tick()
+
+    run_tasks(backend, program_tasks(jobs), keep, lambda: _kept(run.report))
+
+
 def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> GradeJob:
     """What the backend grades for a pair: its task's thresholds where the tasks file gives them, else the
-    run's."""
-    assert pair.data is not None
+    run's (a program's pair has no image yet: its run makes it)."""
     own = checked.tasks[pair.task]
     accepted = None if own.accepted is None else {str(name): amount for name, amount in own.accepted.items()}
-    return GradeJob(checked.texts[pair.scene], reference, pair.data,
+    return GradeJob(checked.texts[pair.scene], reference, pair.data or b"",
                     run.tolerance if own.tolerance is None else own.tolerance,
                     run.max_fraction if own.max_fraction is None else own.max_fraction,
                     accepted, run.diagnose)
@@ -232,12 +266,15 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         diagnosis = result.pop("diagnosis", None)
         result["likely"] = headline(Diagnosis.from_dict(diagnosis) if diagnosis else None)
         result["mistakes"] = matched(diagnosis)
+        if not result["mistakes"] and result.get("experiment"):  # a program's mistake its probes found instead
+            result["likely"] = result["experiment"].split("; ")[0]
         accepted = result.pop("accepted", None)
         if accepted:  # passed as an honest tracer's variant: the reason says which
             result["reason"] = f"as rendered with {accepted}"
-        heat, copy = _paths(pair, report)
-        write_atomic(heat, result.pop("heatmap_png"))
-        write_atomic(copy, image)
+        if _has_image(result):
+            heat, copy = _paths(pair, report)
+            write_atomic(heat, result.pop("heatmap_png"))
+            write_atomic(copy, image)
         pair.row = result
     journal.keep(journal.path(report, pair.student, pair.task), stamp, pair.row)
 
@@ -261,7 +298,7 @@ def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskS
     ref = refs.get(pair.key or "")
     if ref is not None and ref.exists():
         row["reference"] = str(ref.relative_to(report))
-    if row["status"] in ("pass", "fail"):
+    if _has_image(row):
         heat, copy = _paths(pair, report)
         row["heatmap"], row["submission"] = str(heat.relative_to(report)), str(copy.relative_to(report))
     return Grade(**row)

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ClassError
-from .folders import HIDDEN, NOT_STUDENTS, hidden, is_scene, own_scenes, sorted_entries
+from .folders import NOT_STUDENTS, own_scenes, task_scenes
 from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
 from .records import Batch, Pair
 from .untrusted import UntrustedFileError, read_untrusted
@@ -58,12 +58,7 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
     folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
     unusable, a submissions folder in which no student is found (or whose one folder holds the class), or a
     student's own scenes under another name than the student's."""
-    scene_files = [e for e in sorted_entries(scenes) if e.is_file()]
-    tasks = {e.name[:-5]: scenes / e.name for e in scene_files if is_scene(e.name)}
-    if not tasks:
-        raise ClassError(f"{scenes}: no task scenes (<task>.json)")
-    ignored = [(str(scenes / e.name), HIDDEN if hidden(e.name) else "not a task scene (<task>.json)")
-               for e in scene_files if not is_scene(e.name)]
+    tasks, ignored = task_scenes(scenes)
     own = own_scenes(student_scenes, tasks, ignored) if student_scenes is not None else {}
     with Folder.root(submissions) as root:
         sources = _sources(root, ignored)

@@ -8,6 +8,11 @@
 A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS` and ``MORE_VARIANTS``): an image whose
 one fault is that mistake scores the task's points less the deduction (:mod:`service.classgrade.gradebook`).
 
+``show`` is what a student reads of the task in Gradescope's output (:func:`~.report.test_output`):
+``images`` (the default) and ``diagnosis`` the verdict, its reason, the likely mistake and the partial credit,
+``verdict`` the verdict and its reason, ``verdict-only`` passed or failed: for a hidden scene (a program's
+task), the TA's choice of how much of it the feedback gives away.
+
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
 teaching assistant's: a mistake in it stops the run (:class:`~service.classgrade.errors.ClassError`).
 """
@@ -38,6 +43,8 @@ class TaskSettings(BaseModel):
     tolerance: Annotated[Number, Field(ge=0, le=255)] | None = None  # None: the command's --tolerance
     max_fraction: Annotated[Number, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
     visibility: Literal["visible", "hidden", "after_due_date", "after_published"] = "visible"  # Gradescope's
+    #: what a student reads of the task (Gradescope's output): a hidden scene's TA may show less
+    show: Literal["images", "diagnosis", "verdict", "verdict-only"] = "images"
     deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
     #: the accepted variants of honest tracers, name → largest amount × the scene's size (None: the defaults,
     #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)

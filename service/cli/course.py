@@ -6,12 +6,17 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from service.cli.common import CliError, thresholds
 from service.cli.options import Commands, command, limits, no_diagnosis, positive_int
 from service.cli.options import remote as remote_options
 from service.cli.options import thresholds as threshold_options
+from service.cli.programs import add_arguments as program_options
 from service.display import ProgressBar, counted, printable
+
+if TYPE_CHECKING:
+    from service.programs.job import Program
 
 
 def cmd_grade_class(args: argparse.Namespace) -> int:
@@ -23,6 +28,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     thresholds(args)
     if args.server and args.cluster:
         raise CliError("--server and --cluster: choose one")
+    program = students_program(args)
     bar = ProgressBar(unit="pairs")
     bar.enabled = bar.enabled and not args.quiet
     try:
@@ -32,7 +38,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
                        student_scenes=Path(args.student_scenes) if args.student_scenes else None,
                        tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
                        diagnose=not args.no_diagnosis,
-                       limits=args.limits)
+                       limits=args.limits, program=program)
         outcome = grade_class(run, progress=bar)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
         raise CliError(printable(str(exc))) from None
@@ -47,6 +53,16 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     return 0
 
 
+def students_program(args: argparse.Namespace) -> Program | None:
+    """The students' program of ``--run`` and its options (None: images); a TA's mistake in them is one line."""
+    from service.cli.programs import program
+
+    try:
+        return program(args)
+    except ValueError as exc:
+        raise CliError(printable(str(exc))) from None
+
+
 def cmd_autograder(args: argparse.Namespace) -> int:
     """Exit 0 when the bundle is written, 2 when the TA's input is unusable (nothing is written then)."""
     from service.classgrade.autograder import build
@@ -54,9 +70,10 @@ def cmd_autograder(args: argparse.Namespace) -> int:
 
     if not args.output.endswith(".zip"):
         raise CliError(f"{args.output}: Gradescope takes the autograder as a zip; name the output *.zip")
+    program = students_program(args)
     try:
         built = build(Path(args.scenes), Path(args.output), Path(args.tasks) if args.tasks else None,
-                      Path(args.student_scenes) if args.student_scenes else None)
+                      Path(args.student_scenes) if args.student_scenes else None, program)
     except ClassError as exc:
         raise CliError(printable(str(exc))) from None
     print(printable(f"{args.output}: {counted(len(built.tasks), 'task')} ({', '.join(built.tasks)}), "
@@ -92,6 +109,7 @@ def add(sub: Commands) -> None:
                                                               "progress bar, no summary line)")
     limits(p)
     remote_options(p, cluster=True)
+    program_options(p)
     p.set_defaults(func=cmd_grade_class)
 
 
@@ -108,4 +126,5 @@ def add_autograder(sub: Commands) -> None:
     p.add_argument("--student-scenes", metavar="DIR", help="students' own scenes, <student>/<task>.json, "
                                                            "<student> being their Gradescope email, its part "
                                                            "before the @, student id or name")
+    program_options(p)
     p.set_defaults(func=cmd_autograder)

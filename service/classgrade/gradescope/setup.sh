@@ -34,5 +34,12 @@ if ! "$python" -m venv "$VENV"; then  # Debian and Ubuntu ship venv (and ensurep
   "$python" -m venv "$VENV"
 fi
 "$VENV/bin/pip" install -q --disable-pip-version-check "$SOURCE/phongray"
+# a program assignment (course/program.json) runs each upload in bubblewrap's sandbox; prlimit and setpriv
+# (util-linux) set its limits and its user
+if [ -f "$SOURCE/course/program.json" ] && grep -q '"sandbox": true' "$SOURCE/course/program.json" \
+    && ! command -v bwrap >/dev/null 2>&1; then
+  apt-get update -q
+  apt-get install -y -q bubblewrap util-linux
+fi
 "$VENV/bin/phongray" --version
 echo "phongray: installed with Python $version in $VENV"

@@ -1,0 +1,119 @@
+"""A class of students' programs (``grade-class --run``): a folder per student, one job per student.
+
+``SUBMISSIONS/<student>/`` holds a student's program (:func:`discover_programs`).  Each student with a task
+left to grade is one task of the backend, :func:`service.programs.job.grade_program`: the program built once,
+then run on each of its task scenes, each run in a sandbox of its own, each image graded as an uploaded one;
+in a pool here or on a Dask worker alike.  What it returns is kept pair by pair as an image's grade is
+(:func:`~service.classgrade.run.keep_grade`: the heat-map, the copy of the image, the journal), so the
+report, resuming and Gradescope's results are those of images.  A kept grade stands for the program's files
+and commands (:func:`service.programs.job.digest`): a student who changed nothing is not run again.
+
+The TA's mistakes stop the batch before any student is run (:func:`check_programs`): a command that cannot
+run, bubblewrap missing or unable to start (unless ``--no-sandbox``), ``--server`` (which grades images).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from . import journal
+from .errors import ClassError
+from .folders import hidden, own_scenes, sorted_entries, task_scenes
+from .records import Batch, ClassRun, Pair
+
+if TYPE_CHECKING:  # (service.programs reads files through this package's modules: imported when used)
+    from ..programs.job import ProgramJob, TaskScene
+
+
+def check_programs(run: ClassRun) -> None:
+    """:class:`ClassError`, in one line, for a run of programs that cannot be made (the TA's to mend)."""
+    if run.server:
+        raise ClassError(f"--server {run.server}: a service grades images; run students' programs here or on a "
+                         f"Dask cluster (--cluster)")
+    from ..programs import SandboxUnavailable, check_sandbox
+
+    assert run.program is not None
+    if run.program.sandbox:
+        try:
+            check_sandbox()
+        except SandboxUnavailable as exc:
+            raise ClassError(str(exc)) from None
+
+
+def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Batch:
+    """Every (student, task) pair of a class of programs: a student is a folder of ``submissions`` (not a link,
+    not a hidden one), its pairs left to grade; anything else there is ignored.  A student with an own scene
+    (``--student-scenes``) but no folder has each pair missing."""
+    tasks, ignored = task_scenes(scenes)
+    own = own_scenes(student_scenes, tasks, ignored) if student_scenes is not None else {}
+    students = []
+    for entry in sorted_entries(submissions):
+        shown = str(submissions / entry.name)
+        if hidden(entry.name) or not entry.is_dir(follow_symlinks=False):
+            ignored.append((shown, "not a student's program folder (a folder per student)"))
+        else:
+            students.append(entry.name)
+    if not students:
+        raise ClassError(f"{submissions}: no student found; expected a folder per student holding the program")
+    pairs = []
+    for student in sorted({*students, *own}):
+        for task, shared in tasks.items():
+            scene = own.get(student, {}).get(task)
+            pair = Pair(student, task, submissions / student, scene or shared, scene is not None)
+            if student not in students:
+                pair.row = {"status": "missing", "reason": f"no folder {student}/ holding a program"}
+            pairs.append(pair)
+    return Batch(tasks, sorted({*students, *own}), pairs, ignored)
+
+
+Stamped = tuple[Pair, dict[str, Any]]
+
+
+def program_jobs(run: ClassRun, todo: list[Pair], task_of: Callable[[Pair], TaskScene],
+                 resumed: Callable[[Pair, dict[str, Any]], dict[str, Any] | None]
+                 ) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
+    """Per student with a task left to grade, the job and its pairs with their stamps; a pair an earlier run
+    kept for the same program, scene and thresholds is taken as it was (``resumed``)."""
+    from ..programs.job import ProgramJob, digest
+
+    assert run.program is not None
+    jobs: dict[str, tuple[ProgramJob, list[Stamped]]] = {}
+    for student in sorted({p.student for p in todo}):
+        folder = run.submissions / student
+        code = digest(folder, run.program)
+        tasks, stamped = [], []
+        for pair in (p for p in todo if p.student == student):
+            assert pair.key is not None
+            task = task_of(pair)
+            job = task.grading
+            stamp = {**journal.stamp(pair.key, code, job.tolerance, job.max_fraction), "program": True}
+            if not job.diagnose:
+                stamp["diagnosis"] = False
+            if job.accepted is not None:
+                stamp["accepted"] = job.accepted
+            row = resumed(pair, stamp)
+            if row is not None:
+                pair.row = row
+                continue
+            tasks.append(task)
+            stamped.append((pair, stamp))
+        if tasks:
+            jobs[student] = (ProgramJob(folder, run.program, tuple(tasks)), stamped)
+    return jobs
+
+
+def warn(pair: Pair, result: dict[str, Any]) -> None:
+    """A run without a sandbox says so, every time."""
+    if result.get("run_warning"):
+        print(f"{pair.student}/{pair.task}: {result['run_warning']}", file=sys.stderr)
+
+
+def program_tasks(jobs: dict[str, tuple[ProgramJob, list[Stamped]]]
+                  ) -> dict[str, tuple[Callable[..., Any], tuple[Any, ...]]]:
+    """The backend's tasks: one :func:`grade_program` per student."""
+    from ..programs.job import grade_program
+
+    return {student: (grade_program, (job,)) for student, (job, _) in jobs.items()}

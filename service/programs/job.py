@@ -1,0 +1,193 @@
+"""A student's program graded: built once, run on each task's scene, each image graded as an upload's is.
+
+:func:`grade_program` is one task of class grading (a pool process's or a Dask worker's, all of a student's
+tasks together, so that the build is done once): it builds the program in its sandbox (when the TA gave a
+build command), runs it on each task scene, each run in a sandbox of its own, and grades each image it
+wrote exactly as an uploaded image of that task is graded (:func:`service.classgrade.tasks.local_grade`: the
+thresholds, the accepted variants, the diagnosis).  A run that fails (a timeout, memory, a crash, no output,
+an output that is a link...) makes a failing grade whose reason says so in words, and the others go on; a
+failing image is then diagnosed by experiment too (:mod:`service.programs.experiment`), within the same
+limits.  Only a sandbox that cannot start stops the batch (:class:`SandboxUnavailable`).
+
+The student's folder is read where the task runs: a Dask worker sees the submissions folder at the same path
+(one machine, or a shared file system).  Nothing of a run is left on that machine's disk.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import shutil
+import stat
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from ..classgrade.records import GradeJob
+from .experiment import Thresholds, experiment
+from .limits import Limits
+from .outcome import RunOutcome
+from .runner import BuildStep, ProgramRun, build_program, command_argv, run_program
+from .sandbox import ENVIRONMENT
+
+
+@dataclass(frozen=True)
+class Program:
+    """How the TA runs every student's program: the command template (``{scene}``, ``{output}``), the build
+    command run once first (None: none), the limits, and the sandbox (off only on purpose)."""
+
+    run: str
+    build: str | None = None
+    limits: Limits = field(default_factory=Limits)
+    sandbox: bool = True
+
+    def __post_init__(self) -> None:
+        """ValueError for a command that cannot be run (the TA's mistake, found before any student is run):
+        one that cannot be split, a run that names no ``{output}``, or a command whose program is a name
+        (not a path into the student's folder) that no folder of the sandbox's ``PATH`` holds."""
+        ProgramRun(Path("."), self.run, Path("scene.json"))
+        if self.build is not None:
+            BuildStep(Path("."), self.build)
+        for command in (self.run, self.build):
+            if command is not None:
+                _installed(command)
+
+
+def _installed(command: str) -> None:
+    """The command's program, when a bare name (``python3``, ``make``), is in the sandbox's ``PATH``: the
+    system's ``/usr`` is what a sandboxed program sees, so a name missing here is missing for every student."""
+    first = command_argv(command)[0]
+    if "/" not in first and "{" not in first and shutil.which(first, path=ENVIRONMENT["PATH"]) is None:
+        raise ValueError(f"command {command!r}: no program {first!r} in {ENVIRONMENT['PATH']} (what a student's "
+                         f"program finds in its sandbox); install it, or name it by its path")
+
+
+@dataclass(frozen=True)
+class TaskScene:
+    """One task the program renders: its name, and how its image is graded (the scene's text, its reference,
+    the thresholds: class grading's :class:`~service.classgrade.records.GradeJob`, its image the run's)."""
+
+    task: str
+    grading: GradeJob
+
+    @property
+    def thresholds(self) -> Thresholds:
+        job = self.grading
+        return Thresholds(job.tolerance, job.max_fraction, job.accepted)
+
+
+@dataclass(frozen=True)
+class ProgramJob:
+    """A student's program and the tasks it renders."""
+
+    folder: Path
+    program: Program
+    tasks: tuple[TaskScene, ...]
+
+
+#: how much of the end of a run's output (its standard error) a grade keeps for the TA
+OUTPUT_KEPT = 2000
+
+
+def run_info(outcome: RunOutcome) -> dict[str, Any]:
+    """A run's end as a grade keeps it, plain values only: ``run`` (its reason's word: ``ok``, ``timeout``,
+    ...), ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold
+    what the program read of a hidden scene), ``run_seconds`` and ``run_warning`` (a run without a sandbox)."""
+    return {"run": str(outcome.reason), "run_output": outcome.stderr_tail[-OUTPUT_KEPT:],
+            "run_seconds": round(outcome.wall_seconds, 3), "run_warning": outcome.warning}
+
+
+def failed_run(outcome: RunOutcome, what: str = "the run") -> dict[str, Any]:
+    """The grade of a pair whose run (or build) failed: a failing pair, its reason in words."""
+    return {"status": "fail", "passed": False, "reason": f"{what} failed: {outcome.reason}: {outcome.detail}",
+            "diagnosis": None, **run_info(outcome)}
+
+
+def _grade_image(task: TaskScene, image: bytes) -> dict[str, Any]:
+    from ..classgrade.tasks import local_grade
+
+    return local_grade(replace(task.grading, image=image))
+
+
+def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunOutcome]:
+    """Run the program on a scene's text, written as ``name`` (the task's file name) for it to read."""
+    def run(scene: bytes) -> RunOutcome:
+        with tempfile.TemporaryDirectory(prefix="phongray-scene-") as place:
+            path = Path(place, name)
+            path.write_bytes(scene)
+            return run_program(ProgramRun(folder, program.run, path, program.limits, program.sandbox))
+
+    return run
+
+
+def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, Any]:
+    """One task: the run, its image graded (with ``image``, the bytes graded, and how the run went:
+    :func:`run_info`), and a failing image diagnosed by experiment (``experiment``: its sentences, the
+    likeliest first, joined by "; "; a run that failed is not asked more).  An image that cannot be read as
+    a PNG is an invalid pair, as an uploaded one is."""
+    outcome = run(task.grading.scene)
+    if not outcome.ok or outcome.image is None:
+        return failed_run(outcome)
+    result = {**_grade_image(task, outcome.image), "image": outcome.image, **run_info(outcome)}
+    if task.grading.diagnose and result["status"] == "fail":
+        said = experiment(task.grading.scene, outcome.image, run, task.thresholds).sentences
+        result["experiment"] = "; ".join(said) or None
+    return result
+
+
+@contextmanager
+def _built(job: ProgramJob) -> Iterator[tuple[Path | None, RunOutcome | None]]:
+    """The folder the runs use: the student's, or what its build left (removed afterwards); the build's
+    outcome when it failed."""
+    if job.program.build is None:
+        yield job.folder, None
+        return
+    with tempfile.TemporaryDirectory(prefix="phongray-built-") as into:
+        step = BuildStep(job.folder, job.program.build, job.program.limits, job.program.sandbox)
+        built = build_program(step, Path(into))
+        yield built.folder, None if built.folder is not None else built.outcome
+
+
+def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
+    """Every task's grade of one student's program, by task name (see the module's docstring)."""
+    with _built(job) as (folder, failed):
+        if folder is None:
+            assert failed is not None
+            return {task.task: failed_run(failed, "the build") for task in job.tasks}
+        return {task.task: grade_run(task, _runner(folder, job.program, f"{task.task}.json"))
+                for task in job.tasks}
+
+
+def digest(folder: Path, program: Program) -> str:
+    """What a kept grade of the program stands for: the student's regular files (paths and bytes, read without
+    following a link, as the sandbox's copy leaves links out, and no more than the folder limit's worth: a
+    larger folder is not run) and how it is built, run and limited."""
+    sha = hashlib.sha256(repr((program.run, program.build, program.limits, program.sandbox)).encode())
+    left = program.limits.folder_bytes
+    for root, dirs, files in os.walk(folder, followlinks=False):
+        dirs.sort()
+        for name in sorted(files):
+            path = Path(root, name)
+            with contextlib.suppress(OSError):
+                left = _hash_file(path, path.relative_to(folder), sha, left)
+            if left < 0:
+                return sha.hexdigest()
+    return sha.hexdigest()
+
+
+def _hash_file(path: Path, name: Path, sha: Any, left: int) -> int:
+    """Add a regular file's name and bytes to ``sha`` (not a link's, a FIFO's or a device's), at most
+    ``left`` + 1 bytes; what is left of the budget (negative: over it)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return left
+        sha.update(f"{name}\0".encode("utf-8", "surrogateescape"))
+        while left >= 0 and (chunk := f.read(1 << 20)):
+            sha.update(chunk)
+            left -= len(chunk)
+    return left

@@ -1,0 +1,105 @@
+"""A student's program graded as one job (service.programs.job): built once, run on each task, each image
+graded as an upload's; a failed run or build is a failing grade with its reason, and the job goes on."""
+
+import os
+from pathlib import Path
+
+import pytest
+
+from schemas import load_scene
+from service.classgrade.records import GradeJob
+from service.programs import Limits, check_sandbox
+from service.programs.job import Program, ProgramJob, TaskScene, digest, grade_program
+from tracer import encode_png, render
+
+HERE = Path(__file__).parent / "programs"
+LIMITS = Limits(wall_seconds=20.0, cpu_seconds=20, memory_bytes=1 << 30, output_bytes=1 << 20,
+                folder_bytes=1 << 20)
+RUN = "python3 tracer.py {scene} {output}"
+
+
+@pytest.fixture(scope="module")
+def tasks() -> tuple[TaskScene, ...]:
+    check_sandbox()
+    out = []
+    for name in ("spot", "glass"):
+        text = (HERE / f"{name}.json").read_bytes()
+        reference = encode_png(render(load_scene(text), threads=1))
+        out.append(TaskScene(name, GradeJob(text, reference, b"", 2.0, 0.001)))
+    return tuple(out)
+
+
+def folder(tmp_path: Path, mistakes: str = "", extra: str = "") -> Path:
+    student = tmp_path / "student"
+    student.mkdir()
+    (student / "tracer.py").write_text(extra + (HERE / "tracer.py").read_text())
+    (student / "mistakes.txt").write_text(mistakes)
+    return student
+
+
+def test_an_honest_program_passes_every_task_and_its_image_is_kept(tmp_path, tasks):
+    graded = grade_program(ProgramJob(folder(tmp_path), Program(RUN, limits=LIMITS), tasks))
+    assert {task: row["status"] for task, row in graded.items()} == {"spot": "pass", "glass": "pass"}
+    assert graded["spot"]["image"].startswith(b"\x89PNG") and graded["spot"]["run"] == "ok"
+    assert graded["spot"]["run_warning"] is None
+    assert "experiment" not in graded["spot"]
+
+
+def test_a_buggy_program_fails_with_its_mistake_found_by_experiment(tmp_path, tasks):
+    graded = grade_program(ProgramJob(folder(tmp_path, "no-refraction"), Program(RUN, limits=LIMITS), tasks))
+    assert graded["spot"]["status"] == "pass"
+    assert graded["glass"]["status"] == "fail"
+    assert graded["glass"]["experiment"] == "reflection right, refraction missing"
+
+
+def test_a_run_that_fails_is_a_failing_pair_with_its_reason(tmp_path, tasks):
+    hang = 'import sys\nwhile "glass" in sys.argv[1]:\n    pass\n'
+    quick = Limits(wall_seconds=3.0, cpu_seconds=20, memory_bytes=1 << 30, output_bytes=1 << 20,
+                   folder_bytes=1 << 20)
+    graded = grade_program(ProgramJob(folder(tmp_path, extra=hang), Program(RUN, limits=quick), tasks))
+    assert graded["spot"]["status"] == "pass"  # the job went on
+    glass = graded["glass"]
+    assert glass["status"] == "fail" and glass["passed"] is False and glass["run"] == "timeout"
+    assert glass["reason"].startswith("the run failed: timeout: still running at the wall-time limit of 3 s")
+    assert "experiment" not in glass  # a run that failed is not asked more
+
+
+def test_a_failed_build_fails_every_task_and_runs_none(tmp_path, tasks):
+    student = folder(tmp_path)
+    (student / "build.sh").write_text("echo 'tracer.c:3: error: expected ;' >&2\nexit 1\n")
+    graded = grade_program(ProgramJob(student, Program(RUN, build="sh build.sh", limits=LIMITS), tasks))
+    for row in graded.values():
+        assert row["status"] == "fail" and row["reason"].startswith("the build failed: crashed: crashed (exit 1)")
+        assert "expected ;" in row["run_output"]
+
+
+def test_a_build_runs_once_and_its_result_is_what_runs(tmp_path, tasks):
+    student = folder(tmp_path, "no-refraction")
+    (student / "build.sh").write_text(": > mistakes.txt\necho built >> builds.txt\n")
+    graded = grade_program(ProgramJob(student, Program(RUN, build="sh build.sh", limits=LIMITS), tasks))
+    assert {row["status"] for row in graded.values()} == {"pass"}
+    assert not (student / "builds.txt").exists()  # built in its sandbox, never in the student's folder
+
+
+@pytest.mark.parametrize(("command", "words"), [("python3 tracer.py {scene}", "names no {output}"),
+                                                ("pyhton3 tracer.py {scene} {output}", "no program 'pyhton3'")])
+def test_a_command_of_the_tas_that_cannot_run_is_refused_before_any_student(command, words):
+    with pytest.raises(ValueError, match=words):
+        Program(command)
+
+
+def test_the_digest_follows_the_files_and_the_commands_not_the_links(tmp_path):
+    student = folder(tmp_path)
+    program = Program(RUN, limits=LIMITS)
+    first = digest(student, program)
+    os.symlink("/etc/passwd", student / "passwd")
+    assert digest(student, program) == first
+    assert digest(student, Program(RUN, limits=Limits())) != first
+    (student / "mistakes.txt").write_text("no-shadows")
+    assert digest(student, program) != first
+
+
+def test_an_output_that_is_not_a_png_is_invalid_as_an_upload_would_be(tmp_path, tasks):
+    garbage = 'import sys\nopen(sys.argv[2], "wb").write(b"GIF89a not a png")\nsys.exit(0)\n'
+    graded = grade_program(ProgramJob(folder(tmp_path, extra=garbage), Program(RUN, limits=LIMITS), tasks[:1]))
+    assert graded["spot"]["status"] == "invalid" and "experiment" not in graded["spot"]
