@@ -68,7 +68,7 @@ def check_raw(data: Any, settings: Settings) -> None:
                              f"{getattr(settings, limit)} (PHONGRAY_{limit.upper()})")
 
 
-def light_samples(scene: Scene) -> int:
+def shadow_rays_per_point(scene: Scene) -> int:
     """Shadow rays per shading point: one per light, nu·nv per area light, none for ambient."""
     return sum(light.samples[0] * light.samples[1] if isinstance(light, AreaLight) else 1
                for light in scene.lights if light.type != "ambient")
@@ -99,7 +99,7 @@ def estimated_cost(scene: Scene) -> float:
     """Ray work of a render, estimated before it starts: camera rays × (rays of the tree each spawns + their
     hits × light samples) × per-ray factor (:func:`service.estimate.ray_tree`)."""
     tree = ray_tree(scene)
-    return camera_rays(scene) * (tree.rays + tree.hits * light_samples(scene)) * per_ray_factor(scene)
+    return camera_rays(scene) * (tree.rays + tree.hits * shadow_rays_per_point(scene)) * per_ray_factor(scene)
 
 
 #: exact tests of a ray against a sphere or a triangle a render may make per unit of ``max_cost``: the examples, the
@@ -156,7 +156,7 @@ def check_scene(scene: Scene, settings: Settings) -> None:
     if triangles > settings.max_triangles:
         raise LimitError(f"objects: {triangles} triangles exceed the limit max_triangles = "
                          f"{settings.max_triangles} (PHONGRAY_MAX_TRIANGLES)")
-    samples = light_samples(scene)
+    samples = shadow_rays_per_point(scene)
     if samples > settings.max_light_samples:
         raise LimitError(f"lights: {shown(samples)} light samples exceed the limit "
                          f"max_light_samples = {settings.max_light_samples} (PHONGRAY_MAX_LIGHT_SAMPLES)")

@@ -35,12 +35,15 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
+from tracer.bounds import SurfacePoints, bounds_of  # noqa: E402
 from tracer.cones import along_direction, on_lines, through_point  # noqa: E402
-from tracer.culling import MIXED, SEEN, TILE, Penumbra, bounds_of, classify, lit_tiles  # noqa: E402
+from tracer.culling import MIXED, SEEN, classify  # noqa: E402
 from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
 from tracer.lights import illuminate  # noqa: E402
+from tracer.penumbra import Penumbra  # noqa: E402
 from tracer.rays import Rays, Shadows  # noqa: E402
 from tracer.shading import shading_normal  # noqa: E402
+from tracer.tiles import TILE, lit_tiles  # noqa: E402
 
 import generator  # noqa: E402
 import reference  # noqa: E402
@@ -225,11 +228,12 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
         if group.corners is None:
             em = world.emitters[group.first]
             directional = em.kind == "directional"
-            proven = np.repeat(lit_tiles(bounds, h.point, h.kind, h.index, normal, None if directional else em.position,
+            proven = np.repeat(lit_tiles(bounds, SurfacePoints(h.point, h.kind, h.index, normal),
+                                         None if directional else em.position,
                                          em.direction if directional else None), TILE)[:len(got)]
             samples = [em]
         else:
-            culled = classify(bounds, h.point, h.kind, h.index, normal, group.corners)
+            culled = classify(bounds, SurfacePoints(h.point, h.kind, h.index, normal), group.corners)
             proven = culled.state == SEEN
             samples = world.emitters[group.first:group.end]
             _penumbra(out, renderer, h, normal, mag, culled, group)
@@ -249,15 +253,15 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
 
 def _penumbra(out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag: np.ndarray, culled: Any,
               group: Any) -> None:
-    """An area light's mixed points' rays that tracer.culling.Penumbra decides without casting them, cast all the
+    """An area light's mixed points' rays that tracer.penumbra.Penumbra decides without casting them, cast all the
     same: each proven blocked is blocked, each left uncast and not blocked is clear."""
     world, isect = renderer.world, renderer.intersector
     mixed = np.flatnonzero(culled.state == MIXED)
     if len(mixed) == 0:
         return
     bounds = bounds_of(world)
-    pen = Penumbra(bounds, h.point[mixed], h.kind[mixed], h.index[mixed], normal[mixed], culled.may_block[:, mixed],
-                   group.corners, True)
+    pen = Penumbra(bounds, SurfacePoints(h.point[mixed], h.kind[mixed], h.index[mixed], normal[mixed]),
+                   culled.may_block[:, mixed], group.corners, True)
     for em in world.emitters[group.first:group.end]:
         to_light, dist, factor = illuminate(em, h.point[mixed])
         lit = (np.sum(normal[mixed] * to_light, axis=1) > 0) & (factor > 0)

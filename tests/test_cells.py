@@ -15,7 +15,7 @@ from test_sightlines import BALL, sphere_mesh
 
 import schemas
 from tracer import render
-from tracer.cells import SUB, build_cells
+from tracer.cells import SUB, build_cells, stable_order
 
 
 def random_boxes(n, seed=3, size=0.1):
@@ -182,3 +182,10 @@ def test_a_scene_over_the_cells_budget_walks_coarser_cells_to_the_same_pixels():
     with mock.patch("tracer.cells.BUDGET_PER", -10**9):
         pixels = render(schemas.validate_scene(data))
     assert np.array_equal(pixels, render(schemas.validate_scene(data)))
+
+
+@pytest.mark.parametrize("bound", [1, 7, 1 << 16, (1 << 16) + 3, 5_000_000, 1 << 40])
+def test_stable_order_is_numpys_stable_argsort(bound):
+    keys = np.random.default_rng(bound % 97).integers(0, bound, 20_000)
+    keys[::7] = keys[0]  # many ties: their order must be kept
+    assert np.array_equal(stable_order(keys, bound), np.argsort(keys, kind="stable"))

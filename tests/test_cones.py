@@ -11,8 +11,8 @@ import pytest
 
 import schemas
 from tracer import Renderer
+from tracer.bounds import bounds_of
 from tracer.cones import along_direction, through_point
-from tracer.culling import bounds_of
 from tracer.shapes import SPHERE, TRIANGLE, sphere_t, triangle_t
 from tracer.world import unit
 
@@ -151,7 +151,7 @@ def test_a_triangles_edge_planes_keep_their_direction_far_from_the_apex(ratio):
     from fractions import Fraction
 
     from tracer.cones import _edge_plane
-    from tracer.culling import NORMAL_ERROR
+    from tracer.margins import NORMAL_ERROR
     rng = np.random.default_rng(int(-np.log10(ratio)))
     apex = rng.normal(size=3) * 1e3
     far = apex + unit(rng.normal(size=(1, 3)))[0] * 1e6

@@ -1,5 +1,6 @@
 """Area lights by proof (tracer/culling.py): points proven to see every sample, or none, against every sample."""
 
+from dataclasses import replace
 from fractions import Fraction
 
 import numpy as np
@@ -7,7 +8,9 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.culling import HIDDEN, MIXED, NORMAL_ERROR, SEEN, Bounds, _faces, bounds_of, classify
+from tracer.bounds import Bounds, SurfacePoints, bounds_of
+from tracer.culling import HIDDEN, MIXED, SEEN, _faces, classify
+from tracer.margins import NORMAL_ERROR
 from tracer.shapes import PLANE, SPHERE
 
 import generator
@@ -30,7 +33,7 @@ def with_area_light(seed):
 def test_proofs_change_no_byte(seed):
     scene = schemas.validate_scene(with_area_light(seed))
     proven, unproven = Renderer(scene), Renderer(scene)
-    unproven.shading.bounds = None
+    unproven.shading.plan = replace(unproven.shading.plan, light_bounds=None)
     assert np.array_equal(proven.pixels(), unproven.pixels())
     assert proven.counts["shadow"] <= unproven.counts["shadow"]
 
@@ -52,8 +55,9 @@ def test_proofs_hold_against_every_sample_of_the_brute_force():
         points = rng.uniform(-3, 3, (3000, 3))
         points[:, 1] = rng.uniform(-2.4, 2.5, 3000)
         none = np.zeros(len(points), dtype=np.int8)
-        culled = classify(bounds_of(r.world), points - r.world.origin, none, np.full(len(points), -1),
-                          np.tile([0.0, 1.0, 0.0], (len(points), 1)), corners - r.world.origin)
+        at = SurfacePoints(points - r.world.origin, none, np.full(len(points), -1),
+                           np.tile([0.0, 1.0, 0.0], (len(points), 1)))
+        culled = classify(bounds_of(r.world), at, corners - r.world.origin)
         state = culled.state
         counts += np.bincount(state, minlength=3)
         surfaces = reference.surfaces_of(scene)
@@ -81,7 +85,8 @@ def test_tiles_of_neighbouring_points_proven_seen_see_every_sample():
     """Points in the order a render makes them (rows of neighbours), so that whole tiles are proven SEEN
     (tracer.culling._seen_tiles): every SEEN point is blocked by no sample of the brute force, and the tiles
     spare the per-point proofs most points."""
-    from tracer.culling import TILE, _classify, _seen_tiles
+    from tracer.culling import _classify, _seen_tiles
+    from tracer.tiles import TILE
 
     rng = np.random.default_rng(8)
     objects = [{"type": "sphere", "material": "m", "center": rng.uniform(-2, 2, 3).tolist(),
@@ -98,14 +103,14 @@ def test_tiles_of_neighbouring_points_proven_seen_see_every_sample():
     kind, index = np.full(len(points), 2, dtype=np.int8), np.zeros(len(points), dtype=np.int64)
     up = np.tile([0.0, 1.0, 0.0], (len(points), 1))
     b = bounds_of(r.world)
-    tiles = _seen_tiles(b, points - r.world.origin, kind, index, up, corners - r.world.origin)
-    culled = classify(b, points - r.world.origin, kind, index, up, corners - r.world.origin)
+    at = SurfacePoints(points - r.world.origin, kind, index, up)
+    tiles = _seen_tiles(b, at, corners - r.world.origin)
+    culled = classify(b, at, corners - r.world.origin)
     seen = culled.state == SEEN
     whole = np.repeat(tiles, TILE)[:len(points)]
     assert np.all(seen[whole])
     # most points the per-point proofs find SEEN are proven a tile at a time
-    assert whole.sum() > 0.6 * np.count_nonzero(_classify(b, points - r.world.origin, kind, index, up,
-                                                          corners - r.world.origin).state == SEEN)
+    assert whole.sum() > 0.6 * np.count_nonzero(_classify(b, at, corners - r.world.origin).state == SEEN)
     surfaces = reference.surfaces_of(scene)
     start = np.full(len(points), 5)  # (leaving the floor, the sixth object)
     for a in np.linspace(0, 1, 5):
@@ -198,8 +203,9 @@ def grazed_state(seed):
                solid=np.array([True]), plane_point=np.zeros((0, 3)), plane_normal=np.zeros((0, 3)))
     n = 80  # one point many times: the tiles' proof and the per-point one
     towards = corners.mean(axis=0) - p
-    return classify(b, np.repeat(p[None], n, axis=0), np.full(n, PLANE), np.zeros(n, dtype=int),
-                    np.repeat((towards / np.linalg.norm(towards))[None], n, axis=0), corners)
+    at = SurfacePoints(np.repeat(p[None], n, axis=0), np.full(n, PLANE), np.zeros(n, dtype=int),
+                       np.repeat((towards / np.linalg.norm(towards))[None], n, axis=0))
+    return classify(b, at, corners)
 
 
 @pytest.mark.parametrize("seed", GRAZED_BEFORE + list(range(300)))

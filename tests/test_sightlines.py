@@ -16,8 +16,9 @@ from test_exactness import agrees_with_brute_force, scene
 import schemas
 from tracer import Renderer, render
 from tracer.camera import CameraRays
+from tracer.planner import scene_sightlines
 from tracer.shapes import triangle_t
-from tracer.sightlines import Sightlines, plain_triangles, scene_sightlines
+from tracer.sightlines import Sightlines, plain_triangles
 from tracer.world import build_world
 
 

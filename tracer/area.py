@@ -15,19 +15,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .culling import HIDDEN, MIXED, SEEN, Penumbra, classify
+from .bounds import SurfacePoints
+from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
 from .kernel import Kernel, Points, Seen
-from .vec import dot, minus
-from .world import max_abs
+from .penumbra import Penumbra
 
 if TYPE_CHECKING:
     from .direct import DirectLight, LightGroup
-
-#: a point faces away from every sample of an area light when N·(corner − P) is below this, relative to the
-#: magnitudes of the point and the corners, at every corner: far beyond the rounding of N·L (see
-#: :func:`area_terms`)
-FACING_MARGIN = 2.0**-30
-
 
 @dataclass
 class Sorted:
@@ -76,16 +70,17 @@ def area_terms(direct: DirectLight, group: LightGroup, at: Points,
 
 def _sort(direct: DirectLight, group: LightGroup, at: Points) -> Sorted | None:
     """The points of ``at`` that may see some of the light's samples, sorted (None: none may)."""
-    opt, hit, corners = direct.options, at.hit, group.corners
+    hit, corners, plan = at.hit, group.corners, direct.plan
     assert corners is not None
     n = len(hit.t)
-    if direct.bounds is not None:
-        culled = classify(direct.bounds, hit.point, hit.kind, hit.index, at.normal, corners)
+    bounds = plan.light_bounds
+    if bounds is not None:
+        culled = classify(bounds, SurfacePoints(hit.point, hit.kind, hit.index, at.normal), corners)
         state, may_block = culled.state, culled.may_block
         idle = state == HIDDEN
     else:
         state, may_block, idle = np.full(n, MIXED, dtype=np.int8), None, np.zeros(n, dtype=bool)
-    if not opt.specular_behind:
+    if plan.facing:
         idle |= faces_away(hit.point, at.normal, corners)
     seen_rows = np.flatnonzero(~idle & (state == SEEN))
     mixed_rows = np.flatnonzero(~idle & (state == MIXED))
@@ -97,9 +92,9 @@ def _sort(direct: DirectLight, group: LightGroup, at: Points) -> Sorted | None:
     sub = at if every else at.take(active)
     penumbra = None  # the mixed points' pairs with the bounds that may block them, decided where they can be
     if may_block is not None and len(mixed_rows):
-        assert direct.bounds is not None
-        penumbra = Penumbra(direct.bounds, sub.hit.point[ns:], sub.hit.kind[ns:], sub.hit.index[ns:],
-                            sub.normal[ns:], may_block[:, mixed_rows], corners, not opt.specular_behind)
+        assert bounds is not None
+        mixed = SurfacePoints(sub.hit.point[ns:], sub.hit.kind[ns:], sub.hit.index[ns:], sub.normal[ns:])
+        penumbra = Penumbra(bounds, mixed, may_block[:, mixed_rows], corners, plan.facing)
     return Sorted(active, every, ns, sub, penumbra)
 
 
@@ -132,12 +127,3 @@ def _samples(direct: DirectLight, group: LightGroup, points: Sorted, seen: Seen)
         seen(weight, reach.facing, rows_seen)
     return sum_d, sum_s
 
-
-def faces_away(p: np.ndarray, normal: np.ndarray, corners: np.ndarray) -> np.ndarray:
-    """Points whose normal faces away from all four corners by more than rounding (and whose numbers are
-    finite). Shape (N,), bool."""
-    scale = max_abs(p) + float(np.max(np.abs(corners)))
-    towards = [dot(normal, minus(c, p)) for c in corners]
-    faces_some = np.maximum(np.maximum(towards[0], towards[1]), np.maximum(towards[2], towards[3]))
-    finite = np.isfinite(faces_some) & (scale < 1e300) & np.isfinite(dot(normal, normal))
-    return finite & (faces_some < -FACING_MARGIN * scale)

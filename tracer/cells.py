@@ -24,9 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .proxies import stable_order
-from .vec import highest, lowest, minus, most, plus, rows_of
-from .world import median_of
+from .vec import highest, lowest, median_of, minus, most, plus, rows_of
 
 #: the cell's edge over the largest box among those up to four times the median size
 CELL_SCALE = 1.0
@@ -249,3 +247,17 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells:
     cells.members = owner[order]
     cells.parts = part[order]
     return cells
+
+
+def stable_order(keys: np.ndarray, bound: int) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` for integer keys in ``0..bound-1``, by 16-bit digits: NumPy sorts
+    those by radix, two to three times faster than a comparison sort of the whole keys."""
+    order: np.ndarray | None = None
+    shift = 0
+    while True:
+        digit = ((keys if order is None else keys[order]) >> shift) & 0xFFFF
+        step = np.argsort(digit.astype(np.uint16), kind="stable")
+        order = step if order is None else order[step]
+        shift += 16
+        if bound <= 1 << shift:
+            return order

@@ -5,7 +5,7 @@ run towards the light; an orthographic camera's rays, and a directional
 light's shadow rays, all run along one direction.  Against a handful of
 surfaces, a ray of such a batch is tested exactly only against the surfaces
 it may meet (:class:`tracer.rays.Among`), in place of Embree and the walk.
-Two tests decide it, each from the surface's bound (:class:`tracer.culling.Bounds`:
+Two tests decide it, each from the surface's bound (:class:`tracer.bounds.Bounds`:
 the sphere itself, or a sphere round a triangle) or the triangle itself:
 
 * **A ball, through a point** ``A``: a ray along the line through ``A`` in
@@ -16,7 +16,7 @@ the sphere itself, or a sphere round a triangle) or the triangle itself:
   if its direction lies on the inner side of the three planes through ``A``
   and an edge: ``u·n_i ≥ 0``.  A hit point the exact test accepts may lie
   outside the triangle by its barycentric allowance and rounding, which
-  :data:`GROWTH` of the triangle's size bounds (as the walk's proxies and the
+  :data:`tracer.margins.GROWTH` of the triangle's size bounds (as the walk's proxies and the
   area light's bounds assume); at a distance of at least ``h`` from ``A``
   (the distance of the triangle's plane), that is an angle of at most
   ``GROWTH·size / (h − GROWTH·size)``, which the test allows (four times
@@ -30,10 +30,11 @@ the sphere itself, or a sphere round a triangle) or the triangle itself:
 A camera ray is ``eye + t·d`` exactly (its origin is the eye), so ``u = d``.
 A shadow ray ``P + t·d`` towards a light at ``A`` (``d`` the computed unit
 vector from ``P`` to ``A``) strays from the true segment ``PA`` by at most a
-few units in the last place of its length, which :data:`STRAY` bounds; each
+few units in the last place of its length, which :data:`tracer.margins.STRAY` bounds; each
 surface is grown by that much, and ``u = −d``, whose angle to the true
-direction is as small.  Every surface is grown by :data:`MARGIN` of the
-magnitudes involved, and every cosine compared with a slack of :data:`SLACK`,
+direction is as small.  Every surface is grown by :data:`tracer.margins.MARGIN`
+of the magnitudes involved, and every cosine compared with a slack of
+:data:`tracer.margins.SLACK` (and :data:`tracer.margins.SLACK32` in float32),
 far above the rounding of the tests here.  A proof that cannot be made (``A``
 inside the ball, numbers that are not finite) leaves the surface paired with
 every ray.  So a surface that an exact test finds hit by a ray is always
@@ -45,24 +46,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .culling import NORMAL_ERROR, Bounds, face_normal
+from .bounds import Bounds, face_normal
+from .kinds import TRIANGLE
+from .margins import GROWTH, MARGIN, NORMAL_ERROR, SLACK, SLACK32, STRAY
 from .rays import Among
-from .shapes import TRIANGLE
+from .vec import length
 from .world import Triangles
-
-#: a ball's growth, relative to the magnitudes of the point (or the ray origins) and of the ball
-MARGIN = 2.0**-30
-#: the slack of a cosine (or of a squared distance, relative) compared here: far above its rounding
-SLACK = 2.0**-40
-#: how far a float32 cosine of two unit vectors may lie from the float64 one: the casts of both vectors' components,
-#: three products and two sums are eight roundings, each by at most 2^-24 times a sum of |products| of at most 1
-#: (Cauchy–Schwarz, for unit vectors): 2^-21 in all.  The tests through a point, made in float32 (the float64
-#: numbers of their directions are not needed to bound an angle), compare with eight times that much slack
-SLACK32 = 2.0**-18
-#: how far a shadow ray may stray from its true segment, relative to the segment's length
-STRAY = 2.0**-46
-#: how far outside a triangle an exact test may accept a hit, relative to the triangle's size
-GROWTH = 2.0**-20
 
 
 def _pairs(kinds: list[int], indices: list[int], rows: list[np.ndarray]) -> Among:
@@ -84,7 +73,7 @@ def _corners(tris: Triangles, k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
 
 def _norm(v: np.ndarray) -> np.ndarray:
     """|v| of each row of ``v (..., 3)``. Shape (...)."""
-    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2])
+    return length(v[..., 0], v[..., 1], v[..., 2])
 
 
 #: a triangle's three edge planes: unit normals, and the allowance (through a point) or the levels (along a
@@ -157,8 +146,8 @@ def _edges_through(tris: Triangles, b: Bounds, apex: np.ndarray, apex_mag: float
 
 
 def _edge_plane(u: np.ndarray, e: np.ndarray, across: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per row, the unit normal ``(K, 3)`` of the plane spanned by ``u`` and ``e`` (:func:`tracer.culling.face_normal`:
-    within :data:`tracer.culling.NORMAL_ERROR` of the true one, each of ``u`` and ``e`` a rounded difference of
+    """Per row, the unit normal ``(K, 3)`` of the plane spanned by ``u`` and ``e`` (:func:`tracer.bounds.face_normal`:
+    within :data:`tracer.margins.NORMAL_ERROR` of the true one, each of ``u`` and ``e`` a rounded difference of
     stored numbers or exact), and the sign ``(K,)`` that turns it towards ``across`` (the third corner from the
     edge's start: a short vector), NaN where either is not known: the normal's direction, or a side nearer the
     plane than the normal's error and the product's rounding allow.

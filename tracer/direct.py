@@ -33,23 +33,19 @@ import numpy as np
 from schemas import AreaLight, Scene
 
 from .area import area_terms
-from .cones import along_direction, through_point
-from .culling import TILE, Bounds, lit_tiles
+from .bounds import SurfacePoints
 from .intersect import MISS, SPHERE, TRIANGLE, Hits, Intersector
 from .kernel import Kernel, Points, Reach, Seen
-from .lights import LIGHT_TYPES, Emitter
+from .lights import LIGHT_TYPES, Emitter, area_corners
 from .passes import UNOBSERVED, Observer
+from .planner import ProofPlan
 from .rays import Among, Rays, Shadows
 from .shading import add_phong, planes_holding
 from .spawn import Spawner, picker
+from .tiles import TILE, lit_tiles
 from .variants import Options, add_clamped
 from .vec import columns, dot, rows_of, scaled
 from .world import World, max_abs
-
-#: the fewest lit points of a point or directional light for which tiles of them are proven lit whole
-#: (:func:`tracer.culling.lit_tiles`): the proof's 60-odd NumPy calls cost what the shadow rays of a few thousand
-#: points do (measured: three spots lighting 4k points each lost 1 ms a light; 32k points gain several)
-PROVEN_LIT = 1 << 13
 
 
 @dataclass(frozen=True)
@@ -69,11 +65,7 @@ def light_groups(scene: Scene, origin: np.ndarray) -> list[LightGroup]:
     for k, light in enumerate(scene.lights):
         count = LIGHT_TYPES[type(light)].count(light)
         if count:
-            corners = None
-            if isinstance(light, AreaLight):
-                c = np.asarray(light.corner, dtype=np.float64) - origin
-                u, v = np.asarray(light.edge_u, dtype=np.float64), np.asarray(light.edge_v, dtype=np.float64)
-                corners = np.stack([c, c + u, c + u + v, c + v])
+            corners = area_corners(light, origin) if isinstance(light, AreaLight) else None
             groups.append(LightGroup(k, first, first + count, corners))
         first += count
     return groups
@@ -92,13 +84,10 @@ class DirectLight:
     """The direct-light stage of a renderer: :meth:`shade` gives the colour of hit points."""
 
     def __init__(self, world: World, options: Options, intersector: Intersector, groups: list[LightGroup],
-                 bounds: Bounds | None, cone_bounds: Bounds | None, meter: Meter):
+                 plan: ProofPlan, meter: Meter):
         self.world, self.options, self.intersector, self.groups = world, options, intersector, groups
-        #: the surfaces as bounds for the proofs of which points a light reaches (an area light's culling, tiles of
-        #: points a light reaches whole): None without them, and every point casts every ray
-        self.bounds = bounds
-        #: the surfaces as bounds for rays through one point or along one direction (:mod:`tracer.cones`)
-        self.cone_bounds = cone_bounds
+        #: which proofs spare which shadow rays (:mod:`tracer.planner`)
+        self.plan = plan
         self.stop, self.count = meter.stop, meter.count
         #: the emitters some flat surface's plane holds (where N·L is rounding noise: light_in_plane)
         self.holds = planes_holding(world, world.emitters)
@@ -150,20 +139,21 @@ class DirectLight:
     # -- one emitter: a point light, a spot or a directional light ----------------------------------------------
     def _one(self, kernel: Kernel, e_index: int, seen: Seen) -> tuple[np.ndarray, np.ndarray] | None:
         """The terms of a light of one emitter (``e_index``) at every point, or None where it reaches none."""
-        opt, at, em = self.options, kernel.at, self.world.emitters[e_index]
+        at, em = kernel.at, self.world.emitters[e_index]
         hit = at.hit
         reach = kernel.reach(em, bool(self.holds[e_index]))
         lit, weight = reach.lit, reach.weight
         if not lit.any():
             return None
         rows = np.flatnonzero(lit)
-        if self.bounds is not None and not opt.specular_behind and len(rows) >= PROVEN_LIT:
-            # tiles of points every shadow ray of which is proven clear (tracer.culling.lit_tiles) cast none; of
+        bounds = self.plan.lit_tile_bounds(len(rows))
+        if bounds is not None:
+            # tiles of points every shadow ray of which is proven clear (tracer.tiles.lit_tiles) cast none; of
             # the lit points alone when they are few
             few = 2 * len(rows) < len(lit)
             sub = hit.take(rows) if few else hit
             normal = rows_of(at.normal, rows) if few else at.normal
-            clear = np.repeat(lit_tiles(self.bounds, sub.point, sub.kind, sub.index, normal,
+            clear = np.repeat(lit_tiles(bounds, SurfacePoints(sub.point, sub.kind, sub.index, normal),
                                         None if em.kind == "directional" else em.position,
                                         em.direction if em.kind == "directional" else None), TILE)[:len(sub.t)]
             rows = rows[~clear] if few else np.flatnonzero(lit & ~clear)
@@ -196,21 +186,13 @@ class DirectLight:
                 ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
             lowered = rays.origins - scaled(pick(at.normal), below * rays.mag * 2.0**-30)
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
-        bounds, tris = self.cone_bounds, self.world.triangles
-        # (the cones' proofs are of rays through the light's point, which offset rays are not)
-        cones = among is None and bounds is not None and not opt.acne and self.spawner.offset is None
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
-            if cones:
-                assert bounds is not None
-                among = along_direction(bounds, tris, rays.origins, -em.direction)
         else:
             mag_light = max_abs(em.position[None]) + self.world.origin_mag
             shadows = Shadows(rays, pick(reach.dist), em.position[None], mag_light)  # one light for every ray
-            if cones:
-                assert bounds is not None
-                longest = float(np.max(shadows.reach, initial=0.0))
-                among = through_point(bounds, tris, em.position, shadow_dirs, False, longest)
+        if among is None:
+            among = self.plan.shadow_pairs(em, rays, shadows.reach)
         if opt.acne:
             return self._acne_blocked(shadows, pick(hit.kind), pick(hit.index))
         return self.intersector.occluded(shadows, among)

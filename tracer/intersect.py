@@ -24,9 +24,9 @@ from .embree import Bvh
 from .rays import Among, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
-from .vec import along, divided, dot, minus, most, rows_of
+from .vec import along, divided, dot, median_of, minus, most, rows_of
 from .walk import Walk, _ignored
-from .world import World, median_of, unit
+from .world import World, unit
 
 __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE", "TRIANGLE"]
 

@@ -86,10 +86,12 @@ def _position_hull(light: PointLight | SpotLight, origin: np.ndarray) -> np.ndar
     return np.asarray(light.position, dtype=F64)[None] - origin
 
 
-def _area_hull(light: AreaLight, origin: np.ndarray) -> np.ndarray:
+def area_corners(light: AreaLight, origin: np.ndarray) -> np.ndarray:
+    """An area light's parallelogram: its four local corners ``(4, 3)``, in order round it (the order the
+    proofs of :mod:`tracer.culling` need; as a hull of its shadow rays' ends, any order serves)."""
     c = np.asarray(light.corner, dtype=F64) - origin
     u, v = np.asarray(light.edge_u, dtype=F64), np.asarray(light.edge_v, dtype=F64)
-    return np.stack([c, c + u, c + v, c + u + v])
+    return np.stack([c, c + u, c + u + v, c + v])
 
 
 @dataclass(frozen=True)
@@ -108,11 +110,11 @@ LIGHT_TYPES: dict[type, LightType] = {
     DirectionalLight: LightType(_directional, lambda light: 1, direction=lambda light: _unit3(light.direction)),
     PointLight: LightType(_point, lambda light: 1, hull=_position_hull),
     SpotLight: LightType(_spot, lambda light: 1, hull=_position_hull),
-    AreaLight: LightType(_area, lambda light: light.samples[0] * light.samples[1], hull=_area_hull),
+    AreaLight: LightType(_area, lambda light: light.samples[0] * light.samples[1], hull=area_corners),
 }
 
 
-def light_samples(lights: Sequence[object]) -> int:
+def emitter_count(lights: Sequence[object]) -> int:
     """How many emitters (point lights, spots, directional lights and area-light samples) ``lights`` make."""
     return sum(LIGHT_TYPES[type(light)].count(light) for light in lights)
 

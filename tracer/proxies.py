@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sightlines import SLACK
+from .margins import CROSSING_SLACK
 from .vec import cross, dot, least, most, rows_of
 
 #: proxy margin and walk step, relative to the BVH's half-size
@@ -181,18 +181,5 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
     all_owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
     return Proxies(vertices=all_verts, faces=all_faces.astype(np.int32), owner=all_owner.astype(np.int64),
                    lo=lo, hi=hi, margin=m, reach=REACH * half_size, step=STEP * half_size,
-                   slack=SLACK * half_size if some_plain else 0.0)
+                   slack=CROSSING_SLACK * half_size if some_plain else 0.0)
 
-
-def stable_order(keys: np.ndarray, bound: int) -> np.ndarray:
-    """``np.argsort(keys, kind="stable")`` for integer keys in ``0..bound-1``, by 16-bit digits: NumPy sorts
-    those by radix, two to three times faster than a comparison sort of the whole keys."""
-    order: np.ndarray | None = None
-    shift = 0
-    while True:
-        digit = ((keys if order is None else keys[order]) >> shift) & 0xFFFF
-        step = np.argsort(digit.astype(np.uint16), kind="stable")
-        order = step if order is None else order[step]
-        shift += 16
-        if bound <= 1 << shift:
-            return order

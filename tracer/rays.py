@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .shapes import MISS
+from .kinds import MISS
 from .vec import rows_of
 
 

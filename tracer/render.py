@@ -21,16 +21,14 @@ from .best import NO_HIT
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
 from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Pixels, Run, chunking, ordered, parts_of, pixel_numbers
-from .cones import along_direction, on_lines, through_point
-from .culling import bounds_of
 from .direct import DirectLight, Meter, light_groups
 from .film import Film, stored
 from .intersect import PLANE, SPHERE, TRIANGLE, Intersector
-from .lights import LIGHT_TYPES, light_samples
+from .lights import LIGHT_TYPES, emitter_count
 from .passes import ADDITIVE, LIGHT_TERMS, UNOBSERVED, PassObserver, Tally, check_passes
+from .planner import plan_proofs, scene_sightlines
 from .rays import Among, Rays, Work
 from .shading import resolve_material, shading_normal
-from .sightlines import scene_sightlines
 from .spawn import Spawner
 from .variants import REFERENCE, Options
 from .vec import scaled
@@ -47,10 +45,6 @@ MAX_PIXELS = 1 << 28
 #: the most primary rays (pixels × sub-samples) one render will cast
 MAX_PRIMARY_RAYS = 1 << 32
 
-
-#: a scene with at most this many spheres and triangles tests its camera rays and its point and directional
-#: lights' shadow rays against the surfaces their bounds allow (:mod:`tracer.cones`), with no walk
-CONE_MAX = 32
 
 #: the most point lights (lights plus area-light samples) one render will shade with
 MAX_LIGHT_SAMPLES = 1 << 20
@@ -77,7 +71,7 @@ def _check_size(scene: Scene) -> None:
     if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
         raise ImageTooLarge(f"image: {img.width}×{img.height} pixels × {img.samples}² sub-samples is more "
                             f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})")
-    lights = light_samples(scene.lights)
+    lights = emitter_count(scene.lights)
     if lights > MAX_LIGHT_SAMPLES:
         raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
                             f"({MAX_LIGHT_SAMPLES})")
@@ -119,20 +113,14 @@ class Renderer:
         self.intersector.tested = self._count.tested
 
     def _direct_light(self) -> DirectLight:
-        """The direct-light stage, with the surfaces as bounds for the proofs that spare shadow rays."""
+        """The direct-light stage, with the proofs that spare shadow rays (:mod:`tracer.planner`)."""
         world, options = self.world, self.options
-        #: the surfaces as bounds for camera and shadow rays through one point or along one direction
-        #: (:mod:`tracer.cones`), in scenes of at most CONE_MAX spheres and triangles
-        spheres_and_triangles = len(world.spheres.radius) + len(world.triangles.v0)
-        self.cone_bounds = bounds_of(world) if spheres_and_triangles <= CONE_MAX else None
         #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
         self.spawner = Spawner(world, options, options.spawn(self.scene))
-        # the proofs of which points a light reaches hold for the shadow rays of the format (not a variant's
-        # without them, or with acne)
-        exact = options.shadows and not options.acne and not self.spawner.offset
-        proofs = bounds_of(world) if exact else None
-        shading = DirectLight(world, options, self.intersector, light_groups(self.scene, world.origin), proofs,
-                              self.cone_bounds, Meter(self._stop, self._count))
+        #: which proofs spare which rays (:mod:`tracer.planner`)
+        self.plan = plan_proofs(world, options, self.spawner.offset)
+        shading = DirectLight(world, options, self.intersector, light_groups(self.scene, world.origin), self.plan,
+                              Meter(self._stop, self._count))
         shading.spawner = self.spawner
         return shading
 
@@ -376,18 +364,12 @@ class Renderer:
     def _mirror_among(self, rays: Rays) -> Among | None:
         """The surfaces each mirror or refracted ray may meet (:func:`tracer.cones.on_lines`), when the scene has
         few enough and walks them (with no walk, every surface is tested against every ray already)."""
-        if self.cone_bounds is None or self.intersector.walker is None:
-            return None
-        return on_lines(self.cone_bounds, rays.origins, rays.dirs)
+        return self.plan.mirror_pairs(rays, self.intersector.walker is not None)
 
     def _camera_among(self, rays: Rays) -> Among | None:
         """The surfaces each camera ray may meet (:mod:`tracer.cones`), when the scene has few enough: from the
         eye (every perspective ray starts there, exactly), or along the view (orthographic)."""
-        if self.cone_bounds is None:
-            return None
-        if self.camera.orthographic:
-            return along_direction(self.cone_bounds, self.world.triangles, rays.origins, self.camera.forward)
-        return through_point(self.cone_bounds, self.world.triangles, self.camera.eye, rays.dirs, True)
+        return self.plan.camera_pairs(self.camera, rays)
 
 
 def render(scene: Scene, threads: int | None = None, chunk_rays: int | None = None,

@@ -21,14 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 
+# the surface kinds (:mod:`tracer.kinds`), named here too for the exact tests' callers
+from .kinds import MISS as MISS
+from .kinds import PLANE as PLANE
+from .kinds import SPHERE as SPHERE
+from .kinds import TRIANGLE as TRIANGLE
 from .vec import along, cross, dot, minus
-
-#: the kinds of surface, in one list: what a hit is (``Hits.kind``) and what a ray leaves (``Rays.from_kind``);
-#: MISS is none.  Each has an exact test here, arrays in :mod:`tracer.world` and a place in :mod:`tracer.intersect`
-MISS, SPHERE, PLANE, TRIANGLE = 0, 1, 2, 3
-KINDS = {SPHERE: "sphere", PLANE: "plane", TRIANGLE: "triangle"}
-#: the kinds that lie in a plane (a triangle only without vertex normals, which the shading normal decides)
-FLAT = (PLANE, TRIANGLE)
 
 #: relative resolution: points closer than this (times the magnitudes involved, the world's largest coordinates
 #: of the point and of the surface) are the same place.  Four units in the last place of half their sum: what

@@ -1,7 +1,7 @@
 """The lines a scene's rays travel on, and the triangles Embree may see as they are.
 
 Embree meets triangles in float32 (:mod:`tracer.embree`): the ray and the
-corners are rounded by up to :data:`LINE_ERROR` (in the BVH's normalised
+corners are rounded by up to :data:`tracer.margins.LINE_ERROR` (in the BVH's normalised
 units), which moves where a ray crosses a triangle's plane by that much over
 the sine of the angle between them.  A closed proxy (:mod:`tracer.proxies`)
 makes that harmless at any angle, at the price of four faces and four corners
@@ -13,13 +13,14 @@ elsewhere (no mirror, no glass), most triangles of a mesh can go to Embree
 as themselves, sharing the mesh's float32 corners, and still never be
 missed.  A triangle is *plain* when, for every such point or direction:
 
-* every ray meets its plane at a sine of at least :data:`MIN_SINE`, so the
-  float32 crossing lies within ``LINE_ERROR / MIN_SINE`` of the float64 hit;
+* every ray meets its plane at a sine of at least :data:`tracer.margins.MIN_SINE`, so the
+  float32 crossing lies within ``LINE_ERROR / MIN_SINE``
+  (:data:`tracer.margins.CROSSING_SLACK`) of the float64 hit;
 * each of its edges is shared by exactly one other face of its mesh (same
   corner indices), and the two faces lie on opposite sides of the plane
   through the edge and the point (or along the direction): a ray near the
   edge then crosses one of the two, which Embree's watertight test keeps;
-* no point lies within :data:`NEAR` of it (a ray starting or ending there).
+* no point lies within :data:`tracer.margins.NEAR` of it (a ray starting or ending there).
 
 Everything else (lone triangles, mesh borders, silhouettes, surfaces seen
 edge-on) keeps its proxy, whose margin covers that displacement (see
@@ -38,19 +39,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from schemas import Scene
-
-from .camera import CameraRays
-from .lights import LIGHT_TYPES
-
-#: how far float32 rounding may move a ray or a corner, in units of the BVH's half-size
-LINE_ERROR = 2.0**-19
-#: the least sine of the angle at which a ray may meet a plain triangle
-MIN_SINE = 2.0**-4
-#: how far (relative to the BVH's half-size) a plain triangle's float32 crossing may lie from its float64 hit
-SLACK = LINE_ERROR / MIN_SINE
-#: a plain triangle keeps at least this far (relative to the BVH's half-size) from every known point
-NEAR = 4.0 * SLACK
+from .margins import MIN_SINE, NEAR
+from .vec import length
 
 
 @dataclass
@@ -61,32 +51,6 @@ class Sightlines:
     directions: list[np.ndarray] = field(default_factory=list)  # each (3,) unit
     #: planes (point, unit normal) that rays start on along a direction (an orthographic camera's)
     starts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
-
-
-def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Sightlines | None:
-    """The lines of a validated scene's rays (local coordinates about ``origin``), or None when a mirror or
-    glass may send rays anywhere."""
-    used = {obj.material for obj in scene.objects}
-    used |= {checker.material for name in used if (checker := scene.materials[name].checker) is not None}
-    if scene.image.max_depth > 0 and any(scene.materials[name].reflectance > 0 or
-                                         scene.materials[name].transmittance > 0 for name in used):
-        return None
-    lines = Sightlines()
-    if camera.orthographic:
-        lines.directions.append(camera.forward)
-        lines.starts.append((camera.eye, camera.forward))
-    else:
-        lines.hulls.append(camera.eye[None])
-    for light in scene.lights:
-        kind = LIGHT_TYPES[type(light)]
-        if kind.hull is not None:
-            lines.hulls.append(kind.hull(light, origin))
-        if kind.direction is not None:
-            lines.directions.append(kind.direction(light))
-    if not all(np.all(np.isfinite(h)) for h in lines.hulls) or \
-            not all(np.all(np.isfinite(d)) for d in lines.directions):
-        return None
-    return lines
 
 
 def _same_sign(values: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -193,9 +157,9 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
         for p in points:
             for c in corners:
                 w = _minus(c, p)
-                far = np.maximum(far, np.sqrt(_dot(w, w)))
+                far = np.maximum(far, length(*w))
             gap = tuple(np.maximum(np.maximum(lo_box[k] - p[k], p[k] - hi_box[k]), 0.0) for k in range(3))
-            ok &= ~(np.sqrt(_dot(gap, gap)) <= near)
+            ok &= ~(length(*gap) <= near)
         return ok & (nearest >= MIN_SINE * far)
 
     def seen_along(direction: tuple[float, ...]) -> np.ndarray:

@@ -18,6 +18,12 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
+def length(x: np.ndarray | float, y: np.ndarray | float, z: np.ndarray | float) -> np.ndarray:
+    """``|v| = √(x² + y² + z²)`` of vectors given by their components (arrays that broadcast, or floats), summed
+    in the order x, y, z as :func:`dot` sums: the one place a length is computed from columns."""
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def dot_into(out: np.ndarray, a: np.ndarray, b: np.ndarray, tmp: np.ndarray) -> np.ndarray:
     """``a·b`` per row of two ``(N, 3)`` arrays into ``out``, summed in the order x, y, z (as :func:`dot`), with
     ``tmp`` as scratch. Returns ``out``."""
@@ -131,3 +137,10 @@ def rows_of(a: np.ndarray, index: np.ndarray) -> np.ndarray:
             np.take(a[:, k], index, out=out[:, k])
         return out
     return np.take(a, index, axis=0)
+
+
+def median_of(v: np.ndarray) -> float:
+    """``np.median`` of a non-empty 1-D array, without the import of ``numpy.ma`` that it makes on first use."""
+    n = len(v)
+    part = np.partition(v, [(n - 1) // 2, n // 2])
+    return float((part[(n - 1) // 2] + part[n // 2]) / 2.0)

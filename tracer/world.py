@@ -34,13 +34,6 @@ def max_abs(v: np.ndarray) -> np.ndarray:
     return most(np.abs(v))
 
 
-def median_of(v: np.ndarray) -> float:
-    """``np.median`` of a non-empty 1-D array, without the import of ``numpy.ma`` that it makes on first use."""
-    n = len(v)
-    part = np.partition(v, [(n - 1) // 2, n // 2])
-    return float((part[(n - 1) // 2] + part[n // 2]) / 2.0)
-
-
 def unit(v: np.ndarray) -> np.ndarray:
     """Rows of ``v`` scaled to length 1 (zero rows stay zero), computed without overflow."""
     v = np.asarray(v, dtype=F64)
