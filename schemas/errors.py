@@ -99,7 +99,7 @@ def _model_at(loc: tuple[Any, ...]) -> Any:
     return None
 
 
-def _message(err: dict[str, Any]) -> str:
+def _message(err: dict[str, Any]) -> str:  # noqa: C901 (one plain branch per kind of Pydantic error)
     kind, ctx = err["type"], err.get("ctx") or {}
     if kind == "missing":
         return "required"

@@ -15,7 +15,7 @@ MAX_DEPTH = 64
 _TOKEN = re.compile(r'\s*(?:("(?:[^"\\]|\\.)*")|([{}\[\]:,])|(-?[0-9][0-9eE.+\-]*|true|false|null))', re.S)
 
 
-def value_lines(text: str, limit: int = 200_000) -> dict[str, int]:
+def value_lines(text: str, limit: int = 200_000) -> dict[str, int]:  # noqa: C901 (one JSON scanner)
     """Map from path to the 1-based line where that value starts (for at most ``limit`` values)."""
     out: dict[str, int] = {}
     stack: list[list] = []  # frames: [kind, path, next index or pending key]

@@ -35,8 +35,9 @@ def one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
-def run_tasks(backend: Backend, tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
-               done: Callable[[Any, Any], None], kept: Callable[[], str]) -> None:
+def run_tasks(backend: Backend,  # noqa: C901 (every fault of a task, retried in one loop)
+              tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
+              done: Callable[[Any, Any], None], kept: Callable[[], str]) -> None:
     """Run every task on the backend; ``done(key, result)`` keeps each result as it comes (so that no finished
     work is lost, whatever happens next).  A fault of the executor (``backend.faults``) is retried
     :data:`RETRIES` times with backoff on a new one, with only the unfinished tasks; then the run stops with

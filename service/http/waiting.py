@@ -32,7 +32,7 @@ class _Flight:
         self.waiting = 0  # requests still interested; the render stops when none is
 
 
-async def rendered(request: Request, job: Job) -> bytes:
+async def rendered(request: Request, job: Job) -> bytes:  # noqa: C901 (the outcomes of a shared flight)
     """Render (or fetch) off the event loop; stop rendering once every client that wants it has gone."""
     service: RenderService = request.app.state.service
     cached = service.cache.get(job.key)
