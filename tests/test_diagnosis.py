@@ -222,6 +222,35 @@ def test_a_first_look_counts_off_pixels_as_the_grade_does():
         assert _off_nearby(bands, middles, tolerance) == alone
 
 
+def test_a_first_look_where_the_submission_is_off_rules_out_a_variant_that_leaves_those_rows_alone(setting):
+    from service.diagnosis.looks import off_at_least, off_rows, sampled_rows, telling_middles
+
+    scene, reference, _ = setting
+    submitted = Renderer(scene, VARIANTS["no-shadows"][0]).pixels()
+    verdict = grade(reference, submitted, "")
+    pixels = reference.shape[0] * reference.shape[1]
+    counts = off_rows(reference, submitted, verdict.tolerance)
+    assert not verdict.passed and counts[0] == counts[-1] == 0
+    assert 0 < counts.sum() <= round(verdict.fraction_off_nearby * pixels)
+    enough = 2 * verdict.max_fraction * pixels
+    first = telling_middles(counts, enough)
+    assert len(set(first.tolist())) == len(first) <= len(sampled_rows(reference.shape[0])[0])
+    assert counts[first].sum() > enough or len(first) == len(sampled_rows(reference.shape[0])[0])
+    assert counts[first].min() >= np.sort(counts)[::-1][len(first) - 1]  # (the most off rows)
+
+    def cannot_pass(off: int) -> bool:
+        return off / pixels > verdict.max_fraction
+
+    # a variant that leaves the rows as the reference has them: off there as often as the reference, in one look
+    unchanged = dataclasses_replace(renders_of(scene), rows=lambda name, rows: reference[rows])
+    assert off_at_least("no-ambient", submitted, verdict, unchanged, cannot_pass, first) == counts[first].sum()
+    # and for real variants, the look is still a lower bound of what the whole grade counts
+    for v in ("no-shadows", "blinn-phong", "no-ambient"):
+        least = off_at_least(v, submitted, verdict, renders_of(scene), None, first)
+        g = grade(Renderer(scene, VARIANTS[v][0]).pixels(), submitted, "", verdict.tolerance)
+        assert least is not None and least <= round(g.fraction_off_nearby * pixels), v
+
+
 def test_where_renders_the_failing_pixels_alone_as_the_whole_pass_render_has_them(setting):
     scene, reference, _ = setting
     renders = renders_of(scene)

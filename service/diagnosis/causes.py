@@ -29,7 +29,15 @@ from tracer.variants import BOUNDS, VARIANTS
 from ..grading import Grade, grade
 from .compose import stored_only
 from .fit import fit_terms
-from .looks import bound_unless_outside, off_at_least, outside_at_least, speckled, whole_unless_off
+from .looks import (
+    bound_unless_outside,
+    off_at_least,
+    off_rows,
+    outside_at_least,
+    speckled,
+    telling_middles,
+    whole_unless_off,
+)
 from .records import Cause, Diagnosis
 from .renders import Renders
 from .together import closer, combined, nearest_causes, together_causes
@@ -38,6 +46,9 @@ from .where import where
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
 #: failing pixels
 CLOSEST_SHARE = 0.25
+#: the first look takes the rows where the submission is most off against the reference until they hold this many
+#: times the off pixels that rule a variant out: a variant that changes only part of those rows is ruled out too
+TELLING = 2.0
 
 
 def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
@@ -92,6 +103,10 @@ class _Scoring:
         self.reference, self.submitted, self.verdict, self.renders = reference, submitted, verdict, renders
         self.pixels = submitted.shape[0] * submitted.shape[1]
         self.scored: list[Cause] = []
+        # where the submission is off against the reference, per row: the rows and bands looked at first (the
+        # order of the looks only: every bound stays exact, every whole render the same image)
+        self.counts = off_rows(reference, submitted, verdict.tolerance)
+        self.first = telling_middles(self.counts, TELLING * verdict.max_fraction * self.pixels)
 
     # whether a variant with at least ``off`` pixels off (even nearby) cannot pass, or cannot be named the
     # closest either: decided as the grade and the naming decide them, on the share of the pixels
@@ -107,7 +122,7 @@ class _Scoring:
     def score(self, name: str, beyond: Callable[[int], bool]) -> bool:
         """Scores variant ``name``, unless its render shows on the way a count of off pixels ``beyond`` says
         is too many (then False: it cannot pass, or come closest, whichever ``beyond`` decides)."""
-        image = whole_unless_off(name, self.submitted, self.verdict, self.renders, beyond)
+        image = whole_unless_off(name, self.submitted, self.verdict, self.renders, beyond, self.counts)
         if image is None:
             return False
         if np.array_equal(image, self.reference):  # the mistake changes nothing in this scene: no evidence
@@ -121,7 +136,8 @@ class _Scoring:
         ``beyond`` says is too many (then False, as :meth:`score`)."""
         # the variant's own speckles are one pattern of many: only lying between the reference and the far
         # end, in speckles, is evidence of the mistake
-        far = bound_unless_outside(name, self.reference, self.submitted, self.verdict, self.renders, beyond)
+        far = bound_unless_outside(name, self.reference, self.submitted, self.verdict, self.renders, beyond,
+                                   self.counts)
         if far is None:
             return False
         outside = speckled(self.reference, far, self.submitted, self.verdict.tolerance)
@@ -140,13 +156,14 @@ class _Scoring:
             # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot
             # pass is scored only if none passes, and then only if it may come closest
             least = None if name in BOUNDS else off_at_least(name, self.submitted, self.verdict, renders,
-                                                             self.cannot_pass)
+                                                             self.cannot_pass, self.first)
             if (least is not None and self.cannot_pass(least)) or not self.score(name, self.cannot_pass):
                 later.append(name)
         later_bounds = []
         for name in filter(self.shown, BOUNDS) if renders.bound is not None else ():
             renders.check()
-            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, self.cannot_pass)
+            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, self.cannot_pass,
+                                     self.first)
             if (least is not None and self.cannot_pass(least)) or not self.score_speckled(name, self.cannot_pass):
                 later_bounds.append(name)
         return later, later_bounds
@@ -156,12 +173,12 @@ class _Scoring:
         renders, closest = self.renders, self.cannot_come_closest
         for name in later:
             renders.check()
-            least = off_at_least(name, self.submitted, self.verdict, renders, closest)  # (every row looked at)
+            least = off_at_least(name, self.submitted, self.verdict, renders, closest, self.first)  # (every row)
             if least is None or not closest(least):
                 self.score(name, closest)
         for name in later_bounds:
             renders.check()
-            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, closest)
+            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, closest, self.first)
             if least is None or not closest(least):
                 self.score_speckled(name, closest)
 

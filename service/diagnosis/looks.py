@@ -29,16 +29,45 @@ def sampled_rows(height: int, every: int = SAMPLE_EVERY) -> tuple[np.ndarray, np
     return middles, (middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
 
 
-def _looks(height: int) -> list[np.ndarray]:
+def _looks(height: int, first: np.ndarray | None = None) -> list[np.ndarray]:
     """The sampled middle rows (:func:`sampled_rows`) in the goes a first look takes them: one in
-    :data:`FIRST_LOOK` first, then the rest (none for an image too short to have middle rows)."""
+    :data:`FIRST_LOOK` first (or ``first``, when given), then the rest (none for an image too short to have
+    middle rows)."""
     middles, _ = sampled_rows(height)
-    first = middles[FIRST_LOOK // 2::FIRST_LOOK]
+    if first is None or len(first) == 0:
+        first = middles[FIRST_LOOK // 2::FIRST_LOOK]
     return [look for look in (first, np.setdiff1d(middles, first)) if len(look)]
 
 
+def off_rows(reference: np.ndarray, submitted: np.ndarray, tolerance: float) -> np.ndarray:
+    """Per row of ``submitted``, how many of its pixels are off even nearby against ``reference`` (as
+    :func:`_off_nearby` counts them); 0 on the image's first and last rows, which no look takes as a middle."""
+    h = submitted.shape[0]
+    counts = np.zeros(h, dtype=np.int64)
+    if h >= 3:
+        bands = np.stack([reference[:-2], reference[1:-1], reference[2:]], axis=1)
+        counts[1:-1] = _off_per_row(bands, submitted[1:-1], tolerance)
+    return counts
+
+
+def telling_middles(counts: np.ndarray, enough: float) -> np.ndarray:
+    """The middle rows a first look takes when the submission's off rows against the reference are known
+    (``counts``, :func:`off_rows`): those with the most off pixels, most first, until they hold more than
+    ``enough`` of them, at most as many as :func:`sampled_rows` has.
+
+    A cost, never an answer: any distinct middle rows give an exact lower bound (:func:`off_at_least`).  A
+    variant that agrees with the reference on these rows is off there as often as the reference is, more than
+    ``enough``: it is ruled out by this one look; only a variant that changes these very rows is looked at
+    further."""
+    ranked = np.argsort(-counts, kind="stable")
+    ranked = ranked[counts[ranked] > 0][:len(sampled_rows(len(counts))[0])]
+    held = np.cumsum(counts[ranked])
+    take = int(np.searchsorted(held, enough, side="right")) + 1
+    return np.sort(ranked[:take])
+
+
 def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                 beyond: Callable[[int], bool] | None = None) -> int | None:
+                 beyond: Callable[[int], bool] | None = None, first: np.ndarray | None = None) -> int | None:
     """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
     look at a few of its rows (None when :class:`Renders` has no rows to give); once ``beyond`` says the count
     is too many, no more rows are looked at.
@@ -49,11 +78,12 @@ def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Rend
     A variant whose bound exceeds what passing allows cannot pass, and one whose bound exceeds the closest's
     share cannot be named closest (:func:`diagnose`).  The rows are looked at in two goes, one in
     :data:`FIRST_LOOK` of them first: a bound from some of the rows is a bound too, and most variants are
-    settled by it."""
+    settled by it.  ``first``, when given (:func:`telling_middles`), is the first look instead, and the rest
+    of the sampled rows the second."""
     if renders.rows is None:
         return None
     h, w, _ = submitted.shape
-    looks = _looks(h)
+    looks = _looks(h, first)
     if not looks:
         return None
     off = 0
@@ -71,7 +101,8 @@ BANDS = 4
 
 
 def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                     beyond: Callable[[int], bool] | None = None) -> np.ndarray | None:
+                     beyond: Callable[[int], bool] | None = None, counts: np.ndarray | None = None
+                     ) -> np.ndarray | None:
     """Variant ``name``'s whole image, rendered a band of rows at a time; None as soon as ``beyond`` says the
     pixels of ``submitted`` off even nearby in the rows so far are too many.
 
@@ -81,7 +112,8 @@ def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: 
     same division), so once it says too many, the variant cannot pass (or come closest): the rest of it is
     not rendered.  The bands come in the order of :func:`_bands`, so that a mistake confined to one part of the image
     shows early; a variant that may pass is rendered whole, each row once (:class:`Renders` keeps the rows of
-    the first looks too)."""
+    the first looks too); with ``counts`` (:func:`off_rows`), the bands with the most pixels off against the
+    reference come first, where a variant that cannot pass shows it soonest."""
     if renders.rows is None or beyond is None:
         return renders.variant(name)
     h = submitted.shape[0]
@@ -90,7 +122,7 @@ def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: 
     everywhere = np.arange(h)
     above, below = np.maximum(everywhere - 1, 0), np.minimum(everywhere + 1, h - 1)
     off = 0
-    for band in _bands(h):
+    for band in _ranked(_bands(h), counts):
         image[band] = renders.rows(name, band)
         came[band] = True
         ready = np.flatnonzero(came & came[above] & came[below] & ~counted)
@@ -117,21 +149,32 @@ def _bands(height: int, bands: int = BANDS) -> list[np.ndarray]:
     return [np.arange(edges[k], edges[k + 1]) for k in order[:bands] if edges[k + 1] > edges[k]]
 
 
+def _ranked(bands: list[np.ndarray], counts: np.ndarray | None) -> list[np.ndarray]:
+    """``bands`` with the most pixels off against the reference (``counts``, per row) first, in their own order
+    among equals; as they are without ``counts``.  Only the order changes: every band still comes, each once,
+    so a whole image is the same image, and the count so far is a lower bound however they come."""
+    if counts is None:
+        return bands
+    return [bands[k] for k in sorted(range(len(bands)), key=lambda k: -int(counts[bands[k]].sum()))]
+
+
 def bound_unless_outside(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
-                         renders: Renders, beyond: Callable[[int], bool] | None = None) -> np.ndarray | None:
+                         renders: Renders, beyond: Callable[[int], bool] | None = None,
+                         counts: np.ndarray | None = None) -> np.ndarray | None:
     """Speckled mistake ``name``'s far end, whole, rendered a band of rows at a time as
     :func:`whole_unless_off` renders a variant; None as soon as ``beyond`` says the pixels of ``submitted``
     outside the reference and the far end in the bands so far are too many.
 
     Exact, as :func:`outside_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
     count so far is a lower bound of :func:`speckled`'s, decided on as it decides (the share of the pixels):
-    once too many, the mistake cannot pass (or come closest), and the rest of its far end is not rendered."""
+    once too many, the mistake cannot pass (or come closest), and the rest of its far end is not rendered.
+    ``counts``: the bands in the order :func:`whole_unless_off` takes them."""
     assert renders.bound is not None
     if renders.bound_rows is None or beyond is None:
         return renders.bound(name)
     image = np.empty_like(submitted)
     off = 0
-    for band in _bands(submitted.shape[0]):
+    for band in _ranked(_bands(submitted.shape[0]), counts):
         image[band] = renders.bound_rows(name, band)
         off += _outside(reference[band], image[band], submitted[band], verdict.tolerance)
         if beyond(off):
@@ -148,10 +191,16 @@ def _outside(reference: np.ndarray, far: np.ndarray, submitted: np.ndarray, tole
 
 
 def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int:
+    """How many pixels of the submitted rows ``middles`` are off even nearby against the variant's ``bands``
+    (:func:`_off_per_row`, summed)."""
+    return int(_off_per_row(bands, middles, tolerance).sum())
+
+
+def _off_per_row(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> np.ndarray:
     """How many pixels of the submitted rows ``middles (k, W, 3)`` are off even nearby against the variant's
-    ``bands (k, 3, W, 3)`` (each middle row with the rows above and below): every variant pixel in the 3×3
-    neighbourhood (the row's ends repeated) differs from it by more than ``tolerance`` in some channel, as
-    :func:`service.grading.grade` counts them."""
+    ``bands (k, 3, W, 3)`` (each middle row with the rows above and below), per row: every variant pixel in
+    the 3×3 neighbourhood (the row's ends repeated) differs from it by more than ``tolerance`` in some
+    channel, as :func:`service.grading.grade` counts them."""
     k, _, w, _ = bands.shape
     # channel planes, as the grade compares them: (3, k, 3, W + 2) and (3, k, W), differences in uint8
     padded = np.ascontiguousarray(np.moveaxis(np.pad(bands, ((0, 0), (0, 0), (1, 1), (0, 0)), mode="edge"), 3, 0))
@@ -162,11 +211,11 @@ def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int
             near = padded[:, :, dy, dx:dx + w]
             diff = [np.maximum(near[c], sub[c]) - np.minimum(near[c], sub[c]) for c in range(3)]
             np.minimum(best, np.maximum(np.maximum(diff[0], diff[1]), diff[2]), out=best)
-    return int(np.count_nonzero(best > tolerance))
+    return np.count_nonzero(best > tolerance, axis=1)
 
 
 def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                     beyond: Callable[[int], bool] | None = None) -> int | None:
+                     beyond: Callable[[int], bool] | None = None, first: np.ndarray | None = None) -> int | None:
     """For a speckled mistake ``name`` of :data:`tracer.variants.BOUNDS`: a lower bound of how many pixels of
     ``submitted`` lie outside the reference and the mistake's far end (:func:`speckled`'s share, as a count),
     from a look at the sampled middle rows of the far end (None when :class:`Renders` has no rows to give);
@@ -175,10 +224,11 @@ def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, ve
     Exact, as :func:`off_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
     sampled rows give their outside pixels exactly as :func:`speckled` counts them, and their count bounds
     the whole image's.  A mistake whose bound exceeds what passing allows cannot pass, and one whose bound
-    exceeds the closest's share cannot be named closest: its far end is rendered whole only when it can."""
+    exceeds the closest's share cannot be named closest: its far end is rendered whole only when it can.
+    ``first``: the first look's rows, as :func:`off_at_least` takes them."""
     if renders.bound_rows is None:
         return None
-    looks = _looks(submitted.shape[0])
+    looks = _looks(submitted.shape[0], first)
     if not looks:
         return None
     off = 0
