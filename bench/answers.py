@@ -41,19 +41,28 @@ from PIL import Image
 SCENES = Path(__file__).parent.parent / "tests" / "scenes"
 
 
-def many_lights(lights: int = 100, width: int = 640, height: int = 480, columns: int = 10,
-                colour: float = 0.01) -> dict[str, Any]:
+def many_lights(
+    lights: int = 100, width: int = 640, height: int = 480, columns: int = 10, colour: float = 0.01
+) -> dict[str, Any]:
     """A floor and a ball under a grid of ``columns`` × ``lights // columns`` dim point lights (and an ambient
     one): the diagnosis's attack scene, whose light terms grow with lights × pixels."""
-    grid = [{"type": "point", "position": [x * 0.6 - 2.4, 3, z * 0.6 - 1], "color": [colour, colour, colour]}
-            for x in range(columns) for z in range(lights // columns)]
-    return {"camera": {"position": [0, 2, 6], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov": 50},
-            "image": {"width": width, "height": height, "samples": 1, "max_depth": 1, "background": [0.1, 0.1, 0.2]},
-            "materials": {"m": {"diffuse": [0.8, 0.7, 0.6], "specular": [0.3, 0.3, 0.3], "shininess": 20,
-                                "ambient": [0.1, 0.1, 0.1]}},
-            "objects": [{"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"},
-                        {"type": "sphere", "center": [0, 1, 0], "radius": 1, "material": "m"}],
-            "lights": [{"type": "ambient", "color": [0.2, 0.2, 0.2]}] + grid}
+    grid = [
+        {"type": "point", "position": [x * 0.6 - 2.4, 3, z * 0.6 - 1], "color": [colour, colour, colour]}
+        for x in range(columns)
+        for z in range(lights // columns)
+    ]
+    return {
+        "camera": {"position": [0, 2, 6], "look_at": [0, 0, 0], "up": [0, 1, 0], "fov": 50},
+        "image": {"width": width, "height": height, "samples": 1, "max_depth": 1, "background": [0.1, 0.1, 0.2]},
+        "materials": {
+            "m": {"diffuse": [0.8, 0.7, 0.6], "specular": [0.3, 0.3, 0.3], "shininess": 20, "ambient": [0.1, 0.1, 0.1]}
+        },
+        "objects": [
+            {"type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m"},
+            {"type": "sphere", "center": [0, 1, 0], "radius": 1, "material": "m"},
+        ],
+        "lights": [{"type": "ambient", "color": [0.2, 0.2, 0.2]}] + grid,
+    }
 
 
 def free_port() -> int:
@@ -67,8 +76,18 @@ class Server:
         self.port = free_port()
         self.url = f"http://127.0.0.1:{self.port}"
         env = {**os.environ, **{f"PHONGRAY_{k.upper()}": v for k, v in settings.items()}}
-        command = [sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(self.port),
-                   "--workers", "2"]
+        command = [
+            sys.executable,
+            "-m",
+            "service.cli",
+            "serve",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(self.port),
+            "--workers",
+            "2",
+        ]
         if cap_gib and shutil.which("prlimit"):
             command = ["prlimit", f"--as={int(cap_gib * 2**30)}", *command]
         self.log = open(log, "w")
@@ -110,16 +129,25 @@ def raw(url: str, path: str, body: bytes, kind: str) -> socket.socket:
     host, port = url.removeprefix("http://").split(":")
     sock = socket.create_connection((host, int(port)))
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.sendall((f"POST {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: {kind}\r\nContent-Length: {len(body)}"
-                  f"\r\n\r\n").encode() + body)
+    sock.sendall(
+        (
+            f"POST {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: {kind}\r\nContent-Length: {len(body)}\r\n\r\n"
+        ).encode()
+        + body
+    )
     return sock
 
 
 def form(scene: bytes, image: bytes) -> tuple[bytes, str]:
     b = "phongrayboundary"
-    data = (f'--{b}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n'.encode() + scene +
-            f'\r\n--{b}\r\nContent-Disposition: form-data; name="image"; filename="s.png"\r\n'
-            f"Content-Type: image/png\r\n\r\n".encode() + image + f"\r\n--{b}--\r\n".encode())
+    data = (
+        f'--{b}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n'.encode()
+        + scene
+        + f'\r\n--{b}\r\nContent-Disposition: form-data; name="image"; filename="s.png"\r\n'
+        f"Content-Type: image/png\r\n\r\n".encode()
+        + image
+        + f"\r\n--{b}--\r\n".encode()
+    )
     return data, f"multipart/form-data; boundary={b}"
 
 
@@ -165,20 +193,24 @@ def main(argv: list[str] | None = None) -> int:
     small = (SCENES / "01_three_spheres.json").read_bytes()
     js = "application/json"
     npy = "/render?pass=normal&format=npy"
-    mix = ([("diagnosis", "/grade", graded, graded_kind)] * 8 + [("diagnosis, client leaves", "/grade", graded,
-                                                                    graded_kind)] * 6
-           + [("big npy pass, read", npy, big_body, js)] * 6 + [("big npy pass, never read", npy, big_body, js)] * 8
-           + [("big npy pass, client leaves", npy, big_body, js)] * 4
-           + [("format without pass", "/render?format=npy", small, js)] * 10
-           + [("light without pass", "/render?light=0", small, js)] * 10
-           + [("small render", "/render?width=160&height=120", small, js)] * 24
-           + [("small pass", "/render?pass=depth&width=160&height=120", small, js)] * 24)
+    mix = (
+        [("diagnosis", "/grade", graded, graded_kind)] * 8
+        + [("diagnosis, client leaves", "/grade", graded, graded_kind)] * 6
+        + [("big npy pass, read", npy, big_body, js)] * 6
+        + [("big npy pass, never read", npy, big_body, js)] * 8
+        + [("big npy pass, client leaves", npy, big_body, js)] * 4
+        + [("format without pass", "/render?format=npy", small, js)] * 10
+        + [("light without pass", "/render?light=0", small, js)] * 10
+        + [("small render", "/render?width=160&height=120", small, js)] * 24
+        + [("small pass", "/render?pass=depth&width=160&height=120", small, js)] * 24
+    )
     random.Random(44).shuffle(mix)
-    mix = (mix * (args.requests // len(mix) + 1))[:args.requests]
+    mix = (mix * (args.requests // len(mix) + 1))[: args.requests]
 
     logs = Path(tempfile.mkdtemp(prefix="answers-"))
-    server = Server(args.cap_gib, logs / "server.log", render_timeout=args.render_timeout,
-                    send_timeout=args.send_timeout)
+    server = Server(
+        args.cap_gib, logs / "server.log", render_timeout=args.render_timeout, send_timeout=args.send_timeout
+    )
     done = threading.Event()
     slowest, peak, workers = [0.0], [0, 0], set()
     waits: Counter = Counter()
@@ -246,17 +278,23 @@ def main(argv: list[str] | None = None) -> int:
         server.stop()
     log = (logs / "server.log").read_text()
     errors = sum(c for counts in outcomes.values() for s, c in counts.items() if isinstance(s, int) and s >= 500)
-    print(f"{len(mix)} requests, {args.clients} clients at once, 2 workers"
-          f"{f' under prlimit --as={args.cap_gib:g} GiB each' if args.cap_gib else ''}, render_timeout "
-          f"{args.render_timeout} s, send_timeout {args.send_timeout} s, in {time.monotonic() - started:.0f} s")
+    print(
+        f"{len(mix)} requests, {args.clients} clients at once, 2 workers"
+        f"{f' under prlimit --as={args.cap_gib:g} GiB each' if args.cap_gib else ''}, render_timeout "
+        f"{args.render_timeout} s, send_timeout {args.send_timeout} s, in {time.monotonic() - started:.0f} s"
+    )
     for name in sorted(outcomes):
         print(f"  {name:30s} " + ", ".join(f"{k}: {v}" for k, v in sorted(outcomes[name].items(), key=str)))
     print(f"503 waited out (Retry-After): {dict(waits)}")
-    print(f"5xx answers: {errors}; 'Traceback' in the server's log: {log.count('Traceback')}; "
-          f"MemoryError: {log.count('MemoryError')}")
-    print(f"worker processes seen: {len(workers)} (2 without a restart); slowest /healthz {slowest[0] * 1000:.0f} ms; "
-          f"peak summed PSS {peak[1] / 2**30:.2f} GiB (RSS {peak[0] / 2**30:.2f} GiB, shared pages counted in each "
-          f"process); after: answer_bytes {after.get('answer_bytes')}")
+    print(
+        f"5xx answers: {errors}; 'Traceback' in the server's log: {log.count('Traceback')}; "
+        f"MemoryError: {log.count('MemoryError')}"
+    )
+    print(
+        f"worker processes seen: {len(workers)} (2 without a restart); slowest /healthz {slowest[0] * 1000:.0f} ms; "
+        f"peak summed PSS {peak[1] / 2**30:.2f} GiB (RSS {peak[0] / 2**30:.2f} GiB, shared pages counted in each "
+        f"process); after: answer_bytes {after.get('answer_bytes')}"
+    )
     return 0 if errors == 0 and len(workers) == 2 and slowest[0] < 0.5 else 1
 
 

@@ -68,13 +68,20 @@ def padded_png(png: bytes, size: int) -> bytes:
 def grade_request(host: str, port: int, scene: bytes, png: bytes, total: int) -> bytes:
     """A whole ``POST /grade`` request of ``total`` bytes of body (the image padded to fit)."""
     boundary = "phongraybench"
-    head = (f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n').encode() + scene + (
-        f'\r\n--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="a.png"\r\n'
-        f"Content-Type: image/png\r\n\r\n").encode()
+    head = (
+        (f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n').encode()
+        + scene
+        + (
+            f'\r\n--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="a.png"\r\n'
+            f"Content-Type: image/png\r\n\r\n"
+        ).encode()
+    )
     tail = f"\r\n--{boundary}--\r\n".encode()
     body = head + padded_png(png, total - len(head) - len(tail)) + tail
-    return (f"POST /grade HTTP/1.1\r\nHost: {host}:{port}\r\nContent-Length: {len(body)}\r\nConnection: close\r\n"
-            f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n").encode() + body
+    return (
+        f"POST /grade HTTP/1.1\r\nHost: {host}:{port}\r\nContent-Length: {len(body)}\r\nConnection: close\r\n"
+        f"Content-Type: multipart/form-data; boundary={boundary}\r\n\r\n"
+    ).encode() + body
 
 
 async def _one(host: str, port: int, request: memoryview) -> str:
@@ -86,7 +93,7 @@ async def _one(host: str, port: int, request: memoryview) -> str:
     try:
         try:
             for at in range(0, len(request), PIECE):
-                writer.write(request[at:at + PIECE])
+                writer.write(request[at : at + PIECE])
                 await writer.drain()
         except (ConnectionError, OSError):
             pass  # answered (and closed) before the body was all sent: the answer may still be there to read
@@ -133,8 +140,24 @@ def run(requests: int, workers: int, mib: float, source: Path, env: dict[str, st
     url = f"http://127.0.0.1:{port}"
     full_env = {**os.environ, **env, "PYTHONPATH": str(source)}
     log = open(f"/tmp/bench-bodies-{port}.log", "w")  # (closed below)
-    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(port),
-                             "--workers", str(workers)], cwd=source, env=full_env, stdout=log, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "service.cli",
+            "serve",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--workers",
+            str(workers),
+        ],
+        cwd=source,
+        env=full_env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     try:
         for _ in range(300):
             try:
@@ -168,11 +191,20 @@ def run(requests: int, workers: int, mib: float, source: Path, env: dict[str, st
         probe.done.set()
         probe.join()
         after = _rss_mib(_workers(proc.pid))
-        return {"requests": requests, "workers": workers, "body_mib": mib, "source": str(source), "env": env,
-                "statuses": dict(sorted(Counter(statuses).items())), "seconds": round(seconds, 2),
-                "rss_before_mib": round(before), "rss_peak_growth_mib": round(max(probe.peak_rss, after) - before),
-                "rss_after_growth_mib": round(after - before), "healthz_worst_ms": round(1000 * probe.worst),
-                "healthz_failures": probe.failures}
+        return {
+            "requests": requests,
+            "workers": workers,
+            "body_mib": mib,
+            "source": str(source),
+            "env": env,
+            "statuses": dict(sorted(Counter(statuses).items())),
+            "seconds": round(seconds, 2),
+            "rss_before_mib": round(before),
+            "rss_peak_growth_mib": round(max(probe.peak_rss, after) - before),
+            "rss_after_growth_mib": round(after - before),
+            "healthz_worst_ms": round(1000 * probe.worst),
+            "healthz_failures": probe.failures,
+        }
     finally:
         proc.terminate()
         try:

@@ -41,8 +41,12 @@ def _rss(pid: int, field: str = "VmRSS") -> float:
 def _server(**settings: str) -> Iterator[tuple[int, int]]:
     port = _free_port()
     env = {**os.environ, **{f"PHONGRAY_{k.upper()}": v for k, v in settings.items()}}
-    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(port)],
-                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(port)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         for _ in range(200):
             try:
@@ -93,18 +97,32 @@ class _Watch:
 
 def nested(depth: int, size: int) -> bytes:
     mats = {"glass": {"reflectance": 0.2, "transmittance": 0.7}, "mirror": {"reflectance": 0.6, "transmittance": 0.3}}
-    objs = [{"type": "sphere", "material": ["glass", "mirror"][k % 2], "center": [0, 0, 0], "radius": 1.0 - 0.2 * k}
-            for k in range(4)]
-    return json.dumps({"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]},
-                       "image": {"width": size, "height": size, "max_depth": depth}, "materials": mats,
-                       "objects": objs, "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}]}).encode()
+    objs = [
+        {"type": "sphere", "material": ["glass", "mirror"][k % 2], "center": [0, 0, 0], "radius": 1.0 - 0.2 * k}
+        for k in range(4)
+    ]
+    return json.dumps(
+        {
+            "camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]},
+            "image": {"width": size, "height": size, "max_depth": depth},
+            "materials": mats,
+            "objects": objs,
+            "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}],
+        }
+    ).encode()
 
 
 def concentric(size: int) -> bytes:
     objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0 + k} for k in range(10_000)]
-    return json.dumps({"camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
-                       "image": {"width": size, "height": size}, "materials": {"m": {}}, "objects": objs,
-                       "lights": [{"type": "point", "color": 1, "position": [0, 0, 0]}]}).encode()
+    return json.dumps(
+        {
+            "camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
+            "image": {"width": size, "height": size},
+            "materials": {"m": {}},
+            "objects": objs,
+            "lights": [{"type": "point", "color": 1, "position": [0, 0, 0]}],
+        }
+    ).encode()
 
 
 def soft_shadows(size: int) -> bytes:
@@ -121,8 +139,10 @@ def _one(port: int, body: bytes) -> str:
 def _left_after(port: int, pid: int, body: bytes, seconds: float) -> str:
     """Send the request, leave after ``seconds``, and time how long the server's CPU keeps burning."""
     with socket.create_connection(("127.0.0.1", port)) as sock:
-        sock.sendall(b"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
-                     b"Content-Length: %d\r\n\r\n" % len(body) + body)
+        sock.sendall(
+            b"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+            b"Content-Length: %d\r\n\r\n" % len(body) + body
+        )
         time.sleep(seconds)
     left = time.perf_counter()
     ticks = os.sysconf("SC_CLK_TCK")
@@ -149,8 +169,10 @@ def _left_after(port: int, pid: int, body: bytes, seconds: float) -> str:
 def _burst(port: int, body: bytes, count: int) -> str:
     earlier = json.loads(_request(port, "GET", "/healthz")[1])["renders"]
     statuses: list[int] = []
-    threads = [threading.Thread(target=lambda: statuses.append(_request(port, "POST", "/render", body)[0]))
-               for _ in range(count)]
+    threads = [
+        threading.Thread(target=lambda: statuses.append(_request(port, "POST", "/render", body)[0]))
+        for _ in range(count)
+    ]
     for t in threads:
         t.start()
     for t in threads:
@@ -161,18 +183,32 @@ def _burst(port: int, body: bytes, count: int) -> str:
 
 
 CASES: list[tuple[str, dict[str, str], Any]] = [
-    ("nested glass/mirror spheres, depth 16, 128² (default limits)", {},
-     lambda port, pid: _one(port, nested(16, 128))),
-    ("the same at depth 10, 64², max_cost raised to 1e12", {"max_cost": "1e12"},
-     lambda port, pid: _one(port, nested(10, 64))),
-    ("10,000 concentric spheres, camera inside, 128² (default limits)", {},
-     lambda port, pid: _one(port, concentric(128))),
-    ("the same at 64², max_cost raised to 1e12, client leaves after 2 s", {"max_cost": "1e12"},
-     lambda port, pid: _left_after(port, pid, concentric(64), 2.0)),
-    ("100 identical concurrent requests (soft shadows 200²)", {"render_threads": "1"},
-     lambda port, pid: _burst(port, soft_shadows(200), 100)),
-    ("a render timing out (0.5 s) with 8 waiters (soft shadows 400²)", {"render_threads": "1", "render_timeout": "0.5"},
-     lambda port, pid: _burst(port, soft_shadows(400), 8)),
+    ("nested glass/mirror spheres, depth 16, 128² (default limits)", {}, lambda port, pid: _one(port, nested(16, 128))),
+    (
+        "the same at depth 10, 64², max_cost raised to 1e12",
+        {"max_cost": "1e12"},
+        lambda port, pid: _one(port, nested(10, 64)),
+    ),
+    (
+        "10,000 concentric spheres, camera inside, 128² (default limits)",
+        {},
+        lambda port, pid: _one(port, concentric(128)),
+    ),
+    (
+        "the same at 64², max_cost raised to 1e12, client leaves after 2 s",
+        {"max_cost": "1e12"},
+        lambda port, pid: _left_after(port, pid, concentric(64), 2.0),
+    ),
+    (
+        "100 identical concurrent requests (soft shadows 200²)",
+        {"render_threads": "1"},
+        lambda port, pid: _burst(port, soft_shadows(200), 100),
+    ),
+    (
+        "a render timing out (0.5 s) with 8 waiters (soft shadows 400²)",
+        {"render_threads": "1", "render_timeout": "0.5"},
+        lambda port, pid: _burst(port, soft_shadows(400), 8),
+    ),
 ]
 
 
@@ -180,8 +216,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.bounded", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", help="also write the Markdown table here")
     args = parser.parse_args(argv)
-    lines = ["| case | outcome | time (s) | worst /healthz (ms) | RSS before / peak / after (MiB) "
-             "| RSS after the same case again (MiB) |", "|---|---|---|---|---|---|"]
+    lines = [
+        "| case | outcome | time (s) | worst /healthz (ms) | RSS before / peak / after (MiB) "
+        "| RSS after the same case again (MiB) |",
+        "|---|---|---|---|---|---|",
+    ]
     print("\n".join(lines), flush=True)
     for name, settings, run in CASES:
         with _server(**settings) as (port, pid):
@@ -199,8 +238,10 @@ def main(argv: list[str] | None = None) -> int:
                 run(port, pid)
                 time.sleep(1.0)
             again = _rss(pid)
-            line = (f"| {name} | {outcome} | {seconds:.2f} | {watch.healthz_ms:.0f} | "
-                    f"{before:.0f} / {peak:.0f} / {after:.0f} | {again:.0f} |")
+            line = (
+                f"| {name} | {outcome} | {seconds:.2f} | {watch.healthz_ms:.0f} | "
+                f"{before:.0f} / {peak:.0f} / {after:.0f} | {again:.0f} |"
+            )
         lines.append(line)
         print(line, flush=True)
     if args.out:

@@ -50,9 +50,15 @@ BUDGETS: list[tuple[str, float | None]] = [
     ("a class whose scheduler is lost: stopped after (s)", 30.0),
 ]
 #: the tests that measure them
-TESTS = ["tests/test_attacks.py", "tests/test_hostile.py", "tests/test_waiting.py", "tests/test_reliability_service.py",
-         "tests/test_render.py::test_cancel_stops_a_render_inside_a_single_long_chunk", "tests/test_cluster.py",
-         "tests/test_reliability_class.py"]
+TESTS = [
+    "tests/test_attacks.py",
+    "tests/test_hostile.py",
+    "tests/test_waiting.py",
+    "tests/test_reliability_service.py",
+    "tests/test_render.py::test_cancel_stops_a_render_inside_a_single_long_chunk",
+    "tests/test_cluster.py",
+    "tests/test_reliability_class.py",
+]
 
 
 def budget_of(name: str) -> float | None:
@@ -84,8 +90,9 @@ def table(measured: dict[str, float]) -> tuple[list[str], int]:
 
 def unmeasured(measured: dict[str, float]) -> list[str]:
     """The budgets (exact names, not patterns) that no test measured."""
-    return [pattern for pattern, limit in BUDGETS
-            if limit is not None and "*" not in pattern and pattern not in measured]
+    return [
+        pattern for pattern, limit in BUDGETS if limit is not None and "*" not in pattern and pattern not in measured
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,20 +15,32 @@ from .scenes import example, sphere_field
 
 def nested(depth: int, size: int = 128) -> dict[str, Any]:
     """Four nested spheres whose materials both reflect and transmit."""
-    mats = {"glass": {"reflectance": 0.2, "transmittance": 0.7, "ior": 1.5},
-            "mirror": {"reflectance": 0.6, "transmittance": 0.3, "ior": 1.2}}
-    objs = [{"type": "sphere", "material": ["glass", "mirror"][k % 2], "center": [0, 0, 0], "radius": 1.0 - 0.2 * k}
-            for k in range(4)]
-    return {"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]},
-            "image": {"width": size, "height": size, "max_depth": depth}, "materials": mats, "objects": objs,
-            "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}]}
+    mats = {
+        "glass": {"reflectance": 0.2, "transmittance": 0.7, "ior": 1.5},
+        "mirror": {"reflectance": 0.6, "transmittance": 0.3, "ior": 1.2},
+    }
+    objs = [
+        {"type": "sphere", "material": ["glass", "mirror"][k % 2], "center": [0, 0, 0], "radius": 1.0 - 0.2 * k}
+        for k in range(4)
+    ]
+    return {
+        "camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]},
+        "image": {"width": size, "height": size, "max_depth": depth},
+        "materials": mats,
+        "objects": objs,
+        "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}],
+    }
 
 
 def concentric(count: int, size: int) -> dict[str, Any]:
     objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0 + k} for k in range(count)]
-    return {"camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]}, "image": {"width": size, "height": size},
-            "materials": {"m": {}}, "objects": objs,
-            "lights": [{"type": "point", "color": 1, "position": [0.2, 0.2, 0.2]}]}
+    return {
+        "camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
+        "image": {"width": size, "height": size},
+        "materials": {"m": {}},
+        "objects": objs,
+        "lights": [{"type": "point", "color": 1, "position": [0.2, 0.2, 0.2]}],
+    }
 
 
 def homework(width: int, height: int) -> dict[str, Any]:
@@ -45,24 +57,29 @@ def antialiased(name: str, width: int, height: int, samples: int) -> dict[str, A
 
 def scenes() -> dict[str, dict[str, Any]]:
     """The calibration's scenes by name: the examples, course scenes and the hard cases of the cost model."""
-    return {"01_three_spheres 640×480": example("01_three_spheres", 640, 480),
-            "02_all_lights 320×240": example("02_all_lights", 320, 240),
-            "03_soft_shadows 320×240": example("03_soft_shadows", 320, 240),
-            "04_whitted 320×240": example("04_whitted", 320, 240),
-            "04_whitted 640×480 2×2": antialiased("04_whitted", 640, 480, 2),
-            "05_mesh 320×240": example("05_mesh", 320, 240),
-            "07_spotlights 320×240": example("07_spotlights", 320, 240),
-            "08_antialiased 320×240": example("08_antialiased", 320, 240),
-            "Cornell homework 320×240 2×2": homework(320, 240),
-            "Cornell homework 640×480 2×2": homework(640, 480),
-            "10,000-sphere field 480×270": sphere_field(10000, 480, 270),
-            "nested glass/mirror, depth 5, 128²": nested(5), "nested glass/mirror, depth 7, 128²": nested(7),
-            "10,000 concentric spheres, eye inside, 32²": concentric(10_000, 32)}
+    return {
+        "01_three_spheres 640×480": example("01_three_spheres", 640, 480),
+        "02_all_lights 320×240": example("02_all_lights", 320, 240),
+        "03_soft_shadows 320×240": example("03_soft_shadows", 320, 240),
+        "04_whitted 320×240": example("04_whitted", 320, 240),
+        "04_whitted 640×480 2×2": antialiased("04_whitted", 640, 480, 2),
+        "05_mesh 320×240": example("05_mesh", 320, 240),
+        "07_spotlights 320×240": example("07_spotlights", 320, 240),
+        "08_antialiased 320×240": example("08_antialiased", 320, 240),
+        "Cornell homework 320×240 2×2": homework(320, 240),
+        "Cornell homework 640×480 2×2": homework(640, 480),
+        "10,000-sphere field 480×270": sphere_field(10000, 480, 270),
+        "nested glass/mirror, depth 5, 128²": nested(5),
+        "nested glass/mirror, depth 7, 128²": nested(7),
+        "10,000 concentric spheres, eye inside, 32²": concentric(10_000, 32),
+    }
 
 
 def main() -> None:
-    print("| scene | estimated cost | counted cost | estimate ÷ counted | seconds | counted cost per second |\n"
-          "|---|---|---|---|---|---|")
+    print(
+        "| scene | estimated cost | counted cost | estimate ÷ counted | seconds | counted cost per second |\n"
+        "|---|---|---|---|---|---|"
+    )
     for name, data in scenes().items():
         scene = schemas.validate_scene(json.loads(json.dumps(data)))
         estimate = estimated_cost(scene)
@@ -71,8 +88,11 @@ def main() -> None:
         renderer.pixels()
         seconds = time.perf_counter() - started
         counted = renderer.spent * per_ray_factor(scene)
-        print(f"| {name} | {estimate:.3g} | {counted:.3g} | {estimate / counted:.2f} | {seconds:.2f} | "
-              f"{counted / seconds:.3g} |", flush=True)
+        print(
+            f"| {name} | {estimate:.3g} | {counted:.3g} | {estimate / counted:.2f} | {seconds:.2f} | "
+            f"{counted / seconds:.3g} |",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

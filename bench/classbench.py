@@ -51,8 +51,12 @@ def build(root: Path) -> tuple[Path, Path]:
 
 def _serve(port: int) -> subprocess.Popen:
     env = {**os.environ, "PHONGRAY_RENDER_THREADS": "1", "PHONGRAY_MAX_CONCURRENT_RENDERS": "2"}
-    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(port),
-                             "--workers", "2"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port", str(port), "--workers", "2"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     for _ in range(300):
         try:
             urllib.request.urlopen(f"http://127.0.0.1:{port}/healthz", timeout=1).read()
@@ -70,16 +74,30 @@ def class_rows(work: Path, port: int) -> list[dict[str, Any]]:
         proc = _serve(port) if mode == "server" else None
         try:
             started = time.perf_counter()
-            outcome = grade_class(ClassRun(scenes, subs, work / f"report-{mode}", server=f"http://127.0.0.1:{port}"
-                                  if proc else None, student_scenes=work / "class" / "own"))
+            outcome = grade_class(
+                ClassRun(
+                    scenes,
+                    subs,
+                    work / f"report-{mode}",
+                    server=f"http://127.0.0.1:{port}" if proc else None,
+                    student_scenes=work / "class" / "own",
+                )
+            )
             seconds = time.perf_counter() - started
         finally:
             if proc:
                 proc.terminate()
                 proc.wait(timeout=20)
         assert outcome.count("pass") == len(outcome.rows), outcome.summary()
-        rows.append({"mode": mode, "pairs": len(outcome.rows), "references": outcome.renders, "seconds": seconds,
-                     "pairs_per_s": len(outcome.rows) / seconds})
+        rows.append(
+            {
+                "mode": mode,
+                "pairs": len(outcome.rows),
+                "references": outcome.renders,
+                "seconds": seconds,
+                "pairs_per_s": len(outcome.rows) / seconds,
+            }
+        )
     return rows
 
 
@@ -106,8 +124,9 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
         local_class_s = time.perf_counter() - started
     else:
         local_class_s = local_class["seconds"]
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                      host="127.0.0.1") as lc:
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, host="127.0.0.1"
+    ) as lc:
         with connect(lc.scheduler_address) as client:
             client.run(lambda: None)  # workers up and importing
             started = time.perf_counter()
@@ -115,8 +134,15 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
             cluster_4k = time.perf_counter() - started
             identical = tracer.encode_png(pixels) == local_png
         started = time.perf_counter()
-        outcome = grade_class(ClassRun(scenes / "scenes", subs, work / "report-cluster", cluster=lc.scheduler_address,
-                              student_scenes=scenes / "own"))
+        outcome = grade_class(
+            ClassRun(
+                scenes / "scenes",
+                subs,
+                work / "report-cluster",
+                cluster=lc.scheduler_address,
+                student_scenes=scenes / "own",
+            )
+        )
         cluster_class = time.perf_counter() - started
     assert identical and outcome.count("pass") == len(outcome.rows)
     pairs, refs = len(outcome.rows), outcome.renders
@@ -138,19 +164,44 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
         per_task_overhead = 0.002  # Dask scheduling, measured order of magnitude per task
         return (n_refs * (t_render + per_task_overhead) + n_pairs * (t_grade + per_task_overhead)) / workers
 
-    return {"render_4k": {"local_s": local_4k, "cluster_s": cluster_4k, "ratio": cluster_4k / local_4k,
-                          "identical": identical},
-            "class": {"local_s": local_class_s, "cluster_s": cluster_class, "ratio": cluster_class / local_class_s,
-                      "pairs": pairs, "references": refs},
-            "per_task": {"render_s": t_render, "grade_s": t_grade, "png_bytes": len(ref_png),
-                         "scene_bytes": len(json.dumps(one))},
-            "estimate_500x10": {"workers_10_s": estimate(500, 10, 10), "workers_100_s": estimate(500, 10, 100)}}
+    return {
+        "render_4k": {
+            "local_s": local_4k,
+            "cluster_s": cluster_4k,
+            "ratio": cluster_4k / local_4k,
+            "identical": identical,
+        },
+        "class": {
+            "local_s": local_class_s,
+            "cluster_s": cluster_class,
+            "ratio": cluster_class / local_class_s,
+            "pairs": pairs,
+            "references": refs,
+        },
+        "per_task": {
+            "render_s": t_render,
+            "grade_s": t_grade,
+            "png_bytes": len(ref_png),
+            "scene_bytes": len(json.dumps(one)),
+        },
+        "estimate_500x10": {"workers_10_s": estimate(500, 10, 10), "workers_100_s": estimate(500, 10, 100)},
+    }
 
 
 #: the per-student class: every student has an own scene for every task (the course's real workload)
 PER_STUDENT = 80
-PER_STUDENT_TASKS = ["01_three_spheres", "02_all_lights", "03_soft_shadows", "04_whitted", "05_mesh",
-                     "06_orthographic", "07_spotlights", "08_antialiased", "01_three_spheres", "04_whitted"]
+PER_STUDENT_TASKS = [
+    "01_three_spheres",
+    "02_all_lights",
+    "03_soft_shadows",
+    "04_whitted",
+    "05_mesh",
+    "06_orthographic",
+    "07_spotlights",
+    "08_antialiased",
+    "01_three_spheres",
+    "04_whitted",
+]
 
 
 def _jittered(data: dict[str, Any], student: int, task: int) -> dict[str, Any]:
@@ -222,18 +273,30 @@ def per_student_row(work: Path, share_failing: float = 0.0) -> dict[str, Any]:
     with ProcessPoolExecutor(workers) as pool:
         per_render = list(pool.map(_render_file, *zip(*jobs)))
     floor = time.perf_counter() - started
-    wrong = [(scene, png, MISTAKES[k % len(MISTAKES)]) for k, (scene, png) in enumerate(jobs)
-             if failing(k % PER_STUDENT, k // PER_STUDENT, share_failing)]
+    wrong = [
+        (scene, png, MISTAKES[k % len(MISTAKES)])
+        for k, (scene, png) in enumerate(jobs)
+        if failing(k % PER_STUDENT, k // PER_STUDENT, share_failing)
+    ]
     if wrong:
         with ProcessPoolExecutor(workers) as pool:
             list(pool.map(_render_wrong, *zip(*wrong)))
     started = time.perf_counter()
     outcome = grade_class(ClassRun(scenes, subs, root / "report", student_scenes=own))
     seconds = time.perf_counter() - started
-    assert outcome.count("fail") == len(wrong) and outcome.count("pass") == len(outcome.rows) - len(wrong), \
+    assert outcome.count("fail") == len(wrong) and outcome.count("pass") == len(outcome.rows) - len(wrong), (
         outcome.summary()
+    )
     pairs = len(outcome.rows)
     mode = "local, a scene per student" + (f", {100 * share_failing:.0f} % failing, diagnosed" if wrong else "")
-    return {"mode": mode, "pairs": pairs, "references": outcome.renders, "failing": len(wrong),
-            "seconds": seconds, "pairs_per_s": pairs / seconds, "renders_alone_s": floor,
-            "render_mean_s": sum(per_render) / len(per_render), "workers": workers}
+    return {
+        "mode": mode,
+        "pairs": pairs,
+        "references": outcome.renders,
+        "failing": len(wrong),
+        "seconds": seconds,
+        "pairs_per_s": pairs / seconds,
+        "renders_alone_s": floor,
+        "render_mean_s": sum(per_render) / len(per_render),
+        "workers": workers,
+    }

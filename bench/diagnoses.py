@@ -33,8 +33,16 @@ from tracer.variants import VARIANTS
 
 from .scenes import example
 
-EXAMPLES = ["01_three_spheres", "02_all_lights", "03_soft_shadows", "04_whitted", "05_mesh", "06_orthographic",
-            "07_spotlights", "08_antialiased"]
+EXAMPLES = [
+    "01_three_spheres",
+    "02_all_lights",
+    "03_soft_shadows",
+    "04_whitted",
+    "05_mesh",
+    "06_orthographic",
+    "07_spotlights",
+    "08_antialiased",
+]
 
 
 def submissions(reference: np.ndarray, scene: Any) -> dict[str, np.ndarray]:
@@ -65,8 +73,7 @@ def diagnoses(width: int, height: int) -> Iterator[tuple[str, dict[str, Any] | N
 CALLS = ("no-shadows", "blinn-phong", "no-ambient", "no-half-pixel")
 
 
-def calls(students: tuple[str, ...] = CALLS,
-          width: int = 320, height: int = 240) -> None:
+def calls(students: tuple[str, ...] = CALLS, width: int = 320, height: int = 240) -> None:
     """Prints where a cold diagnosis (one thread, as a class's worker runs it) spends its time, per example and
     student: each kind of render it asks for, by variant, as seconds and as a share of the reference render."""
     spent: dict[str, float] = defaultdict(float)
@@ -83,6 +90,7 @@ def calls(students: tuple[str, ...] = CALLS,
                 key = f"{entry} of {what}" + (" (some pixels)" if kwargs.get("pixels") is not None else "")
                 spent[key] += time.perf_counter() - started
                 count[key] += 1
+
         return wrapper
 
     for entry in originals:
@@ -117,8 +125,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("file", nargs="?", type=Path, help="what the diagnoses say (JSON): written, or checked against")
     parser.add_argument("--size", default="160x120", help="the examples' size, WxH (default 160x120)")
     parser.add_argument("--calls", action="store_true", help="where one cold diagnosis spends its time, instead")
-    parser.add_argument("--students", help="with --calls: the students' mistakes, comma-separated, a student's "
-                        "several joined by + (no-shadows+gamma); default: four classic ones")
+    parser.add_argument(
+        "--students",
+        help="with --calls: the students' mistakes, comma-separated, a student's "
+        "several joined by + (no-shadows+gamma); default: four classic ones",
+    )
     args = parser.parse_args(argv)
     if args.calls:
         calls(tuple(args.students.split(",")) if args.students else CALLS)
@@ -142,8 +153,10 @@ def main(argv: list[str] | None = None) -> int:
         elif json.loads(json.dumps(found)) != known[case]:
             changed += 1
             print(f"{case}: was {json.dumps(known[case])[:300]}\n  now {json.dumps(found)[:300]}")
-    print(f"{total - changed - missing} of {total} say the same, {changed} changed, {missing} not in the file "
-          f"({time.perf_counter() - started:.0f} s)")
+    print(
+        f"{total - changed - missing} of {total} say the same, {changed} changed, {missing} not in the file "
+        f"({time.perf_counter() - started:.0f} s)"
+    )
     return 1 if changed or missing else 0
 
 

@@ -113,8 +113,10 @@ def main(argv: list[str] | None = None) -> int:
             changed += 1
             print(f"{name}: changed" + (f": {differences(before[name], image)}" if before is not None else ""))
     same = len(jobs) - changed - missing
-    print(f"{same} of {len(jobs)} the same bytes, {changed} changed, {missing} not in the file "
-          f"({time.perf_counter() - started:.0f} s)")
+    print(
+        f"{same} of {len(jobs)} the same bytes, {changed} changed, {missing} not in the file "
+        f"({time.perf_counter() - started:.0f} s)"
+    )
     return 1 if changed or missing else 0
 
 

@@ -30,13 +30,28 @@ from tracer import Renderer
 from .scenes import example
 
 TESTS = Path(__file__).resolve().parents[1] / "tests"
-EXAMPLES = ["01_three_spheres", "02_all_lights", "03_soft_shadows", "04_whitted", "05_mesh", "06_orthographic",
-            "07_spotlights", "08_antialiased"]
+EXAMPLES = [
+    "01_three_spheres",
+    "02_all_lights",
+    "03_soft_shadows",
+    "04_whitted",
+    "05_mesh",
+    "06_orthographic",
+    "07_spotlights",
+    "08_antialiased",
+]
 #: pairs of classic mistakes students make together (issue 47: "no shadow rays and Blinn–Phong together; no
 #: attenuation and gamma together"), and a few more of kinds unlike each other
-PAIRS = [("no-shadows", "blinn-phong"), ("no-attenuation", "gamma"), ("no-ambient", "no-specular"),
-         ("no-shadows", "gamma"), ("image-flipped", "no-attenuation"), ("no-half-pixel", "no-shadows"),
-         ("specular-behind", "no-ambient"), ("horizontal-fov", "gamma")]
+PAIRS = [
+    ("no-shadows", "blinn-phong"),
+    ("no-attenuation", "gamma"),
+    ("no-ambient", "no-specular"),
+    ("no-shadows", "gamma"),
+    ("image-flipped", "no-attenuation"),
+    ("no-half-pixel", "no-shadows"),
+    ("specular-behind", "no-ambient"),
+    ("horizontal-fov", "gamma"),
+]
 
 
 def student() -> Any:
@@ -88,14 +103,18 @@ def named(found: dict[str, Any] | None) -> tuple[str, ...]:
     return (causes[0]["variant"],) if causes and found.get("closest") and causes[0].get("variant") else ()
 
 
-def case(scene: Any, reference: np.ndarray, name: str, made: tuple[str, ...], cache: Path | None,
-         visible: tuple[str, ...]) -> Case:
+def case(
+    scene: Any, reference: np.ndarray, name: str, made: tuple[str, ...], cache: Path | None, visible: tuple[str, ...]
+) -> Case:
     """Example ``name``'s image by the student, with mistakes ``made`` (``visible``: those that show), graded and
     diagnosed as ``phongray grade`` does it."""
     submitted = image(scene, name, made, cache)
     graded = explain(scene, Graded(grade(reference, submitted, ""), None), reference, submitted)
-    found = graded.diagnosis if graded.diagnosis is None or isinstance(graded.diagnosis, dict) else \
-        graded.diagnosis.as_dict()
+    found = (
+        graded.diagnosis
+        if graded.diagnosis is None or isinstance(graded.diagnosis, dict)
+        else graded.diagnosis.as_dict()
+    )
     return Case(name, made, visible, graded.grade.passed, named(found), (found or {}).get("sentence", ""))
 
 
@@ -123,8 +142,10 @@ def table(rows: list[Case]) -> list[str]:
     lines = ["| example | mistakes made | visible | mistakes named | ok |", "|---|---|---|---|---|"]
     for c in rows:
         named_words = "passes" if c.passed else ", ".join(c.named) or "—"
-        lines.append(f"| {c.example} | {', '.join(c.made) or 'honest'} | {', '.join(c.visible) or '—'} | "
-                     f"{named_words} | {'yes' if c.ok else 'NO'} |")
+        lines.append(
+            f"| {c.example} | {', '.join(c.made) or 'honest'} | {', '.join(c.visible) or '—'} | "
+            f"{named_words} | {'yes' if c.ok else 'NO'} |"
+        )
     return lines
 
 
@@ -132,9 +153,11 @@ def summary(rows: list[Case]) -> str:
     wrong = [c for c in rows if c.made and c.visible]
     honest = [c for c in rows if not c.made]
     pairs = [c for c in wrong if len(c.made) == 2]
-    return (f"{sum(c.ok for c in wrong)} of {len(wrong)} images with a visible mistake have every visible mistake "
-            f"named ({100 * sum(c.ok for c in wrong) / max(len(wrong), 1):.0f} %); pairs {sum(c.ok for c in pairs)} "
-            f"of {len(pairs)}; honest images passing with no 'Likely': {sum(c.ok for c in honest)} of {len(honest)}")
+    return (
+        f"{sum(c.ok for c in wrong)} of {len(wrong)} images with a visible mistake have every visible mistake "
+        f"named ({100 * sum(c.ok for c in wrong) / max(len(wrong), 1):.0f} %); pairs {sum(c.ok for c in pairs)} "
+        f"of {len(pairs)}; honest images passing with no 'Likely': {sum(c.ok for c in honest)} of {len(honest)}"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -27,8 +27,13 @@ _FREE = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t
 
 
 class _Allocator(ctypes.Structure):
-    _fields_ = [("ctx", ctypes.c_void_p), ("malloc", _MALLOC), ("calloc", _CALLOC), ("realloc", _REALLOC),
-                ("free", _FREE)]
+    _fields_ = [
+        ("ctx", ctypes.c_void_p),
+        ("malloc", _MALLOC),
+        ("calloc", _CALLOC),
+        ("realloc", _REALLOC),
+        ("free", _FREE),
+    ]
 
 
 class _Handler(ctypes.Structure):
@@ -63,9 +68,11 @@ class AllocationCounter:
         # NumPy may allocate with the GIL released; the callbacks take it, and call on without releasing it
         # again (a PYFUNCTYPE call: a CFUNCTYPE one would release a GIL this thread may not own)
         base_malloc = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t)(
-            ctypes.cast(base.malloc, ctypes.c_void_p).value)
+            ctypes.cast(base.malloc, ctypes.c_void_p).value
+        )
         base_calloc = ctypes.PYFUNCTYPE(ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_size_t)(
-            ctypes.cast(base.calloc, ctypes.c_void_p).value)
+            ctypes.cast(base.calloc, ctypes.c_void_p).value
+        )
 
         def malloc(own: int, size: int) -> int:
             on_allocation(size)
@@ -78,8 +85,9 @@ class AllocationCounter:
         # realloc and free are NumPy's own C functions: an array made while counting may be freed at any time
         # later, at the interpreter's exit too, when no Python callback may run
         self._callbacks = (_MALLOC(malloc), _CALLOC(calloc))
-        self._handler = _Handler(b"phongray_bench_counter", 1,
-                                 _Allocator(ctx, *self._callbacks, base.realloc, base.free))
+        self._handler = _Handler(
+            b"phongray_bench_counter", 1, _Allocator(ctx, *self._callbacks, base.realloc, base.free)
+        )
         _KEPT.append(self)  # never freed: arrays made while counting keep pointing at this handler
         new = ctypes.pythonapi.PyCapsule_New
         new.restype, new.argtypes = ctypes.py_object, [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_void_p]

@@ -20,8 +20,14 @@ def _ticks(lo: float, hi: float) -> list[float]:
     return out
 
 
-def plot(series: list[tuple[str, list[tuple[float, float, str]]]], title: str, xlabel: str, ylabel: str,
-         path: str, size: tuple[int, int] = (720, 440)) -> None:
+def plot(
+    series: list[tuple[str, list[tuple[float, float, str]]]],
+    title: str,
+    xlabel: str,
+    ylabel: str,
+    path: str,
+    size: tuple[int, int] = (720, 440),
+) -> None:
     """``series``: (label, [(x, y, annotation), ...]); x is drawn on a log scale.
 
     Pillow's built-in font has no "×", so labels spell it "x".

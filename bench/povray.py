@@ -41,8 +41,10 @@ def _texture(mat: dict[str, Any], materials: dict[str, Any], ambient_light: floa
         kt = float(m.get("transmittance", 0))
         specular = _grey(m.get("specular", 0.8))
         roughness = 1 / max(float(m.get("shininess", 100)), 1)
-        finish = (f"finish {{ ambient {_c(m.get('ambient', 0.3))} diffuse 1 specular {specular:.4g} "
-                  f"roughness {roughness:.4g} reflection {float(m.get('reflectance', 0)):.4g} }}")
+        finish = (
+            f"finish {{ ambient {_c(m.get('ambient', 0.3))} diffuse 1 specular {specular:.4g} "
+            f"roughness {roughness:.4g} reflection {float(m.get('reflectance', 0)):.4g} }}"
+        )
         pigment = f"color {_c(kd)} transmit {kt:.4g}" if kt else f"color {_c(kd)}"
         return pigment, finish
 
@@ -66,16 +68,22 @@ def to_pov(scene: Scene) -> str:
             c = light["color"]
             c = [c] * 3 if isinstance(c, (int, float)) else c
             ambient = [a + float(b) for a, b in zip(ambient, c)]
-    out.append(f"global_settings {{ assumed_gamma 1.0 max_trace_level {img.get('max_depth', 4) + 1} "
-               f"ambient_light {_c(ambient)} }}")
+    out.append(
+        f"global_settings {{ assumed_gamma 1.0 max_trace_level {img.get('max_depth', 4) + 1} "
+        f"ambient_light {_c(ambient)} }}"
+    )
     if cam.get("type") == "orthographic":
         half = cam.get("height", 2) / 2
-        out.append(f"camera {{ orthographic location {_v(cam['position'])} sky {_v(up)} "
-                   f"right x*{2 * half * w / h:.9g} up y*{2 * half:.9g} look_at {_v(cam['look_at'])} }}")
+        out.append(
+            f"camera {{ orthographic location {_v(cam['position'])} sky {_v(up)} "
+            f"right x*{2 * half * w / h:.9g} up y*{2 * half:.9g} look_at {_v(cam['look_at'])} }}"
+        )
     else:
         hfov = 2 * math.degrees(math.atan(math.tan(math.radians(cam.get("fov", 60)) / 2) * w / h))
-        out.append(f"camera {{ perspective location {_v(cam['position'])} sky {_v(up)} "
-                   f"right x*{w / h:.9g} up y angle {hfov:.9g} look_at {_v(cam['look_at'])} }}")
+        out.append(
+            f"camera {{ perspective location {_v(cam['position'])} sky {_v(up)} "
+            f"right x*{w / h:.9g} up y angle {hfov:.9g} look_at {_v(cam['look_at'])} }}"
+        )
     out.append(f"background {{ color {_c(img.get('background', 0))} }}")
     materials = scene.get("materials", {})
     for obj in scene.get("objects", []):
@@ -98,8 +106,10 @@ def to_pov(scene: Scene) -> str:
             normals = ""
             if obj.get("normals"):
                 normals = f"normal_vectors {{ {len(obj['normals'])}, {', '.join(_v(p) for p in obj['normals'])} }}"
-            out.append(f"mesh2 {{ vertex_vectors {{ {len(obj['vertices'])}, {verts} }} {normals} "
-                       f"face_indices {{ {len(obj['faces'])}, {faces} }} {tex} }}")
+            out.append(
+                f"mesh2 {{ vertex_vectors {{ {len(obj['vertices'])}, {verts} }} {normals} "
+                f"face_indices {{ {len(obj['faces'])}, {faces} }} {tex} }}"
+            )
     for light in scene.get("lights", []):
         kind, colour = light["type"], _c(light["color"])
         if kind == "directional":
@@ -112,8 +122,10 @@ def to_pov(scene: Scene) -> str:
             p = [float(a) + float(b) for a, b in zip(light["position"], light["direction"])]
             cutoff = light.get("cutoff", 45)
             inner = light.get("inner_cutoff", cutoff)
-            out.append(f"light_source {{ {_v(light['position'])} color {colour} spotlight point_at {_v(p)} "
-                       f"radius {inner} falloff {cutoff} tightness 0 }}")
+            out.append(
+                f"light_source {{ {_v(light['position'])} color {colour} spotlight point_at {_v(p)} "
+                f"radius {inner} falloff {cutoff} tightness 0 }}"
+            )
         elif kind == "area":
             nu, nv = light.get("samples", [4, 4])
             eu, ev = light["edge_u"], light["edge_v"]
@@ -123,5 +135,16 @@ def to_pov(scene: Scene) -> str:
 
 
 def command(pov_file: str, png_file: str, width: int, height: int, threads: int = 2) -> list[str]:
-    return ["povray", f"+I{pov_file}", f"+O{png_file}", f"+W{width}", f"+H{height}", f"+WT{threads}",
-            "-D", "-V", "-GA", "+FN", "-A"]
+    return [
+        "povray",
+        f"+I{pov_file}",
+        f"+O{png_file}",
+        f"+W{width}",
+        f"+H{height}",
+        f"+WT{threads}",
+        "-D",
+        "-V",
+        "-GA",
+        "+FN",
+        "-A",
+    ]

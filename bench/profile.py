@@ -67,12 +67,16 @@ class Stage:
 
 def _direct_light(module: str, shade: str, area: str, blocked: str) -> list[Stage]:
     """The stages of direct light, in the module that shades (its functions by the names it calls them by)."""
-    return [Stage(module, shade, "direct light", _n_out),
-            Stage(module, "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
-            *(Stage(module, name, "shading", per_light=True)
-              for name in ("illuminate", "light_in_plane", "phong", "add_phong", "Kernel.reach", "Kernel.terms")),
-            Stage(module, area, "area light", per_light=True),
-            Stage(module, blocked, "shadow rays", _n_out, per_light=True)]
+    return [
+        Stage(module, shade, "direct light", _n_out),
+        Stage(module, "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
+        *(
+            Stage(module, name, "shading", per_light=True)
+            for name in ("illuminate", "light_in_plane", "phong", "add_phong", "Kernel.reach", "Kernel.terms")
+        ),
+        Stage(module, area, "area light", per_light=True),
+        Stage(module, blocked, "shadow rays", _n_out, per_light=True),
+    ]
 
 
 #: the stages, by the names the render calls them by (render.py imports its helpers by name)
@@ -217,8 +221,10 @@ def load(name: str, width: int | None, height: int | None) -> tuple[str, dict[st
 def light_labels(renderer: Renderer) -> dict[int, str]:
     """Each emitter's and each light group's label, by id."""
     scene = renderer.scene
-    out = {id(em): f"lights[{k}] {scene.lights[k].type}"
-           for em, k in zip(renderer.world.emitters, renderer.emitter_light.tolist())}
+    out = {
+        id(em): f"lights[{k}] {scene.lights[k].type}"
+        for em, k in zip(renderer.world.emitters, renderer.emitter_light.tolist())
+    }
     for group in getattr(getattr(renderer, "shading", None), "groups", []):
         out[id(group)] = f"lights[{group.light}] {scene.lights[group.light].type}"
     return out
@@ -260,12 +266,26 @@ def profile(data: dict[str, Any], runs: int = 3) -> dict[str, Any]:
     for key in keys:
         timed = other if key == ("other",) else best.rows.get(key, Row())
         made = counting.rows.get(key, Row())
-        rows.append({"stage": " › ".join(key), "ms": timed.seconds * 1e3, "share": timed.seconds / best_total,
-                     "calls": timed.calls, "rays": timed.rays,
-                     "arrays": made.arrays if numpy_counter else None,
-                     "mb": made.nbytes / 2**20 if numpy_counter else None})
-    return {"width": scene.image.width, "height": scene.image.height, "render_s": best_total, "setup_s": best_setup,
-            "png_s": png, "counts": counts, "rows": rows}
+        rows.append(
+            {
+                "stage": " › ".join(key),
+                "ms": timed.seconds * 1e3,
+                "share": timed.seconds / best_total,
+                "calls": timed.calls,
+                "rays": timed.rays,
+                "arrays": made.arrays if numpy_counter else None,
+                "mb": made.nbytes / 2**20 if numpy_counter else None,
+            }
+        )
+    return {
+        "width": scene.image.width,
+        "height": scene.image.height,
+        "render_s": best_total,
+        "setup_s": best_setup,
+        "png_s": png,
+        "counts": counts,
+        "rows": rows,
+    }
 
 
 def _order(key: tuple[str, ...]) -> tuple[Any, ...]:
@@ -273,7 +293,7 @@ def _order(key: tuple[str, ...]) -> tuple[Any, ...]:
     top = ["camera rays", "closest hit", "materials and checker", "shading normals", "direct light"]
     head = key[0]
     if head.startswith("lights["):
-        rank: tuple[Any, ...] = (4.5, int(head[7:head.index("]")]))
+        rank: tuple[Any, ...] = (4.5, int(head[7 : head.index("]")]))
     elif head in top:
         rank = (top.index(head), 0)
     else:
@@ -283,16 +303,23 @@ def _order(key: tuple[str, ...]) -> tuple[Any, ...]:
 
 def table(name: str, result: dict[str, Any]) -> str:
     c = result["counts"]
-    lines = [f"## {name} at {result['width']}×{result['height']}, one thread", "",
-             f"Render {result['render_s'] * 1e3:.1f} ms (best of the runs); rays: {c['primary']} primary, "
-             f"{c['shadow']} shadow, {c['secondary']} secondary. Apart from it: scene set-up "
-             f"{result['setup_s'] * 1e3:.1f} ms, PNG {result['png_s'] * 1e3:.1f} ms.", "",
-             "| stage | ms | share | calls | NumPy arrays | MB made | rays |", "|---|---|---|---|---|---|---|"]
+    lines = [
+        f"## {name} at {result['width']}×{result['height']}, one thread",
+        "",
+        f"Render {result['render_s'] * 1e3:.1f} ms (best of the runs); rays: {c['primary']} primary, "
+        f"{c['shadow']} shadow, {c['secondary']} secondary. Apart from it: scene set-up "
+        f"{result['setup_s'] * 1e3:.1f} ms, PNG {result['png_s'] * 1e3:.1f} ms.",
+        "",
+        "| stage | ms | share | calls | NumPy arrays | MB made | rays |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for r in result["rows"]:
         arrays = "—" if r["arrays"] is None else str(r["arrays"])
         mb = "—" if r["mb"] is None else f"{r['mb']:.0f}"
-        lines.append(f"| {r['stage']} | {r['ms']:.1f} | {100 * r['share']:.1f} % | {r['calls']} | {arrays} | {mb} | "
-                     f"{r['rays'] or ''} |")
+        lines.append(
+            f"| {r['stage']} | {r['ms']:.1f} | {100 * r['share']:.1f} % | {r['calls']} | {arrays} | {mb} | "
+            f"{r['rays'] or ''} |"
+        )
     totals = result["rows"]
     arrays = sum(r["arrays"] or 0 for r in totals)
     mb = sum(r["mb"] or 0 for r in totals)

@@ -80,21 +80,28 @@ def speed_row(name: str, data: dict[str, Any], work: Path, runs: int) -> dict[st
 
     path = work / f"{name}.json"
     path.write_text(json.dumps(data))
-    process_s = _best_of(runs + 1, lambda: subprocess.run([*CLI, "render", str(path), "-o", str(work / f"{name}.png"),
-                                                      "-q"], check=True))
+    process_s = _best_of(
+        runs + 1, lambda: subprocess.run([*CLI, "render", str(path), "-o", str(work / f"{name}.png"), "-q"], check=True)
+    )
     pov_s = None
     if povray.available():
         pov_file = work / f"{name}.pov"
         pov_file.write_text(povray.to_pov(data))
-        cmd = povray.command(str(pov_file), str(work / f"{name}_pov.png"), data["image"]["width"],
-                             data["image"]["height"])
+        cmd = povray.command(
+            str(pov_file), str(work / f"{name}_pov.png"), data["image"]["width"], data["image"]["height"]
+        )
         pov_s = _best_of(runs + 1, lambda: subprocess.run(cmd, check=True, capture_output=True))
     total = sum(counts.values())
     return {
-        "scene": name, "size": f"{data['image']['width']}×{data['image']['height']}",
-        "render_s": render_s, "process_s": process_s, "povray_s": pov_s,
-        "rays": dict(counts), "rays_per_s": total / render_s,
-        "embree_queries": embree_rays, "embree_s": embree_s,
+        "scene": name,
+        "size": f"{data['image']['width']}×{data['image']['height']}",
+        "render_s": render_s,
+        "process_s": process_s,
+        "povray_s": pov_s,
+        "rays": dict(counts),
+        "rays_per_s": total / render_s,
+        "embree_queries": embree_rays,
+        "embree_s": embree_s,
         "render_over_embree": (render_s / embree_s) if embree_s else None,
         "process_over_povray": (process_s / pov_s) if pov_s else None,
     }
@@ -119,6 +126,7 @@ def png_rows(work: Path, names: list[str], runs: int) -> list[dict[str, Any]]:
         row: dict[str, Any] = {"scene": name, "size": f"{px.shape[1]}×{px.shape[0]}", "levels": {}}
         for level in PNG_LEVELS:
             data: list[bytes] = []
+
             def encode(data: list[bytes] = data, px: np.ndarray = px, level: int = level) -> None:
                 data.append(tracer.encode_png(px, level))
 
@@ -176,8 +184,12 @@ def http_latency(seconds: float, clients: int, workers: int) -> dict[str, Any]:
     """Distinct 160×120 scenes (so the cache never answers) from ``clients`` keep-alive clients."""
     port = _free_port()
     env = {**os.environ, "PHONGRAY_RENDER_THREADS": "1", "PHONGRAY_MAX_CONCURRENT_RENDERS": "4"}
-    server = subprocess.Popen([*CLI, "serve", "--host", "127.0.0.1", "--port", str(port), "--workers", str(workers)],
-                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    server = subprocess.Popen(
+        [*CLI, "serve", "--host", "127.0.0.1", "--port", str(port), "--workers", str(workers)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         for _ in range(200):
             try:
@@ -237,7 +249,11 @@ def http_latency(seconds: float, clients: int, workers: int) -> dict[str, Any]:
         server.wait(timeout=10)
     latencies.sort()
     return {
-        "clients": clients, "workers": workers, "seconds": wall, "requests": sum(codes.values()), "codes": codes,
+        "clients": clients,
+        "workers": workers,
+        "seconds": wall,
+        "requests": sum(codes.values()),
+        "codes": codes,
         "renders_per_s": len(latencies) / wall,
         "median_ms": 1000 * statistics.median(latencies) if latencies else None,
         "p99_ms": 1000 * latencies[int(0.99 * (len(latencies) - 1))] if latencies else None,
@@ -252,8 +268,7 @@ def _error(img: np.ndarray, ref: np.ndarray) -> tuple[float, float]:
     return float(d.mean()), float(np.mean(d.max(axis=2) > 2))
 
 
-def knob(label: str, base: dict[str, Any], values: list[Any], reference: Any, apply: Any,
-         runs: int) -> dict[str, Any]:
+def knob(label: str, base: dict[str, Any], values: list[Any], reference: Any, apply: Any, runs: int) -> dict[str, Any]:
     ref = tracer.render(_validated(apply(base, reference)))
     rows = []
     for value in values:
@@ -280,16 +295,32 @@ def quality(out: Path, runs: int) -> list[dict[str, Any]]:
         return with_image(s, max_depth=d)
 
     knobs = [
-        knob("sub-samples n (n×n per pixel), 08_antialiased 320×240", example("08_antialiased", 320, 240),
-             [1, 2, 3, 4, 6], 12, samples, runs),
-        knob("area-light grid g×g, 03_soft_shadows 160×120", example("03_soft_shadows", 160, 120),
-             [1, 2, 4, 8, 16], 32, grid, runs),
+        knob(
+            "sub-samples n (n×n per pixel), 08_antialiased 320×240",
+            example("08_antialiased", 320, 240),
+            [1, 2, 3, 4, 6],
+            12,
+            samples,
+            runs,
+        ),
+        knob(
+            "area-light grid g×g, 03_soft_shadows 160×120",
+            example("03_soft_shadows", 160, 120),
+            [1, 2, 4, 8, 16],
+            32,
+            grid,
+            runs,
+        ),
         knob("max_depth, 04_whitted 320×240", example("04_whitted", 320, 240), [0, 1, 2, 3, 4, 6], 12, depth, runs),
     ]
     for k, name in zip(knobs, ("samples", "area", "depth")):
-        plot([(k["knob"], [(r["seconds"], r["mean_abs_error"], str(r["value"])) for r in k["rows"]])],
-             f"render time against error: {k['knob']} (reference {k['reference']})",
-             "render seconds (log scale)", "mean abs error, 8-bit levels", str(out / f"error_{name}.png"))
+        plot(
+            [(k["knob"], [(r["seconds"], r["mean_abs_error"], str(r["value"])) for r in k["rows"]])],
+            f"render time against error: {k['knob']} (reference {k['reference']})",
+            "render seconds (log scale)",
+            "mean abs error, 8-bit levels",
+            str(out / f"error_{name}.png"),
+        )
         k["plot"] = f"error_{name}.png"
     return knobs
 
@@ -300,127 +331,191 @@ def _f(x: float | None, digits: int = 2) -> str:
 
 
 def report(results: dict[str, Any]) -> str:
-    lines = [f"# phongray benchmark, {results['date']}", "",
-             f"Machine: {results['machine']}. Command: `{results['command']}`.", ""]
+    lines = [
+        f"# phongray benchmark, {results['date']}",
+        "",
+        f"Machine: {results['machine']}. Command: `{results['command']}`.",
+        "",
+    ]
     if results["povray"] is None:
         lines += ["**POV-Ray is not installed** (`apt-get install povray`): its columns are empty.", ""]
     else:
         lines += [f"POV-Ray: `{results['povray']}`, run as `povray +WT2` on the same scene and size.", ""]
-    lines += ["## Speed", "",
-              "| scene | size | render s | rays (primary / shadow / secondary) | Mrays/s | Embree-only s "
-              "| render ÷ Embree "
-              "| phongray process s | POV-Ray process s | phongray ÷ POV-Ray |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+    lines += [
+        "## Speed",
+        "",
+        "| scene | size | render s | rays (primary / shadow / secondary) | Mrays/s | Embree-only s "
+        "| render ÷ Embree "
+        "| phongray process s | POV-Ray process s | phongray ÷ POV-Ray |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in results["speed"]:
         rays = r["rays"]
-        lines.append(f"| {r['scene']} | {r['size']} | {_f(r['render_s'])} | {rays['primary']:,} / {rays['shadow']:,} / "
-                     f"{rays['secondary']:,} | {r['rays_per_s'] / 1e6:.2f} | {_f(r['embree_s'], 3)} | "
-                     f"{_f(r['render_over_embree'], 1)} | {_f(r['process_s'])} | {_f(r['povray_s'])} | "
-                     f"{_f(r['process_over_povray'])} |")
+        lines.append(
+            f"| {r['scene']} | {r['size']} | {_f(r['render_s'])} | {rays['primary']:,} / {rays['shadow']:,} / "
+            f"{rays['secondary']:,} | {r['rays_per_s'] / 1e6:.2f} | {_f(r['embree_s'], 3)} | "
+            f"{_f(r['render_over_embree'], 1)} | {_f(r['process_s'])} | {_f(r['povray_s'])} | "
+            f"{_f(r['process_over_povray'])} |"
+        )
     speed = {r["scene"]: r for r in results["speed"]}
     lines.append("")
     if "spheres_10_1080p" in speed and "spheres_10000_1080p" in speed:
         many, few = speed["spheres_10000_1080p"], speed["spheres_10_1080p"]
-        lines.append(f"* 10,000 spheres take {many['process_s'] / few['process_s']:.2f}× the whole-process time of 10 "
-                     f"(target ≤ 1.5×), {many['render_s'] / few['render_s']:.2f}× the render time.")
+        lines.append(
+            f"* 10,000 spheres take {many['process_s'] / few['process_s']:.2f}× the whole-process time of 10 "
+            f"(target ≤ 1.5×), {many['render_s'] / few['render_s']:.2f}× the render time."
+        )
     if "three_spheres_1080p" in speed:
         r = speed["three_spheres_1080p"]
-        lines.append(f"* 1080p three spheres: whole process ÷ POV-Ray {_f(r['process_over_povray'])}, "
-                     f"render ÷ Embree {_f(r['render_over_embree'], 1)} (— where no ray goes to Embree).")
+        lines.append(
+            f"* 1080p three spheres: whole process ÷ POV-Ray {_f(r['process_over_povray'])}, "
+            f"render ÷ Embree {_f(r['render_over_embree'], 1)} (— where no ray goes to Embree)."
+        )
     ratios = [r for r in results["speed"] if r["process_over_povray"]]
     worst = max(ratios, key=lambda r: r["process_over_povray"], default=None)
     if worst:
         met = sum(r["process_over_povray"] <= 0.5 for r in ratios)
-        lines.append(f"* Slowest row against POV-Ray: {worst['scene']}, {worst['process_over_povray']:.2f}× "
-                     f"(target ≤ 0.5 on every row; {met} of {len(ratios)} rows meet it).")
-    lines += ["", "Render s: best of the runs, in-process, all cores. Embree-only s: the same Embree queries "
-              "(recorded during a render) replayed on Embree alone, on all cores. Process s: the whole "
-              "`phongray render` command, start-up, validation and PNG included, best of one more run than the "
-              "in-process timings, with phongray's modules compiled to bytecode as an installed package's are; "
-              "a large render there runs on a forked process per core. The mesh row's render includes building "
-              "its 208k-triangle BVH and arrays, "
-              "which Embree-only does not. This machine is a shared VM: repeated runs differ by up to ±30 %.", ""]
+        lines.append(
+            f"* Slowest row against POV-Ray: {worst['scene']}, {worst['process_over_povray']:.2f}× "
+            f"(target ≤ 0.5 on every row; {met} of {len(ratios)} rows meet it)."
+        )
+    lines += [
+        "",
+        "Render s: best of the runs, in-process, all cores. Embree-only s: the same Embree queries "
+        "(recorded during a render) replayed on Embree alone, on all cores. Process s: the whole "
+        "`phongray render` command, start-up, validation and PNG included, best of one more run than the "
+        "in-process timings, with phongray's modules compiled to bytecode as an installed package's are; "
+        "a large render there runs on a forked process per core. The mesh row's render includes building "
+        "its 208k-triangle BVH and arrays, "
+        "which Embree-only does not. This machine is a shared VM: repeated runs differ by up to ±30 %.",
+        "",
+    ]
     if results.get("png"):
         head = " | ".join(f"level {lv} ms / KiB" for lv in PNG_LEVELS)
-        lines += ["## PNG encoding", "", "phongray writes unfiltered rows through zlib at level "
-                  f"{tracer.image.PNG_LEVEL}. Each speed row's image encoded again, best of the runs, beside Pillow's "
-                  "`save(compress_level=6)` (adaptive row filters), the encoder phongray used before.", "",
-                  f"| scene | size | {head} | Pillow 6 ms / KiB |", "|---|---|" + "---|" * (len(PNG_LEVELS) + 1)]
+        lines += [
+            "## PNG encoding",
+            "",
+            "phongray writes unfiltered rows through zlib at level "
+            f"{tracer.image.PNG_LEVEL}. Each speed row's image encoded again, best of the runs, beside Pillow's "
+            "`save(compress_level=6)` (adaptive row filters), the encoder phongray used before.",
+            "",
+            f"| scene | size | {head} | Pillow 6 ms / KiB |",
+            "|---|---|" + "---|" * (len(PNG_LEVELS) + 1),
+        ]
         for r in results["png"]:
             cells = " | ".join(f"{r['levels'][lv]['ms']:.0f} / {r['levels'][lv]['kib']:.0f}" for lv in PNG_LEVELS)
             lines.append(f"| {r['scene']} | {r['size']} | {cells} | {r['pillow_ms']:.0f} / {r['pillow_kib']:.0f} |")
         lines.append("")
     if results.get("memory"):
         m = results["memory"]
-        lines += ["## Memory", "", f"4096×4096 three spheres: peak resident {m['peak_mib']:.0f} MiB, "
-                  f"{m['seconds']:.1f} s (target < 2048 MiB).", ""]
+        lines += [
+            "## Memory",
+            "",
+            f"4096×4096 three spheres: peak resident {m['peak_mib']:.0f} MiB, "
+            f"{m['seconds']:.1f} s (target < 2048 MiB).",
+            "",
+        ]
     if results.get("http"):
-        lines += ["## HTTP", "", "`phongray serve --workers 2` on loopback, one render thread per worker; each request "
-                  "is a distinct 160×120 scene, so every one is rendered (target: a median ≤ 15 ms with 2 clients).",
-                  " The server's render ms is the median of its own `X-Render-Seconds` (the render and its PNG, "
-                  "without HTTP). Workers serving: how many of the worker processes the clients' kept-alive "
-                  "connections reached (the kernel lets whichever worker is first take a connection; two renders in "
-                  "one worker share its interpreter lock and each takes about twice as long).", "",
-                  "| clients | requests | median ms | p99 ms | server's render ms | workers serving | renders/s | "
-                  "status codes |",
-                  "|---|---|---|---|---|---|---|---|"]
+        lines += [
+            "## HTTP",
+            "",
+            "`phongray serve --workers 2` on loopback, one render thread per worker; each request "
+            "is a distinct 160×120 scene, so every one is rendered (target: a median ≤ 15 ms with 2 clients).",
+            " The server's render ms is the median of its own `X-Render-Seconds` (the render and its PNG, "
+            "without HTTP). Workers serving: how many of the worker processes the clients' kept-alive "
+            "connections reached (the kernel lets whichever worker is first take a connection; two renders in "
+            "one worker share its interpreter lock and each takes about twice as long).",
+            "",
+            "| clients | requests | median ms | p99 ms | server's render ms | workers serving | renders/s | "
+            "status codes |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         for h in results["http"]:
-            lines.append(f"| {h['clients']} | {h['requests']} | {_f(h['median_ms'], 1)} | {_f(h['p99_ms'], 1)} | "
-                         f"{_f(h.get('render_median_ms'), 1)} | {h['workers_serving']} | "
-                         f"{h['renders_per_s']:.1f} | {h['codes']} |")
+            lines.append(
+                f"| {h['clients']} | {h['requests']} | {_f(h['median_ms'], 1)} | {_f(h['p99_ms'], 1)} | "
+                f"{_f(h.get('render_median_ms'), 1)} | {h['workers_serving']} | "
+                f"{h['renders_per_s']:.1f} | {h['codes']} |"
+            )
         lines.append("")
     if results.get("class"):
-        lines += ["## Class grading", "", "40 students × 4 tasks at 320×240, one task randomised per student (43 "
-                  "distinct scenes), graded from scratch: every reference rendered, every pair compared, the report "
-                  "written. Local: `phongray grade-class` with a process per core. Server: `--server` against "
-                  "`phongray serve --workers 2` (one render thread per worker), 4 requests at a time.", "",
-                  "| mode | pairs | references rendered | seconds | pairs/s |", "|---|---|---|---|---|"]
+        lines += [
+            "## Class grading",
+            "",
+            "40 students × 4 tasks at 320×240, one task randomised per student (43 "
+            "distinct scenes), graded from scratch: every reference rendered, every pair compared, the report "
+            "written. Local: `phongray grade-class` with a process per core. Server: `--server` against "
+            "`phongray serve --workers 2` (one render thread per worker), 4 requests at a time.",
+            "",
+            "| mode | pairs | references rendered | seconds | pairs/s |",
+            "|---|---|---|---|---|",
+        ]
         for c in results["class"]:
-            lines.append(f"| {c['mode']} | {c['pairs']} | {c['references']} | {c['seconds']:.1f} | "
-                         f"{c['pairs_per_s']:.1f} |")
+            lines.append(
+                f"| {c['mode']} | {c['pairs']} | {c['references']} | {c['seconds']:.1f} | {c['pairs_per_s']:.1f} |"
+            )
         lines.append("")
         passing = next((c for c in results["class"] if "renders_alone_s" in c and not c.get("failing")), None)
         for c in results["class"]:
             if c.get("failing") and passing:
-                lines += [f"The same class with {c['failing']} failing pairs (a classic mistake each, in turn), every "
-                          f"one diagnosed cold (its own scene): {c['pairs_per_s']:.1f} pairs/s, "
-                          f"{c['pairs_per_s'] / passing['pairs_per_s']:.2f}× the all-passing rate (target: ≥ 0.67).",
-                          ""]
+                lines += [
+                    f"The same class with {c['failing']} failing pairs (a classic mistake each, in turn), every "
+                    f"one diagnosed cold (its own scene): {c['pairs_per_s']:.1f} pairs/s, "
+                    f"{c['pairs_per_s'] / passing['pairs_per_s']:.2f}× the all-passing rate (target: ≥ 0.67).",
+                    "",
+                ]
             elif "renders_alone_s" in c:
-                lines += [f"A scene per student: 80 students × 10 tasks at 320×240 built from the eight examples "
-                          f"(each student's camera and spheres moved their own way), so {c['references']} distinct "
-                          f"renders and {c['pairs']} comparisons (target: ≥ 28 pairs/s). The same renders alone in "
-                          f"a pool of {c['workers']} processes take {c['renders_alone_s']:.1f} s "
-                          f"({c['render_mean_s']:.3f} s each on one core): everything else class grading does "
-                          f"costs {c['seconds'] - c['renders_alone_s']:.1f} s.", ""]
+                lines += [
+                    f"A scene per student: 80 students × 10 tasks at 320×240 built from the eight examples "
+                    f"(each student's camera and spheres moved their own way), so {c['references']} distinct "
+                    f"renders and {c['pairs']} comparisons (target: ≥ 28 pairs/s). The same renders alone in "
+                    f"a pool of {c['workers']} processes take {c['renders_alone_s']:.1f} s "
+                    f"({c['render_mean_s']:.3f} s each on one core): everything else class grading does "
+                    f"costs {c['seconds'] - c['renders_alone_s']:.1f} s.",
+                    "",
+                ]
     if results.get("cluster"):
         c = results["cluster"]
         r4, cl, pt, est = c["render_4k"], c["class"], c["per_task"], c["estimate_500x10"]
-        lines += ["## On a Dask cluster", "", "A local Dask cluster of two worker processes with one thread each, on "
-                  "the same 2 cores, against the local runs (which use both cores themselves). The cluster is not "
-                  "expected to win here; the ratio is its overhead (target ≤ 1.3). Below 1, its worker processes "
-                  "beat a local render's threads, which share one interpreter.", "",
-                  "| work | local s | cluster s | cluster ÷ local |", "|---|---|---|---|",
-                  f"| 3840×2160 three spheres (bands of rows; PNG identical: {r4['identical']}) "
-                  f"| {r4['local_s']:.1f} | "
-                  f"{r4['cluster_s']:.1f} | {r4['ratio']:.2f} |",
-                  f"| class, {cl['pairs']} pairs, {cl['references']} references | {cl['local_s']:.1f} | "
-                  f"{cl['cluster_s']:.1f} | {cl['ratio']:.2f} |", "",
-                  f"Per task on one core: a 320×240 reference render {pt['render_s']:.3f} s (its scene "
-                  f"{pt['scene_bytes']:,} bytes in, its PNG {pt['png_bytes']:,} bytes out), a comparison "
-                  f"{pt['grade_s']:.3f} s. On paper, 500 students × 10 tasks with every pair its own scene "
-                  f"(5,000 renders and 5,000 comparisons, 2 ms of scheduling each): "
-                  f"{est['workers_10_s'] / 60:.1f} min on 10 workers, {est['workers_100_s'] / 60:.1f} min on 100 "
-                  "(the transfers, about 0.2 MB per pair, are small beside that on any cluster network).", ""]
+        lines += [
+            "## On a Dask cluster",
+            "",
+            "A local Dask cluster of two worker processes with one thread each, on "
+            "the same 2 cores, against the local runs (which use both cores themselves). The cluster is not "
+            "expected to win here; the ratio is its overhead (target ≤ 1.3). Below 1, its worker processes "
+            "beat a local render's threads, which share one interpreter.",
+            "",
+            "| work | local s | cluster s | cluster ÷ local |",
+            "|---|---|---|---|",
+            f"| 3840×2160 three spheres (bands of rows; PNG identical: {r4['identical']}) "
+            f"| {r4['local_s']:.1f} | "
+            f"{r4['cluster_s']:.1f} | {r4['ratio']:.2f} |",
+            f"| class, {cl['pairs']} pairs, {cl['references']} references | {cl['local_s']:.1f} | "
+            f"{cl['cluster_s']:.1f} | {cl['ratio']:.2f} |",
+            "",
+            f"Per task on one core: a 320×240 reference render {pt['render_s']:.3f} s (its scene "
+            f"{pt['scene_bytes']:,} bytes in, its PNG {pt['png_bytes']:,} bytes out), a comparison "
+            f"{pt['grade_s']:.3f} s. On paper, 500 students × 10 tasks with every pair its own scene "
+            f"(5,000 renders and 5,000 comparisons, 2 ms of scheduling each): "
+            f"{est['workers_10_s'] / 60:.1f} min on 10 workers, {est['workers_100_s'] / 60:.1f} min on 100 "
+            "(the transfers, about 0.2 MB per pair, are small beside that on any cluster network).",
+            "",
+        ]
     if results.get("diagnosis"):
         lines += report_lines(results["diagnosis"])
     lines += ["## Speed against error", ""]
     for k in results["quality"]:
-        lines += [f"### {k['knob']}", "", f"Error against a reference rendered at {k['reference']}.", "",
-                  "| value | seconds | mean abs error (levels) | pixels off > 2 levels |", "|---|---|---|---|"]
+        lines += [
+            f"### {k['knob']}",
+            "",
+            f"Error against a reference rendered at {k['reference']}.",
+            "",
+            "| value | seconds | mean abs error (levels) | pixels off > 2 levels |",
+            "|---|---|---|---|",
+        ]
         for r in k["rows"]:
-            lines.append(f"| {r['value']} | {r['seconds']:.3f} | {r['mean_abs_error']:.3f} | "
-                         f"{100 * r['fraction_off']:.2f} % |")
+            lines.append(
+                f"| {r['value']} | {r['seconds']:.3f} | {r['mean_abs_error']:.3f} | {100 * r['fraction_off']:.2f} % |"
+            )
         lines += ["", f"![{k['knob']}]({k['plot']})", ""]
     return "\n".join(lines) + "\n"
 
@@ -446,8 +541,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="bench/out", help="directory for report.md, results.json and plots")
     parser.add_argument("--runs", type=int, default=2, help="runs per measurement; the best is kept")
     parser.add_argument("--only", nargs="*", help="speed scenes to run (default: all)")
-    parser.add_argument("--skip", nargs="*", default=[],
-                        choices=["speed", "png", "memory", "http", "quality", "class", "cluster", "diagnosis"])
+    parser.add_argument(
+        "--skip",
+        nargs="*",
+        default=[],
+        choices=["speed", "png", "memory", "http", "quality", "class", "cluster", "diagnosis"],
+    )
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -459,7 +558,13 @@ def main(argv: list[str] | None = None) -> int:
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}",
         "command": "phongray bench " + " ".join(argv if argv is not None else sys.argv[1:]),
         "povray": _povray_version() if pov else None,
-        "speed": [], "png": [], "memory": None, "http": None, "quality": [], "class": None, "cluster": None,
+        "speed": [],
+        "png": [],
+        "memory": None,
+        "http": None,
+        "quality": [],
+        "class": None,
+        "cluster": None,
         "diagnosis": None,
     }
     compiled()
@@ -476,8 +581,11 @@ def main(argv: list[str] | None = None) -> int:
                     continue
                 row = speed_row(name, data, work, args.runs)
                 results["speed"].append(row)
-                print(f"{name}: render {row['render_s']:.2f} s, Embree {_f(row['embree_s'], 3)} s, "
-                      f"process {row['process_s']:.2f} s, POV-Ray {_f(row['povray_s'])} s", flush=True)
+                print(
+                    f"{name}: render {row['render_s']:.2f} s, Embree {_f(row['embree_s'], 3)} s, "
+                    f"process {row['process_s']:.2f} s, POV-Ray {_f(row['povray_s'])} s",
+                    flush=True,
+                )
             gc.unfreeze()
             if "png" not in args.skip:
                 results["png"] = png_rows(work, [r["scene"] for r in results["speed"]], args.runs)
@@ -489,24 +597,35 @@ def main(argv: list[str] | None = None) -> int:
             results["class"].append(per_student_row(work))
             results["class"].append(per_student_row(work, share_failing=0.3))
             for c in results["class"]:
-                print(f"class grading, {c['mode']}: {c['pairs']} pairs in {c['seconds']:.1f} s, "
-                      f"{c['pairs_per_s']:.1f} pairs/s", flush=True)
+                print(
+                    f"class grading, {c['mode']}: {c['pairs']} pairs in {c['seconds']:.1f} s, "
+                    f"{c['pairs_per_s']:.1f} pairs/s",
+                    flush=True,
+                )
         if "cluster" not in args.skip:
             local = next((c for c in results["class"] or [] if c["mode"] == "local"), None)
             results["cluster"] = cluster_rows(work, local)
             c = results["cluster"]
-            print(f"cluster: 3840×2160 {c['render_4k']['cluster_s']:.1f} s vs {c['render_4k']['local_s']:.1f} s local, "
-                  f"class {c['class']['cluster_s']:.1f} s vs {c['class']['local_s']:.1f} s local", flush=True)
+            print(
+                f"cluster: 3840×2160 {c['render_4k']['cluster_s']:.1f} s vs {c['render_4k']['local_s']:.1f} s local, "
+                f"class {c['class']['cluster_s']:.1f} s vs {c['class']['local_s']:.1f} s local",
+                flush=True,
+            )
     if "diagnosis" not in args.skip:
         results["diagnosis"] = diagnosis_rows()
         for d in results["diagnosis"]:
-            print(f"diagnosis {d['scene']}: cold {d['cold_s']:.2f} s ({d['cold_over_render']:.1f}× its render), "
-                  f"warm {d['warm_s']:.3f} s, named {d['named']}", flush=True)
+            print(
+                f"diagnosis {d['scene']}: cold {d['cold_s']:.2f} s ({d['cold_over_render']:.1f}× its render), "
+                f"warm {d['warm_s']:.3f} s, named {d['named']}",
+                flush=True,
+            )
     if "http" not in args.skip:
         results["http"] = [http_latency(seconds=5.0, clients=clients, workers=2) for clients in (2, 4)]
         for h in results["http"]:
-            print(f"http, {h['clients']} clients: median {_f(h['median_ms'], 1)} ms, "
-                  f"{h['renders_per_s']:.1f} renders/s", flush=True)
+            print(
+                f"http, {h['clients']} clients: median {_f(h['median_ms'], 1)} ms, {h['renders_per_s']:.1f} renders/s",
+                flush=True,
+            )
     if "quality" not in args.skip:
         results["quality"] = quality(out, args.runs)
         print("speed against error: done", flush=True)

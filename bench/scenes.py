@@ -36,19 +36,27 @@ def torus_mesh(major: float, minor: float, nu: int, nv: int, center: tuple[float
     c = ((i + 1) % nu) * nv + (j + 1) % nv
     d = i * nv + (j + 1) % nv
     faces = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
-    return {"type": "mesh", "material": "torus", "vertices": np.round(points.reshape(-1, 3), 6).tolist(),
-            "faces": faces.tolist(), "normals": np.round(normal.reshape(-1, 3), 6).tolist()}
+    return {
+        "type": "mesh",
+        "material": "torus",
+        "vertices": np.round(points.reshape(-1, 3), 6).tolist(),
+        "faces": faces.tolist(),
+        "normals": np.round(normal.reshape(-1, 3), 6).tolist(),
+    }
 
 
 def mesh_scene(width: int = 640, height: int = 480) -> Scene:
     return {
         "camera": {"position": [0, 3, 6], "look_at": [0, 0.6, 0], "fov": 45},
         "image": {"width": width, "height": height, "background": [0.05, 0.06, 0.1]},
-        "materials": {"floor": {"ambient": 0.08, "diffuse": 0.55, "specular": 0.2, "shininess": 10},
-                      "torus": {"ambient": [0.1, 0.05, 0.02], "diffuse": [0.7, 0.35, 0.15], "specular": 0.6,
-                                "shininess": 60}},
-        "objects": [{"type": "plane", "material": "floor", "point": [0, 0, 0], "normal": [0, 1, 0]},
-                    torus_mesh(1.6, 0.55, 500, 208, (0, 0.9, 0))],
+        "materials": {
+            "floor": {"ambient": 0.08, "diffuse": 0.55, "specular": 0.2, "shininess": 10},
+            "torus": {"ambient": [0.1, 0.05, 0.02], "diffuse": [0.7, 0.35, 0.15], "specular": 0.6, "shininess": 60},
+        },
+        "objects": [
+            {"type": "plane", "material": "floor", "point": [0, 0, 0], "normal": [0, 1, 0]},
+            torus_mesh(1.6, 0.55, 500, 208, (0, 0.9, 0)),
+        ],
         "lights": [{"type": "ambient", "color": 1}, {"type": "point", "position": [-3, 6, 4], "color": 0.9}],
     }
 
@@ -63,16 +71,20 @@ def sphere_field(count: int, width: int = 1920, height: int = 1080) -> Scene:
         r = 0.25 + 0.15 * rng.random()
         spheres.append({"type": "sphere", "material": f"m{k % 3}", "center": [x, r, z], "radius": round(r, 4)})
     colours = [[0.7, 0.15, 0.1], [0.15, 0.6, 0.2], [0.15, 0.25, 0.7]]
-    materials = {f"m{i}": {"ambient": [c * 0.15 for c in col], "diffuse": col, "specular": 0.5, "shininess": 60}
-                 for i, col in enumerate(colours)}
+    materials = {
+        f"m{i}": {"ambient": [c * 0.15 for c in col], "diffuse": col, "specular": 0.5, "shininess": 60}
+        for i, col in enumerate(colours)
+    }
     materials["floor"] = {"ambient": 0.08, "diffuse": 0.55, "specular": 0.2, "shininess": 10}
     return {
         "camera": {"position": [0, side * 0.45 + 2, side * 0.7 + 3], "look_at": [0, 0, 0], "fov": 50},
         "image": {"width": width, "height": height, "background": [0.05, 0.06, 0.1]},
         "materials": materials,
         "objects": [{"type": "plane", "material": "floor", "point": [0, 0, 0], "normal": [0, 1, 0]}, *spheres],
-        "lights": [{"type": "ambient", "color": 1},
-                   {"type": "point", "position": [-side * 0.3, side * 0.6 + 5, side * 0.4], "color": 0.9}],
+        "lights": [
+            {"type": "ambient", "color": 1},
+            {"type": "point", "position": [-side * 0.3, side * 0.6 + 5, side * 0.4], "color": 0.9},
+        ],
     }
 
 

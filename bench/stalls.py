@@ -91,8 +91,10 @@ def stalls(size: int, rounds: int) -> dict[str, Any]:
             stage("hand memory back", release)
     finally:
         sleeper.close()
-    table = {name: {"mean_s": round(seconds[name] / rounds, 3), "worst_stall_ms": round(1000 * worst[name], 1)}
-             for name in seconds}
+    table = {
+        name: {"mean_s": round(seconds[name] / rounds, 3), "worst_stall_ms": round(1000 * worst[name], 1)}
+        for name in seconds
+    }
     return {"size": size, "rounds": rounds, "bomb_bytes": len(bomb), "stages": table}
 
 

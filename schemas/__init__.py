@@ -28,9 +28,25 @@ from .scene import (  # noqa: E402
 from .validation import validate_scene  # noqa: E402
 
 __all__ = [
-    "AmbientLight", "AreaLight", "Camera", "DirectionalLight", "Image", "Material", "Mesh", "Plane",
-    "PointLight", "Scene", "SceneError", "Sphere", "SpotLight", "Triangle", "format_problem",
-    "json_schema", "load_scene", "parallel", "validate_scene",
+    "AmbientLight",
+    "AreaLight",
+    "Camera",
+    "DirectionalLight",
+    "Image",
+    "Material",
+    "Mesh",
+    "Plane",
+    "PointLight",
+    "Scene",
+    "SceneError",
+    "Sphere",
+    "SpotLight",
+    "Triangle",
+    "format_problem",
+    "json_schema",
+    "load_scene",
+    "parallel",
+    "validate_scene",
 ]
 
 

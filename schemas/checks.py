@@ -55,8 +55,14 @@ def _sub(a: Sequence[float], b: Sequence[float]) -> list[float]:
 
 
 def check_scene(scene: Scene) -> list[Problem]:
-    return [*_camera(scene), *_materials(scene), *_objects(scene), *_lights(scene),
-            *_names(scene.objects, "objects"), *_names(scene.lights, "lights")]
+    return [
+        *_camera(scene),
+        *_materials(scene),
+        *_objects(scene),
+        *_lights(scene),
+        *_names(scene.objects, "objects"),
+        *_names(scene.lights, "lights"),
+    ]
 
 
 def _names(items: Sequence[object], where: str) -> Iterator[Problem]:
@@ -76,8 +82,9 @@ def unknown_material(name: str, known: object) -> str:
     return f"unknown material '{name}'{suggestion(name, known)}"
 
 
-def out_of_range(where: str, bad: Sequence[tuple[int, int, int]], n: int, total: int | None = None
-                 ) -> Iterator[Problem]:
+def out_of_range(
+    where: str, bad: Sequence[tuple[int, int, int]], n: int, total: int | None = None
+) -> Iterator[Problem]:
     """The first face indices beyond a mesh's ``n`` vertices, as ``(face, corner, index)``; then how many more."""
     total = len(bad) if total is None else total
     for f, k, index in bad[:MAX_LISTED]:
@@ -132,8 +139,12 @@ def _mesh(mesh: Mesh, where: str) -> Iterator[Problem]:
     n = len(mesh.vertices)
     if mesh.faces:
         faces = mesh.rows("faces")
-        yield from out_of_range(where, [(f, k, faces[f, k]) for f, k in np.argwhere(faces >= n)[:MAX_LISTED + 1]],
-                                n, int(np.count_nonzero(faces >= n)))
+        yield from out_of_range(
+            where,
+            [(f, k, faces[f, k]) for f, k in np.argwhere(faces >= n)[: MAX_LISTED + 1]],
+            n,
+            int(np.count_nonzero(faces >= n)),
+        )
     if mesh.normals is not None:
         if len(mesh.normals) != n:
             yield f"{where}.normals", f"must have one normal per vertex ({n}), got {len(mesh.normals)}"

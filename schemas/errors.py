@@ -11,9 +11,17 @@ from pydantic import ValidationError
 from . import scene as models
 
 #: the models of the tagged unions by tag (pydantic puts the tags into error locations)
-_TAGGED = {"sphere": models.Sphere, "plane": models.Plane, "triangle": models.Triangle, "mesh": models.Mesh,
-           "ambient": models.AmbientLight, "directional": models.DirectionalLight, "point": models.PointLight,
-           "spot": models.SpotLight, "area": models.AreaLight}
+_TAGGED = {
+    "sphere": models.Sphere,
+    "plane": models.Plane,
+    "triangle": models.Triangle,
+    "mesh": models.Mesh,
+    "ambient": models.AmbientLight,
+    "directional": models.DirectionalLight,
+    "point": models.PointLight,
+    "spot": models.SpotLight,
+    "area": models.AreaLight,
+}
 
 
 class SceneError(ValueError):
@@ -31,7 +39,7 @@ MAX_TEXT = 240
 def _clip(text: str) -> str:
     if len(text) <= MAX_TEXT:
         return text
-    return f"{text[:MAX_TEXT // 2]}…({len(text) - MAX_TEXT} characters)…{text[-MAX_TEXT // 4:]}"
+    return f"{text[: MAX_TEXT // 2]}…({len(text) - MAX_TEXT} characters)…{text[-MAX_TEXT // 4 :]}"
 
 
 def format_problem(problem: tuple[str, str]) -> str:
@@ -112,8 +120,10 @@ def _message(err: dict[str, Any]) -> str:  # noqa: C901 (one plain branch per ki
         return f"must be {op} {bound:g}" if isinstance(bound, (int, float)) else err["msg"]
     if kind == "union_tag_invalid":
         expected = [t.strip().strip("'") for t in str(ctx.get("expected_tags", "")).split(",")]
-        return (f"unknown type {ctx.get('tag')!r}{suggestion(ctx.get('tag'), expected)} "
-                f"(expected one of {ctx.get('expected_tags')})")
+        return (
+            f"unknown type {ctx.get('tag')!r}{suggestion(ctx.get('tag'), expected)} "
+            f"(expected one of {ctx.get('expected_tags')})"
+        )
     if kind == "union_tag_not_found":
         return "'type' is required"
     if kind in ("float_type", "float_parsing"):
@@ -205,14 +215,16 @@ YIELDING_PARSE = 256 * 1024
 
 
 #: the parser's words for a syntax error, in plain ones (by the start of the parser's message)
-_PLAIN = {"Expecting ',' delimiter": "a comma is missing between two items",
-          "Expecting ':' delimiter": "a ':' is missing after the key",
-          "Expecting property name": 'a key must be a string in double quotes ("name")',
-          "Expecting value": 'a value is expected here (a number, a "string", true, false, null, [...] or {...})',
-          "Unterminated string": 'a string is not closed (its closing " is missing)',
-          "Invalid control character": "a line break or tab inside a string (write it as \\n or \\t)",
-          "Extra data": "more text after the end of the JSON document",
-          "Invalid \\escape": "an unknown escape after a backslash in a string (in a path, write \\\\ or /)"}
+_PLAIN = {
+    "Expecting ',' delimiter": "a comma is missing between two items",
+    "Expecting ':' delimiter": "a ':' is missing after the key",
+    "Expecting property name": 'a key must be a string in double quotes ("name")',
+    "Expecting value": 'a value is expected here (a number, a "string", true, false, null, [...] or {...})',
+    "Unterminated string": 'a string is not closed (its closing " is missing)',
+    "Invalid control character": "a line break or tab inside a string (write it as \\n or \\t)",
+    "Extra data": "more text after the end of the JSON document",
+    "Invalid \\escape": "an unknown escape after a backslash in a string (in a path, write \\\\ or /)",
+}
 
 
 def syntax_error(exc: json.JSONDecodeError) -> str:
@@ -228,7 +240,7 @@ def syntax_error(exc: json.JSONDecodeError) -> str:
         pos = len(before) - 1
         what = f"a comma after the last item, before '{doc[exc.pos]}' (JSON allows none there: delete it)"
     elif doc.startswith("'", pos):
-        what = "a string in single quotes (JSON strings take double quotes: \"name\")"
+        what = 'a string in single quotes (JSON strings take double quotes: "name")'
     elif pos >= len(doc.rstrip()):
         what = "the document ends too early (a closing '}', ']' or '\"' is missing)"
     else:

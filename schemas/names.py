@@ -25,7 +25,7 @@ def object_words(scene: Scene, index: int) -> str:
     obj = scene.objects[index]
     if obj.name is not None:
         return f"{obj.type} '{obj.name}'"
-    place = sum(1 for other in scene.objects[:index + 1] if other.type == obj.type)
+    place = sum(1 for other in scene.objects[: index + 1] if other.type == obj.type)
     return f"the {ordinal(place)} {obj.type}"
 
 

@@ -26,15 +26,16 @@ def _expand_grey(value: Any) -> Any:
 
 
 #: a colour: an RGB triple, or one number k for [k, k, k] (both in the JSON Schema too)
-Colour = Annotated[tuple[NonNegative, NonNegative, NonNegative], BeforeValidator(
-    _expand_grey, json_schema_input_type=NonNegative | tuple[NonNegative, NonNegative, NonNegative])]
+Colour = Annotated[
+    tuple[NonNegative, NonNegative, NonNegative],
+    BeforeValidator(_expand_grey, json_schema_input_type=NonNegative | tuple[NonNegative, NonNegative, NonNegative]),
+]
 Attenuation = tuple[NonNegative, NonNegative, NonNegative]
 #: the most characters of an object's or a light's ``name`` (a name is for messages: a word or a few)
 NAME_MAX = 64
 #: an object's or a light's name (phongray's extension of the format): 1 to NAME_MAX characters, none of them a
 #: control character (a name is printed in messages to students)
-Name = Annotated[str, Field(min_length=1, max_length=NAME_MAX, pattern=r"^[^\x00-\x1f\x7f-\x9f]+$",
-                            strict=True)]
+Name = Annotated[str, Field(min_length=1, max_length=NAME_MAX, pattern=r"^[^\x00-\x1f\x7f-\x9f]+$", strict=True)]
 
 
 class Strict(BaseModel):
@@ -121,8 +122,9 @@ class Mesh(Strict):
             object.__setattr__(self, "_read", read)
         kept = read.arrays.get(name)
         if kept is None or kept[0] is not rows:  # (a copy with other lists reads its own)
-            out = np.fromiter(chain.from_iterable(rows), dtype=np.int64 if name == "faces" else np.float64,
-                              count=3 * len(rows)).reshape(-1, 3)
+            out = np.fromiter(
+                chain.from_iterable(rows), dtype=np.int64 if name == "faces" else np.float64, count=3 * len(rows)
+            ).reshape(-1, 3)
             out.flags.writeable = False
             kept = read.arrays[name] = (rows, out)
         return kept[1]

@@ -91,8 +91,11 @@ def validate_scene(data: Any) -> Scene:
     original = data
     try:
         data = _bounded(data, "", problems, arrays)
-        parts = {name: _in_pieces(data[name], name, adapter, problems)
-                 for name, (kind, adapter) in _SECTIONS.items() if isinstance(data.get(name), kind)}
+        parts = {
+            name: _in_pieces(data[name], name, adapter, problems)
+            for name, (kind, adapter) in _SECTIONS.items()
+            if isinstance(data.get(name), kind)
+        }
         try:
             head = Scene.model_validate({**data, **{name: type(part)() for name, part in parts.items()}})
         except ValidationError as exc:
@@ -136,9 +139,13 @@ def references(data: dict) -> Iterator[tuple[str, str]]:
             yield f"objects[{i}].material", unknown_material(obj["material"], names)
         vertices, faces = obj.get("vertices"), obj.get("faces")
         if obj.get("type") == "mesh" and isinstance(vertices, list) and isinstance(faces, list):
-            bad = [(f, k, x) for f, face in enumerate(faces) if isinstance(face, list)
-                   for k, x in enumerate(face[:3]) if isinstance(x, int) and not isinstance(x, bool) and
-                   x >= len(vertices)]
+            bad = [
+                (f, k, x)
+                for f, face in enumerate(faces)
+                if isinstance(face, list)
+                for k, x in enumerate(face[:3])
+                if isinstance(x, int) and not isinstance(x, bool) and x >= len(vertices)
+            ]
             yield from out_of_range(f"objects[{i}]", bad, len(vertices))
 
 
@@ -174,8 +181,13 @@ def _bounded(data: dict, path: str, problems: _Problems, arrays: dict[tuple[int,
     ``arrays`` (checked here)."""
     items = list(data.items())
     if path != "materials" and len(items) > MAX_KEYS:
-        problems.add((path, f"has {len(items)} keys; no part of a scene has more than {MAX_KEYS} "
-                            f"(the first {MAX_KEYS} are checked)"))
+        problems.add(
+            (
+                path,
+                f"has {len(items)} keys; no part of a scene has more than {MAX_KEYS} "
+                f"(the first {MAX_KEYS} are checked)",
+            )
+        )
         items = items[:MAX_KEYS]
     out = {}
     for key, value in items:
@@ -183,11 +195,18 @@ def _bounded(data: dict, path: str, problems: _Problems, arrays: dict[tuple[int,
         if isinstance(value, dict):
             value = _bounded(value, where, problems, arrays)
         elif isinstance(value, list) and where in ("objects", "lights"):
-            value = [_bounded(v, f"{where}[{i}]", problems, arrays) if isinstance(v, dict) else v
-                     for i, v in enumerate(value)]
-        elif (isinstance(value, list) and key in _MESH_ARRAYS and len(value) > LONG
-              and path.startswith("objects[") and data.get("type") == "mesh"):
-            index = int(path[len("objects["):-1])
+            value = [
+                _bounded(v, f"{where}[{i}]", problems, arrays) if isinstance(v, dict) else v
+                for i, v in enumerate(value)
+            ]
+        elif (
+            isinstance(value, list)
+            and key in _MESH_ARRAYS
+            and len(value) > LONG
+            and path.startswith("objects[")
+            and data.get("type") == "mesh"
+        ):
+            index = int(path[len("objects[") : -1])
             arrays[(index, key)] = _rows(value, where, key == "faces", problems)
             value = []
         out[key] = value
@@ -198,7 +217,7 @@ def _rows(rows: list, where: str, integer: bool, problems: _Problems) -> list | 
     """A long mesh array as a list of 3-tuples, or None after reporting what is wrong with it."""
     out: list = []
     for start in range(0, len(rows), ROWS):
-        piece = rows[start:start + ROWS]
+        piece = rows[start : start + ROWS]
         try:
             lengths = set(map(len, piece))
             flat = list(chain.from_iterable(piece))

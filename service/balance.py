@@ -170,8 +170,15 @@ class BalancedLoop(asyncio.SelectorEventLoop):
 
     _aside_since: float | None = None
 
-    def _accept_connection(self, protocol_factory: Any, sock: Any, sslcontext: Any = None, server: Any = None,
-                           backlog: int = 100, *args: Any) -> None:
+    def _accept_connection(
+        self,
+        protocol_factory: Any,
+        sock: Any,
+        sslcontext: Any = None,
+        server: Any = None,
+        backlog: int = 100,
+        *args: Any,
+    ) -> None:
         board = BOARD
         if board is None:
             super()._accept_connection(protocol_factory, sock, sslcontext, server, backlog, *args)  # type: ignore[misc]
@@ -183,8 +190,9 @@ class BalancedLoop(asyncio.SelectorEventLoop):
             if now - self._aside_since < PATIENCE:  # stand aside: stop watching the socket for a moment
                 fd = sock.fileno()
                 self._remove_reader(fd)  # type: ignore[attr-defined]
-                self.call_later(PATIENCE / 4, self._watch_again, fd, protocol_factory, sock, sslcontext, server,
-                                backlog, *args)
+                self.call_later(
+                    PATIENCE / 4, self._watch_again, fd, protocol_factory, sock, sslcontext, server, backlog, *args
+                )
                 return
         self._aside_since = None
         for _ in range(backlog):  # while it is this worker's turn (each accept counts at once)
@@ -197,19 +205,24 @@ class BalancedLoop(asyncio.SelectorEventLoop):
                 return
             conn.setblocking(False)
             board.opened()
-            self.create_task(self._accept_connection2(  # type: ignore[attr-defined]
-                protocol_factory, conn, {"peername": addr}, sslcontext, server, *args))
+            self.create_task(
+                self._accept_connection2(  # type: ignore[attr-defined]
+                    protocol_factory, conn, {"peername": addr}, sslcontext, server, *args
+                )
+            )
             if not board.my_turn():
                 return
 
-    def _watch_again(self, fd: int, protocol_factory: Any, sock: Any, sslcontext: Any, server: Any, backlog: int,
-                     *args: Any) -> None:
+    def _watch_again(
+        self, fd: int, protocol_factory: Any, sock: Any, sslcontext: Any, server: Any, backlog: int, *args: Any
+    ) -> None:
         if sock.fileno() == -1 or (server is not None and not server.is_serving()):
             return  # (the server closed meanwhile)
         if not select.select([fd], [], [], 0)[0]:
             self._aside_since = None  # another worker took what was waiting
         self._add_reader(  # type: ignore[attr-defined]
-            fd, self._accept_connection, protocol_factory, sock, sslcontext, server, backlog, *args)
+            fd, self._accept_connection, protocol_factory, sock, sslcontext, server, backlog, *args
+        )
 
 
 def balanced_loop() -> asyncio.AbstractEventLoop:

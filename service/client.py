@@ -14,8 +14,9 @@ from typing import Any
 class ServerError(Exception):
     """The server answered with an error, or could not be reached."""
 
-    def __init__(self, message: str, status: int = 0, body: Any = None, headers: dict[str, str] | None = None,
-                 lost: bool = False):
+    def __init__(
+        self, message: str, status: int = 0, body: Any = None, headers: dict[str, str] | None = None, lost: bool = False
+    ):
         super().__init__(message)
         self.status, self.body, self.headers = status, body, headers or {}
         #: the connection was refused, reset or closed before an answer (a server worker restarting): worth a
@@ -97,8 +98,14 @@ def check(server: str, api_key: str | None = None) -> None:
     get(server, "/schema", api_key=api_key)  # every endpoint but /healthz needs the key, when it has one
 
 
-def post_json(server: str, path: str, body: bytes, query: dict[str, Any] | None = None,
-              timeout: float = 600, api_key: str | None = None) -> bytes:
+def post_json(
+    server: str,
+    path: str,
+    body: bytes,
+    query: dict[str, Any] | None = None,
+    timeout: float = 600,
+    api_key: str | None = None,
+) -> bytes:
     """POST a JSON body; ``api_key`` (default: ``$PHONGRAY_API_KEY``) goes as ``Authorization: Bearer``."""
     params = "&".join(f"{k}={v}" for k, v in (query or {}).items() if v is not None)
     url = base_url(server) + path + (f"?{params}" if params else "")
@@ -106,20 +113,30 @@ def post_json(server: str, path: str, body: bytes, query: dict[str, Any] | None 
     return _call(req, timeout, api_key)[1]
 
 
-def post_form(server: str, path: str, fields: dict[str, bytes | str], files: dict[str, tuple[str, bytes, str]],
-              query: dict[str, Any] | None = None, timeout: float = 600, api_key: str | None = None) -> bytes:
+def post_form(
+    server: str,
+    path: str,
+    fields: dict[str, bytes | str],
+    files: dict[str, tuple[str, bytes, str]],
+    query: dict[str, Any] | None = None,
+    timeout: float = 600,
+    api_key: str | None = None,
+) -> bytes:
     boundary = uuid.uuid4().hex
     parts: list[bytes] = []
     for name, value in fields.items():
         data = value.encode() if isinstance(value, str) else value
         parts.append(f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"\r\n\r\n'.encode() + data + b"\r\n")
     for name, (filename, data, kind) in files.items():
-        head = (f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"; filename="{filename}"\r\n'
-                f"Content-Type: {kind}\r\n\r\n")
+        head = (
+            f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"; filename="{filename}"\r\n'
+            f"Content-Type: {kind}\r\n\r\n"
+        )
         parts.append(head.encode() + data + b"\r\n")
     body = b"".join(parts) + f"--{boundary}--\r\n".encode()
     params = "&".join(f"{k}={v}" for k, v in (query or {}).items() if v is not None)
     url = base_url(server) + path + (f"?{params}" if params else "")
-    req = urllib.request.Request(url, data=body, method="POST",
-                                 headers={"content-type": f"multipart/form-data; boundary={boundary}"})
+    req = urllib.request.Request(
+        url, data=body, method="POST", headers={"content-type": f"multipart/form-data; boundary={boundary}"}
+    )
     return _call(req, timeout, api_key)[1]

@@ -47,8 +47,9 @@ def client(address: str, timeout: float = 10.0) -> Any:
     try:  # before a Client is made: a half-made one hangs in its finaliser for 20 s
         get_address_host_port(address)
     except (ValueError, TypeError) as exc:  # "missing port number", an unknown protocol, ...
-        raise ClusterError(f"--cluster {address}: not a Dask scheduler address ({exc}); "
-                           f"expected tcp://HOST:PORT") from None
+        raise ClusterError(
+            f"--cluster {address}: not a Dask scheduler address ({exc}); expected tcp://HOST:PORT"
+        ) from None
     try:
         return distributed.Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
@@ -76,8 +77,10 @@ def wait_for_workers(client_: Any, address: str, wait: float, spent: float = 0.0
     try:
         client_.wait_for_workers(1, timeout=max(wait - spent, 0.001))
     except (TimeoutError, OSError):
-        raise ClusterError(f"the Dask scheduler at {address} has no workers (none joined within {wait:g} s; "
-                           f"start some with 'dask worker {address}', or wait longer with --cluster-wait)") from None
+        raise ClusterError(
+            f"the Dask scheduler at {address} has no workers (none joined within {wait:g} s; "
+            f"start some with 'dask worker {address}', or wait longer with --cluster-wait)"
+        ) from None
 
 
 @contextlib.contextmanager
@@ -109,9 +112,15 @@ def bands(width: int, height: int) -> list[tuple[int, int]]:
     return [(top, min(top + rows, height)) for top in range(0, height, rows)]
 
 
-def render(client: Any, scene: bytes, width: int, height: int,
-           cancelled: Callable[[], bool] = lambda: False, poll: float = 0.05, budget: Budget | None = None
-           ) -> np.ndarray:
+def render(
+    client: Any,
+    scene: bytes,
+    width: int,
+    height: int,
+    cancelled: Callable[[], bool] = lambda: False,
+    poll: float = 0.05,
+    budget: Budget | None = None,
+) -> np.ndarray:
     """The image of a scene rendered band by band on the cluster; ``cancelled()`` is polled while waiting and,
     once true, the bands still to come are cancelled and :class:`tracer.RenderCancelled` is raised.  Each band is
     held to ``budget`` when given; one that outgrows it raises :class:`tracer.OverBudget` here (not retried), the
@@ -119,8 +128,10 @@ def render(client: Any, scene: bytes, width: int, height: int,
     from tracer import RenderCancelled
 
     data = client.scatter(scene, broadcast=False, hash=False)
-    parts = [client.submit(band_task, data, top, bottom, budget, pure=False, retries=2 if budget is None else 0)
-             for top, bottom in bands(width, height)]
+    parts = [
+        client.submit(band_task, data, top, bottom, budget, pure=False, retries=2 if budget is None else 0)
+        for top, bottom in bands(width, height)
+    ]
     try:
         while not all(f.done() for f in parts) and not any(f.status == "error" for f in parts):
             if cancelled():
@@ -132,8 +143,9 @@ def render(client: Any, scene: bytes, width: int, height: int,
         client.cancel([f for f in parts if not f.done()])
 
 
-def run(client: Any, task: Callable[..., T], *args: Any, cancelled: Callable[[], bool] = lambda: False,
-        poll: float = 0.05) -> T:
+def run(
+    client: Any, task: Callable[..., T], *args: Any, cancelled: Callable[[], bool] = lambda: False, poll: float = 0.05
+) -> T:
     """``task(*args)`` as one task on the cluster; ``cancelled()`` is polled while waiting and, once true, the
     task is cancelled and :class:`tracer.RenderCancelled` is raised (a task already running on a worker stops
     at the deadline it was given).  An exception of the task is raised here."""

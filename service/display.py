@@ -68,16 +68,21 @@ def explained(diagnosis: dict[str, Any] | None) -> list[str]:
         lines += [f"  also: {c['mistake']} (about {round(100 * c['share'])} %)" for c in causes[1:4]]
         causes = []
     if causes[1:4]:
-        lines.append("  also close: " + "; ".join(f"{c['mistake']} ({percent(c['fraction_off_nearby'])} off)"
-                                                  for c in causes[1:4]))
+        lines.append(
+            "  also close: "
+            + "; ".join(f"{c['mistake']} ({percent(c['fraction_off_nearby'])} off)" for c in causes[1:4])
+        )
     for t in diagnosis["terms"][:3]:
         lines.append(f"  term: {_term(t)}")
     if diagnosis["objects"]:
-        lines.append("  failing pixels show: " + ", ".join(
-            f"{_shown(s)} {percent(s['share'])}" for s in diagnosis["objects"][:4]))
+        lines.append(
+            "  failing pixels show: "
+            + ", ".join(f"{_shown(s)} {percent(s['share'])}" for s in diagnosis["objects"][:4])
+        )
     if diagnosis["lights"]:
-        lines.append("  lit there by: " + ", ".join(f"{_lit(s)} {percent(s['share'])}"
-                                                    for s in diagnosis["lights"][:4]))
+        lines.append(
+            "  lit there by: " + ", ".join(f"{_lit(s)} {percent(s['share'])}" for s in diagnosis["lights"][:4])
+        )
     return lines
 
 
@@ -100,8 +105,11 @@ def _lit(share: dict[str, Any]) -> str:
 
 def _clock(seconds: float) -> str:
     seconds = int(seconds)
-    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}" if seconds >= 3600 else \
-        f"{seconds // 60}:{seconds % 60:02d}"
+    return (
+        f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+        if seconds >= 3600
+        else f"{seconds // 60}:{seconds % 60:02d}"
+    )
 
 
 class ProgressBar:

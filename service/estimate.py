@@ -80,8 +80,16 @@ def bodies(scene: Scene) -> list[Body]:
             out.append(Body(np.asarray(obj.center, dtype=float), obj.radius, casts, True, glass))
         elif isinstance(obj, Plane):
             normal = np.asarray(obj.normal, dtype=float)
-            out.append(Body(np.asarray(obj.point, dtype=float), math.inf, casts, False, glass,
-                            normal / (np.linalg.norm(normal) or 1.0)))
+            out.append(
+                Body(
+                    np.asarray(obj.point, dtype=float),
+                    math.inf,
+                    casts,
+                    False,
+                    glass,
+                    normal / (np.linalg.norm(normal) or 1.0),
+                )
+            )
         elif isinstance(obj, (Triangle, Mesh)) and len(obj.vertices):
             centre, radius = _bound(np.asarray(obj.vertices, dtype=float))
             out.append(Body(centre, radius, casts, isinstance(obj, Mesh), glass))
@@ -112,9 +120,10 @@ def _nearest(origins: np.ndarray, dirs: np.ndarray, found: list[Body]) -> np.nda
 
     balls = np.array([k for k, b in enumerate(found) if b.normal is None], dtype=int)
     for at in range(0, len(balls), BLOCK):
-        ks = balls[at:at + BLOCK]
-        offer(_ball_t(origins, dirs, np.array([found[k].center for k in ks]),
-                      np.array([found[k].radius for k in ks])), ks)
+        ks = balls[at : at + BLOCK]
+        offer(
+            _ball_t(origins, dirs, np.array([found[k].center for k in ks]), np.array([found[k].radius for k in ks])), ks
+        )
     for k, body in enumerate(found):
         if body.normal is not None:
             offer((((body.center - origins) @ body.normal) / (dirs @ body.normal))[:, None], np.array([k]))

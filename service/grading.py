@@ -53,9 +53,11 @@ class Grade:
         """Why it failed, in words (empty when it passed)."""
         if self.passed:
             return ""
-        return (f"{percent(self.fraction_off_nearby)} of the pixels are off even nearby (more than "
-                f"{self.tolerance:g} levels from every reference pixel around them); at most "
-                f"{percent(self.max_fraction)} may be")
+        return (
+            f"{percent(self.fraction_off_nearby)} of the pixels are off even nearby (more than "
+            f"{self.tolerance:g} levels from every reference pixel around them); at most "
+            f"{percent(self.max_fraction)} may be"
+        )
 
 
 def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
@@ -72,8 +74,9 @@ def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
             if img.format != "PNG":
                 raise ImageError("image is not a PNG")
             if img.size != expected:
-                raise ImageError(f"image is {img.size[0]}×{img.size[1]} pixels, the scene is "
-                                 f"{expected[0]}×{expected[1]}")
+                raise ImageError(
+                    f"image is {img.size[0]}×{img.size[1]} pixels, the scene is {expected[0]}×{expected[1]}"
+                )
             low = _low_bytes(data, img)
             if img.mode in RGBX_MODES and "transparency" not in img.info:
                 pixels = _scaled(decode_rgbx(img), low)
@@ -168,9 +171,16 @@ def declared_size(data: bytes, max_pixels: int | None = None) -> tuple[int, int]
 
 
 #: how other image formats begin, so that a submission in one of them is named as what it is
-SIGNATURES = ((b"\xff\xd8\xff", "a JPEG"), (b"GIF87a", "a GIF"), (b"GIF89a", "a GIF"), (b"BM", "a BMP"),
-              (b"II*\x00", "a TIFF"), (b"MM\x00*", "a TIFF"), (b"%PDF", "a PDF"),
-              (b"\x00\x00\x00\x0cjP  ", "a JPEG 2000"))
+SIGNATURES = (
+    (b"\xff\xd8\xff", "a JPEG"),
+    (b"GIF87a", "a GIF"),
+    (b"GIF89a", "a GIF"),
+    (b"BM", "a BMP"),
+    (b"II*\x00", "a TIFF"),
+    (b"MM\x00*", "a TIFF"),
+    (b"%PDF", "a PDF"),
+    (b"\x00\x00\x00\x0cjP  ", "a JPEG 2000"),
+)
 
 
 def sniff(data: bytes) -> str | None:
@@ -189,8 +199,10 @@ def _opaque(alpha: np.ndarray) -> None:
         y, x = (int(v) for v in np.argwhere(clear)[0])
         which = "1 pixel that is" if count == 1 else f"{count} pixels that are"
         where = "at" if count == 1 else "the first at"
-        raise ImageError(f"image has {which} not fully opaque ({where} x = {x}, y = {y}); "
-                         f"submit an opaque PNG (no alpha channel, or alpha 255 everywhere)")
+        raise ImageError(
+            f"image has {which} not fully opaque ({where} x = {x}, y = {y}); "
+            f"submit an opaque PNG (no alpha channel, or alpha 255 everywhere)"
+        )
 
 
 #: rows compared at once, so that the temporaries of a 4096×4096 comparison stay a few tens of MiB
@@ -225,12 +237,17 @@ def nearby_difference(reference: np.ndarray, sub: np.ndarray, top: int, bottom: 
     best = np.full((n, w), 255, dtype=np.uint8)
     for dy in range(3):
         for dx in range(3):
-            np.minimum(best, _largest(padded[:, dy:dy + n, dx:dx + w], sub), out=best)
+            np.minimum(best, _largest(padded[:, dy : dy + n, dx : dx + w], sub), out=best)
     return best
 
 
-def grade(reference: np.ndarray, submitted: np.ndarray, reference_sha256: str,
-          tolerance: float = DEFAULT_TOLERANCE, max_fraction: float = DEFAULT_MAX_FRACTION) -> Grade:
+def grade(
+    reference: np.ndarray,
+    submitted: np.ndarray,
+    reference_sha256: str,
+    tolerance: float = DEFAULT_TOLERANCE,
+    max_fraction: float = DEFAULT_MAX_FRACTION,
+) -> Grade:
     h, w, _ = reference.shape
     levels = np.arange(256, dtype=np.int64)
     histogram = np.zeros(256, dtype=np.int64)  # of every channel difference: exact sums from it
@@ -254,10 +271,15 @@ def grade(reference: np.ndarray, submitted: np.ndarray, reference_sha256: str,
     nearby = off_nearby / pixels
     return Grade(
         passed=nearby <= max_fraction,
-        tolerance=tolerance, max_fraction=max_fraction,
-        mean_abs_error=int(histogram @ levels) / values, rmse=math.sqrt(mse),
+        tolerance=tolerance,
+        max_fraction=max_fraction,
+        mean_abs_error=int(histogram @ levels) / values,
+        rmse=math.sqrt(mse),
         psnr=None if mse == 0 else 10 * math.log10(255.0**2 / mse),
-        max_error=max_error, fraction_off=off / pixels,
-        fraction_off_nearby=nearby, width=w, height=h,
+        max_error=max_error,
+        fraction_off=off / pixels,
+        fraction_off_nearby=nearby,
+        width=w,
+        height=h,
         reference_sha256=reference_sha256,
     )

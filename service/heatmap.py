@@ -33,8 +33,12 @@ LEGEND = [
     (FORGIVEN, "off, but forgiven: a neighbour matches"),
     ((60, 60, 60), "within the tolerance (the reference, dimmed)"),
 ]
-RAW_LEGEND = [((0, 0, 0), "equal"), ((255, 0, 0), "21 levels off"), ((255, 255, 0), "43 levels off"),
-              ((255, 255, 255), "64 or more levels off")]
+RAW_LEGEND = [
+    ((0, 0, 0), "equal"),
+    ((255, 0, 0), "21 levels off"),
+    ((255, 255, 0), "43 levels off"),
+    ((255, 255, 255), "64 or more levels off"),
+]
 
 
 def verdict_pixels(reference: np.ndarray, submitted: np.ndarray, tolerance: float) -> np.ndarray:
@@ -62,10 +66,10 @@ def raw_pixels(reference: np.ndarray, submitted: np.ndarray) -> np.ndarray:
     h, w, _ = reference.shape
     out = np.empty((h, w, 3), dtype=np.uint8)
     for top in range(0, h, BAND):
-        diff = _largest(planes(reference[top:top + BAND]), planes(submitted[top:top + BAND]))
+        diff = _largest(planes(reference[top : top + BAND]), planes(submitted[top : top + BAND]))
         x = np.clip(diff / 64.0, 0.0, 1.0)
         rgb = np.stack([np.clip(3 * x, 0, 1), np.clip(3 * x - 1, 0, 1), np.clip(3 * x - 2, 0, 1)], axis=2)
-        out[top:top + BAND] = np.floor(255 * rgb + 0.5)
+        out[top : top + BAND] = np.floor(255 * rgb + 0.5)
     return out
 
 
@@ -93,8 +97,9 @@ def with_legend(pixels: np.ndarray, kind: Kind = "verdict") -> np.ndarray:
     return np.asarray(canvas)
 
 
-def heatmap_png(reference: np.ndarray, submitted: np.ndarray, tolerance: float, kind: Kind = "verdict",
-                legend: bool = False) -> bytes:
+def heatmap_png(
+    reference: np.ndarray, submitted: np.ndarray, tolerance: float, kind: Kind = "verdict", legend: bool = False
+) -> bytes:
     """The heat-map of ``kind`` as PNG bytes, with its legend band when ``legend``."""
     pixels = verdict_pixels(reference, submitted, tolerance) if kind == "verdict" else raw_pixels(reference, submitted)
     return encode_png(with_legend(pixels, kind) if legend else pixels)

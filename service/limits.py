@@ -36,16 +36,23 @@ def check_body(body: bytes | str, settings: Settings) -> None:
     braces = raw.count(b"{")
     allowed = settings.max_objects + 2 * settings.max_materials + settings.max_lights + 16
     if braces > allowed:
-        raise LimitError(f"scene: {braces} JSON objects ('{{'), more than a scene within max_objects = "
-                         f"{settings.max_objects}, max_materials = {settings.max_materials} and max_lights = "
-                         f"{settings.max_lights} can have", 413)
+        raise LimitError(
+            f"scene: {braces} JSON objects ('{{'), more than a scene within max_objects = "
+            f"{settings.max_objects}, max_materials = {settings.max_materials} and max_lights = "
+            f"{settings.max_lights} can have",
+            413,
+        )
     arrays = raw.count(b"[")
-    allowed = (settings.max_triangles + 2 * settings.max_vertices + 16 * settings.max_objects
-               + 8 * settings.max_lights + 1024)
+    allowed = (
+        settings.max_triangles + 2 * settings.max_vertices + 16 * settings.max_objects + 8 * settings.max_lights + 1024
+    )
     if arrays > allowed:
-        raise LimitError(f"scene: {arrays} JSON arrays ('['), more than a scene within max_triangles = "
-                         f"{settings.max_triangles}, max_vertices = {settings.max_vertices} and max_objects = "
-                         f"{settings.max_objects} can have", 413)
+        raise LimitError(
+            f"scene: {arrays} JSON arrays ('['), more than a scene within max_triangles = "
+            f"{settings.max_triangles}, max_vertices = {settings.max_vertices} and max_objects = "
+            f"{settings.max_objects} can have",
+            413,
+        )
 
 
 def check_raw(data: Any, settings: Settings) -> None:
@@ -55,8 +62,10 @@ def check_raw(data: Any, settings: Settings) -> None:
     for name, limit in (("objects", "max_objects"), ("lights", "max_lights"), ("materials", "max_materials")):
         part = data.get(name)
         if isinstance(part, (list, dict)) and len(part) > getattr(settings, limit):
-            raise LimitError(f"{name}: {len(part)} entries exceed the limit {limit} = {getattr(settings, limit)} "
-                             f"(PHONGRAY_{limit.upper()})")
+            raise LimitError(
+                f"{name}: {len(part)} entries exceed the limit {limit} = {getattr(settings, limit)} "
+                f"(PHONGRAY_{limit.upper()})"
+            )
     objects = data.get("objects")
     if not isinstance(objects, list):
         return
@@ -64,14 +73,19 @@ def check_raw(data: Any, settings: Settings) -> None:
     for key, limit in (("faces", "max_triangles"), ("vertices", "max_vertices"), ("normals", "max_vertices")):
         count = sum(len(o[key]) for o in meshes if isinstance(o.get(key), list))
         if count > getattr(settings, limit):
-            raise LimitError(f"objects: {count} {key} in all exceed the limit {limit} = "
-                             f"{getattr(settings, limit)} (PHONGRAY_{limit.upper()})")
+            raise LimitError(
+                f"objects: {count} {key} in all exceed the limit {limit} = "
+                f"{getattr(settings, limit)} (PHONGRAY_{limit.upper()})"
+            )
 
 
 def shadow_rays_per_point(scene: Scene) -> int:
     """Shadow rays per shading point: one per light, nu·nv per area light, none for ambient."""
-    return sum(light.samples[0] * light.samples[1] if isinstance(light, AreaLight) else 1
-               for light in scene.lights if light.type != "ambient")
+    return sum(
+        light.samples[0] * light.samples[1] if isinstance(light, AreaLight) else 1
+        for light in scene.lights
+        if light.type != "ambient"
+    )
 
 
 def triangle_count(scene: Scene) -> int:
@@ -114,27 +128,43 @@ def budget(scene: Scene, settings: Settings) -> Budget:
     """What a render of ``scene`` may spend as it runs: its rays, counted, times its per-ray factor within
     ``max_cost``, its exact tests of rays against surfaces within :data:`TESTS_PER_COST` × ``max_cost``, and its
     rays in flight within ``max_ray_bytes``."""
-    return Budget(rays=settings.max_cost / per_ray_factor(scene), ray_bytes=settings.max_ray_bytes,
-                  tests=settings.max_cost * TESTS_PER_COST)
+    return Budget(
+        rays=settings.max_cost / per_ray_factor(scene),
+        ray_bytes=settings.max_ray_bytes,
+        tests=settings.max_cost * TESTS_PER_COST,
+    )
 
 
 #: what to say of each budget a render may outgrow: the setting, and what the scene can do about it
-OUTGROWN = {"rays": ("max_cost", "it needs more rays than the service traces for one image: lower image.max_depth "
-                                 "(mirrors and glass that see each other multiply the rays at every bounce), "
-                                 "image.samples, the image's size or the area lights' samples"),
-            "tests": ("max_cost", "its rays meet more surfaces than the service tests for one image (spheres or "
-                                  "triangles far larger than the rest are tested against every ray, and so are "
-                                  "surfaces nested around one another): lower the image's size, image.samples or "
-                                  "the number of such surfaces"),
-            "memory": ("max_ray_bytes", "its rays in flight need more memory than the service allows for one "
-                                        "image: lower image.max_depth or image.samples")}
+OUTGROWN = {
+    "rays": (
+        "max_cost",
+        "it needs more rays than the service traces for one image: lower image.max_depth "
+        "(mirrors and glass that see each other multiply the rays at every bounce), "
+        "image.samples, the image's size or the area lights' samples",
+    ),
+    "tests": (
+        "max_cost",
+        "its rays meet more surfaces than the service tests for one image (spheres or "
+        "triangles far larger than the rest are tested against every ray, and so are "
+        "surfaces nested around one another): lower the image's size, image.samples or "
+        "the number of such surfaces",
+    ),
+    "memory": (
+        "max_ray_bytes",
+        "its rays in flight need more memory than the service allows for one "
+        "image: lower image.max_depth or image.samples",
+    ),
+}
 
 
 def outgrown(exc: OverBudget, settings: Settings) -> LimitError:
     """The refusal of a render stopped by its budget, in words a student can act on, naming the setting."""
     name, advice = OUTGROWN[exc.what]
-    return LimitError(f"scene: the render was stopped: {advice}. The limit is {name} = {getattr(settings, name):.3g}, "
-                      f"set by PHONGRAY_{name.upper()}")
+    return LimitError(
+        f"scene: the render was stopped: {advice}. The limit is {name} = {getattr(settings, name):.3g}, "
+        f"set by PHONGRAY_{name.upper()}"
+    )
 
 
 def check_scene(scene: Scene, settings: Settings) -> None:
@@ -144,27 +174,39 @@ def check_scene(scene: Scene, settings: Settings) -> None:
     img = scene.image
     pixels = img.width * img.height
     if pixels > settings.max_pixels:
-        raise LimitError(f"image: {shown(img.width)}×{shown(img.height)} = {shown(pixels)} pixels exceed the limit "
-                         f"max_pixels = {settings.max_pixels} (PHONGRAY_MAX_PIXELS)")
+        raise LimitError(
+            f"image: {shown(img.width)}×{shown(img.height)} = {shown(pixels)} pixels exceed the limit "
+            f"max_pixels = {settings.max_pixels} (PHONGRAY_MAX_PIXELS)"
+        )
     if img.samples > settings.max_samples:
-        raise LimitError(f"image.samples: {shown(img.samples)} exceeds the limit max_samples = "
-                         f"{settings.max_samples} (PHONGRAY_MAX_SAMPLES)")
+        raise LimitError(
+            f"image.samples: {shown(img.samples)} exceeds the limit max_samples = "
+            f"{settings.max_samples} (PHONGRAY_MAX_SAMPLES)"
+        )
     if img.max_depth > settings.max_depth:
-        raise LimitError(f"image.max_depth: {shown(img.max_depth)} exceeds the limit max_depth = "
-                         f"{settings.max_depth} (PHONGRAY_MAX_DEPTH)")
+        raise LimitError(
+            f"image.max_depth: {shown(img.max_depth)} exceeds the limit max_depth = "
+            f"{settings.max_depth} (PHONGRAY_MAX_DEPTH)"
+        )
     triangles = triangle_count(scene)
     if triangles > settings.max_triangles:
-        raise LimitError(f"objects: {triangles} triangles exceed the limit max_triangles = "
-                         f"{settings.max_triangles} (PHONGRAY_MAX_TRIANGLES)")
+        raise LimitError(
+            f"objects: {triangles} triangles exceed the limit max_triangles = "
+            f"{settings.max_triangles} (PHONGRAY_MAX_TRIANGLES)"
+        )
     samples = shadow_rays_per_point(scene)
     if samples > settings.max_light_samples:
-        raise LimitError(f"lights: {shown(samples)} light samples exceed the limit "
-                         f"max_light_samples = {settings.max_light_samples} (PHONGRAY_MAX_LIGHT_SAMPLES)")
+        raise LimitError(
+            f"lights: {shown(samples)} light samples exceed the limit "
+            f"max_light_samples = {settings.max_light_samples} (PHONGRAY_MAX_LIGHT_SAMPLES)"
+        )
     certain = camera_rays(scene) * per_ray_factor(scene)
     if certain > settings.max_cost:
-        raise LimitError(f"image: its camera rays alone (pixels × samples² × per-ray factor = {certain:.3g}) "
-                         f"exceed the limit max_cost = {settings.max_cost:.3g} (PHONGRAY_MAX_COST): lower "
-                         f"image.samples or the image's size")
+        raise LimitError(
+            f"image: its camera rays alone (pixels × samples² × per-ray factor = {certain:.3g}) "
+            f"exceed the limit max_cost = {settings.max_cost:.3g} (PHONGRAY_MAX_COST): lower "
+            f"image.samples or the image's size"
+        )
 
 
 def beyond_limits(scene: Scene, settings: Settings) -> list[str]:
@@ -177,5 +219,7 @@ def beyond_limits(scene: Scene, settings: Settings) -> list[str]:
     cost = estimated_cost(scene)
     if cost <= settings.max_cost:
         return []
-    return [f"scene: its estimated cost {cost:.3g} exceeds the limit max_cost = {settings.max_cost:.3g} "
-            f"(PHONGRAY_MAX_COST): a service with that limit will likely stop its render"]
+    return [
+        f"scene: its estimated cost {cost:.3g} exceeds the limit max_cost = {settings.max_cost:.3g} "
+        f"(PHONGRAY_MAX_COST): a service with that limit will likely stop its render"
+    ]

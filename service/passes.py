@@ -56,11 +56,14 @@ def check(scene: Scene, name: str, light: int | None) -> None:
     if light is None or not 0 <= light < len(scene.lights):
         return  # (every light; or one the scene does not have, which the tracer names)
     if name not in OF_A_LIGHT:
-        raise ValueError(f"light: the {name} pass is the whole scene's, not a light's (only {', '.join(OF_A_LIGHT)} "
-                         f"take a light)")
+        raise ValueError(
+            f"light: the {name} pass is the whole scene's, not a light's (only {', '.join(OF_A_LIGHT)} take a light)"
+        )
     if scene.lights[light].type == "ambient":
-        raise ValueError(f"light: lights[{light}] is an ambient light, which has no {name} (it lights every point "
-                         f"alike, unshadowed, in the ambient pass); choose another light, or no light")
+        raise ValueError(
+            f"light: lights[{light}] is an ambient light, which has no {name} (it lights every point "
+            f"alike, unshadowed, in the ambient pass); choose another light, or no light"
+        )
 
 
 #: bytes per pixel of each pass's values (float64, three channels or one; object int64)
@@ -86,8 +89,14 @@ def price(scene: Scene, name: str, fmt: Format) -> int:
     return held + 2 * CHUNK_RAYS * 1024
 
 
-def values(scene: Scene, name: str, light: int | None = None, threads: int | None = None,
-           cancel: Callable[[], bool] | None = None, budget: Budget = UNLIMITED) -> np.ndarray:
+def values(
+    scene: Scene,
+    name: str,
+    light: int | None = None,
+    threads: int | None = None,
+    cancel: Callable[[], bool] | None = None,
+    budget: Budget = UNLIMITED,
+) -> np.ndarray:
     """The pass ``name`` of ``scene`` (of light ``light`` alone where that applies), as the tracer gives it,
     within ``budget`` (else :class:`tracer.OverBudget`).  ValueError names an unknown pass, a light the scene
     does not have, or a light the pass cannot be of."""
@@ -115,10 +124,9 @@ class PassFile:
     def chunks(self, size: int = CHUNK_BYTES) -> Iterator[bytes]:
         if self.head:
             yield self.head
-        raw = self.body.reshape(-1).view(np.uint8).data if isinstance(self.body, np.ndarray) else \
-            memoryview(self.body)
+        raw = self.body.reshape(-1).view(np.uint8).data if isinstance(self.body, np.ndarray) else memoryview(self.body)
         for start in range(0, len(raw), size):
-            yield bytes(raw[start:start + size])
+            yield bytes(raw[start : start + size])
 
     def joined(self) -> bytes:
         """The whole file as one ``bytes`` (the command line writes it; the cache keeps small ones)."""
@@ -133,7 +141,7 @@ def pixels(name: str, data: np.ndarray) -> np.ndarray:
     span = _depth_span(data) if name == "depth" else None
     out = np.empty((*data.shape[:2], 3), dtype=np.uint8)
     for top in range(0, data.shape[0], PNG_ROWS):
-        out[top:top + PNG_ROWS] = _shown(name, data[top:top + PNG_ROWS], span)
+        out[top : top + PNG_ROWS] = _shown(name, data[top : top + PNG_ROWS], span)
     return out
 
 
@@ -142,7 +150,7 @@ def _depth_span(data: np.ndarray) -> tuple[float, float] | None:
     taken band by band, the least and the greatest of the logs."""
     near = far = None
     for top in range(0, data.shape[0], PNG_ROWS):
-        band = data[top:top + PNG_ROWS]
+        band = data[top : top + PNG_ROWS]
         hit = band[np.isfinite(band)]
         if len(hit):  # (the logs as the band's pixels take them below)
             logs = np.log(np.maximum(hit, np.finfo(np.float64).tiny))

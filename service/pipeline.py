@@ -79,9 +79,12 @@ class Graded:
         """The grade's numbers, its ``reason`` (why it failed; empty when it passed), its ``diagnosis``
         (what the student most likely got wrong; null when it passed or none was asked for) and the accepted
         variant it passed as (``accepted``; null when it passed against the reference or failed)."""
-        return {**self.grade.as_dict(), "reason": self.grade.reason,
-                "diagnosis": None if self.diagnosis is None else self.diagnosis.as_dict(),
-                "accepted": self.accepted}
+        return {
+            **self.grade.as_dict(),
+            "reason": self.grade.reason,
+            "diagnosis": None if self.diagnosis is None else self.diagnosis.as_dict(),
+            "accepted": self.accepted,
+        }
 
 
 @dataclass(frozen=True)
@@ -114,8 +117,14 @@ class Explaining:
     run: Run = Run()
 
 
-def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, checks: Checks = Checks(),
-            run: Run = Run()) -> Graded:
+def explain(
+    scene: Scene,
+    graded: Graded,
+    reference: np.ndarray,
+    submitted: np.ndarray,
+    checks: Checks = Checks(),
+    run: Run = Run(),
+) -> Graded:
     """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the
     diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic
     mistake and its passes, cached by canonical scene (in ``run.cache``), compared with the submission.  A
@@ -124,8 +133,7 @@ def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.n
         return graded
     from .diagnosis.accepting import Failing, accept
 
-    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, run.threads,
-                           run.cancel)
+    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, run.threads, run.cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
@@ -134,8 +142,7 @@ def explain(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.n
     from .scenekey import scene_key
 
     held = CACHE if run.cache is None else run.cache
-    renders = held.get(scene_key(scene), lambda: renders_of(scene, run.threads),
-                       scene.image.width * scene.image.height)
+    renders = held.get(scene_key(scene), lambda: renders_of(scene, run.threads), scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
         renders.cancel_in_thread(run.cancel)
     else:
@@ -152,8 +159,15 @@ def read_image(data: bytes, size: tuple[int, int]) -> np.ndarray:
     return grading.read_submission(data, size)
 
 
-def compare(reference_png: bytes, submitted: np.ndarray, tolerance: float, max_fraction: float,
-            heatmap: Kind | None = None, legend: bool = False, reference: np.ndarray | None = None) -> Graded:
+def compare(
+    reference_png: bytes,
+    submitted: np.ndarray,
+    tolerance: float,
+    max_fraction: float,
+    heatmap: Kind | None = None,
+    legend: bool = False,
+    reference: np.ndarray | None = None,
+) -> Graded:
     """Grade ``submitted`` pixels against a reference PNG (decoded here unless its ``reference`` pixels are
     given); with ``heatmap``, the heat-map of that kind too."""
     pixels = decode_png(reference_png) if reference is None else reference
@@ -162,8 +176,15 @@ def compare(reference_png: bytes, submitted: np.ndarray, tolerance: float, max_f
     return Graded(result, heat)
 
 
-def grade_png(reference_png: bytes, image: bytes, tolerance: float, max_fraction: float,
-              heatmap: Kind | None = None, legend: bool = False, explaining: Explaining | None = None) -> Graded:
+def grade_png(
+    reference_png: bytes,
+    image: bytes,
+    tolerance: float,
+    max_fraction: float,
+    heatmap: Kind | None = None,
+    legend: bool = False,
+    explaining: Explaining | None = None,
+) -> Graded:
     """A submitted image's grade against a reference PNG; when it fails and ``explaining`` is given, graded
     against the accepted variants and diagnosed as it says (:func:`explain`); :class:`grading.ImageError` when
     it cannot be graded."""

@@ -26,10 +26,15 @@ FORKED_TRIANGLES = 1 << 12
 BANDS_PER_PROCESS = 8
 
 
-def render_pixels(scene: Scene, client: Any = None, threads: int | None = None,
-                  cancel: Callable[[], bool] | None = None,
-                  progress: Callable[[int, int], None] | None = None, processes: bool = False,
-                  budget: Budget = UNLIMITED) -> np.ndarray:
+def render_pixels(
+    scene: Scene,
+    client: Any = None,
+    threads: int | None = None,
+    cancel: Callable[[], bool] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    processes: bool = False,
+    budget: Budget = UNLIMITED,
+) -> np.ndarray:
     """``(H, W, 3) uint8`` pixels of ``scene``: on the cluster of the Dask ``client`` (in bands, the same bytes),
     else here on ``threads`` threads (every core by default), or, with ``processes`` (the command line, a
     process of its own), on as many forked processes when the render is large (:func:`render_forked`).
@@ -39,13 +44,25 @@ def render_pixels(scene: Scene, client: Any = None, threads: int | None = None,
     if client is not None:
         from .cluster import render as render_on
 
-        return render_on(client, scene.model_dump_json().encode(), scene.image.width, scene.image.height,
-                         cancelled=cancel or (lambda: False), budget=None if budget == UNLIMITED else budget)
+        return render_on(
+            client,
+            scene.model_dump_json().encode(),
+            scene.image.width,
+            scene.image.height,
+            cancelled=cancel or (lambda: False),
+            budget=None if budget == UNLIMITED else budget,
+        )
     workers = threads or os.cpu_count() or 1
     img = scene.image
-    if processes and workers > 1 and sys.platform.startswith("linux") and \
-            img.width * img.height * img.samples**2 >= FORKED_RAYS and img.height >= 2 * workers and \
-            _triangles(scene) <= FORKED_TRIANGLES and budget == UNLIMITED:
+    if (
+        processes
+        and workers > 1
+        and sys.platform.startswith("linux")
+        and img.width * img.height * img.samples**2 >= FORKED_RAYS
+        and img.height >= 2 * workers
+        and _triangles(scene) <= FORKED_TRIANGLES
+        and budget == UNLIMITED
+    ):
         return render_forked(scene, workers, progress)
     return render(scene, threads=threads, progress=progress, cancel=cancel, budget=budget)
 
@@ -90,8 +107,12 @@ def render_forked(scene: Scene, workers: int, progress: Callable[[int, int], Non
     _FORKED["scene"] = scene
     parts = []
     # each process dies with this one, however this one ends (a supervisor's SIGTERM or SIGKILL to it alone)
-    pool = ProcessPoolExecutor(workers, mp_context=get_context("fork"), initializer=die_with_parent,
-                               initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=get_context("fork"),
+        initializer=die_with_parent,
+        initargs=(os.getpid(), threading.current_thread() is threading.main_thread()),
+    )
     try:
         for part in pool.map(_band, bands):
             parts.append(part)

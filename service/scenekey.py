@@ -43,7 +43,7 @@ def scene_key(scene: Scene) -> str:
             rows = getattr(obj, name)
             put([name, None if rows is None else len(rows)])
             for start in range(0, len(rows or ()), KEY_ROWS):
-                digest.update(np.asarray(rows[start:start + KEY_ROWS], dtype=dtype).tobytes())
+                digest.update(np.asarray(rows[start : start + KEY_ROWS], dtype=dtype).tobytes())
     return digest.hexdigest()
 
 

@@ -33,5 +33,9 @@ def pytest_collection_modifyitems(config, items) -> None:  # noqa: ANN001
     if needing and os.environ.get("PHONGRAY_REQUIRE_SANDBOX"):
         raise pytest.UsageError("bubblewrap is required (PHONGRAY_REQUIRE_SANDBOX is set) but bwrap is not on PATH")
     for item in needing:
-        item.add_marker(pytest.mark.skip(reason="bubblewrap is not installed (apt-get install bubblewrap; CI "
-                                                "installs it and sets PHONGRAY_REQUIRE_SANDBOX)"))
+        item.add_marker(
+            pytest.mark.skip(
+                reason="bubblewrap is not installed (apt-get install bubblewrap; CI "
+                "installs it and sets PHONGRAY_REQUIRE_SANDBOX)"
+            )
+        )

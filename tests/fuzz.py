@@ -82,8 +82,11 @@ def _surface_map(renderer: Renderer, surfaces: list[reference.Surface]) -> dict[
     w = renderer.world
     by_owner = {(s.obj, s.face): k for k, s in enumerate(surfaces)}
     out: dict[tuple[int, int], int] = {}
-    for kind, objects, faces in ((SPHERE, w.spheres.object, None), (PLANE, w.planes.object, None),
-                                 (TRIANGLE, w.triangles.object, w.triangles.face)):
+    for kind, objects, faces in (
+        (SPHERE, w.spheres.object, None),
+        (PLANE, w.planes.object, None),
+        (TRIANGLE, w.triangles.object, w.triangles.face),
+    ):
         for i, obj in enumerate(objects):
             key = (int(obj), 0 if faces is None else int(faces[i]))
             if key in by_owner:
@@ -109,9 +112,15 @@ def compare(seed: int, data: dict[str, Any], family: str = "") -> Outcome:
     diff = np.abs(image.astype(np.int16) - frame.pixels().astype(np.int16)).max(axis=2)
     bad = clear & (diff > LEVELS)
     where = np.argwhere(bad)
-    out.note("pixel", int(clear.sum()), bad,
-             [f"pixel (x={x}, y={y}): phongray {image[y, x].tolist()} brute force {frame.pixels()[y, x].tolist()}"
-              for y, x in where[:3]])
+    out.note(
+        "pixel",
+        int(clear.sum()),
+        bad,
+        [
+            f"pixel (x={x}, y={y}): phongray {image[y, x].tolist()} brute force {frame.pixels()[y, x].tolist()}"
+            for y, x in where[:3]
+        ],
+    )
     return out
 
 
@@ -128,18 +137,29 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
     _same_by_cones(out, "hit by cones", hits, isect.closest(camera_rays, _cones(renderer, camera_rays)))
     bounds = bounds_of(renderer.world)
     if bounds is not None:  # the test of rays of their own directions (a mirror's), on these rays
-        _same_by_cones(out, "hit by lines", hits,
-                       isect.closest(camera_rays, on_lines(bounds, camera_rays.origins, camera_rays.dirs)))
+        _same_by_cones(
+            out,
+            "hit by lines",
+            hits,
+            isect.closest(camera_rays, on_lines(bounds, camera_rays.origins, camera_rays.dirs)),
+        )
     _proofs(out, renderer, camera_rays, hits)
     got = np.array([to_ref.get((int(k), int(i)), -2) if k != MISS else -1 for k, i in zip(hits.kind, hits.index)])
     clear = ~ref.unclear
     with np.errstate(invalid="ignore"):
-        t_ok = (ref.surface < 0) | (np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + reference.ERR * (
-            np.abs(o).max(axis=1) + ref.t))
+        t_ok = (ref.surface < 0) | (
+            np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + reference.ERR * (np.abs(o).max(axis=1) + ref.t)
+        )
     bad = clear & ((got != ref.surface) | ~t_ok)
-    out.note("hit", int(clear.sum()), bad,
-             [f"primary ray {r}: phongray surface {got[r]} t={hits.t[r]!r}, brute force {ref.surface[r]} "
-              f"t={ref.t[r]!r}" for r in np.flatnonzero(bad)[:3]])
+    out.note(
+        "hit",
+        int(clear.sum()),
+        bad,
+        [
+            f"primary ray {r}: phongray surface {got[r]} t={hits.t[r]!r}, brute force {ref.surface[r]} t={ref.t[r]!r}"
+            for r in np.flatnonzero(bad)[:3]
+        ],
+    )
     # shadow decisions from the brute force's own clear hits
     rows = np.flatnonzero(clear & (ref.surface >= 0) & (got == ref.surface))
     if len(rows) == 0:
@@ -168,18 +188,41 @@ def _rays(out: Outcome, scene: Any, renderer: Renderer) -> None:
         if among is not None:
             by_cones = isect.occluded(shadows, among)
             wrong = by_cones != mine
-            out.note("shadow by cones", len(mine), wrong,
-                     [f"shadow ray {r} to light {e_index}: walked {mine[r]}, by cones {by_cones[r]}"
-                      for r in np.flatnonzero(wrong)[:3]])
+            out.note(
+                "shadow by cones",
+                len(mine),
+                wrong,
+                [
+                    f"shadow ray {r} to light {e_index}: walked {mine[r]}, by cones {by_cones[r]}"
+                    for r in np.flatnonzero(wrong)[:3]
+                ],
+            )
         bad = ~unclear_b & (mine != blk)
-        out.note("shadow", int(np.count_nonzero(~unclear_b)), bad,
-                 [f"shadow ray from surface {which[ask][r]} at {p[ask][r].tolist()} to light {e_index}: phongray "
-                  f"{'blocked' if mine[r] else 'clear'}, brute force {'blocked' if blk[r] else 'clear'}"
-                  for r in np.flatnonzero(bad)[:3]])
+        out.note(
+            "shadow",
+            int(np.count_nonzero(~unclear_b)),
+            bad,
+            [
+                f"shadow ray from surface {which[ask][r]} at {p[ask][r].tolist()} to light {e_index}: phongray "
+                f"{'blocked' if mine[r] else 'clear'}, brute force {'blocked' if blk[r] else 'clear'}"
+                for r in np.flatnonzero(bad)[:3]
+            ],
+        )
 
 
-def _mirrors(out: Outcome, renderer: Renderer, surfaces: list, to_ref: dict, p: np.ndarray, d: np.ndarray,
-             shading: np.ndarray, which: np.ndarray, kinds: np.ndarray, indices: np.ndarray, bounds: Any) -> None:
+def _mirrors(
+    out: Outcome,
+    renderer: Renderer,
+    surfaces: list,
+    to_ref: dict,
+    p: np.ndarray,
+    d: np.ndarray,
+    shading: np.ndarray,
+    which: np.ndarray,
+    kinds: np.ndarray,
+    indices: np.ndarray,
+    bounds: Any,
+) -> None:
     """Mirror rays from the brute force's own clear hits, leaving their surfaces: phongray's walk (whatever the
     scene's materials, which may send none) against the brute force, and the pairs of rays of their own
     directions (tracer.cones.on_lines) against the walk, bit for bit."""
@@ -196,20 +239,31 @@ def _mirrors(out: Outcome, renderer: Renderer, surfaces: list, to_ref: dict, p: 
     # t as exact as the numbers it comes from: the ray's origin (which phongray takes in the eye's frame, rounded
     # there), the hit surface's own (a planet's), and t itself; across the surface, that is, and along a ray that
     # grazes it, that much over the cosine (a mirror ray meets a planet far off nearly edge-on)
-    mag = np.array([surfaces[k].mag if k >= 0 else 0.0 for k in ref.surface]) + float(np.max(np.abs(
-        renderer.world.origin)))
+    mag = np.array([surfaces[k].mag if k >= 0 else 0.0 for k in ref.surface]) + float(
+        np.max(np.abs(renderer.world.origin))
+    )
     cosine = np.ones(len(p))
     for k in np.unique(ref.surface[ref.surface >= 0]):
         sel = np.flatnonzero(ref.surface == k)
         _, geo, _ = reference.surface_point(surfaces[k], p[sel], mirror[sel], ref.t[sel], ref.u[sel], ref.w[sel])
         cosine[sel] = np.abs(np.sum(geo * mirror[sel], axis=1))
     with np.errstate(invalid="ignore", divide="ignore"):
-        t_ok = (ref.surface < 0) | (np.abs(hits.t - ref.t) <= T_TOLERANCE * ref.t + reference.ERR * (
-            np.abs(p).max(axis=1) + ref.t + mag) / np.maximum(cosine, 2.0**-40))
+        t_ok = (ref.surface < 0) | (
+            np.abs(hits.t - ref.t)
+            <= T_TOLERANCE * ref.t
+            + reference.ERR * (np.abs(p).max(axis=1) + ref.t + mag) / np.maximum(cosine, 2.0**-40)
+        )
     bad = clear & ((got != ref.surface) | ~t_ok)
-    out.note("mirror hit", int(clear.sum()), bad,
-             [f"mirror ray {r} from surface {which[r]}: phongray surface {got[r]} t={hits.t[r]!r}, brute force "
-              f"{ref.surface[r]} t={ref.t[r]!r}" for r in np.flatnonzero(bad)[:3]])
+    out.note(
+        "mirror hit",
+        int(clear.sum()),
+        bad,
+        [
+            f"mirror ray {r} from surface {which[r]}: phongray surface {got[r]} t={hits.t[r]!r}, brute force "
+            f"{ref.surface[r]} t={ref.t[r]!r}"
+            for r in np.flatnonzero(bad)[:3]
+        ],
+    )
 
 
 def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> None:
@@ -228,14 +282,20 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
         if group.corners is None:
             em = world.emitters[group.first]
             directional = em.kind == "directional"
-            proven = np.repeat(lit_tiles(bounds, SurfacePoints(h.point, h.kind, h.index, normal),
-                                         None if directional else em.position,
-                                         em.direction if directional else None), TILE)[:len(got)]
+            proven = np.repeat(
+                lit_tiles(
+                    bounds,
+                    SurfacePoints(h.point, h.kind, h.index, normal),
+                    None if directional else em.position,
+                    em.direction if directional else None,
+                ),
+                TILE,
+            )[: len(got)]
             samples = [em]
         else:
             culled = classify(bounds, SurfacePoints(h.point, h.kind, h.index, normal), group.corners)
             proven = culled.state == SEEN
-            samples = world.emitters[group.first:group.end]
+            samples = world.emitters[group.first : group.end]
             _penumbra(out, renderer, h, normal, mag, culled, group)
         for em in samples:
             to_light, dist, factor = illuminate(em, h.point)
@@ -246,13 +306,21 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
             ends = None if em.kind == "directional" else em.position[None]
             shadows = Shadows.towards(rays, dist[rows], ends, world.origin_mag)
             blocked = isect.occluded(shadows)
-            out.note("shadow by proofs", len(rows), blocked,
-                     [f"shadow ray from {h.point[r].tolist()} (surface {h.kind[r]}/{h.index[r]}) to light "
-                      f"{group.light}, proven clear, is blocked" for r in rows[np.flatnonzero(blocked)][:3]])
+            out.note(
+                "shadow by proofs",
+                len(rows),
+                blocked,
+                [
+                    f"shadow ray from {h.point[r].tolist()} (surface {h.kind[r]}/{h.index[r]}) to light "
+                    f"{group.light}, proven clear, is blocked"
+                    for r in rows[np.flatnonzero(blocked)][:3]
+                ],
+            )
 
 
-def _penumbra(out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag: np.ndarray, culled: Any,
-              group: Any) -> None:
+def _penumbra(
+    out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag: np.ndarray, culled: Any, group: Any
+) -> None:
     """An area light's mixed points' rays that tracer.penumbra.Penumbra decides without casting them, cast all the
     same: each proven blocked is blocked, each left uncast and not blocked is clear."""
     world, isect = renderer.world, renderer.intersector
@@ -260,9 +328,14 @@ def _penumbra(out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag:
     if len(mixed) == 0:
         return
     bounds = bounds_of(world)
-    pen = Penumbra(bounds, SurfacePoints(h.point[mixed], h.kind[mixed], h.index[mixed], normal[mixed]),
-                   culled.may_block[:, mixed], group.corners, True)
-    for em in world.emitters[group.first:group.end]:
+    pen = Penumbra(
+        bounds,
+        SurfacePoints(h.point[mixed], h.kind[mixed], h.index[mixed], normal[mixed]),
+        culled.may_block[:, mixed],
+        group.corners,
+        True,
+    )
+    for em in world.emitters[group.first : group.end]:
         to_light, dist, factor = illuminate(em, h.point[mixed])
         lit = (np.sum(normal[mixed] * to_light, axis=1) > 0) & (factor > 0)
         if not lit.any():
@@ -272,14 +345,19 @@ def _penumbra(out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag:
         rays = Rays(h.point[rows], np.ascontiguousarray(to_light[lit]), h.kind[rows], h.index[rows], mag[rows])
         truth = isect.occluded(Shadows.towards(rays, dist[lit], em.position[None], world.origin_mag))
         wrong = (blocked & ~truth) | (~cast & ~blocked & truth)
-        out.note("shadow by proofs", len(rows), wrong,
-                 [f"penumbra ray from {h.point[r].tolist()} to a sample of light {group.light}: proven "
-                  f"{'blocked' if blocked[j] else 'clear'}, cast {'blocked' if truth[j] else 'clear'}"
-                  for j, r in zip(np.flatnonzero(wrong)[:3], rows[np.flatnonzero(wrong)[:3]])])
+        out.note(
+            "shadow by proofs",
+            len(rows),
+            wrong,
+            [
+                f"penumbra ray from {h.point[r].tolist()} to a sample of light {group.light}: proven "
+                f"{'blocked' if blocked[j] else 'clear'}, cast {'blocked' if truth[j] else 'clear'}"
+                for j, r in zip(np.flatnonzero(wrong)[:3], rows[np.flatnonzero(wrong)[:3]])
+            ],
+        )
 
 
-def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach: np.ndarray | None = None
-           ) -> Any:
+def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach: np.ndarray | None = None) -> Any:
     """The pairs :mod:`tracer.cones` proves for camera rays (from the eye, or along one direction) or for shadow
     rays towards ``light`` (or along one direction, for a directional light): None where no proof applies."""
     bounds, tris = bounds_of(renderer.world), renderer.world.triangles
@@ -296,12 +374,22 @@ def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach
 
 def _same_by_cones(out: Outcome, kind: str, walked: Any, by_cones: Any) -> None:
     """The hits found with :mod:`tracer.cones`' pairs are the walk's, bit for bit."""
-    same = (walked.kind == by_cones.kind) & (walked.index == by_cones.index) & (
-        (walked.t == by_cones.t) | (np.isinf(walked.t) & np.isinf(by_cones.t)))
+    same = (
+        (walked.kind == by_cones.kind)
+        & (walked.index == by_cones.index)
+        & ((walked.t == by_cones.t) | (np.isinf(walked.t) & np.isinf(by_cones.t)))
+    )
     same &= np.all((walked.bary == by_cones.bary) | (walked.kind != TRIANGLE)[:, None], axis=1)
-    out.note(kind, len(same), ~same,
-             [f"camera ray {r}: walked surface {walked.kind[r]}/{walked.index[r]} t={walked.t[r]!r}, by cones "
-              f"{by_cones.kind[r]}/{by_cones.index[r]} t={by_cones.t[r]!r}" for r in np.flatnonzero(~same)[:3]])
+    out.note(
+        kind,
+        len(same),
+        ~same,
+        [
+            f"camera ray {r}: walked surface {walked.kind[r]}/{walked.index[r]} t={walked.t[r]!r}, by cones "
+            f"{by_cones.kind[r]}/{by_cones.index[r]} t={by_cones.t[r]!r}"
+            for r in np.flatnonzero(~same)[:3]
+        ],
+    )
 
 
 def run_seed(seed: int, width: int = 20, height: int = 15) -> Outcome:
@@ -342,8 +430,9 @@ def main(argv: list[str] | None = None) -> int:
     disagreed: Counter = Counter()
     families: Counter = Counter()
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        for done, out in enumerate(pool.map(run_seed, seeds, [width] * len(seeds), [height] * len(seeds),
-                                            chunksize=4), 1):
+        for done, out in enumerate(
+            pool.map(run_seed, seeds, [width] * len(seeds), [height] * len(seeds), chunksize=4), 1
+        ):
             compared.update(out.compared)
             disagreed.update(out.disagreed)
             if out.bad:
@@ -352,10 +441,20 @@ def main(argv: list[str] | None = None) -> int:
                 write(out, args.out, width, height)
             if done % 500 == 0:
                 print(f"{done} scenes, {len(bad)} disagreeing, {time.monotonic() - start:.0f} s", flush=True)
-    print(f"{len(seeds)} scenes (seeds {seeds.start}..{seeds.stop - 1}, {width}x{height}) in "
-          f"{time.monotonic() - start:.0f} s")
-    for kind in ("hit", "mirror hit", "shadow", "pixel", "hit by cones", "hit by lines", "shadow by cones",
-                 "shadow by proofs"):
+    print(
+        f"{len(seeds)} scenes (seeds {seeds.start}..{seeds.stop - 1}, {width}x{height}) in "
+        f"{time.monotonic() - start:.0f} s"
+    )
+    for kind in (
+        "hit",
+        "mirror hit",
+        "shadow",
+        "pixel",
+        "hit by cones",
+        "hit by lines",
+        "shadow by cones",
+        "shadow by proofs",
+    ):
         print(f"  {kind}: {disagreed[kind]} disagreements in {compared[kind]} compared")
     crashed = sum(1 for o in bad if o.error)
     print(f"  crashes: {crashed}")

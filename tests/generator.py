@@ -74,14 +74,21 @@ def _materials(rng: Rng) -> dict[str, Any]:
 
     return {
         "matte": {"ambient": 0.2, "diffuse": colour(), "specular": 0.1, "shininess": 10.0},
-        "shiny": {"ambient": 0.1, "diffuse": colour(), "specular": 0.7,
-                  "shininess": float(rng.choice([5, 40, 200]))},
-        "mirror": {"ambient": 0.05, "diffuse": 0.1, "specular": 0.5,
-                   "reflectance": round(float(rng.uniform(0.5, 0.95)), 3)},
-        "glass": {"ambient": 0.02, "diffuse": 0.05, "specular": 0.6,
-                  "transmittance": round(float(rng.uniform(0.6, 0.95)), 3),
-                  "reflectance": round(float(rng.uniform(0.0, 0.15)), 3),
-                  "ior": float(rng.choice([1.33, 1.5, 1.9, 0.8]))},
+        "shiny": {"ambient": 0.1, "diffuse": colour(), "specular": 0.7, "shininess": float(rng.choice([5, 40, 200]))},
+        "mirror": {
+            "ambient": 0.05,
+            "diffuse": 0.1,
+            "specular": 0.5,
+            "reflectance": round(float(rng.uniform(0.5, 0.95)), 3),
+        },
+        "glass": {
+            "ambient": 0.02,
+            "diffuse": 0.05,
+            "specular": 0.6,
+            "transmittance": round(float(rng.uniform(0.6, 0.95)), 3),
+            "reflectance": round(float(rng.uniform(0.0, 0.15)), 3),
+            "ior": float(rng.choice([1.33, 1.5, 1.9, 0.8])),
+        },
         "check": {"diffuse": colour(), "checker": {"size": float(rng.choice([0.25, 0.5, 1.0])), "material": "dark"}},
         "dark": {"ambient": 0.05, "diffuse": 0.15, "specular": 0.3},
     }
@@ -111,18 +118,61 @@ def plane(p: Any, n: Any, mat: str) -> dict[str, Any]:
 def box(lo: Any, hi: Any, mat: str) -> dict[str, Any]:
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     corners = [[(lo, hi)[x][0], (lo, hi)[y][1], (lo, hi)[z][2]] for x in (0, 1) for y in (0, 1) for z in (0, 1)]
-    faces = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-             [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]
+    faces = [
+        [0, 1, 3],
+        [0, 3, 2],
+        [4, 6, 7],
+        [4, 7, 5],
+        [0, 4, 5],
+        [0, 5, 1],
+        [2, 3, 7],
+        [2, 7, 6],
+        [0, 2, 6],
+        [0, 6, 4],
+        [1, 5, 7],
+        [1, 7, 3],
+    ]
     return {"type": "mesh", "material": mat, "vertices": [_vec(c) for c in corners], "faces": faces}
 
 
 def icosphere(c: Any, r: float, mat: str, subdivisions: int, normals: bool) -> dict[str, Any]:
     phi = (1.0 + math.sqrt(5.0)) / 2.0
-    v = [[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],
-         [0, -1, -phi], [0, 1, -phi], [phi, 0, -1], [phi, 0, 1], [-phi, 0, -1], [-phi, 0, 1]]
-    f = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-         [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11],
-         [6, 2, 10], [8, 6, 7], [9, 8, 1]]
+    v = [
+        [-1, phi, 0],
+        [1, phi, 0],
+        [-1, -phi, 0],
+        [1, -phi, 0],
+        [0, -1, phi],
+        [0, 1, phi],
+        [0, -1, -phi],
+        [0, 1, -phi],
+        [phi, 0, -1],
+        [phi, 0, 1],
+        [-phi, 0, -1],
+        [-phi, 0, 1],
+    ]
+    f = [
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ]
     verts = [np.asarray(p, float) / np.linalg.norm(p) for p in v]
     for _ in range(subdivisions):
         mids: dict[tuple[int, int], int] = {}
@@ -135,8 +185,16 @@ def icosphere(c: Any, r: float, mat: str, subdivisions: int, normals: bool) -> d
                 mids[key] = len(verts) - 1
             return mids[key]
 
-        f = [g for a, b, cc in f for g in ([a, mid(a, b), mid(cc, a)], [b, mid(b, cc), mid(a, b)],
-                                           [cc, mid(cc, a), mid(b, cc)], [mid(a, b), mid(b, cc), mid(cc, a)])]
+        f = [
+            g
+            for a, b, cc in f
+            for g in (
+                [a, mid(a, b), mid(cc, a)],
+                [b, mid(b, cc), mid(a, b)],
+                [cc, mid(cc, a), mid(b, cc)],
+                [mid(a, b), mid(b, cc), mid(cc, a)],
+            )
+        ]
     c = np.asarray(c, float)
     out = {"type": "mesh", "material": mat, "vertices": [_vec(c + r * p) for p in verts], "faces": f}
     if normals:
@@ -161,8 +219,9 @@ def terrain(rng: Rng, lo: float, hi: float, y: float, n: int, bump: float, mat: 
 def fan(c: Any, r: float, k: int, mat: str) -> dict[str, Any]:
     """``k`` slivers around the vertex ``c``, in the plane y = c.y."""
     c = np.asarray(c, float)
-    verts = [_vec(c)] + [_vec(c + r * np.array([math.cos(a), 0.0, math.sin(a)]))
-                         for a in np.linspace(0, 2 * math.pi, k + 1)[:-1]]
+    verts = [_vec(c)] + [
+        _vec(c + r * np.array([math.cos(a), 0.0, math.sin(a)])) for a in np.linspace(0, 2 * math.pi, k + 1)[:-1]
+    ]
     faces = [[0, 1 + i, 1 + (i + 1) % k] for i in range(k)]
     return {"type": "mesh", "material": mat, "vertices": verts, "faces": faces}
 
@@ -184,20 +243,37 @@ def _lights(rng: Rng, centre: Any, spread: float, count: int) -> list[dict[str, 
             att = None if rng.random() < 0.6 else [1.0, round(0.3 / spread, 4), round(0.1 / spread**2, 6)]
             out.append(point(pos, round(float(rng.uniform(0.4, 1.2)), 3), att))
         elif kind == "directional":
-            out.append({"type": "directional", "color": round(float(rng.uniform(0.2, 0.8)), 3),
-                        "direction": _vec(_unit(rng))})
+            out.append(
+                {"type": "directional", "color": round(float(rng.uniform(0.2, 0.8)), 3), "direction": _vec(_unit(rng))}
+            )
         elif kind == "spot":
             cutoff = float(rng.choice([20, 35, 50, 70]))
             inner = cutoff if rng.random() < 0.4 else cutoff * float(rng.uniform(0.3, 0.9))
-            out.append({"type": "spot", "color": 1.0, "position": _vec(pos),
-                        "direction": _vec(centre - pos + rng.normal(size=3) * 0.3 * spread),
-                        "cutoff": cutoff, "inner_cutoff": inner, "exponent": float(rng.choice([0, 1, 4]))})
+            out.append(
+                {
+                    "type": "spot",
+                    "color": 1.0,
+                    "position": _vec(pos),
+                    "direction": _vec(centre - pos + rng.normal(size=3) * 0.3 * spread),
+                    "cutoff": cutoff,
+                    "inner_cutoff": inner,
+                    "exponent": float(rng.choice([0, 1, 4])),
+                }
+            )
         else:
             eu, ev = _unit(rng) * spread * 0.3, _unit(rng) * spread * 0.3
             if np.linalg.norm(np.cross(eu, ev)) < 0.1 * spread**2 * 0.09:
                 ev = np.cross(eu, _unit(rng))
-            out.append({"type": "area", "color": 1.0, "corner": _vec(pos), "edge_u": _vec(eu), "edge_v": _vec(ev),
-                        "samples": [int(rng.integers(1, 4)), int(rng.integers(1, 3))]})
+            out.append(
+                {
+                    "type": "area",
+                    "color": 1.0,
+                    "corner": _vec(pos),
+                    "edge_u": _vec(eu),
+                    "edge_v": _vec(ev),
+                    "samples": [int(rng.integers(1, 4)), int(rng.integers(1, 3))],
+                }
+            )
     return out
 
 
@@ -218,6 +294,7 @@ def _camera(rng: Rng, eye: Any, target: Any, orthographic: float = 0.15, height:
 
 # -- families ---------------------------------------------------------------------------------------------------
 
+
 def room(rng: Rng) -> tuple[dict[str, Any], list, list]:
     radius = float(rng.uniform(3, 10))
     eye = rng.uniform(-0.3, 0.3, 3) * radius
@@ -227,8 +304,7 @@ def room(rng: Rng) -> tuple[dict[str, Any], list, list]:
     else:
         objects.append(box(-radius * np.ones(3), radius * rng.uniform(0.6, 1.0, 3), _any(rng, 0.2)))
     for _ in range(int(rng.integers(2, 7))):
-        objects.append(sphere(rng.uniform(-0.5, 0.5, 3) * radius, float(rng.uniform(0.1, 0.3)) * radius,
-                              _any(rng)))
+        objects.append(sphere(rng.uniform(-0.5, 0.5, 3) * radius, float(rng.uniform(0.1, 0.3)) * radius, _any(rng)))
     if rng.random() < 0.4:
         objects.append(plane([0, -0.5 * radius, 0], [0, 1, 0], _opaque(rng)))
     lights = _lights(rng, [0, 0, 0], 0.6 * radius, int(rng.integers(1, 4)))
@@ -273,13 +349,22 @@ def nested(rng: Rng) -> tuple[dict[str, Any], list, list]:
 
 
 def overlap(rng: Rng) -> tuple[dict[str, Any], list, list]:
-    objects = [sphere(rng.uniform(-1.5, 1.5, 3), float(rng.uniform(0.3, 1.3)), _any(rng))
-               for _ in range(int(rng.integers(5, 16)))]
+    objects = [
+        sphere(rng.uniform(-1.5, 1.5, 3), float(rng.uniform(0.3, 1.3)), _any(rng))
+        for _ in range(int(rng.integers(5, 16)))
+    ]
     if rng.random() < 0.6:
         objects.append(box(rng.uniform(-1.5, 0, 3), rng.uniform(0, 1.5, 3), _any(rng, 0.15)))
     if rng.random() < 0.4:
-        objects.append(icosphere(rng.uniform(-1, 1, 3), float(rng.uniform(0.5, 1.5)), _opaque(rng),
-                                 int(rng.integers(0, 2)), rng.random() < 0.5))
+        objects.append(
+            icosphere(
+                rng.uniform(-1, 1, 3),
+                float(rng.uniform(0.5, 1.5)),
+                _opaque(rng),
+                int(rng.integers(0, 2)),
+                rng.random() < 0.5,
+            )
+        )
     if rng.random() < 0.6:
         objects.append(plane(rng.uniform(-0.5, 0.5, 3), _unit(rng), _any(rng, 0.2)))
     eye = _unit(rng) * float(rng.uniform(4, 8))
@@ -289,11 +374,16 @@ def overlap(rng: Rng) -> tuple[dict[str, Any], list, list]:
 def lights_on(rng: Rng) -> tuple[dict[str, Any], list, list]:
     floor_y = 0.0
     objects: list[dict[str, Any]] = [plane([0, floor_y, 0], [0, 1, 0], _opaque(rng))]
-    balls = [sphere(_grid(rng, -1.5, 1.5) + np.array([0, 1.0, 0]), float(rng.choice([0.5, 0.75, 1.0])), _any(rng, 0.2))
-             for _ in range(int(rng.integers(1, 4)))]
+    balls = [
+        sphere(_grid(rng, -1.5, 1.5) + np.array([0, 1.0, 0]), float(rng.choice([0.5, 0.75, 1.0])), _any(rng, 0.2))
+        for _ in range(int(rng.integers(1, 4)))
+    ]
     objects += balls
-    mesh = box(_grid(rng, -2, -0.5), _grid(rng, 0.5, 2), _opaque(rng)) if rng.random() < 0.5 else \
-        terrain(rng, -2.0, 2.0, 0.5, 3, 1.0, _opaque(rng))
+    mesh = (
+        box(_grid(rng, -2, -0.5), _grid(rng, 0.5, 2), _opaque(rng))
+        if rng.random() < 0.5
+        else terrain(rng, -2.0, 2.0, 0.5, 3, 1.0, _opaque(rng))
+    )
     objects.append(mesh)
     lights: list[dict[str, Any]] = [{"type": "ambient", "color": 0.1}]
     verts = np.asarray(mesh["vertices"])
@@ -313,8 +403,16 @@ def lights_on(rng: Rng) -> tuple[dict[str, Any], list, list]:
         elif where == "floor":
             lights.append(point(_grid(rng, -2, 2) * np.array([1, 0, 1]) + [0, floor_y, 0], 1.0))
         elif where == "area_floor":
-            lights.append({"type": "area", "color": 1.5, "corner": [-1.0, floor_y, 1.0], "edge_u": [2.0, 0.0, 0.0],
-                           "edge_v": [0.0, 0.0, 1.0], "samples": [2, 2]})
+            lights.append(
+                {
+                    "type": "area",
+                    "color": 1.5,
+                    "corner": [-1.0, floor_y, 1.0],
+                    "edge_u": [2.0, 0.0, 0.0],
+                    "edge_v": [0.0, 0.0, 1.0],
+                    "samples": [2, 2],
+                }
+            )
         else:
             lights.append(point(rng.uniform(-3, 3, 3) + [0, 3, 0], 1.0))
     if rng.random() < 0.3:
@@ -351,14 +449,25 @@ def scales(rng: Rng) -> tuple[dict[str, Any], list, list]:
     objects: list[dict[str, Any]] = [sphere([0.0, -planet, 0.0], planet, _opaque(rng))]
     for _ in range(int(rng.integers(1, 4))):
         r = tiny * float(rng.uniform(0.5, 2))
-        objects.append(sphere([float(rng.uniform(-3, 3)) * tiny, r * float(rng.choice([1.0, 1.5, 3.0])),
-                               -float(rng.uniform(2, 6)) * tiny], r, _any(rng, 0.2)))
+        objects.append(
+            sphere(
+                [
+                    float(rng.uniform(-3, 3)) * tiny,
+                    r * float(rng.choice([1.0, 1.5, 3.0])),
+                    -float(rng.uniform(2, 6)) * tiny,
+                ],
+                r,
+                _any(rng, 0.2),
+            )
+        )
     if rng.random() < 0.4:
         objects.append(sphere([0.0, 2 * tiny, -4 * tiny], tiny, "glass"))
         objects.append(sphere([0.0, 2 * tiny, -4 * tiny], tiny * (1 - 1e-6), "glass"))
     far = tiny * 10.0 ** float(rng.uniform(3, 9))
-    lights: list[dict[str, Any]] = [{"type": "ambient", "color": 0.1},
-                                    point(_unit(rng) * far * np.array([1, 0, 1]) + [0, far, 0], 1.0)]
+    lights: list[dict[str, Any]] = [
+        {"type": "ambient", "color": 0.1},
+        point(_unit(rng) * far * np.array([1, 0, 1]) + [0, far, 0], 1.0),
+    ]
     if rng.random() < 0.5:
         lights.append(point([tiny, 4 * tiny, 0.0], 0.7))
     eye = [0.0, tiny * float(rng.uniform(1, 3)), 0.0]
@@ -367,8 +476,9 @@ def scales(rng: Rng) -> tuple[dict[str, Any], list, list]:
 
 
 def mesh(rng: Rng) -> tuple[dict[str, Any], list, list]:
-    objects: list[dict[str, Any]] = [terrain(rng, -3, 3, 0.0, int(rng.integers(2, 6)), float(rng.uniform(0, 1)),
-                                             _opaque(rng))]
+    objects: list[dict[str, Any]] = [
+        terrain(rng, -3, 3, 0.0, int(rng.integers(2, 6)), float(rng.uniform(0, 1)), _opaque(rng))
+    ]
     kind = rng.choice(["ico", "fan", "box", "lone"])
     if kind == "ico":
         objects.append(icosphere([0, 1.2, 0], 1.0, _any(rng, 0.2), int(rng.integers(0, 2)), rng.random() < 0.5))
@@ -392,8 +502,9 @@ def mesh(rng: Rng) -> tuple[dict[str, Any], list, list]:
 def dust(rng: Rng) -> tuple[dict[str, Any], list, list]:
     """Specks far smaller than the scene, seen through a narrow field of view: float32 cannot tell where their
     outlines lie, so every speck a ray grazes tests the proxies' margins and the cells' reach."""
-    objects: list[dict[str, Any]] = [sphere(rng.uniform(-1, 1, 3), float(rng.uniform(0.2, 0.5)), _opaque(rng))
-                                     for _ in range(2)]
+    objects: list[dict[str, Any]] = [
+        sphere(rng.uniform(-1, 1, 3), float(rng.uniform(0.2, 0.5)), _opaque(rng)) for _ in range(2)
+    ]
     size = 10.0 ** -float(rng.uniform(4, 7))
     centre = rng.uniform(-0.5, 0.5, 3)
     for _ in range(int(rng.integers(20, 50))):
@@ -401,14 +512,22 @@ def dust(rng: Rng) -> tuple[dict[str, Any], list, list]:
         if rng.random() < 0.7:
             objects.append(sphere(c, size * float(rng.uniform(0.3, 1.5)), _opaque(rng)))
         else:
-            objects.append({"type": "triangle", "material": _opaque(rng),
-                            "vertices": [_vec(c + rng.normal(size=3) * size) for _ in range(3)]})
+            objects.append(
+                {
+                    "type": "triangle",
+                    "material": _opaque(rng),
+                    "vertices": [_vec(c + rng.normal(size=3) * size) for _ in range(3)],
+                }
+            )
     eye = centre + _unit(rng) * float(rng.uniform(0.3, 2.0))  # far beyond the cells' reach round the specks
     cam = _camera(rng, eye, centre, height=size * 12)
     if "fov" in cam:
         cam["fov"] = float(np.degrees(2 * np.arctan(8 * size / np.linalg.norm(eye - centre))))
-    lights = [{"type": "ambient", "color": 0.1}, point(centre + _unit(rng) * size * 30, 1.0),
-              {"type": "directional", "color": 0.6, "direction": _vec(_unit(rng))}]
+    lights = [
+        {"type": "ambient", "color": 0.1},
+        point(centre + _unit(rng) * size * 30, 1.0),
+        {"type": "directional", "color": 0.6, "direction": _vec(_unit(rng))},
+    ]
     return cam, objects, lights
 
 
@@ -434,8 +553,11 @@ def thin(rng: Rng) -> tuple[dict[str, Any], list, list]:
     objects: list[dict[str, Any]] = [plane([0, 0, 0], [0, 1, 0], _opaque(rng))]
     for _ in range(int(rng.integers(1, 3))):  # graze the shadow ray from the origin to a sample (or a corner)
         i, j = (int(rng.choice([0, n - 1])) if rng.random() < 0.7 else int(rng.integers(n)) for n in samples)
-        end = corner + (i + 0.5) / samples[0] * e_u + (j + 0.5) / samples[1] * e_v if rng.random() < 0.8 else \
-            corners[int(rng.integers(4))]
+        end = (
+            corner + (i + 0.5) / samples[0] * e_u + (j + 0.5) / samples[1] * e_v
+            if rng.random() < 0.8
+            else corners[int(rng.integers(4))]
+        )
         at = float(rng.uniform(0.3, 0.98)) if rng.random() < 0.6 else 10.0 ** float(rng.uniform(-8, -0.05))
         on = end * at
         out = np.cross(end, np.cross(on - toward * (on @ toward), end))  # away from the pyramid's axis, across
@@ -447,29 +569,50 @@ def thin(rng: Rng) -> tuple[dict[str, Any], list, list]:
         objects.append(sphere(on + out * (r - depth), r, _opaque(rng)))
     if rng.random() < 0.5:  # a tiny ball on the floor, as in a sun over a marble
         r = 10.0 ** float(rng.uniform(-3, 0))
-        objects.append(sphere([float(rng.uniform(-2, 2)) * r, r * 1.2, float(rng.uniform(-2, 2)) * r], r,
-                              _opaque(rng)))
+        objects.append(sphere([float(rng.uniform(-2, 2)) * r, r * 1.2, float(rng.uniform(-2, 2)) * r], r, _opaque(rng)))
     pick = rng.random()  # a few faces' errors wide, a few edges wide, or the scene's own size
-    view = far * 10.0 ** float(rng.uniform(-9.5, -8)) if pick < 0.5 else \
-        far * ratio * 10.0 ** float(rng.uniform(-2, 2)) if pick < 0.8 else 10.0 ** float(rng.uniform(-2, 0))
+    view = (
+        far * 10.0 ** float(rng.uniform(-9.5, -8))
+        if pick < 0.5
+        else far * ratio * 10.0 ** float(rng.uniform(-2, 2))
+        if pick < 0.8
+        else 10.0 ** float(rng.uniform(-2, 0))
+    )
     eye = _unit(rng) * view * 3
     eye[1] = abs(eye[1]) + view
-    lights = [{"type": "ambient", "color": 0.1},
-              {"type": "area", "color": 1.0, "corner": _vec(corner), "edge_u": _vec(e_u), "edge_v": _vec(e_v),
-               "samples": samples}]
+    lights = [
+        {"type": "ambient", "color": 0.1},
+        {
+            "type": "area",
+            "color": 1.0,
+            "corner": _vec(corner),
+            "edge_u": _vec(e_u),
+            "edge_v": _vec(e_v),
+            "samples": samples,
+        },
+    ]
     return _camera(rng, eye, [0.0, 0.0, 0.0], height=view * 2), objects, lights
 
 
 FAMILIES: dict[str, Callable[[Rng], tuple[dict[str, Any], list, list]]] = {
-    "room": room, "nested": nested, "overlap": overlap, "lights": lights_on, "cameras": cameras,
-    "scales": scales, "mesh": mesh, "dust": dust, "thin": thin,
+    "room": room,
+    "nested": nested,
+    "overlap": overlap,
+    "lights": lights_on,
+    "cameras": cameras,
+    "scales": scales,
+    "mesh": mesh,
+    "dust": dust,
+    "thin": thin,
 }
 
 
 # -- moving and scaling -----------------------------------------------------------------------------------------
 
+
 def transformed(data: Scene, shift: np.ndarray, factor: float) -> Scene:
     """The scene scaled by ``factor`` about the origin, then moved by ``shift`` (attenuation scaled with it)."""
+
     def pos(p: list[float]) -> list[float]:
         return [float(v) for v in np.asarray(p, float) * factor + shift]
 
@@ -523,12 +666,15 @@ def scene(seed: int, width: int = 20, height: int = 15, family: str | None = Non
     rng = np.random.default_rng(seed)
     name = family or str(rng.choice(sorted(FAMILIES)))
     camera, objects, lights = FAMILIES[name](rng)
-    image: dict[str, Any] = {"width": width, "height": height, "max_depth": int(rng.integers(0, 4)),
-                             "background": round(float(rng.uniform(0, 0.4)), 3)}
+    image: dict[str, Any] = {
+        "width": width,
+        "height": height,
+        "max_depth": int(rng.integers(0, 4)),
+        "background": round(float(rng.uniform(0, 0.4)), 3),
+    }
     if rng.random() < 0.1:
         image["samples"] = 2
-    data: Scene = {"camera": camera, "image": image, "materials": _materials(rng), "objects": objects,
-                   "lights": lights}
+    data: Scene = {"camera": camera, "image": image, "materials": _materials(rng), "objects": objects, "lights": lights}
     r = rng.random()
     if r < 0.35:
         shift = _unit(rng) * 10.0 ** float(rng.uniform(0, 6)) if rng.random() < 0.7 else np.zeros(3)

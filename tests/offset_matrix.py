@@ -24,10 +24,13 @@ from tracer import Renderer  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = [*sorted((ROOT / "examples").glob("*.json")), ROOT / "examples" / "course" / "scenes" / "cornell.json"]
-ROWS = {**{name: {"style": style} for name, style in student.STYLES.items()},
-        "offset 5e-4": {"style": student.Offset(5e-4)}, "t_min 5e-4": {"style": student.Offset(5e-4, "ray")},
-        "offset 2e-3": {"style": student.Offset(2e-3)},
-        **{name: {"mistakes": [name]} for name in student.MISTAKES}}
+ROWS = {
+    **{name: {"style": style} for name, style in student.STYLES.items()},
+    "offset 5e-4": {"style": student.Offset(5e-4)},
+    "t_min 5e-4": {"style": student.Offset(5e-4, "ray")},
+    "offset 2e-3": {"style": student.Offset(2e-3)},
+    **{name: {"mistakes": [name]} for name in student.MISTAKES},
+}
 
 
 def cell(scene, reference, name: str) -> str:  # noqa: ANN001
@@ -45,8 +48,10 @@ def main(paths: list[Path]) -> None:
     print("| style / mistake | " + " | ".join(scenes) + " |")
     print("|---|" + "---|" * len(scenes))
     for name in ROWS:
-        print(f"| {name} | " + " | ".join(cell(scene, references[stem], name)
-                                          for stem, scene in scenes.items()) + " |", flush=True)
+        print(
+            f"| {name} | " + " | ".join(cell(scene, references[stem], name) for stem, scene in scenes.items()) + " |",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -95,12 +95,20 @@ def surfaces_of(scene) -> list[Surface]:  # noqa: ANN001
     for k, obj in enumerate(scene.objects):
         if obj.type == "sphere":
             c = _v(obj.center)
-            out.append(Surface("sphere", k, 0, obj.material, center=c, radius=float(obj.radius),
-                               mag=float(_mag(c)) + float(obj.radius)))
+            out.append(
+                Surface(
+                    "sphere",
+                    k,
+                    0,
+                    obj.material,
+                    center=c,
+                    radius=float(obj.radius),
+                    mag=float(_mag(c)) + float(obj.radius),
+                )
+            )
         elif obj.type == "plane":
             p = _v(obj.point)
-            out.append(Surface("plane", k, 0, obj.material, point=p, normal=_unit(_v(obj.normal)),
-                               mag=float(_mag(p))))
+            out.append(Surface("plane", k, 0, obj.material, point=p, normal=_unit(_v(obj.normal)), mag=float(_mag(p))))
         else:
             verts = _v(obj.vertices)
             faces = [(0, 1, 2)] if obj.type == "triangle" else obj.faces
@@ -110,12 +118,24 @@ def surfaces_of(scene) -> list[Surface]:  # noqa: ANN001
                 n = _unit(np.cross(_unit(v[1] - v[0]), _unit(v[2] - v[0])))
                 if not np.any(n != 0):
                     continue  # a face of zero area is never hit
-                out.append(Surface("triangle", k, f, obj.material, point=v[0], normal=n, v=v,
-                                   vn=None if normals is None else normals[[i, j, m]], mag=float(np.max(np.abs(v)))))
+                out.append(
+                    Surface(
+                        "triangle",
+                        k,
+                        f,
+                        obj.material,
+                        point=v[0],
+                        normal=n,
+                        v=v,
+                        vn=None if normals is None else normals[[i, j, m]],
+                        mag=float(np.max(np.abs(v))),
+                    )
+                )
     return out
 
 
 # -- one surface against many rays -------------------------------------------------------------------------------
+
 
 @dataclass
 class Test:
@@ -231,8 +251,14 @@ def flat_tests(flat: list[Surface], o: np.ndarray, d: np.ndarray, leaving: np.nd
 def tests_of(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.ndarray) -> Test:
     """Every surface against every ray: a :class:`Test` of (S, N) arrays, in the order of ``surfaces``."""
     n, count = len(o), len(surfaces)
-    out = Test(np.full((count, n), np.inf), np.zeros((count, n), bool), np.zeros((count, n)),
-               np.full((count, n), np.inf), np.zeros((count, n)), np.zeros((count, n)))
+    out = Test(
+        np.full((count, n), np.inf),
+        np.zeros((count, n), bool),
+        np.zeros((count, n)),
+        np.full((count, n), np.inf),
+        np.zeros((count, n)),
+        np.zeros((count, n)),
+    )
     flat = [k for k, s in enumerate(surfaces) if s.kind != "sphere"]
     for k, s in enumerate(surfaces):
         if s.kind == "sphere":
@@ -240,7 +266,7 @@ def tests_of(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.nd
             out.t[k], out.unclear[k], out.sigma[k], out.maybe[k] = x.t, x.unclear, x.sigma, x.maybe
     step = max(1, (1 << 21) // max(n, 1))  # bounded temporaries: (surfaces, rays, 3) at a time
     for a in range(0, len(flat), step):
-        rows = np.array(flat[a:a + step])
+        rows = np.array(flat[a : a + step])
         x = flat_tests([surfaces[k] for k in rows], o, d, start[None] == rows[:, None])
         assert x.u is not None and x.w is not None
         out.t[rows], out.unclear[rows], out.sigma[rows], out.maybe[rows] = x.t, x.unclear, x.sigma, x.maybe
@@ -249,6 +275,7 @@ def tests_of(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.nd
 
 
 # -- rays through the scene ------------------------------------------------------------------------------------
+
 
 @dataclass
 class Hits:
@@ -283,8 +310,14 @@ def closest(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.nda
     return Hits(bt, surface, amb, us[best, cols], ws[best, cols])
 
 
-def blocked(surfaces: list[Surface], p: np.ndarray, to: np.ndarray, reach: np.ndarray, start: np.ndarray,
-            light: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def blocked(
+    surfaces: list[Surface],
+    p: np.ndarray,
+    to: np.ndarray,
+    reach: np.ndarray,
+    start: np.ndarray,
+    light: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Shadow decisions from points p towards unit directions ``to`` over distances ``reach`` (inf for a
     directional light), towards the light position ``light`` (3,) or None: (blocked, unclear)."""
     n = len(p)
@@ -325,6 +358,7 @@ def blocked(surfaces: list[Surface], p: np.ndarray, to: np.ndarray, reach: np.nd
 
 # -- lights -----------------------------------------------------------------------------------------------------
 
+
 @dataclass
 class Emitter:
     kind: str  # "directional" or "point"
@@ -350,9 +384,18 @@ def emitters_of(scene) -> tuple[np.ndarray, list[Emitter]]:  # noqa: ANN001
             out.append(Emitter("point", c, _v(light.position), None, tuple(light.attenuation)))
         elif light.type == "spot":
             inner = light.cutoff if light.inner_cutoff is None else light.inner_cutoff
-            out.append(Emitter("point", c, _v(light.position), _unit(_v(light.direction)), tuple(light.attenuation),
-                               math.cos(math.radians(light.cutoff)), math.cos(math.radians(inner)),
-                               light.exponent))
+            out.append(
+                Emitter(
+                    "point",
+                    c,
+                    _v(light.position),
+                    _unit(_v(light.direction)),
+                    tuple(light.attenuation),
+                    math.cos(math.radians(light.cutoff)),
+                    math.cos(math.radians(inner)),
+                    light.exponent,
+                )
+            )
         else:
             nu, nv = light.samples
             corner, eu, ev = _v(light.corner), _v(light.edge_u), _v(light.edge_v)
@@ -407,8 +450,9 @@ def in_plane(s: Surface, e: Emitter) -> tuple[bool, bool]:
     return bool(on[0]), bool(unclear[0])
 
 
-def n_dot_l(surfaces: list[Surface], which: np.ndarray, e: Emitter, normal: np.ndarray,
-            L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def n_dot_l(
+    surfaces: list[Surface], which: np.ndarray, e: Emitter, normal: np.ndarray, L: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """N·L at points on the surfaces ``which`` (index per point) for their facing shading normals: 0 where the
     light lies in a flat surface's plane; and whether it is unclear."""
     nl = _dot(normal, L)
@@ -418,6 +462,7 @@ def n_dot_l(surfaces: list[Surface], which: np.ndarray, e: Emitter, normal: np.n
 
 
 # -- the image --------------------------------------------------------------------------------------------------
+
 
 def camera_rays(scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
     """Origins, directions and pixel index of every sub-sample, pixel-major, sub-sample (a, b) at b·n + a."""
@@ -482,8 +527,9 @@ def _checker_material(scene, s: Surface, p: np.ndarray) -> tuple[np.ndarray, np.
     return odd, np.any(near, axis=1)
 
 
-def surface_point(s: Surface, o: np.ndarray, d: np.ndarray, t: np.ndarray, u: np.ndarray,
-                  w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def surface_point(
+    s: Surface, o: np.ndarray, d: np.ndarray, t: np.ndarray, u: np.ndarray, w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Hit points on the surface (moved onto it), geometric normals, and shading normals facing the rays."""
     if s.kind == "sphere":
         assert s.center is not None
@@ -548,8 +594,9 @@ def render(scene) -> Frame:  # noqa: ANN001
             main = scene.materials[s.material]
             alt = scene.materials[main.checker.material] if main.checker else main
             for name, a in mats.items():
-                a[sel] = np.where(other[:, None] if a.ndim == 2 else other, _v(getattr(alt, name)),
-                                  _v(getattr(main, name)))
+                a[sel] = np.where(
+                    other[:, None] if a.ndim == 2 else other, _v(getattr(alt, name)), _v(getattr(main, name))
+                )
         c = mats["ambient"] * ambient
         view = -rd
         for e in emitters:  # every hit point's shadow ray to one light at once

@@ -34,8 +34,23 @@ def running_server(log_dir: Path, workers: int = 1, **settings: str) -> Iterator
     port = free_port()
     env = {**os.environ, **{f"PHONGRAY_{k.upper()}": v for k, v in settings.items()}}
     with open(log_dir / f"server-{port}.log", "w") as log:
-        proc = subprocess.Popen([sys.executable, "-m", "service.cli", "serve", "--host", "127.0.0.1", "--port",
-                                 str(port), "--workers", str(workers)], env=env, stdout=log, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "service.cli",
+                "serve",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--workers",
+                str(workers),
+            ],
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+        )
         url = f"http://127.0.0.1:{port}"
         try:
             for _ in range(200):

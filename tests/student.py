@@ -18,10 +18,26 @@ import numpy as np
 
 import reference as ref
 
-MISTAKES = ("no-shadows", "shadow-acne", "blinn-phong", "specular-behind", "gamma", "no-attenuation",
-            "no-ambient", "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel",
-            "horizontal-fov", "area-not-divided", "spot-radians", "depth-plus-one", "depth-minus-one",
-            "ior-inverted", "offset-too-large")
+MISTAKES = (
+    "no-shadows",
+    "shadow-acne",
+    "blinn-phong",
+    "specular-behind",
+    "gamma",
+    "no-attenuation",
+    "no-ambient",
+    "no-specular",
+    "normals-not-flipped",
+    "image-flipped",
+    "no-half-pixel",
+    "horizontal-fov",
+    "area-not-divided",
+    "spot-radians",
+    "depth-plus-one",
+    "depth-minus-one",
+    "ior-inverted",
+    "offset-too-large",
+)
 
 
 @dataclass(frozen=True)
@@ -57,8 +73,9 @@ def size_of(scene) -> float:  # noqa: ANN001
     return float(np.max(box.max(axis=0) - box.min(axis=0))) or 1.0
 
 
-def spawn(p: np.ndarray, to: np.ndarray, n: np.ndarray, start: np.ndarray, off: Offset | None,
-          size: float) -> tuple[np.ndarray, np.ndarray]:
+def spawn(
+    p: np.ndarray, to: np.ndarray, n: np.ndarray, start: np.ndarray, off: Offset | None, size: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Where rays from points p along ``to`` start, and the surface each leaves (−1: none), in the student's
     offset style (None: on the surface, leaving it by identity)."""
     if off is None:
@@ -103,15 +120,24 @@ def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN
         elif light.type == "spot":
             angle = float if "spot-radians" in wrong else math.radians
             inner = light.cutoff if light.inner_cutoff is None else light.inner_cutoff
-            out.append(Lamp(color, np.array(light.position, dtype=np.float64),
-                            _unit(np.array(light.direction, dtype=np.float64)), atten,
-                            (math.cos(angle(light.cutoff)), math.cos(angle(inner)), light.exponent)))
+            out.append(
+                Lamp(
+                    color,
+                    np.array(light.position, dtype=np.float64),
+                    _unit(np.array(light.direction, dtype=np.float64)),
+                    atten,
+                    (math.cos(angle(light.cutoff)), math.cos(angle(inner)), light.exponent),
+                )
+            )
         else:
             nu, nv = light.samples
             corner, eu, ev = (np.array(v, dtype=np.float64) for v in (light.corner, light.edge_u, light.edge_v))
             share = color if "area-not-divided" in wrong else color / (nu * nv)
-            out += [Lamp(share, corner + (i + 0.5) / nu * eu + (j + 0.5) / nv * ev, None, atten)
-                    for i in range(nu) for j in range(nv)]
+            out += [
+                Lamp(share, corner + (i + 0.5) / nu * eu + (j + 0.5) / nv * ev, None, atten)
+                for i in range(nu)
+                for j in range(nv)
+            ]
     return ambient, out
 
 
@@ -144,8 +170,7 @@ def eye_rays(scene, wrong: set[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray
     half = cam.height / 2 if cam.type == "orthographic" else math.tan(math.radians(cam.fov) / 2)
     across, down = (half, half * H / W) if "horizontal-fov" in wrong else (half * W / H, half)
     centre = 0.0 if "no-half-pixel" in wrong else 0.5
-    rows, cols, sub_rows, sub_cols = np.meshgrid(np.arange(H), np.arange(W), np.arange(n), np.arange(n),
-                                                 indexing="ij")
+    rows, cols, sub_rows, sub_cols = np.meshgrid(np.arange(H), np.arange(W), np.arange(n), np.arange(n), indexing="ij")
     x = ((cols + (sub_cols + centre) / n) / W * 2 - 1).ravel() * across
     y = (1 - (rows + (sub_rows + centre) / n) / H * 2).ravel() * down
     offset = x[:, None] * right + y[:, None] * up
@@ -154,8 +179,11 @@ def eye_rays(scene, wrong: set[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray
     return np.broadcast_to(eye, offset.shape).copy(), _unit(forward + offset), (rows * W + cols).ravel()
 
 
-def render(scene, mistakes: tuple[str, ...] | list[str] = (), style: Offset | None = None  # noqa: ANN001, C901
-           ) -> np.ndarray:
+def render(
+    scene,
+    mistakes: tuple[str, ...] | list[str] = (),
+    style: Offset | None = None,  # noqa: ANN001, C901
+) -> np.ndarray:
     """The student's ``(H, W, 3) uint8`` image of a validated scene, with the named mistakes made, its shadow
     and secondary rays started in offset ``style`` (None: on the surface, leaving it by identity)."""
     wrong = set(mistakes)
@@ -184,8 +212,9 @@ def render(scene, mistakes: tuple[str, ...] | list[str] = (), style: Offset | No
         for k in np.unique(which):
             at = which == k
             surface = surfaces[k]
-            p[at], outward[at], n[at] = ref.surface_point(surface, o[at], d[at], hit.t[keep][at], hit.u[keep][at],
-                                                          hit.w[keep][at])
+            p[at], outward[at], n[at] = ref.surface_point(
+                surface, o[at], d[at], hit.t[keep][at], hit.u[keep][at], hit.w[keep][at]
+            )
             if "normals-not-flipped" in wrong:
                 n[at] = outward[at]
             other, _ = ref._checker_material(scene, surface, p[at])
@@ -193,8 +222,7 @@ def render(scene, mistakes: tuple[str, ...] | list[str] = (), style: Offset | No
             alt = scene.materials[main.checker.material] if main.checker else main
             for array, name in ((ka, "ambient"), (kd, "diffuse"), (ks, "specular")):
                 array[at] = np.where(other[:, None], np.array(getattr(alt, name)), np.array(getattr(main, name)))
-            for array, name in ((shininess, "shininess"), (kr, "reflectance"), (kt, "transmittance"),
-                                (ior, "ior")):
+            for array, name in ((shininess, "shininess"), (kr, "reflectance"), (kt, "transmittance"), (ior, "ior")):
                 array[at] = np.where(other, getattr(alt, name), getattr(main, name))
         colour = np.zeros_like(o) if "no-ambient" in wrong else ka * ambient
         view = -d
@@ -232,8 +260,14 @@ def render(scene, mistakes: tuple[str, ...] | list[str] = (), style: Offset | No
         bent = eta[:, None] * d[t] + (eta * cos_in - np.sqrt(np.maximum(k, 0)))[:, None] * facing
         bounced = d[t] - 2 * _dot(d[t], facing)[:, None] * facing
         d = np.concatenate([mirror, _unit(np.where((k < 0)[:, None], bounced, bent))])
-        o, start = spawn(np.concatenate([p[r], p[t]]), d, np.concatenate([n[r], n[t]]),
-                         np.concatenate([which[r], which[t]]), style, size)
+        o, start = spawn(
+            np.concatenate([p[r], p[t]]),
+            d,
+            np.concatenate([n[r], n[t]]),
+            np.concatenate([which[r], which[t]]),
+            style,
+            size,
+        )
         weight = np.concatenate([weight[r] * kr[r], weight[t] * kt[t]])
         pixel = np.concatenate([pixel[r], pixel[t]])
     linear = np.clip(total / img.samples**2, 0.0, 1.0).reshape(img.height, img.width, 3)

@@ -45,12 +45,37 @@ from student_oop_world import (
     vec,
 )
 
-CLASSIC = ("no-shadows", "shadow-acne", "blinn-phong", "specular-behind", "gamma", "no-attenuation",
-           "no-ambient", "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel",
-           "horizontal-fov", "area-not-divided", "spot-radians", "depth-plus-one", "depth-minus-one",
-           "ior-inverted", "offset-too-large")
-NEW = ("reflection-blended", "camera-left-handed", "samples-ignored", "grayscale", "spot-exponent-ignored",
-       "light-colour-ignored", "channels-swapped", "clamped-per-term", "exit-normal-not-flipped")
+CLASSIC = (
+    "no-shadows",
+    "shadow-acne",
+    "blinn-phong",
+    "specular-behind",
+    "gamma",
+    "no-attenuation",
+    "no-ambient",
+    "no-specular",
+    "normals-not-flipped",
+    "image-flipped",
+    "no-half-pixel",
+    "horizontal-fov",
+    "area-not-divided",
+    "spot-radians",
+    "depth-plus-one",
+    "depth-minus-one",
+    "ior-inverted",
+    "offset-too-large",
+)
+NEW = (
+    "reflection-blended",
+    "camera-left-handed",
+    "samples-ignored",
+    "grayscale",
+    "spot-exponent-ignored",
+    "light-colour-ignored",
+    "channels-swapped",
+    "clamped-per-term",
+    "exit-normal-not-flipped",
+)
 MISTAKES = CLASSIC + NEW
 
 #: how far this student moves a shadow or secondary ray's origin off the surface, along the normal (world units;
@@ -61,6 +86,7 @@ TOO_LARGE = 5e-2
 
 
 # -- camera -----------------------------------------------------------------------------------------------------
+
 
 class Camera:
     def __init__(self, scene, wrong: set[str]):  # noqa: ANN001
@@ -91,6 +117,7 @@ class Camera:
 
 
 # -- the tracer -------------------------------------------------------------------------------------------------
+
 
 class Tracer:
     def __init__(self, scene, wrong: set[str]):  # noqa: ANN001
@@ -156,7 +183,7 @@ class Tracer:
                 else:
                     rv = dot(sub(mul(n, 2 * nl), s.to_light), v)
                 if rv > 0 and "no-specular" not in self.wrong:
-                    specular = add(specular, mul(times(s.intensity, ks), rv ** m.shininess))
+                    specular = add(specular, mul(times(s.intensity, ks), rv**m.shininess))
             if "clamped-per-term" in self.wrong:
                 diffuse, specular = clamp(diffuse), clamp(specular)
             colour = add(colour, add(diffuse, specular))
@@ -178,12 +205,14 @@ class Tracer:
         if depth < self.max_depth:
             if m.reflectance > 0:
                 r = normalize(sub(d, mul(n, 2 * dot(d, n))))
-                colour = add(colour, mul(self.trace(Ray(self.off(p, hit.normal, r, self.eps), r), depth + 1),
-                                         m.reflectance))
+                colour = add(
+                    colour, mul(self.trace(Ray(self.off(p, hit.normal, r, self.eps), r), depth + 1), m.reflectance)
+                )
             if m.transmittance > 0:
                 t = self.refract(d, hit.normal, m.ior)
-                colour = add(colour, mul(self.trace(Ray(self.off(p, hit.normal, t, self.eps), t), depth + 1),
-                                         m.transmittance))
+                colour = add(
+                    colour, mul(self.trace(Ray(self.off(p, hit.normal, t, self.eps), t), depth + 1), m.transmittance)
+                )
         return colour
 
     def refract(self, d: Vec, n: Vec, ior: float) -> Vec:

@@ -68,6 +68,7 @@ class Hit:
 
 # -- shapes -----------------------------------------------------------------------------------------------------
 
+
 class Shape:
     material: str
     flat = False
@@ -163,6 +164,7 @@ def shapes_of(obj) -> list[Shape]:  # noqa: ANN001
 
 # -- lights -----------------------------------------------------------------------------------------------------
 
+
 @dataclass
 class LightSample:
     to_light: Vec  # L, unit
@@ -174,8 +176,9 @@ class Light:
     def __init__(self, light, wrong: set[str]):  # noqa: ANN001
         self.color = (1.0, 1.0, 1.0) if "light-colour-ignored" in wrong else vec(light.color)
         self.wrong = wrong
-        self.attenuation = (1.0, 0.0, 0.0) if "no-attenuation" in wrong else \
-            vec(getattr(light, "attenuation", (1.0, 0.0, 0.0)))
+        self.attenuation = (
+            (1.0, 0.0, 0.0) if "no-attenuation" in wrong else vec(getattr(light, "attenuation", (1.0, 0.0, 0.0)))
+        )
 
     def samples(self, p: Vec) -> list[LightSample]:
         raise NotImplementedError
@@ -237,8 +240,9 @@ class AreaLight(Light):
         super().__init__(light, wrong)
         nu, nv = light.samples
         corner, eu, ev = vec(light.corner), vec(light.edge_u), vec(light.edge_v)
-        self.points = [add(corner, add(mul(eu, (i + 0.5) / nu), mul(ev, (j + 0.5) / nv)))
-                       for i in range(nu) for j in range(nv)]
+        self.points = [
+            add(corner, add(mul(eu, (i + 0.5) / nu), mul(ev, (j + 0.5) / nv))) for i in range(nu) for j in range(nv)
+        ]
         self.share = self.color if "area-not-divided" in wrong else mul(self.color, 1.0 / (nu * nv))
 
     def samples(self, p: Vec) -> list[LightSample]:

@@ -33,8 +33,13 @@ def _scene(path: Path):  # noqa: ANN202
 
 def _graded(scene, image: np.ndarray, checks: pipeline.Checks | None = None) -> pipeline.Graded:  # noqa: ANN001
     reference = encode_png(Renderer(scene).pixels())
-    return pipeline.grade_png(reference, encode_png(image), 2.0, 0.001,
-                              explaining=pipeline.Explaining(lambda: scene, checks or pipeline.Checks()))
+    return pipeline.grade_png(
+        reference,
+        encode_png(image),
+        2.0,
+        0.001,
+        explaining=pipeline.Explaining(lambda: scene, checks or pipeline.Checks()),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -76,16 +81,24 @@ def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_refe
     assert accepting.envelope_off([whitted_reference], honest, 2.0) == round(verdict.fraction_off_nearby * pixels)
 
 
-@pytest.mark.parametrize("made", [{"style": student.STYLES["offset 1e-3"]}, {"mistakes": ["no-shadows"]},
-                                  {"mistakes": ["offset-too-large"]}, {"style": student.Offset(7e-4)}])
+@pytest.mark.parametrize(
+    "made",
+    [
+        {"style": student.STYLES["offset 1e-3"]},
+        {"mistakes": ["no-shadows"]},
+        {"mistakes": ["offset-too-large"]},
+        {"style": student.Offset(7e-4)},
+    ],
+)
 def test_a_first_look_at_a_few_rows_bounds_the_whole_count(whitted, whitted_reference, made):
     from tracer.variants import ACCEPTED_DEFAULT, accepted_options
 
     image = student.render(whitted, **made)
     pair = accepting.Failing(whitted_reference, image, grade(whitted_reference, image, ""))
     for rungs in accepted_options(ACCEPTED_DEFAULT):
-        whole = accepting.envelope_off([whitted_reference] + [Renderer(whitted, o).pixels() for _, o in rungs],
-                                       image, 2.0)
+        whole = accepting.envelope_off(
+            [whitted_reference] + [Renderer(whitted, o).pixels() for _, o in rungs], image, 2.0
+        )
         assert accepting.first_look(whitted, rungs, pair, accepting.Look("", None, None)) <= whole
 
 
@@ -117,8 +130,7 @@ def test_the_cornell_homework_passes_an_honest_offset_and_fails_a_large_one():
     scene = _scene(CORNELL)
     honest = _graded(scene, student.render(scene, style=student.STYLES["offset 1e-3"]))
     assert honest.grade.passed and honest.accepted == "a 1e-3 ray offset"
-    assert not _graded(scene, student.render(scene, ["offset-too-large"]), pipeline.Checks(diagnose=False)
-                       ).grade.passed
+    assert not _graded(scene, student.render(scene, ["offset-too-large"]), pipeline.Checks(diagnose=False)).grade.passed
 
 
 def test_a_task_narrows_and_widens_its_accepted_variants(whitted):
@@ -180,8 +192,10 @@ def test_post_grade_gives_the_accepted_variant(whitted):
     api = TestClient(create_app(Settings()))
     spec = api.get("/openapi.json").json()
     assert "accepted" in spec["components"]["schemas"]["GradeAnswer"]["properties"]
-    body = api.post("/grade", files={"scene": ("s.json", WHITTED.read_bytes(), "application/json"),
-                                     "image": ("i.png", honest, "image/png")}).json()
+    body = api.post(
+        "/grade",
+        files={"scene": ("s.json", WHITTED.read_bytes(), "application/json"), "image": ("i.png", honest, "image/png")},
+    ).json()
     assert body["passed"] is True and body["accepted"] == "a 1e-3 ray offset" and body["diagnosis"] is None
 
 
@@ -195,7 +209,8 @@ def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, t
     shutil.copyfile(WHITTED, tmp_path / "scenes" / "whitted.json")
     (tmp_path / "subs" / "ada").mkdir(parents=True)
     (tmp_path / "subs" / "ada" / "whitted.png").write_bytes(
-        encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"])))
+        encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"]))
+    )
     rows = {}
     for name, accepted in (("defaults", None), ("none", {})):
         tasks = tmp_path / f"{name}.json"

@@ -112,8 +112,10 @@ def test_every_cached_array_of_a_worker_counts_in_one_budget():
 
 def _request(url: str, path: str, body: bytes, content_type: str = "application/json") -> bytes:
     host, port = url.removeprefix("http://").split(":")
-    return (f"POST {path} HTTP/1.1\r\nHost: {host}:{port}\r\nContent-Type: {content_type}\r\n"
-            f"Content-Length: {len(body)}\r\n\r\n").encode() + body
+    return (
+        f"POST {path} HTTP/1.1\r\nHost: {host}:{port}\r\nContent-Type: {content_type}\r\n"
+        f"Content-Length: {len(body)}\r\n\r\n"
+    ).encode() + body
 
 
 def _connect(url: str) -> socket.socket:
@@ -167,9 +169,14 @@ def _noise_png(width: int, height: int) -> bytes:
 
 def _form(scene: bytes, image: bytes) -> tuple[bytes, str]:
     boundary = "phongrayboundary"
-    parts = [f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n'.encode() + scene + b"\r\n",
-             f'--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="s.png"\r\n'
-             f"Content-Type: image/png\r\n\r\n".encode() + image + b"\r\n", f"--{boundary}--\r\n".encode()]
+    parts = [
+        f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n'.encode() + scene + b"\r\n",
+        f'--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="s.png"\r\n'
+        f"Content-Type: image/png\r\n\r\n".encode()
+        + image
+        + b"\r\n",
+        f"--{boundary}--\r\n".encode(),
+    ]
     return b"".join(parts), f"multipart/form-data; boundary={boundary}"
 
 

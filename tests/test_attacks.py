@@ -98,10 +98,15 @@ def server(tmp_path_factory):
         yield srv
     table = os.environ.get("PHONGRAY_ATTACK_TABLE")
     if table:
-        lines = ["| attack | status | time (s) | worst /healthz (ms) | RSS before → after (MiB) | worker restarts |",
-                 "|---|---|---|---|---|---|"]
-        lines += [f"| {r['attack']} | {r['status']} | {r['seconds']:.2f} | {r['healthz_ms']:.0f} | "
-                  f"{r['before']:.0f} → {r['after']:.0f} | {r['restarts']} |" for r in TABLE]
+        lines = [
+            "| attack | status | time (s) | worst /healthz (ms) | RSS before → after (MiB) | worker restarts |",
+            "|---|---|---|---|---|---|",
+        ]
+        lines += [
+            f"| {r['attack']} | {r['status']} | {r['seconds']:.2f} | {r['healthz_ms']:.0f} | "
+            f"{r['before']:.0f} → {r['after']:.0f} | {r['restarts']} |"
+            for r in TABLE
+        ]
         with open(table, "w") as f:
             f.write("\n".join(lines) + "\n")
 
@@ -116,8 +121,15 @@ def attack(server: Server, name: str, action, settle: float = 0.3):
         seconds = time.perf_counter() - started
         time.sleep(settle)
     after = rss_mib(server.workers())
-    row = {"attack": name, "status": status, "seconds": seconds, "healthz_ms": 1000 * probe.worst,
-           "before": before, "after": after, "restarts": server.starts() - starts}
+    row = {
+        "attack": name,
+        "status": status,
+        "seconds": seconds,
+        "healthz_ms": 1000 * probe.worst,
+        "before": before,
+        "after": after,
+        "restarts": server.starts() - starts,
+    }
     TABLE.append(row)
     measured(f"attack {name}: worst /healthz (ms)", row["healthz_ms"])
     measured(f"attack {name}: answered (s)", seconds)
@@ -193,6 +205,7 @@ def test_a_mesh_of_string_vertices_to_render(server):
         status, _, text = post(server, "/render", body)
         assert b"max_vertices" in text
         return status
+
     row = attack(server, '600,000 ["","",""] vertices (6.6 MB) → /render', send)
     assert row["status"] == 422 and row["seconds"] < 50
 
@@ -208,6 +221,7 @@ def test_many_wrong_objects_get_a_short_error_list(server):
         errors = json.loads(text)["errors"]
         assert len(errors) == 51 and "more problems" in errors[-1]["message"]
         return status
+
     row = attack(server, "10,000 wrong spheres (0.7 MB) → /validate", send)
     assert row["status"] == 422 and sizes["response"] < 20_000
 
@@ -220,6 +234,7 @@ def test_a_lone_surrogate_is_answered_in_json(server):
         errors = json.loads(text)["errors"]
         assert errors[0]["message"] == "unknown material '\ud800'"
         return status
+
     assert attack(server, 'lone surrogate "\\ud800" as a material name', send)["status"] == 422
 
 
@@ -232,6 +247,7 @@ def test_a_width_of_ten_to_the_4000(server, path):
         status, _, text = post(server, path, body)
         assert path == "/validate" or b"about 10^4000" in text
         return status
+
     row = attack(server, f"width = 10^4000 → {path}", send)
     assert row["status"] == (422 if path == "/render" else 200)
 
@@ -258,6 +274,7 @@ def test_a_decompression_bomb_graded_against_a_cached_reference(server):
         status, _, text = post(server, "/grade", body, kind)
         assert json.loads(text)["max_error"] == 0
         return status
+
     row = attack(server, "16-bit RGBA 4096² deflate bomb (0.2 MB) → /grade, reference cached", send)
     assert row["status"] == 200 and row["seconds"] < 100
 
@@ -270,24 +287,37 @@ def refused_form(server: Server, name: str, fields: dict, says: bytes) -> int:
         status, _, text = post(server, "/grade", body, kind)
         assert says in text
         return status
+
     return attack(server, name, send)["status"]
 
 
 def test_a_transparent_image_is_refused(server):
     data = scene_dict("01_three_spheres")
     image = png_rgba16(data["image"]["width"], data["image"]["height"], 0)
-    assert refused_form(server, "fully transparent RGBA PNG → /grade", {"scene": (json.dumps(data).encode(), None),
-                                                                        "image": (image, "a.png")},
-                        b"not fully opaque") == 422
+    assert (
+        refused_form(
+            server,
+            "fully transparent RGBA PNG → /grade",
+            {"scene": (json.dumps(data).encode(), None), "image": (image, "a.png")},
+            b"not fully opaque",
+        )
+        == 422
+    )
 
 
 def test_a_scene_file_part_counts_toward_the_body_limit(server):
     scene = scene_bytes()[:-1] + b"," + b" " * (9 * 1024 * 1024) + b'"x": 0}'
     buf = io.BytesIO()
     Image.new("RGB", (160, 120)).save(buf, format="PNG")
-    assert refused_form(server, "9 MiB scene as a file part → /grade", {"scene": (scene, "scene.json"),
-                                                                        "image": (buf.getvalue(), "a.png")},
-                        b"max_body_bytes") == 413
+    assert (
+        refused_form(
+            server,
+            "9 MiB scene as a file part → /grade",
+            {"scene": (scene, "scene.json"), "image": (buf.getvalue(), "a.png")},
+            b"max_body_bytes",
+        )
+        == 413
+    )
 
 
 def test_an_endless_chunked_body_is_cut_and_the_connection_closed(server):
@@ -295,8 +325,10 @@ def test_an_endless_chunked_body_is_cut_and_the_connection_closed(server):
 
     def send():
         with socket.create_connection((server.host, server.port), timeout=10) as sock:
-            sock.sendall(b"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
-                         b"Transfer-Encoding: chunked\r\n\r\n")
+            sock.sendall(
+                b"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                b"Transfer-Encoding: chunked\r\n\r\n"
+            )
             chunk = b"%x\r\n" % (1 << 20) + b" " * (1 << 20) + b"\r\n"
             total, deadline = 0, time.monotonic() + 10
             try:
@@ -308,6 +340,7 @@ def test_an_endless_chunked_body_is_cut_and_the_connection_closed(server):
             sent["bytes"] = total
             reply = sock.recv(1 << 16)
             return int(reply.split()[1]) if reply else "closed"
+
     row = attack(server, "endless chunked body → /render", send)
     assert row["status"] in (413, "closed") and sent["bytes"] < 64 << 20  # cut (the sending stops at 10 s)
 
@@ -355,8 +388,11 @@ def test_half_sent_requests_are_shed(server):
 
 def test_headers_trickled_a_byte_a_second_are_cut(server):
     first = b"GET /healthz HTTP/1.1\r\n"
-    row = attack(server, "200 connections trickling a header byte a second, 6 s",
-                 lambda: f"{hold(server, 200, first, b'X', 6)} still open")
+    row = attack(
+        server,
+        "200 connections trickling a header byte a second, 6 s",
+        lambda: f"{hold(server, 200, first, b'X', 6)} still open",
+    )
     assert row["status"] == "0 still open"
 
 
@@ -374,6 +410,7 @@ def test_a_body_at_a_byte_a_second_gets_408(server):
                 except TimeoutError:
                     sock.sendall(b" ")
             return "still open"
+
     row = attack(server, "a body at one byte a second → /render", send)
     assert row["status"] == 408  # (within the loop's 10 s: the body's deadline is 2 s)
 
@@ -387,6 +424,7 @@ def test_an_idle_kept_alive_connection_is_closed(server):
             while sock.recv(1 << 16):
                 pass
             return f"closed after {time.monotonic() - started:.1f} s"
+
     row = attack(server, "idle kept-alive connection", send)
     assert 1.5 < row["seconds"] < 10  # after keep_alive = 2 s (not before), and not never (the socket's 10 s)
 
@@ -420,17 +458,20 @@ def keyed(tmp_path_factory):
         yield int(url.rsplit(":", 1)[1])
 
 
-@pytest.mark.parametrize("headers, status", [
-    ("Authorization: Bearer secret\r\n", 200),
-    ("X-API-Key: secret\r\n", 200),
-    ("Authorization: bearer secret\r\n", 200),
-    ("Authorization: Bearer  secret\r\n", 401),
-    ("Authorization: Bearer sec\tret\r\n", 401),
-    ("Authorization: Bearer secret\r\nAuthorization: Bearer secret\r\n", 401),
-    ("Authorization: Bearer wrong\r\nX-API-Key: secret\r\n", 401),
-    ("Authorization: Basic c2VjcmV0\r\n", 401),
-    ("", 401),
-])
+@pytest.mark.parametrize(
+    "headers, status",
+    [
+        ("Authorization: Bearer secret\r\n", 200),
+        ("X-API-Key: secret\r\n", 200),
+        ("Authorization: bearer secret\r\n", 200),
+        ("Authorization: Bearer  secret\r\n", 401),
+        ("Authorization: Bearer sec\tret\r\n", 401),
+        ("Authorization: Bearer secret\r\nAuthorization: Bearer secret\r\n", 401),
+        ("Authorization: Bearer wrong\r\nX-API-Key: secret\r\n", 401),
+        ("Authorization: Basic c2VjcmV0\r\n", 401),
+        ("", 401),
+    ],
+)
 def test_exactly_one_credential(keyed, headers, status):
     with socket.create_connection(("127.0.0.1", keyed), timeout=5) as sock:
         sock.sendall(f"GET /schema HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{headers}\r\n".encode())

@@ -35,8 +35,14 @@ def _run(bundle: Path, root: Path, files: dict[str, Path]) -> tuple[subprocess.C
     for name, path in files.items():
         shutil.copyfile(path, root / "submission" / name)
     env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
-    done = subprocess.run(["bash", str(root / "source" / "run_autograder")], cwd=root, env=env, text=True,
-                          capture_output=True, timeout=600)
+    done = subprocess.run(
+        ["bash", str(root / "source" / "run_autograder")],
+        cwd=root,
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=600,
+    )
     return done, json.loads((root / "results" / "results.json").read_text())
 
 
@@ -47,14 +53,21 @@ def test_the_bundle_has_gradescopes_two_scripts_at_its_root_and_phongray_beside_
         assert info[script].external_attr >> 16 & 0o111, script  # executable
     assert "phongray/pyproject.toml" in info and "phongray/service/classgrade/autograder.py" in info
     assert {n for n in info if n.startswith("course/scenes/")} == {
-        f"course/scenes/{t}.json" for t in ("lights", "mirror", "spheres")}
+        f"course/scenes/{t}.json" for t in ("lights", "mirror", "spheres")
+    }
     assert len([n for n in info if n.startswith("course/references/")]) == 3
 
 
 def test_a_submission_is_graded_a_test_per_task_with_its_names_forgiven(bundle: Path, tmp_path: Path):
-    done, results = _run(bundle, tmp_path, {"Mirror (1).png": CLASS / "submissions" / "ada" / "mirror.png",
-                                            "spheres-1.png": CLASS / "submissions" / "gus" / "spheres.png",
-                                            "notes.txt": CLASS / "submissions" / "eli" / "notes.txt"})
+    done, results = _run(
+        bundle,
+        tmp_path,
+        {
+            "Mirror (1).png": CLASS / "submissions" / "ada" / "mirror.png",
+            "spheres-1.png": CLASS / "submissions" / "gus" / "spheres.png",
+            "notes.txt": CLASS / "submissions" / "eli" / "notes.txt",
+        },
+    )
     assert done.returncode == 0, done.stderr
     tests = {t["name"]: t for t in results["tests"]}
     assert set(tests) == {"lights", "mirror", "spheres"}
@@ -80,8 +93,9 @@ def test_an_honest_tracers_ray_offset_passes_in_the_autograder_and_says_so(tmp_p
     out = tmp_path / "autograder.zip"
     assert main(["autograder", str(tmp_path / "scenes"), "-o", str(out)]) == 0
     honest = tmp_path / "whitted.png"
-    honest.write_bytes(encode_png(student.render(load_scene(whitted.read_bytes()),
-                                                 style=student.STYLES["offset 1e-3"])))
+    honest.write_bytes(
+        encode_png(student.render(load_scene(whitted.read_bytes()), style=student.STYLES["offset 1e-3"]))
+    )
     done, results = _run(out, tmp_path / "root", {"Whitted.png": honest})
     (test,) = results["tests"]
     assert (test["score"], test["status"]) == (1.0, "passed"), test["output"]
@@ -93,11 +107,13 @@ def test_a_broken_bundle_writes_results_that_say_so_and_exits_2(tmp_path: Path, 
     assert done.returncode == 0
     shutil.rmtree(tmp_path / "source" / "course" / "scenes")
     env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(tmp_path), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
-    again = subprocess.run(["bash", str(tmp_path / "source" / "run_autograder")], env=env, text=True,
-                           capture_output=True, timeout=600)
+    again = subprocess.run(
+        ["bash", str(tmp_path / "source" / "run_autograder")], env=env, text=True, capture_output=True, timeout=600
+    )
     assert again.returncode == 2 and len(again.stderr.strip().splitlines()) == 1
     assert json.loads((tmp_path / "results" / "results.json").read_text())["output"].startswith(
-        "The autograder could not grade this submission")
+        "The autograder could not grade this submission"
+    )
 
 
 def test_a_tas_invalid_scene_stops_the_build_in_one_line_with_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture):
@@ -111,14 +127,17 @@ def test_a_tas_invalid_scene_stops_the_build_in_one_line_with_exit_2(tmp_path: P
     assert not out.exists()
 
 
-@pytest.mark.parametrize(("names", "expected"), [
-    (["Spheres.PNG"], {"spheres": "Spheres.PNG"}),
-    (["Spheres (1).png"], {"spheres": "Spheres (1).png"}),
-    (["spheres.png", "spheres-1.png", "spheres-2.png"], {"spheres": "spheres-2.png"}),  # the latest copy
-    (["mirror.jpg", "mirror.png"], {"mirror": "mirror.png"}),
-    (["mirror.jpg"], {"mirror": "mirror.jpg"}),  # graded, and so reported as the JPEG it is
-    (["lights2.png", "readme.txt"], {}),
-])
+@pytest.mark.parametrize(
+    ("names", "expected"),
+    [
+        (["Spheres.PNG"], {"spheres": "Spheres.PNG"}),
+        (["Spheres (1).png"], {"spheres": "Spheres (1).png"}),
+        (["spheres.png", "spheres-1.png", "spheres-2.png"], {"spheres": "spheres-2.png"}),  # the latest copy
+        (["mirror.jpg", "mirror.png"], {"mirror": "mirror.png"}),
+        (["mirror.jpg"], {"mirror": "mirror.jpg"}),  # graded, and so reported as the JPEG it is
+        (["lights2.png", "readme.txt"], {}),
+    ],
+)
 def test_which_file_is_a_tasks(names: list[str], expected: dict[str, str]):
     chosen, left = task_files(names, ["spheres", "mirror", "lights"])
     assert {task: found.name for task, found in chosen.items()} == expected

@@ -20,9 +20,19 @@ def test_a_board_counts_each_workers_connections_and_names_whose_turn_it_is():
     try:
         board.claim()
         # a second worker: a live child process that claims a slot and holds one connection
-        child = subprocess.Popen([sys.executable, "-c", (
-            "import sys, time; from service.balance import Board; b = Board(sys.argv[1]); b.claim(); b.opened(); "
-            "print(b.slot, flush=True); time.sleep(30)"), board.path], stdout=subprocess.PIPE, text=True)
+        child = subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                (
+                    "import sys, time; from service.balance import Board; b = Board(sys.argv[1]); b.claim(); "
+                    "b.opened(); print(b.slot, flush=True); time.sleep(30)"
+                ),
+                board.path,
+            ],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         try:
             assert child.stdout is not None
             child_slot = int(child.stdout.readline())

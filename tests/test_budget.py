@@ -18,9 +18,13 @@ from helpers import scene_dict
 def around_the_eye(count, size):
     """``count`` concentric spheres, the camera inside them all: every camera ray crosses every sphere."""
     objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0 + k} for k in range(count)]
-    return {"camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]}, "image": {"width": size, "height": size},
-            "materials": {"m": {}}, "objects": objs,
-            "lights": [{"type": "point", "color": 1, "position": [0.2, 0.2, 0.2]}]}
+    return {
+        "camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
+        "image": {"width": size, "height": size},
+        "materials": {"m": {}},
+        "objects": objs,
+        "lights": [{"type": "point", "color": 1, "position": [0.2, 0.2, 0.2]}],
+    }
 
 
 def test_a_render_past_its_ray_budget_stops_naming_the_rays():
@@ -79,8 +83,14 @@ print(next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith(
 def test_ten_thousand_spheres_around_the_eye_hold_bounded_memory():
     """Every camera ray meets all 10,000 spheres in every cell it crosses: made into pairs at once, 32² rays
     peaked at 710 MiB (96²: 5.2 GiB); a group at a time, 155 MiB."""
-    out = subprocess.run([sys.executable, "-c", PEAK_SCRIPT], input=json.dumps(around_the_eye(10_000, 32)),
-                         capture_output=True, text=True, check=True, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", PEAK_SCRIPT],
+        input=json.dumps(around_the_eye(10_000, 32)),
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
     assert int(out.stdout) < 400  # MiB
 
 
@@ -108,9 +118,15 @@ def test_a_render_past_its_budget_of_exact_tests_stops_naming_them():
     """Spheres far larger than the rest are tested against every ray: the tests are counted, whatever the rays."""
     objs = [{"type": "sphere", "material": "m", "center": [k * 0.01, 0, 0], "radius": 0.001} for k in range(40)]
     objs += [{"type": "sphere", "material": "m", "center": [0, 0, -1000 - k], "radius": 500.0} for k in range(39)]
-    scene = schemas.validate_scene({"camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]},
-                                    "image": {"width": 32, "height": 32}, "materials": {"m": {}}, "objects": objs,
-                                    "lights": [{"type": "point", "color": 1, "position": [0, 50, 0]}]})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]},
+            "image": {"width": 32, "height": 32},
+            "materials": {"m": {}},
+            "objects": objs,
+            "lights": [{"type": "point", "color": 1, "position": [0, 50, 0]}],
+        }
+    )
     whole = Renderer(scene)
     whole.pixels(threads=1)
     assert whole.tests >= 32 * 32 * 39
@@ -159,12 +175,16 @@ print(next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith(
 def test_an_image_of_one_row_or_column_holds_no_table_of_its_size(size):
     """16777216 × 1 pixels (within max_pixels = 4096²) with 2×2 samples: the camera's per-column tables took
     800 MiB before the first ray, and a render peaked at 1.4 GiB; the columns of each batch are made instead."""
-    data = {"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
-            "image": {"width": size[0], "height": size[1], "samples": 2}, "materials": {"m": {}},
-            "objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
-            "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}]}
-    out = subprocess.run([sys.executable, "-c", WIDE_SCRIPT], input=json.dumps(data), capture_output=True,
-                         text=True, timeout=300)
+    data = {
+        "camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+        "image": {"width": size[0], "height": size[1], "samples": 2},
+        "materials": {"m": {}},
+        "objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1}],
+        "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}],
+    }
+    out = subprocess.run(
+        [sys.executable, "-c", WIDE_SCRIPT], input=json.dumps(data), capture_output=True, text=True, timeout=300
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     assert int(out.stdout) < 400
 

@@ -13,16 +13,22 @@ def test_every_named_budget_is_measured_by_a_test():
     exact = [pattern for pattern, limit in budgets.BUDGETS if "*" not in pattern]
     assert exact and all(f'"{name}"' in sources for name in exact), [n for n in exact if f'"{n}"' not in sources]
     # a pattern's first words are in a test (an attack's and a hostile request's names are given to a helper)
-    words = [pattern.split("*")[0].removeprefix("attack ").removeprefix("hostile ") for pattern, _ in budgets.BUDGETS
-             if "*" in pattern]
+    words = [
+        pattern.split("*")[0].removeprefix("attack ").removeprefix("hostile ")
+        for pattern, _ in budgets.BUDGETS
+        if "*" in pattern
+    ]
     assert all(w in sources for w in words), [w for w in words if w not in sources]
 
 
 def test_the_worst_of_each_measurement_is_held_against_its_budget():
-    lines = ['{"name": "attack 10⁶ empty objects (3 MB) → /validate: answered (s)", "value": 0.5}',
-             '{"name": "attack 10⁶ empty objects (3 MB) → /validate: answered (s)", "value": 2.5}',
-             '{"name": "100 identical renders at once: worst /healthz (ms)", "value": 40}',
-             '{"name": "attack lone surrogate: answered (s)", "value": 0.1}', ""]
+    lines = [
+        '{"name": "attack 10⁶ empty objects (3 MB) → /validate: answered (s)", "value": 0.5}',
+        '{"name": "attack 10⁶ empty objects (3 MB) → /validate: answered (s)", "value": 2.5}',
+        '{"name": "100 identical renders at once: worst /healthz (ms)", "value": 40}',
+        '{"name": "attack lone surrogate: answered (s)", "value": 0.1}',
+        "",
+    ]
     measured = budgets.worst(lines)
     assert measured["attack 10⁶ empty objects (3 MB) → /validate: answered (s)"] == 2.5
     rows, missed = budgets.table(measured)

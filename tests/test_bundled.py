@@ -33,8 +33,25 @@ def bundle(tmp_path_factory: pytest.TempPathFactory) -> Path:
         shutil.copyfile(HERE / f"{task}.json", course / "scenes" / f"{task}.json")
     (course / "tasks.json").write_text(json.dumps({"spot": {"show": "verdict"}, "glass": {"show": "diagnosis"}}))
     out = course / "autograder.zip"
-    assert main(["autograder", str(course / "scenes"), "-o", str(out), "--tasks", str(course / "tasks.json"),
-                 "--run", RUN, "--run-timeout", "20", "--memory", "1G"]) == 0
+    assert (
+        main(
+            [
+                "autograder",
+                str(course / "scenes"),
+                "-o",
+                str(out),
+                "--tasks",
+                str(course / "tasks.json"),
+                "--run",
+                RUN,
+                "--run-timeout",
+                "20",
+                "--memory",
+                "1G",
+            ]
+        )
+        == 0
+    )
     return out
 
 
@@ -47,8 +64,14 @@ def run_autograder(bundle: Path, root: Path, mistakes: str) -> tuple[subprocess.
     shutil.copyfile(HERE / "tracer.py", root / "submission" / "tracer.py")
     (root / "submission" / "mistakes.txt").write_text(mistakes)
     env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
-    done = subprocess.run(["bash", str(root / "source" / "run_autograder")], cwd=root, env=env, text=True,
-                          capture_output=True, timeout=600)
+    done = subprocess.run(
+        ["bash", str(root / "source" / "run_autograder")],
+        cwd=root,
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=600,
+    )
     return done, json.loads((root / "results" / "results.json").read_text())
 
 
@@ -115,8 +138,14 @@ def test_without_the_sandbox_a_program_cannot_read_the_bundle(tmp_path: Path):
         assert len(list((root / "source" / "course" / "references").glob("*.png"))) == 1  # (there to be stolen)
         (root / "submission" / "tracer.py").write_text(SNOOP.format(root=str(root)))
         env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
-        done = subprocess.run(["bash", str(root / "source" / "run_autograder")], cwd=root, env=env, text=True,
-                              capture_output=True, timeout=600)
+        done = subprocess.run(
+            ["bash", str(root / "source" / "run_autograder")],
+            cwd=root,
+            env=env,
+            text=True,
+            capture_output=True,
+            timeout=600,
+        )
         results = json.loads((root / "results" / "results.json").read_text())
     finally:
         shutil.rmtree(open_place)

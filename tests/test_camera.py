@@ -9,8 +9,12 @@ from tracer.camera import CameraRays
 
 
 def camera(**cam):
-    scene = schemas.validate_scene({"camera": {"position": [0, 0, 0], "look_at": [0, 0, -1], **cam},
-                                    "image": {"width": 4, "height": 2, "samples": 2}})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 0, 0], "look_at": [0, 0, -1], **cam},
+            "image": {"width": 4, "height": 2, "samples": 2},
+        }
+    )
     return CameraRays(scene.camera, scene.image, np.zeros(3))
 
 

@@ -68,8 +68,11 @@ def test_a_whole_cell_holds_every_member_of_its_parts_and_its_box_holds_theirs()
     by_cell = set(zip(*(a.tolist() for a in cells.pairs(np.arange(500), cell))))
     assert by_part < by_cell  # every member of the part, and the members of the cell's other parts too
     at = cell[cell >= 0] - cells.whole_base
-    members = {(r, m) for r, c in zip(np.flatnonzero(cell >= 0).tolist(), at.tolist())
-               for m in cells.members[cells.start[c]:cells.start[c + 1]].tolist()}
+    members = {
+        (r, m)
+        for r, c in zip(np.flatnonzero(cell >= 0).tolist(), at.tolist())
+        for m in cells.members[cells.start[c] : cells.start[c + 1]].tolist()
+    }
     assert by_cell == members
 
 
@@ -92,8 +95,13 @@ def test_a_grid_too_large_for_a_table_finds_the_same_cells_by_search():
     lo, hi = random_boxes(300)
     cells = build_cells(lo, hi, 0.01)
     assert cells.table is not None  # a small grid: cells are found by a table
-    points = np.vstack([np.random.default_rng(4).uniform(-1.2, 1.3, (3000, 3)), (lo + hi) / 2,
-                        [[np.nan, 0, 0], [np.inf, 0, 0], [-np.inf, 1e300, 0]]])
+    points = np.vstack(
+        [
+            np.random.default_rng(4).uniform(-1.2, 1.3, (3000, 3)),
+            (lo + hi) / 2,
+            [[np.nan, 0, 0], [np.inf, 0, 0], [-np.inf, 1e300, 0]],
+        ]
+    )
     searched = replace(cells, table=None)
     for whole in (False, True):
         by_table, by_search = cells.locate(points, whole), searched.locate(points, whole)
@@ -149,8 +157,14 @@ def spheres_about(center, radius, count, gap, seed=11):
         d = rng.normal(size=3)
         d /= np.linalg.norm(d)
         r = float(rng.uniform(0.03, 0.08))
-        out.append({"type": "sphere", "material": "m", "radius": r,
-                    "center": (np.asarray(center) + d * (radius + r + gap)).tolist()})
+        out.append(
+            {
+                "type": "sphere",
+                "material": "m",
+                "radius": r,
+                "center": (np.asarray(center) + d * (radius + r + gap)).tolist(),
+            }
+        )
     return out
 
 
@@ -158,17 +172,22 @@ INNER = sphere_mesh([0.9, 0.4, 0.1], 0.3, level=2)
 CASES = {
     # spheres in the BVH beside a mesh: touching it, cutting through it, nested in each other
     "mesh ball among small spheres": scene(
-        [BALL, *spheres_about([0, 0.6, 0], 0.6, 12, 1e-6),
-         {"type": "sphere", "material": "m", "center": [0.6, 0.6, 0], "radius": 0.1},
-         {"type": "sphere", "material": "m", "center": [-0.7, 0.3, 0.3], "radius": 0.2},
-         {"type": "sphere", "material": "m", "center": [-0.7, 0.3, 0.3], "radius": 0.05}],
+        [
+            BALL,
+            *spheres_about([0, 0.6, 0], 0.6, 12, 1e-6),
+            {"type": "sphere", "material": "m", "center": [0.6, 0.6, 0], "radius": 0.1},
+            {"type": "sphere", "material": "m", "center": [-0.7, 0.3, 0.3], "radius": 0.2},
+            {"type": "sphere", "material": "m", "center": [-0.7, 0.3, 0.3], "radius": 0.05},
+        ],
         [{"type": "point", "color": 1, "position": [2, 3, 2]}],
-        {"position": [0, 1.2, 3], "look_at": [0, 0.6, 0], "fov": 40}),
+        {"position": [0, 1.2, 3], "look_at": [0, 0.6, 0], "fov": 40},
+    ),
     # two meshes 1e-6 apart, one inside the other's box, and faces of very different sizes
     "nested meshes of mixed sizes": scene(
         [BALL, INNER, sphere_mesh([0.9, 0.4, 0.1], 0.3 + 1e-6, level=1)],
         [{"type": "point", "color": 1, "position": [-2, 3, 3]}],
-        {"position": [0.5, 1.0, 3], "look_at": [0.5, 0.5, 0], "fov": 45}),
+        {"position": [0.5, 1.0, 3], "look_at": [0.5, 0.5, 0], "fov": 45},
+    ),
 }
 
 
@@ -179,7 +198,7 @@ def test_walking_by_cells_agrees_with_the_brute_force(name):
 
 def test_a_scene_over_the_cells_budget_walks_coarser_cells_to_the_same_pixels():
     data = CASES["mesh ball among small spheres"]
-    with mock.patch("tracer.cells.BUDGET_PER", -10**9):
+    with mock.patch("tracer.cells.BUDGET_PER", -(10**9)):
         pixels = render(schemas.validate_scene(data))
     assert np.array_equal(pixels, render(schemas.validate_scene(data)))
 

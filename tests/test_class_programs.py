@@ -29,23 +29,23 @@ LIMITS = ["--run-timeout", "4", "--memory", "512M", "--processes", "32", "--outp
 HOSTILE = {
     "loop": 'import sys\nwhile "glass" in sys.argv[1]:\n    pass\n',
     "forkbomb": 'import os, sys\nwhile "glass" in sys.argv[1]:\n    try:\n        os.fork()\n    except OSError:\n'
-                '        pass\n',
+    "        pass\n",
     "hog": 'import sys\nif "glass" in sys.argv[1]:\n    hoard = []\n    while True:\n'
-           '        hoard.append(bytearray(16 << 20))\n',
+    "        hoard.append(bytearray(16 << 20))\n",
     "bigfile": 'import sys\nif "glass" in sys.argv[1]:\n    with open("big", "wb") as f:\n'
-               '        for _ in range(5 * 1024):\n            f.write(b"x" * (1 << 20))\n',
+    '        for _ in range(5 * 1024):\n            f.write(b"x" * (1 << 20))\n',
     "link": 'import os, sys\nif "glass" in sys.argv[1]:\n    try:\n        os.remove(sys.argv[2])\n'
-            '        os.symlink("/etc/passwd", sys.argv[2])\n    except OSError as exc:\n'
-            '        print("refused", exc, file=sys.stderr)\n    sys.exit(0)\n',
+    '        os.symlink("/etc/passwd", sys.argv[2])\n    except OSError as exc:\n'
+    '        print("refused", exc, file=sys.stderr)\n    sys.exit(0)\n',
     "snoop": 'import sys\nfor path in ("{scenes}/spot.json", "{scenes}/notes.txt", "{other}/tracer.py",\n'
-             '             "{other}/mistakes.txt"):\n    try:\n'
-             '        print("LEAK", open(path).read(), file=sys.stderr)\n'
-             '    except OSError as exc:\n        print("refused", exc, file=sys.stderr)\n',
+    '             "{other}/mistakes.txt"):\n    try:\n'
+    '        print("LEAK", open(path).read(), file=sys.stderr)\n'
+    '    except OSError as exc:\n        print("refused", exc, file=sys.stderr)\n',
     "network": 'import socket, sys\ntry:\n    socket.create_connection(("127.0.0.1", {port}), timeout=2)\n'
-               '    print("LEAK connected", file=sys.stderr)\nexcept OSError as exc:\n'
-               '    print("refused", exc, file=sys.stderr)\n',
-    "daemon": 'import os\nif os.fork() == 0:\n    os.setsid()\n    if os.fork() == 0:\n'
-              '        os.execvp("sleep", ["sleep", "876.543"])\n    os._exit(0)\nos.wait()\n',
+    '    print("LEAK connected", file=sys.stderr)\nexcept OSError as exc:\n'
+    '    print("refused", exc, file=sys.stderr)\n',
+    "daemon": "import os\nif os.fork() == 0:\n    os.setsid()\n    if os.fork() == 0:\n"
+    '        os.execvp("sleep", ["sleep", "876.543"])\n    os._exit(0)\nos.wait()\n',
 }
 BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-refraction"}
 
@@ -53,9 +53,12 @@ BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-
 def left_running() -> list[str]:
     """Processes of a sandbox's user, or the hostile daemon's sleep, not counting zombies."""
     ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
-    return [line for line in ps.splitlines()
-            if not line.split()[1].startswith("Z")
-            and (UID_BASE <= int(line.split()[0]) < UID_BASE + UID_SPAN or "876.543" in line)]
+    return [
+        line
+        for line in ps.splitlines()
+        if not line.split()[1].startswith("Z")
+        and (UID_BASE <= int(line.split()[0]) < UID_BASE + UID_SPAN or "876.543" in line)
+    ]
 
 
 def scratch() -> set[str]:
@@ -107,8 +110,21 @@ def listener():
 
 def grade(root: Path, scenes: Path, subs: Path, *more: str) -> tuple[int, dict, str]:
     report = root / "report"
-    code = main(["grade-class", str(scenes), str(subs), "-o", str(report), "--tasks", str(root / "tasks.json"),
-                 "--run", RUN, *LIMITS, *more])
+    code = main(
+        [
+            "grade-class",
+            str(scenes),
+            str(subs),
+            "-o",
+            str(report),
+            "--tasks",
+            str(root / "tasks.json"),
+            "--run",
+            RUN,
+            *LIMITS,
+            *more,
+        ]
+    )
     rows = json.loads((report / "report.json").read_text()) if code == 0 else []
     return code, {(r["student"], r["task"]): r for r in rows}, report
 
@@ -132,8 +148,13 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
     assert rows["noglass", "glass"]["experiment"] == "reflection right, refraction missing"
     assert rows["noglass", "spot"]["status"] == "pass"
 
-    reasons = {"loop": ("timeout",), "forkbomb": ("timeout", "crashed"), "hog": ("memory",),
-               "bigfile": ("output-too-large",), "link": ("no-output",)}
+    reasons = {
+        "loop": ("timeout",),
+        "forkbomb": ("timeout", "crashed"),
+        "hog": ("memory",),
+        "bigfile": ("output-too-large",),
+        "link": ("no-output",),
+    }
     for student, expected in reasons.items():
         row = rows[student, "glass"]
         assert row["status"] == "fail" and row["run"] in expected, (student, row["run"], row["reason"])
@@ -143,8 +164,11 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
         assert {rows[student, t]["status"] for t in ("spot", "glass")} == {"pass"}
     assert "refused" in rows["snoop", "spot"]["run_output"] and "refused" in rows["network", "spot"]["run_output"]
 
-    everything = "".join(p.read_text(errors="replace") for p in report.rglob("*") if p.is_file()
-                         and p.suffix in (".json", ".csv", ".html"))
+    everything = "".join(
+        p.read_text(errors="replace")
+        for p in report.rglob("*")
+        if p.is_file() and p.suffix in (".json", ".csv", ".html")
+    )
     assert "LEAK" not in everything and SECRET not in everything
     assert "refused" in (report / "index.html").read_text()  # the TA's page shows a run's output
     assert not any("refused" in p.read_text() for p in (report / "gradescope").rglob("*.json"))  # a student's never
@@ -169,11 +193,14 @@ def test_a_hidden_task_shows_a_student_only_what_tasks_json_says(tmp_path, liste
         assert '"look_at"' not in (path.read_text(errors="replace") if path.is_file() else "")
 
 
-@pytest.mark.parametrize(("args", "words"), [
-    (["--run", "python3 tracer.py {scene}"], "names no {output}"),
-    (["--run", RUN, "--build", "mkae"], "no program 'mkae'"),
-    (["--build", "make"], "--build: only with --run"),
-])
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--run", "python3 tracer.py {scene}"], "names no {output}"),
+        (["--run", RUN, "--build", "mkae"], "no program 'mkae'"),
+        (["--build", "make"], "--build: only with --run"),
+    ],
+)
 def test_a_tas_mistake_is_exit_2_and_one_line_and_no_student_is_marked(tmp_path, listener, capsys, args, words):
     scenes, subs = make_class(tmp_path, listener[0], ["honest"])
     code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "report"), *args])
@@ -182,8 +209,7 @@ def test_a_tas_mistake_is_exit_2_and_one_line_and_no_student_is_marked(tmp_path,
     assert not (tmp_path / "report").exists()
 
 
-def test_without_bubblewrap_a_class_stops_unless_asked_to_run_unsandboxed(tmp_path, listener, capsys,
-                                                                       monkeypatch):
+def test_without_bubblewrap_a_class_stops_unless_asked_to_run_unsandboxed(tmp_path, listener, capsys, monkeypatch):
     scenes, subs = make_class(tmp_path, listener[0], ["honest"])
     monkeypatch.setattr("shutil.which", lambda name, *a, **k: None if name == "bwrap" else f"/usr/bin/{name}")
     code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "report"), "--run", RUN])
@@ -203,19 +229,41 @@ def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listen
     here = tmp_path / "here"
     there = tmp_path / "there"
     for report, more in ((here, []), (there, ["--cluster", address])):
-        assert main(["grade-class", str(scenes), str(subs), "-o", str(report), "--tasks", str(tmp_path / "tasks.json"),
-                     "--run", RUN, *LIMITS, "-q", *more]) == 0
+        assert (
+            main(
+                [
+                    "grade-class",
+                    str(scenes),
+                    str(subs),
+                    "-o",
+                    str(report),
+                    "--tasks",
+                    str(tmp_path / "tasks.json"),
+                    "--run",
+                    RUN,
+                    *LIMITS,
+                    "-q",
+                    *more,
+                ]
+            )
+            == 0
+        )
 
     def rows(report: Path) -> list[dict]:
-        return [{k: v for k, v in r.items() if k != "run_seconds"}
-                for r in json.loads((report / "report.json").read_text())]
+        return [
+            {k: v for k, v in r.items() if k != "run_seconds"} for r in json.loads((report / "report.json").read_text())
+        ]
 
     assert rows(there) == rows(here)
     assert {(r["student"], r["task"]): r["status"] for r in rows(there) if r["status"] == "fail"} == {
-        ("noglass", "glass"): "fail", ("loop", "glass"): "fail", ("link", "glass"): "fail"}
+        ("noglass", "glass"): "fail",
+        ("loop", "glass"): "fail",
+        ("link", "glass"): "fail",
+    }
     for student in ("honest", "noglass"):
-        assert (there / "gradescope" / student / "results.json").read_text() == \
-            (here / "gradescope" / student / "results.json").read_text()
+        assert (there / "gradescope" / student / "results.json").read_text() == (
+            here / "gradescope" / student / "results.json"
+        ).read_text()
     assert left_running() == []
 
 

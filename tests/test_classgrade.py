@@ -101,11 +101,21 @@ def test_every_status_and_reason(klass, tmp_path, capsys):
     rows = by_pair(outcome.rows)
     assert len(outcome.rows) == 7 * 2  # every (student, task) pair, exactly once
     assert {k: r["status"] for k, r in rows.items()} == {
-        ("bad", "balls"): "pass", ("bad", "lamps"): "fail", ("cheat", "balls"): "fail",
-        ("cheat", "lamps"): "missing", ("copycat", "balls"): "fail", ("copycat", "lamps"): "pass",
-        ("good", "balls"): "pass", ("good", "lamps"): "pass", ("junk", "balls"): "invalid",
-        ("junk", "lamps"): "invalid", ("none", "balls"): "missing", ("none", "lamps"): "missing",
-        ("own", "balls"): "pass", ("own", "lamps"): "pass"}
+        ("bad", "balls"): "pass",
+        ("bad", "lamps"): "fail",
+        ("cheat", "balls"): "fail",
+        ("cheat", "lamps"): "missing",
+        ("copycat", "balls"): "fail",
+        ("copycat", "lamps"): "pass",
+        ("good", "balls"): "pass",
+        ("good", "lamps"): "pass",
+        ("junk", "balls"): "invalid",
+        ("junk", "lamps"): "invalid",
+        ("none", "balls"): "missing",
+        ("none", "lamps"): "missing",
+        ("own", "balls"): "pass",
+        ("own", "lamps"): "pass",
+    }
     assert rows[("own", "balls")]["scene"] == "own" and rows[("copycat", "balls")]["scene"] == "shared"
     assert rows[("junk", "balls")]["reason"] == cli_reason(capsys, scenes / "balls.json", subs / "junk/balls.png")
     assert rows[("junk", "lamps")]["reason"] == cli_reason(capsys, scenes / "lamps.json", subs / "junk/lamps.png")
@@ -113,7 +123,9 @@ def test_every_status_and_reason(klass, tmp_path, capsys):
     assert rows[("none", "lamps")]["reason"] == "no lamps.png"
     assert sorted(outcome.ignored) == [
         (f"{scenes}/README.txt", "not a task scene (<task>.json)"),
-        (f"{subs}/cheat/balls.json", submissions.SCENE_IGNORED), (f"{subs}/junk/essay.docx", "matches no task")]
+        (f"{subs}/cheat/balls.json", submissions.SCENE_IGNORED),
+        (f"{subs}/junk/essay.docx", "matches no task"),
+    ]
     assert rows[("bad", "lamps")]["fraction_off_nearby"] > 0.01 and rows[("good", "lamps")]["max_error"] == 0
     assert outcome.renders == 3  # two shared scenes and one student's own
 
@@ -149,8 +161,9 @@ def test_the_report_files_agree_and_link_what_exists(klass, tmp_path):
     assert rows == json.loads(json.dumps(outcome.rows))
     with open(report / "report.csv") as f:
         table = list(csv.DictReader(f))
-    assert [(r["student"], r["task"], r["status"]) for r in table] == [(r["student"], r["task"], r["status"])
-                                                                       for r in rows]
+    assert [(r["student"], r["task"], r["status"]) for r in table] == [
+        (r["student"], r["task"], r["status"]) for r in rows
+    ]
     assert list(table[0]) == report_module.COLUMNS
     for r in rows:
         for key in ("reference", "submission", "heatmap"):
@@ -238,8 +251,22 @@ def test_an_interrupted_rerun_leaves_every_report_file_whole(klass, tmp_path, mo
 
 def test_the_cli_prints_a_summary_and_exits_0_even_with_failures(klass, tmp_path, capsys):
     scenes, subs, own = klass
-    assert main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--jobs", "2",
-                 "--student-scenes", str(own)]) == 0
+    assert (
+        main(
+            [
+                "grade-class",
+                str(scenes),
+                str(subs),
+                "-o",
+                str(tmp_path / "r"),
+                "--jobs",
+                "2",
+                "--student-scenes",
+                str(own),
+            ]
+        )
+        == 0
+    )
     out, err = capsys.readouterr()
     assert "14 pairs: 6 passed, 3 failed, 3 missing, 2 invalid" in out
     assert f"ignored: {subs}/cheat/balls.json: {submissions.SCENE_IGNORED}" in err.splitlines()
@@ -256,6 +283,7 @@ def test_the_same_report_through_a_running_service(klass, tmp_path):
 
 
 # -- the teaching assistant's faults stop the run: exit 2, one line, nobody graded ----------------------------
+
 
 def ta_fault(capsys, *args):
     """Run grade-class; it must stop with exit 2 and one line (returned), leaving no report."""
@@ -288,7 +316,8 @@ def test_an_invalid_student_scene_of_the_tas_stops_the_run(klass, tmp_path, caps
     (mine / "own" / "balls.json").unlink()
     (mine / "own" / "ballz.json").write_text("{}")
     assert ta_fault(capsys, scenes, subs, "-o", tmp_path / "r", "--student-scenes", mine) == (
-        f"{mine}/own/ballz.json: names no task (the tasks are balls, lamps)")
+        f"{mine}/own/ballz.json: names no task (the tasks are balls, lamps)"
+    )
 
 
 def test_an_unusable_report_folder_stops_the_run(klass, tmp_path, capsys):
@@ -302,7 +331,8 @@ def test_unusable_input_exits_2_with_one_line(tmp_path, capsys):
     (tmp_path / "scenes").mkdir()
     (tmp_path / "subs").mkdir()
     assert ta_fault(capsys, tmp_path / "scenes", tmp_path / "subs", "-o", tmp_path / "r") == (
-        f"{tmp_path}/scenes: no task scenes (<task>.json)")
+        f"{tmp_path}/scenes: no task scenes (<task>.json)"
+    )
     assert "cannot read" in ta_fault(capsys, tmp_path / "nowhere", tmp_path / "subs", "-o", tmp_path / "r")
 
 
@@ -329,11 +359,28 @@ def test_a_tasks_file_gives_points_and_thresholds_per_task(klass, tmp_path):
     assert rows[("bad", "lamps")]["status"] == "pass" and rows[("bad", "lamps")]["tolerance"] == 255
     assert rows[("bad", "balls")]["tolerance"] == 2 and rows[("bad", "lamps")]["score"] == 4
     results = json.loads((report / "gradescope" / "bad" / "results.json").read_text())
-    assert results == {"score": 5.0, "visibility": "visible", "tests": [
-        {"name": "balls", "score": 1.0, "max_score": 1.0, "status": "passed", "visibility": "hidden",
-         "output": "passed: 0.00 % of the pixels off even nearby (at most 0.10 % may be)"},
-        {"name": "lamps", "score": 4.0, "max_score": 4.0, "status": "passed", "visibility": "visible",
-         "output": "passed: 0.00 % of the pixels off even nearby (at most 0.10 % may be)"}]}
+    assert results == {
+        "score": 5.0,
+        "visibility": "visible",
+        "tests": [
+            {
+                "name": "balls",
+                "score": 1.0,
+                "max_score": 1.0,
+                "status": "passed",
+                "visibility": "hidden",
+                "output": "passed: 0.00 % of the pixels off even nearby (at most 0.10 % may be)",
+            },
+            {
+                "name": "lamps",
+                "score": 4.0,
+                "max_score": 4.0,
+                "status": "passed",
+                "visibility": "visible",
+                "output": "passed: 0.00 % of the pixels off even nearby (at most 0.10 % may be)",
+            },
+        ],
+    }
 
 
 def test_gradescope_results_of_every_student(klass, tmp_path):
@@ -358,8 +405,12 @@ def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_p
     data = small("02_all_lights")
     (scenes / "lamps.json").write_text(json.dumps(data))
     scene = schemas.validate_scene(data)
-    for student, mistake in (("ada", None), ("bob", "no-attenuation"), ("cy", "no-attenuation"),
-                             ("dee", "image-flipped")):
+    for student, mistake in (
+        ("ada", None),
+        ("bob", "no-attenuation"),
+        ("cy", "no-attenuation"),
+        ("dee", "image-flipped"),
+    ):
         (subs / student).mkdir(parents=True)
         options = VARIANTS[mistake][0] if mistake else None
         pixels = tracer.Renderer(scene, options).pixels() if options else tracer.render(scene)
@@ -379,26 +430,36 @@ def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_p
     assert results["tests"][0]["output"].endswith("\nLikely: the image flipped vertically")
 
 
-@pytest.mark.parametrize("content, says", [
-    ('{"lamps": {"points": -1}}', ":1: lamps.points: must be ≥ 0"),
-    ('{"lampz": {}}', ": no task lampz (did you mean 'lamps'?) (the tasks are balls, lamps)"),
-    ('{"lamps": {"tolerence": 3}}', ":1: lamps.tolerence: unknown key (did you mean 'tolerance'?)"),
-    ('{"lamps": {"point": 3}}', ":1: lamps.point: unknown key (did you mean 'points'?)"),
-    ('{"lamps": {"points": 2,\n "deductions": {"no-shadow": 1}}}',
-     ":2: lamps.deductions.no-shadow: no such mistake (did you mean 'no-shadows'?) (the ids are in docs/grading.md)"),
-    ('{"lamps": {"deductions": {"gamma": -1}}}', ":1: lamps.deductions.gamma: must be ≥ 0"),
-    # a number as a string, a boolean, a number too large to be finite: the TA's mistake, not 5, 1 or infinity
-    ('{"lamps": {"points": "5"}}', ":1: lamps.points: must be a number"),
-    ('{"lamps": {"points": true}}', ":1: lamps.points: must be a number"),
-    ('{"lamps": {"tolerance": "3"}}', ":1: lamps.tolerance: must be a number"),
-    ('{"lamps": {"points": 1e400}}', ":1: lamps.points: must be a finite number"),
-    ('{"lamps": {"points": 2, "deductions": {"gamma": "1"}}}', ":1: lamps.deductions.gamma: must be a number"),
-    # a deduction larger than the task's points (given, or the default 1)
-    ('{"lamps": {"points": 2,\n "deductions": {"gamma": 5}}}',
-     ":2: lamps.deductions.gamma: must be ≤ the task's points, 2"),
-    ('{"lamps": {"deductions": {"gamma": 4}}}',
-     ":1: lamps.deductions.gamma: must be ≤ the task's points, 1 (points not given: the default)"),
-])
+@pytest.mark.parametrize(
+    "content, says",
+    [
+        ('{"lamps": {"points": -1}}', ":1: lamps.points: must be ≥ 0"),
+        ('{"lampz": {}}', ": no task lampz (did you mean 'lamps'?) (the tasks are balls, lamps)"),
+        ('{"lamps": {"tolerence": 3}}', ":1: lamps.tolerence: unknown key (did you mean 'tolerance'?)"),
+        ('{"lamps": {"point": 3}}', ":1: lamps.point: unknown key (did you mean 'points'?)"),
+        (
+            '{"lamps": {"points": 2,\n "deductions": {"no-shadow": 1}}}',
+            ":2: lamps.deductions.no-shadow: no such mistake (did you mean 'no-shadows'?) "
+            "(the ids are in docs/grading.md)",
+        ),
+        ('{"lamps": {"deductions": {"gamma": -1}}}', ":1: lamps.deductions.gamma: must be ≥ 0"),
+        # a number as a string, a boolean, a number too large to be finite: the TA's mistake, not 5, 1 or infinity
+        ('{"lamps": {"points": "5"}}', ":1: lamps.points: must be a number"),
+        ('{"lamps": {"points": true}}', ":1: lamps.points: must be a number"),
+        ('{"lamps": {"tolerance": "3"}}', ":1: lamps.tolerance: must be a number"),
+        ('{"lamps": {"points": 1e400}}', ":1: lamps.points: must be a finite number"),
+        ('{"lamps": {"points": 2, "deductions": {"gamma": "1"}}}', ":1: lamps.deductions.gamma: must be a number"),
+        # a deduction larger than the task's points (given, or the default 1)
+        (
+            '{"lamps": {"points": 2,\n "deductions": {"gamma": 5}}}',
+            ":2: lamps.deductions.gamma: must be ≤ the task's points, 2",
+        ),
+        (
+            '{"lamps": {"deductions": {"gamma": 4}}}',
+            ":1: lamps.deductions.gamma: must be ≤ the task's points, 1 (points not given: the default)",
+        ),
+    ],
+)
 def test_a_bad_tasks_file_stops_the_run(klass, tmp_path, capsys, content, says):
     scenes, subs, _ = klass
     (tmp_path / "t.json").write_text(content)
@@ -409,8 +470,15 @@ def test_a_bad_tasks_file_stops_the_run(klass, tmp_path, capsys, content, says):
 # -- partial credit, totals and the gradebook ------------------------------------------------------------------
 
 #: the mistaken class: each student's mistake in the one task, lamps (None: right; "black": no known mistake)
-MISTAKEN = {"ada": None, "bob": "no-attenuation", "cy": "no-attenuation", "dee": "image-flipped", "fay": "gamma",
-            "gil": "no-specular", "hal": "black"}
+MISTAKEN = {
+    "ada": None,
+    "bob": "no-attenuation",
+    "cy": "no-attenuation",
+    "dee": "image-flipped",
+    "fay": "gamma",
+    "gil": "no-specular",
+    "hal": "black",
+}
 
 
 @pytest.fixture(scope="module")
@@ -426,8 +494,13 @@ def mistaken(tmp_path_factory):
     scene = schemas.validate_scene(data)
     for student, mistake in MISTAKEN.items():
         (subs / student).mkdir(parents=True)
-        pixels = (tracer.render(scene) if mistake is None else np.zeros_like(tracer.render(scene))
-                  if mistake == "black" else tracer.Renderer(scene, VARIANTS[mistake][0]).pixels())
+        pixels = (
+            tracer.render(scene)
+            if mistake is None
+            else np.zeros_like(tracer.render(scene))
+            if mistake == "black"
+            else tracer.Renderer(scene, VARIANTS[mistake][0]).pixels()
+        )
         (subs / student / "lamps.png").write_bytes(png(pixels))
     (subs / "ivy").mkdir()  # nothing sent
     tasks = root / "tasks.json"
@@ -468,7 +541,8 @@ def test_the_gradebook_the_totals_and_gradescope_agree(mistaken):
     assert page.count('<td class="fail partial">') == deducted == sum(m in DEDUCTIONS for m in MISTAKEN.values())
     assert json.loads((report / "gradescope" / "bob" / "results.json").read_text())["tests"][0]["output"].endswith(
         "\nLikely: no attenuation of point, spot and area lights\nPartial credit: 2.5 of 4 points (no attenuation "
-        "of point, spot and area lights: -1.5)")
+        "of point, spot and area lights: -1.5)"
+    )
 
 
 def test_the_report_lists_every_likely_mistake_of_a_task(mistaken):
@@ -476,11 +550,11 @@ def test_the_report_lists_every_likely_mistake_of_a_task(mistaken):
     page = (report / "index.html").read_text()
     named = {r["likely"] for r in rows.values() if r["status"] == "fail"}
     assert len(named) > 3
-    footer = page[page.index("likely mistakes<small>"):page.index("</tfoot>")]
-    assert footer.count("<li>") == 3 + 1 and f'… and {len(named) - 3} more</a>' in footer
+    footer = page[page.index("likely mistakes<small>") : page.index("</tfoot>")]
+    assert footer.count("<li>") == 3 + 1 and f"… and {len(named) - 3} more</a>" in footer
     assert '<a href="#likely-lamps">' in footer
-    every = page[page.index('<h3 id="likely-lamps">'):]
-    every = every[:every.index("</ul>")]
+    every = page[page.index('<h3 id="likely-lamps">') :]
+    every = every[: every.index("</ul>")]
     for mistake in named:
         assert f": {mistake}</li>" in every, mistake
 
@@ -492,8 +566,8 @@ def test_the_mistake_ids_are_documented_and_in_grade_json(mistaken, tmp_path, ca
     from tracer.variants import VARIANTS
 
     docs = (Path(__file__).parent.parent / "docs" / "grading.md").read_text()
-    section = docs[docs.index("\n### The mistake ids\n"):]
-    section = section[:section.index("\n## ")]
+    section = docs[docs.index("\n### The mistake ids\n") :]
+    section = section[: section.index("\n## ")]
     table = dict(re.findall(r"^\| `([a-z-]+)` \| (.+) \|$", section, re.M))
     assert table == {name: words for name, (_, words) in VARIANTS.items()}
     report, _ = mistaken
@@ -505,6 +579,7 @@ def test_the_mistake_ids_are_documented_and_in_grade_json(mistaken, tmp_path, ca
 
 def test_the_summary_counts_one_pair_and_one_reference_in_the_singular():
     from service.classgrade.report import summary
+
     one = summary([{"status": "pass"}], 1, 0.5)
     assert one.startswith("1 pair: 1 passed") and "; 1 reference rendered;" in one
     two = summary([{"status": "pass"}, {"status": "fail"}], 2, 0.5)

@@ -14,8 +14,7 @@ from helpers import SCENES, reference
 
 
 def run(*args, stdin=None):
-    return subprocess.run([sys.executable, "-m", "service.cli", *args], capture_output=True, input=stdin,
-                          timeout=120)
+    return subprocess.run([sys.executable, "-m", "service.cli", *args], capture_output=True, input=stdin, timeout=120)
 
 
 def test_render_writes_the_reference_image(tmp_path):
@@ -28,9 +27,11 @@ def test_a_render_starts_without_the_settings_or_pillow(tmp_path):
     """A render's start-up is its users' wait: with no PHONGRAY_* variable set, it imports neither
     pydantic-settings (about 0.1 s) nor Pillow, which only grading needs."""
     out = tmp_path / "out.png"
-    code = ("import sys; from service.cli import main; "
-            f"code = main(['render', {str(SCENES / '07_spotlights.json')!r}, '-o', {str(out)!r}, '-q']); "
-            "print(code, sorted(m for m in ('pydantic_settings', 'PIL') if m in sys.modules))")
+    code = (
+        "import sys; from service.cli import main; "
+        f"code = main(['render', {str(SCENES / '07_spotlights.json')!r}, '-o', {str(out)!r}, '-q']); "
+        "print(code, sorted(m for m in ('pydantic_settings', 'PIL') if m in sys.modules))"
+    )
     env = {k: v for k, v in os.environ.items() if not k.upper().startswith("PHONGRAY_")}
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert done.stdout.split() == ["0", "[]"], done.stderr
@@ -69,17 +70,39 @@ def test_bands_on_forked_processes_are_the_rows_of_the_render():
 
 def test_render_overrides_size_and_samples(tmp_path):
     out = tmp_path / "out.png"
-    assert main(["render", str(SCENES / "01_three_spheres.json"), "-o", str(out), "--width", "20",
-                 "--height", "10", "--samples", "2", "-q"]) == 0
+    assert (
+        main(
+            [
+                "render",
+                str(SCENES / "01_three_spheres.json"),
+                "-o",
+                str(out),
+                "--width",
+                "20",
+                "--height",
+                "10",
+                "--samples",
+                "2",
+                "-q",
+            ]
+        )
+        == 0
+    )
     assert decode_png(out.read_bytes()).shape == (10, 20, 3)
 
 
 def test_validate_ok_and_errors(tmp_path, capsys):
     assert main(["validate", str(SCENES / "05_mesh.json")]) == 0
     bad = tmp_path / "bad.json"
-    bad.write_text(json.dumps({"camera": {"position": [0, 0, 1], "look_at": [0, 0, 0]},
-                               "image": {"width": 1, "height": 1},
-                               "objects": [{"type": "sphere", "material": "x", "center": [0, 0, 0], "radius": -1}]}))
+    bad.write_text(
+        json.dumps(
+            {
+                "camera": {"position": [0, 0, 1], "look_at": [0, 0, 0]},
+                "image": {"width": 1, "height": 1},
+                "objects": [{"type": "sphere", "material": "x", "center": [0, 0, 0], "radius": -1}],
+            }
+        )
+    )
     assert main(["validate", str(bad)]) == 1
     assert "objects[0].radius: must be > 0" in capsys.readouterr().out
 
@@ -205,23 +228,31 @@ def test_every_option_has_help_and_shows_its_default():
 
 def test_validate_prints_the_json_line_of_every_problem(tmp_path, capsys):
     bad = tmp_path / "bad.json"
-    bad.write_text('{"camera": {"position": [0, 0, 5],\n "look_At": [0, 0, 0]},\n "image": {"width": 4, "height": 3},\n'
-                   ' "materials": {"gold": {}},\n "objects": [{"type": "sphere", "material": "glod",\n'
-                   '   "center": [0, 0, 0], "radius": -1}]}\n')
+    bad.write_text(
+        '{"camera": {"position": [0, 0, 5],\n "look_At": [0, 0, 0]},\n "image": {"width": 4, "height": 3},\n'
+        ' "materials": {"gold": {}},\n "objects": [{"type": "sphere", "material": "glod",\n'
+        '   "center": [0, 0, 0], "radius": -1}]}\n'
+    )
     assert main(["validate", str(bad)]) == 1
     assert capsys.readouterr().out.splitlines() == [  # in the order of their lines
         f"{bad}:1: camera.look_at: required",
         f"{bad}:2: camera.look_At: unknown key (did you mean 'look_at'?)",
         f"{bad}:5: objects[0].material: unknown material 'glod' (did you mean 'gold'?)",
-        f"{bad}:6: objects[0].radius: must be > 0"]
+        f"{bad}:6: objects[0].radius: must be > 0",
+    ]
     syntax = tmp_path / "syntax.json"
     syntax.write_text('{"camera": {\n  "x": 1,,\n}}')
     assert main(["validate", str(syntax)]) == 1
     assert capsys.readouterr().out.startswith(f"{syntax}:2: invalid JSON:")
 
 
-@pytest.mark.parametrize("option, value, says", [("--tolerance", "-1", "tolerance: must be between 0 and 255"),
-                                                 ("--max-fraction", "5", "max_fraction: must be between 0 and 1")])
+@pytest.mark.parametrize(
+    "option, value, says",
+    [
+        ("--tolerance", "-1", "tolerance: must be between 0 and 255"),
+        ("--max-fraction", "5", "max_fraction: must be between 0 and 1"),
+    ],
+)
 def test_grading_thresholds_are_checked_as_over_http(tmp_path, capsys, option, value, says):
     scene = SCENES / "01_three_spheres.json"
     image = tmp_path / "same.png"
@@ -233,8 +264,9 @@ def test_grading_thresholds_are_checked_as_over_http(tmp_path, capsys, option, v
 def test_an_output_that_is_not_a_png_is_refused(tmp_path, capsys):
     out = tmp_path / "x.jpg"
     assert main(["render", str(SCENES / "01_three_spheres.json"), "-o", str(out)]) == 2
-    assert capsys.readouterr().err == (f"phongray: {out}: phongray writes PNG images; name the output *.png "
-                                       "(or - for standard output)\n")
+    assert capsys.readouterr().err == (
+        f"phongray: {out}: phongray writes PNG images; name the output *.png (or - for standard output)\n"
+    )
     assert not out.exists()
 
 
@@ -289,19 +321,39 @@ def test_licence_and_metadata():
 def test_every_subcommand_runs_from_an_installed_wheel(tmp_path):
     """A wheel, not the source tree: a module the package forgets to ship shows up here."""
     root = SCENES.parent.parent
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path / "dist"), str(root)],
-                   check=True, capture_output=True, timeout=300)
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path / "dist"), str(root)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
     (wheel,) = (tmp_path / "dist").glob("phongray-*.whl")
     target = tmp_path / "site"
-    subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(target), str(wheel)],
-                   check=True, capture_output=True, timeout=300)
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(target), str(wheel)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
     env = {**os.environ, "PYTHONPATH": str(target)}
-    where = subprocess.run([sys.executable, "-c", "import service, bench, schemas, tracer; print(service.__file__)"],
-                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    where = subprocess.run(
+        [sys.executable, "-c", "import service, bench, schemas, tracer; print(service.__file__)"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert where.stdout.startswith(str(target)), where.stderr
     for name in [*SUBCOMMANDS, "bench"]:
-        done = subprocess.run([sys.executable, "-m", "phongray", name, "--help"], cwd=tmp_path, env=env,
-                              capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [sys.executable, "-m", "phongray", name, "--help"],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert done.returncode == 0 and "usage:" in done.stdout, (name, done.stderr[-500:])
 
 
@@ -388,8 +440,10 @@ BOTH_WAYS = [
 
 @pytest.mark.parametrize("args", BOTH_WAYS, ids=lambda a: "-".join(a).replace("{tmp}/", ""))
 def test_the_same_exit_code_and_words_with_and_without_server(args, files, service_url, tmp_path, capsys):
-    argv = [str(files / a) if a.endswith((".json", ".png", ".jpg")) and "{tmp}" not in a else a.format(tmp=tmp_path)
-            for a in args]
+    argv = [
+        str(files / a) if a.endswith((".json", ".png", ".jpg")) and "{tmp}" not in a else a.format(tmp=tmp_path)
+        for a in args
+    ]
     local = (main(argv), *capsys.readouterr())
     remote = (main([*argv, "--server", service_url]), *capsys.readouterr())
     assert remote == local
@@ -412,7 +466,8 @@ def test_grades_print_in_words_and_as_json(files, capsys):
     first = capsys.readouterr().out.splitlines()[0]
     assert first.startswith("FAIL: ") and first.endswith(
         "% of the pixels are off even nearby (more than 2 levels from every reference pixel around them); at most "
-        "0.10 % may be")
+        "0.10 % may be"
+    )
     assert main(["grade", str(files / "good.json"), str(files / "dark.png"), "--json"]) == 1
     result = json.loads(capsys.readouterr().out)
     assert result["passed"] is False and result["reason"].endswith("at most 0.10 % may be")
@@ -423,15 +478,16 @@ def test_a_failing_grade_names_the_likely_mistake_and_a_pass_gets_none(files, se
     for extra in ([], ["--server", service_url]):
         assert main(["grade", str(files / "good.json"), str(files / "unshadowed.png"), *extra]) == 1
         lines = capsys.readouterr().out.splitlines()
-        assert lines[6].startswith("Likely: no shadow rays — the submission matches the reference rendered with "
-                                   "that mistake (0.00 % of pixels off)")
+        assert lines[6].startswith(
+            "Likely: no shadow rays — the submission matches the reference rendered with "
+            "that mistake (0.00 % of pixels off)"
+        )
         assert main(["grade", str(files / "good.json"), str(files / "unshadowed.png"), "--json", *extra]) == 1
         found = json.loads(capsys.readouterr().out)["diagnosis"]
         assert found["causes"][0]["variant"] == "no-shadows" and found["causes"][0]["passes"] is True
         assert main(["grade", str(files / "good.json"), str(files / "right.png"), "--json", *extra]) == 0
         assert json.loads(capsys.readouterr().out)["diagnosis"] is None
-        assert main(["grade", str(files / "good.json"), str(files / "unshadowed.png"), "--no-diagnosis",
-                     *extra]) == 1
+        assert main(["grade", str(files / "good.json"), str(files / "unshadowed.png"), "--no-diagnosis", *extra]) == 1
         assert "Likely" not in capsys.readouterr().out
 
 
@@ -439,8 +495,9 @@ def test_an_image_is_read_no_further_than_the_limit(files, service_url, capsys, 
     monkeypatch.setenv("PHONGRAY_MAX_IMAGE_BYTES", "1000")
     for extra in ([], ["--server", service_url]):
         assert main(["grade", str(files / "good.json"), "/dev/zero", *extra]) == 2  # a file without end
-        assert capsys.readouterr().err == ("phongray: /dev/zero: larger than the limit max_image_bytes = 1000 bytes "
-                                           "(PHONGRAY_MAX_IMAGE_BYTES)\n")
+        assert capsys.readouterr().err == (
+            "phongray: /dev/zero: larger than the limit max_image_bytes = 1000 bytes (PHONGRAY_MAX_IMAGE_BYTES)\n"
+        )
 
 
 def test_compare_takes_grades_options(files, capsys):
@@ -457,8 +514,10 @@ def test_compare_grades_two_images_without_a_scene(files, capsys, tmp_path):
     heat = str(tmp_path / "h.png")
     assert main(["compare", str(files / "right.png"), str(files / "dark.png"), "--heatmap", heat]) == 1
     assert capsys.readouterr().out.startswith("FAIL: ") and (tmp_path / "h.png").exists()
-    for image, says in (("small.png", "small.png: image is 10×10 pixels, the reference is 160×120"),
-                        ("photo.jpg", "photo.jpg: image is a JPEG; PNG required")):
+    for image, says in (
+        ("small.png", "small.png: image is 10×10 pixels, the reference is 160×120"),
+        ("photo.jpg", "photo.jpg: image is a JPEG; PNG required"),
+    ):
         assert main(["compare", str(files / "right.png"), str(files / image)]) == 2
         assert capsys.readouterr().err == f"phongray: {files}/{says}\n"
     assert main(["compare", str(files / "photo.jpg"), str(files / "right.png")]) == 2
@@ -469,23 +528,28 @@ def test_no_traceback_for_a_closed_pipe(tmp_path):
     read, write = os.pipe()
     os.close(read)  # as `phongray schema | head` once head has exited
     for args in (["schema"], ["render", str(SCENES / "01_three_spheres.json"), "-o", "-", "-q"]):
-        done = subprocess.run([sys.executable, "-m", "service.cli", *args], stdout=write, stderr=subprocess.PIPE,
-                              timeout=60)
+        done = subprocess.run(
+            [sys.executable, "-m", "service.cli", *args], stdout=write, stderr=subprocess.PIPE, timeout=60
+        )
         assert b"Traceback" not in done.stderr and b"Error" not in done.stderr, done.stderr
         assert done.returncode == 1
     os.close(write)
 
 
-@pytest.mark.parametrize("args, says", [
-    (["serve", "--port", "99999"], b"99999 is not a TCP port (0-65535)".replace(b"-", "–".encode())),
-    (["validate", str(SCENES / "01_three_spheres.json"), "--server", "127.0.0.1:notaport"], b"cannot reach"),
-    (["validate", str(SCENES / "01_three_spheres.json"), "--server", "http://127.0.0.1:99999"], b"cannot reach"),
-    (["render", str(SCENES / "01_three_spheres.json"), "-o", "x.png", "--cluster", "garbage"],
-     b"not a Dask scheduler address"),
-])
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["serve", "--port", "99999"], b"99999 is not a TCP port (0-65535)".replace(b"-", "–".encode())),
+        (["validate", str(SCENES / "01_three_spheres.json"), "--server", "127.0.0.1:notaport"], b"cannot reach"),
+        (["validate", str(SCENES / "01_three_spheres.json"), "--server", "http://127.0.0.1:99999"], b"cannot reach"),
+        (
+            ["render", str(SCENES / "01_three_spheres.json"), "-o", "x.png", "--cluster", "garbage"],
+            b"not a Dask scheduler address",
+        ),
+    ],
+)
 def test_bad_arguments_give_one_line_and_exit_2(args, says, tmp_path):
-    done = subprocess.run([sys.executable, "-m", "service.cli", *args], capture_output=True, timeout=60,
-                          cwd=tmp_path)
+    done = subprocess.run([sys.executable, "-m", "service.cli", *args], capture_output=True, timeout=60, cwd=tmp_path)
     assert done.returncode == 2 and b"Traceback" not in done.stderr and says in done.stderr, done.stderr
     assert done.stderr.count(b"\n") <= 2  # argparse adds its usage line
 
@@ -495,8 +559,9 @@ def test_serve_on_a_port_in_use_is_one_line(tmp_path):
 
     with socket.create_server(("127.0.0.1", 0)) as taken:
         port = taken.getsockname()[1]
-        done = subprocess.run([sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
-                              capture_output=True, timeout=60)
+        done = subprocess.run(
+            [sys.executable, "-m", "service.cli", "serve", "--port", str(port)], capture_output=True, timeout=60
+        )
     assert done.returncode == 2 and done.stderr.startswith(f"phongray: cannot listen on 127.0.0.1:{port}: ".encode())
     assert b"Traceback" not in done.stderr
 
@@ -508,8 +573,12 @@ def test_a_wrong_setting_in_the_environment_is_one_line_told_before_the_port_is_
 
     with socket.create_server(("127.0.0.1", 0)) as taken:
         port = taken.getsockname()[1]
-        done = subprocess.run([sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
-                              capture_output=True, timeout=60, env={**os.environ, "PHONGRAY_MAX_PIXELS": "lots"})
+        done = subprocess.run(
+            [sys.executable, "-m", "service.cli", "serve", "--port", str(port)],
+            capture_output=True,
+            timeout=60,
+            env={**os.environ, "PHONGRAY_MAX_PIXELS": "lots"},
+        )
     assert done.returncode == 2 and done.stderr.startswith(b"phongray: PHONGRAY_MAX_PIXELS: "), done.stderr
     assert done.stderr.count(b"\n") == 1
 
@@ -517,8 +586,12 @@ def test_a_wrong_setting_in_the_environment_is_one_line_told_before_the_port_is_
 def test_python_m_phongray_works_in_a_folder_with_a_students_modules(tmp_path):
     for name in ("tracer.py", "service.py", "schemas.py"):
         (tmp_path / name).write_text("raise SystemExit('a student module was imported')\n")
-    done = subprocess.run([sys.executable, "-m", "phongray", "render", str(SCENES / "07_spotlights.json"), "-o",
-                           "out.png", "-q"], cwd=tmp_path, capture_output=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "phongray", "render", str(SCENES / "07_spotlights.json"), "-o", "out.png", "-q"],
+        cwd=tmp_path,
+        capture_output=True,
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     assert decode_png((tmp_path / "out.png").read_bytes()).shape == (120, 160, 3)
 
@@ -531,16 +604,28 @@ def test_with_a_cluster_dask_logs_nothing_of_its_own(tmp_path, capsys):
     import distributed  # noqa: F401
 
     free = socket_free_port()
-    assert main(["render", str(SCENES / "01_three_spheres.json"), "-o", str(tmp_path / "x.png"),
-                 "--cluster", f"tcp://127.0.0.1:{free}", "--cluster-wait", "1"]) == 2
+    assert (
+        main(
+            [
+                "render",
+                str(SCENES / "01_three_spheres.json"),
+                "-o",
+                str(tmp_path / "x.png"),
+                "--cluster",
+                f"tcp://127.0.0.1:{free}",
+                "--cluster-wait",
+                "1",
+            ]
+        )
+        == 2
+    )
     assert capsys.readouterr().err.startswith("phongray: ")
     assert not logging.getLogger("distributed.client").isEnabledFor(logging.ERROR)
 
 
 @pytest.mark.parametrize("command", ["render", "grade-class"])
 @pytest.mark.parametrize("wait, asked", [("5", 5.0), ("0", 1.0), ("60", 10.0)])
-def test_cluster_wait_bounds_the_wait_for_an_unreachable_scheduler(command, wait, asked, tmp_path, capsys,
-                                                                    monkeypatch):
+def test_cluster_wait_bounds_the_wait_for_an_unreachable_scheduler(command, wait, asked, tmp_path, capsys, monkeypatch):
     """--cluster-wait 5 gives the scheduler 5 s to answer (not Dask's own 10 s, and then 5 s more for a
     worker); 0 still lets it answer (in 1 s); a longer wait keeps Dask's 10 s for the answer."""
     import distributed
@@ -553,8 +638,11 @@ def test_cluster_wait_bounds_the_wait_for_an_unreachable_scheduler(command, wait
 
     monkeypatch.setattr(distributed, "Client", unreachable)
     address = f"tcp://127.0.0.1:{socket_free_port()}"
-    args = (["render", str(SCENES / "07_spotlights.json"), "-o", str(tmp_path / "x.png")] if command == "render"
-            else ["grade-class", "examples/class/scenes", "examples/class/submissions", "-o", str(tmp_path / "r")])
+    args = (
+        ["render", str(SCENES / "07_spotlights.json"), "-o", str(tmp_path / "x.png")]
+        if command == "render"
+        else ["grade-class", "examples/class/scenes", "examples/class/submissions", "-o", str(tmp_path / "r")]
+    )
     monkeypatch.chdir(SCENES.parent.parent)
     assert main([*args, "--cluster", address, "--cluster-wait", wait]) == 2
     assert given == [asked]

@@ -54,12 +54,42 @@ def dask(tmp_path_factory):
     logs = tmp_path_factory.mktemp("dask")
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
-    procs = [_start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
-                     str(port), "--dashboard-address", "127.0.0.1:0"], logs / "scheduler.log")]
+    procs = [
+        _start(
+            [
+                sys.executable,
+                "-m",
+                "distributed.cli.dask_scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--dashboard-address",
+                "127.0.0.1:0",
+            ],
+            logs / "scheduler.log",
+        )
+    ]
     try:
         for k in range(2):
-            procs.append(_start([*DASK, address, "--nthreads", "1", "--no-nanny", "--host", "127.0.0.1",
-                                 "--dashboard-address", "127.0.0.1:0", "--name", f"w{k}"], logs / f"worker{k}.log"))
+            procs.append(
+                _start(
+                    [
+                        *DASK,
+                        address,
+                        "--nthreads",
+                        "1",
+                        "--no-nanny",
+                        "--host",
+                        "127.0.0.1",
+                        "--dashboard-address",
+                        "127.0.0.1:0",
+                        "--name",
+                        f"w{k}",
+                    ],
+                    logs / f"worker{k}.log",
+                )
+            )
         deadline = time.monotonic() + 60
         while True:
             try:
@@ -124,7 +154,8 @@ def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
         (tmp_path / "own" / f"s{k:02d}").mkdir(parents=True)
         (tmp_path / "own" / f"s{k:02d}" / "soft.json").write_text(json.dumps(own))
         (subs / f"s{k:02d}" / "soft.png").write_bytes(
-            tracer.encode_png(tracer.render(schemas.validate_scene(json.loads(json.dumps(own))))))
+            tracer.encode_png(tracer.render(schemas.validate_scene(json.loads(json.dumps(own)))))
+        )
     killed: list[int] = []
     outcome = {}
 
@@ -135,9 +166,15 @@ def test_a_batch_survives_a_worker_killed_in_its_middle(dask, tmp_path):
             victim.wait()
             killed.append(finished)
 
-    thread = threading.Thread(target=lambda: outcome.setdefault(
-        "o", classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", cluster=address,
-                                            student_scenes=tmp_path / "own"), progress=progress)))
+    thread = threading.Thread(
+        target=lambda: outcome.setdefault(
+            "o",
+            classgrade.grade_class(
+                ClassRun(scenes, subs, tmp_path / "report", cluster=address, student_scenes=tmp_path / "own"),
+                progress=progress,
+            ),
+        )
+    )
     thread.start()
     thread.join(timeout=300)
     assert not thread.is_alive()
@@ -206,8 +243,20 @@ def idle_scheduler(tmp_path_factory):
     """A Dask scheduler on 127.0.0.1 with no workers at all."""
     logs = tmp_path_factory.mktemp("idle")
     port = free_port()
-    proc = _start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port),
-                   "--dashboard-address", "127.0.0.1:0"], logs / "scheduler.log")
+    proc = _start(
+        [
+            sys.executable,
+            "-m",
+            "distributed.cli.dask_scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--dashboard-address",
+            "127.0.0.1:0",
+        ],
+        logs / "scheduler.log",
+    )
     address = f"tcp://127.0.0.1:{port}"
     try:
         deadline = time.monotonic() + 60
@@ -229,24 +278,32 @@ def test_a_cluster_with_no_workers_stops_with_one_line_after_the_wait(idle_sched
     scenes, subs, data = one_task(tmp_path, "balls", "01_three_spheres", 16, 12)
     (subs / "a").mkdir(parents=True)
     (subs / "a" / "balls.png").write_bytes(b"")
-    args = (["render", str(scenes / "balls.json"), "-o", str(tmp_path / "x.png")] if command == "render" else
-            ["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")])
+    args = (
+        ["render", str(scenes / "balls.json"), "-o", str(tmp_path / "x.png")]
+        if command == "render"
+        else ["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")]
+    )
     started = time.monotonic()
-    done = subprocess.run([sys.executable, "-m", "service.cli", *args, "--cluster", idle_scheduler,
-                           "--cluster-wait", "1"], capture_output=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "service.cli", *args, "--cluster", idle_scheduler, "--cluster-wait", "1"],
+        capture_output=True,
+        timeout=120,
+    )
     assert done.returncode == 2 and b"Traceback" not in done.stderr, done.stderr
-    assert done.stderr.decode() == (f"phongray: the Dask scheduler at {idle_scheduler} has no workers (none joined "
-                                    f"within 1 s; start some with 'dask worker {idle_scheduler}', or wait longer "
-                                    f"with --cluster-wait)\n")
-    measured(f"{command} on a cluster with no workers, --cluster-wait 1: stopped after (s)",
-             time.monotonic() - started)
+    assert done.stderr.decode() == (
+        f"phongray: the Dask scheduler at {idle_scheduler} has no workers (none joined "
+        f"within 1 s; start some with 'dask worker {idle_scheduler}', or wait longer "
+        f"with --cluster-wait)\n"
+    )
+    measured(f"{command} on a cluster with no workers, --cluster-wait 1: stopped after (s)", time.monotonic() - started)
     assert not (tmp_path / "r" / "report.json").exists()  # (the run's bound is the subprocess's timeout)
 
 
 def test_the_service_on_a_cluster_with_no_workers_answers_503_at_once(idle_scheduler, tmp_path):
     with running_server(tmp_path, cluster=idle_scheduler) as (url, _):
-        req = urllib.request.Request(url + "/render", (SCENES / "01_three_spheres.json").read_bytes(),
-                                     {"content-type": "application/json"})
+        req = urllib.request.Request(
+            url + "/render", (SCENES / "01_three_spheres.json").read_bytes(), {"content-type": "application/json"}
+        )
         started = time.monotonic()
         with pytest.raises(urllib.error.HTTPError) as answer:
             urllib.request.urlopen(req, timeout=60)
@@ -265,8 +322,13 @@ def test_a_class_graded_three_ways_gives_one_report(dask, tmp_path):
     own["image"]["background"] = [0.2, 0.1, 0.0]
     (tmp_path / "own" / "d").mkdir(parents=True)
     (tmp_path / "own" / "d" / "balls.json").write_text(json.dumps(own))
-    for student, name, image in (("a", "balls.png", right), ("b", "Balls.PNG", dark), ("c", "hw/balls.png", right),
-                                 ("d", "balls.png", right), ("e", "balls.jpg", b"\xff\xd8\xff\xe0 a JPEG")):
+    for student, name, image in (
+        ("a", "balls.png", right),
+        ("b", "Balls.PNG", dark),
+        ("c", "hw/balls.png", right),
+        ("d", "balls.png", right),
+        ("e", "balls.jpg", b"\xff\xd8\xff\xe0 a JPEG"),
+    ):
         (subs / student / name).parent.mkdir(parents=True, exist_ok=True)
         (subs / student / name).write_bytes(image)
     kw = {"student_scenes": tmp_path / "own"}
@@ -318,9 +380,14 @@ def test_a_pass_and_a_diagnosis_on_the_cluster_are_the_local_ones(dask, tmp_path
         with urllib.request.urlopen(req, timeout=120) as res:
             assert res.read() == local
         boundary = "b0undary"
-        form = (f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n'.encode() + body +
-                f'\r\n--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="s.png"\r\n'
-                f'Content-Type: image/png\r\n\r\n'.encode() + buf.getvalue() + f"\r\n--{boundary}--\r\n".encode())
+        form = (
+            f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n'.encode()
+            + body
+            + f'\r\n--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="s.png"\r\n'
+            f"Content-Type: image/png\r\n\r\n".encode()
+            + buf.getvalue()
+            + f"\r\n--{boundary}--\r\n".encode()
+        )
         kind = {"content-type": f"multipart/form-data; boundary={boundary}"}
         req = urllib.request.Request(url + "/grade", form, kind)
         with urllib.request.urlopen(req, timeout=300) as res:

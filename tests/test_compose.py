@@ -47,8 +47,12 @@ class Counted:
         return Renderer(self.scene, options).pixels()
 
     def looks(self) -> Looks:
-        return Looks(self.rows, self.render, lambda name: not unchanged(name, self.scene),
-                     tuple(light.type for light in self.scene.lights))
+        return Looks(
+            self.rows,
+            self.render,
+            lambda name: not unchanged(name, self.scene),
+            tuple(light.type for light in self.scene.lights),
+        )
 
 
 def test_options_merge_the_changed_fields_of_each_mistake():
@@ -82,17 +86,24 @@ def test_the_differences_of_two_mistakes_add_up_on_rows():
     reference = Renderer(scene).pixels()
     submitted = Renderer(scene, merged(("no-shadows", "blinn-phong"))).pixels()
     numbers = telling_rows(reference, submitted, 2)
-    deltas = {n: counted.rows(n, numbers).astype(float) - reference[numbers]
-              for n in ("no-shadows", "blinn-phong", "no-ambient", "no-attenuation")}
+    deltas = {
+        n: counted.rows(n, numbers).astype(float) - reference[numbers]
+        for n in ("no-shadows", "blinn-phong", "no-ambient", "no-attenuation")
+    }
     rows = Rows(reference[numbers], submitted[numbers], (), deltas)
     assert set(chosen(rows)) == {"no-shadows", "blinn-phong"}
     assert rows.error(("no-shadows", "blinn-phong")) < rows.error(("no-shadows",)) < rows.error(())
 
 
-@pytest.mark.parametrize("name, made", [("01_three_spheres", ("no-shadows", "blinn-phong")),
-                                        ("02_all_lights", ("no-attenuation", "gamma")),
-                                        ("04_whitted", ("no-ambient", "no-specular")),
-                                        ("05_mesh", ("no-shadows", "gamma"))])
+@pytest.mark.parametrize(
+    "name, made",
+    [
+        ("01_three_spheres", ("no-shadows", "blinn-phong")),
+        ("02_all_lights", ("no-attenuation", "gamma")),
+        ("04_whitted", ("no-ambient", "no-specular")),
+        ("05_mesh", ("no-shadows", "gamma")),
+    ],
+)
 def test_two_mistakes_of_the_first_student_are_named_with_one_render(name, made):
     scene = small(name)
     counted = Counted(scene)

@@ -20,21 +20,47 @@ from tracer.surfaces import unit
 def scene_of(rng, scale=1.0, shift=0.0):
     objects = []
     for _ in range(6):
-        objects.append({"type": "sphere", "material": "m", "center": (rng.uniform(-3, 3, 3) * scale + shift).tolist(),
-                        "radius": float(rng.choice([1e-3, 0.05, 0.4, 1.2])) * scale})
-    objects.append({"type": "sphere", "material": "m", "center": [0.1 * scale + shift, shift, -0.2 * scale + shift],
-                    "radius": 0.5 * scale})  # the apex (the eye, at shift) inside it
+        objects.append(
+            {
+                "type": "sphere",
+                "material": "m",
+                "center": (rng.uniform(-3, 3, 3) * scale + shift).tolist(),
+                "radius": float(rng.choice([1e-3, 0.05, 0.4, 1.2])) * scale,
+            }
+        )
+    objects.append(
+        {
+            "type": "sphere",
+            "material": "m",
+            "center": [0.1 * scale + shift, shift, -0.2 * scale + shift],
+            "radius": 0.5 * scale,
+        }
+    )  # the apex (the eye, at shift) inside it
     for _ in range(6):
         a = rng.uniform(-3, 3, 3)
         corners = [a, a + rng.normal(size=3), a + rng.normal(size=3) * rng.choice([1.0, 1e-3])]  # slivers too
-        objects.append({"type": "triangle", "material": "m",
-                        "vertices": [(c * scale + shift).tolist() for c in corners]})
+        objects.append(
+            {"type": "triangle", "material": "m", "vertices": [(c * scale + shift).tolist() for c in corners]}
+        )
     # a triangle in a plane through the eye (edge-on to the apex)
-    objects.append({"type": "triangle", "material": "m", "vertices": [
-        [shift + 1 * scale, shift, shift + 1 * scale], [shift + 2 * scale, shift, shift - 1 * scale],
-        [shift - 1 * scale, shift, shift - 2 * scale]]})
-    data = {"camera": {"position": [shift, shift, shift], "look_at": [shift, shift, shift - scale - abs(shift) * 1e-3]},
-            "image": {"width": 2, "height": 2}, "materials": {"m": {}}, "objects": objects, "lights": []}
+    objects.append(
+        {
+            "type": "triangle",
+            "material": "m",
+            "vertices": [
+                [shift + 1 * scale, shift, shift + 1 * scale],
+                [shift + 2 * scale, shift, shift - 1 * scale],
+                [shift - 1 * scale, shift, shift - 2 * scale],
+            ],
+        }
+    )
+    data = {
+        "camera": {"position": [shift, shift, shift], "look_at": [shift, shift, shift - scale - abs(shift) * 1e-3]},
+        "image": {"width": 2, "height": 2},
+        "materials": {"m": {}},
+        "objects": objects,
+        "lights": [],
+    }
     return Renderer(schemas.validate_scene(data)).world
 
 
@@ -71,8 +97,9 @@ def _hits_of(world, origins, dirs, ends, reach, mag, mag_e):
         t = sphere_t(origins, dirs, sp.center[k], sp.radius[k], mag, sp.mag[k], np.zeros(n, bool), ends, reach, mag_e)
         out |= {(int(r), SPHERE, k) for r in np.flatnonzero(t < (np.inf if reach is None else reach))}
     for k in range(len(tr.v0)):
-        t, _, _ = triangle_t(origins, dirs, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag, tr.mag[k],
-                             np.zeros(n, bool), ends, mag_e)
+        t, _, _ = triangle_t(
+            origins, dirs, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag, tr.mag[k], np.zeros(n, bool), ends, mag_e
+        )
         out |= {(int(r), TRIANGLE, k) for r in np.flatnonzero(t < (np.inf if reach is None else reach))}
     return out
 
@@ -152,6 +179,7 @@ def test_a_triangles_edge_planes_keep_their_direction_far_from_the_apex(ratio):
 
     from tracer.cones import _edge_plane
     from tracer.margins import NORMAL_ERROR
+
     rng = np.random.default_rng(int(-np.log10(ratio)))
     apex = rng.normal(size=3) * 1e3
     far = apex + unit(rng.normal(size=(1, 3)))[0] * 1e6

@@ -20,12 +20,22 @@ import reference
 def with_area_light(seed):
     family, data = generator.scene(seed, 24, 18)
     rng = np.random.default_rng(seed)
-    centre = np.mean([o.get("center", o.get("point", [0, 0, 0])) for o in data["objects"]
-                      if "center" in o or "point" in o] or [[0, 0, 0]], axis=0)
+    centre = np.mean(
+        [o.get("center", o.get("point", [0, 0, 0])) for o in data["objects"] if "center" in o or "point" in o]
+        or [[0, 0, 0]],
+        axis=0,
+    )
     size = float(np.max(np.abs(data["camera"]["position"])) or 1.0)
-    data["lights"].append({"type": "area", "color": 1.0, "corner": (centre + rng.normal(size=3) * size).tolist(),
-                           "edge_u": (rng.normal(size=3) * size * 0.3).tolist(),
-                           "edge_v": (rng.normal(size=3) * size * 0.3).tolist(), "samples": [3, 3]})
+    data["lights"].append(
+        {
+            "type": "area",
+            "color": 1.0,
+            "corner": (centre + rng.normal(size=3) * size).tolist(),
+            "edge_u": (rng.normal(size=3) * size * 0.3).tolist(),
+            "edge_v": (rng.normal(size=3) * size * 0.3).tolist(),
+            "samples": [3, 3],
+        }
+    )
     return data
 
 
@@ -43,20 +53,33 @@ def test_proofs_hold_against_every_sample_of_the_brute_force():
     counts = np.zeros(3, dtype=int)
     spared = 0
     for _ in range(12):
-        objects = [{"type": "sphere", "material": "m", "center": rng.uniform(-2, 2, 3).tolist(),
-                    "radius": float(rng.uniform(0.2, 0.8))} for _ in range(6)]
+        objects = [
+            {
+                "type": "sphere",
+                "material": "m",
+                "center": rng.uniform(-2, 2, 3).tolist(),
+                "radius": float(rng.uniform(0.2, 0.8)),
+            }
+            for _ in range(6)
+        ]
         objects.append({"type": "plane", "material": "m", "point": [0, -2.5, 0], "normal": [0, 1, 0]})
         objects.append({"type": "triangle", "material": "m", "vertices": rng.uniform(-2, 2, (3, 3)).tolist()})
-        data = {"camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]}, "image": {"width": 4, "height": 4},
-                "materials": {"m": {}}, "objects": objects, "lights": []}
+        data = {
+            "camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]},
+            "image": {"width": 4, "height": 4},
+            "materials": {"m": {}},
+            "objects": objects,
+            "lights": [],
+        }
         scene = schemas.validate_scene(data)
         r = Renderer(scene)
         corners = np.array([[-1, 3, -1], [1, 3, -1], [1, 3, 1], [-1, 3, 1]], dtype=float) + rng.uniform(-1, 1, 3)
         points = rng.uniform(-3, 3, (3000, 3))
         points[:, 1] = rng.uniform(-2.4, 2.5, 3000)
         none = np.zeros(len(points), dtype=np.int8)
-        at = SurfacePoints(points - r.world.origin, none, np.full(len(points), -1),
-                           np.tile([0.0, 1.0, 0.0], (len(points), 1)))
+        at = SurfacePoints(
+            points - r.world.origin, none, np.full(len(points), -1), np.tile([0.0, 1.0, 0.0], (len(points), 1))
+        )
         culled = classify(bounds_of(r.world), at, corners - r.world.origin)
         state = culled.state
         counts += np.bincount(state, minlength=3)
@@ -89,12 +112,25 @@ def test_tiles_of_neighbouring_points_proven_seen_see_every_sample():
     from tracer.tiles import TILE
 
     rng = np.random.default_rng(8)
-    objects = [{"type": "sphere", "material": "m", "center": rng.uniform(-2, 2, 3).tolist(),
-                "radius": float(rng.uniform(0.2, 0.5))} for _ in range(4)]
+    objects = [
+        {
+            "type": "sphere",
+            "material": "m",
+            "center": rng.uniform(-2, 2, 3).tolist(),
+            "radius": float(rng.uniform(0.2, 0.5)),
+        }
+        for _ in range(4)
+    ]
     objects.append({"type": "plane", "material": "m", "point": [0, -2.5, 0], "normal": [0, 1, 0]})
-    scene = schemas.validate_scene({"camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]},
-                                    "image": {"width": 4, "height": 4}, "materials": {"m": {}},
-                                    "objects": objects, "lights": []})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]},
+            "image": {"width": 4, "height": 4},
+            "materials": {"m": {}},
+            "objects": objects,
+            "lights": [],
+        }
+    )
     r = Renderer(scene)
     corners = np.array([[-1, 3.5, -1], [1, 3.5, -1], [1, 3.5, 1], [-1, 3.5, 1]], dtype=float)
     # the floor under the light, row by row: points on the plane (PLANE 0), as a camera's hits would come
@@ -107,7 +143,7 @@ def test_tiles_of_neighbouring_points_proven_seen_see_every_sample():
     tiles = _seen_tiles(b, at, corners - r.world.origin)
     culled = classify(b, at, corners - r.world.origin)
     seen = culled.state == SEEN
-    whole = np.repeat(tiles, TILE)[:len(points)]
+    whole = np.repeat(tiles, TILE)[: len(points)]
     assert np.all(seen[whole])
     # most points the per-point proofs find SEEN are proven a tile at a time
     assert whole.sum() > 0.6 * np.count_nonzero(_classify(b, at, corners - r.world.origin).state == SEEN)
@@ -124,6 +160,7 @@ def test_tiles_of_neighbouring_points_proven_seen_see_every_sample():
 
 
 # -- thin area lights far away: the faces' directions at every ratio of edge to distance -------------------------
+
 
 def thin_light(rng, ratio, distance, shift):
     """A parallelogram with edges about ``ratio·distance`` long, ``distance`` from ``shift``, and points near
@@ -199,12 +236,23 @@ def grazed(seed):
 
 def grazed_state(seed):
     corners, p, centre, r = grazed(seed)
-    b = Bounds(center=centre[None], radius=np.array([r]), kind=np.array([SPHERE]), index=np.array([0]),
-               solid=np.array([True]), plane_point=np.zeros((0, 3)), plane_normal=np.zeros((0, 3)))
+    b = Bounds(
+        center=centre[None],
+        radius=np.array([r]),
+        kind=np.array([SPHERE]),
+        index=np.array([0]),
+        solid=np.array([True]),
+        plane_point=np.zeros((0, 3)),
+        plane_normal=np.zeros((0, 3)),
+    )
     n = 80  # one point many times: the tiles' proof and the per-point one
     towards = corners.mean(axis=0) - p
-    at = SurfacePoints(np.repeat(p[None], n, axis=0), np.full(n, PLANE), np.zeros(n, dtype=int),
-                       np.repeat((towards / np.linalg.norm(towards))[None], n, axis=0))
+    at = SurfacePoints(
+        np.repeat(p[None], n, axis=0),
+        np.full(n, PLANE),
+        np.zeros(n, dtype=int),
+        np.repeat((towards / np.linalg.norm(towards))[None], n, axis=0),
+    )
     return classify(b, at, corners)
 
 

@@ -26,8 +26,19 @@ def setting():
     return scene, reference, renders_of(scene)
 
 
-@pytest.mark.parametrize("name", ["no-shadows", "blinn-phong", "gamma", "no-attenuation", "image-flipped",
-                                  "area-not-divided", "spot-radians", "no-ambient"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "no-shadows",
+        "blinn-phong",
+        "gamma",
+        "no-attenuation",
+        "image-flipped",
+        "area-not-divided",
+        "spot-radians",
+        "no-ambient",
+    ],
+)
 def test_a_students_mistake_is_named_first(setting, name):
     scene, reference, renders = setting
     student = Renderer(scene, VARIANTS[name][0]).pixels()
@@ -79,6 +90,7 @@ def test_nnls_is_non_negative_and_exact_where_it_can_be():
 
 # -- a student's renderer (tests/student.py), each mistake made the student's way ---------------------------
 
+
 def classroom() -> dict[str, dict]:
     """Three scenes that every mistake of the list changes: anti-aliased, every light type, glass and a mirror."""
     a = copy.deepcopy(EVERYTHING)
@@ -126,10 +138,17 @@ def test_a_light_left_out_is_no_named_mistake_but_a_term(room):
     assert found.terms[0].scale < 0.15
     # the nearest explanation, ranked first by its share of the difference, in a student's words
     assert found.closest or found.causes[0].variant in ("term:diffuse:1", "term:specular:1")
-    assert found.sentence().startswith(("No known mistake fits exactly: most of the difference is the diffuse of "
-                                        "the second light (point), which is missing",
-                                        "No known mistake fits exactly: most of the difference is the specular of "
-                                        "the second light (point), which is missing")) or found.closest
+    assert (
+        found.sentence().startswith(
+            (
+                "No known mistake fits exactly: most of the difference is the diffuse of "
+                "the second light (point), which is missing",
+                "No known mistake fits exactly: most of the difference is the specular of "
+                "the second light (point), which is missing",
+            )
+        )
+        or found.closest
+    )
 
 
 def test_the_mistakes_are_the_variants():
@@ -137,6 +156,7 @@ def test_the_mistakes_are_the_variants():
 
 
 # -- what a diagnosis renders: one pass render, variants from the reference's colour, a first look at rows --------
+
 
 def test_variants_made_from_the_reference_colour_are_their_own_renders(setting):
     scene, reference, renders = setting
@@ -159,8 +179,10 @@ def test_one_pass_render_gives_every_lights_terms_as_their_own_renders_do(settin
 
 
 def _submissions(scene, reference):
-    out = {name: Renderer(scene, VARIANTS[name][0]).pixels()
-           for name in ("no-shadows", "blinn-phong", "no-half-pixel", "normals-not-flipped", "gamma")}
+    out = {
+        name: Renderer(scene, VARIANTS[name][0]).pixels()
+        for name in ("no-shadows", "blinn-phong", "no-half-pixel", "normals-not-flipped", "gamma")
+    }
     out["half as bright"] = reference // 2
     patch = reference.copy()
     patch[10:20, 5:30] = 255
@@ -188,16 +210,19 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         looked.bound = lambda v, f=render_bound, far=far: far.append(v) or f(v)
         # blind: every variant, the far end and the passes rendered whole, and every variant scored
         blind = dataclasses.replace(renders_of(scene), rows=None, bound_rows=None, at=None, unchanged=None)
-        assert diagnose(reference, submitted, verdict, looked).as_dict() == \
-            diagnose(reference, submitted, verdict, blind).as_dict(), name
+        assert (
+            diagnose(reference, submitted, verdict, looked).as_dict()
+            == diagnose(reference, submitted, verdict, blind).as_dict()
+        ), name
         spared += len(VARIANTS) - len(whole) + 1 - len(far)
         # and the first look at the far end's rows is a lower bound of what the whole of it counts
         least = looks.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
         outside = looks.speckled(reference, looked.bound("shadow-acne"), submitted, verdict.tolerance)
         whole_far = Renderer(scene, BOUNDS["shadow-acne"]).pixels().astype(int)
         ref, sub, tol = reference.astype(int), submitted.astype(int), verdict.tolerance
-        count = int(np.any((sub < np.minimum(ref, whole_far) - tol) | (sub > np.maximum(ref, whole_far) + tol),
-                           axis=2).sum())
+        count = int(
+            np.any((sub < np.minimum(ref, whole_far) - tol) | (sub > np.maximum(ref, whole_far) + tol), axis=2).sum()
+        )
         assert least is not None and least <= count
         assert outside is None or outside == count / (ref.shape[0] * ref.shape[1])
         # and what the first look gives is a lower bound of what the whole grade counts
@@ -217,8 +242,10 @@ def test_a_first_look_counts_off_pixels_as_the_grade_does():
         bands = rng.integers(0, 256, (5, 3, 17, 3), dtype=np.uint8)
         middles = np.clip(bands[:, 1].astype(int) + rng.integers(-12, 13, (5, 17, 3)), 0, 255).astype(np.uint8)
         tolerance = float(rng.integers(0, 10))
-        alone = sum(int(np.count_nonzero(nearby_difference(band, planes(m[None]), 1, 2) > tolerance))
-                    for band, m in zip(bands, middles))
+        alone = sum(
+            int(np.count_nonzero(nearby_difference(band, planes(m[None]), 1, 2) > tolerance))
+            for band, m in zip(bands, middles)
+        )
         assert _off_nearby(bands, middles, tolerance) == alone
 
 
@@ -324,8 +351,10 @@ def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named():
 
     scene, reference, submitted = _boundary_case()
     verdict = grade(reference, submitted, "", 2.0, 0.009)
-    assert not verdict.passed and grade(Renderer(scene, VARIANTS["no-shadows"][0]).pixels(), submitted, "", 2.0,
-                                        0.009).passed
+    assert (
+        not verdict.passed
+        and grade(Renderer(scene, VARIANTS["no-shadows"][0]).pixels(), submitted, "", 2.0, 0.009).passed
+    )
     found = diagnose(reference, submitted, verdict, renders_of(scene))
     blind = dataclasses.replace(renders_of(scene), rows=None, bound_rows=None, at=None, unchanged=None)
     assert found.as_dict() == diagnose(reference, submitted, verdict, blind).as_dict()
@@ -416,8 +445,10 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
         except RenderCancelled:
             results[name] = "cancelled"
 
-    threads = [threading.Thread(target=run, args=("stopped", lambda: True)),
-               threading.Thread(target=run, args=("going on", lambda: False))]
+    threads = [
+        threading.Thread(target=run, args=("stopped", lambda: True)),
+        threading.Thread(target=run, args=("going on", lambda: False)),
+    ]
     for t in threads:
         t.start()
     for t in threads:
@@ -453,8 +484,13 @@ def test_acnes_far_end_in_bands_is_whole_or_given_up_only_when_too_much_lies_out
 def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_words():
     from service.diagnosis import Cause, Diagnosis, Share, Term, headline, unavailable
 
-    found = Diagnosis([Cause("no-shadows", "no shadow rays", 0.3, False)], True, [Term("diffuse", 1, 0.02)],
-                      [Share(0, "sphere", 0.75), Share(-1, "background", 0.25)], [Share(1, "point", 0.5)])
+    found = Diagnosis(
+        [Cause("no-shadows", "no shadow rays", 0.3, False)],
+        True,
+        [Term("diffuse", 1, 0.02)],
+        [Share(0, "sphere", 0.75), Share(-1, "background", 0.25)],
+        [Share(1, "point", 0.5)],
+    )
     assert Diagnosis.from_dict(found.as_dict()) == found
     assert headline(found) == "no shadow rays (closest)" and headline(None) == ""
     termed = Diagnosis(terms=[Term("diffuse", 1, 0.02)])
@@ -463,18 +499,41 @@ def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_wo
     worded = Diagnosis(terms=[Term("diffuse", 1, 2.02, 0.7, "the diffuse of light 'key' is twice as bright")])
     assert worded.sentence() == "Likely: the diffuse of light 'key' is twice as bright"
     assert Diagnosis.from_dict(worded.as_dict()) == worded
-    nearest = Diagnosis([Cause("term:diffuse:1", "the diffuse of light 'key', which is missing", 0.5, False, [], 0.8,
-                               "accounts for about 80 % of the difference")])
-    assert nearest.nearest and nearest.sentence() == ("No known mistake fits exactly: most of the difference is the "
-                                                      "diffuse of light 'key', which is missing (about 80 %)")
+    nearest = Diagnosis(
+        [
+            Cause(
+                "term:diffuse:1",
+                "the diffuse of light 'key', which is missing",
+                0.5,
+                False,
+                [],
+                0.8,
+                "accounts for about 80 % of the difference",
+            )
+        ]
+    )
+    assert nearest.nearest and nearest.sentence() == (
+        "No known mistake fits exactly: most of the difference is the "
+        "diffuse of light 'key', which is missing (about 80 %)"
+    )
     assert Diagnosis.from_dict(nearest.as_dict()) == nearest
-    both = Diagnosis([Cause("no-shadows", "no shadow rays", 0.0, True, ["gamma"], 0.6, "e"),
-                      Cause("gamma", "gamma", 0.0, True, ["no-shadows"], 0.4, "e")])
+    both = Diagnosis(
+        [
+            Cause("no-shadows", "no shadow rays", 0.0, True, ["gamma"], 0.6, "e"),
+            Cause("gamma", "gamma", 0.0, True, ["no-shadows"], 0.4, "e"),
+        ]
+    )
     assert both.together and both.headline() == "no shadow rays + gamma"
     assert both.sentence().startswith("Likely two mistakes together: no shadow rays and gamma")
     assert Diagnosis.from_dict(both.as_dict()) == both
     assert Diagnosis().headline() == "no known mistake fits"
     late = unavailable("every render slot is busy")
-    assert late.as_dict() == {"sentence": "No diagnosis: every render slot is busy", "closest": False,
-                              "causes": [], "terms": [], "objects": [], "lights": []}
+    assert late.as_dict() == {
+        "sentence": "No diagnosis: every render slot is busy",
+        "closest": False,
+        "causes": [],
+        "terms": [],
+        "objects": [],
+        "lights": [],
+    }
     assert Diagnosis.from_dict(late.as_dict()) == late and late.headline() == late.sentence()

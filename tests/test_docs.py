@@ -57,7 +57,8 @@ def test_a_link_to_a_missing_file_is_found(tmp_path):
     page.write_text(
         "[up](../there.md) [up, a heading](../there.md#there) [here](#top) [web](https://example.com/x.md)\n"
         "[mail](mailto:someone@example.com) ![a picture](missing.png) [gone](../gone.md#part)\n"
-        "`[in code](nowhere.md)`\n\n```\n[in a block](nowhere.md)\n```\n")
+        "`[in code](nowhere.md)`\n\n```\n[in a block](nowhere.md)\n```\n"
+    )
     assert broken_links(page) == ["missing.png", "../gone.md#part"]
 
 
@@ -108,8 +109,11 @@ def test_the_diary_check_can_fail():
 def test_the_readme_says_how_many_browser_tests_are_skipped_without_chromium():
     """The tests of tests/test_e2e.py that take its ``browser`` fixture are the ones skipped without Chromium."""
     tree = ast.parse((ROOT / "tests" / "test_e2e.py").read_text())
-    browser = [f.name for f in tree.body if isinstance(f, ast.FunctionDef) and f.name.startswith("test_")
-               and "browser" in [a.arg for a in f.args.args]]
+    browser = [
+        f.name
+        for f in tree.body
+        if isinstance(f, ast.FunctionDef) and f.name.startswith("test_") and "browser" in [a.arg for a in f.args.args]
+    ]
     text = " ".join(README.read_text().split())
     assert browser and re.findall(r"(\d+) browser tests", text) == [str(len(browser))], browser
     assert f"without it those {len(browser)} are skipped" in text

@@ -23,8 +23,9 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("server"), max_concurrent_renders="1", max_body_bytes="200000",
-                        render_threads="1") as (url, _):
+    with running_server(
+        tmp_path_factory.mktemp("server"), max_concurrent_renders="1", max_body_bytes="200000", render_threads="1"
+    ) as (url, _):
         yield url
 
 
@@ -38,8 +39,10 @@ def status_of(func, *args, **kwargs):
 
 def test_render_matches_the_cli_bytes(server, tmp_path):
     out = tmp_path / "cli.png"
-    subprocess.run([sys.executable, "-m", "service.cli", "render", str(SCENES / "01_three_spheres.json"), "-o",
-                    str(out), "-q"], check=True)
+    subprocess.run(
+        [sys.executable, "-m", "service.cli", "render", str(SCENES / "01_three_spheres.json"), "-o", str(out), "-q"],
+        check=True,
+    )
     assert post_json(server, "/render", SCENE) == out.read_bytes()
 
 
@@ -47,8 +50,9 @@ def test_304_on_matching_etag(server):
     req = urllib.request.Request(server + "/render", data=SCENE, headers={"content-type": "application/json"})
     with urllib.request.urlopen(req) as res:
         etag = res.headers["etag"]
-    req = urllib.request.Request(server + "/render", data=SCENE,
-                                 headers={"content-type": "application/json", "if-none-match": etag})
+    req = urllib.request.Request(
+        server + "/render", data=SCENE, headers={"content-type": "application/json", "if-none-match": etag}
+    )
     with pytest.raises(urllib.error.HTTPError) as info:
         urllib.request.urlopen(req)
     info.value.close()
@@ -90,15 +94,28 @@ def test_cli_talks_to_the_server(server, tmp_path):
     run = [sys.executable, "-m", "service.cli"]
     spots = str(SCENES / "07_spotlights.json")
     assert subprocess.run([*run, "render", spots, "-o", str(out), "--server", server]).returncode == 0
-    assert subprocess.run([*run, "grade", str(SCENES / "07_spotlights.json"), str(out), "--server", server],
-                          capture_output=True).returncode == 0
-    assert subprocess.run([*run, "grade", str(SCENES / "01_three_spheres.json"), str(out), "--server", server],
-                          capture_output=True).returncode == 1  # another scene's image: fails
+    assert (
+        subprocess.run(
+            [*run, "grade", str(SCENES / "07_spotlights.json"), str(out), "--server", server], capture_output=True
+        ).returncode
+        == 0
+    )
+    assert (
+        subprocess.run(
+            [*run, "grade", str(SCENES / "01_three_spheres.json"), str(out), "--server", server], capture_output=True
+        ).returncode
+        == 1
+    )  # another scene's image: fails
     small = tmp_path / "small.png"
-    assert subprocess.run([*run, "render", str(SCENES / "07_spotlights.json"), "-o", str(small), "--width", "20",
-                           "--server", server]).returncode == 0
-    wrong = subprocess.run([*run, "grade", str(SCENES / "07_spotlights.json"), str(small), "--server", server],
-                           capture_output=True)
+    assert (
+        subprocess.run(
+            [*run, "render", str(SCENES / "07_spotlights.json"), "-o", str(small), "--width", "20", "--server", server]
+        ).returncode
+        == 0
+    )
+    wrong = subprocess.run(
+        [*run, "grade", str(SCENES / "07_spotlights.json"), str(small), "--server", server], capture_output=True
+    )
     assert wrong.returncode == 2 and b"20" in wrong.stderr  # wrong size: bad input
     assert subprocess.run([*run, "validate", str(SCENES / "05_mesh.json"), "--server", server]).returncode == 0
 
@@ -112,8 +129,9 @@ def browser():
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu",
-                                                              "--disable-background-networking"])
+        b = p.chromium.launch(
+            executable_path=CHROMIUM, args=["--no-sandbox", "--disable-gpu", "--disable-background-networking"]
+        )
         yield b
         b.close()
 
@@ -296,22 +314,28 @@ def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
     page.wait_for_selector("#verdict.pass", timeout=20_000)
     page.set_input_files("#upload", str(wrong))
     page.wait_for_selector("#verdict.fail", timeout=20_000)
-    page.wait_for_function("() => { const i = document.getElementById('grade-heat-map'); "
-                           "return i && i.naturalWidth === 160; }", timeout=20_000)
+    page.wait_for_function(
+        "() => { const i = document.getElementById('grade-heat-map'); return i && i.naturalWidth === 160; }",
+        timeout=20_000,
+    )
     assert "fraction_off_nearby" in page.inner_text("#numbers")
     assert page.inner_text("#verdict").startswith("FAIL: ") and "off even nearby" in page.inner_text("#verdict")
     legend = page.inner_text("#legend")
     assert "brighter than the reference" in legend and "darker than the reference" in legend
     # (a light left out: no mistake fits; most of the difference is that light's terms, in a student's words)
     assert page.is_visible("#diagnosis") and page.inner_text("#likely").startswith(
-        ("Likely: the ", "No known mistake fits exactly: most of the difference is the "))
+        ("Likely: the ", "No known mistake fits exactly: most of the difference is the ")
+    )
     unshadowed = tmp_path / "unshadowed.png"
     unshadowed.write_bytes(variant_png(SCENE, "no-shadows"))
     page.set_input_files("#upload", str(unshadowed))
-    page.wait_for_function("() => document.getElementById('likely').textContent.startsWith('Likely: no shadow')",
-                           timeout=30_000)
-    page.wait_for_function("() => { const i = document.getElementById('grade-heat-map'); "
-                           "return i && i.naturalWidth === 160; }", timeout=20_000)
+    page.wait_for_function(
+        "() => document.getElementById('likely').textContent.startsWith('Likely: no shadow')", timeout=30_000
+    )
+    page.wait_for_function(
+        "() => { const i = document.getElementById('grade-heat-map'); return i && i.naturalWidth === 160; }",
+        timeout=20_000,
+    )
     assert "failing pixels show: the first " in page.inner_text("#evidence")  # (objects by place and kind)
     shot(page, "playground-grade.png", tmp_path)
     assert page.outside == []
@@ -323,8 +347,9 @@ def test_playground_with_an_api_key(tmp_path, browser):
         page = browser.new_page()
         page.goto(url + "/")
         page.click("#render")
-        page.wait_for_function("() => document.getElementById('status').textContent.includes('API key')",
-                               timeout=20_000)
+        page.wait_for_function(
+            "() => document.getElementById('status').textContent.includes('API key')", timeout=20_000
+        )
         page.fill("#key", "opensesame")
         page.click("#render")
         page.wait_for_function("() => document.getElementById('image').naturalWidth > 0", timeout=20_000)
@@ -361,8 +386,13 @@ def test_swagger_ui_works_offline_and_tries_render_validate_and_grade(server, br
     page = offline_page(browser, server)
     page.goto(server + "/docs")
     page.wait_for_selector(".opblock", timeout=20_000)
-    assert page.locator(".opblock-summary-path").all_inner_texts() == ["/render", "/validate", "/grade", "/schema",
-                                                                        "/healthz"]
+    assert page.locator(".opblock-summary-path").all_inner_texts() == [
+        "/render",
+        "/validate",
+        "/grade",
+        "/schema",
+        "/healthz",
+    ]
     op = try_out(page, "render_scene_render_post")
     stub = op.locator("textarea.body-param__text").input_value()  # what "Try it out" sends untouched
     assert json.loads(stub) == json.loads(SCENE)

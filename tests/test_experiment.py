@@ -11,8 +11,7 @@ from service.programs.experiment import Thresholds, experiment
 from service.programs.job import Program, _runner
 
 HERE = Path(__file__).parent / "programs"
-LIMITS = Limits(wall_seconds=30.0, cpu_seconds=30, memory_bytes=1 << 30, output_bytes=1 << 20,
-                folder_bytes=1 << 20)
+LIMITS = Limits(wall_seconds=30.0, cpu_seconds=30, memory_bytes=1 << 30, output_bytes=1 << 20, folder_bytes=1 << 20)
 
 
 def student(tmp_path: Path, mistake: str) -> Path:
@@ -26,8 +25,9 @@ def student(tmp_path: Path, mistake: str) -> Path:
 
 def asked(tmp_path: Path, mistake: str, task: str):
     check_sandbox()
-    run = _runner(student(tmp_path, mistake), Program("python3 tracer.py {scene} {output}", limits=LIMITS),
-                  f"{task}.json")
+    run = _runner(
+        student(tmp_path, mistake), Program("python3 tracer.py {scene} {output}", limits=LIMITS), f"{task}.json"
+    )
     scene = (HERE / f"{task}.json").read_bytes()
     first = run(scene)
     assert first.ok, first.detail

@@ -42,8 +42,22 @@ def start_forked_render(tmp_path: Path) -> tuple[subprocess.Popen, set[int]]:
     data["image"].update(width=1920, height=1080, samples=4)
     scene = tmp_path / "big.json"
     scene.write_text(json.dumps(data))
-    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "render", str(scene), "-o",
-                             str(tmp_path / "big.png"), "--threads", "2", "-q"], stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "service.cli",
+            "render",
+            str(scene),
+            "-o",
+            str(tmp_path / "big.png"),
+            "--threads",
+            "2",
+            "-q",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     deadline = time.monotonic() + PATIENCE
     while len(children(proc.pid)) < 2:
         assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""

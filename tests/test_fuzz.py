@@ -37,9 +37,19 @@ def test_every_family_is_in_the_subset(outcomes):
 
 def test_the_brute_force_is_clear_on_most_of_what_it_compares(outcomes):
     # a check of the check: the comparisons below must not be vacuous
-    total = {k: sum(o.compared[k] for o in outcomes)
-             for k in ("hit", "mirror hit", "shadow", "pixel", "hit by cones", "hit by lines", "shadow by cones",
-                       "shadow by proofs")}
+    total = {
+        k: sum(o.compared[k] for o in outcomes)
+        for k in (
+            "hit",
+            "mirror hit",
+            "shadow",
+            "pixel",
+            "hit by cones",
+            "hit by lines",
+            "shadow by cones",
+            "shadow by proofs",
+        )
+    }
     assert total["hit"] > 0.9 * SCENES * 20 * 15
     assert total["pixel"] > 0.8 * SCENES * 20 * 15
     assert total["shadow"] > SCENES * 100
@@ -54,7 +64,9 @@ def test_the_brute_force_is_clear_on_most_of_what_it_compares(outcomes):
 
 def test_phongray_agrees_with_the_brute_force_on_every_generated_scene(outcomes):
     bad = [o for o in outcomes if o.bad]
-    report = "\n".join(f"seed {o.seed} ({o.family}): {o.error or dict(o.disagreed)}; " + "; ".join(o.examples[:2])
-                       for o in bad[:10])
-    assert not bad, f"{len(bad)} of {SCENES} scenes disagree (rerun one with python -m tests.fuzz --scenes 1 " \
-                    f"--seed N):\n{report}"
+    report = "\n".join(
+        f"seed {o.seed} ({o.family}): {o.error or dict(o.disagreed)}; " + "; ".join(o.examples[:2]) for o in bad[:10]
+    )
+    assert not bad, (
+        f"{len(bad)} of {SCENES} scenes disagree (rerun one with python -m tests.fuzz --scenes 1 --seed N):\n{report}"
+    )

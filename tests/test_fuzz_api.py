@@ -43,10 +43,15 @@ def test_fuzzing_sent_requests_and_saw_no_server_error():
 EDGES = [10**4000, -(10**4000), 2**63, 2**31, -1, 0, -0.0, 1e308, -1e308, 5e-324, 1e-300, 0.5, "\ud800", "a\udfff"]
 ANY_TEXT = st.characters(exclude_categories=())  # lone surrogates included
 json_values = st.recursive(
-    st.none() | st.booleans() | st.integers() | st.sampled_from(EDGES)
-    | st.floats(allow_nan=False, allow_infinity=False) | st.text(ANY_TEXT),
+    st.none()
+    | st.booleans()
+    | st.integers()
+    | st.sampled_from(EDGES)
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(ANY_TEXT),
     lambda inner: st.lists(inner, max_size=5) | st.dictionaries(st.text(ANY_TEXT, max_size=8), inner, max_size=5),
-    max_leaves=12)
+    max_leaves=12,
+)
 fuzz_client = TestClient(create_app(Settings(max_concurrent_renders=4, max_cost=2e5, render_timeout=5.0)))
 
 

@@ -59,7 +59,7 @@ def test_the_legend_is_a_band_beneath_and_the_raw_difference_stays_available(ref
     plain = heatmap.verdict_pixels(reference, 255 - reference, 2)
     framed = heatmap.with_legend(plain)
     assert framed.shape[0] == plain.shape[0] + heatmap.ROW * len(heatmap.LEGEND) + 4
-    assert np.array_equal(framed[:plain.shape[0], :plain.shape[1]], plain)
+    assert np.array_equal(framed[: plain.shape[0], : plain.shape[1]], plain)
     raw = heatmap.raw_pixels(reference, reference.copy())
     assert raw.max() == 0
     off = reference.copy()

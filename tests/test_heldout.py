@@ -15,8 +15,9 @@ def spheres():
     return scene, Renderer(scene).pixels()
 
 
-@pytest.mark.parametrize("made", [(), ("grayscale",), ("camera-left-handed",), ("no-shadows", "blinn-phong"),
-                                  ("no-shadows", "gamma")])
+@pytest.mark.parametrize(
+    "made", [(), ("grayscale",), ("camera-left-handed",), ("no-shadows", "blinn-phong"), ("no-shadows", "gamma")]
+)
 def test_the_second_students_images_are_named(spheres, made):
     scene, reference = spheres
     found = case(scene, reference, "01_three_spheres", made, None, made)

@@ -64,8 +64,10 @@ def raw_request(url, head: bytes, body_chunks=(), read_timeout=60.0):
 
 
 def post(url, path, body, content_type="application/json"):
-    head = (f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: {content_type}\r\n"
-            f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n").encode()
+    head = (
+        f"POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: {content_type}\r\n"
+        f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n"
+    ).encode()
     return raw_request(url, head, [body])
 
 
@@ -86,22 +88,46 @@ def test_endless_chunked_body_is_cut_at_the_limit(server):
     assert status == 413 and seconds < 2 * REFUSED_WITHIN
 
 
-@pytest.mark.parametrize("name, body, says", [
-    ("nested 100,000 deep", b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
-    ("10^6 faces", json.dumps({**json.loads(SCENE), "objects": [{"type": "mesh", "material": "red",
-                                                                 "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
-                                                                 "faces": [[0, 1, 2]] * 1_000_000}]},
-                                separators=(",", ":")).encode(),
-     "max_triangles"),
-    ("NaN token", SCENE.replace(b'"fov": 42', b'"fov": NaN'), "NaN is not a JSON number"),
-    ("Infinity token", SCENE.replace(b'"fov": 42', b'"fov": Infinity'), "Infinity is not a JSON number"),
-    ("number beyond float64", SCENE.replace(b'"fov": 42', b'"fov": 1e999'), "must be a finite number"),
-    ("overflowing camera", SCENE.replace(b'"position": [0, 1.8, 5.8]', b'"position": [0, 1.8, 1e308]')
-     .replace(b'"look_at": [0, 0.6, -0.4]', b'"look_at": [0, 0.6, -1e308]'), "overflows"),
-    ("cost beyond the limit", SCENE.replace(b'"width": 160, "height": 120', b'"width": 4000, "height": 4000, '
-                                                                           b'"samples": 8'), "max_"),
-    ("not JSON at all", b"\x00\x01\x02 binary", "invalid JSON"),
-])
+@pytest.mark.parametrize(
+    "name, body, says",
+    [
+        ("nested 100,000 deep", b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
+        (
+            "10^6 faces",
+            json.dumps(
+                {
+                    **json.loads(SCENE),
+                    "objects": [
+                        {
+                            "type": "mesh",
+                            "material": "red",
+                            "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+                            "faces": [[0, 1, 2]] * 1_000_000,
+                        }
+                    ],
+                },
+                separators=(",", ":"),
+            ).encode(),
+            "max_triangles",
+        ),
+        ("NaN token", SCENE.replace(b'"fov": 42', b'"fov": NaN'), "NaN is not a JSON number"),
+        ("Infinity token", SCENE.replace(b'"fov": 42', b'"fov": Infinity'), "Infinity is not a JSON number"),
+        ("number beyond float64", SCENE.replace(b'"fov": 42', b'"fov": 1e999'), "must be a finite number"),
+        (
+            "overflowing camera",
+            SCENE.replace(b'"position": [0, 1.8, 5.8]', b'"position": [0, 1.8, 1e308]').replace(
+                b'"look_at": [0, 0.6, -0.4]', b'"look_at": [0, 0.6, -1e308]'
+            ),
+            "overflows",
+        ),
+        (
+            "cost beyond the limit",
+            SCENE.replace(b'"width": 160, "height": 120', b'"width": 4000, "height": 4000, "samples": 8'),
+            "max_",
+        ),
+        ("not JSON at all", b"\x00\x01\x02 binary", "invalid JSON"),
+    ],
+)
 def test_hostile_scene_is_refused_fast(server, name, body, says):
     url, _ = server
     status, text, seconds = post(url, "/render", body)
@@ -114,8 +140,9 @@ def test_huge_but_finite_numbers_render_finite_pixels(server):
     url, _ = server
     data = json.loads(SCENE)
     data["objects"].append({"type": "sphere", "material": "red", "center": [1e300, 1e300, -1e300], "radius": 1e300})
-    data["lights"].append({"type": "point", "position": [-1e308, 1e308, 1e308], "color": 1e308,
-                           "attenuation": [1e-308, 0, 1e308]})
+    data["lights"].append(
+        {"type": "point", "position": [-1e308, 1e308, 1e308], "color": 1e308, "attenuation": [1e-308, 0, 1e308]}
+    )
     status, text, seconds = post(url, "/render", json.dumps(data).encode())
     measured("hostile huge but finite numbers: rendered (s)", seconds)
     assert status == 200 and seconds < 5 * REFUSED_WITHIN
@@ -132,17 +159,27 @@ def png_bomb() -> bytes:
 
 def multipart(scene: bytes, image: bytes) -> tuple[bytes, str]:
     boundary = "phongrayboundary"
-    body = (f"--{boundary}\r\nContent-Disposition: form-data; name=\"scene\"\r\n\r\n").encode() + scene + (
-        f"\r\n--{boundary}\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.png\"\r\n"
-        f"Content-Type: image/png\r\n\r\n").encode() + image + f"\r\n--{boundary}--\r\n".encode()
+    body = (
+        (f'--{boundary}\r\nContent-Disposition: form-data; name="scene"\r\n\r\n').encode()
+        + scene
+        + (
+            f'\r\n--{boundary}\r\nContent-Disposition: form-data; name="image"; filename="a.png"\r\n'
+            f"Content-Type: image/png\r\n\r\n"
+        ).encode()
+        + image
+        + f"\r\n--{boundary}--\r\n".encode()
+    )
     return body, f"multipart/form-data; boundary={boundary}"
 
 
-@pytest.mark.parametrize("name, image, says", [
-    ("PNG bomb", png_bomb(), "50000×50000"),
-    ("corrupt PNG", b"\x89PNG\r\n\x1a\n" + b"\x00" * 40, "corrupt"),
-    ("JPEG", b"\xff\xd8\xff\xe0" + b"\x00" * 100, "image is a JPEG; PNG required"),
-])
+@pytest.mark.parametrize(
+    "name, image, says",
+    [
+        ("PNG bomb", png_bomb(), "50000×50000"),
+        ("corrupt PNG", b"\x89PNG\r\n\x1a\n" + b"\x00" * 40, "corrupt"),
+        ("JPEG", b"\xff\xd8\xff\xe0" + b"\x00" * 100, "image is a JPEG; PNG required"),
+    ],
+)
 def test_hostile_images_are_refused_fast(server, name, image, says):
     url, _ = server
     body, kind = multipart(SCENE, image)
@@ -151,8 +188,15 @@ def test_hostile_images_are_refused_fast(server, name, image, says):
     assert status == 422 and says in text and seconds < REFUSED_WITHIN, (name, status, text[-300:])
 
 
-@pytest.mark.parametrize("path, kind", [("/render", "text/plain"), ("/validate", "application/xml"),
-                                        ("/grade", "application/json"), ("/render", "multipart/form-data")])
+@pytest.mark.parametrize(
+    "path, kind",
+    [
+        ("/render", "text/plain"),
+        ("/validate", "application/xml"),
+        ("/grade", "application/json"),
+        ("/render", "multipart/form-data"),
+    ],
+)
 def test_wrong_content_types_are_415(server, path, kind):
     url, _ = server
     status, _, seconds = post(url, path, SCENE, kind)

@@ -43,14 +43,21 @@ def test_png_has_one_idat_of_unfiltered_rows():
     px = np.arange(2 * 3 * 3, dtype=np.uint8).reshape(2, 3, 3)
     data = encode_png(px)
     at = data.index(b"IDAT")
-    size = int.from_bytes(data[at - 4:at], "big")
-    raw = zlib.decompress(data[at + 4:at + 4 + size])
+    size = int.from_bytes(data[at - 4 : at], "big")
+    raw = zlib.decompress(data[at + 4 : at + 4 + size])
     assert raw == b"\x00" + px[0].tobytes() + b"\x00" + px[1].tobytes()
     assert data.count(b"IDAT") == 1 and data.endswith(b"IEND\xaeB`\x82")
 
 
-@pytest.mark.parametrize("bad", [np.zeros((2, 2), np.uint8), np.zeros((2, 2, 4), np.uint8),
-                                 np.zeros((2, 2, 3), np.float64), np.zeros((0, 2, 3), np.uint8)])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        np.zeros((2, 2), np.uint8),
+        np.zeros((2, 2, 4), np.uint8),
+        np.zeros((2, 2, 3), np.float64),
+        np.zeros((0, 2, 3), np.uint8),
+    ],
+)
 def test_png_refuses_what_is_not_rgb_pixels(bad):
     with pytest.raises(ValueError):
         encode_png(bad)
@@ -77,8 +84,7 @@ def _interlaced_png(px: np.ndarray) -> bytes:
         if sub.size:
             raw += b"".join(b"\x00" + row.tobytes() for row in sub)
     header = w.to_bytes(4, "big") + h.to_bytes(4, "big") + bytes([8, 2, 0, 0, 1])
-    return (PNG_SIGNATURE + png_chunk(b"IHDR", header) + png_chunk(b"IDAT", zlib.compress(raw))
-            + png_chunk(b"IEND", b""))
+    return PNG_SIGNATURE + png_chunk(b"IHDR", header) + png_chunk(b"IDAT", zlib.compress(raw)) + png_chunk(b"IEND", b"")
 
 
 @pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "LA", "P", "1", "interlaced"])
@@ -112,6 +118,7 @@ def test_decode_rgbx_gives_the_pixels_when_pillow_decodes_into_memory_of_its_own
 
     def own_memory(self):
         self.im = Image.core.new(self.mode, self.size)
+
     monkeypatch.setattr(ImageFile.ImageFile, "load_prepare", own_memory)
     px = np.random.default_rng(43).integers(0, 256, (9, 8, 3), dtype=np.uint8)
     with open_png(encode_png(px)) as img:

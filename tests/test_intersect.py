@@ -27,18 +27,32 @@ def cell_walk(request, monkeypatch):
 
 
 def scene_with(objects, camera=None):
-    return schemas.validate_scene({"camera": camera or {"position": [0, 0, 30], "look_at": [0, 0, 0]},
-                                   "image": {"width": 1, "height": 1}, "materials": {"m": {}}, "objects": objects})
+    return schemas.validate_scene(
+        {
+            "camera": camera or {"position": [0, 0, 30], "look_at": [0, 0, 0]},
+            "image": {"width": 1, "height": 1},
+            "materials": {"m": {}},
+            "objects": objects,
+        }
+    )
 
 
 def random_field(rng, count, big=False):
-    objs = [{"type": "sphere", "material": "m", "center": list(map(float, rng.uniform(-5, 5, 3))),
-             "radius": float(rng.uniform(0.05, 1.5))} for _ in range(count)]
+    objs = [
+        {
+            "type": "sphere",
+            "material": "m",
+            "center": list(map(float, rng.uniform(-5, 5, 3))),
+            "radius": float(rng.uniform(0.05, 1.5)),
+        }
+        for _ in range(count)
+    ]
     objs.append({"type": "plane", "material": "m", "point": [0, -4, 0], "normal": [0.1, 1, 0]})
     objs.append({"type": "triangle", "material": "m", "vertices": [[-6, -3, -6], [6, -2, -6], [0, 6, -5]]})
     verts = rng.uniform(-5, 5, (30, 3))
-    objs.append({"type": "mesh", "material": "m", "vertices": verts.tolist(),
-                 "faces": rng.integers(0, 30, (40, 3)).tolist()})
+    objs.append(
+        {"type": "mesh", "material": "m", "vertices": verts.tolist(), "faces": rng.integers(0, 30, (40, 3)).tolist()}
+    )
     if big:
         objs.append({"type": "sphere", "material": "m", "center": [0, -1e6 - 4.5, 0], "radius": 1e6})
     return objs
@@ -59,8 +73,19 @@ def brute_force(world, o, d, fk, fi, reach=None, ends=None):
         t = plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], (fk == PLANE) & (fi == k), ends, mag_e)
         best.offer(rows, t, PLANE, np.full(n, k))
     for k in range(len(tr.v0)):
-        t, u, v = triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k],
-                             (fk == TRIANGLE) & (fi == k), ends, mag_e)
+        t, u, v = triangle_t(
+            o,
+            d,
+            tr.v0[k],
+            tr.e1[k],
+            tr.e2[k],
+            tr.normal[k],
+            mag_o,
+            tr.mag[k],
+            (fk == TRIANGLE) & (fi == k),
+            ends,
+            mag_e,
+        )
         best.offer(rows, t, TRIANGLE, np.full(n, k), u, v)
     return best
 
@@ -105,8 +130,15 @@ def test_walk_agrees_with_brute_force_in_a_dense_soup_of_small_spheres_and_trian
     # a walk ends early when its hit lies before the exit of the part of a cell it tested last: here boxes
     # overlap everywhere, touching and nested ones among them
     rng = np.random.default_rng(11)
-    objs = [{"type": "sphere", "material": "m", "center": list(map(float, rng.uniform(-3, 3, 3))),
-             "radius": float(rng.uniform(0.05, 0.3))} for _ in range(1200)]
+    objs = [
+        {
+            "type": "sphere",
+            "material": "m",
+            "center": list(map(float, rng.uniform(-3, 3, 3))),
+            "radius": float(rng.uniform(0.05, 0.3)),
+        }
+        for _ in range(1200)
+    ]
     corners = rng.uniform(-3, 3, (400, 1, 3)) + rng.uniform(-0.3, 0.3, (400, 3, 3))
     objs += [{"type": "triangle", "material": "m", "vertices": c.tolist()} for c in corners]
     world = build_world(scene_with(objs))
@@ -124,9 +156,11 @@ def test_a_walk_resumes_where_it_leaves_a_part_and_passes_no_small_proxy_beyond_
     off = 0.105  # outside A (radius 0.1) but inside its icosahedral proxy
 
     def built(xb):
-        objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 0.1},
-                {"type": "sphere", "material": "m", "center": [xb, off, 0], "radius": 0.002},
-                {"type": "sphere", "material": "m", "center": [3, 0, 0], "radius": 0.1}]  # fixes the BVH's frame
+        objs = [
+            {"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 0.1},
+            {"type": "sphere", "material": "m", "center": [xb, off, 0], "radius": 0.002},
+            {"type": "sphere", "material": "m", "center": [3, 0, 0], "radius": 0.1},
+        ]  # fixes the BVH's frame
         return Intersector(build_world(scene_with(objs)))
 
     trial = built(1.0)
@@ -148,20 +182,45 @@ def concentric(radii):
 HARD_FIELDS = {
     "glass shell 1e-6 thick": concentric([1.0, 1.0 + 1e-6]),
     "shells 1e-9 apart": concentric([1.0, 1.0 + 1e-9, 1.0 + 2e-9, 2.0]),
-    "column of 150 spheres": [{"type": "sphere", "material": "m", "center": [0, 0, -k * 0.1], "radius": 0.06}
-                              for k in range(150)],
-    "coplanar mesh floor": [{"type": "mesh", "material": "m",
-                             "vertices": [[x, 0, z] for z in range(5) for x in range(5)],
-                             "faces": [f for z in range(4) for x in range(4)
-                                       for f in ([z * 5 + x, z * 5 + x + 1, z * 5 + x + 6],
-                                                 [z * 5 + x, z * 5 + x + 6, z * 5 + x + 5])]},
-                            {"type": "triangle", "material": "m", "vertices": [[0, 0, 0], [4, 0, 0], [0, 0, 4]]}],
-    "closed box of 2e-5": [{"type": "mesh", "material": "m",
-                            "vertices": [[x * 2e-5, y * 2e-5, z * 2e-5]
-                                         for x in (0, 1) for y in (0, 1) for z in (0, 1)],
-                            "faces": [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]},
-                           {"type": "sphere", "material": "m", "center": [1e-5, 1e-5, 1e-5], "radius": 5e-6}],
+    "column of 150 spheres": [
+        {"type": "sphere", "material": "m", "center": [0, 0, -k * 0.1], "radius": 0.06} for k in range(150)
+    ],
+    "coplanar mesh floor": [
+        {
+            "type": "mesh",
+            "material": "m",
+            "vertices": [[x, 0, z] for z in range(5) for x in range(5)],
+            "faces": [
+                f
+                for z in range(4)
+                for x in range(4)
+                for f in ([z * 5 + x, z * 5 + x + 1, z * 5 + x + 6], [z * 5 + x, z * 5 + x + 6, z * 5 + x + 5])
+            ],
+        },
+        {"type": "triangle", "material": "m", "vertices": [[0, 0, 0], [4, 0, 0], [0, 0, 4]]},
+    ],
+    "closed box of 2e-5": [
+        {
+            "type": "mesh",
+            "material": "m",
+            "vertices": [[x * 2e-5, y * 2e-5, z * 2e-5] for x in (0, 1) for y in (0, 1) for z in (0, 1)],
+            "faces": [
+                [0, 1, 3],
+                [0, 3, 2],
+                [4, 6, 7],
+                [4, 7, 5],
+                [0, 4, 5],
+                [0, 5, 1],
+                [2, 3, 7],
+                [2, 7, 6],
+                [0, 2, 6],
+                [0, 6, 4],
+                [1, 5, 7],
+                [1, 7, 3],
+            ],
+        },
+        {"type": "sphere", "material": "m", "center": [1e-5, 1e-5, 1e-5], "radius": 5e-6},
+    ],
 }
 
 
@@ -204,8 +263,9 @@ def test_huge_surfaces_are_tested_directly_not_through_the_bvh():
 
 
 def test_no_bvh_without_triangles_or_small_spheres():
-    isect = Intersector(build_world(scene_with([{"type": "plane", "material": "m", "point": [0, 0, 0],
-                                                 "normal": [0, 1, 0]}])))
+    isect = Intersector(
+        build_world(scene_with([{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]}]))
+    )
     assert isect.bvh is None
     hits = isect.closest(isect.rays(np.array([[0.0, 1, 0], [0, 1, 0]]), np.array([[0.0, -1, 0], [0, 1, 0]])))
     assert list(hits.kind) == [PLANE, MISS]
@@ -230,10 +290,23 @@ def test_a_few_primitives_agree_with_brute_force_as_rendering_tests_them(spheres
     primitive) and, past that, the cell walk: closest hits, secondary rays and shadow rays from anywhere,
     many of them inside spheres and proxies, exactly as brute force finds them."""
     rng = np.random.default_rng(100 * spheres + triangles)
-    objs = [{"type": "sphere", "material": "m", "center": list(map(float, rng.uniform(-2, 2, 3))),
-             "radius": float(rng.uniform(0.05, 1.2))} for _ in range(spheres)]
-    objs += [{"type": "triangle", "material": "m", "vertices": (rng.uniform(-2, 2, (1, 3)) + rng.uniform(-1, 1, (3, 3))
-                                                                ).tolist()} for _ in range(triangles)]
+    objs = [
+        {
+            "type": "sphere",
+            "material": "m",
+            "center": list(map(float, rng.uniform(-2, 2, 3))),
+            "radius": float(rng.uniform(0.05, 1.2)),
+        }
+        for _ in range(spheres)
+    ]
+    objs += [
+        {
+            "type": "triangle",
+            "material": "m",
+            "vertices": (rng.uniform(-2, 2, (1, 3)) + rng.uniform(-1, 1, (3, 3))).tolist(),
+        }
+        for _ in range(triangles)
+    ]
     objs.append({"type": "plane", "material": "m", "point": [0, -3, 0], "normal": [0.1, 1, 0]})
     world = build_world(scene_with(objs))
     isect = Intersector(world)

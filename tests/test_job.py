@@ -13,8 +13,7 @@ from service.programs.job import Program, ProgramJob, TaskScene, digest, grade_p
 from tracer import encode_png, render
 
 HERE = Path(__file__).parent / "programs"
-LIMITS = Limits(wall_seconds=20.0, cpu_seconds=20, memory_bytes=1 << 30, output_bytes=1 << 20,
-                folder_bytes=1 << 20)
+LIMITS = Limits(wall_seconds=20.0, cpu_seconds=20, memory_bytes=1 << 30, output_bytes=1 << 20, folder_bytes=1 << 20)
 RUN = "python3 tracer.py {scene} {output}"
 
 
@@ -54,8 +53,7 @@ def test_a_buggy_program_fails_with_its_mistake_found_by_experiment(tmp_path, ta
 
 def test_a_run_that_fails_is_a_failing_pair_with_its_reason(tmp_path, tasks):
     hang = 'import sys\nwhile "glass" in sys.argv[1]:\n    pass\n'
-    quick = Limits(wall_seconds=3.0, cpu_seconds=20, memory_bytes=1 << 30, output_bytes=1 << 20,
-                   folder_bytes=1 << 20)
+    quick = Limits(wall_seconds=3.0, cpu_seconds=20, memory_bytes=1 << 30, output_bytes=1 << 20, folder_bytes=1 << 20)
     graded = grade_program(ProgramJob(folder(tmp_path, extra=hang), Program(RUN, limits=quick), tasks))
     assert graded["spot"]["status"] == "pass"  # the job went on
     glass = graded["glass"]
@@ -81,8 +79,13 @@ def test_a_build_runs_once_and_its_result_is_what_runs(tmp_path, tasks):
     assert not (student / "builds.txt").exists()  # built in its sandbox, never in the student's folder
 
 
-@pytest.mark.parametrize(("command", "words"), [("python3 tracer.py {scene}", "names no {output}"),
-                                                ("pyhton3 tracer.py {scene} {output}", "no program 'pyhton3'")])
+@pytest.mark.parametrize(
+    ("command", "words"),
+    [
+        ("python3 tracer.py {scene}", "names no {output}"),
+        ("pyhton3 tracer.py {scene} {output}", "no program 'pyhton3'"),
+    ],
+)
 def test_a_command_of_the_tas_that_cannot_run_is_refused_before_any_student(command, words):
     with pytest.raises(ValueError, match=words):
         Program(command)

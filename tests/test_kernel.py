@@ -20,16 +20,27 @@ def floor_points(xs, shininess, dirs=None):
     point[:, 0] = xs
     normal = np.tile([0.0, 1.0, 0.0], (n, 1))
     dirs = np.tile([0.0, -1.0, 0.0], (n, 1)) if dirs is None else np.asarray(dirs, dtype=np.float64)
-    hit = Hits(np.ones(n), np.full(n, PLANE, dtype=np.int8), np.zeros(n, dtype=np.int64), point, normal.copy(),
-               np.zeros((n, 2)), np.zeros(n, dtype=np.int64))
+    hit = Hits(
+        np.ones(n),
+        np.full(n, PLANE, dtype=np.int8),
+        np.zeros(n, dtype=np.int64),
+        point,
+        normal.copy(),
+        np.zeros((n, 2)),
+        np.zeros(n, dtype=np.int64),
+    )
     return Points(hit, normal, dirs, np.ones(n), np.zeros(n), np.full(n, float(shininess)))
 
 
 def kernel_of(xs, shininess, options=REFERENCE, dirs=None):
-    scene = schemas.validate_scene({"camera": {"position": [0, 5, 0], "look_at": [0, 0, 0], "up": [0, 0, -1]},
-                                    "image": {"width": 1, "height": 1}, "materials": {"m": {}},
-                                    "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0],
-                                                 "normal": [0, 1, 0]}]})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 5, 0], "look_at": [0, 0, 0], "up": [0, 0, -1]},
+            "image": {"width": 1, "height": 1},
+            "materials": {"m": {}},
+            "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]}],
+        }
+    )
     world = Renderer(scene).world
     at = floor_points(xs, shininess, dirs)
     at.nv = -np.sum(at.normal * at.dirs, axis=1)
@@ -37,10 +48,13 @@ def kernel_of(xs, shininess, options=REFERENCE, dirs=None):
 
 
 def point_light(position, attenuation=(1, 0, 0)):
-    scene = schemas.validate_scene({"camera": {"position": [0, 5, 0], "look_at": [0, 0, 0], "up": [0, 0, -1]},
-                                    "image": {"width": 1, "height": 1},
-                                    "lights": [{"type": "point", "color": 1, "position": list(position),
-                                                "attenuation": list(attenuation)}]})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 5, 0], "look_at": [0, 0, 0], "up": [0, 0, -1]},
+            "image": {"width": 1, "height": 1},
+            "lights": [{"type": "point", "color": 1, "position": list(position), "attenuation": list(attenuation)}],
+        }
+    )
     return build_emitters(scene.lights, np.zeros(3))[0]
 
 
@@ -85,18 +99,38 @@ def area_scene(samples, as_points):
     corner, eu, ev = np.array([-1.0, 3.0, -1.0]), np.array([2.0, 0, 0]), np.array([0, 0, 2.0])
     nu, nv = samples
     if as_points:
-        lights = [{"type": "point", "color": 1.0 / (nu * nv),
-                   "position": (corner + (i + 0.5) / nu * eu + (j + 0.5) / nv * ev).tolist()}
-                  for i in range(nu) for j in range(nv)]
+        lights = [
+            {
+                "type": "point",
+                "color": 1.0 / (nu * nv),
+                "position": (corner + (i + 0.5) / nu * eu + (j + 0.5) / nv * ev).tolist(),
+            }
+            for i in range(nu)
+            for j in range(nv)
+        ]
     else:
-        lights = [{"type": "area", "color": 1, "corner": corner.tolist(), "edge_u": eu.tolist(),
-                   "edge_v": ev.tolist(), "samples": [nu, nv]}]
-    return schemas.validate_scene({
-        "camera": {"position": [0, 4, 6], "look_at": [0, 0, 0]}, "image": {"width": 24, "height": 18},
-        "materials": {"m": {"ambient": 0.1, "diffuse": 0.6, "specular": 0.4, "shininess": 8}},
-        "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]},
-                    {"type": "sphere", "material": "m", "center": [0.3, 0.7, 0], "radius": 0.6}],
-        "lights": lights})
+        lights = [
+            {
+                "type": "area",
+                "color": 1,
+                "corner": corner.tolist(),
+                "edge_u": eu.tolist(),
+                "edge_v": ev.tolist(),
+                "samples": [nu, nv],
+            }
+        ]
+    return schemas.validate_scene(
+        {
+            "camera": {"position": [0, 4, 6], "look_at": [0, 0, 0]},
+            "image": {"width": 24, "height": 18},
+            "materials": {"m": {"ambient": 0.1, "diffuse": 0.6, "specular": 0.4, "shininess": 8}},
+            "objects": [
+                {"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]},
+                {"type": "sphere", "material": "m", "center": [0.3, 0.7, 0], "radius": 0.6},
+            ],
+            "lights": lights,
+        }
+    )
 
 
 def test_an_area_light_shades_as_its_samples_given_as_point_lights():

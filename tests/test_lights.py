@@ -18,8 +18,13 @@ def lit(em, points):
 
 
 def emitters(*lights):
-    scene = schemas.validate_scene({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
-                                    "image": {"width": 1, "height": 1}, "lights": list(lights)})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+            "image": {"width": 1, "height": 1},
+            "lights": list(lights),
+        }
+    )
     return build_emitters(scene.lights, ORIGIN)
 
 
@@ -47,8 +52,17 @@ def test_point_exactly_at_the_light_receives_nothing():
 
 
 def spot_intensity(x):
-    (em,) = emitters({"type": "spot", "color": 1, "position": [0, 4, 0], "direction": [0, -1, 0],
-                      "cutoff": 30, "inner_cutoff": 10, "exponent": 2})
+    (em,) = emitters(
+        {
+            "type": "spot",
+            "color": 1,
+            "position": [0, 4, 0],
+            "direction": [0, -1, 0],
+            "cutoff": 30,
+            "inner_cutoff": 10,
+            "exponent": 2,
+        }
+    )
     return lit(em, np.array([[x, 0.0, 0]]))[2][0, 0]
 
 
@@ -69,8 +83,17 @@ def test_spot_outside_cutoff_is_dark():
 
 
 def test_area_light_is_a_grid_of_point_lights_at_cell_centres():
-    ems = emitters({"type": "area", "color": [4, 4, 4], "corner": [0, 2, 0], "edge_u": [2, 0, 0],
-                    "edge_v": [0, 0, 1], "samples": [2, 1], "attenuation": [1, 0, 0]})
+    ems = emitters(
+        {
+            "type": "area",
+            "color": [4, 4, 4],
+            "corner": [0, 2, 0],
+            "edge_u": [2, 0, 0],
+            "edge_v": [0, 0, 1],
+            "samples": [2, 1],
+            "attenuation": [1, 0, 0],
+        }
+    )
     positions = sorted(tuple(e.position) for e in ems)
     assert positions == [(0.5, 2, 0.5), (1.5, 2, 0.5)]
     for e in ems:

@@ -41,8 +41,11 @@ def homework(width=320, height=240):
     return data
 
 
-@pytest.mark.parametrize("data", [homework(), homework(640, 480), whitted()],
-                         ids=["homework 320×240", "homework 640×480", "whitted 640×480 2×2"])
+@pytest.mark.parametrize(
+    "data",
+    [homework(), homework(640, 480), whitted()],
+    ids=["homework 320×240", "homework 640×480", "whitted 640×480 2×2"],
+)
 def test_a_course_homework_renders_and_grades_with_the_default_limits(api, data):
     """A Cornell box with a mirror ball, a glass ball, an area light and a spot, depth 5 and 2×2 samples, and the
     Whitted example at 640×480 with 2×2 samples: the worst-case tree refused them (4.4e8, 8.5e8 > 1e8)."""
@@ -82,8 +85,14 @@ print(res.status_code, next(int(l.split()[1]) for l in open("/proc/self/status")
 
 
 def test_the_ray_tree_bomb_is_stopped_in_bounded_memory():
-    out = subprocess.run([sys.executable, "-c", BOMB_SCRIPT], input=json.dumps(nested_glass_and_mirror(16, 256)),
-                         capture_output=True, text=True, check=True, timeout=600)
+    out = subprocess.run(
+        [sys.executable, "-c", BOMB_SCRIPT],
+        input=json.dumps(nested_glass_and_mirror(16, 256)),
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    )
     status, peak = map(int, out.stdout.split())
     assert status == 422 and peak < 1024  # MiB, the whole process
 
@@ -124,8 +133,13 @@ def test_the_estimate_grows_with_the_tree_only_where_mirrors_and_glass_see_each_
 
 def test_thousands_of_spheres_around_the_eye_are_priced_as_such():
     objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0 + k} for k in range(10_000)]
-    data = {"camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]}, "image": {"width": 128, "height": 128},
-            "materials": {"m": {}}, "objects": objs, "lights": [{"type": "point", "color": 1, "position": [0, 0, 0]}]}
+    data = {
+        "camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
+        "image": {"width": 128, "height": 128},
+        "materials": {"m": {}},
+        "objects": objs,
+        "lights": [{"type": "point", "color": 1, "position": [0, 0, 0]}],
+    }
     inside = schemas.validate_scene(data)
     assert estimated_cost(inside) > Settings().max_cost and beyond_limits(inside, Settings())
     data["camera"]["position"] = [0, 0, 2e4]
@@ -185,12 +199,26 @@ def test_the_estimate_is_within_ten_times_of_the_work_on_generated_scenes():
 def huge_beside_tiny(width=64, height=48):
     """5,001 tiny spheres and 4,999 spheres far larger than the median: those are tested against every ray, so
     each ray makes 5,000 exact tests while the per-ray factor (log2 of 10,000 spheres) prices it at 2.7."""
-    objs = [{"type": "sphere", "material": "m", "center": [(k % 70) * 0.01 - 0.35, (k // 70) * 0.01 - 0.35, 0],
-             "radius": 0.001} for k in range(5001)]
-    objs += [{"type": "sphere", "material": "m", "center": [0, 0, -1000 - k], "radius": 500.0 + k * 0.01}
-             for k in range(4999)]
-    return {"camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]}, "image": {"width": width, "height": height},
-            "materials": {"m": {}}, "objects": objs, "lights": [{"type": "point", "color": 1, "position": [0, 50, 0]}]}
+    objs = [
+        {
+            "type": "sphere",
+            "material": "m",
+            "center": [(k % 70) * 0.01 - 0.35, (k // 70) * 0.01 - 0.35, 0],
+            "radius": 0.001,
+        }
+        for k in range(5001)
+    ]
+    objs += [
+        {"type": "sphere", "material": "m", "center": [0, 0, -1000 - k], "radius": 500.0 + k * 0.01}
+        for k in range(4999)
+    ]
+    return {
+        "camera": {"position": [0, 0, 30], "look_at": [0, 0, 0]},
+        "image": {"width": width, "height": height},
+        "materials": {"m": {}},
+        "objects": objs,
+        "lights": [{"type": "point", "color": 1, "position": [0, 50, 0]}],
+    }
 
 
 def test_rays_that_each_meet_thousands_of_surfaces_are_stopped_naming_the_setting():

@@ -67,14 +67,19 @@ def load(url: str, clients: int, seconds: float) -> dict:
         t.join()
     wall = time.perf_counter() - started
     ok = sorted(s for code, s, _ in results if code == 200)
-    return {"results": results, "throughput": len(ok) / wall,
-            "p50_ms": 1000 * statistics.median(ok), "p99_ms": 1000 * ok[int(0.99 * (len(ok) - 1))]}
+    return {
+        "results": results,
+        "throughput": len(ok) / wall,
+        "p50_ms": 1000 * statistics.median(ok),
+        "p99_ms": 1000 * ok[int(0.99 * (len(ok) - 1))],
+    }
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    with running_server(tmp_path_factory.mktemp("load"), max_concurrent_renders="1", render_threads="1",
-                        max_cost=SLOW_COST) as s:
+    with running_server(
+        tmp_path_factory.mktemp("load"), max_concurrent_renders="1", render_threads="1", max_cost=SLOW_COST
+    ) as s:
         yield s
 
 
@@ -88,15 +93,20 @@ def test_overload_gives_only_200_or_503_with_retry_after_and_memory_returns(serv
     assert all(retry == "1" for code, _, retry in stats["results"] if code == 503)
     big = scene_dict("01_three_spheres")
     big["image"].update(width=1600, height=1200)
-    with urllib.request.urlopen(urllib.request.Request(url + "/render", data=json.dumps(big).encode(),
-                                                       headers={"content-type": "application/json"})) as res:
+    with urllib.request.urlopen(
+        urllib.request.Request(
+            url + "/render", data=json.dumps(big).encode(), headers={"content-type": "application/json"}
+        )
+    ) as res:
         assert res.status == 200
     time.sleep(0.5)
     after = rss_mib(proc.pid)
-    print(f"\nload: {len(stats['results'])} requests, {stats['throughput']:.1f} renders/s, "
-          f"p50 {stats['p50_ms']:.1f} ms, "
-          f"p99 {stats['p99_ms']:.1f} ms, 503s {sum(c == 503 for c, _, _ in stats['results'])}, "
-          f"RSS {baseline:.0f} → {after:.0f} MiB")
+    print(
+        f"\nload: {len(stats['results'])} requests, {stats['throughput']:.1f} renders/s, "
+        f"p50 {stats['p50_ms']:.1f} ms, "
+        f"p99 {stats['p99_ms']:.1f} ms, 503s {sum(c == 503 for c, _, _ in stats['results'])}, "
+        f"RSS {baseline:.0f} → {after:.0f} MiB"
+    )
     assert after - baseline < 30
     assert healthy(url)
 
@@ -111,8 +121,11 @@ def slow_request(url: str) -> socket.socket:
     data["lights"][1]["samples"] = [16, 16]
     body = json.dumps(data).encode()
     sock = socket.create_connection(("127.0.0.1", port_of(url)))
-    sock.sendall(f"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
-                 f"Content-Length: {len(body)}\r\n\r\n".encode() + body)
+    sock.sendall(
+        f"POST /render HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+        f"Content-Length: {len(body)}\r\n\r\n".encode()
+        + body
+    )
     return sock
 
 
@@ -170,6 +183,7 @@ def test_a_worker_killed_mid_render_is_replaced_and_the_service_stays_healthy(tm
             time.sleep(0.1)
         assert healthy(url)
         assert busiest not in children(proc.pid)
-        with urllib.request.urlopen(urllib.request.Request(url + "/render", data=small_scene(1),
-                                                           headers={"content-type": "application/json"})) as res:
+        with urllib.request.urlopen(
+            urllib.request.Request(url + "/render", data=small_scene(1), headers={"content-type": "application/json"})
+        ) as res:
             assert res.status == 200

@@ -19,8 +19,13 @@ def render(out, *, file_limit=None):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # (else the kernel kills the writer instead)
         resource.setrlimit(resource.RLIMIT_FSIZE, (file_limit, file_limit))
 
-    return subprocess.run([sys.executable, "-m", "service.cli", "render", SCENE, "-o", str(out), "-q"],
-                          capture_output=True, text=True, timeout=120, preexec_fn=limited if file_limit else None)
+    return subprocess.run(
+        [sys.executable, "-m", "service.cli", "render", SCENE, "-o", str(out), "-q"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=limited if file_limit else None,
+    )
 
 
 def test_a_write_that_fails_leaves_the_old_image_whole(tmp_path):

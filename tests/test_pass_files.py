@@ -36,24 +36,33 @@ def test_the_names_are_the_tracers():
 
 
 def test_the_additive_passes_as_npy_sum_to_the_image(api):
-    total = sum(npy(api.post(f"/render?pass={name}&format=npy", content=SCENE,
-                             headers={"content-type": "application/json"}).content) for name in ADDITIVE)
+    total = sum(
+        npy(
+            api.post(
+                f"/render?pass={name}&format=npy", content=SCENE, headers={"content-type": "application/json"}
+            ).content
+        )
+        for name in ADDITIVE
+    )
     image = Renderer(schemas.load_scene(SCENE)).pixels()
     assert np.count_nonzero(quantize(total) != image) <= image.size // 1000
 
 
 def test_a_lights_pass_over_http_is_the_cli_s_and_bad_names_are_422(api, tmp_path):
     (tmp_path / "s.json").write_bytes(SCENE)
-    assert main(["render", str(tmp_path / "s.json"), "--pass", "shadow", "--light", "4", "-o",
-                 str(tmp_path / "shadow.png")]) == 0
+    assert (
+        main(
+            ["render", str(tmp_path / "s.json"), "--pass", "shadow", "--light", "4", "-o", str(tmp_path / "shadow.png")]
+        )
+        == 0
+    )
     res = api.post("/render?pass=shadow&light=4", content=SCENE, headers={"content-type": "application/json"})
     assert res.status_code == 200 and res.content == (tmp_path / "shadow.png").read_bytes()
     shown = decode_png(res.content)
     assert set(np.unique(shown)) - {0, 255} and shown.min() == 0 and shown.max() == 255  # penumbra, dark, lit
     bad = api.post("/render?pass=shadow&light=9", content=SCENE, headers={"content-type": "application/json"})
     assert bad.status_code == 422 and "the scene has 5 lights (0..4), not 9" in bad.json()["detail"]
-    assert api.post("/render?pass=glow", content=SCENE, headers={"content-type": "application/json"}).status_code \
-        == 422
+    assert api.post("/render?pass=glow", content=SCENE, headers={"content-type": "application/json"}).status_code == 422
 
 
 def test_object_depth_and_normal_show_what_was_hit():
@@ -77,22 +86,44 @@ def test_object_depth_and_normal_show_what_was_hit():
 def test_a_pass_as_npy_is_plain_array_bytes_and_the_same_every_time(tmp_path):
     (tmp_path / "s.json").write_bytes(SCENE)
     for k in (1, 2):
-        assert main(["render", str(tmp_path / "s.json"), "--pass", "diffuse", "--light", "1", "--width", "40",
-                     "--height", "30", "-o", str(tmp_path / f"d{k}.npy")]) == 0
+        assert (
+            main(
+                [
+                    "render",
+                    str(tmp_path / "s.json"),
+                    "--pass",
+                    "diffuse",
+                    "--light",
+                    "1",
+                    "--width",
+                    "40",
+                    "--height",
+                    "30",
+                    "-o",
+                    str(tmp_path / f"d{k}.npy"),
+                ]
+            )
+            == 0
+        )
     data = (tmp_path / "d1.npy").read_bytes()
     assert data == (tmp_path / "d2.npy").read_bytes() and npy(data).shape == (30, 40, 3)
     assert npy(data).dtype == np.float64 and npy(data).max() > 0
 
 
-@pytest.mark.parametrize("name, light, says", [
-    ("normal", 1, "light: the normal pass is the whole scene's, not a light's (only diffuse, specular, shadow take "
-                  "a light)"),
-    ("object", 0, "light: the object pass is the whole scene's"),
-    ("shadow", 0, "light: lights[0] is an ambient light, which has no shadow"),
-    ("diffuse", 0, "light: lights[0] is an ambient light, which has no diffuse"),
-])
-def test_a_light_a_pass_cannot_be_of_is_refused_the_same_by_the_cli_and_http(api, tmp_path, capsys, name, light,
-                                                                               says):
+@pytest.mark.parametrize(
+    "name, light, says",
+    [
+        (
+            "normal",
+            1,
+            "light: the normal pass is the whole scene's, not a light's (only diffuse, specular, shadow take a light)",
+        ),
+        ("object", 0, "light: the object pass is the whole scene's"),
+        ("shadow", 0, "light: lights[0] is an ambient light, which has no shadow"),
+        ("diffuse", 0, "light: lights[0] is an ambient light, which has no diffuse"),
+    ],
+)
+def test_a_light_a_pass_cannot_be_of_is_refused_the_same_by_the_cli_and_http(api, tmp_path, capsys, name, light, says):
     assert json.loads(SCENE)["lights"][0]["type"] == "ambient"
     (tmp_path / "s.json").write_bytes(SCENE)
     out = tmp_path / "p.png"
@@ -105,8 +136,20 @@ def test_a_light_a_pass_cannot_be_of_is_refused_the_same_by_the_cli_and_http(api
 def test_a_pass_prints_one_summary_line_unless_quiet(tmp_path, capsys):
     (tmp_path / "s.json").write_bytes(SCENE)
     out = tmp_path / "shadow.png"
-    args = ["render", str(tmp_path / "s.json"), "--pass", "shadow", "--light", "4", "--width", "40", "--height", "30",
-            "-o", str(out)]
+    args = [
+        "render",
+        str(tmp_path / "s.json"),
+        "--pass",
+        "shadow",
+        "--light",
+        "4",
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "-o",
+        str(out),
+    ]
     assert main(args) == 0
     err = capsys.readouterr().err
     assert err.startswith(f"{out}: the shadow pass of light 4 (PNG) in ") and err.endswith(" s\n")

@@ -41,15 +41,28 @@ def test_a_lights_own_terms_add_up_to_every_lights():
 
 
 def shadowed():
-    return schemas.validate_scene({
-        "camera": {"position": [0, 4, 0.01], "look_at": [0, 0, 0], "fov": 60},
-        "image": {"width": 32, "height": 32},
-        "materials": {"m": {}},
-        "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]},
-                    {"type": "sphere", "material": "m", "center": [0, 1, 0], "radius": 0.5}],
-        "lights": [{"type": "point", "color": 1, "position": [0, 3, 0]},
-                   {"type": "area", "color": 1, "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
-                    "samples": [4, 4]}]})
+    return schemas.validate_scene(
+        {
+            "camera": {"position": [0, 4, 0.01], "look_at": [0, 0, 0], "fov": 60},
+            "image": {"width": 32, "height": 32},
+            "materials": {"m": {}},
+            "objects": [
+                {"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]},
+                {"type": "sphere", "material": "m", "center": [0, 1, 0], "radius": 0.5},
+            ],
+            "lights": [
+                {"type": "point", "color": 1, "position": [0, 3, 0]},
+                {
+                    "type": "area",
+                    "color": 1,
+                    "corner": [-1, 3, -1],
+                    "edge_u": [2, 0, 0],
+                    "edge_v": [0, 0, 2],
+                    "samples": [4, 4],
+                },
+            ],
+        }
+    )
 
 
 def test_the_shadow_pass_is_what_reaches_the_first_hit():
@@ -103,8 +116,9 @@ def test_the_passes_of_some_pixels_are_those_of_the_whole_render():
     # the first hits' passes alone, from camera rays alone (the scene has a mirror: its rays are not traced)
     renderer = Renderer(scene)
     first = renderer.diagnosis_passes(pixels=picked, first_hits=True)
-    assert set(first) == {"object", "diffuse", "specular"} | {f"{t}:{k}" for t in ("diffuse", "specular")
-                                                               for k in (1, 2, 3, 4)}
+    assert set(first) == {"object", "diffuse", "specular"} | {
+        f"{t}:{k}" for t in ("diffuse", "specular") for k in (1, 2, 3, 4)
+    }
     assert renderer.counts["secondary"] == 0 and Renderer(scene).passes(["reflection"])["reflection"].max() > 0
     for name, values in first.items():
         assert np.array_equal(whole[name][rows, cols], values), name

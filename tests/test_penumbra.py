@@ -17,19 +17,36 @@ import reference
 @pytest.mark.parametrize("seed", range(5))
 def test_rays_decided_by_their_pairs_decide_as_the_brute_force(seed):
     rng = np.random.default_rng(seed)
-    objects = [{"type": "sphere", "material": "m", "center": rng.uniform(-2, 2, 3).tolist(),
-                "radius": float(rng.uniform(0.3, 0.8))} for _ in range(5)]
+    objects = [
+        {
+            "type": "sphere",
+            "material": "m",
+            "center": rng.uniform(-2, 2, 3).tolist(),
+            "radius": float(rng.uniform(0.3, 0.8)),
+        }
+        for _ in range(5)
+    ]
     objects.append({"type": "plane", "material": "m", "point": [0, -2.5, 0], "normal": [0, 1, 0]})
-    scene = schemas.validate_scene({"camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]},
-                                    "image": {"width": 4, "height": 4}, "materials": {"m": {}},
-                                    "objects": objects, "lights": []})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]},
+            "image": {"width": 4, "height": 4},
+            "materials": {"m": {}},
+            "objects": objects,
+            "lights": [],
+        }
+    )
     world = Renderer(scene).world
     corners = np.array([[-1, 3, -1], [1, 3, -1], [1, 3, 1], [-1, 3, 1]], dtype=float) + rng.uniform(-1, 1, 3)
     x, z = np.meshgrid(np.linspace(-5, 5, 60), np.linspace(-5, 5, 60))
     points = np.stack([x.ravel(), np.full(x.size, -2.5), z.ravel()], axis=1)
     n = len(points)
-    at = SurfacePoints(points - world.origin, np.full(n, PLANE, dtype=np.int8), np.zeros(n, dtype=np.int64),
-                       np.tile([0.0, 1.0, 0.0], (n, 1)))
+    at = SurfacePoints(
+        points - world.origin,
+        np.full(n, PLANE, dtype=np.int8),
+        np.zeros(n, dtype=np.int64),
+        np.tile([0.0, 1.0, 0.0], (n, 1)),
+    )
     b = bounds_of(world)
     culled = classify(b, at, corners - world.origin)
     mixed = np.flatnonzero(culled.state == MIXED)

@@ -12,9 +12,13 @@ from tracer.variants import Options
 
 def world_of(spheres: int):
     objects = [{"type": "sphere", "material": "m", "center": [3.0 * k, 0, 0], "radius": 1.0} for k in range(spheres)]
-    data = {"camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]}, "image": {"width": 4, "height": 4},
-            "materials": {"m": {}}, "objects": objects,
-            "lights": [{"type": "point", "color": 1.0, "position": [0, 5, 5]}]}
+    data = {
+        "camera": {"position": [0, 0, 8], "look_at": [0, 0, 0]},
+        "image": {"width": 4, "height": 4},
+        "materials": {"m": {}},
+        "objects": objects,
+        "lights": [{"type": "point", "color": 1.0, "position": [0, 5, 5]}],
+    }
     return Renderer(schemas.validate_scene(data)).world
 
 
@@ -61,11 +65,13 @@ def test_shadow_pairs_need_rays_from_the_exact_point():
 def test_points_lit_from_behind_render_as_their_shadow_rays_show():
     """With the variant lighting points from behind, a sphere's own surface blocks some of its points' rays to
     an area light's samples: no proof that exempts it may decide them (two pixels differed here)."""
-    data = {"camera": {"position": [3, -3, 3], "look_at": [0, 0, 0]}, "image": {"width": 64, "height": 64},
-            "materials": {"m": {}},
-            "objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0}],
-            "lights": [{"type": "area", "color": 1.0, "corner": [-3, 0.5, -3], "edge_u": [6, 0, 0],
-                        "edge_v": [0, 0, 6]}]}
+    data = {
+        "camera": {"position": [3, -3, 3], "look_at": [0, 0, 0]},
+        "image": {"width": 64, "height": 64},
+        "materials": {"m": {}},
+        "objects": [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0}],
+        "lights": [{"type": "area", "color": 1.0, "corner": [-3, 0.5, -3], "edge_u": [6, 0, 0], "edge_v": [0, 0, 6]}],
+    }
     scene = schemas.validate_scene(data)
     proven, unproven = Renderer(scene, Options(specular_behind=True)), Renderer(scene, Options(specular_behind=True))
     unproven.shading.plan = replace(unproven.shading.plan, light_bounds=None)

@@ -24,8 +24,13 @@ def by_name(task: dict) -> dict:
 def test_the_probes_of_a_scene_with_a_spot_and_a_point_light():
     task = scene("spot")
     found = by_name(task)
-    assert list(found) == ["diffuse only", "specular only", "spot light 'key' alone", "point light 'fill' alone",
-                           "the camera moved"]
+    assert list(found) == [
+        "diffuse only",
+        "specular only",
+        "spot light 'key' alone",
+        "point light 'fill' alone",
+        "the camera moved",
+    ]
     spot = found["spot light 'key' alone"]
     assert spot.kind is Kind.LIGHT and spot.scene["lights"] == [task["lights"][1]]
     assert spot.region is not None and spot.region["lights"][0]["inner_cutoff"] == 35

@@ -42,8 +42,7 @@ PRELUDE = textwrap.dedent("""\
     """)
 SECRET = "TA-SECRET-7f3a91"
 #: short limits, so that a hostile program is stopped in seconds
-QUICK = Limits(wall_seconds=5.0, cpu_seconds=10, memory_bytes=512 << 20, output_bytes=8 << 20,
-               folder_bytes=4 << 20)
+QUICK = Limits(wall_seconds=5.0, cpu_seconds=10, memory_bytes=512 << 20, output_bytes=8 << 20, folder_bytes=4 << 20)
 
 
 @pytest.fixture
@@ -62,8 +61,15 @@ def course(tmp_path):
 
 def run(course: Path, body: str, limits: Limits = QUICK, sandbox: bool = True):
     (course / "subs" / "ann" / "render.py").write_text(PRELUDE + textwrap.dedent(body))
-    return run_program(ProgramRun(course / "subs" / "ann", "python3 render.py {scene} {output}",
-                                  course / "scenes" / "spheres.json", limits, sandbox))
+    return run_program(
+        ProgramRun(
+            course / "subs" / "ann",
+            "python3 render.py {scene} {output}",
+            course / "scenes" / "spheres.json",
+            limits,
+            sandbox,
+        )
+    )
 
 
 def left_running(word: str | None = None) -> list[str]:
@@ -94,10 +100,13 @@ def nothing_left():
 
 
 def test_an_honest_program_renders_its_scene(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         print(open(scene).read(), os.listdir("."), file=sys.stderr)
         write_png(output)
-        """)
+        """,
+    )
     assert outcome.reason is Reason.OK and outcome.warning is None
     assert '{"scene": "spheres"}' in outcome.stderr_tail and "['render.py']" in outcome.stderr_tail
     assert np.array_equal(outcome.pixels()[0, 0], [255, 0, 0]) and outcome.pixels().shape == (3, 4, 3)
@@ -105,10 +114,21 @@ def test_an_honest_program_renders_its_scene(course):
 
 
 def test_what_a_program_sees_of_the_machine(course):
-    targets = [course / "scenes" / "reference.txt", course / "subs" / "bob" / "render.py", course, "/work",
-               "/root", "/etc/passwd", "/etc/shadow", "/tmp", str(Path(__file__).resolve())]
+    targets = [
+        course / "scenes" / "reference.txt",
+        course / "subs" / "bob" / "render.py",
+        course,
+        "/work",
+        "/root",
+        "/etc/passwd",
+        "/etc/shadow",
+        "/tmp",
+        str(Path(__file__).resolve()),
+    ]
     (course / "subs" / "ann" / "peek").symlink_to(course / "scenes" / "reference.txt")
-    outcome = run(course, f"""\
+    outcome = run(
+        course,
+        f"""\
         for path in {[str(t) for t in targets]!r} + ["peek", "/scene"]:
             try:
                 seen = os.listdir(path) if os.path.isdir(path) else open(path).read()
@@ -116,7 +136,8 @@ def test_what_a_program_sees_of_the_machine(course):
                 seen = type(exc).__name__
             print("SAW", path, seen, file=sys.stderr)
         write_png(output)
-        """)
+        """,
+    )
     assert outcome.reason is Reason.OK
     assert SECRET not in outcome.stderr_tail
     seen = dict(line.split(" ", 2)[1:] for line in outcome.stderr_tail.splitlines() if line.startswith("SAW"))
@@ -135,14 +156,17 @@ def test_no_network_not_even_the_machines_loopback(course):
     accepted: list[object] = []
     thread = threading.Thread(target=lambda: accepted.append(_accept(listener)))
     thread.start()
-    outcome = run(course, f"""\
+    outcome = run(
+        course,
+        f"""\
         try:
             socket.create_connection(("127.0.0.1", {port}), timeout=2).sendall(b"{SECRET}")
             print("CONNECTED", file=sys.stderr)
         except OSError as exc:
             print("REFUSED", exc, file=sys.stderr)
         write_png(output)
-        """)
+        """,
+    )
     thread.join()
     listener.close()
     assert outcome.reason is Reason.OK and "REFUSED" in outcome.stderr_tail
@@ -172,7 +196,9 @@ def test_a_loop_is_stopped_at_the_cpu_time_limit(course):
 
 
 def test_the_process_limit_bites(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         made = 0
         try:
             while made < 200:
@@ -183,53 +209,71 @@ def test_the_process_limit_bites(course):
         except OSError as exc:
             print("FORKS", made, exc, file=sys.stderr)
         write_png(output)
-        """, Limits(processes=16, wall_seconds=20.0))
+        """,
+        Limits(processes=16, wall_seconds=20.0),
+    )
     assert outcome.reason is Reason.OK  # (the run ends when the program does: its children with it)
     made = int(outcome.stderr_tail.split("FORKS ")[1].split()[0])
     assert 0 < made < 16
 
 
 def test_a_fork_bomb_is_contained_and_nothing_is_left_running(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         while True:
             try:
                 os.fork()
             except OSError:
                 pass
-        """, Limits(processes=32, wall_seconds=3.0))
+        """,
+        Limits(processes=32, wall_seconds=3.0),
+    )
     assert outcome.reason is Reason.TIMEOUT
     # (the autouse fixture checks that no process of the run is left)
 
 
 def test_a_memory_hog_runs_out_of_memory(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         hoard = []
         while True:
             hoard.append(bytearray(16 << 20))
-        """, Limits(memory_bytes=256 << 20))
+        """,
+        Limits(memory_bytes=256 << 20),
+    )
     assert outcome.reason is Reason.MEMORY
 
 
 def test_a_5_GB_output_file_is_stopped_at_the_output_limit(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         with open(output, "wb") as f:
             for _ in range(5 * 1024):
                 f.write(b"x" * (1 << 20))
-        """)
+        """,
+    )
     assert outcome.reason is Reason.OUTPUT_TOO_LARGE
 
 
 def test_many_files_fill_only_their_own_tmpfs(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         for i in range(5 * 1024):
             with open(f"junk{i}", "wb") as f:
                 f.write(b"x" * (4 << 20))
-        """)
+        """,
+    )
     assert outcome.reason is Reason.OUTPUT_TOO_LARGE and "No space left" in outcome.stderr_tail
 
 
 def test_a_daemon_left_running_is_gone_after_the_run(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         if os.fork() == 0:
             os.setsid()
             if os.fork() == 0:
@@ -237,7 +281,8 @@ def test_a_daemon_left_running_is_gone_after_the_run(course):
             os._exit(0)
         os.wait()
         write_png(output)
-        """)
+        """,
+    )
     assert outcome.reason is Reason.OK
     assert left_running("987.654") == []
 
@@ -278,15 +323,17 @@ def test_without_bubblewrap_only_an_unsandboxed_run_goes_on(course, monkeypatch)
 
 def test_a_build_runs_once_and_its_result_is_what_runs(course, tmp_path):
     ann = course / "subs" / "ann"
-    (ann / "Makefile").write_text("render.py: template.py\n\tsed s/COLOUR/ff/ template.py > render.py\n"
-                                  "\tln -s /etc/passwd passwd\n")
+    (ann / "Makefile").write_text(
+        "render.py: template.py\n\tsed s/COLOUR/ff/ template.py > render.py\n\tln -s /etc/passwd passwd\n"
+    )
     (ann / "template.py").write_text(PRELUDE + "write_png(output)  # COLOUR\n")
     built = build_program(BuildStep(ann, "make", QUICK), tmp_path / "built")
     assert built.outcome.reason is Reason.OK and built.folder is not None
     assert sorted(os.listdir(built.folder)) == ["Makefile", "render.py", "template.py"]  # (not the link)
     assert "# ff" in (built.folder / "render.py").read_text()
-    outcome = run_program(ProgramRun(built.folder, "python3 render.py {scene} {output}",
-                                     course / "scenes" / "spheres.json", QUICK))
+    outcome = run_program(
+        ProgramRun(built.folder, "python3 render.py {scene} {output}", course / "scenes" / "spheres.json", QUICK)
+    )
     assert outcome.reason is Reason.OK
 
 
@@ -297,7 +344,9 @@ def test_a_failed_build_says_why(course, tmp_path):
 
 
 def test_a_program_writes_only_its_own_folders(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         for path in ["/x", "/dev/x", "/usr/x", "/submission/x", "/scene/x", "/out/x", "/tmp/x", "/dev/shm/x", "x"]:
             try:
                 open(path, "w").close()
@@ -305,7 +354,8 @@ def test_a_program_writes_only_its_own_folders(course):
             except OSError as exc:
                 print("REFUSED", path, exc.strerror)
         write_png(output)
-        """)
+        """,
+    )
     assert outcome.reason is Reason.OK
     wrote = {line.split()[1] for line in outcome.stderr_tail.splitlines() if line.startswith("WROTE")}
     assert wrote == {"/tmp/x", "/dev/shm/x", "x"}
@@ -330,16 +380,24 @@ def test_check_sandbox_passes_where_bubblewrap_works():
 
 
 def test_a_program_cannot_pass_for_a_sandbox_that_did_not_start(course):
-    outcome = run(course, """\
+    outcome = run(
+        course,
+        """\
         print("bwrap: No permissions to create new namespace", file=sys.stderr)
         sys.exit(1)
-        """)
+        """,
+    )
     assert outcome.reason is Reason.CRASHED and outcome.detail == "crashed (exit 1)"
 
 
-@pytest.mark.parametrize(("command", "error"), [("python3 'render.py {scene} {output}", "No closing quotation"),
-                                                 ("python3 render.py {scene}", "names no {output}"),
-                                                 ("", "the command is empty")])
+@pytest.mark.parametrize(
+    ("command", "error"),
+    [
+        ("python3 'render.py {scene} {output}", "No closing quotation"),
+        ("python3 render.py {scene}", "names no {output}"),
+        ("", "the command is empty"),
+    ],
+)
 def test_a_command_template_that_cannot_run_is_refused_before_any_run(course, command, error):
     with pytest.raises(ValueError, match=error):
         ProgramRun(course / "subs" / "ann", command, course / "scenes" / "spheres.json")

@@ -56,9 +56,16 @@ def _member(name: str, kind: bytes = tarfile.REGTYPE, target: str = "") -> tarfi
 
 
 def test_a_builds_result_is_unpacked_without_links_or_escapes(tmp_path):
-    stream = _tar([(_member("./bin/raytracer"), b"built"), (_member("../escaped"), b"x"),
-                   (_member("/etc/escaped"), b"x"), (_member("passwd", tarfile.SYMTYPE, "/etc/passwd"), b""),
-                   (_member("hard", tarfile.LNKTYPE, "bin/raytracer"), b""), (_member("bin/raytracer/x"), b"x")])
+    stream = _tar(
+        [
+            (_member("./bin/raytracer"), b"built"),
+            (_member("../escaped"), b"x"),
+            (_member("/etc/escaped"), b"x"),
+            (_member("passwd", tarfile.SYMTYPE, "/etc/passwd"), b""),
+            (_member("hard", tarfile.LNKTYPE, "bin/raytracer"), b""),
+            (_member("bin/raytracer/x"), b"x"),
+        ]
+    )
     target = tmp_path / "built"
     target.mkdir()
     unpack(stream, target, 1 << 20)

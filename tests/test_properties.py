@@ -20,43 +20,88 @@ positive = st.one_of(st.floats(1e-3, 20), st.sampled_from([1e-300, 1e-9, 1e9, 1e
 vec = st.lists(num, min_size=3, max_size=3)
 unit_interval = st.floats(0, 1)
 colour = st.one_of(st.floats(0, 3), st.lists(st.floats(0, 3), min_size=3, max_size=3), st.sampled_from([1e300]))
-attenuation = st.one_of(st.just([1, 0, 0]), st.lists(st.sampled_from([0.0, 0.5, 1.0, 1e-300, 1e300]),
-                                                     min_size=3, max_size=3))
+attenuation = st.one_of(
+    st.just([1, 0, 0]), st.lists(st.sampled_from([0.0, 0.5, 1.0, 1e-300, 1e300]), min_size=3, max_size=3)
+)
 
-material = st.fixed_dictionaries({}, optional={
-    "ambient": colour, "diffuse": colour, "specular": colour, "shininess": st.sampled_from([0, 1, 10, 200, 1e6]),
-    "reflectance": unit_interval, "transmittance": unit_interval, "ior": st.sampled_from([0.5, 1.0, 1.5, 3.0])})
+material = st.fixed_dictionaries(
+    {},
+    optional={
+        "ambient": colour,
+        "diffuse": colour,
+        "specular": colour,
+        "shininess": st.sampled_from([0, 1, 10, 200, 1e6]),
+        "reflectance": unit_interval,
+        "transmittance": unit_interval,
+        "ior": st.sampled_from([0.5, 1.0, 1.5, 3.0]),
+    },
+)
 
 sphere = st.fixed_dictionaries({"type": st.just("sphere"), "material": st.just("a"), "center": vec, "radius": positive})
 plane = st.fixed_dictionaries({"type": st.just("plane"), "material": st.just("b"), "point": vec, "normal": vec})
-triangle = st.fixed_dictionaries({"type": st.just("triangle"), "material": st.just("a"),
-                                  "vertices": st.lists(vec, min_size=3, max_size=3)})
-mesh = st.integers(3, 6).flatmap(lambda n: st.fixed_dictionaries({
-    "type": st.just("mesh"), "material": st.just("b"), "vertices": st.lists(vec, min_size=n, max_size=n),
-    "faces": st.lists(st.lists(st.integers(0, n - 1), min_size=3, max_size=3), min_size=1, max_size=4)},
-    optional={"normals": st.lists(vec, min_size=n, max_size=n)}))
+triangle = st.fixed_dictionaries(
+    {"type": st.just("triangle"), "material": st.just("a"), "vertices": st.lists(vec, min_size=3, max_size=3)}
+)
+mesh = st.integers(3, 6).flatmap(
+    lambda n: st.fixed_dictionaries(
+        {
+            "type": st.just("mesh"),
+            "material": st.just("b"),
+            "vertices": st.lists(vec, min_size=n, max_size=n),
+            "faces": st.lists(st.lists(st.integers(0, n - 1), min_size=3, max_size=3), min_size=1, max_size=4),
+        },
+        optional={"normals": st.lists(vec, min_size=n, max_size=n)},
+    )
+)
 
 light = st.one_of(
     st.fixed_dictionaries({"type": st.just("ambient"), "color": colour}),
     st.fixed_dictionaries({"type": st.just("directional"), "color": colour, "direction": vec}),
     st.fixed_dictionaries({"type": st.just("point"), "color": colour, "position": vec, "attenuation": attenuation}),
-    st.fixed_dictionaries({"type": st.just("spot"), "color": colour, "position": vec, "direction": vec,
-                           "attenuation": attenuation, "cutoff": st.sampled_from([1, 30, 89.9, 90]),
-                           "inner_cutoff": st.sampled_from([0.5, 1, 30]), "exponent": st.sampled_from([0, 1, 50])}),
-    st.fixed_dictionaries({"type": st.just("area"), "color": colour, "corner": vec, "edge_u": vec, "edge_v": vec,
-                           "samples": st.lists(st.integers(1, 3), min_size=2, max_size=2)}),
+    st.fixed_dictionaries(
+        {
+            "type": st.just("spot"),
+            "color": colour,
+            "position": vec,
+            "direction": vec,
+            "attenuation": attenuation,
+            "cutoff": st.sampled_from([1, 30, 89.9, 90]),
+            "inner_cutoff": st.sampled_from([0.5, 1, 30]),
+            "exponent": st.sampled_from([0, 1, 50]),
+        }
+    ),
+    st.fixed_dictionaries(
+        {
+            "type": st.just("area"),
+            "color": colour,
+            "corner": vec,
+            "edge_u": vec,
+            "edge_v": vec,
+            "samples": st.lists(st.integers(1, 3), min_size=2, max_size=2),
+        }
+    ),
 )
 
-scene = st.fixed_dictionaries({
-    "camera": st.fixed_dictionaries({"position": vec, "look_at": vec}, optional={
-        "type": st.sampled_from(["perspective", "orthographic"]), "up": vec, "fov": st.floats(0.5, 179.5),
-        "height": positive}),
-    "image": st.fixed_dictionaries({"width": st.integers(1, 5), "height": st.integers(1, 5)}, optional={
-        "samples": st.integers(1, 2), "max_depth": st.integers(0, 3), "background": colour}),
-    "materials": st.fixed_dictionaries({"a": material, "b": material}),
-    "objects": st.lists(st.one_of(sphere, plane, triangle, mesh), max_size=4),
-    "lights": st.lists(light, max_size=3),
-})
+scene = st.fixed_dictionaries(
+    {
+        "camera": st.fixed_dictionaries(
+            {"position": vec, "look_at": vec},
+            optional={
+                "type": st.sampled_from(["perspective", "orthographic"]),
+                "up": vec,
+                "fov": st.floats(0.5, 179.5),
+                "height": positive,
+            },
+        ),
+        "image": st.fixed_dictionaries(
+            {"width": st.integers(1, 5), "height": st.integers(1, 5)},
+            optional={"samples": st.integers(1, 2), "max_depth": st.integers(0, 3), "background": colour},
+        ),
+        "materials": st.fixed_dictionaries({"a": material, "b": material}),
+        "objects": st.lists(st.one_of(sphere, plane, triangle, mesh), max_size=4),
+        "lights": st.lists(light, max_size=3),
+    }
+)
 
 
 def render_or_problems(data):
@@ -89,10 +134,14 @@ def test_accepted_scenes_render_finite_pixels_and_rejected_ones_are_located(data
 
 
 json_values = st.recursive(
-    st.none() | st.booleans() | st.integers(-10**20, 10**20) | st.floats(allow_nan=False, allow_infinity=False)
+    st.none()
+    | st.booleans()
+    | st.integers(-(10**20), 10**20)
+    | st.floats(allow_nan=False, allow_infinity=False)
     | st.text(max_size=8),
     lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=8), children, max_size=4),
-    max_leaves=20)
+    max_leaves=20,
+)
 
 
 @settings(max_examples=EXAMPLES_PER_TEST, deadline=None)

@@ -14,8 +14,12 @@ from service.settings import Settings
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 DOCS = {page.relative_to(ROOT).as_posix(): page.read_text() for page in PAGES}
-COMMANDS = [line.strip() for text in DOCS.values() for block in re.findall(r"```sh\n(.*?)```", text, re.S)
-            for line in block.splitlines()]
+COMMANDS = [
+    line.strip()
+    for text in DOCS.values()
+    for block in re.findall(r"```sh\n(.*?)```", text, re.S)
+    for line in block.splitlines()
+]
 
 
 def test_curl_uploads_scenes_as_they_are():
@@ -51,7 +55,7 @@ def test_the_class_section_shows_the_tas_layout_and_the_gradescope_output(tmp_pa
     """docs/grading.md's command on the sample class (the README's too), and frank's results.json as the page
     shows it."""
     grading = DOCS["docs/grading.md"]
-    section = grading[grading.index("\n## Grading a class\n"):grading.index("\n## Grading that explains\n")]
+    section = grading[grading.index("\n## Grading a class\n") : grading.index("\n## Grading that explains\n")]
     assert "student-scenes/<student>/<task>.json" in section
     command = next(c for c in re.findall(r"```sh\n(.*?)```", section, re.S) if "grade-class" in c)
     assert command in DOCS["README.md"]
@@ -61,5 +65,5 @@ def test_the_class_section_shows_the_tas_layout_and_the_gradescope_output(tmp_pa
     monkeypatch.chdir(ROOT)
     assert main(argv) == 0
     start = section.index('{\n "score"')
-    shown = json.loads(section[start:section.index("\n}\n", start) + 2])
+    shown = json.loads(section[start : section.index("\n}\n", start) + 2])
     assert json.loads((tmp_path / "report" / "gradescope" / "frank" / "results.json").read_text()) == shown

@@ -65,9 +65,15 @@ def make_class(root: Path, students: dict[str, bytes], data: dict | None = None)
 def cli(*args: object, timeout: float = 120, env: dict[str, str] | None = None, **popen) -> tuple[int, str, float]:
     """grade-class in a process of its own, as a TA runs it: (exit code, stderr, seconds)."""
     started = time.monotonic()
-    proc = subprocess.run([sys.executable, "-m", "service.cli", "grade-class", *map(str, args)],
-                          capture_output=True, text=True, timeout=timeout, env={**os.environ, **(env or {})},
-                          errors="backslashreplace", **popen)
+    proc = subprocess.run(
+        [sys.executable, "-m", "service.cli", "grade-class", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={**os.environ, **(env or {})},
+        errors="backslashreplace",
+        **popen,
+    )
     return proc.returncode, proc.stderr, time.monotonic() - started
 
 
@@ -91,6 +97,7 @@ def everything(report: Path) -> str:
 
 
 # -- 1 and 2: a hostile class folder, graded once: links, FIFOs, loops, folders, huge files, hostile names ------
+
 
 @pytest.fixture(scope="module")
 def hostile(tmp_path_factory):
@@ -123,7 +130,7 @@ def hostile(tmp_path_factory):
     with open(folder("huge") / "spheres.png", "wb") as f:  # 3 GiB, sparse: a few KB on disk
         f.write(right)
         f.truncate(3 << 30)
-    for name in ("=HYPERLINK(\"evil.example\",\"x\")", "+1+1", "-2", "@SUM(A1)", "\tx", "\rx"):
+    for name in ('=HYPERLINK("evil.example","x")', "+1+1", "-2", "@SUM(A1)", "\tx", "\rx"):
         (folder(name) / "spheres.png").write_bytes(right)
     (subs / "\x1b[2J\x1b[Hall 40 students passed.png").write_bytes(b"")  # a loose file, so an ignored line
     code, err, seconds = cli(scenes, subs, "-o", report, "--jobs", "2", timeout=120)
@@ -172,8 +179,9 @@ def test_fifos_loops_dangling_links_and_folders_become_rows_with_their_reason(ho
     assert got["fifo"]["reason"] == f"{subs}/fifo/spheres.png: a FIFO, not a regular file"
     assert got["fifojson"]["status"] == "missing"  # a scene among the submissions is never opened
     for student in ("loop", "dangling"):
-        assert got[student]["reason"] == (f"{subs}/{student}/spheres.png: a symbolic link; links in submissions "
-                                          f"are not followed")
+        assert got[student]["reason"] == (
+            f"{subs}/{student}/spheres.png: a symbolic link; links in submissions are not followed"
+        )
     assert got["dirpng"]["status"] == "invalid"
     assert got["dirpng"]["reason"] == f"{subs}/dirpng/spheres.png: a folder, not a file"
 
@@ -190,7 +198,7 @@ def test_report_csv_cells_that_a_spreadsheet_would_run_are_neutralised(hostile):
     _, report, *_ = hostile
     with open(report / "report.csv", newline="") as f:
         students = [r["student"] for r in csv.DictReader(f)]
-    for name in ("=HYPERLINK(\"evil.example\",\"x\")", "+1+1", "-2", "@SUM(A1)", "\tx", "\rx"):
+    for name in ('=HYPERLINK("evil.example","x")', "+1+1", "-2", "@SUM(A1)", "\tx", "\rx"):
         assert "'" + name in students, (name, students)
     assert not any(s.startswith(report_module.FORMULA_STARTS) for s in students)
     assert rows(report)["-2"]["student"] == "-2"  # report.json keeps the name as it is
@@ -272,8 +280,9 @@ def test_an_unreadable_file_or_folder_is_that_students_row(tmp_path):
     assert got["nodir"]["status"] == "invalid"
     assert got["nodir"]["reason"] == f"{subs}/nodir: cannot read the folder: Permission denied"
     assert got["nosub"]["status"] == "invalid"
-    assert got["nosub"]["reason"] == (f"no spheres.png found; {subs}/nosub/hw3: cannot read the folder: "
-                                      f"Permission denied")
+    assert got["nosub"]["reason"] == (
+        f"no spheres.png found; {subs}/nosub/hw3: cannot read the folder: Permission denied"
+    )
     assert (tmp_path / "report" / "report.json").exists()
 
 
@@ -296,6 +305,7 @@ def test_the_copy_in_the_report_is_the_bytes_that_were_graded(tmp_path):
 
 # -- 3: every scene priced before anything renders; a render has the service's timeout ---------------------------
 
+
 def test_a_scene_over_the_cost_limit_stops_the_run_naming_the_file(tmp_path, capsys, monkeypatch):
     scenes, subs, _ = make_class(tmp_path, {"ada": b"", "ben": b""})
     own = tmp_path / "own" / "ada"
@@ -303,8 +313,18 @@ def test_a_scene_over_the_cost_limit_stops_the_run_naming_the_file(tmp_path, cap
     (own / "spheres.json").write_text(json.dumps(tiny(samples=2)))
     monkeypatch.setenv("PHONGRAY_MAX_COST", "100")  # the tiny scenes' camera rays alone cost 4.3e2 and 1.7e3
     started = time.monotonic()
-    code = main(["grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r"), "--student-scenes",
-                 str(tmp_path / "own"), "--limits"])
+    code = main(
+        [
+            "grade-class",
+            str(scenes),
+            str(subs),
+            "-o",
+            str(tmp_path / "r"),
+            "--student-scenes",
+            str(tmp_path / "own"),
+            "--limits",
+        ]
+    )
     said = one_line(capsys.readouterr().err)
     measured("a class over the cost limit: stopped after (s)", time.monotonic() - started)
     assert code == 2 and time.monotonic() - started < 50  # before any render: a hang, not a slowdown, fails here
@@ -333,11 +353,13 @@ def test_a_render_past_the_services_timeout_stops_the_run_naming_the_file(tmp_pa
     said = one_line(capsys.readouterr().err)
     measured("a class render past render_timeout = 0.2 s: stopped after (s)", time.monotonic() - started)
     assert code == 2, said
-    assert said == (f"{scenes}/spheres.json: the render ran past the limit render_timeout = 0.2 s "
-                    f"(PHONGRAY_RENDER_TIMEOUT)")
+    assert said == (
+        f"{scenes}/spheres.json: the render ran past the limit render_timeout = 0.2 s (PHONGRAY_RENDER_TIMEOUT)"
+    )
 
 
 # -- 4: faults retried with backoff, finished work never lost ------------------------------------------------
+
 
 def killing_grade(job: GradeJob) -> dict:
     """The grade task, in a pool process that is killed (as the OOM killer would) while it grades: once per
@@ -411,11 +433,26 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_pool_processes_die_with_grade_class(tmp_path):
-    scenes, subs, _ = make_class(tmp_path, {"ada": b""},
-                                 data=tiny("02_all_lights", width=640, height=480, samples=2))  # 8 s on one core
-    proc = subprocess.Popen([sys.executable, "-m", "service.cli", "grade-class", str(scenes), str(subs), "-o",
-                             str(tmp_path / "r"), "--jobs", "2"], env={**os.environ, "PHONGRAY_MAX_COST": "1e10"},
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    scenes, subs, _ = make_class(
+        tmp_path, {"ada": b""}, data=tiny("02_all_lights", width=640, height=480, samples=2)
+    )  # 8 s on one core
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "service.cli",
+            "grade-class",
+            str(scenes),
+            str(subs),
+            "-o",
+            str(tmp_path / "r"),
+            "--jobs",
+            "2",
+        ],
+        env={**os.environ, "PHONGRAY_MAX_COST": "1e10"},
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     pool: list[int] = []
     try:
         deadline = time.monotonic() + 30
@@ -439,8 +476,9 @@ class ResettingProxy:
     """A TCP proxy in front of a server whose connections ``numbers`` (counted from 0) are reset, as a server
     worker that restarts resets its connections, or answered 503 with a Retry-After (``busy``)."""
 
-    def __init__(self, target: str, reset: set[int] | None = None, busy: set[int] | None = None,
-                 reset_from: int | None = None):
+    def __init__(
+        self, target: str, reset: set[int] | None = None, busy: set[int] | None = None, reset_from: int | None = None
+    ):
         host, port = target.removeprefix("http://").split(":")
         self.target = (host, int(port))
         self.reset, self.busy, self.reset_from = reset or set(), busy or set(), reset_from
@@ -466,11 +504,14 @@ class ResettingProxy:
             return
         if n in self.busy:
             conn.recv(65536)
-            conn.sendall(b"HTTP/1.1 503 Service Unavailable\r\nRetry-After: 0\r\nContent-Type: application/json\r\n"
-                         b"Content-Length: 20\r\nConnection: close\r\n\r\n{\"detail\": \"busy\"}  ")
+            conn.sendall(
+                b"HTTP/1.1 503 Service Unavailable\r\nRetry-After: 0\r\nContent-Type: application/json\r\n"
+                b'Content-Length: 20\r\nConnection: close\r\n\r\n{"detail": "busy"}  '
+            )
             conn.close()
             return
         with conn, socket.create_connection(self.target) as up:
+
             def pipe(a: socket.socket, b: socket.socket) -> None:
                 with contextlib.suppress(OSError):
                     while data := a.recv(65536):
@@ -508,20 +549,23 @@ def test_a_server_gone_for_good_stops_with_one_line_and_keeps_what_finished(tmp_
     with running_server(tmp_path) as (url, _):
         proxy = ResettingProxy(url, reset_from=2 + 1 + 2)  # the check, the render, ada's grade; then all reset
         try:
-            code = main(["grade-class", str(scenes), str(subs), "-o", str(report), "--server", proxy.url,
-                         "--jobs", "1"])
+            code = main(
+                ["grade-class", str(scenes), str(subs), "-o", str(report), "--server", proxy.url, "--jobs", "1"]
+            )
         finally:
             proxy.close()
         said = one_line(capsys.readouterr().err)
         assert code == 2
         assert said.startswith(f"--server {proxy.url}: cannot reach {proxy.url}/grade")
         assert "(after 4 retries)" in said and said.endswith(
-            f"1 references and 1 grades are kept in {report}: run again to resume")
+            f"1 references and 1 grades are kept in {report}: run again to resume"
+        )
         outcome = classgrade.grade_class(ClassRun(scenes, subs, report, server=url, jobs=1))  # the rerun resumes
     assert outcome.renders == 0 and [r["status"] for r in outcome.rows] == ["pass", "pass"]
 
 
 # -- 4: temporary files removed on every error path (a full disk) ---------------------------------------------
+
 
 @contextlib.contextmanager
 def file_size_limit(nbytes: int):
@@ -576,8 +620,7 @@ def _stop(proc: subprocess.Popen) -> None:
         proc.wait()
 
 
-def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_finished(tmp_path, capsys,
-                                                                                          monkeypatch):
+def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_finished(tmp_path, capsys, monkeypatch):
     pytest.importorskip("distributed")
     from server import free_port
 
@@ -588,10 +631,34 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
     key = scene_key(schemas.validate_scene(json.loads((scenes / "spheres.json").read_text())))
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
-    scheduler = _start([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port",
-                        str(port), "--dashboard-address", "127.0.0.1:0"], tmp_path / "scheduler.log")
-    worker = _start([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "2", "--no-nanny",
-                     "--host", "127.0.0.1"], tmp_path / "worker.log")
+    scheduler = _start(
+        [
+            sys.executable,
+            "-m",
+            "distributed.cli.dask_scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--dashboard-address",
+            "127.0.0.1:0",
+        ],
+        tmp_path / "scheduler.log",
+    )
+    worker = _start(
+        [
+            sys.executable,
+            "-m",
+            "distributed.cli.dask_worker",
+            address,
+            "--nthreads",
+            "2",
+            "--no-nanny",
+            "--host",
+            "127.0.0.1",
+        ],
+        tmp_path / "worker.log",
+    )
     report = tmp_path / "report"
 
     def lose_the_scheduler() -> None:  # once the quick reference is in, while the slow one renders
@@ -622,6 +689,7 @@ def test_a_lost_dask_scheduler_is_retried_then_stops_with_one_line_keeping_what_
 
 # -- 4: a rerun trusts nothing it did not write: resume journals, and names shown as they are -------------------
 
+
 def test_a_resume_row_tampered_with_or_of_another_version_is_graded_again(tmp_path):
     from service.classgrade import journal
 
@@ -639,8 +707,11 @@ def test_a_resume_row_tampered_with_or_of_another_version_is_graded_again(tmp_pa
         "ada": {**kept["ada"], "row": {**kept["ada"]["row"], "status": "<script>alert(1)</script>"}},
         "cy": {**kept["cy"], "row": {**kept["cy"]["row"], "fraction_off_nearby": "x"}},
         "bob": {**kept["bob"], "row": {**kept["bob"]["row"], "mistakes": [["no-shadows"]]}},
-        "dee": {"stamp": {**kept["dee"]["stamp"], "phongray": "0.0.1"},
-                "row": {**kept["dee"]["row"], "status": "fail", "passed": False}}}
+        "dee": {
+            "stamp": {**kept["dee"]["stamp"], "phongray": "0.0.1"},
+            "row": {**kept["dee"]["row"], "status": "fail", "passed": False},
+        },
+    }
     for student, data in tampered.items():
         files[student].write_text(json.dumps(data))
     outcome = classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
@@ -737,14 +808,20 @@ def test_a_folder_of_thousands_of_resubmissions_gives_a_short_reason(tmp_path):
         (subs / "bob" / f"spheres-{n}.png").unlink()
     classgrade.grade_class(ClassRun(scenes, subs, report, jobs=1))
     reason = rows(report)["bob"]["reason"]
-    assert reason.startswith("no spheres.png (found sphere-") and reason.endswith(
-        " and 2995 more: did you mean spheres.png?)") and len(reason) < 1000
+    assert (
+        reason.startswith("no spheres.png (found sphere-")
+        and reason.endswith(" and 2995 more: did you mean spheres.png?)")
+        and len(reason) < 1000
+    )
 
 
-@pytest.mark.parametrize("broken", [
-    lambda png: png[:100],  # cut short (a copy that failed)
-    lambda png: b"version https://git-lfs.github.com/spec/v1\noid sha256:0\nsize 1\n",  # a Git LFS pointer
-])
+@pytest.mark.parametrize(
+    "broken",
+    [
+        lambda png: png[:100],  # cut short (a copy that failed)
+        lambda png: b"version https://git-lfs.github.com/spec/v1\noid sha256:0\nsize 1\n",  # a Git LFS pointer
+    ],
+)
 def test_a_kept_reference_that_does_not_decode_is_rendered_again(tmp_path, broken):
     scenes, subs, right = make_class(tmp_path, {"ada": b"", "bob": b""})
     report = tmp_path / "report"

@@ -35,8 +35,12 @@ def png16(values: np.ndarray, color_type: int) -> bytes:
     (h, w, 4) RGBA (6)."""
     h, w = values.shape[:2]
     raw = b"".join(b"\x00" + values[y].astype(">u2").tobytes() for y in range(h))
-    return (PNG_SIGNATURE + png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, color_type, 0, 0, 0))
-            + png_chunk(b"IDAT", zlib.compress(raw)) + png_chunk(b"IEND", b""))
+    return (
+        PNG_SIGNATURE
+        + png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, color_type, 0, 0, 0))
+        + png_chunk(b"IDAT", zlib.compress(raw))
+        + png_chunk(b"IEND", b"")
+    )
 
 
 def gray_scene() -> dict:
@@ -234,8 +238,10 @@ def smuggle(url: str, encoding: bytes, extra: bytes = b"") -> tuple[bytes, bool]
     server sends back within 3 s, and whether it closed the connection."""
     smuggled = b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"
     body = b"0\r\n\r\n" + smuggled
-    head = (b"POST /validate HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: %d\r\n"
-            b"Transfer-Encoding: %s\r\n%s\r\n" % (len(body), encoding, extra))
+    head = (
+        b"POST /validate HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: %d\r\n"
+        b"Transfer-Encoding: %s\r\n%s\r\n" % (len(body), encoding, extra)
+    )
     with socket.create_connection(("127.0.0.1", port_of(url)), timeout=5) as sock:
         sock.sendall(head + body)
         return read_all(sock, 3.0)
@@ -261,8 +267,10 @@ def test_content_length_with_transfer_encoding_gets_400_before_the_key_is_asked_
 def test_a_body_that_finds_no_room_in_the_budget_gets_503_with_retry_after(server):
     """A 3 MiB budget: one held 2 MiB body leaves no room for another, which waits 0.5 s and gets 503."""
     size = 2 << 20
-    head = (b"POST /validate HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: %d\r\n"
-            b"Connection: close\r\n\r\n" % size)
+    head = (
+        b"POST /validate HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: %d\r\n"
+        b"Connection: close\r\n\r\n" % size
+    )
     body = b" " * (size - 2) + b"{}"
     with socket.create_connection(("127.0.0.1", port_of(server)), timeout=10) as holder:
         holder.sendall(head + body[:1000])  # holds its 2 MiB of the budget while its body trickles in

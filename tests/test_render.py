@@ -52,8 +52,12 @@ def test_same_bytes_for_any_thread_count_and_chunk_size():
 def floor_as_triangles(data, size):
     out = copy.deepcopy(data)
     s = size
-    out["objects"][0] = {"type": "mesh", "material": out["objects"][0]["material"],
-                         "vertices": [[-s, 0, -s], [s, 0, -s], [s, 0, s], [-s, 0, s]], "faces": [[0, 2, 1], [0, 3, 2]]}
+    out["objects"][0] = {
+        "type": "mesh",
+        "material": out["objects"][0]["material"],
+        "vertices": [[-s, 0, -s], [s, 0, -s], [s, 0, s], [-s, 0, s]],
+        "faces": [[0, 2, 1], [0, 3, 2]],
+    }
     return out
 
 
@@ -71,11 +75,16 @@ def test_planet_sized_sphere_floor_matches_the_plane(renders, radius):
 
 
 def hard_scene(objects, lights, camera=None, **image):
-    return {"camera": camera or {"position": [0, 1, 4], "look_at": [0, 0.5, 0]},
-            "image": {"width": 48, "height": 36, "max_depth": 3, **image},
-            "materials": {"m": {"reflectance": 0.3, "transmittance": 0.3},
-                          "c": {"checker": {"size": 0.25, "material": "m"}}},
-            "objects": objects, "lights": lights}
+    return {
+        "camera": camera or {"position": [0, 1, 4], "look_at": [0, 0.5, 0]},
+        "image": {"width": 48, "height": 36, "max_depth": 3, **image},
+        "materials": {
+            "m": {"reflectance": 0.3, "transmittance": 0.3},
+            "c": {"checker": {"size": 0.25, "material": "m"}},
+        },
+        "objects": objects,
+        "lights": lights,
+    }
 
 
 FLOOR = {"type": "plane", "material": "c", "point": [0, 0, 0], "normal": [0, 1, 0]}
@@ -86,33 +95,69 @@ HARD = {
     "camera inside a sphere": hard_scene([FLOOR, {**BALL, "radius": 10}], [LAMP, {"type": "ambient", "color": 0.2}]),
     "light exactly on the floor": hard_scene([FLOOR, BALL], [{**LAMP, "position": [1, 0, 1]}]),
     "light exactly on a sphere": hard_scene([FLOOR, BALL], [{**LAMP, "position": [0, 1, 0]}]),
-    "camera in the floor plane": hard_scene([FLOOR, BALL], [LAMP],
-                                            camera={"position": [0, 0, 4], "look_at": [0, 0, 0]}),
+    "camera in the floor plane": hard_scene(
+        [FLOOR, BALL], [LAMP], camera={"position": [0, 0, 4], "look_at": [0, 0, 0]}
+    ),
     "coplanar planes and triangle": hard_scene(
-        [FLOOR, {**FLOOR, "material": "m"},
-         {"type": "triangle", "material": "m", "vertices": [[-1, 0, -1], [1, 0, -1], [0, 0, 1]]}, BALL], [LAMP]),
+        [
+            FLOOR,
+            {**FLOOR, "material": "m"},
+            {"type": "triangle", "material": "m", "vertices": [[-1, 0, -1], [1, 0, -1], [0, 0, 1]]},
+            BALL,
+        ],
+        [LAMP],
+    ),
     "tiny sphere on a huge one": hard_scene(
-        [{"type": "sphere", "material": "c", "center": [0, -1e7, 0], "radius": 1e7},
-         {"type": "sphere", "material": "m", "center": [0, 1e-4, 0], "radius": 1e-4}], [LAMP],
-        camera={"position": [0, 2e-4, 6e-4], "look_at": [0, 1e-4, 0]}),
+        [
+            {"type": "sphere", "material": "c", "center": [0, -1e7, 0], "radius": 1e7},
+            {"type": "sphere", "material": "m", "center": [0, 1e-4, 0], "radius": 1e-4},
+        ],
+        [LAMP],
+        camera={"position": [0, 2e-4, 6e-4], "look_at": [0, 1e-4, 0]},
+    ),
     "grazing light": hard_scene([FLOOR, BALL], [{"type": "directional", "color": 1, "direction": [1, -1e-9, 0]}]),
     "spot with a 90 degree cone and zero exponent": hard_scene(
-        [FLOOR, BALL], [{"type": "spot", "color": 1, "position": [0, 2, 0], "direction": [0, -1, 0], "cutoff": 90,
-                         "exponent": 0, "attenuation": [0, 0, 1]}]),
+        [FLOOR, BALL],
+        [
+            {
+                "type": "spot",
+                "color": 1,
+                "position": [0, 2, 0],
+                "direction": [0, -1, 0],
+                "cutoff": 90,
+                "exponent": 0,
+                "attenuation": [0, 0, 1],
+            }
+        ],
+    ),
     "zero-area mesh faces": hard_scene(
-        [FLOOR, {"type": "mesh", "material": "m", "vertices": [[0, 0, 0], [1, 1, 1], [2, 2, 2], [0, 1, 0]],
-                 "faces": [[0, 1, 2], [0, 1, 3]], "normals": [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, 0, 1]]}], [LAMP]),
+        [
+            FLOOR,
+            {
+                "type": "mesh",
+                "material": "m",
+                "vertices": [[0, 0, 0], [1, 1, 1], [2, 2, 2], [0, 1, 0]],
+                "faces": [[0, 1, 2], [0, 1, 3]],
+                "normals": [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, 0, 1]],
+            },
+        ],
+        [LAMP],
+    ),
     "reflection weight underflowing under an infinite light": {
         "camera": {"position": [0, 1e6, 0], "look_at": [0, 0, 0], "up": [1, 0, 0]},
         "image": {"width": 2, "height": 1, "max_depth": 4},
         "materials": {"a": {}, "b": {"diffuse": 1e300, "reflectance": 1e-280}},
-        "objects": [{"type": "sphere", "material": "a", "center": [0, 0, 0], "radius": 1},
-                    {"type": "plane", "material": "b", "point": [0, 0, 0], "normal": [0, 0, 1]},
-                    {"type": "plane", "material": "b", "point": [0, 0, 1], "normal": [1, 0, 2]}],
-        "lights": [{"type": "directional", "color": 1e300, "direction": [1, 0, 0]}]},
+        "objects": [
+            {"type": "sphere", "material": "a", "center": [0, 0, 0], "radius": 1},
+            {"type": "plane", "material": "b", "point": [0, 0, 0], "normal": [0, 0, 1]},
+            {"type": "plane", "material": "b", "point": [0, 0, 1], "normal": [1, 0, 2]},
+        ],
+        "lights": [{"type": "directional", "color": 1e300, "direction": [1, 0, 0]}],
+    },
     "huge coordinates": hard_scene(
         [{**FLOOR, "point": [0, -1e300, 0]}, {**BALL, "radius": 1e300, "center": [0, 0, -2e300]}],
-        [{**LAMP, "position": [1e300, 1e300, 1e300]}]),
+        [{**LAMP, "position": [1e300, 1e300, 1e300]}],
+    ),
 }
 
 
@@ -142,11 +187,17 @@ def test_light_on_a_sphere_lights_the_floor_below():
 def nested_glass_and_mirror(depth, size):
     """Four nested spheres whose materials both reflect and transmit: the ray tree doubles at every bounce."""
     mats = {"glass": {"reflectance": 0.2, "transmittance": 0.7}, "mirror": {"reflectance": 0.6, "transmittance": 0.3}}
-    objs = [{"type": "sphere", "material": ["glass", "mirror"][k % 2], "center": [0, 0, 0], "radius": 1.0 - 0.2 * k}
-            for k in range(4)]
-    return {"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]},
-            "image": {"width": size, "height": size, "max_depth": depth}, "materials": mats, "objects": objs,
-            "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}]}
+    objs = [
+        {"type": "sphere", "material": ["glass", "mirror"][k % 2], "center": [0, 0, 0], "radius": 1.0 - 0.2 * k}
+        for k in range(4)
+    ]
+    return {
+        "camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]},
+        "image": {"width": size, "height": size, "max_depth": depth},
+        "materials": mats,
+        "objects": objs,
+        "lights": [{"type": "point", "color": 1, "position": [2, 2, 2]}],
+    }
 
 
 def test_doubling_ray_tree_gives_the_same_bytes_for_any_slice_thread_count():
@@ -165,16 +216,27 @@ print(next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith(
 
 
 def test_deep_doubling_ray_tree_stays_within_bounded_memory():
-    out = subprocess.run([sys.executable, "-c", MEMORY_SCRIPT, json.dumps(nested_glass_and_mirror(10, 48))],
-                         capture_output=True, text=True, check=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", MEMORY_SCRIPT, json.dumps(nested_glass_and_mirror(10, 48))],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    )
     assert int(out.stdout) < 1024  # MiB: depth-first slices, not 2^10 rays per sample at once
 
 
 def test_cancel_stops_a_render_inside_a_single_long_chunk():
     objs = [{"type": "sphere", "material": "m", "center": [0, 0, 0], "radius": 1.0 + k} for k in range(10_000)]
-    scene = schemas.validate_scene({"camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
-                                    "image": {"width": 48, "height": 48}, "materials": {"m": {}}, "objects": objs,
-                                    "lights": [{"type": "point", "color": 1, "position": [0.2, 0.2, 0.2]}]})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 0, 0.5], "look_at": [0, 0, 0]},
+            "image": {"width": 48, "height": 48},
+            "materials": {"m": {}},
+            "objects": objs,
+            "lights": [{"type": "point", "color": 1, "position": [0.2, 0.2, 0.2]}],
+        }
+    )
     renderer = Renderer(scene)
     asked: list[float] = []  # when cancel() first said yes
 

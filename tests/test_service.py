@@ -138,14 +138,17 @@ def test_body_limit_is_413():
     assert res.status_code == 413
 
 
-@pytest.mark.parametrize("settings, patch, limit", [
-    ({"max_pixels": 100}, {}, "max_pixels"),
-    ({"max_samples": 2}, {"samples": 3}, "max_samples"),
-    ({"max_depth": 2}, {"max_depth": 3}, "max_depth"),
-    ({"max_cost": 1000}, {}, "max_cost"),
-    ({"max_objects": 2}, {}, "max_objects"),
-    ({"max_light_samples": 0}, {}, "max_light_samples"),
-])
+@pytest.mark.parametrize(
+    "settings, patch, limit",
+    [
+        ({"max_pixels": 100}, {}, "max_pixels"),
+        ({"max_samples": 2}, {"samples": 3}, "max_samples"),
+        ({"max_depth": 2}, {"max_depth": 3}, "max_depth"),
+        ({"max_cost": 1000}, {}, "max_cost"),
+        ({"max_objects": 2}, {}, "max_objects"),
+        ({"max_light_samples": 0}, {}, "max_light_samples"),
+    ],
+)
 def test_scene_limits_name_the_limit(settings, patch, limit):
     data = scene_dict("01_three_spheres")
     data["image"].update(patch)
@@ -227,11 +230,14 @@ def test_one_pixel_shift_is_forgiven_by_the_neighbourhood_measure(api, reference
     assert body["fraction_off"] > 0.01 and body["fraction_off_nearby"] <= body["fraction_off"]
 
 
-@pytest.mark.parametrize("image, says", [
-    (png_of(np.zeros((10, 10, 3), np.uint8)), "10×10 pixels, the scene is 160×120"),
-    (b"GIF89a" + b"\0" * 100, "image is a GIF; PNG required"),
-    (b"", "image is empty (0 bytes)"),
-])
+@pytest.mark.parametrize(
+    "image, says",
+    [
+        (png_of(np.zeros((10, 10, 3), np.uint8)), "10×10 pixels, the scene is 160×120"),
+        (b"GIF89a" + b"\0" * 100, "image is a GIF; PNG required"),
+        (b"", "image is empty (0 bytes)"),
+    ],
+)
 def test_bad_submissions_are_422(api, image, says):
     res = grade(api, image=image)
     assert res.status_code == 422 and says in res.json()["detail"]
@@ -251,6 +257,7 @@ def test_png_bomb_is_refused_before_decoding(api):
     img.save(buf, format="PNG")
     data = bytearray(buf.getvalue())
     import struct
+
     ihdr = struct.pack(">IIBBBBB", 50_000, 50_000, 8, 2, 0, 0, 0)
     data[8:33] = png_chunk(b"IHDR", ihdr)
     res = grade(api, image=bytes(data))
@@ -267,8 +274,11 @@ def test_grade_form_errors(api, reference_png):
 
 
 def test_heatmap(api, reference_png):
-    res = api.post("/grade?format=png&legend=false&heatmap=raw", data={"scene": SCENE.decode()},
-                   files={"image": ("s.png", reference_png, "image/png")})
+    res = api.post(
+        "/grade?format=png&legend=false&heatmap=raw",
+        data={"scene": SCENE.decode()},
+        files={"image": ("s.png", reference_png, "image/png")},
+    )
     assert res.status_code == 200 and res.headers["content-type"] == "image/png"
     heat = tracer.decode_png(res.content)
     assert heat.shape == (120, 160, 3) and heat.max() == 0

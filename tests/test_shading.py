@@ -18,14 +18,21 @@ MAT = {"ambient": 0.1, "diffuse": 0.5, "specular": 0.8, "shininess": 2}
 
 def colour(lights, material=MAT, objects=(), at=(0, 0, 0), max_depth=4, background=0, materials=None):
     mats = {"m": material, **(materials or {})}
-    scene = schemas.validate_scene({
-        "camera": {"type": "orthographic", "position": [at[0], 5, at[2]], "look_at": list(at), "up": [0, 0, -1],
-                   "height": 1e-6},
-        "image": {"width": 1, "height": 1, "max_depth": max_depth, "background": background},
-        "materials": mats,
-        "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]}, *objects],
-        "lights": list(lights),
-    })
+    scene = schemas.validate_scene(
+        {
+            "camera": {
+                "type": "orthographic",
+                "position": [at[0], 5, at[2]],
+                "look_at": list(at),
+                "up": [0, 0, -1],
+                "height": 1e-6,
+            },
+            "image": {"width": 1, "height": 1, "max_depth": max_depth, "background": background},
+            "materials": mats,
+            "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]}, *objects],
+            "lights": list(lights),
+        }
+    )
     return Renderer(scene).chunk(0, 1)[0]
 
 
@@ -51,15 +58,17 @@ def test_light_below_the_surface_gives_nothing():
 
 
 def test_light_on_the_surface_gives_nothing_and_no_nan():
-    got = colour([{"type": "point", "color": 1, "position": [0, 0, 0]}, {"type": "point", "color": 1,
-                                                                        "position": [2, 0, 0]}])
+    got = colour(
+        [{"type": "point", "color": 1, "position": [0, 0, 0]}, {"type": "point", "color": 1, "position": [2, 0, 0]}]
+    )
     np.testing.assert_allclose(got, [0, 0, 0])
 
 
 def test_shadowed_point_keeps_only_ambient():
     blocker = {"type": "sphere", "material": "m", "center": [1.5, 2, 0], "radius": 0.5}
-    got = colour([{"type": "ambient", "color": 1}, {"type": "point", "color": 1, "position": [3, 4, 0]}],
-                 objects=[blocker])
+    got = colour(
+        [{"type": "ambient", "color": 1}, {"type": "point", "color": 1, "position": [3, 4, 0]}], objects=[blocker]
+    )
     np.testing.assert_allclose(got, [0.1] * 3)
 
 
@@ -124,6 +133,7 @@ def test_total_internal_reflection_mirrors():
 
 # -- which emitters a flat surface's plane holds: where light_in_plane need not be called ---------------------------
 
+
 def test_an_emitter_no_plane_holds_leaves_every_n_dot_l_as_it_is():
     """planes_holding decides per surface what light_in_plane decides per hit: where it says no flat surface
     holds an emitter, light_in_plane changes no N·L of any hit; and it finds the lights that do lie in one."""
@@ -153,8 +163,29 @@ def test_an_emitter_no_plane_holds_leaves_every_n_dot_l_as_it_is():
 def test_odd_cells_are_those_np_mod_finds_odd():
     from tracer.shading import odd_cells
 
-    cells = np.array([-5.0, -4, -3, -1, -0.0, 0, 1, 2, 3, 2**52 + 1, -(2**52 + 1), 2**53, 2**53 + 2, -2.0**60, 1e300,
-                      np.inf, -np.inf, np.nan, 7.0e15 + 1])
+    cells = np.array(
+        [
+            -5.0,
+            -4,
+            -3,
+            -1,
+            -0.0,
+            0,
+            1,
+            2,
+            3,
+            2**52 + 1,
+            -(2**52 + 1),
+            2**53,
+            2**53 + 2,
+            -(2.0**60),
+            1e300,
+            np.inf,
+            -np.inf,
+            np.nan,
+            7.0e15 + 1,
+        ]
+    )
     rng = np.random.default_rng(0)
     cells = np.concatenate([cells, np.floor(rng.uniform(-1e6, 1e6, 1000)), np.floor(rng.normal(size=1000) * 1e15)])
     with np.errstate(invalid="ignore"):

@@ -129,11 +129,15 @@ def test_a_plane_separates_a_segment_exactly_when_its_ends_lie_on_opposite_sides
 
     point, normal = np.zeros(3), np.array([0.0, 1.0, 0.0])
     origins = np.array([[0.0, 1e-3, 0.0], [0.0, 1e-3, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 0.0], [5.0, -1.0, 0.0]])
-    ends = np.array([[1e6, -1e-3, 0.0],  # nearly parallel to the plane and a million long: crosses it
-                     [1e6, 1e-3, 0.0],  # parallel, on one side: does not
-                     [0.0, 0.0, 0.0],  # ends on the plane: a light in a surface is not blocked by it
-                     [0.0, -3.0, 0.0],  # starts on the plane (the surface it leaves)
-                     [5.0, 1.0, 0.0]])  # straight through
+    ends = np.array(
+        [
+            [1e6, -1e-3, 0.0],  # nearly parallel to the plane and a million long: crosses it
+            [1e6, 1e-3, 0.0],  # parallel, on one side: does not
+            [0.0, 0.0, 0.0],  # ends on the plane: a light in a surface is not blocked by it
+            [0.0, -3.0, 0.0],  # starts on the plane (the surface it leaves)
+            [5.0, 1.0, 0.0],
+        ]
+    )  # straight through
     mag_o, mag_e = np.max(np.abs(origins), axis=1), np.max(np.abs(ends), axis=1)
     got = plane_separates(Segments(origins, ends, mag_o, mag_e), point, normal, 0.0)
     assert got.tolist() == [True, False, False, False, True]

@@ -26,6 +26,7 @@ def sphere_mesh(center, radius, level=3, material="m"):
     """A closed mesh of ``8·4^level`` faces on a sphere (a subdivided octahedron), shared corners."""
     verts = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
     faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+
     def middle(index, a, b):
         key = (min(a, b), max(a, b))
         if key not in index:
@@ -94,38 +95,61 @@ def on_floor(light, point):
 
 BALL = sphere_mesh([0, 0.6, 0], 0.6)
 FLOOR = open_floor(2.5)
-ROUGH = open_floor(1.0, n=30) | {"vertices": [[x, 0.3 + 1e-8 * math.sin(7 * x + 3 * z), z]
-                                             for x, _, z in open_floor(1.0, n=30)["vertices"]]}
+ROUGH = open_floor(1.0, n=30) | {
+    "vertices": [[x, 0.3 + 1e-8 * math.sin(7 * x + 3 * z), z] for x, _, z in open_floor(1.0, n=30)["vertices"]]
+}
 EYE_SIDE, LIGHT_TOP = [0.3, 0.7, 4], [0.4, 3, 0.2]
 CASES = {
     "mesh ball and open floor, point light": scene(
-        [BALL, open_floor(2.5)], [{"type": "point", "color": 1, "position": [2, 3, 2]}],
-        {"position": [0, 1.5, 4], "look_at": [0, 0.5, 0], "fov": 40}),
+        [BALL, open_floor(2.5)],
+        [{"type": "point", "color": 1, "position": [2, 3, 2]}],
+        {"position": [0, 1.5, 4], "look_at": [0, 0.5, 0], "fov": 40},
+    ),
     "the ball's silhouette at a 1e-5 degree field of view": scene(
-        [BALL, FLOOR], [{"type": "point", "color": 1, "position": [-3, 2, 1]}],
-        {"position": EYE_SIDE, "look_at": silhouette_edge(BALL, EYE_SIDE).tolist(), "fov": 1e-5}),
+        [BALL, FLOOR],
+        [{"type": "point", "color": 1, "position": [-3, 2, 1]}],
+        {"position": EYE_SIDE, "look_at": silhouette_edge(BALL, EYE_SIDE).tolist(), "fov": 1e-5},
+    ),
     "the floor's border at a 1e-5 degree field of view": scene(
-        [BALL, FLOOR], [{"type": "point", "color": 1, "position": [-3, 2, 1]}],
-        {"position": [0.1, 0.5, 4], "look_at": border_edge(FLOOR).tolist(), "fov": 1e-5}),
+        [BALL, FLOOR],
+        [{"type": "point", "color": 1, "position": [-3, 2, 1]}],
+        {"position": [0.1, 0.5, 4], "look_at": border_edge(FLOOR).tolist(), "fov": 1e-5},
+    ),
     "the ball's shadow edge on the floor at a 1e-5 degree field of view": scene(
-        [BALL, FLOOR], [{"type": "point", "color": 1, "position": LIGHT_TOP}],
-        {"position": [0, 2, 3], "look_at": on_floor(LIGHT_TOP, silhouette_edge(BALL, LIGHT_TOP)).tolist(),
-         "fov": 1e-5}),
+        [BALL, FLOOR],
+        [{"type": "point", "color": 1, "position": LIGHT_TOP}],
+        {"position": [0, 2, 3], "look_at": on_floor(LIGHT_TOP, silhouette_edge(BALL, LIGHT_TOP)).tolist(), "fov": 1e-5},
+    ),
     "a finely cut, slightly rough floor seen from 2e-6 above it, 1.5 away": scene(
         [ROUGH, BALL | {"vertices": (np.array(BALL["vertices"]) * 0.3 + [0, -0.1, -0.5]).tolist()}],
         [{"type": "point", "color": 1, "position": [0.5, 1, 1]}],
-        {"position": [0.01, 0.3 + 2e-6, 0.95], "look_at": [0.3, 0.3, -0.55], "fov": 1e-4}),
+        {"position": [0.01, 0.3 + 2e-6, 0.95], "look_at": [0.3, 0.3, -0.55], "fov": 1e-4},
+    ),
     "light grazing the ball, eye far and off the origin": scene(
-        [sphere_mesh([1e4, 0.6, -1e4], 0.6), open_floor(2.5, y=0) | {"vertices": [
-            [x + 1e4, y, z - 1e4] for x, y, z in open_floor(2.5)["vertices"]]}],
-        [{"type": "point", "color": 1, "position": [1e4 + 3, 0.61, -1e4]}, {"type": "directional", "color": 0.5,
-                                                                            "direction": [1, -0.05, 0]}],
-        {"position": [1e4 + 1, 2, -1e4 + 4], "look_at": [1e4, 0.6, -1e4], "fov": 35}),
+        [
+            sphere_mesh([1e4, 0.6, -1e4], 0.6),
+            open_floor(2.5, y=0) | {"vertices": [[x + 1e4, y, z - 1e4] for x, y, z in open_floor(2.5)["vertices"]]},
+        ],
+        [
+            {"type": "point", "color": 1, "position": [1e4 + 3, 0.61, -1e4]},
+            {"type": "directional", "color": 0.5, "direction": [1, -0.05, 0]},
+        ],
+        {"position": [1e4 + 1, 2, -1e4 + 4], "look_at": [1e4, 0.6, -1e4], "fov": 35},
+    ),
     "orthographic camera, area light, two touching balls": scene(
         [BALL, sphere_mesh([1.2, 0.6, 0], 0.6, level=2)],
-        [{"type": "area", "color": 1, "corner": [-1, 3, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
-          "samples": [2, 2]}],
-        {"type": "orthographic", "position": [0.6, 0.6, 5], "look_at": [0.6, 0.6, 0], "height": 1.5}),
+        [
+            {
+                "type": "area",
+                "color": 1,
+                "corner": [-1, 3, -1],
+                "edge_u": [2, 0, 0],
+                "edge_v": [0, 0, 2],
+                "samples": [2, 2],
+            }
+        ],
+        {"type": "orthographic", "position": [0.6, 0.6, 5], "look_at": [0.6, 0.6, 0], "height": 1.5},
+    ),
 }
 
 
@@ -140,7 +164,7 @@ def test_plain_triangles_change_no_pixel(name):
     data = CASES[name]
     r = Renderer(schemas.validate_scene(data))
     p = r.intersector.walker.proxies
-    faces_of = np.bincount(p.owner, minlength=len(p.lo))[:r.intersector.walker.n_tri]
+    faces_of = np.bincount(p.owner, minlength=len(p.lo))[: r.intersector.walker.n_tri]
     assert p.slack > 0 and np.sum(faces_of == 1) > 0, "the scene should have plain triangles (one face each)"
     assert np.sum(faces_of > 1) > 0, "and proxied ones"
     assert np.array_equal(r.pixels(), without_plain(data))
@@ -185,9 +209,13 @@ def test_borders_lone_triangles_and_mirrors_keep_their_proxies():
     assert not plain[0]  # a lone triangle: all its edges are borders
     n = 4
     faces = floor["faces"]
-    border = [k for k, f in enumerate(faces) if sum(
-        1 for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0]))
-        if sum(1 for g in faces if a in g and b in g) == 1)]
+    border = [
+        k
+        for k, f in enumerate(faces)
+        if sum(
+            1 for a, b in ((f[0], f[1]), (f[1], f[2]), (f[2], f[0])) if sum(1 for g in faces if a in g and b in g) == 1
+        )
+    ]
     assert not plain[1 + np.array(border)].any()
     assert plain[1:].sum() == 2 * n * n - len(border)
     cam = {"position": [0, 3, 3], "look_at": [0, 0, 0]}
@@ -204,16 +232,31 @@ def test_a_light_in_a_face_plane_or_beside_an_edge_makes_it_a_proxy():
     plain = classify([floor], [{"type": "point", "color": 1, "position": [3, 0, 0]}], EYE | {"position": [0, 3, 3]})
     assert not plain.any()
     # a directional light along the floor: the same
-    plain = classify([floor], [{"type": "directional", "color": 1, "direction": [1, 0, 0.2]}],
-                     EYE | {"position": [0, 3, 3]})
+    plain = classify(
+        [floor], [{"type": "directional", "color": 1, "direction": [1, 0, 0.2]}], EYE | {"position": [0, 3, 3]}
+    )
     assert not plain.any()
 
 
 def test_sightlines_of_a_scene():
-    s = schemas.validate_scene(scene([BALL], [{"type": "ambient", "color": 0.1},
-                                              {"type": "directional", "color": 1, "direction": [0, -2, 0]},
-                                              {"type": "area", "color": 1, "corner": [0, 2, 0], "edge_u": [1, 0, 0],
-                                               "edge_v": [0, 0, 1], "samples": [2, 2]}], EYE))
+    s = schemas.validate_scene(
+        scene(
+            [BALL],
+            [
+                {"type": "ambient", "color": 0.1},
+                {"type": "directional", "color": 1, "direction": [0, -2, 0]},
+                {
+                    "type": "area",
+                    "color": 1,
+                    "corner": [0, 2, 0],
+                    "edge_u": [1, 0, 0],
+                    "edge_v": [0, 0, 1],
+                    "samples": [2, 2],
+                },
+            ],
+            EYE,
+        )
+    )
     lines = lines_of(s, np.array([0, 1.0, 0]))
     assert isinstance(lines, Sightlines)
     assert len(lines.hulls) == 2 and lines.hulls[1].shape == (4, 3)  # the eye; the area light's corners
@@ -229,9 +272,17 @@ def test_a_ray_from_a_plain_face_to_a_light_or_the_eye_never_meets_its_mates():
     n = 16
     terrain = open_floor(1.0, n=n)
     terrain["vertices"] = [[x, float(rng.uniform(0, 0.15)), z] for x, _, z in terrain["vertices"]]
-    lights = [{"type": "point", "color": 1, "position": [1.5, 0.9, 0.2]},
-              {"type": "area", "color": 1, "corner": [-0.5, 1.2, -0.4], "edge_u": [0.6, 0, 0], "edge_v": [0, 0.1, 0.5],
-               "samples": [3, 3]}]
+    lights = [
+        {"type": "point", "color": 1, "position": [1.5, 0.9, 0.2]},
+        {
+            "type": "area",
+            "color": 1,
+            "corner": [-0.5, 1.2, -0.4],
+            "edge_u": [0.6, 0, 0],
+            "edge_v": [0, 0.1, 0.5],
+            "samples": [3, 3],
+        },
+    ]
     cam = {"position": [0, 2.5, 2.5], "look_at": [0, 0, 0]}
     s = schemas.validate_scene(scene([terrain], lights, cam))
     w = build_world(s)
@@ -257,15 +308,37 @@ def test_a_ray_from_a_plain_face_to_a_light_or_the_eye_never_meets_its_mates():
             d /= reach[:, None]
             g = mates[f, k]
             mag = np.abs(p).max(axis=1) + np.abs(w.origin).max()
-            hit, _, _ = triangle_t(p, d, t.v0[g], t.e1[g], t.e2[g], t.normal[g], mag, t.mag[g], ends=end[None],
-                                   mag_end=np.abs(light).max() + np.zeros(len(g)), uv=False)
+            hit, _, _ = triangle_t(
+                p,
+                d,
+                t.v0[g],
+                t.e1[g],
+                t.e2[g],
+                t.normal[g],
+                mag,
+                t.mag[g],
+                ends=end[None],
+                mag_end=np.abs(light).max() + np.zeros(len(g)),
+                uv=False,
+            )
             assert not np.any(hit < reach)
             if len(met_others) < len(uv):  # other faces of the terrain do stand in the way of some of these rays
                 rays, faces = np.meshgrid(np.arange(len(f)), np.arange(len(t.v0)), indexing="ij")
                 rays, faces = rays.ravel(), faces.ravel()
-                hit, _, _ = triangle_t(p[rays], d[rays], t.v0[faces], t.e1[faces], t.e2[faces], t.normal[faces],
-                                       mag[rays], t.mag[faces], faces == f[rays], end[None],
-                                       np.abs(light).max() + np.zeros(len(rays)), uv=False)
+                hit, _, _ = triangle_t(
+                    p[rays],
+                    d[rays],
+                    t.v0[faces],
+                    t.e1[faces],
+                    t.e2[faces],
+                    t.normal[faces],
+                    mag[rays],
+                    t.mag[faces],
+                    faces == f[rays],
+                    end[None],
+                    np.abs(light).max() + np.zeros(len(rays)),
+                    uv=False,
+                )
                 met_others.append(int(np.count_nonzero(hit < reach[rays])))
     assert sum(met_others) > 0
     # and a camera ray through a point well inside a plain face meets no mate anywhere along its line
@@ -274,8 +347,9 @@ def test_a_ray_from_a_plain_face_to_a_light_or_the_eye_never_meets_its_mates():
         d = t.v0[f] + a * t.e1[f] + b * t.e2[f] - eye
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         g = mates[f, k]
-        hit, _, _ = triangle_t(eye + 0 * d, d, t.v0[g], t.e1[g], t.e2[g], t.normal[g], np.abs(eye).max() + 1.0,
-                               t.mag[g], uv=False)
+        hit, _, _ = triangle_t(
+            eye + 0 * d, d, t.v0[g], t.e1[g], t.e2[g], t.normal[g], np.abs(eye).max() + 1.0, t.mag[g], uv=False
+        )
         assert not np.any(np.isfinite(hit))
 
 
@@ -302,8 +376,10 @@ def test_a_ramp_over_itself_and_a_terrain_under_its_copy_agree_with_the_brute_fo
     bumpy = open_floor(1.2, n=16)
     bumpy["vertices"] = [[x, float(rng.uniform(0, 0.12)), z] for x, _, z in bumpy["vertices"]]
     copy = bumpy | {"vertices": [[x, y + 1e-6, z] for x, y, z in bumpy["vertices"]]}
-    lights = [{"type": "point", "color": 1, "position": [0.3, 2.5, -0.2]},
-              {"type": "point", "color": 1, "position": [-1.8, 0.9, 0.5]}]
+    lights = [
+        {"type": "point", "color": 1, "position": [0.3, 2.5, -0.2]},
+        {"type": "point", "color": 1, "position": [-1.8, 0.9, 0.5]},
+    ]
     cam = {"position": camera, "look_at": [0, 0.5, 0]}
     for objects in ([helicoid()], [bumpy, copy]):
         data = scene(objects, lights, cam, width=80, height=60)

@@ -12,17 +12,28 @@ from tracer.variants import REFERENCE, Spawn
 
 
 def mirror_world():
-    scene = schemas.validate_scene({
-        "camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]}, "image": {"width": 1, "height": 1},
-        "materials": {"glass": {"reflectance": 0.5, "transmittance": 0.25, "ior": 1.5}},
-        "objects": [{"type": "sphere", "material": "glass", "center": [0, 0, 0], "radius": 1}]})
+    scene = schemas.validate_scene(
+        {
+            "camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+            "image": {"width": 1, "height": 1},
+            "materials": {"glass": {"reflectance": 0.5, "transmittance": 0.25, "ior": 1.5}},
+            "objects": [{"type": "sphere", "material": "glass", "center": [0, 0, 0], "radius": 1}],
+        }
+    )
     return Renderer(scene).world
 
 
 def sphere_hits(n):
     point = np.tile([0.0, 0.0, 1.0], (n, 1)) + 1e-3 * np.arange(n)[:, None]
-    return Hits(np.ones(n), np.full(n, SPHERE, dtype=np.int8), np.zeros(n, dtype=np.int64), point,
-                np.tile([0.0, 0.0, 1.0], (n, 1)), np.zeros((n, 2)), np.zeros(n, dtype=np.int64))
+    return Hits(
+        np.ones(n),
+        np.full(n, SPHERE, dtype=np.int8),
+        np.zeros(n, dtype=np.int64),
+        point,
+        np.tile([0.0, 0.0, 1.0], (n, 1)),
+        np.zeros((n, 2)),
+        np.zeros(n, dtype=np.int64),
+    )
 
 
 def test_a_ray_starts_at_the_exact_hit_point_and_leaves_its_surface():

@@ -17,8 +17,9 @@ def test_undone_inverts_the_stored_images_flips_and_channel_swap():
     assert np.array_equal(grey, Options(grayscale=True).stored(image))
 
 
-@pytest.mark.parametrize("names", [("camera-left-handed",), ("grayscale",), ("channels-swapped",),
-                                   ("image-flipped", "channels-swapped")])
+@pytest.mark.parametrize(
+    "names", [("camera-left-handed",), ("grayscale",), ("channels-swapped",), ("image-flipped", "channels-swapped")]
+)
 def test_image_level_mistakes_are_found_on_the_references_pixels(names):
     reference = Renderer(small("01_three_spheres")).pixels()
     assert set(image_level(reference, outer(reference, names))) == set(names)

@@ -15,8 +15,16 @@ from tracer.variants import MORE_VARIANTS, VARIANTS
 
 from helpers import scene_dict
 
-EXAMPLES = ["01_three_spheres", "02_all_lights", "03_soft_shadows", "04_whitted", "05_mesh", "06_orthographic",
-            "07_spotlights", "08_antialiased"]
+EXAMPLES = [
+    "01_three_spheres",
+    "02_all_lights",
+    "03_soft_shadows",
+    "04_whitted",
+    "05_mesh",
+    "06_orthographic",
+    "07_spotlights",
+    "08_antialiased",
+]
 
 
 def small(name: str) -> schemas.Scene:

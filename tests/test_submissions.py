@@ -60,7 +60,10 @@ def test_extensions_and_names_match_regardless_of_case_and_one_folder_deeper(tas
     put(root, "frank/hw3/Cornell.png", right)
     rows, ignored = rows_of(root, tmp_path)
     assert {s: (r["status"], r["file"]) for s, r in rows.items()} == {
-        "ada": ("pass", "Cornell.PNG"), "ben": ("pass", "cornell.png"), "frank": ("pass", "hw3/Cornell.png")}
+        "ada": ("pass", "Cornell.PNG"),
+        "ben": ("pass", "cornell.png"),
+        "frank": ("pass", "hw3/Cornell.png"),
+    }
     assert ignored == {}
 
 
@@ -110,7 +113,8 @@ def test_what_cannot_be_graded_is_reported_with_its_reason(task, tmp_path):
         f"{subs}/png-and-jpg/Cornell.jpg": f"another file for Cornell is graded: {subs}/png-and-jpg/Cornell.png",
         f"{subs}/deep/hw/3": "a folder two levels down (phongray looks one folder deep)",
         f"{subs}/loose.png": "not in a student's folder",
-        f"{subs}/lnk/x.png": "matches no task"}
+        f"{subs}/lnk/x.png": "matches no task",
+    }
 
 
 def test_untrusted_files_are_read_bounded_and_never_through_links(tmp_path):
@@ -173,6 +177,7 @@ def test_a_device_or_fifo_is_looked_at_and_never_opened(tmp_path, monkeypatch):
 
 # -- learning-management systems' exports, as they come -----------------------------------------------------
 
+
 def with_task(task, tmp_path):
     """A class folder of the task's scene alone (tmp_path/scenes), to put submissions in (tmp_path/subs)."""
     (tmp_path / "scenes").mkdir()
@@ -190,12 +195,17 @@ def test_a_canvas_flat_folder_is_graded_under_the_students_logins(task, tmp_path
     assert {s: (r["status"], r["file"]) for s, r in rows.items()} == {
         "adamsada": ("pass", "adamsada_LATE_12345_67890_cornell-1.png"),
         "bobbybee": ("pass", "bobbybee_222_333_Cornell.png"),
-        "carlc": ("fail", "carlc_late_444_555_Cornell (1).PNG")}
+        "carlc": ("fail", "carlc_late_444_555_Cornell (1).PNG"),
+    }
     assert ignored == {f"{tmp_path}/subs/readme.txt": "not in a student's folder"}
     assert {s: r["lms_id"] for s, r in rows.items()} == {"adamsada": "12345", "bobbybee": "222", "carlc": "444"}
     with open(tmp_path / "report" / "gradebook.csv", newline="") as f:
-        assert [r[:2] for r in csv.reader(f)] == [["student", "id"], ["adamsada", "12345"], ["bobbybee", "222"],
-                                                  ["carlc", "444"]]
+        assert [r[:2] for r in csv.reader(f)] == [
+            ["student", "id"],
+            ["adamsada", "12345"],
+            ["bobbybee", "222"],
+            ["carlc", "444"],
+        ]
 
 
 def test_moodle_folders_are_graded_under_the_students_names(task, tmp_path):
@@ -208,14 +218,23 @@ def test_moodle_folders_are_graded_under_the_students_names(task, tmp_path):
     put(tmp_path, ".._20_assignsubmission_file_/Cornell.png", right)  # never a student named ".."
     rows, ignored = rows_of(tmp_path, tmp_path)
     assert {s: (r["status"], r["file"]) for s, r in rows.items()} == {
-        "Ada Adams": ("pass", "Cornell.png"), "Bo Li (17)": ("pass", "hw/cornell.png"),
-        "Bo Li (18)": ("invalid", "Cornell.jpg"), "Cy Ng": ("pass", "Cy Ng_19_assignsubmission_file_Cornell.png")}
+        "Ada Adams": ("pass", "Cornell.png"),
+        "Bo Li (17)": ("pass", "hw/cornell.png"),
+        "Bo Li (18)": ("invalid", "Cornell.jpg"),
+        "Cy Ng": ("pass", "Cy Ng_19_assignsubmission_file_Cornell.png"),
+    }
     subs = tmp_path / "subs"
-    assert ignored == {f"{subs}/Ada Adams_123456_assignsubmission_onlinetext_/onlinetext.html": "matches no task",
-                       f"{subs}/.._20_assignsubmission_file_": "not a student's folder"}
+    assert ignored == {
+        f"{subs}/Ada Adams_123456_assignsubmission_onlinetext_/onlinetext.html": "matches no task",
+        f"{subs}/.._20_assignsubmission_file_": "not a student's folder",
+    }
     assert (tmp_path / "report" / "gradescope" / "Ada Adams" / "results.json").is_file()
-    assert {s: r["lms_id"] for s, r in rows.items()} == {"Ada Adams": "123456", "Bo Li (17)": "17",
-                                                         "Bo Li (18)": "18", "Cy Ng": "19"}
+    assert {s: r["lms_id"] for s, r in rows.items()} == {
+        "Ada Adams": "123456",
+        "Bo Li (17)": "17",
+        "Bo Li (18)": "18",
+        "Cy Ng": "19",
+    }
 
 
 def test_a_resubmission_and_a_near_miss_of_the_tasks_name(task, tmp_path):
@@ -241,8 +260,10 @@ def test_a_submissions_folder_of_no_student_stops_the_run_saying_what_was_expect
     put(tmp_path, "__MACOSX/._Cornell.png", b"")
     assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith(f"phongray: {tmp_path}/subs: no student found; expected a "
-                                                   f"folder per student (<student>/<task>.png), Moodle's folders")
+    assert err.count("\n") == 1 and err.startswith(
+        f"phongray: {tmp_path}/subs: no student found; expected a "
+        f"folder per student (<student>/<task>.png), Moodle's folders"
+    )
     assert "Canvas's flat folder (<login>_<id>_<id>_<task>.png)" in err and not (tmp_path / "r").exists()
 
 
@@ -254,8 +275,10 @@ def test_a_report_folder_inside_the_submissions_folder_stops_the_run(task, tmp_p
     for inside in (tmp_path / "subs" / "report", tmp_path / "subs" / "ada" / "report", tmp_path / "subs"):
         assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(inside)]) == 2
         err = capsys.readouterr().err
-        assert err == (f"phongray: {inside}: the report folder is inside the submissions folder {tmp_path}/subs "
-                       f"(it would be graded as a student's); write it elsewhere\n")
+        assert err == (
+            f"phongray: {inside}: the report folder is inside the submissions folder {tmp_path}/subs "
+            f"(it would be graded as a student's); write it elsewhere\n"
+        )
     assert sorted(os.listdir(tmp_path / "subs")) == ["ada"] and os.listdir(tmp_path / "subs" / "ada") == ["Cornell.png"]
     # nor the submissions where the report writes its own copies of them (a TA's hw3/submissions and -o hw3)
     hw3 = tmp_path / "hw3"
@@ -264,7 +287,8 @@ def test_a_report_folder_inside_the_submissions_folder_stops_the_run(task, tmp_p
     assert main(["grade-class", str(tmp_path / "scenes"), str(hw3 / "submissions"), "-o", str(hw3)]) == 2
     assert capsys.readouterr().err == (
         f"phongray: {hw3}: the report writes its submissions/ folder where the submissions folder "
-        f"{hw3}/submissions is (its files would be graded as the students'); write it elsewhere\n")
+        f"{hw3}/submissions is (its files would be graded as the students'); write it elsewhere\n"
+    )
     assert os.listdir(hw3) == ["submissions"]
 
 
@@ -292,9 +316,13 @@ def test_a_tasks_own_name_comes_before_a_resubmissions_suffix():
     from service.classgrade.lms import TaskNames
 
     names = TaskNames(["Cornell", "cornell-2", "box"])
-    assert [(n.task, n.exact) for n in map(names.match, ["cornell-2.png", "Cornell-3.PNG", "box (12).png",
-                                                          "BOX-1.jpg", "box-x.png", "box (1).png.json"])] == [
-        ("cornell-2", True), ("Cornell", True), ("box", True), ("box", False), (None, False), (None, False)]
+    assert [
+        (n.task, n.exact)
+        for n in map(
+            names.match,
+            ["cornell-2.png", "Cornell-3.PNG", "box (12).png", "BOX-1.jpg", "box-x.png", "box (1).png.json"],
+        )
+    ] == [("cornell-2", True), ("Cornell", True), ("box", True), ("box", False), (None, False), (None, False)]
     assert names.near("cornel.PNG") == "Cornell"
     assert names.near("Box-2-final.png") is None and names.near("notes.txt") is None
 
@@ -315,27 +343,37 @@ def test_a_name_spelt_decomposed_is_the_same_student_as_the_tas_composed_one(tmp
     (tmp_path / "own" / f"{nfc}ez" / "Cornell.json").write_text("{}")
     batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
     assert [(p.student, p.own, p.file, p.row, p.lms_id) for p in batch.pairs] == [
-        (nfc, True, "Cornell.png", {}, "555"), (f"{nfc}ez", True, "Cornell.png", {}, "")]
+        (nfc, True, "Cornell.png", {}, "555"),
+        (f"{nfc}ez", True, "Cornell.png", {}, ""),
+    ]
 
 
-@pytest.mark.parametrize("folder, meant", [
-    ("ADA", "ada"),  # another case
-    ("Eve Ng_777_assignsubmission_file_", "Eve Ng"),  # Moodle's folder name
-    ("Bo Li", "Bo Li (17) or Bo Li (18)"),  # without the id that tells two students apart
-    ("Eve Ng (777)", "Eve Ng"),  # with an id that one Eve Ng does not need
-])
+@pytest.mark.parametrize(
+    "folder, meant",
+    [
+        ("ADA", "ada"),  # another case
+        ("Eve Ng_777_assignsubmission_file_", "Eve Ng"),  # Moodle's folder name
+        ("Bo Li", "Bo Li (17) or Bo Li (18)"),  # without the id that tells two students apart
+        ("Eve Ng (777)", "Eve Ng"),  # with an id that one Eve Ng does not need
+    ],
+)
 def test_student_scenes_under_another_name_than_the_students_stop_the_run(tmp_path, folder, meant):
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "Cornell.json").write_text("{}")
-    for student in ("ada", "Eve Ng_777_assignsubmission_file_", "Bo Li_17_assignsubmission_file_",
-                    "Bo Li_18_assignsubmission_file_"):
+    for student in (
+        "ada",
+        "Eve Ng_777_assignsubmission_file_",
+        "Bo Li_17_assignsubmission_file_",
+        "Bo Li_18_assignsubmission_file_",
+    ):
         put(tmp_path, f"{student}/Cornell.png", b"png")
     (tmp_path / "own" / folder).mkdir(parents=True)
     (tmp_path / "own" / folder / "Cornell.json").write_text("{}")
     with pytest.raises(ClassError) as caught:
         discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
-    assert str(caught.value).startswith(f"{tmp_path}/own/{folder}: no student {folder} among the submissions "
-                                        f"(did you mean {meant}?")
+    assert str(caught.value).startswith(
+        f"{tmp_path}/own/{folder}: no student {folder} among the submissions (did you mean {meant}?"
+    )
     # a student of their own scene who sent nothing is no mistake: missing
     (tmp_path / "own" / folder).rename(tmp_path / "own" / "zed")
     batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
@@ -347,14 +385,20 @@ def test_a_name_a_student_gave_themselves_never_makes_them_another_student(tmp_p
     second student, never the first Bo Li, whose image stays theirs alone (not '2 files; keep one')."""
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "Cornell.json").write_text("{}")
-    for folder, data in [("Bo Li_17_assignsubmission_file_", b"bo"), ("Bo Li_18_assignsubmission_file_", b"other"),
-                         ("Bo Li_17_assignsubmission_file__66_assignsubmission_file_", b"mallory"),
-                         ("Bo Li (17)_99_assignsubmission_file_", b"trudy")]:
+    for folder, data in [
+        ("Bo Li_17_assignsubmission_file_", b"bo"),
+        ("Bo Li_18_assignsubmission_file_", b"other"),
+        ("Bo Li_17_assignsubmission_file__66_assignsubmission_file_", b"mallory"),
+        ("Bo Li (17)_99_assignsubmission_file_", b"trudy"),
+    ]:
         put(tmp_path, f"{folder}/Cornell.png", data)
     batch = discover(tmp_path / "scenes", tmp_path / "subs")
     assert {p.student: (p.lms_id, p.data, p.row) for p in batch.pairs} == {
-        "Bo Li (17)": ("17", b"bo", {}), "Bo Li (18)": ("18", b"other", {}),
-        "Bo Li_17_assignsubmission_file_": ("66", b"mallory", {}), "Bo Li (17) (99)": ("99", b"trudy", {})}
+        "Bo Li (17)": ("17", b"bo", {}),
+        "Bo Li (18)": ("18", b"other", {}),
+        "Bo Li_17_assignsubmission_file_": ("66", b"mallory", {}),
+        "Bo Li (17) (99)": ("99", b"trudy", {}),
+    }
 
 
 def test_the_files_a_macs_archive_leaves_in_the_tas_folders_are_ignored(tmp_path):
@@ -362,16 +406,29 @@ def test_the_files_a_macs_archive_leaves_in_the_tas_folders_are_ignored(tmp_path
     each file, .DS_Store and __MACOSX/: never a task or a student's scene, so no reason to stop the run."""
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "Cornell.json").write_text("{}")
-    for junk in ("scenes/._Cornell.json", "scenes/.DS_Store", "own/.DS_Store", "own/ada/._Cornell.json",
-                 "own/__MACOSX/ada/._Cornell.json"):
+    for junk in (
+        "scenes/._Cornell.json",
+        "scenes/.DS_Store",
+        "own/.DS_Store",
+        "own/ada/._Cornell.json",
+        "own/__MACOSX/ada/._Cornell.json",
+    ):
         (tmp_path / junk).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / junk).write_bytes(b"\x00\x05\x16\x07")
     (tmp_path / "own" / "ada" / "Cornell.json").write_text("{}")
     put(tmp_path, "ada/Cornell.png", b"png")
     batch = discover(tmp_path / "scenes", tmp_path / "subs", tmp_path / "own")
     assert list(batch.tasks) == ["Cornell"] and [(p.student, p.own) for p in batch.pairs] == [("ada", True)]
-    assert sorted(dict(batch.ignored)) == [f"{tmp_path}/{junk}" for junk in (
-        "own/.DS_Store", "own/__MACOSX", "own/ada/._Cornell.json", "scenes/.DS_Store", "scenes/._Cornell.json")]
+    assert sorted(dict(batch.ignored)) == [
+        f"{tmp_path}/{junk}"
+        for junk in (
+            "own/.DS_Store",
+            "own/__MACOSX",
+            "own/ada/._Cornell.json",
+            "scenes/.DS_Store",
+            "scenes/._Cornell.json",
+        )
+    ]
 
 
 def test_a_report_folder_that_is_the_scenes_folder_or_in_the_student_scenes_stops_the_run(task, tmp_path, capsys):
@@ -381,24 +438,36 @@ def test_a_report_folder_that_is_the_scenes_folder_or_in_the_student_scenes_stop
     right = with_task(task, tmp_path)
     put(tmp_path, "ada/Cornell.png", right)
     (tmp_path / "own" / "ada").mkdir(parents=True)
-    common = ["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "--student-scenes",
-              str(tmp_path / "own"), "-o"]
+    common = [
+        "grade-class",
+        str(tmp_path / "scenes"),
+        str(tmp_path / "subs"),
+        "--student-scenes",
+        str(tmp_path / "own"),
+        "-o",
+    ]
     assert main([*common, str(tmp_path / "scenes")]) == 2
-    assert capsys.readouterr().err == (f"phongray: {tmp_path}/scenes: the report folder is the scenes folder (its "
-                                       f"report.json would be read as a task); write it elsewhere\n")
+    assert capsys.readouterr().err == (
+        f"phongray: {tmp_path}/scenes: the report folder is the scenes folder (its "
+        f"report.json would be read as a task); write it elsewhere\n"
+    )
     for inside in (tmp_path / "own", tmp_path / "own" / "report"):
         assert main([*common, str(inside)]) == 2
         assert capsys.readouterr().err == (
             f"phongray: {inside}: the report folder is inside the --student-scenes folder {tmp_path}/own (it would "
-            f"be read as a student's scenes); write it elsewhere\n")
+            f"be read as a student's scenes); write it elsewhere\n"
+        )
     assert sorted(os.listdir(tmp_path / "scenes")) == ["Cornell.json"] and os.listdir(tmp_path / "own") == ["ada"]
 
 
-@pytest.mark.parametrize("layout, files", [
-    ("an LMS's export", ["Ada Adams_1_assignsubmission_file_/Cornell.png", "Bo Li_2_assignsubmission_file_/x.png"]),
-    ("an LMS's export", ["adamsada_LATE_1_7_Cornell.png", "libo_2_8_Cornell-1.png"]),
-    ("a folder per student", ["ada/Cornell.png", "bo/cornell.PNG", "cy/notes.txt"]),
-])
+@pytest.mark.parametrize(
+    "layout, files",
+    [
+        ("an LMS's export", ["Ada Adams_1_assignsubmission_file_/Cornell.png", "Bo Li_2_assignsubmission_file_/x.png"]),
+        ("an LMS's export", ["adamsada_LATE_1_7_Cornell.png", "libo_2_8_Cornell-1.png"]),
+        ("a folder per student", ["ada/Cornell.png", "bo/cornell.PNG", "cy/notes.txt"]),
+    ],
+)
 def test_a_class_unpacked_into_a_folder_of_its_own_stops_the_run(tmp_path, capsys, layout, files):
     """The TA gave the folder an export was unpacked into: one 'student' with every image '2 files; keep one' or
     missing would be graded; the run stops, naming the folder to give."""
@@ -409,9 +478,11 @@ def test_a_class_unpacked_into_a_folder_of_its_own_stops_the_run(tmp_path, capsy
     for file in files:
         put(tmp_path, f"hw3/{file}", b"png")
     assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(tmp_path / "r")]) == 2
-    assert capsys.readouterr().err == (f"phongray: {tmp_path}/subs: its one folder, hw3, holds the submissions of "
-                                       f"several students ({layout}): give {tmp_path}/subs/hw3 as the submissions "
-                                       f"folder\n")
+    assert capsys.readouterr().err == (
+        f"phongray: {tmp_path}/subs: its one folder, hw3, holds the submissions of "
+        f"several students ({layout}): give {tmp_path}/subs/hw3 as the submissions "
+        f"folder\n"
+    )
     assert not (tmp_path / "r").exists()
 
 
@@ -423,8 +494,10 @@ def test_a_class_of_one_student_with_a_folder_deeper_is_graded(tmp_path):
     put(tmp_path, "ada/part2/box.png", b"box")
     put(tmp_path, "ada/old/notes.png", b"png")
     batch = discover(tmp_path / "scenes", tmp_path / "subs")
-    assert [(p.student, p.file, p.data) for p in batch.pairs] == [("ada", "hw3/Cornell.png", b"png"),
-                                                                  ("ada", "part2/box.png", b"box")]
+    assert [(p.student, p.file, p.data) for p in batch.pairs] == [
+        ("ada", "hw3/Cornell.png", b"png"),
+        ("ada", "part2/box.png", b"box"),
+    ]
     # one Moodle student's draft/ and final/: that student's two files, not a class
     (tmp_path / "subs" / "ada").rename(tmp_path / "subs" / "Ada Adams_1_assignsubmission_file_")
     put(tmp_path, "Ada Adams_1_assignsubmission_file_/old/Cornell.png", b"old")
@@ -442,7 +515,10 @@ def test_a_file_name_spelt_decomposed_is_the_tasks():
     nfc, nfd = (unicodedata.normalize(form, "café") for form in ("NFC", "NFD"))
     names = TaskNames([nfc, "box"])
     assert [(n.task, n.exact) for n in map(names.match, [f"{nfd}.png", f"{nfd.upper()}-1.PNG", "box.png"])] == [
-        (nfc, True), (nfc, False), ("box", True)]
+        (nfc, True),
+        (nfc, False),
+        ("box", True),
+    ]
     assert TaskNames([nfd]).match(f"{nfc}.png").task == nfd and names.near(f"{nfd}s.png") == nfc
 
 
@@ -455,8 +531,11 @@ def test_two_students_whose_names_differ_only_in_case_are_told_apart_by_their_id
     put(tmp_path, "ada adams_2_assignsubmission_file_/Cornell.png", b"second")
     put(tmp_path, "Bo Li_3_assignsubmission_file_/Cornell.png", b"third")
     batch = discover(tmp_path / "scenes", tmp_path / "subs")
-    assert {p.student: p.data for p in batch.pairs} == {"Ada Adams (1)": b"first", "ada adams (2)": b"second",
-                                                        "Bo Li": b"third"}
+    assert {p.student: p.data for p in batch.pairs} == {
+        "Ada Adams (1)": b"first",
+        "ada adams (2)": b"second",
+        "Bo Li": b"third",
+    }
 
 
 def test_a_resubmitted_copy_of_a_download_is_its_tasks():
@@ -464,7 +543,8 @@ def test_a_resubmitted_copy_of_a_download_is_its_tasks():
     from service.classgrade.lms import TaskNames
 
     names = TaskNames(["spheres", "cornell-3", "cornell"])
-    assert [names.match(n).task for n in ["Spheres (1)-1.png", "spheres-2 (3).PNG", "cornell-3-1.png",
-                                          "cornell-4-1.png", "spheres-x-1.png"]] == [
-        "spheres", "spheres", "cornell-3", "cornell", None]
+    assert [
+        names.match(n).task
+        for n in ["Spheres (1)-1.png", "spheres-2 (3).PNG", "cornell-3-1.png", "cornell-4-1.png", "spheres-x-1.png"]
+    ] == ["spheres", "spheres", "cornell-3", "cornell", None]
     assert names.near("sphere (1)-2.png") == "spheres"

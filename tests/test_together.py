@@ -14,9 +14,14 @@ from service.display import explained
 from service.grading import grade
 from tracer import Renderer
 
-BOTH = Combination((Member("no-shadows", "no shadow rays", 0.6, "the mistake accounts for 60 % of the difference"),
-                    Member("gamma", "gamma 1/2.2 applied to the output", 0.4, "the mistake accounts for 40 %")),
-                   0.0, True)
+BOTH = Combination(
+    (
+        Member("no-shadows", "no shadow rays", 0.6, "the mistake accounts for 60 % of the difference"),
+        Member("gamma", "gamma 1/2.2 applied to the output", 0.4, "the mistake accounts for 40 %"),
+    ),
+    0.0,
+    True,
+)
 
 
 def test_a_combinations_causes_name_each_other():

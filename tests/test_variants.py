@@ -14,22 +14,34 @@ from helpers import scene_dict
 EVERYTHING = {
     "camera": {"position": [0.5, 2.2, 5.5], "look_at": [0, 0.6, 0], "fov": 45},
     "image": {"width": 48, "height": 36, "max_depth": 2},
-    "materials": {"m": {"diffuse": [0.6, 0.5, 0.4], "specular": 0.7, "shininess": 30},
-                  "glass": {"transmittance": 0.8, "reflectance": 0.1, "ior": 1.5},
-                  "mirror": {"reflectance": 0.7}},
-    "objects": [{"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]},
-                {"type": "sphere", "material": "glass", "center": [-0.9, 0.7, 0.5], "radius": 0.7},
-                {"type": "sphere", "material": "mirror", "center": [0.9, 0.7, -0.5], "radius": 0.7},
-                {"type": "sphere", "material": "m", "center": [0.2, 0.35, 1.4], "radius": 0.35},
-                {"type": "triangle", "material": "m", "vertices": [[-2, 0, -2], [2, 0, -2], [0, 2.5, -2.2]]}],
-    "lights": [{"type": "ambient", "color": 0.2},
-               {"type": "point", "color": 1.2, "position": [-3, 4, 3], "attenuation": [1, 0.05, 0.02]},
-               {"type": "spot", "color": 1, "position": [2, 3, 2], "direction": [-1, -1.5, -1], "cutoff": 25},
-               {"type": "area", "color": 0.8, "corner": [0, 3.5, -1], "edge_u": [1, 0, 0], "edge_v": [0, 0, 1],
-                "samples": [2, 2]},
-               {"type": "directional", "color": 0.3, "direction": [0.3, -1, 0.2]},
-               {"type": "point", "color": 0.6, "position": [0, 0.4, 3]},
-               {"type": "point", "color": 0.6, "position": [-1, -0.1, -3]}],  # under the floor: N·L < 0 there
+    "materials": {
+        "m": {"diffuse": [0.6, 0.5, 0.4], "specular": 0.7, "shininess": 30},
+        "glass": {"transmittance": 0.8, "reflectance": 0.1, "ior": 1.5},
+        "mirror": {"reflectance": 0.7},
+    },
+    "objects": [
+        {"type": "plane", "material": "m", "point": [0, 0, 0], "normal": [0, 1, 0]},
+        {"type": "sphere", "material": "glass", "center": [-0.9, 0.7, 0.5], "radius": 0.7},
+        {"type": "sphere", "material": "mirror", "center": [0.9, 0.7, -0.5], "radius": 0.7},
+        {"type": "sphere", "material": "m", "center": [0.2, 0.35, 1.4], "radius": 0.35},
+        {"type": "triangle", "material": "m", "vertices": [[-2, 0, -2], [2, 0, -2], [0, 2.5, -2.2]]},
+    ],
+    "lights": [
+        {"type": "ambient", "color": 0.2},
+        {"type": "point", "color": 1.2, "position": [-3, 4, 3], "attenuation": [1, 0.05, 0.02]},
+        {"type": "spot", "color": 1, "position": [2, 3, 2], "direction": [-1, -1.5, -1], "cutoff": 25},
+        {
+            "type": "area",
+            "color": 0.8,
+            "corner": [0, 3.5, -1],
+            "edge_u": [1, 0, 0],
+            "edge_v": [0, 0, 1],
+            "samples": [2, 2],
+        },
+        {"type": "directional", "color": 0.3, "direction": [0.3, -1, 0.2]},
+        {"type": "point", "color": 0.6, "position": [0, 0.4, 3]},
+        {"type": "point", "color": 0.6, "position": [-1, -0.1, -3]},
+    ],  # under the floor: N·L < 0 there
 }
 
 
@@ -77,6 +89,7 @@ def test_the_far_end_of_acne_is_darker_than_acne_wherever_acne_shows():
 
 # -- variants a scene cannot show (tracer.variants.unchanged): the reference, bit for bit ------------------------
 
+
 def _plain():
     """EVERYTHING stripped bare in turn: each rule of UNCHANGED holds for one of these, and renders as it says."""
     import copy
@@ -96,8 +109,12 @@ def _plain():
     square["image"].update(width=36, height=36)
     out["a square image"] = square
     plain = copy.deepcopy(EVERYTHING)
-    plain["lights"] = [{k: v for k, v in light.items() if k != "attenuation"} | (
-        {"samples": [1, 1]} if light["type"] == "area" else {}) for light in plain["lights"] if light["type"] != "spot"]
+    plain["lights"] = [
+        {k: v for k, v in light.items() if k != "attenuation"}
+        | ({"samples": [1, 1]} if light["type"] == "area" else {})
+        for light in plain["lights"]
+        if light["type"] != "spot"
+    ]
     out["no attenuation, no spot, one area sample"] = plain
     dull = copy.deepcopy(EVERYTHING)
     for m in dull["materials"].values():
@@ -143,6 +160,7 @@ def test_every_rule_holds_somewhere_and_every_variant_the_rules_allow_shows_in_e
 
 
 # -- more mistakes (MORE_VARIANTS): each the render of a student's tracer that makes it (tests/student_oop.py) ----
+
 
 def _bright():
     """EVERYTHING anti-aliased, with a coloured light bright enough that a term alone passes 1 and a spot of a
@@ -191,9 +209,16 @@ def test_a_new_variant_is_the_image_of_a_student_who_makes_the_mistake(bright, n
     assert name not in VARIANTS and SENTENCES[name].endswith(".")
 
 
-@pytest.mark.parametrize("pair", [("no-shadows", "blinn-phong"), ("no-attenuation", "gamma"),
-                                  ("reflection-blended", "camera-left-handed"), ("light-colour-ignored", "grayscale"),
-                                  ("clamped-per-term", "spot-exponent-ignored")])
+@pytest.mark.parametrize(
+    "pair",
+    [
+        ("no-shadows", "blinn-phong"),
+        ("no-attenuation", "gamma"),
+        ("reflection-blended", "camera-left-handed"),
+        ("light-colour-ignored", "grayscale"),
+        ("clamped-per-term", "spot-exponent-ignored"),
+    ],
+)
 def test_two_mistakes_together_are_the_variants_options_together(bright, pair):
     import student_oop
 

@@ -11,8 +11,17 @@ from .render import ImageTooLarge, RenderCancelled, Renderer, render
 
 tune_allocator()
 
-__all__ = ["Budget", "ImageTooLarge", "OverBudget", "RenderCancelled", "Renderer", "decode_png", "encode_png", "render",
-           "render_png"]
+__all__ = [
+    "Budget",
+    "ImageTooLarge",
+    "OverBudget",
+    "RenderCancelled",
+    "Renderer",
+    "decode_png",
+    "encode_png",
+    "render",
+    "render_png",
+]
 
 
 def render_png(scene: Scene, **kwargs: Any) -> bytes:

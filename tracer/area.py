@@ -41,8 +41,9 @@ class DirectLight(Protocol):
 
     def count(self, name: str, rays: int) -> None: ...
 
-    def blocked(self, at: Points, rows: np.ndarray | None, reach: Reach, em: Emitter,
-                among: Among | None = None) -> np.ndarray: ...
+    def blocked(
+        self, at: Points, rows: np.ndarray | None, reach: Reach, em: Emitter, among: Among | None = None
+    ) -> np.ndarray: ...
 
 
 @dataclass
@@ -57,8 +58,7 @@ class Sorted:
     penumbra: Penumbra | None
 
 
-def area_terms(direct: DirectLight, group: LightGroup, at: Points,
-               seen: Seen) -> tuple[np.ndarray, np.ndarray] | None:
+def area_terms(direct: DirectLight, group: LightGroup, at: Points, seen: Seen) -> tuple[np.ndarray, np.ndarray] | None:
     """An area light's terms ``Σwd, Σws`` at every point, summed over its samples, or None where it reaches none.
 
     **Points no sample can light are not shaded.**  A point proven HIDDEN (:mod:`tracer.culling`) gets
@@ -127,9 +127,9 @@ def _samples(direct: DirectLight, group: LightGroup, points: Sorted, seen: Seen)
     kernel = Kernel(direct.world, direct.options, sub)
     m = len(sub.nv)
     sum_d, sum_s = np.zeros(m), np.zeros(m)
-    holds = direct.holds[group.first:group.end]
+    holds = direct.holds[group.first : group.end]
     rows_seen = None if points.every else points.active
-    for e, em in enumerate(direct.world.emitters[group.first:group.end]):
+    for e, em in enumerate(direct.world.emitters[group.first : group.end]):
         direct.stop()
         reach = kernel.reach(em, bool(holds[e]))
         lit, weight = reach.lit, reach.weight
@@ -148,4 +148,3 @@ def _samples(direct: DirectLight, group: LightGroup, points: Sorted, seen: Seen)
         sum_s += ws
         seen(weight, reach.facing, rows_seen)
     return sum_d, sum_s
-

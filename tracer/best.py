@@ -48,8 +48,16 @@ class Best:
         self.key = np.full(n, _NONE, dtype=np.int64)
         self.uv = np.zeros((n, 2))
 
-    def offer(self, rows: np.ndarray, t: np.ndarray, kind: int | np.ndarray, index: np.ndarray,
-              u: np.ndarray | None = None, v: np.ndarray | None = None, unique: bool = False) -> None:
+    def offer(
+        self,
+        rows: np.ndarray,
+        t: np.ndarray,
+        kind: int | np.ndarray,
+        index: np.ndarray,
+        u: np.ndarray | None = None,
+        v: np.ndarray | None = None,
+        unique: bool = False,
+    ) -> None:
         """Offer hits ``t`` of surfaces (kind, index) to rays ``rows``; rows may repeat unless ``unique``."""
         hit = np.isfinite(t)
         if not np.any(hit):
@@ -70,8 +78,9 @@ class Best:
         if u is not None and v is not None:
             self.uv[r, 0], self.uv[r, 1] = u[hit][pick], v[hit][pick]
 
-    def offer_all(self, t: np.ndarray, kind: int, index: int, u: np.ndarray | None = None,
-                  v: np.ndarray | None = None) -> None:
+    def offer_all(
+        self, t: np.ndarray, kind: int, index: int, u: np.ndarray | None = None, v: np.ndarray | None = None
+    ) -> None:
         """:meth:`offer` of one surface's hits ``t`` to every ray, in order (each ray once): the same rule, a
         finite hit taken where it is nearer or, as near, of a smaller key, with no rows gathered."""
         key = (int(kind) << 48) | int(index)

@@ -58,11 +58,15 @@ def bounds_of(world: Surfaces) -> Bounds | None:
     corners = np.stack([tr.v0, tr.v0 + tr.e1, tr.v0 + tr.e2], axis=1)  # (T, 3, 3)
     mid = corners.mean(axis=1) if len(tr.v0) else np.zeros((0, 3))
     reach = np.sqrt(most(np.sum((corners - mid[:, None]) ** 2, axis=2))) if len(tr.v0) else np.zeros(0)
-    return Bounds(center=np.concatenate([sp.center, mid]), radius=np.concatenate([sp.radius, reach * (1 + GROWTH)]),
-                  kind=np.concatenate([np.full(len(sp.radius), SPHERE), np.full(len(tr.v0), TRIANGLE)]),
-                  index=np.concatenate([np.arange(len(sp.radius)), np.arange(len(tr.v0))]),
-                  solid=np.concatenate([np.ones(len(sp.radius), bool), np.zeros(len(tr.v0), bool)]),
-                  plane_point=pl.point, plane_normal=pl.normal)
+    return Bounds(
+        center=np.concatenate([sp.center, mid]),
+        radius=np.concatenate([sp.radius, reach * (1 + GROWTH)]),
+        kind=np.concatenate([np.full(len(sp.radius), SPHERE), np.full(len(tr.v0), TRIANGLE)]),
+        index=np.concatenate([np.arange(len(sp.radius)), np.arange(len(tr.v0))]),
+        solid=np.concatenate([np.ones(len(sp.radius), bool), np.zeros(len(tr.v0), bool)]),
+        plane_point=pl.point,
+        plane_normal=pl.normal,
+    )
 
 
 @dataclass(frozen=True)
@@ -77,12 +81,12 @@ class SurfacePoints:
     outward: np.ndarray  # (N, 3)
 
     def take(self, rows: np.ndarray) -> SurfacePoints:
-        return SurfacePoints(rows_of(self.point, rows), self.kind[rows], self.index[rows],
-                             rows_of(self.outward, rows))
+        return SurfacePoints(rows_of(self.point, rows), self.kind[rows], self.index[rows], rows_of(self.outward, rows))
 
 
-def plane_clear(side: np.ndarray, reach: np.ndarray | float, far_side: np.ndarray,
-                margin: np.ndarray | float) -> np.ndarray:
+def plane_clear(
+    side: np.ndarray, reach: np.ndarray | float, far_side: np.ndarray, margin: np.ndarray | float
+) -> np.ndarray:
     """**The plane rule.**  A plane blocks no segment from a point to any of the far points (an area light's
     corners, or a point light) when the point and every far point lie strictly on one side of it.  ``side
     (N,)`` is each point's ``(P − q)·n``, ``far_side (F,)`` the far points'; a point counts as on the far
@@ -93,8 +97,11 @@ def plane_clear(side: np.ndarray, reach: np.ndarray | float, far_side: np.ndarra
     segment's far end there; the margin covers the rounding of the sides (a few 2^-53 of the magnitudes it is
     taken of, :data:`tracer.margins.MARGIN`).  A NaN side proves nothing (it compares False)."""
     if np.all(far_side > 0) or np.all(far_side < 0):
-        return (np.sign(side) == np.sign(far_side[0])) & (np.abs(side) > margin + reach) & \
-            (margin < float(np.min(np.abs(far_side))))
+        return (
+            (np.sign(side) == np.sign(far_side[0]))
+            & (np.abs(side) > margin + reach)
+            & (margin < float(np.min(np.abs(far_side))))
+        )
     return np.zeros(len(side), dtype=bool)
 
 

@@ -51,8 +51,10 @@ class OverBudget(Exception):
     ``limit`` the budget's value (rays, or bytes); ``"tests"``: its exact tests of rays against surfaces."""
 
     def __init__(self, what: str, spent: float, limit: float, foreseen: bool = False):
-        super().__init__(f"the render outgrew its budget of {what}: {spent:.3g} {'foreseen' if foreseen else 'spent'}"
-                         f", {limit:.3g} allowed")
+        super().__init__(
+            f"the render outgrew its budget of {what}: {spent:.3g} {'foreseen' if foreseen else 'spent'}"
+            f", {limit:.3g} allowed"
+        )
         self.what, self.spent, self.limit, self.foreseen = what, spent, limit, foreseen
 
     def __reduce__(self) -> tuple[type[OverBudget], tuple[str, float, float, bool]]:

@@ -16,8 +16,9 @@ TABLE_MAX = 1 << 20
 class CameraRays:
     """Generates the rays of a range of pixels, each with its n×n regular grid of sub-samples."""
 
-    def __init__(self, camera: Camera, image: Image, origin: np.ndarray, half_pixel: bool = True,
-                 vertical_fov: bool = True):
+    def __init__(
+        self, camera: Camera, image: Image, origin: np.ndarray, half_pixel: bool = True, vertical_fov: bool = True
+    ):
         eye = np.asarray(camera.position, dtype=np.float64) - origin
         target = np.asarray(camera.look_at, dtype=np.float64) - origin
         self.forward = unit(target - eye)
@@ -42,8 +43,7 @@ class CameraRays:
         """
         return self.rays_of(np.arange(start, stop, dtype=np.int64))
 
-    def _products(self, index: np.ndarray, size: int, scale: float, vector: np.ndarray, flip: bool
-                  ) -> list[np.ndarray]:
+    def _products(self, index: np.ndarray, size: int, scale: float, vector: np.ndarray, flip: bool) -> list[np.ndarray]:
         """Per entry of ``index`` (a column, or a row when ``flip``) and sub-sample, each component of
         ``x·right`` (or ``y·up``): three ``(len(index), n)`` arrays, each value as the contract's equations
         compute it."""
@@ -87,8 +87,11 @@ class CameraRays:
             if n == 1:
                 np.add(np.take(down[k][:, 0], row), np.take(across[k][:, 0], col), out=plane[:, k])
             else:
-                np.add(np.take(down[k], row, axis=0)[:, :, None], np.take(across[k], col, axis=0)[:, None, :],
-                       out=plane[:, k].reshape(len(pixel), n, n))
+                np.add(
+                    np.take(down[k], row, axis=0)[:, :, None],
+                    np.take(across[k], col, axis=0)[:, None, :],
+                    out=plane[:, k].reshape(len(pixel), n, n),
+                )
         if self.orthographic:
             return plus(self.eye, plane), np.broadcast_to(self.forward, plane.shape).copy()
         for k in range(3):

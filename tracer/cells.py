@@ -114,8 +114,9 @@ class Cells:
         together (or one region, when its own cell holds more): :meth:`pairs` of each slice in turn then holds
         bounded memory, however many primitives many rays' cells share (10,000 spheres around the eye)."""
         cell = np.where(region >= self.whole_base, region - self.whole_base, region // SUB**3)
-        count = np.where(region >= 0, np.take(self.start, cell + 1, mode="clip") - np.take(self.start, cell,
-                                                                                           mode="clip"), 0)
+        count = np.where(
+            region >= 0, np.take(self.start, cell + 1, mode="clip") - np.take(self.start, cell, mode="clip"), 0
+        )
         ends = np.cumsum(count)
         if len(ends) == 0 or ends[-1] <= most:
             return [slice(0, len(region))]
@@ -123,8 +124,9 @@ class Cells:
         edges = [0, *(int(c) for c in cuts if 0 < c < len(region)), len(region)]
         return [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
 
-    def pairs(self, rows: np.ndarray, region: np.ndarray,
-              but: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def pairs(
+        self, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(ray, primitive) pairs: each of ``rows`` with every member of its ``region`` (from :meth:`locate`;
         −1: none) that comes near that part of the cell (or, for a whole cell, every member), except the
         primitives ``but`` names for that row (when given: ``(n,)`` or ``(n, k)``; −1 for none)."""
@@ -176,8 +178,15 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells:
     span = k_hi - k_lo + 1
     count = span[:, 0] * span[:, 1] * span[:, 2]
     total = int(count.sum())
-    cells = Cells(origin=origin, size=size, dims=dims, keys=np.zeros(0, np.int64), start=np.zeros(1, np.int64),
-                  members=np.zeros(0, np.int64), parts=np.zeros(0, np.uint64))
+    cells = Cells(
+        origin=origin,
+        size=size,
+        dims=dims,
+        keys=np.zeros(0, np.int64),
+        start=np.zeros(1, np.int64),
+        members=np.zeros(0, np.int64),
+        parts=np.zeros(0, np.uint64),
+    )
     # the parts each box's ends lie in, within the first and the last cell of its span along each axis
     p_lo = cells._parts_of(lo, origin + k_lo * size)
     p_hi = cells._parts_of(hi, origin + k_hi * size)
@@ -235,8 +244,9 @@ def build_cells(lo: np.ndarray, hi: np.ndarray, reach: float) -> Cells:
     return cells
 
 
-def _box_cells(lo: np.ndarray, hi: np.ndarray, origin: np.ndarray, size: float
-           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _box_cells(
+    lo: np.ndarray, hi: np.ndarray, origin: np.ndarray, size: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The grid's cells along each axis, and the first and last cell each box ``lo..hi`` comes into."""
     dims = np.floor((highest(hi) - origin) / size).astype(np.int64) + 1
     k_lo = np.clip(np.floor((lo - origin) / size), 0, dims - 1).astype(np.int64)

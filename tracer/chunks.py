@@ -52,7 +52,7 @@ def parts_of(pixel: Pixels, per_chunk: int) -> list[Pixels]:
     """``pixel`` cut into chunks of at most ``per_chunk`` pixels, in order.  A ``range`` of pixels stays a
     range, chunk by chunk: a whole image's pixel numbers are never held at once (as int64 they would be 8 bytes
     a pixel, more than the 3 of the image itself); :func:`pixel_numbers` makes a chunk's when it is traced."""
-    return [pixel[a:a + per_chunk] for a in range(0, len(pixel), per_chunk)]
+    return [pixel[a : a + per_chunk] for a in range(0, len(pixel), per_chunk)]
 
 
 def pixel_numbers(part: Pixels) -> np.ndarray:

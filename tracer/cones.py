@@ -58,8 +58,11 @@ def _pairs(kinds: list[int], indices: list[int], rows: list[np.ndarray]) -> Amon
     count = [len(r) for r in rows]
     if not rows:
         return Among(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int8), np.zeros(0, dtype=np.int64))
-    return Among(np.concatenate(rows).astype(np.int64, copy=False), np.repeat(np.array(kinds, dtype=np.int8), count),
-                 np.repeat(np.array(indices, dtype=np.int64), count))
+    return Among(
+        np.concatenate(rows).astype(np.int64, copy=False),
+        np.repeat(np.array(kinds, dtype=np.int8), count),
+        np.repeat(np.array(indices, dtype=np.int64), count),
+    )
 
 
 def _corners(tris: Triangles, k: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -82,8 +85,9 @@ Edges = tuple[list[np.ndarray], float]
 Levels = tuple[list[np.ndarray], list[float]]
 
 
-def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray, away: bool,
-                  length: float = 0.0) -> Among:
+def through_point(
+    b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray, away: bool, length: float = 0.0
+) -> Among:
     """The surfaces each ray through ``apex`` may meet, as pairs (surface by surface).
 
     ``dirs (N, 3)`` are the rays' unit directions: leaving the apex when ``away`` (camera rays from the eye),
@@ -119,8 +123,9 @@ def through_point(b: Bounds, tris: Triangles, apex: np.ndarray, dirs: np.ndarray
     return _pairs(kinds, indices, rows)
 
 
-def _edges_through(tris: Triangles, b: Bounds, apex: np.ndarray, apex_mag: float, sign: float,
-                   stray: float) -> dict[int, Edges]:
+def _edges_through(
+    tris: Triangles, b: Bounds, apex: np.ndarray, apex_mag: float, sign: float, stray: float
+) -> dict[int, Edges]:
     """For each triangle among the bounds ``b`` (by its place there), the three planes through ``apex`` and an
     edge, as unit normals ``m`` (the triangle, seen along ``sign·u``, on their positive side), and the angle its
     growth allows (``m·u ≥ −allow``); none where they prove nothing (the apex nearly in the triangle's plane, an
@@ -138,8 +143,9 @@ def _edges_through(tris: Triangles, b: Bounds, apex: np.ndarray, apex_mag: float
         ok = np.isfinite(h) & np.isfinite(grow) & (h > 4.0 * grow)  # else the apex (nearly) in its plane
         ms = []
         for i in range(3):  # each plane's normal from the apex-to-corner vector and the edge itself (face_normal)
-            m, turn = _edge_plane(rel[:, i], corners[:, (i + 1) % 3] - corners[:, i],
-                                  corners[:, (i + 2) % 3] - corners[:, i])
+            m, turn = _edge_plane(
+                rel[:, i], corners[:, (i + 1) % 3] - corners[:, i], corners[:, (i + 2) % 3] - corners[:, i]
+            )
             ok &= np.isfinite(turn)
             ms.append(m * (sign * turn)[:, None])  # unit, the triangle on its side
     return {int(j): ([m[t] for m in ms], float(allow[t])) for t, j in enumerate(which.tolist()) if ok[t]}
@@ -174,8 +180,9 @@ def _inside(edges: Edges, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.nda
     return keep
 
 
-def _along(out: np.ndarray, scratch: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray,
-           a: np.ndarray) -> np.ndarray:
+def _along(
+    out: np.ndarray, scratch: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, a: np.ndarray
+) -> np.ndarray:
     """``x·a₀ + y·a₁ + z·a₂`` into ``out``, in float32 (``x, y, z`` float32, ``a`` a unit vector)."""
     np.multiply(x, np.float32(a[0]), out=out)
     np.multiply(y, np.float32(a[1]), out=scratch)
@@ -243,8 +250,11 @@ def _edges_along(tris: Triangles, b: Bounds, ell: np.ndarray, origin_mag: float)
             m = m * turn[:, None]
             ms.append(m)
             levels.append(np.sum(p * m, axis=1) - grow)
-    return {int(j): ([m[t] for m in ms], [float(level[t]) for level in levels])
-            for t, j in enumerate(which.tolist()) if ok[t]}
+    return {
+        int(j): ([m[t] for m in ms], [float(level[t]) for level in levels])
+        for t, j in enumerate(which.tolist())
+        if ok[t]
+    }
 
 
 def _beside(edges: Levels, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:

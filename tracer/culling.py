@@ -237,8 +237,9 @@ def _q_normal(corners: np.ndarray) -> np.ndarray:
     return np.array(face_normal((u[0], u[1], u[2]), corners[3] - corners[0]), dtype=np.float64)
 
 
-def _hidden(b: Bounds, p: np.ndarray, at: SurfacePoints, corners: np.ndarray, side: np.ndarray,
-            margin_of: np.ndarray) -> np.ndarray:
+def _hidden(
+    b: Bounds, p: np.ndarray, at: SurfacePoints, corners: np.ndarray, side: np.ndarray, margin_of: np.ndarray
+) -> np.ndarray:
     """Points ``p (3, N)`` some solid sphere hides the whole parallelogram from. Shape (N,), bool.
 
     A sphere hides it when the point lies outside it, on the point's side of Q's plane beyond it, and every

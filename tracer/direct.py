@@ -62,8 +62,16 @@ class Meter:
 class DirectLight:
     """The direct-light stage of a renderer: :meth:`shade` gives the colour of hit points."""
 
-    def __init__(self, world: World, options: Options, intersector: Intersector, groups: list[LightGroup],
-                 plan: ProofPlan, meter: Meter, area: AreaTerms):
+    def __init__(
+        self,
+        world: World,
+        options: Options,
+        intersector: Intersector,
+        groups: list[LightGroup],
+        plan: ProofPlan,
+        meter: Meter,
+        area: AreaTerms,
+    ):
         self.world, self.options, self.intersector, self.groups = world, options, intersector, groups
         #: an area light's loop over its samples (:func:`tracer.area.area_terms`), given by the renderer
         self.area = area
@@ -75,8 +83,9 @@ class DirectLight:
         #: where shadow rays are born (the renderer's, with a variant's offset when it has one)
         self.spawner = Spawner(world, options, None)
 
-    def shade(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray,
-              observer: Observer = UNOBSERVED) -> np.ndarray:
+    def shade(
+        self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray, observer: Observer = UNOBSERVED
+    ) -> np.ndarray:
         """Ambient plus every light's Phong term where the light reaches the hit points. Shape (N, 3).
 
         The ``observer`` is told the ambient term and every light's terms (the passes, :mod:`tracer.passes`).
@@ -96,8 +105,7 @@ class DirectLight:
             specular = np.zeros_like(specular)
         observer.ambient(colour)
         # N·V, the same for every light; the magnitudes where every light's shadow rays start
-        at = Points(hit, normal, dirs, -dot(normal, dirs), max_abs(hit.point) + self.world.origin_mag,
-                    m.shininess[mat])
+        at = Points(hit, normal, dirs, -dot(normal, dirs), max_abs(hit.point) + self.world.origin_mag, m.shininess[mat])
         kernel: Kernel | None = None  # (one for every light of one emitter: its buffers are reused)
         for group in self.groups:
             self.stop()  # a long chunk (many lights) stops early too
@@ -134,9 +142,15 @@ class DirectLight:
             few = 2 * len(rows) < len(lit)
             sub = hit.take(rows) if few else hit
             normal = rows_of(at.normal, rows) if few else at.normal
-            clear = np.repeat(lit_tiles(bounds, SurfacePoints(sub.point, sub.kind, sub.index, normal),
-                                        None if em.kind == "directional" else em.position,
-                                        em.direction if em.kind == "directional" else None), TILE)[:len(sub.t)]
+            clear = np.repeat(
+                lit_tiles(
+                    bounds,
+                    SurfacePoints(sub.point, sub.kind, sub.index, normal),
+                    None if em.kind == "directional" else em.position,
+                    em.direction if em.kind == "directional" else None,
+                ),
+                TILE,
+            )[: len(sub.t)]
             rows = rows[~clear] if few else np.flatnonzero(lit & ~clear)
         if len(rows):
             self.count("shadow", len(rows))
@@ -147,8 +161,9 @@ class DirectLight:
         return terms
 
     # -- shadow rays -------------------------------------------------------------------------------------------
-    def blocked(self, at: Points, rows: np.ndarray | None, reach: Reach, em: Emitter,
-                among: Among | None = None) -> np.ndarray:
+    def blocked(
+        self, at: Points, rows: np.ndarray | None, reach: Reach, em: Emitter, among: Among | None = None
+    ) -> np.ndarray:
         """Whether a shadow ray from each of the points ``at`` of ``rows`` (None: all of them, in order) to the
         light ``em`` (along ``reach.to_light``, over ``reach.dist``) is blocked. Shape (len(rows),).  With
         ``among``, the proof that only those pairs of rays and surfaces can block
@@ -163,8 +178,11 @@ class DirectLight:
         # from the exact hit point, leaving its surface by identity, to the light itself
         rays = self.spawner.spawn(hit, at.mag, rows, shadow_dirs)
         if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
-            below = np.ones(n, dtype=bool) if opt.acne_everywhere else \
-                ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
+            below = (
+                np.ones(n, dtype=bool)
+                if opt.acne_everywhere
+                else ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
+            )
             lowered = rays.origins - scaled(pick(at.normal), below * rays.mag * 2.0**-30)
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
         if em.kind == "directional":

@@ -70,8 +70,9 @@ def frame(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
 class Bvh:
     """An Embree BVH over proxy triangles ``vertices (V, 3)`` (local) and ``faces (F, 3)``."""
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, centre: np.ndarray, half_size: float,
-                 commit: bool = True):
+    def __init__(
+        self, vertices: np.ndarray, faces: np.ndarray, centre: np.ndarray, half_size: float, commit: bool = True
+    ):
         self.centre = centre
         self.half_size = half_size
         self.inv = 1.0 / half_size

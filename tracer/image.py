@@ -52,7 +52,7 @@ def encode_png(pixels: np.ndarray, level: int = PNG_LEVEL) -> bytes:
     z = zlib.compressobj(level)
     parts = []
     for top in range(0, h, PNG_BAND):
-        band = px[top:top + PNG_BAND]
+        band = px[top : top + PNG_BAND]
         rows = np.zeros((len(band), 1 + 3 * w), dtype=np.uint8)  # a leading 0 per row: filter type none
         rows[:, 1:] = band.reshape(len(band), 3 * w)
         parts.append(z.compress(rows.tobytes()))

@@ -60,8 +60,9 @@ class Intersector:
     def __init__(self, world: World, lines: Sightlines | None = None):
         self.world = world
         tris, spheres = world.triangles, world.spheres
-        tri_extent = most(most(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)))) \
-            if len(tris.v0) else np.zeros(0)
+        tri_extent = (
+            most(most(np.abs(np.stack([tris.e1, tris.e2, tris.e1 - tris.e2], axis=1)))) if len(tris.v0) else np.zeros(0)
+        )
         extents = np.concatenate([2.0 * spheres.radius, tri_extent])
         median = median_of(extents) if len(extents) else 0.0
         with np.errstate(over="ignore", invalid="ignore"):
@@ -72,8 +73,9 @@ class Intersector:
         self.direct_spheres = np.flatnonzero(big_sphere)
         self.direct_triangles = np.flatnonzero(big_tri)
         walked_tris, walked_spheres = np.flatnonzero(~big_tri), np.flatnonzero(~big_sphere)
-        self.walker = Walk(world, walked_tris, walked_spheres, lines) \
-            if len(walked_tris) + len(walked_spheres) else None
+        self.walker = (
+            Walk(world, walked_tris, walked_spheres, lines) if len(walked_tris) + len(walked_spheres) else None
+        )
         self._check: Callable[[], None] = _nothing
         self._tested: Callable[[int], None] = _ignored
 
@@ -104,8 +106,13 @@ class Intersector:
     def bvh(self) -> Bvh | None:
         return None if self.walker is None else self.walker.bvh
 
-    def rays(self, origins: np.ndarray, dirs: np.ndarray, from_kind: np.ndarray | None = None,
-             from_index: np.ndarray | None = None) -> Rays:
+    def rays(
+        self,
+        origins: np.ndarray,
+        dirs: np.ndarray,
+        from_kind: np.ndarray | None = None,
+        from_index: np.ndarray | None = None,
+    ) -> Rays:
         """A batch of rays in this world (local ``origins``), leaving the surfaces given or none."""
         return Rays.leaving(origins, dirs, self.world.origin_mag, from_kind, from_index)
 
@@ -178,8 +185,11 @@ class Intersector:
         key = among.kind.astype(np.int64) << 48 | among.index
         starts = np.r_[0, np.flatnonzero(key[1:] != key[:-1]) + 1, len(key)]
         size = np.diff(starts)
-        prim = self.walker.prim_of(among.kind[starts[:-1]], among.index[starts[:-1]]) if self.walker is not None \
+        prim = (
+            self.walker.prim_of(among.kind[starts[:-1]], among.index[starts[:-1]])
+            if self.walker is not None
             else np.full(len(size), -1, dtype=np.int64)
+        )
         together = ((size < MANY) | (among.kind[starts[:-1]] != TRIANGLE)) & (prim >= 0)
         if together.any():
             assert self.walker is not None
@@ -187,8 +197,9 @@ class Intersector:
             self.walker.test_pairs(best, rays, among.rows[sel], np.repeat(prim[together], size[together]), shadows)
         alone = np.flatnonzero(~together)
         if len(alone) > 1:  # rays gathered once per surface: from contiguous columns, into contiguous columns
-            rays = Rays(np.asfortranarray(rays.origins), np.asfortranarray(rays.dirs), rays.from_kind,
-                        rays.from_index, rays.mag)
+            rays = Rays(
+                np.asfortranarray(rays.origins), np.asfortranarray(rays.dirs), rays.from_kind, rays.from_index, rays.mag
+            )
         for m, g in enumerate(alone.tolist()):
             if m % 64 == 63:
                 self.check()
@@ -202,8 +213,9 @@ class Intersector:
             else:  # (rows of one surface are distinct)
                 best.offer(rows, t, kind, np.full(len(rows), k), u, v, unique=True)
 
-    def _direct(self, rays: Rays, shadows: Shadows | None = None, among: Among | None = None
-                ) -> Iterator[tuple[int, int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
+    def _direct(
+        self, rays: Rays, shadows: Shadows | None = None, among: Among | None = None
+    ) -> Iterator[tuple[int, int, np.ndarray, np.ndarray | None, np.ndarray | None]]:
         """The surfaces too large for the BVH, and the planes (but for shadows towards a light, which
         :func:`tracer.shapes.plane_separates` decides), against every ray: ``(kind, index, t, u, v)`` each.
         With ``among``, only the planes (the spheres and triangles are its pairs)."""
@@ -223,8 +235,9 @@ class Intersector:
                 self.check()
             yield TRIANGLE, k, *self._surface_t(TRIANGLE, k, rays, shadows)
 
-    def _surface_t(self, kind: int, k: int, rays: Rays, shadows: Shadows | None
-                   ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    def _surface_t(
+        self, kind: int, k: int, rays: Rays, shadows: Shadows | None
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """The exact test of one surface against every ray of ``rays`` (the rays of ``shadows``, if given):
         ``t, u, v`` (u, v for triangles only)."""
         w = self.world
@@ -238,8 +251,7 @@ class Intersector:
             return plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], leaving, ends, mag_e), None, None
         if kind == SPHERE:
             sp = w.spheres
-            return sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], leaving, ends, reach, mag_e), \
-                None, None
+            return sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], leaving, ends, reach, mag_e), None, None
         tr = w.triangles
         return triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k], leaving, ends, mag_e)
 
@@ -294,9 +306,15 @@ class Intersector:
         if len(r):
             k = index[r]
             tr = w.triangles
-            _put(point, r, along(along(rows_of(tr.v0, k), uv[r, 0], rows_of(tr.e1, k)), uv[r, 1],
-                                 rows_of(tr.e2, k)))
+            _put(point, r, along(along(rows_of(tr.v0, k), uv[r, 0], rows_of(tr.e1, k)), uv[r, 1], rows_of(tr.e2, k)))
             _put(normal, r, rows_of(tr.normal, k))
             material[r] = tr.material[k]
-        return Hits(t=np.where(kind == MISS, np.inf, t), kind=kind, index=index, point=point, normal=normal,
-                    bary=uv, material=material)
+        return Hits(
+            t=np.where(kind == MISS, np.inf, t),
+            kind=kind,
+            index=index,
+            point=point,
+            normal=normal,
+            bary=uv,
+            material=material,
+        )

@@ -46,8 +46,14 @@ class Points:
     shininess: np.ndarray  # (N,)
 
     def take(self, rows: np.ndarray) -> Points:
-        return Points(self.hit.take(rows), rows_of(self.normal, rows), rows_of(self.dirs, rows), self.nv[rows],
-                      self.mag[rows], self.shininess[rows])
+        return Points(
+            self.hit.take(rows),
+            rows_of(self.normal, rows),
+            rows_of(self.dirs, rows),
+            self.nv[rows],
+            self.mag[rows],
+            self.shininess[rows],
+        )
 
 
 @dataclass
@@ -70,8 +76,9 @@ class Kernel:
         m = len(at.nv)
         self.world, self.options, self.at = world, options, at
         self.to_light = columns(m)
-        self.dist, self.tmp, self.nl, self.rv, self.spec, self.weight, self.wd, self.ws = (np.empty(m)
-                                                                                          for _ in range(8))
+        self.dist, self.tmp, self.nl, self.rv, self.spec, self.weight, self.wd, self.ws = (
+            np.empty(m) for _ in range(8)
+        )
         self.facing, self.pos = np.empty(m, dtype=bool), np.empty(m, dtype=bool)
         self.normal, self.dirs = np.asfortranarray(at.normal), np.asfortranarray(at.dirs)  # (a column at a time)
         self.nv2 = 2.0 * at.nv  # (2·(N·L)·(N·V) as (2·N·V)·(N·L): doubling is exact)

@@ -52,9 +52,11 @@ def _unit3(v: Sequence[float]) -> np.ndarray:
 
 # -- the light types, in one list: what each becomes and where its shadow rays go ---------------------------
 
+
 def _directional(light: DirectionalLight, origin: np.ndarray, options: Options) -> Emitters:
-    return [Emitter("directional", np.array(light.color, F64), np.zeros(3), _unit3(light.direction),
-                    np.array([1.0, 0, 0]))]
+    return [
+        Emitter("directional", np.array(light.color, F64), np.zeros(3), _unit3(light.direction), np.array([1.0, 0, 0]))
+    ]
 
 
 def _attenuation(light: PointLight | SpotLight | AreaLight, options: Options) -> np.ndarray:
@@ -62,16 +64,31 @@ def _attenuation(light: PointLight | SpotLight | AreaLight, options: Options) ->
 
 
 def _point(light: PointLight, origin: np.ndarray, options: Options) -> Emitters:
-    return [Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin, np.zeros(3),
-                    _attenuation(light, options))]
+    return [
+        Emitter(
+            "point",
+            np.array(light.color, F64),
+            np.array(light.position, F64) - origin,
+            np.zeros(3),
+            _attenuation(light, options),
+        )
+    ]
 
 
 def _spot(light: SpotLight, origin: np.ndarray, options: Options) -> Emitters:
     angle = math.radians if options.spot_degrees else float  # (a variant reads the cutoffs as radians)
-    return [Emitter("point", np.array(light.color, F64), np.array(light.position, F64) - origin,
-                    _unit3(light.direction), _attenuation(light, options),
-                    cos_outer=math.cos(angle(light.cutoff)), cos_inner=math.cos(angle(light.inner)),
-                    exponent=light.exponent)]
+    return [
+        Emitter(
+            "point",
+            np.array(light.color, F64),
+            np.array(light.position, F64) - origin,
+            _unit3(light.direction),
+            _attenuation(light, options),
+            cos_outer=math.cos(angle(light.cutoff)),
+            cos_inner=math.cos(angle(light.inner)),
+            exponent=light.exponent,
+        )
+    ]
 
 
 def _area(light: AreaLight, origin: np.ndarray, options: Options) -> Emitters:
@@ -79,8 +96,17 @@ def _area(light: AreaLight, origin: np.ndarray, options: Options) -> Emitters:
     color = np.array(light.color, F64) / (nu * nv if options.area_divided else 1)
     corner = np.array(light.corner, F64)
     eu, ev = np.array(light.edge_u, F64), np.array(light.edge_v, F64)
-    return [Emitter("point", color, corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev - origin, np.zeros(3),
-                    _attenuation(light, options)) for i in range(nu) for j in range(nv)]
+    return [
+        Emitter(
+            "point",
+            color,
+            corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev - origin,
+            np.zeros(3),
+            _attenuation(light, options),
+        )
+        for i in range(nu)
+        for j in range(nv)
+    ]
 
 
 def _position_hull(light: PointLight | SpotLight, origin: np.ndarray) -> np.ndarray:
@@ -137,8 +163,9 @@ def illuminate(em: Emitter, points: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return to_light, dist, np.broadcast_to(factor, (n,)).astype(F64)
 
 
-def illuminate_into(em: Emitter, points: np.ndarray, to_light: np.ndarray, dist: np.ndarray,
-                    safe: np.ndarray) -> np.ndarray | float:
+def illuminate_into(
+    em: Emitter, points: np.ndarray, to_light: np.ndarray, dist: np.ndarray, safe: np.ndarray
+) -> np.ndarray | float:
     """L into ``to_light (N, 3)`` (its columns contiguous) and d into ``dist (N,)``, a column at a time, with
     ``safe (N,)`` as scratch; returns the factor f, one number when it is the same at every point (a light
     without attenuation and cone, or a directional light).  L is ``(P − p) / d`` (divided by 1 where d = 0),

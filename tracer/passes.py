@@ -149,7 +149,7 @@ class Tally:
         if self.depth is not None:
             out["depth"] = self.depth.reshape(n, s).mean(axis=1)
         if self.object is not None:
-            side = int(round(s ** 0.5))
+            side = int(round(s**0.5))
             out["object"] = self.object.reshape(n, s)[:, (side // 2) * side + side // 2]
         return out
 
@@ -172,8 +172,14 @@ class Observer:
         """The observer of how many of this light's emitters (its first: ``emitter``) reach each point."""
         return unseen
 
-    def light(self, emitter: int, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray,
-              terms: tuple[np.ndarray, np.ndarray]) -> None:
+    def light(
+        self,
+        emitter: int,
+        color: np.ndarray,
+        diffuse: np.ndarray,
+        specular: np.ndarray,
+        terms: tuple[np.ndarray, np.ndarray],
+    ) -> None:
         """A light's (its first emitter: ``emitter``) terms ``Σwd, Σws``, of colour ``color``, at points of
         ``k_d = diffuse`` and ``k_s = specular``."""
 
@@ -234,8 +240,14 @@ class PassObserver(Observer):
 
         return count
 
-    def light(self, emitter: int, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray,
-              terms: tuple[np.ndarray, np.ndarray]) -> None:
+    def light(
+        self,
+        emitter: int,
+        color: np.ndarray,
+        diffuse: np.ndarray,
+        specular: np.ndarray,
+        terms: tuple[np.ndarray, np.ndarray],
+    ) -> None:
         tally, work = self.tally, self.work
         if not self.first or not tally.counts(emitter):
             return

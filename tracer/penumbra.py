@@ -49,8 +49,11 @@ class Penumbra:
         with np.errstate(all="ignore"):
             dist = length(a[0], a[1], a[2])
             self.axis = [a[k] / dist for k in range(3)]
-            scale = np.maximum(np.maximum(np.abs(p[0]), np.abs(p[1])), np.abs(p[2])) + \
-                np.max(np.abs(b.center[self.bound]), axis=1) + b.radius[self.bound]
+            scale = (
+                np.maximum(np.maximum(np.abs(p[0]), np.abs(p[1])), np.abs(p[2]))
+                + np.max(np.abs(b.center[self.bound]), axis=1)
+                + b.radius[self.bound]
+            )
             self.margin = MARGIN * scale
             grown, shrunk = b.radius[self.bound] + self.margin, b.radius[self.bound] - self.margin
             own = (b.kind[self.bound] == kind[self.point]) & (b.index[self.bound] == index[self.point])
@@ -59,10 +62,9 @@ class Penumbra:
             self.miss_below = np.where(outside, np.sqrt(1.0 - (grown / dist) ** 2) - MARGIN, -np.inf)
             if facing:  # its own surface, which a ray towards a sample the point faces leaves for good
                 on_sphere = b.kind[self.bound] == SPHERE
-                towards = centre_side(rows_of(outward, self.point), rows_of(points, self.point),
-                                      b.center[self.bound])
+                towards = centre_side(rows_of(outward, self.point), rows_of(points, self.point), b.center[self.bound])
                 self.miss_below[own & (~on_sphere | (towards >= 0))] = np.inf
-            inside = np.sqrt(1.0 - np.maximum(shrunk, 0.0) ** 2 / dist ** 2) + MARGIN
+            inside = np.sqrt(1.0 - np.maximum(shrunk, 0.0) ** 2 / dist**2) + MARGIN
             self.hit_above = np.where(outside & b.solid[self.bound] & (shrunk > 0), inside, np.inf)
             self.starts = np.where(outside, dist - grown, -np.inf)  # the ball's nearest and farthest reach along
             self.ends = np.where(outside, dist + grown, np.inf)  # any ray from the point
@@ -74,8 +76,7 @@ class Penumbra:
             m = MARGIN * (np.max(np.abs(points), axis=1) + float(np.max(np.abs(p0))) + float(np.max(np.abs(corners))))
             self.planes |= ~(plane_clear(side, 0.0, q_side, m) | ((kind == PLANE) & (index == j)))
 
-    def decide(self, lit: np.ndarray, to_light: np.ndarray, dist: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, Among]:
+    def decide(self, lit: np.ndarray, to_light: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray, Among]:
         """For the rays of the points ``lit`` (mixed points, bool), in order, whose unit directions are
         ``to_light`` and lengths ``dist`` (per point, of every point): whether each is proven blocked, whether
         it must still be cast, and the pairs of the rays cast (numbered among them) that are not decided."""

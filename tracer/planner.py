@@ -119,8 +119,9 @@ def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Si
     glass may send rays anywhere."""
     used = {obj.material for obj in scene.objects}
     used |= {checker.material for name in used if (checker := scene.materials[name].checker) is not None}
-    if scene.image.max_depth > 0 and any(scene.materials[name].reflectance > 0 or
-                                         scene.materials[name].transmittance > 0 for name in used):
+    if scene.image.max_depth > 0 and any(
+        scene.materials[name].reflectance > 0 or scene.materials[name].transmittance > 0 for name in used
+    ):
         return None
     lines = Sightlines()
     if camera.orthographic:
@@ -134,7 +135,8 @@ def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Si
             lines.hulls.append(kind.hull(light, origin))
         if kind.direction is not None:
             lines.directions.append(kind.direction(light))
-    if not all(np.all(np.isfinite(h)) for h in lines.hulls) or \
-            not all(np.all(np.isfinite(d)) for d in lines.directions):
+    if not all(np.all(np.isfinite(h)) for h in lines.hulls) or not all(
+        np.all(np.isfinite(d)) for d in lines.directions
+    ):
         return None
     return lines

@@ -38,29 +38,70 @@ REACH = 2.0**-14
 #: the margin of triangle proxies in a scene that also has plain triangles (:mod:`tracer.sightlines`): more than a
 #: plain triangle's float32 crossing may stray, so a ray that strays near a proxied triangle still enters its proxy
 TRIANGLE_MARGIN = 2.0**-14
+
+
 def _icosahedron() -> tuple[np.ndarray, np.ndarray]:
     """Unit-circumradius icosahedron: 12 vertices and its 20 faces, wound outward."""
     phi = (1.0 + np.sqrt(5.0)) / 2.0
-    v = np.array([[-1, phi, 0], [1, phi, 0], [-1, -phi, 0], [1, -phi, 0], [0, -1, phi], [0, 1, phi],
-                  [0, -1, -phi], [0, 1, -phi], [phi, 0, -1], [phi, 0, 1], [-phi, 0, -1], [-phi, 0, 1]], dtype=float)
+    v = np.array(
+        [
+            [-1, phi, 0],
+            [1, phi, 0],
+            [-1, -phi, 0],
+            [1, -phi, 0],
+            [0, -1, phi],
+            [0, 1, phi],
+            [0, -1, -phi],
+            [0, 1, -phi],
+            [phi, 0, -1],
+            [phi, 0, 1],
+            [-phi, 0, -1],
+            [-phi, 0, 1],
+        ],
+        dtype=float,
+    )
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     edge = np.min(np.linalg.norm(v[1:] - v[0], axis=1))
     near = np.isclose(np.linalg.norm(v[:, None] - v[None, :], axis=2), edge)
-    faces = np.array([(a, b, c) for a in range(12) for b in range(a + 1, 12) for c in range(b + 1, 12)
-                      if near[a, b] and near[b, c] and near[a, c]])
+    faces = np.array(
+        [
+            (a, b, c)
+            for a in range(12)
+            for b in range(a + 1, 12)
+            for c in range(b + 1, 12)
+            if near[a, b] and near[b, c] and near[a, c]
+        ]
+    )
     return v, faces
 
 
 ICO_VERTICES, ICO_FACES = _icosahedron()
-_n = np.cross(ICO_VERTICES[ICO_FACES[:, 1]] - ICO_VERTICES[ICO_FACES[:, 0]],
-              ICO_VERTICES[ICO_FACES[:, 2]] - ICO_VERTICES[ICO_FACES[:, 0]])
+_n = np.cross(
+    ICO_VERTICES[ICO_FACES[:, 1]] - ICO_VERTICES[ICO_FACES[:, 0]],
+    ICO_VERTICES[ICO_FACES[:, 2]] - ICO_VERTICES[ICO_FACES[:, 0]],
+)
 #: circumradius over inradius of the icosahedron
-ICO_SCALE = 1.0 / float(np.min(np.abs(np.einsum("ij,ij->i", _n / np.linalg.norm(_n, axis=1, keepdims=True),
-                                                  ICO_VERTICES[ICO_FACES[:, 0]]))))
+ICO_SCALE = 1.0 / float(
+    np.min(np.abs(np.einsum("ij,ij->i", _n / np.linalg.norm(_n, axis=1, keepdims=True), ICO_VERTICES[ICO_FACES[:, 0]])))
+)
 #: a tetrahedron over a triangle (base 0,1,2; apex 3) and an oriented box (corner bits x,y,z)
 TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
-BOX_FACES = np.array([[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
-                      [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]])
+BOX_FACES = np.array(
+    [
+        [0, 2, 3],
+        [0, 3, 1],
+        [4, 5, 7],
+        [4, 7, 6],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 6, 7],
+        [2, 7, 3],
+        [0, 4, 6],
+        [0, 6, 2],
+        [1, 3, 7],
+        [1, 7, 5],
+    ]
+)
 
 
 #: proxies of one shape: primitive ids (k,), vertices (k, per, 3) and the faces of one proxy (f, 3)
@@ -80,8 +121,7 @@ class Proxies:
     slack: float = 0.0  # how far past a hit a plain triangle's float32 crossing may lie (0: none are plain)
 
 
-def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray,
-                    m: float) -> list[Group]:
+def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, m: float) -> list[Group]:
     """Closed proxies of triangles, one group per shape: tetrahedra, and oriented boxes for slivers.
 
     The tetrahedron's base lies ``m`` below the triangle's plane and its apex a quarter of the inradius
@@ -122,8 +162,12 @@ def triangle_prisms(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
         ys = np.stack([py.min(1) - m, py.max(1) + m], 1)
         zs = np.stack([-m * np.ones(len(ids)), m * np.ones(len(ids))], 1)
         bits = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)])
-        verts = (cr[:, :1] + xs[:, bits[:, 0], None] * ax[:, None] + ys[:, bits[:, 1], None] * ay[:, None]
-                 + zs[:, bits[:, 2], None] * n[:, None])
+        verts = (
+            cr[:, :1]
+            + xs[:, bits[:, 0], None] * ax[:, None]
+            + ys[:, bits[:, 1], None] * ay[:, None]
+            + zs[:, bits[:, 2], None] * n[:, None]
+        )
         groups.append((ids, verts, BOX_FACES))
     return groups
 
@@ -133,9 +177,17 @@ def sphere_icosahedra(center: np.ndarray, radius: np.ndarray, m: float) -> np.nd
     return center[:, None, :] + ((radius + m) * ICO_SCALE)[:, None, None] * ICO_VERTICES[None]
 
 
-def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, center: np.ndarray,
-                  radius: np.ndarray, half_size: float, plain: np.ndarray | None = None,
-                  corner_ids: np.ndarray | None = None) -> Proxies:
+def build_proxies(
+    v0: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    normal: np.ndarray,
+    center: np.ndarray,
+    radius: np.ndarray,
+    half_size: float,
+    plain: np.ndarray | None = None,
+    corner_ids: np.ndarray | None = None,
+) -> Proxies:
     """Proxies for ``T`` triangles and ``S`` spheres (local coordinates) in a BVH of half-size ``half_size``.
 
     Triangles marked ``plain`` (:func:`tracer.sightlines.plain_triangles`) go in as themselves, each corner
@@ -164,9 +216,12 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
         base = len(table)
         proxied = np.flatnonzero(~plain)
     tri_m = TRIANGLE_MARGIN * half_size if some_plain else m
-    groups = [(proxied[g], v, template) for g, v, template in
-              triangle_prisms(rows_of(v0, proxied), rows_of(e1, proxied), rows_of(e2, proxied),
-                              rows_of(normal, proxied), tri_m)]
+    groups = [
+        (proxied[g], v, template)
+        for g, v, template in triangle_prisms(
+            rows_of(v0, proxied), rows_of(e1, proxied), rows_of(e2, proxied), rows_of(normal, proxied), tri_m
+        )
+    ]
     if len(radius):
         groups.append((np.arange(len(radius)) + n_tri, sphere_icosahedra(center, radius, m), ICO_FACES))
     for ids, v, template in groups:  # v: (k, vertices per proxy, 3)
@@ -179,7 +234,14 @@ def build_proxies(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.nda
     all_verts = np.concatenate(verts) if verts else np.zeros((0, 3))
     all_faces = np.concatenate(faces) if faces else np.zeros((0, 3), np.int64)
     all_owner = np.concatenate(owner) if owner else np.zeros(0, np.int64)
-    return Proxies(vertices=all_verts, faces=all_faces.astype(np.int32), owner=all_owner.astype(np.int64),
-                   lo=lo, hi=hi, margin=m, reach=REACH * half_size, step=STEP * half_size,
-                   slack=CROSSING_SLACK * half_size if some_plain else 0.0)
-
+    return Proxies(
+        vertices=all_verts,
+        faces=all_faces.astype(np.int32),
+        owner=all_owner.astype(np.int64),
+        lo=lo,
+        hi=hi,
+        margin=m,
+        reach=REACH * half_size,
+        step=STEP * half_size,
+        slack=CROSSING_SLACK * half_size if some_plain else 0.0,
+    )

@@ -36,8 +36,14 @@ class Rays:
     mag: np.ndarray  # (N,) world magnitude of each origin: largest |coordinate|, local plus the local origin's
 
     @staticmethod
-    def leaving(origins: np.ndarray, dirs: np.ndarray, origin_mag: float, from_kind: np.ndarray | None = None,
-                from_index: np.ndarray | None = None, mag: np.ndarray | None = None) -> Rays:
+    def leaving(
+        origins: np.ndarray,
+        dirs: np.ndarray,
+        origin_mag: float,
+        from_kind: np.ndarray | None = None,
+        from_index: np.ndarray | None = None,
+        mag: np.ndarray | None = None,
+    ) -> Rays:
         """Rays from ``origins``, leaving the surfaces given (or none); ``origin_mag`` is the world magnitude of
         the local origin, and ``mag`` the origins' magnitudes when the caller has them already."""
         n = len(origins)
@@ -55,8 +61,13 @@ class Rays:
         """The rays ``rows`` only (no copies when that is all of them, in order)."""
         if len(rows) == len(self) and (len(rows) == 0 or (rows[0] == 0 and bool(np.all(np.diff(rows) == 1)))):
             return self
-        return Rays(rows_of(self.origins, rows), rows_of(self.dirs, rows), self.from_kind[rows],
-                    self.from_index[rows], self.mag[rows])
+        return Rays(
+            rows_of(self.origins, rows),
+            rows_of(self.dirs, rows),
+            self.from_kind[rows],
+            self.from_index[rows],
+            self.mag[rows],
+        )
 
 
 @dataclass
@@ -80,8 +91,7 @@ class Shadows:
         n = len(self)
         reach = shared_rows(self.reach, rows, n)
         assert reach is not None
-        return Shadows(self.rays.take(rows), reach, shared_rows(self.ends, rows, n),
-                       shared_rows(self.mag_end, rows, n))
+        return Shadows(self.rays.take(rows), reach, shared_rows(self.ends, rows, n), shared_rows(self.mag_end, rows, n))
 
 
 @dataclass(frozen=True)
@@ -118,8 +128,13 @@ class Work:
         return len(self.rays)
 
     def take(self, rows: np.ndarray) -> Work:
-        return Work(self.rays.take(rows), self.sample[rows], self.weight[rows], self.depth,
-                    None if self.branch is None else self.branch[rows])
+        return Work(
+            self.rays.take(rows),
+            self.sample[rows],
+            self.weight[rows],
+            self.depth,
+            None if self.branch is None else self.branch[rows],
+        )
 
     def slices(self, size: int) -> list[Work]:
         """The batch cut into slices of at most ``size`` rays, in order."""
@@ -140,5 +155,12 @@ class Hits:
 
     def take(self, rows: np.ndarray) -> Hits:
         """The hits of the rays ``rows`` only, as contiguous arrays."""
-        return Hits(self.t[rows], self.kind[rows], self.index[rows], rows_of(self.point, rows),
-                    rows_of(self.normal, rows), rows_of(self.bary, rows), self.material[rows])
+        return Hits(
+            self.t[rows],
+            self.kind[rows],
+            self.index[rows],
+            rows_of(self.point, rows),
+            rows_of(self.normal, rows),
+            rows_of(self.bary, rows),
+            self.material[rows],
+        )

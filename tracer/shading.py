@@ -39,8 +39,10 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
 
     p = [pick(hits.point[:, k], sel, every) + world.origin[k] for k in range(3)]
     kind, index = hits.kind[sel], hits.index[sel]
-    for code, anchors, normals in ((PLANE, world.planes.point_world, world.planes.normal),
-                                   (TRIANGLE, world.triangles.v0_world, world.triangles.normal)):
+    for code, anchors, normals in (
+        (PLANE, world.planes.point_world, world.planes.normal),
+        (TRIANGLE, world.triangles.v0_world, world.triangles.normal),
+    ):
         flat = np.flatnonzero(kind == code)
         if len(flat):  # projected onto the surface's plane: p − ((p − anchor)·n) n
             at = index[flat]
@@ -133,8 +135,10 @@ def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: 
     else:
         inside = np.zeros(len(rows), dtype=bool)
         position_mag = max_abs(em.position[None]) + world.origin_mag
-        for code, anchor, mag in ((PLANE, world.planes.point, world.planes.mag),
-                                  (TRIANGLE, world.triangles.v0, world.triangles.mag)):
+        for code, anchor, mag in (
+            (PLANE, world.planes.point, world.planes.mag),
+            (TRIANGLE, world.triangles.v0, world.triangles.mag),
+        ):
             sel = np.flatnonzero(kind == code)
             if len(sel):
                 k = index[sel]
@@ -164,8 +168,10 @@ def planes_holding(world: World, emitters: list[Emitter]) -> np.ndarray:
     at = np.array([e for e, em in enumerate(emitters) if em.kind != "directional"], dtype=np.int64)
     directional = [e for e, em in enumerate(emitters) if em.kind == "directional"]
     out[:] = False
-    for anchor, normal, mag in ((pl.point, pl.normal, pl.mag),
-                                (rows_of(tr.v0, flat), rows_of(tr.normal, flat), tr.mag[flat])):
+    for anchor, normal, mag in (
+        (pl.point, pl.normal, pl.mag),
+        (rows_of(tr.v0, flat), rows_of(tr.normal, flat), tr.mag[flat]),
+    ):
         if len(mag) == 0:
             continue
         if len(at):  # (E, F) at once, each pair as light_in_plane computes it
@@ -177,8 +183,9 @@ def planes_holding(world: World, emitters: list[Emitter]) -> np.ndarray:
     return out
 
 
-def add_phong(colour: np.ndarray, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray, wd: np.ndarray,
-              ws: np.ndarray) -> None:
+def add_phong(
+    colour: np.ndarray, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray, wd: np.ndarray, ws: np.ndarray
+) -> None:
     """``colour += color · (k_d · wd + k_s · ws)`` in place, a column at a time (a light's ``color (3,)``
     broadcast over the rows of ``(N, 3)`` arrays would loop three times per row), with ``wd, ws`` a light's
     terms (:class:`tracer.kernel.Kernel`) and ``diffuse, specular (N, 3)`` the points' k_d and k_s."""
@@ -191,8 +198,9 @@ def mirror(dirs: np.ndarray, normal: np.ndarray) -> np.ndarray:
     return unit(along(dirs, -2.0 * dot(dirs, normal), normal))
 
 
-def refract(dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray, inverted: bool = False,
-            exit_flipped: bool = True) -> np.ndarray:
+def refract(
+    dirs: np.ndarray, geometric: np.ndarray, ior: np.ndarray, inverted: bool = False, exit_flipped: bool = True
+) -> np.ndarray:
     """Refracted unit directions by the contract's rule (mirror direction on total internal reflection); with
     ``inverted`` (a variant's mistake) η is ior entering and 1/ior leaving; without ``exit_flipped`` (another)
     a ray leaving uses the outward normal as w."""

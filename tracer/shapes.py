@@ -49,10 +49,18 @@ def on_tolerance(point_magnitude: np.ndarray | float, surface_magnitude: np.ndar
     return TOL * (np.asarray(point_magnitude) + surface_magnitude)
 
 
-def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: np.ndarray,
-             mag_origin: np.ndarray, mag_sphere: np.ndarray, leaving: np.ndarray | None = None,
-             ends: np.ndarray | None = None, reach: np.ndarray | None = None,
-             mag_end: np.ndarray | None = None) -> np.ndarray:
+def sphere_t(
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    center: np.ndarray,
+    radius: np.ndarray,
+    mag_origin: np.ndarray,
+    mag_sphere: np.ndarray,
+    leaving: np.ndarray | None = None,
+    ends: np.ndarray | None = None,
+    reach: np.ndarray | None = None,
+    mag_end: np.ndarray | None = None,
+) -> np.ndarray:
     """First root t > 0 per ray, ``inf`` for none. Shape (N,).
 
     ``leaving`` (bool, N) marks rays that start from this very sphere.  With
@@ -89,13 +97,27 @@ def sphere_t(origins: np.ndarray, dirs: np.ndarray, center: np.ndarray, radius: 
     reach_n = None if reach is None else np.broadcast_to(reach, b.shape)
     if 2 * len(rows) > len(b):  # most rays may: no gathering
         return _roots(b, disc, dist, radius, on, at_end, reach_n)
-    t[rows] = _roots(b[rows], disc[rows], dist[rows], radius[rows], on[rows],
-                     None if at_end is None else at_end[rows], None if reach_n is None else reach_n[rows])
+    t[rows] = _roots(
+        b[rows],
+        disc[rows],
+        dist[rows],
+        radius[rows],
+        on[rows],
+        None if at_end is None else at_end[rows],
+        None if reach_n is None else reach_n[rows],
+    )
     return t
 
 
-def _roots(b: np.ndarray, disc: np.ndarray, dist: np.ndarray, radius: np.ndarray, on: np.ndarray,
-           at_end: np.ndarray | None, reach: np.ndarray | None) -> np.ndarray:
+def _roots(
+    b: np.ndarray,
+    disc: np.ndarray,
+    dist: np.ndarray,
+    radius: np.ndarray,
+    on: np.ndarray,
+    at_end: np.ndarray | None,
+    reach: np.ndarray | None,
+) -> np.ndarray:
     """:func:`sphere_t` for rays that may hit, from ``b = (o − c)·d``, the discriminant, the origin's distance
     from the centre and whether it starts (``on``) or ends (``at_end``, towards a light at ``reach``) on it."""
     c = (dist - radius) * (dist + radius)
@@ -119,13 +141,24 @@ def _roots(b: np.ndarray, disc: np.ndarray, dist: np.ndarray, radius: np.ndarray
 def plane_side(points: np.ndarray, point: np.ndarray, normal: np.ndarray) -> np.ndarray:
     """Signed distance ``(p − point)·normal`` of each of ``points (N, 3)`` from a plane (unit ``normal``),
     a column at a time with no ``(N, 3)`` difference made. Shape (N,)."""
-    return ((points[..., 0] - point[..., 0]) * normal[..., 0] + (points[..., 1] - point[..., 1]) * normal[..., 1]
-            + (points[..., 2] - point[..., 2]) * normal[..., 2])
+    return (
+        (points[..., 0] - point[..., 0]) * normal[..., 0]
+        + (points[..., 1] - point[..., 1]) * normal[..., 1]
+        + (points[..., 2] - point[..., 2]) * normal[..., 2]
+    )
 
 
-def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np.ndarray,
-            mag_origin: np.ndarray, mag_plane: np.ndarray | float, leaving: np.ndarray | None = None,
-            ends: np.ndarray | None = None, mag_end: np.ndarray | None = None) -> np.ndarray:
+def plane_t(
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    point: np.ndarray,
+    normal: np.ndarray,
+    mag_origin: np.ndarray,
+    mag_plane: np.ndarray | float,
+    leaving: np.ndarray | None = None,
+    ends: np.ndarray | None = None,
+    mag_end: np.ndarray | None = None,
+) -> np.ndarray:
     """t > 0 where each ray meets a plane, ``inf`` where it does not (or starts or ends on it). Shape (N,)."""
     n = np.asarray(normal, dtype=np.float64)
     dist = plane_side(origins, point, n)
@@ -138,8 +171,9 @@ def plane_t(origins: np.ndarray, dirs: np.ndarray, point: np.ndarray, normal: np
         skip |= leaving
     if ends is not None:
         assert mag_end is not None
-        skip |= np.abs(dot(*np.broadcast_arrays(ends - point, np.atleast_2d(normal)))) <= on_tolerance(mag_end,
-                                                                                                          mag_plane)
+        skip |= np.abs(dot(*np.broadcast_arrays(ends - point, np.atleast_2d(normal)))) <= on_tolerance(
+            mag_end, mag_plane
+        )
     return np.where(~skip & (denom != 0) & (t > 0) & np.isfinite(t), t, np.inf)
 
 
@@ -154,8 +188,9 @@ class Segments:
     mag_end: np.ndarray
 
 
-def plane_separates(segments: Segments, point: np.ndarray, normal: np.ndarray, mag_plane: float,
-                    leaving: np.ndarray | None = None) -> np.ndarray:
+def plane_separates(
+    segments: Segments, point: np.ndarray, normal: np.ndarray, mag_plane: float, leaving: np.ndarray | None = None
+) -> np.ndarray:
     """True where the plane lies strictly between each segment's origin and its end (a light): the segment
     crosses it. Shape (N,), bool.
 
@@ -174,10 +209,20 @@ def plane_separates(segments: Segments, point: np.ndarray, normal: np.ndarray, m
     return out
 
 
-def triangle_t(origins: np.ndarray, dirs: np.ndarray, v0: np.ndarray, e1: np.ndarray, e2: np.ndarray,
-               normal: np.ndarray, mag_origin: np.ndarray, mag_triangle: np.ndarray,
-               leaving: np.ndarray | None = None, ends: np.ndarray | None = None,
-               mag_end: np.ndarray | None = None, uv: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def triangle_t(
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    v0: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    normal: np.ndarray,
+    mag_origin: np.ndarray,
+    mag_triangle: np.ndarray,
+    leaving: np.ndarray | None = None,
+    ends: np.ndarray | None = None,
+    mag_end: np.ndarray | None = None,
+    uv: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Float64 Möller–Trumbore with the barycentric test decided exactly: ``t, u, v``, each (N,).
 
     ``t`` is ``inf`` where the ray misses the triangle (``u, v`` are then

@@ -101,12 +101,14 @@ def _side_by_side(tasks: int, here: bool = False) -> Iterator[Callable[..., Futu
     """``run(f, *args)`` starts ``f(*args)`` (with floating-point warnings off) on a pool of up to as many
     threads as cores, and gives its future; every task has finished when the block ends.  With ``here`` (or one
     task, or one core), each runs at once in this thread instead: the same results, as finished futures."""
+
     def quiet(f: Callable[..., np.ndarray], *args: object) -> np.ndarray:
         with np.errstate(all="ignore"):
             return f(*args)
 
     workers = max(1, min(tasks, os.cpu_count() or 1))
     if here or workers == 1:
+
         def now(f: Callable[..., np.ndarray], *args: object) -> Future:
             done: Future = Future()
             try:
@@ -121,8 +123,15 @@ def _side_by_side(tasks: int, here: bool = False) -> Iterator[Callable[..., Futu
         yield lambda f, *args: pool.submit(quiet, f, *args)
 
 
-def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.ndarray, corner_ids: np.ndarray,
-                    lines: Sightlines, half_size: float) -> tuple[np.ndarray, np.ndarray]:
+def plain_triangles(
+    v0: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    normal: np.ndarray,
+    corner_ids: np.ndarray,
+    lines: Sightlines,
+    half_size: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Which triangles Embree may meet as they are, for rays on ``lines``: ``plain (T,)`` bool, and ``mates
     (T, 3)``, a plain triangle's face across each of its edges (−1 for every edge of the others).
 
@@ -169,8 +178,9 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
         s = [_dot(_minus(c, point), towards) for c in corners]
         return np.minimum(np.minimum(s[0], s[1]), s[2]) > near
 
-    face_tests: list[tuple[Callable[..., np.ndarray], tuple]] = \
-        [(seen_squarely, ([tuple(float(x) for x in p) for p in hull],)) for hull in lines.hulls]
+    face_tests: list[tuple[Callable[..., np.ndarray], tuple]] = [
+        (seen_squarely, ([tuple(float(x) for x in p) for p in hull],)) for hull in lines.hulls
+    ]
     face_tests += [(seen_along, (tuple(float(x) for x in d),)) for d in lines.directions]
     face_tests += [(clear_of, (tuple(float(x) for x in p), tuple(float(x) for x in n))) for p, n in lines.starts]
     with _side_by_side(len(face_tests) + len(lines.hulls) + len(lines.directions), n_tri < SIDE_BY_SIDE_MIN) as run:
@@ -205,8 +215,10 @@ def plain_triangles(v0: np.ndarray, e1: np.ndarray, e2: np.ndarray, normal: np.n
         def folds_seen_from(points: list[tuple[float, ...]]) -> np.ndarray:
             """Edges where, seen from the points, the two faces lie on one side (a silhouette)."""
             planes = [(_cross(_minus(ea, p), _minus(eb, p)), p) for p in points]  # through the edge and p
-            return _folds([_dot(through, _minus(c1, p)) for through, p in planes],
-                          [_dot(through, _minus(c2, p)) for through, p in planes])
+            return _folds(
+                [_dot(through, _minus(c1, p)) for through, p in planes],
+                [_dot(through, _minus(c2, p)) for through, p in planes],
+            )
 
         def folds_along(direction: tuple[float, ...]) -> np.ndarray:
             through = _cross(_minus(eb, ea), direction)

@@ -75,14 +75,23 @@ class Spawner:
         dirs, weight = work.rays.dirs, work.weight
         r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
         t = np.flatnonzero(weight * kt > 0)
-        out = np.concatenate([mirror(dirs[r], normal[r]),
-                              refract(dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted,
-                                      self.options.exit_normal_flipped)])
+        out = np.concatenate(
+            [
+                mirror(dirs[r], normal[r]),
+                refract(
+                    dirs[t], hit.normal[t], m.ior[mat[t]], self.options.ior_inverted, self.options.exit_normal_flipped
+                ),
+            ]
+        )
         both = np.concatenate([r, t])
         rays = self.spawn(hit, self.magnitudes(hit), both, out)
         branch = None
         if work.branch is not None:  # the passes follow each branch of the tree from the first hit on
-            branch = work.branch[both] if work.depth > 0 else \
-                np.concatenate([np.full(len(r), REFLECTED), np.full(len(t), REFRACTED)]).astype(np.int8)
-        return Work(rays, work.sample[both], np.concatenate([weight[r] * kr[r], weight[t] * kt[t]]), work.depth + 1,
-                    branch)
+            branch = (
+                work.branch[both]
+                if work.depth > 0
+                else np.concatenate([np.full(len(r), REFLECTED), np.full(len(t), REFRACTED)]).astype(np.int8)
+            )
+        return Work(
+            rays, work.sample[both], np.concatenate([weight[r] * kr[r], weight[t] * kt[t]]), work.depth + 1, branch
+        )

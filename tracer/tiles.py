@@ -26,7 +26,7 @@ TILE = 16
 def inside_tiles(b: Bounds, at: SurfacePoints, candidate: np.ndarray) -> np.ndarray:
     """The tiles, among the ``candidate`` ones (T,), with a point on a sphere seen from inside it
     (:func:`tracer.bounds.inside_spheres`): tile numbers, ascending, possibly repeated."""
-    rows = np.flatnonzero(np.repeat(candidate, TILE)[:len(at.kind)])
+    rows = np.flatnonzero(np.repeat(candidate, TILE)[: len(at.kind)])
     return inside_spheres(b, at, rows) // TILE
 
 
@@ -42,7 +42,7 @@ def tiles_of(at: SurfacePoints) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     for k in range(3):  # a tile's minimum and maximum: a loop over its TILE places, on contiguous columns
         column = np.ascontiguousarray(points[:, k])
         whole = column[:full].reshape(-1, TILE)
-        low, high = lo[k, :len(whole)], hi[k, :len(whole)]
+        low, high = lo[k, : len(whole)], hi[k, : len(whole)]
         np.copyto(low, whole[:, 0])
         np.copyto(high, whole[:, 0])
         for j in range(1, TILE):
@@ -61,8 +61,7 @@ def tiles_of(at: SurfacePoints) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return centre, reach, scale, one, kind[starts], index[starts]
 
 
-def lit_tiles(b: Bounds, at: SurfacePoints, position: np.ndarray | None, direction: np.ndarray | None
-              ) -> np.ndarray:
+def lit_tiles(b: Bounds, at: SurfacePoints, position: np.ndarray | None, direction: np.ndarray | None) -> np.ndarray:
     """Which tiles of :data:`TILE` consecutive points a point light at ``position`` (or a directional light
     shining along ``direction``) reaches unblocked from every point. Shape (T,), bool.
 

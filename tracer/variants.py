@@ -128,6 +128,7 @@ class Spawn:
     amount: float
     along: str
 
+
 #: name → (options, what a student did)
 VARIANTS: dict[str, tuple[Options, str]] = {
     "no-shadows": (Options(shadows=False), "no shadow rays"),
@@ -147,56 +148,66 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "depth-plus-one": (Options(depth_offset=1), "max_depth off by one (one bounce too many)"),
     "depth-minus-one": (Options(depth_offset=-1), "max_depth off by one (one bounce too few)"),
     "ior-inverted": (Options(ior_inverted=True), "the index of refraction inverted"),
-    "offset-too-large": (Options(offset=2e-2), "shadow and secondary rays offset too far from the surface "
-                                               "(2e-2 of the scene's size)"),
+    "offset-too-large": (
+        Options(offset=2e-2),
+        "shadow and secondary rays offset too far from the surface (2e-2 of the scene's size)",
+    ),
 }
 
 #: more mistakes a student's tracer written from the format makes (issue 47): name → (options, what a student
 #: did).  Not in :data:`VARIANTS`, so that the diagnosis does not try them yet: trying them changes its cost and
 #: its outcomes, which the wiring of the diagnosis decides.  A ray offset far too large is ``offset-too-large``.
 MORE_VARIANTS: dict[str, tuple[Options, str]] = {
-    "reflection-blended": (Options(blend_reflection=True), "reflection blended, (1 − k_r)·local + k_r·reflected, "
-                                                            "instead of added"),
-    "camera-left-handed": (Options(left_handed=True), "a left-handed camera basis (r = up × f): the image "
-                                                      "mirrored left to right"),
-    "samples-ignored": (Options(samples_read=False), "the scene's anti-aliasing samples ignored (one ray per "
-                                                     "pixel)"),
+    "reflection-blended": (
+        Options(blend_reflection=True),
+        "reflection blended, (1 − k_r)·local + k_r·reflected, instead of added",
+    ),
+    "camera-left-handed": (
+        Options(left_handed=True),
+        "a left-handed camera basis (r = up × f): the image mirrored left to right",
+    ),
+    "samples-ignored": (Options(samples_read=False), "the scene's anti-aliasing samples ignored (one ray per pixel)"),
     "grayscale": (Options(grayscale=True), "the image saved in grayscale"),
     "spot-exponent-ignored": (Options(spot_exponent=False), "a spot's falloff exponent ignored"),
     "light-colour-ignored": (Options(light_colour=False), "the lights' colours ignored (every light white)"),
     "channels-swapped": (Options(channels_swapped=True), "red and blue swapped (the image stored as BGR)"),
-    "clamped-per-term": (Options(clamp_terms=True), "each light's diffuse and specular term clamped on its own "
-                                                    "instead of the pixel once at the end"),
-    "exit-normal-not-flipped": (Options(exit_normal_flipped=False), "refraction leaving an object with the "
-                                                                   "outward normal instead of the flipped one"),
+    "clamped-per-term": (
+        Options(clamp_terms=True),
+        "each light's diffuse and specular term clamped on its own instead of the pixel once at the end",
+    ),
+    "exit-normal-not-flipped": (
+        Options(exit_normal_flipped=False),
+        "refraction leaving an object with the outward normal instead of the flipped one",
+    ),
 }
 
 #: per mistake of :data:`MORE_VARIANTS`, a sentence for the student who made it: what the image shows, what to fix
 SENTENCES: dict[str, str] = {
     "reflection-blended": "Your mirror surfaces look too dark: the format adds k_r × the reflected colour to the "
-                          "surface's own colour; it does not mix the two by (1 − k_r).",
-    "camera-left-handed": "Your image is mirrored left to right: the camera's right vector is f × up, not "
-                          "up × f.",
+    "surface's own colour; it does not mix the two by (1 − k_r).",
+    "camera-left-handed": "Your image is mirrored left to right: the camera's right vector is f × up, not up × f.",
     "samples-ignored": "Your edges are jagged: the scene asks for n × n rays per pixel (image.samples), averaged.",
     "grayscale": "Your image has no colour: save it as RGB, not in grayscale.",
     "spot-exponent-ignored": "Your spot lights are too bright away from their axis: multiply by "
-                             "cos(angle)^exponent as well.",
+    "cos(angle)^exponent as well.",
     "light-colour-ignored": "Your lights are all white: multiply each light's term by the light's colour.",
     "channels-swapped": "Your red and blue are swapped: write the channels in the order R, G, B.",
     "clamped-per-term": "Your highlights are too dim where lights are bright: clamp each pixel once, after "
-                        "everything is added, not each light's diffuse or specular term.",
+    "everything is added, not each light's diffuse or specular term.",
     "exit-normal-not-flipped": "Your glass looks wrong: when a refracted ray leaves an object, turn the normal "
-                               "inside (w = −n) and use η = ior.",
+    "inside (w = −n) and use η = ior.",
 }
 
 
-def add_clamped(colour: np.ndarray, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray,
-                wd: np.ndarray, ws: np.ndarray) -> None:
+def add_clamped(
+    colour: np.ndarray, color: np.ndarray, diffuse: np.ndarray, specular: np.ndarray, wd: np.ndarray, ws: np.ndarray
+) -> None:
     """:func:`tracer.shading.add_phong` of a student who clamps each term: ``colour += clip(I⊙k_d·wd) +
     clip(I⊙k_s·ws)``, each clipped to [0, 1] per channel (the ``clamp_terms`` mistake)."""
     for k in range(3):
-        colour[:, k] += np.clip(color[k] * diffuse[:, k] * wd, 0.0, 1.0) + np.clip(color[k] * specular[:, k] * ws,
-                                                                                   0.0, 1.0)
+        colour[:, k] += np.clip(color[k] * diffuse[:, k] * wd, 0.0, 1.0) + np.clip(
+            color[k] * specular[:, k] * ws, 0.0, 1.0
+        )
 
 
 #: the ways of honest tracers a grade accepts besides the reference, by default: name → how far (× the scene's
@@ -204,8 +215,7 @@ def add_clamped(colour: np.ndarray, color: np.ndarray, diffuse: np.ndarray, spec
 ACCEPTED_DEFAULT: dict[str, float] = {"normal-offset": 1e-3, "t-min": 1e-3}
 
 #: accepted variant → (the option that sets its amount, what it is in words)
-ACCEPTED_KINDS: dict[str, tuple[str, str]] = {"normal-offset": ("normal", "ray offset"),
-                                              "t-min": ("ray", "t_min")}
+ACCEPTED_KINDS: dict[str, tuple[str, str]] = {"normal-offset": ("normal", "ray offset"), "t-min": ("ray", "t_min")}
 
 
 def _short(x: float) -> str:
@@ -238,6 +248,7 @@ BOUNDS: dict[str, Options] = {"shadow-acne": Options(acne=True, acne_everywhere=
 
 # -- variants a scene cannot show: the reference, bit for bit, without a render -----------------------------------
 
+
 def _lit(scene: Any) -> bool:
     return any(light.type != "ambient" for light in scene.lights)
 
@@ -266,24 +277,30 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     "specular-behind": lambda scene: not _specular(scene),
     "no-specular": lambda scene: not _specular(scene),
     # no ambient light (or every k_a zero): the ambient term is k_a times 0, exactly the 0 the variant starts at
-    "no-ambient": lambda scene: not (any(light.type == "ambient" and any(v != 0 for v in light.color)
-                                         for light in scene.lights)
-                                     and _materials(scene, lambda m: any(v != 0 for v in m.ambient))),
+    "no-ambient": lambda scene: (
+        not (
+            any(light.type == "ambient" and any(v != 0 for v in light.color) for light in scene.lights)
+            and _materials(scene, lambda m: any(v != 0 for v in m.ambient))
+        )
+    ),
     # every point, spot and area light already falls off as (1, 0, 0)
-    "no-attenuation": lambda scene: all(tuple(light.attenuation) == (1.0, 0.0, 0.0) for light in scene.lights
-                                        if light.type in ("point", "spot", "area")),
+    "no-attenuation": lambda scene: all(
+        tuple(light.attenuation) == (1.0, 0.0, 0.0) for light in scene.lights if light.type in ("point", "spot", "area")
+    ),
     # a square image: the view window's half-sizes are (1, 1) either way
     "horizontal-fov": lambda scene: scene.image.width == scene.image.height,
     # an area light of one sample is divided by 1 either way
-    "area-not-divided": lambda scene: all(light.samples[0] * light.samples[1] == 1 for light in scene.lights
-                                          if light.type == "area"),
+    "area-not-divided": lambda scene: all(
+        light.samples[0] * light.samples[1] == 1 for light in scene.lights if light.type == "area"
+    ),
     "spot-radians": lambda scene: not any(light.type == "spot" for light in scene.lights),
     # with no mirror or glass, no hit spawns a ray, so how deep the tree may go changes nothing
     "depth-plus-one": lambda scene: not _bounces(scene),
     "depth-minus-one": lambda scene: scene.image.max_depth == 0 or not _bounces(scene),
     # η is read only where a refracted ray is spawned: no glass, no bounce, or ior 1 (1/1 is 1)
-    "ior-inverted": lambda scene: scene.image.max_depth == 0 or not _materials(
-        scene, lambda m: m.transmittance > 0 and m.ior != 1.0),
+    "ior-inverted": lambda scene: (
+        scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0 and m.ior != 1.0)
+    ),
     # an offset moves only shadow rays (of a light that is not ambient) and mirror or refracted rays
     "offset-too-large": lambda scene: not _lit(scene) and (scene.image.max_depth == 0 or not _bounces(scene)),
     # -- of MORE_VARIANTS --
@@ -294,11 +311,13 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     # exponent 0 read for an exponent of 0
     "spot-exponent-ignored": lambda scene: all(light.exponent == 0 for light in scene.lights if light.type == "spot"),
     # white read for white
-    "light-colour-ignored": lambda scene: all(tuple(light.color) == (1.0, 1.0, 1.0) for light in scene.lights
-                                              if light.type != "ambient"),
+    "light-colour-ignored": lambda scene: all(
+        tuple(light.color) == (1.0, 1.0, 1.0) for light in scene.lights if light.type != "ambient"
+    ),
     # the normal is read only where a refracted ray is spawned
-    "exit-normal-not-flipped": lambda scene: scene.image.max_depth == 0 or not _materials(
-        scene, lambda m: m.transmittance > 0),
+    "exit-normal-not-flipped": lambda scene: (
+        scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0)
+    ),
 }
 
 

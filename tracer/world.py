@@ -68,8 +68,10 @@ def build_world(scene: Scene, options: Options = REFERENCE) -> World:
         spheres=_spheres(scene, names, origin),
         planes=_planes(scene, names, origin),
         triangles=_triangles(scene, names, origin),
-        ambient=np.sum(np.array([light.color for light in scene.lights if light.type == "ambient"],
-                                dtype=F64).reshape(-1, 3), axis=0),
+        ambient=np.sum(
+            np.array([light.color for light in scene.lights if light.type == "ambient"], dtype=F64).reshape(-1, 3),
+            axis=0,
+        ),
         emitters=build_emitters(scene.lights, origin, options),
     )
 
@@ -84,12 +86,17 @@ def _materials(scene: Scene, names: dict[str, int]) -> Materials:
         return np.array([getattr(m, attr) for m in mats], dtype=F64).reshape(-1)
 
     return Materials(
-        ambient=col("ambient"), diffuse=col("diffuse"), specular=col("specular"),
-        shininess=num("shininess"), reflectance=num("reflectance"),
-        transmittance=num("transmittance"), ior=num("ior"),
+        ambient=col("ambient"),
+        diffuse=col("diffuse"),
+        specular=col("specular"),
+        shininess=num("shininess"),
+        reflectance=num("reflectance"),
+        transmittance=num("transmittance"),
+        ior=num("ior"),
         checker_size=np.array([m.checker.size if m.checker else 0.0 for m in mats], dtype=F64),
-        checker_other=np.array([names[m.checker.material] if m.checker else k for k, m in enumerate(mats)],
-                               dtype=np.int64),
+        checker_other=np.array(
+            [names[m.checker.material] if m.checker else k for k, m in enumerate(mats)], dtype=np.int64
+        ),
     )
 
 
@@ -98,21 +105,27 @@ def _spheres(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Spheres
     objs = [o for o in scene.objects if isinstance(o, Sphere)]
     center = np.array([o.center for o in objs], dtype=F64).reshape(-1, 3) - origin
     radius = np.array([o.radius for o in objs], dtype=F64)
-    return Spheres(center=center, radius=radius,
-                   material=np.array([names[o.material] for o in objs], dtype=np.int64),
-                   mag=np.max(np.abs(center + origin), axis=1, initial=0.0) + radius,
-                   object=np.array(index, dtype=np.int64))
+    return Spheres(
+        center=center,
+        radius=radius,
+        material=np.array([names[o.material] for o in objs], dtype=np.int64),
+        mag=np.max(np.abs(center + origin), axis=1, initial=0.0) + radius,
+        object=np.array(index, dtype=np.int64),
+    )
 
 
 def _planes(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Planes:
     index = [k for k, o in enumerate(scene.objects) if isinstance(o, Plane)]
     objs = [o for o in scene.objects if isinstance(o, Plane)]
     point_world = np.array([o.point for o in objs], dtype=F64).reshape(-1, 3)
-    return Planes(point=point_world - origin,
-                  normal=unit(np.array([o.normal for o in objs], dtype=F64).reshape(-1, 3)),
-                  material=np.array([names[o.material] for o in objs], dtype=np.int64),
-                  point_world=point_world, mag=np.max(np.abs(point_world), axis=1, initial=0.0),
-                  object=np.array(index, dtype=np.int64))
+    return Planes(
+        point=point_world - origin,
+        normal=unit(np.array([o.normal for o in objs], dtype=F64).reshape(-1, 3)),
+        material=np.array([names[o.material] for o in objs], dtype=np.int64),
+        point_world=point_world,
+        mag=np.max(np.abs(point_world), axis=1, initial=0.0),
+        object=np.array(index, dtype=np.int64),
+    )
 
 
 def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Triangles:
@@ -160,8 +173,16 @@ def _triangles(scene: Scene, names: dict[str, int], origin: np.ndarray) -> Trian
         material, vertex_normals, smooth_mask = material[keep], vertex_normals[keep], smooth_mask[keep]
         corner_ids, owner, face = corner_ids[keep], owner[keep], face[keep]
     return Triangles(
-        v0=np.ascontiguousarray(local[:, 0]), e1=e1, e2=e2, normal=normal, material=material,
-        v0_world=np.ascontiguousarray(world[:, 0]), vertex_normals=vertex_normals, smooth=smooth_mask,
-        mag=most(np.abs(world).reshape(-1, 9)) if len(world) else np.zeros(0), corner_ids=corner_ids,
-        object=owner, face=face,
+        v0=np.ascontiguousarray(local[:, 0]),
+        e1=e1,
+        e2=e2,
+        normal=normal,
+        material=material,
+        v0_world=np.ascontiguousarray(world[:, 0]),
+        vertex_normals=vertex_normals,
+        smooth=smooth_mask,
+        mag=most(np.abs(world).reshape(-1, 9)) if len(world) else np.zeros(0),
+        corner_ids=corner_ids,
+        object=owner,
+        face=face,
     )

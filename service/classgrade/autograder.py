@@ -62,8 +62,14 @@ class Built:
 
 # -- the bundle ------------------------------------------------------------------------------------------------
 
-def build(scenes: Path, out: Path, tasks_file: Path | None = None, student_scenes: Path | None = None,
-          program: Program | None = None) -> Built:
+
+def build(
+    scenes: Path,
+    out: Path,
+    tasks_file: Path | None = None,
+    student_scenes: Path | None = None,
+    program: Program | None = None,
+) -> Built:
     """Write the autograder zip ``out`` for the task scenes in ``scenes`` (with a ``program``, for students'
     programs: :mod:`.bundled`); :class:`ClassError` for a fault of the TA's (an invalid scene or tasks file, a
     scene that does not render), before anything is written."""
@@ -82,8 +88,11 @@ def build(scenes: Path, out: Path, tasks_file: Path | None = None, student_scene
         files[f"{COURSE}/tasks.json"] = _read(tasks_file)
     if program is not None:
         files[f"{COURSE}/{PROGRAM_FILE}"] = program_json(program)
-    scenes_of = {name: text for name, text in files.items()
-                 if name.endswith(".json") and not name.endswith(("/tasks.json", f"/{PROGRAM_FILE}"))}
+    scenes_of = {
+        name: text
+        for name, text in files.items()
+        if name.endswith(".json") and not name.endswith(("/tasks.json", f"/{PROGRAM_FILE}"))
+    }
     references = _references(scenes_of)
     files.update({f"{COURSE}/references/{key}.png": png for key, png in references.items()})
     files.update(_variants(scenes_of, load_tasks(tasks_file, batch.tasks)))
@@ -180,13 +189,33 @@ def _source_tree() -> dict[str, bytes]:
 def _pyproject() -> str:
     meta = importlib.metadata.metadata("phongray")
     needs = [r for r in importlib.metadata.requires("phongray") or [] if "extra ==" not in r]
-    return "\n".join([
-        "[build-system]", 'requires = ["setuptools>=64"]', 'build-backend = "setuptools.build_meta"', "",
-        "[project]", 'name = "phongray"', f'version = "{meta["Version"]}"', 'requires-python = ">=3.11"',
-        f"dependencies = {json.dumps(needs)}", "", "[project.scripts]", 'phongray = "service.cli:main"', "",
-        "[tool.setuptools]", 'py-modules = ["phongray"]', "", "[tool.setuptools.packages.find]",
-        f"include = {json.dumps([p + '*' for p in PACKAGES])}", "", "[tool.setuptools.package-data]",
-        'service = ["static/*"]', '"service.classgrade" = ["gradescope/*"]', ""])
+    return "\n".join(
+        [
+            "[build-system]",
+            'requires = ["setuptools>=64"]',
+            'build-backend = "setuptools.build_meta"',
+            "",
+            "[project]",
+            'name = "phongray"',
+            f'version = "{meta["Version"]}"',
+            'requires-python = ">=3.11"',
+            f"dependencies = {json.dumps(needs)}",
+            "",
+            "[project.scripts]",
+            'phongray = "service.cli:main"',
+            "",
+            "[tool.setuptools]",
+            'py-modules = ["phongray"]',
+            "",
+            "[tool.setuptools.packages.find]",
+            f"include = {json.dumps([p + '*' for p in PACKAGES])}",
+            "",
+            "[tool.setuptools.package-data]",
+            'service = ["static/*"]',
+            '"service.classgrade" = ["gradescope/*"]',
+            "",
+        ]
+    )
 
 
 def _script(name: str) -> bytes:
@@ -269,8 +298,7 @@ def run(root: Path) -> int:
     try:
         outcome = _grade(root)
     except ClassError as exc:
-        _write(results, {"score": 0.0, "output": f"The autograder could not grade this submission: {exc}",
-                         "tests": []})
+        _write(results, {"score": 0.0, "output": f"The autograder could not grade this submission: {exc}", "tests": []})
         print(f"phongray autograder: {exc}", file=sys.stderr)
         return 2
     _write(results, outcome)
@@ -298,8 +326,11 @@ def _grade(root: Path) -> dict[str, Any]:
         who = _own_folder(course / "student-scenes", submitter(root))
         student = place / "submissions" / (who or "submission")
         student.mkdir(parents=True)
-        laid = (_lay_out(root / "submission", student, tasks) if program is None
-                else lay_out_program(root / "submission", student, program))
+        laid = (
+            _lay_out(root / "submission", student, tasks)
+            if program is None
+            else lay_out_program(root / "submission", student, program)
+        )
         for line in laid:
             print(line)
         own = None
@@ -311,8 +342,17 @@ def _grade(root: Path) -> dict[str, Any]:
             shutil.copytree(course / "references", report / "references")
         tasks_file = course / "tasks.json"
         os.environ[STORED] = str(course / "variants")  # (the pool's processes inherit it)
-        grade_class(ClassRun(scenes, place / "submissions", report, jobs=1, student_scenes=own,
-                    tasks_file=tasks_file if tasks_file.exists() else None, program=program))
+        grade_class(
+            ClassRun(
+                scenes,
+                place / "submissions",
+                report,
+                jobs=1,
+                student_scenes=own,
+                tasks_file=tasks_file if tasks_file.exists() else None,
+                program=program,
+            )
+        )
         return json.loads((report / "gradescope" / student.name / "results.json").read_text())
 
 

@@ -100,8 +100,11 @@ class LocalBackend(Backend):
     def _pool(self) -> None:
         context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
         self.executor = futures.ProcessPoolExecutor(
-            max_workers=self.workers, mp_context=context, initializer=die_with_parent,
-            initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
+            max_workers=self.workers,
+            mp_context=context,
+            initializer=die_with_parent,
+            initargs=(os.getpid(), threading.current_thread() is threading.main_thread()),
+        )
 
     def reset(self) -> None:
         super().close(wait=False)

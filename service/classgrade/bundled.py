@@ -27,8 +27,13 @@ PROGRAM_FILE = "program.json"
 
 def program_json(program: Program) -> bytes:
     """The TA's program options as the bundle keeps them."""
-    return (json.dumps({"run": program.run, "build": program.build, "sandbox": program.sandbox,
-                        "limits": asdict(program.limits)}, indent=1) + "\n").encode()
+    return (
+        json.dumps(
+            {"run": program.run, "build": program.build, "sandbox": program.sandbox, "limits": asdict(program.limits)},
+            indent=1,
+        )
+        + "\n"
+    ).encode()
 
 
 def load_program(course: Path) -> Program | None:

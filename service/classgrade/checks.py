@@ -59,18 +59,26 @@ def outside(report: Path, submissions: Path, scenes: Path, student_scenes: Path 
     (its report.json would be a task) or inside the students' scenes (a student of them)."""
     inside, outer = report.resolve(), submissions.resolve()
     if inside == outer or inside.is_relative_to(outer):
-        raise ClassError(f"{report}: the report folder is inside the submissions folder {submissions} (it would "
-                         f"be graded as a student's); write it elsewhere")
+        raise ClassError(
+            f"{report}: the report folder is inside the submissions folder {submissions} (it would "
+            f"be graded as a student's); write it elsewhere"
+        )
     if inside == scenes.resolve():
-        raise ClassError(f"{report}: the report folder is the scenes folder (its report.json would be read as a "
-                         f"task); write it elsewhere")
+        raise ClassError(
+            f"{report}: the report folder is the scenes folder (its report.json would be read as a "
+            f"task); write it elsewhere"
+        )
     if student_scenes is not None and inside.is_relative_to(student_scenes.resolve()):
-        raise ClassError(f"{report}: the report folder is inside the --student-scenes folder {student_scenes} "
-                         f"(it would be read as a student's scenes); write it elsewhere")
+        raise ClassError(
+            f"{report}: the report folder is inside the --student-scenes folder {student_scenes} "
+            f"(it would be read as a student's scenes); write it elsewhere"
+        )
     for name in REPORT_FOLDERS:
         if outer.is_relative_to(inside / name):
-            raise ClassError(f"{report}: the report writes its {name}/ folder where the submissions folder "
-                             f"{submissions} is (its files would be graded as the students'); write it elsewhere")
+            raise ClassError(
+                f"{report}: the report writes its {name}/ folder where the submissions folder "
+                f"{submissions} is (its files would be graded as the students'); write it elsewhere"
+            )
 
 
 def writable(report: Path) -> None:
@@ -81,4 +89,3 @@ def writable(report: Path) -> None:
         (report / ".phongray-write-check").unlink()
     except OSError as exc:
         raise ClassError(f"{report}: cannot write the report there: {exc.strerror or exc}") from None
-

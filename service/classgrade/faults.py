@@ -43,9 +43,12 @@ class Executing(Protocol):
     def reset(self) -> None: ...
 
 
-def run_tasks(backend: Executing,  # noqa: C901 (every fault of a task, retried in one loop)
-              tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
-              done: Callable[[Any, Any], None], kept: Callable[[], str]) -> None:
+def run_tasks(  # noqa: C901 (every fault of a task, retried in one loop)
+    backend: Executing,
+    tasks: dict[Any, tuple[Callable[..., Any], tuple[Any, ...]]],
+    done: Callable[[Any, Any], None],
+    kept: Callable[[], str],
+) -> None:
     """Run every task on the backend; ``done(key, result)`` keeps each result as it comes (so that no finished
     work is lost, whatever happens next).  A fault of the executor (``backend.faults``) is retried
     :data:`RETRIES` times with backoff on a new one, with only the unfinished tasks; then the run stops with
@@ -86,8 +89,10 @@ def run_tasks(backend: Executing,  # noqa: C901 (every fault of a task, retried 
             raise fatal
         while pending and fault is not None:
             if attempt >= RETRIES:
-                raise ClassError(f"{backend.name}: {one_line(fault)} (tried {RETRIES + 1} times); stopped with "
-                                 f"{len(pending)} tasks unfinished; {kept()}: run again to resume")
+                raise ClassError(
+                    f"{backend.name}: {one_line(fault)} (tried {RETRIES + 1} times); stopped with "
+                    f"{len(pending)} tasks unfinished; {kept()}: run again to resume"
+                )
             time.sleep(BACKOFF * 2**attempt)
             attempt += 1
             try:
@@ -97,4 +102,3 @@ def run_tasks(backend: Executing,  # noqa: C901 (every fault of a task, retried 
                 if not isinstance(exc, (ClusterError, *backend.faults)):
                     raise
                 fault = exc
-

@@ -43,13 +43,15 @@ def task_scenes(scenes: Path) -> tuple[dict[str, Path], list[tuple[str, str]]]:
     tasks = {e.name[:-5]: scenes / e.name for e in scene_files if is_scene(e.name)}
     if not tasks:
         raise ClassError(f"{scenes}: no task scenes (<task>.json)")
-    ignored = [(str(scenes / e.name), HIDDEN if hidden(e.name) else "not a task scene (<task>.json)")
-               for e in scene_files if not is_scene(e.name)]
+    ignored = [
+        (str(scenes / e.name), HIDDEN if hidden(e.name) else "not a task scene (<task>.json)")
+        for e in scene_files
+        if not is_scene(e.name)
+    ]
     return tasks, ignored
 
 
-def own_scenes(folder: Path, tasks: dict[str, Path],
-                    ignored: list[tuple[str, str]]) -> dict[str, dict[str, Path]]:
+def own_scenes(folder: Path, tasks: dict[str, Path], ignored: list[tuple[str, str]]) -> dict[str, dict[str, Path]]:
     """``<student>/<task>.json`` of the TA's folder of students' own scenes, by the student's name (composed, as
     the submissions' are); a file for no task stops the run (a hidden one is ``ignored``)."""
     out: dict[str, dict[str, Path]] = {}

@@ -67,8 +67,7 @@ def partial(row: dict[str, Any]) -> str:
     if not row.get("deducted"):
         return ""
     lost = row["points"] - row["score"]
-    return (f"Partial credit: {row['score']:g} of {row['points']:g} points ({MISTAKES[row['deducted']]}: "
-            f"-{lost:g})")
+    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({MISTAKES[row['deducted']]}: -{lost:g})"
 
 
 @dataclass(frozen=True)
@@ -85,13 +84,19 @@ def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
     out = []
     for student in students:
         mine = [r for r in rows if r["student"] == student]
-        out.append(Total(student, mine[0]["lms_id"] if mine else "", {r["task"]: r["score"] for r in mine},
-                         sum(r["score"] for r in mine), sum(r["points"] for r in mine)))
+        out.append(
+            Total(
+                student,
+                mine[0]["lms_id"] if mine else "",
+                {r["task"]: r["score"] for r in mine},
+                sum(r["score"] for r in mine),
+                sum(r["points"] for r in mine),
+            )
+        )
     return out
 
 
-def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[str],
-                  cell: Any = lambda v: v) -> str:
+def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[str], cell: Any = lambda v: v) -> str:
     """``gradebook.csv``: a row per student (their name and, from a Canvas or Moodle export, the LMS's id, to
     match on import), a column per task (its score) and the total; ``cell`` makes a text cell safe to open
     (:func:`service.classgrade.report.safe_cell`)."""
@@ -103,4 +108,3 @@ def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[s
         row = [name, t.lms_id, *(f"{t.scores[task]:g}" for task in tasks), f"{t.total:g}"]
         (csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_ALL) if "\r" in name else writer).writerow(row)
     return buf.getvalue()
-

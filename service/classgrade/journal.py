@@ -52,8 +52,14 @@ def version() -> str:
 def stamp(reference: str, image_sha256: str, tolerance: float, max_fraction: float) -> dict[str, Any]:
     """What a kept grade is the grade of: the reference's key, the submitted bytes' hash and the thresholds,
     with the version and format that kept it."""
-    return {"phongray": version(), "format": FORMAT, "reference": reference, "image_sha256": image_sha256,
-            "tolerance": tolerance, "max_fraction": max_fraction}
+    return {
+        "phongray": version(),
+        "format": FORMAT,
+        "reference": reference,
+        "image_sha256": image_sha256,
+        "tolerance": tolerance,
+        "max_fraction": max_fraction,
+    }
 
 
 def path(report: Path, student: str, task: str) -> Path:
@@ -95,13 +101,21 @@ def valid_row(row: Any) -> bool:
     if row["status"] == "invalid":
         return set(row) == {"status", "reason"} and isinstance(row["reason"], str)
     if row.get("run") not in (None, "ok"):  # a program's run that failed: its reason and the run's end, no numbers
-        return (row["status"] == "fail" and row.get("passed") is False and isinstance(row.get("reason"), str)
-                and row.get("mistakes") == [] and all(_scalar(row[k]) for k in set(row) - {"mistakes"}))
-    return (GRADED <= set(row) and all(_scalar(row[k]) for k in set(row) - GRADED)
-            and row["passed"] is (row["status"] == "pass")
-            and all(_number(row[k]) for k in FLOATS)
-            and all(isinstance(row[k], int) and not isinstance(row[k], bool) for k in INTS)
-            and all(isinstance(row[k], str) for k in TEXTS)
-            and (row["psnr"] is None or _number(row["psnr"]))
-            and isinstance(row["mistakes"], list)
-            and all(isinstance(m, str) and m in VARIANTS for m in row["mistakes"]))
+        return (
+            row["status"] == "fail"
+            and row.get("passed") is False
+            and isinstance(row.get("reason"), str)
+            and row.get("mistakes") == []
+            and all(_scalar(row[k]) for k in set(row) - {"mistakes"})
+        )
+    return (
+        GRADED <= set(row)
+        and all(_scalar(row[k]) for k in set(row) - GRADED)
+        and row["passed"] is (row["status"] == "pass")
+        and all(_number(row[k]) for k in FLOATS)
+        and all(isinstance(row[k], int) and not isinstance(row[k], bool) for k in INTS)
+        and all(isinstance(row[k], str) for k in TEXTS)
+        and (row["psnr"] is None or _number(row["psnr"]))
+        and isinstance(row["mistakes"], list)
+        and all(isinstance(m, str) and m in VARIANTS for m in row["mistakes"])
+    )

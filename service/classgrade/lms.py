@@ -31,8 +31,10 @@ CANVAS_FILE = re.compile(r"^(?P<name>[^_.][^_]*?)(?:_late)?_(?P<id>\d+)_\d+_(?P<
 #: what a resubmission or a second download appends to a file's name: ``-1`` (Canvas), `` (1)`` (browsers)
 RESUBMITTED = re.compile(r"^(?P<base>.+?)(?:-\d+| \(\d+\))$")
 #: the layouts a submissions folder may have, in words, for a folder in which no student is found
-LAYOUTS = ("a folder per student (<student>/<task>.png), Moodle's folders "
-           "(<name>_<id>_assignsubmission_file_/<task>.png) or Canvas's flat folder (<login>_<id>_<id>_<task>.png)")
+LAYOUTS = (
+    "a folder per student (<student>/<task>.png), Moodle's folders "
+    "(<name>_<id>_assignsubmission_file_/<task>.png) or Canvas's flat folder (<login>_<id>_<id>_<task>.png)"
+)
 #: how close a file's name must be to a task's to be suggested (difflib's ratio)
 NEAR = 0.75
 

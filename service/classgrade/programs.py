@@ -31,8 +31,10 @@ if TYPE_CHECKING:  # (service.programs reads files through this package's module
 def check_programs(run: ClassRun) -> None:
     """:class:`ClassError`, in one line, for a run of programs that cannot be made (the TA's to mend)."""
     if run.server:
-        raise ClassError(f"--server {run.server}: a service grades images; run students' programs here or on a "
-                         f"Dask cluster (--cluster)")
+        raise ClassError(
+            f"--server {run.server}: a service grades images; run students' programs here or on a "
+            f"Dask cluster (--cluster)"
+        )
     from ..programs import SandboxUnavailable, check_sandbox
 
     assert run.program is not None
@@ -72,9 +74,12 @@ def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | No
 Stamped = tuple[Pair, dict[str, Any]]
 
 
-def program_jobs(run: ClassRun, todo: list[Pair], task_of: Callable[[Pair], TaskScene],
-                 resumed: Callable[[Pair, dict[str, Any]], dict[str, Any] | None]
-                 ) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
+def program_jobs(
+    run: ClassRun,
+    todo: list[Pair],
+    task_of: Callable[[Pair], TaskScene],
+    resumed: Callable[[Pair, dict[str, Any]], dict[str, Any] | None],
+) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
     """Per student with a task left to grade, the job and its pairs with their stamps; a pair an earlier run
     kept for the same program, scene and thresholds is taken as it was (``resumed``)."""
     from ..programs.job import ProgramJob, digest
@@ -111,8 +116,9 @@ def warn(pair: Pair, result: dict[str, Any]) -> None:
         print(f"{pair.student}/{pair.task}: {result['run_warning']}", file=sys.stderr)
 
 
-def program_tasks(jobs: dict[str, tuple[ProgramJob, list[Stamped]]]
-                  ) -> dict[str, tuple[Callable[..., Any], tuple[Any, ...]]]:
+def program_tasks(
+    jobs: dict[str, tuple[ProgramJob, list[Stamped]]],
+) -> dict[str, tuple[Callable[..., Any], tuple[Any, ...]]]:
     """The backend's tasks: one :func:`grade_program` per student."""
     from ..programs.job import grade_program
 

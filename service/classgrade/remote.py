@@ -34,8 +34,12 @@ def server_grade(server: str, api_key: str | None, job: GradeJob) -> dict[str, A
 
     from ..client import ServerError, post_form
 
-    fields = {"scene": job.scene, "tolerance": repr(job.tolerance), "max_fraction": repr(job.max_fraction),
-              "diagnose": "true" if job.diagnose else "false"}
+    fields = {
+        "scene": job.scene,
+        "tolerance": repr(job.tolerance),
+        "max_fraction": repr(job.max_fraction),
+        "diagnose": "true" if job.diagnose else "false",
+    }
     files = {"image": ("submission.png", job.image, "image/png")}
     try:
         result = json.loads(patient(post_form, server, "/grade", fields, files, api_key=api_key))
@@ -79,4 +83,3 @@ def patient(func: Callable[..., bytes], server: str, *args: Any, **kw: Any) -> b
                 if exc.lost:
                     exc.args = (f"{exc} (after {lost} retries)",)
                 raise
-

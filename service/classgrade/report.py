@@ -27,14 +27,42 @@ from .gradebook import gradebook_csv, partial, totals
 from .taskfile import TaskSettings
 
 #: the numbers of a graded pair, in report.csv's order
-NUMBERS = ["mean_abs_error", "rmse", "psnr", "max_error", "fraction_off", "fraction_off_nearby", "width", "height",
-           "reference_sha256"]
+NUMBERS = [
+    "mean_abs_error",
+    "rmse",
+    "psnr",
+    "max_error",
+    "fraction_off",
+    "fraction_off_nearby",
+    "width",
+    "height",
+    "reference_sha256",
+]
 #: the columns of a program's run (grade-class --run; empty for an image)
 PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output"]
 #: the columns of report.csv (and the keys of each row of report.json), in order
-COLUMNS = ["student", "lms_id", "task", "status", "reason", "likely", "mistakes", "scene", "file", "passed", "points",
-           "score", "deducted", "tolerance", "max_fraction", *NUMBERS, "reference", "submission", "heatmap",
-           *PROGRAM_COLUMNS]
+COLUMNS = [
+    "student",
+    "lms_id",
+    "task",
+    "status",
+    "reason",
+    "likely",
+    "mistakes",
+    "scene",
+    "file",
+    "passed",
+    "points",
+    "score",
+    "deducted",
+    "tolerance",
+    "max_fraction",
+    *NUMBERS,
+    "reference",
+    "submission",
+    "heatmap",
+    *PROGRAM_COLUMNS,
+]
 STATUSES = ("pass", "fail", "missing", "invalid")
 
 
@@ -90,12 +118,20 @@ def neutral_cell(value: Any) -> Any:
 
 def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
     counts = {s: sum(r["status"] == s for r in rows) for s in STATUSES}
-    return (f"{counted(len(rows), 'pair')}: {counts['pass']} passed, {counts['fail']} failed, {counts['missing']} "
-            f"missing, {counts['invalid']} invalid; {counted(renders, 'reference')} rendered; {seconds:.1f} s")
+    return (
+        f"{counted(len(rows), 'pair')}: {counts['pass']} passed, {counts['fail']} failed, {counts['missing']} "
+        f"missing, {counts['invalid']} invalid; {counted(renders, 'reference')} rendered; {seconds:.1f} s"
+    )
 
 
-def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str],
-                 tasks: dict[str, TaskSettings], headline: str) -> None:
+def write_report(
+    report: Path,
+    rows: list[dict[str, Any]],
+    ignored: list[tuple[str, str]],
+    students: list[str],
+    tasks: dict[str, TaskSettings],
+    headline: str,
+) -> None:
     write_atomic(report / "report.json", _text(json.dumps(rows, indent=1, ensure_ascii=False) + "\n"))
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
@@ -109,8 +145,10 @@ def write_report(report: Path, rows: list[dict[str, Any]], ignored: list[tuple[s
     write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
     for student in students:
         mine = [r for r in rows if r["student"] == student]
-        write_atomic(report / "gradescope" / student / "results.json",
-                     _text(json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n"))
+        write_atomic(
+            report / "gradescope" / student / "results.json",
+            _text(json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n"),
+        )
     _drop_stale_results(report / "gradescope", set(students))
     write_atomic(report / "index.html", _text(render_html(rows, ignored, students, list(tasks), headline)))
 
@@ -134,8 +172,10 @@ def test_output(row: dict[str, Any], show: str = "images") -> str:
         return "passed" if row["status"] == "pass" else ("failed" if row["status"] == "fail" else row["status"])
     if row["status"] == "pass":
         how = f", {row['reason']}" if row.get("reason") else ""  # (as rendered with an accepted variant)
-        return (f"passed{how}: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
-                f"(at most {percent(row['max_fraction'])} may be)")
+        return (
+            f"passed{how}: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
+            f"(at most {percent(row['max_fraction'])} may be)"
+        )
     if show == "verdict":
         return f"{row['status']}: {row['reason']}"
     likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
@@ -160,16 +200,25 @@ def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, li
 def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> dict[str, Any]:
     """One student's results in Gradescope's autograder format (``results.json``): the total ``score`` and a
     test per task with its ``name``, ``score``, ``max_score``, ``status``, ``output`` and ``visibility``."""
-    tests = [{"name": r["task"], "score": r["score"], "max_score": r["points"],
-              "status": "passed" if r["status"] == "pass" else "failed",
-              "output": test_output(r, tasks[r["task"]].show),
-              "visibility": tasks[r["task"]].visibility} for r in rows]
+    tests = [
+        {
+            "name": r["task"],
+            "score": r["score"],
+            "max_score": r["points"],
+            "status": "passed" if r["status"] == "pass" else "failed",
+            "output": test_output(r, tasks[r["task"]].show),
+            "visibility": tasks[r["task"]].visibility,
+        }
+        for r in rows
+    ]
     return {"score": sum(t["score"] for t in tests), "visibility": "visible", "tests": tests}
 
 
 def _legend() -> str:
-    items = "".join(f'<li><span class="swatch" style="background: rgb{colour}"></span>{html.escape(text)}</li>'
-                    for colour, text in LEGEND)
+    items = "".join(
+        f'<li><span class="swatch" style="background: rgb{colour}"></span>{html.escape(text)}</li>'
+        for colour, text in LEGEND
+    )
     return f'<ul class="legend">{items}</ul>'
 
 
@@ -202,8 +251,10 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     deduction, the end of a program's output, the three images, the numbers."""
     images = "".join(
         f'<figure><img src="{_url(r[k])}" alt="{k}"><figcaption>{k}</figcaption></figure>'
-        if r[k] else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
-        for k in ("reference", "submission", "heatmap"))
+        if r[k]
+        else f"<figure><div class=none>no {k}</div><figcaption>{k}</figcaption></figure>"
+        for k in ("reference", "submission", "heatmap")
+    )
     legend = _legend() if r["heatmap"] else ""
     numbers = "".join(f"<tr><td>{k}</td><td>{esc(str(r[k]))}</td></tr>" for k in NUMBERS if r[k] is not None)
     likely = f'<p class="likely">Likely: {esc(r["likely"])}</p>' if r.get("likely") else ""
@@ -211,10 +262,12 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     probes = f"<p>By experiment: {esc(found)}</p>" if found and found != r.get("likely") else ""
     output = f"<pre>{esc(r['run_output'])}</pre>" if r.get("run_output") else ""  # (the TA's page only)
     credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
-    return (f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
-            f'</h2><p>{esc(r["reason"])}</p>{likely}{probes}{credit}{output}<div class="images">{images}</div>'
-            f'{legend}<table class="numbers">{numbers}</table>'
-            f'<p><a href="#">close</a> (or the browser\'s back)</p></section>')
+    return (
+        f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
+        f'</h2><p>{esc(r["reason"])}</p>{likely}{probes}{credit}{output}<div class="images">{images}</div>'
+        f'{legend}<table class="numbers">{numbers}</table>'
+        f'<p><a href="#">close</a> (or the browser\'s back)</p></section>'
+    )
 
 
 def _mistakes(rows: list[dict[str, Any]], tasks: list[str]) -> tuple[str, str]:
@@ -225,15 +278,17 @@ def _mistakes(rows: list[dict[str, Any]], tasks: list[str]) -> tuple[str, str]:
         items = [f"<li>{n} of {failing}: {esc(m)}</li>" for m, n, failing in found]
         more = len(items) - SHOWN_MISTAKES
         link = f'<li><a href="#likely-{_url(task)}">… and {more} more</a></li>' if more > 0 else ""
-        cells.append(f'<td><ul class="likely">{"".join(items[:SHOWN_MISTAKES])}{link}</ul></td>' if items
-                     else "<td></td>")
+        cells.append(
+            f'<td><ul class="likely">{"".join(items[:SHOWN_MISTAKES])}{link}</ul></td>' if items else "<td></td>"
+        )
         if items:
             lists.append(f'<h3 id="likely-{_url(task)}">{esc(task)}</h3><ul>{"".join(items)}</ul>')
     return "".join(cells), "".join(lists) or "<p>none</p>"
 
 
-def render_html(rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str], tasks: list[str],
-                headline: str) -> str:
+def render_html(
+    rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str], tasks: list[str], headline: str
+) -> str:
     by = {(r["student"], r["task"]): r for r in rows}
     head = "".join(f"<th>{esc(t)}</th>" for t in tasks) + "<th>total</th>"
     body, details = [], []
@@ -282,10 +337,10 @@ p.likely {{ background: #fff7e0; border-left: 4px solid #d89b00; padding: 4px 10
 <p>{esc(headline)}. Click a cell for the reference, the submission and the heat-map side by side;
 ● marks a student's own scene.</p>
 <table class="grid"><thead><tr><th>student</th>{head}</tr></thead>
-<tbody>{''.join(body)}</tbody>
-<tfoot><tr><th>passed</th>{''.join(rates)}<td></td></tr>
+<tbody>{"".join(body)}</tbody>
+<tfoot><tr><th>passed</th>{"".join(rates)}<td></td></tr>
 <tr><th>likely mistakes<small>of the failing pairs</small></th>{common}<td></td></tr></tfoot></table>
-{''.join(details)}
+{"".join(details)}
 <h2>Likely mistakes of each task</h2>{every}
 <h2>Ignored files</h2><ul>{skipped}</ul>
 </body></html>

@@ -106,8 +106,9 @@ def _run(run: ClassRun, checked: Checked, progress: Progress | None) -> Outcome:
         _grade_all(backend, run, checked, todo, references, refs, tick)
     except ServerError as exc:  # the service went away, or stopped taking the key, in the middle of the batch
         backend.close(wait=False)
-        raise ClassError(f"--server {run.server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to "
-                         f"resume") from None
+        raise ClassError(
+            f"--server {run.server}: {' '.join(str(exc).split())}; {_kept(report)}: run again to resume"
+        ) from None
     except BaseException:
         backend.close(wait=False)
         raise
@@ -143,6 +144,7 @@ def _usable(reference: Path) -> bool:
 
 def _kept(report: Path) -> str:
     """What a stopped run leaves for the next: its references and grades, counted."""
+
     def count(folder: str) -> int:
         with contextlib.suppress(OSError):
             return sum(1 for _ in (report / folder).rglob("*.json" if folder == journal.RESUME else "*.png"))
@@ -151,8 +153,9 @@ def _kept(report: Path) -> str:
     return f"{count('references')} references and {count(journal.RESUME)} grades are kept in {report}"
 
 
-def _render_all(backend: Backend, needed: dict[str, Path], refs: dict[str, Path], texts: dict[Path, bytes],
-                report: Path) -> dict[str, bytes]:
+def _render_all(
+    backend: Backend, needed: dict[str, Path], refs: dict[str, Path], texts: dict[Path, bytes], report: Path
+) -> dict[str, bytes]:
     """Every reference the batch lacks, rendered and kept as each comes; one that cannot be rendered stops the
     run (once the others are kept)."""
     done: dict[str, bytes] = {}
@@ -166,8 +169,12 @@ def _render_all(backend: Backend, needed: dict[str, Path], refs: dict[str, Path]
             write_atomic(refs[key], png)
             done[key] = png
 
-    run_tasks(backend, {key: (backend.render(), (texts[scene],)) for key, scene in needed.items()}, keep,
-               lambda: _kept(report))
+    run_tasks(
+        backend,
+        {key: (backend.render(), (texts[scene],)) for key, scene in needed.items()},
+        keep,
+        lambda: _kept(report),
+    )
     if failures:
         raise ClassError("; ".join(sorted(failures)))
     return done
@@ -187,8 +194,15 @@ def _has_image(row: dict[str, Any]) -> bool:
     return row["status"] in ("pass", "fail") and row.get("run") in (None, "ok")
 
 
-def _grade_all(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pair], references: dict[str, bytes],
-               refs: dict[str, Path], tick: Callable[[], None]) -> None:
+def _grade_all(
+    backend: Backend,
+    run: ClassRun,
+    checked: Checked,
+    todo: list[Pair],
+    references: dict[str, bytes],
+    refs: dict[str, Path],
+    tick: Callable[[], None],
+) -> None:
     """Grade every pair on the backend (its bytes were read when the class was found); every file is written
     here, never by the tasks.  A grade an earlier run finished is taken as it was kept."""
     if run.program is not None:
@@ -223,8 +237,9 @@ def _grade_all(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pai
     run_tasks(backend, pending, keep, lambda: _kept(run.report))
 
 
-def _grade_programs(backend: Backend, run: ClassRun, checked: Checked, todo: list[Pair], refs: dict[str, Path],
-                    tick: Callable[[], None]) -> None:
+def _grade_programs(
+    backend: Backend, run: ClassRun, checked: Checked, todo: list[Pair], refs: dict[str, Path], tick: Callable[[], None]
+) -> None:
     """Grade every student's program on the backend, one task per student (:mod:`.programs`); each pair's
     grade is kept as an image's is."""
     from ..programs.job import TaskScene
@@ -250,10 +265,15 @@ def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> Grade
     run's (a program's pair has no image yet: its run makes it)."""
     own = checked.tasks[pair.task]
     accepted = None if own.accepted is None else {str(name): amount for name, amount in own.accepted.items()}
-    return GradeJob(checked.texts[pair.scene], reference, pair.data or b"",
-                    run.tolerance if own.tolerance is None else own.tolerance,
-                    run.max_fraction if own.max_fraction is None else own.max_fraction,
-                    accepted, run.diagnose)
+    return GradeJob(
+        checked.texts[pair.scene],
+        reference,
+        pair.data or b"",
+        run.tolerance if own.tolerance is None else own.tolerance,
+        run.max_fraction if own.max_fraction is None else own.max_fraction,
+        accepted,
+        run.diagnose,
+    )
 
 
 def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stamp: dict[str, Any]) -> None:
@@ -280,8 +300,10 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
 
 
 def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
-    return (report / "heatmaps" / pair.student / f"{pair.task}.png",
-            report / "submissions" / pair.student / f"{pair.task}.png")
+    return (
+        report / "heatmaps" / pair.student / f"{pair.task}.png",
+        report / "submissions" / pair.student / f"{pair.task}.png",
+    )
 
 
 def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> Grade:

@@ -31,12 +31,12 @@ from .untrusted import UntrustedFileError
 OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "heif", "avif"}
 #: the most bytes read of a submission when no limit is given (the service's max_image_bytes)
 DEFAULT_LIMIT = 16 << 20
-SCENE_IGNORED = ("a scene among the submissions is not used (a student's own scene comes from the TA's "
-                 "--student-scenes folder)")
+SCENE_IGNORED = (
+    "a scene among the submissions is not used (a student's own scene comes from the TA's --student-scenes folder)"
+)
 
 
-def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None,
-             limit: int = DEFAULT_LIMIT) -> Batch:
+def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None, limit: int = DEFAULT_LIMIT) -> Batch:
     """Every (student, task) pair of the class, each submission read (at most ``limit`` bytes) through the
     folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
     unusable, a submissions folder in which no student is found (or whose one folder holds the class), or a
@@ -116,20 +116,28 @@ def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames
     try:
         with root.sub(name) as folder:
             entries = folder.entries()
-            lms = {(o.name, o.id) for e in entries
-                   if (o := folder_owner(e.name) if e.folder else file_owner(e.name)) is not None and o.id}
+            lms = {
+                (o.name, o.id)
+                for e in entries
+                if (o := folder_owner(e.name) if e.folder else file_owner(e.name)) is not None and o.id
+            }
             held: dict[str, int] = {}  # task → how many of the folders hold its image
             for entry in (e for e in entries if e.folder and len(lms) < 2 and max(held.values(), default=0) < 2):
                 with folder.sub(entry.name) as below:
-                    for task in {n.task for n in map(names.match, (e.name for e in below.entries()))
-                                 if n.task is not None and n.ext == "png"}:
+                    for task in {
+                        n.task
+                        for n in map(names.match, (e.name for e in below.entries()))
+                        if n.task is not None and n.ext == "png"
+                    }:
                         held[task] = held.get(task, 0) + 1
     except OSError:  # (a folder that cannot be read: the student's row says so)
         return
     if len(lms) >= 2 or max(held.values(), default=0) >= 2:
         kind = "an LMS's export" if len(lms) >= 2 else "a folder per student"
-        raise ClassError(f"{root.shown}: its one folder, {name}, holds the submissions of several students "
-                         f"({kind}): give {root.shown / name} as the submissions folder")
+        raise ClassError(
+            f"{root.shown}: its one folder, {name}, holds the submissions of several students "
+            f"({kind}): give {root.shown / name} as the submissions folder"
+        )
 
 
 @dataclass
@@ -227,8 +235,9 @@ class _Walk:
             options.sort(key=lambda o: o.rank)
             best = [o for o in options if o.rank == options[0].rank]
             if len(best) > 1:
-                found[task] = _invalid(f"{len(best)} files for {task}: {_listed([str(o.shown) for o in best])}; "
-                                       f"keep one")
+                found[task] = _invalid(
+                    f"{len(best)} files for {task}: {_listed([str(o.shown) for o in best])}; keep one"
+                )
                 continue
             found[task] = options[0].read(limit)
             for other in options[1:]:
@@ -237,13 +246,18 @@ class _Walk:
             if task not in found and self.unreadable:  # not found, but perhaps in a folder that cannot be read
                 found[task] = _invalid(f"no {task}.png found; {'; '.join(self.unreadable)}")
             elif task not in found and task in self.near:
-                found[task] = Submitted(row={"status": "missing", "reason": f"no {task}.png (found "
-                                             f"{_listed(self.near[task])}: did you mean {task}.png?)"})
+                found[task] = Submitted(
+                    row={
+                        "status": "missing",
+                        "reason": f"no {task}.png (found {_listed(self.near[task])}: did you mean {task}.png?)",
+                    }
+                )
         return found
 
 
-def _student(root: Folder, source: Source, names: TaskNames, limit: int,
-             ignored: list[tuple[str, str]]) -> dict[str, Submitted]:
+def _student(
+    root: Folder, source: Source, names: TaskNames, limit: int, ignored: list[tuple[str, str]]
+) -> dict[str, Submitted]:
     """Per task, the student's submission, read, or the row that says why there is none to grade."""
     with ExitStack() as stack:
         walk = _Walk(root, names, ignored, stack)
@@ -273,6 +287,7 @@ def _scenes_name_students(folder: Path, own: dict[str, dict[str, Path]], sources
     students apart, or with an id that is not needed) stops the run: that student would be graded against the
     task's scene, and a student of that name who sent nothing listed beside them.  (A student with no
     submission at all is no mistake.)"""
+
     def key(name: str) -> str:
         return re.sub(r" \(\d+\)$", "", folder_owner(name).name).casefold()
 
@@ -282,6 +297,8 @@ def _scenes_name_students(folder: Path, own: dict[str, dict[str, Path]], sources
     for name in sorted(own):
         meant = sorted(keys.get(key(name), set()))
         if name not in sources and meant:
-            raise ClassError(f"{folder / name}: no student {name} among the submissions (did you mean "
-                             f"{' or '.join(meant)}? a student's own scenes go in a folder of the name the "
-                             f"report gives them)")
+            raise ClassError(
+                f"{folder / name}: no student {name} among the submissions (did you mean "
+                f"{' or '.join(meant)}? a student's own scenes go in a folder of the name the "
+                f"report gives them)"
+            )

@@ -56,8 +56,13 @@ _FILE = TypeAdapter(dict[str, TaskSettings])
 
 def _suggested(problems: list[tuple[str, str]]) -> list[tuple[str, str]]:
     """An unknown key of a task's settings with the closest setting's name (``tolerence`` → ``tolerance``)."""
-    return [(where, what + suggestion(where.rsplit(".", 1)[-1], TaskSettings.model_fields) if what == "unknown key"
-             else what) for where, what in problems]
+    return [
+        (
+            where,
+            what + suggestion(where.rsplit(".", 1)[-1], TaskSettings.model_fields) if what == "unknown key" else what,
+        )
+        for where, what in problems
+    ]
 
 
 def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSettings]:
@@ -87,14 +92,24 @@ def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> 
     """Every deduction names a mistake the diagnosis knows and takes at most the task's points (else the
     run stops, naming the place; a misspelt id with the nearest one)."""
     known = {**VARIANTS, **MORE_VARIANTS}
-    problems = [(f"{task}.deductions.{mistake}", f"no such mistake{did_you_mean(mistake, known)} (the ids "
-                                                 f"are in docs/grading.md)")
-                for task, settings in sorted(given.items()) for mistake in settings.deductions
-                if mistake not in known]
-    problems += [(f"{task}.deductions.{mistake}", f"must be ≤ the task's points, {settings.points:g}"
-                                                  + ("" if "points" in settings.model_fields_set else
-                                                     " (points not given: the default)"))
-                 for task, settings in sorted(given.items()) for mistake, less in settings.deductions.items()
-                 if less > settings.points]
+    problems = [
+        (
+            f"{task}.deductions.{mistake}",
+            f"no such mistake{did_you_mean(mistake, known)} (the ids are in docs/grading.md)",
+        )
+        for task, settings in sorted(given.items())
+        for mistake in settings.deductions
+        if mistake not in known
+    ]
+    problems += [
+        (
+            f"{task}.deductions.{mistake}",
+            f"must be ≤ the task's points, {settings.points:g}"
+            + ("" if "points" in settings.model_fields_set else " (points not given: the default)"),
+        )
+        for task, settings in sorted(given.items())
+        for mistake, less in settings.deductions.items()
+        if less > settings.points
+    ]
     if problems:
         raise ClassError("; ".join(as_lines(str(path), problems, text)))

@@ -22,8 +22,14 @@ def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | N
     deadline = None if limits is None else time.monotonic() + limits.render_timeout
     loaded = load_scene(scene)
     try:
-        return encode_png(render(loaded, threads=1, budget=UNLIMITED if limits is None else budget(loaded, limits),
-                                 cancel=None if deadline is None else lambda: time.monotonic() > deadline)), ""
+        return encode_png(
+            render(
+                loaded,
+                threads=1,
+                budget=UNLIMITED if limits is None else budget(loaded, limits),
+                cancel=None if deadline is None else lambda: time.monotonic() > deadline,
+            )
+        ), ""
     except ImageTooLarge as exc:
         return None, str(exc)
     except OverBudget as exc:
@@ -31,13 +37,20 @@ def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | N
         return None, str(outgrown(exc, limits))
     except RenderCancelled:
         assert limits is not None
-        return None, (f"the render ran past the limit render_timeout = {limits.render_timeout:g} s "
-                      f"(PHONGRAY_RENDER_TIMEOUT)")
+        return None, (
+            f"the render ran past the limit render_timeout = {limits.render_timeout:g} s (PHONGRAY_RENDER_TIMEOUT)"
+        )
 
 
-def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: float,
-               scene: bytes | None = None, accepted: dict[str, float] | None = None, diagnose: bool = True
-               ) -> dict[str, Any]:
+def grade_task(
+    reference: bytes,
+    image: bytes,
+    tolerance: float,
+    max_fraction: float,
+    scene: bytes | None = None,
+    accepted: dict[str, float] | None = None,
+    diagnose: bool = True,
+) -> dict[str, Any]:
     """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"`` and,
     given the reference's ``scene`` text, a failing one graded again against the task's ``accepted`` variants
     (None: the defaults) and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid row
@@ -47,10 +60,18 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
     from .. import grading, pipeline
 
     try:
-        graded = pipeline.grade_png(reference, image, tolerance, max_fraction, heatmap="verdict",
-                                    explaining=None if scene is None else pipeline.Explaining(
-                                        lambda: load_scene(scene), pipeline.Checks(accepted, diagnose),
-                                        pipeline.Run(threads=1)))
+        graded = pipeline.grade_png(
+            reference,
+            image,
+            tolerance,
+            max_fraction,
+            heatmap="verdict",
+            explaining=None
+            if scene is None
+            else pipeline.Explaining(
+                lambda: load_scene(scene), pipeline.Checks(accepted, diagnose), pipeline.Run(threads=1)
+            ),
+        )
     except grading.ImageError as exc:
         return {"status": "invalid", "reason": str(exc)}
     return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
@@ -59,5 +80,4 @@ def grade_task(reference: bytes, image: bytes, tolerance: float, max_fraction: f
 def local_grade(job: GradeJob) -> dict[str, Any]:
     """:func:`grade_task` of a pair's job (the reference is already rendered: the scene is for the accepted
     variants and, unless not to ``diagnose``, the diagnosis of a failing pair)."""
-    return grade_task(job.reference, job.image, job.tolerance, job.max_fraction, job.scene, job.accepted,
-                      job.diagnose)
+    return grade_task(job.reference, job.image, job.tolerance, job.max_fraction, job.scene, job.accepted, job.diagnose)

@@ -15,11 +15,17 @@ class UntrustedFileError(ValueError):
 
 def file_kind(mode: int) -> str:
     """What a file that is not a regular one is, in words (from its ``st_mode``)."""
-    return ("a symbolic link; links in submissions are not followed" if stat.S_ISLNK(mode)
-            else "a folder, not a file" if stat.S_ISDIR(mode)
-            else "a FIFO, not a regular file" if stat.S_ISFIFO(mode)
-            else "a device, not a regular file" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
-            else "not a regular file")
+    return (
+        "a symbolic link; links in submissions are not followed"
+        if stat.S_ISLNK(mode)
+        else "a folder, not a file"
+        if stat.S_ISDIR(mode)
+        else "a FIFO, not a regular file"
+        if stat.S_ISFIFO(mode)
+        else "a device, not a regular file"
+        if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+        else "not a regular file"
+    )
 
 
 def read_untrusted(path: Path | str, limit: int, dir_fd: int | None = None) -> bytes:
@@ -44,12 +50,14 @@ def read_untrusted(path: Path | str, limit: int, dir_fd: int | None = None) -> b
         with os.fdopen(fd, "rb") as f:
             now = os.fstat(f.fileno())
             if not stat.S_ISREG(now.st_mode) or (now.st_dev, now.st_ino) != (before.st_dev, before.st_ino):
-                raise UntrustedFileError(f"{file_kind(now.st_mode)} (it changed while it was read)"
-                                         if not stat.S_ISREG(now.st_mode) else "changed while it was read")
+                raise UntrustedFileError(
+                    f"{file_kind(now.st_mode)} (it changed while it was read)"
+                    if not stat.S_ISREG(now.st_mode)
+                    else "changed while it was read"
+                )
             data = f.read(limit + 1)
     except OSError as exc:  # EIO, EISDIR, ...: the student's file, not the batch's fault
         raise UntrustedFileError(f"cannot read: {exc.strerror or exc}") from None
     if len(data) > limit:
         raise UntrustedFileError(f"larger than the limit max_image_bytes = {limit} bytes")
     return data
-

@@ -24,8 +24,9 @@ __all__ = ["PASS_NAMES", "CliError", "ProgressBar", "build_parser", "main", "par
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="phongray", description="A reference Phong/Whitted ray tracer.",
-                                     formatter_class=Help)
+    parser = argparse.ArgumentParser(
+        prog="phongray", description="A reference Phong/Whitted ray tracer.", formatter_class=Help
+    )
     parser.add_argument("-V", "--version", action=Version, help="show the version and exit")
     sub = parser.add_subparsers(dest="command", required=True)
     render.add(sub)
@@ -34,8 +35,11 @@ def build_parser() -> argparse.ArgumentParser:
     course.add(sub)
     course.add_autograder(sub)
     serve.add(sub)
-    sub.add_parser("bench", help="run the benchmark (speed, memory, class grading, cluster, HTTP, speed against "
-                                 "error); 'phongray bench --help' for its options")
+    sub.add_parser(
+        "bench",
+        help="run the benchmark (speed, memory, class grading, cluster, HTTP, speed against "
+        "error); 'phongray bench --help' for its options",
+    )
     validate.add_schema(sub)
     return parser
 
@@ -54,6 +58,7 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
     if hasattr(args, "cluster_wait"):
         if args.cluster is None and not any(name.upper().startswith("PHONGRAY_") for name in os.environ):
             from service.cluster import CLUSTER_WAIT  # no PHONGRAY_* variable: the settings are their defaults, and
+
             # a render's start-up need not import pydantic-settings to learn them
             if args.cluster_wait is None:
                 args.cluster_wait = CLUSTER_WAIT
@@ -123,4 +128,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     except MemoryError:
         print("phongray: out of memory", file=sys.stderr)
         return 1
-

@@ -15,6 +15,7 @@ if TYPE_CHECKING:
 
 EXIT_BAD_INPUT = 2
 
+
 class CliError(Exception):
     """A user-facing failure: printed as one line, exit code attached."""
 
@@ -168,5 +169,3 @@ def thresholds(args: argparse.Namespace) -> None:
 def png_name(path: str | None) -> None:
     if path is not None and path != "-" and not path.lower().endswith(".png"):
         raise CliError(f"{path}: phongray writes PNG images; name the output *.png (or - for standard output)")
-
-

@@ -32,13 +32,23 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
     bar = ProgressBar(unit="pairs")
     bar.enabled = bar.enabled and not args.quiet
     try:
-        run = ClassRun(Path(args.scenes), Path(args.submissions), Path(args.output), args.tolerance,
-                       args.max_fraction, jobs=args.jobs, server=args.server, cluster=args.cluster,
-                       api_key=args.api_key,
-                       student_scenes=Path(args.student_scenes) if args.student_scenes else None,
-                       tasks_file=Path(args.tasks) if args.tasks else None, cluster_wait=args.cluster_wait,
-                       diagnose=not args.no_diagnosis,
-                       limits=args.limits, program=program)
+        run = ClassRun(
+            Path(args.scenes),
+            Path(args.submissions),
+            Path(args.output),
+            args.tolerance,
+            args.max_fraction,
+            jobs=args.jobs,
+            server=args.server,
+            cluster=args.cluster,
+            api_key=args.api_key,
+            student_scenes=Path(args.student_scenes) if args.student_scenes else None,
+            tasks_file=Path(args.tasks) if args.tasks else None,
+            cluster_wait=args.cluster_wait,
+            diagnose=not args.no_diagnosis,
+            limits=args.limits,
+            program=program,
+        )
         outcome = grade_class(run, progress=bar)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
         raise CliError(printable(str(exc))) from None
@@ -72,41 +82,65 @@ def cmd_autograder(args: argparse.Namespace) -> int:
         raise CliError(f"{args.output}: Gradescope takes the autograder as a zip; name the output *.zip")
     program = students_program(args)
     try:
-        built = build(Path(args.scenes), Path(args.output), Path(args.tasks) if args.tasks else None,
-                      Path(args.student_scenes) if args.student_scenes else None, program)
+        built = build(
+            Path(args.scenes),
+            Path(args.output),
+            Path(args.tasks) if args.tasks else None,
+            Path(args.student_scenes) if args.student_scenes else None,
+            program,
+        )
     except ClassError as exc:
         raise CliError(printable(str(exc))) from None
-    print(printable(f"{args.output}: {counted(len(built.tasks), 'task')} ({', '.join(built.tasks)}), "
-                    f"{counted(built.references, 'reference')} rendered, {built.size / 1e6:.1f} MB; upload it as "
-                    "the assignment's autograder"))
+    print(
+        printable(
+            f"{args.output}: {counted(len(built.tasks), 'task')} ({', '.join(built.tasks)}), "
+            f"{counted(built.references, 'reference')} rendered, {built.size / 1e6:.1f} MB; upload it as "
+            "the assignment's autograder"
+        )
+    )
     return 0
 
 
-
 def add(sub: Commands) -> None:
-    p = command(sub, "grade-class", "grade every student's images of every task; write a report",
-                description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images (any "
-                            "case of the name, a resubmission's -1 or (1), or one folder deeper; Moodle's "
-                            "<name>_<id>_assignsubmission_file_ folders and Canvas's flat <login>_<id>_<id>_<task>.png "
-                            "too). A student's own scene comes from the TA's --student-scenes "
-                            "DIR/<student>/<task>.json, never from the submissions. Writes report.json, report.csv, "
-                            "gradebook.csv, index.html, gradescope/<student>/results.json, references and heat-maps "
-                            "into REPORT. Exit 0 when the batch ran, 2 when the TA's input or set-up is unusable "
-                            "(nothing is graded then).")
+    p = command(
+        sub,
+        "grade-class",
+        "grade every student's images of every task; write a report",
+        description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images (any "
+        "case of the name, a resubmission's -1 or (1), or one folder deeper; Moodle's "
+        "<name>_<id>_assignsubmission_file_ folders and Canvas's flat <login>_<id>_<id>_<task>.png "
+        "too). A student's own scene comes from the TA's --student-scenes "
+        "DIR/<student>/<task>.json, never from the submissions. Writes report.json, report.csv, "
+        "gradebook.csv, index.html, gradescope/<student>/results.json, references and heat-maps "
+        "into REPORT. Exit 0 when the batch ran, 2 when the TA's input or set-up is unusable "
+        "(nothing is graded then).",
+    )
     p.add_argument("scenes", metavar="SCENES_DIR", help="a <task>.json per task")
     p.add_argument("submissions", metavar="SUBMISSIONS_DIR", help="the students' images, as an LMS downloads them")
     p.add_argument("-o", "--output", metavar="REPORT_DIR", required=True, help="where the report goes")
-    p.add_argument("--student-scenes", metavar="DIR", help="the TA's folder of students' own scenes, "
-                                                           "<student>/<task>.json")
-    p.add_argument("--tasks", metavar="TASKS.json", help='per task its points, thresholds and deductions by '
-                                                         'mistake id: {"spheres": {"points": 10, "tolerance": 3, '
-                                                         '"deductions": {"no-shadows": 4}}}')
+    p.add_argument(
+        "--student-scenes", metavar="DIR", help="the TA's folder of students' own scenes, <student>/<task>.json"
+    )
+    p.add_argument(
+        "--tasks",
+        metavar="TASKS.json",
+        help="per task its points, thresholds and deductions by "
+        'mistake id: {"spheres": {"points": 10, "tolerance": 3, '
+        '"deductions": {"no-shadows": 4}}}',
+    )
     threshold_options(p)
     p.add_argument("--jobs", type=positive_int, help="processes (default: all cores; with --server, 4 requests)")
-    no_diagnosis(p, "skip naming the likely mistake of each failing image (it renders the scene once per "
-                    "classic mistake): a faster run, with an empty 'likely' column")
-    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors and ignored files (no "
-                                                              "progress bar, no summary line)")
+    no_diagnosis(
+        p,
+        "skip naming the likely mistake of each failing image (it renders the scene once per "
+        "classic mistake): a faster run, with an empty 'likely' column",
+    )
+    p.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        help="print nothing but errors and ignored files (no progress bar, no summary line)",
+    )
     limits(p)
     remote_options(p, cluster=True)
     program_options(p)
@@ -114,17 +148,25 @@ def add(sub: Commands) -> None:
 
 
 def add_autograder(sub: Commands) -> None:
-    p = command(sub, "autograder", "write a Gradescope autograder (setup.sh, run_autograder) for a course's scenes",
-                description="SCENES/<task>.json are the tasks. Writes a zip to upload to Gradescope as a "
-                            "programming assignment's autograder: it installs phongray (setup.sh) and grades the "
-                            "PNG images a student uploads, one per task, with a test per task (run_autograder). "
-                            "The references are rendered now. Exit 0 when written, 2 when the TA's input is "
-                            "unusable.")
+    p = command(
+        sub,
+        "autograder",
+        "write a Gradescope autograder (setup.sh, run_autograder) for a course's scenes",
+        description="SCENES/<task>.json are the tasks. Writes a zip to upload to Gradescope as a "
+        "programming assignment's autograder: it installs phongray (setup.sh) and grades the "
+        "PNG images a student uploads, one per task, with a test per task (run_autograder). "
+        "The references are rendered now. Exit 0 when written, 2 when the TA's input is "
+        "unusable.",
+    )
     p.add_argument("scenes", metavar="SCENES_DIR", help="a <task>.json per task")
     p.add_argument("-o", "--output", metavar="AUTOGRADER.zip", required=True, help="the zip to write")
     p.add_argument("--tasks", metavar="TASKS.json", help="per task its points, thresholds and accepted variants")
-    p.add_argument("--student-scenes", metavar="DIR", help="students' own scenes, <student>/<task>.json, "
-                                                           "<student> being their Gradescope email, its part "
-                                                           "before the @, student id or name")
+    p.add_argument(
+        "--student-scenes",
+        metavar="DIR",
+        help="students' own scenes, <student>/<task>.json, "
+        "<student> being their Gradescope email, its part "
+        "before the @, student id or name",
+    )
     program_options(p)
     p.set_defaults(func=cmd_autograder)

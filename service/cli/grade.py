@@ -48,15 +48,19 @@ def cmd_grade(args: argparse.Namespace) -> int:
     if args.server:
         from service.client import post_form
 
-        fields: dict[str, bytes | str] = {"scene": text, "tolerance": repr(args.tolerance),
-                                          "max_fraction": repr(args.max_fraction),
-                                          "diagnose": "false" if args.no_diagnosis else "true"}
+        fields: dict[str, bytes | str] = {
+            "scene": text,
+            "tolerance": repr(args.tolerance),
+            "max_fraction": repr(args.max_fraction),
+            "diagnose": "false" if args.no_diagnosis else "true",
+        }
         files = {"image": ("submission.png", image, "image/png")}
         with remote(args.scene, args.image):
             result = json.loads(post_form(args.server, "/grade", fields, files, api_key=args.api_key))
             if args.heatmap:
-                heat = post_form(args.server, "/grade", fields, files, {"format": "png", "heatmap": kind},
-                                 api_key=args.api_key)
+                heat = post_form(
+                    args.server, "/grade", fields, files, {"format": "png", "heatmap": kind}, api_key=args.api_key
+                )
     else:
         from service.rendering import render_pixels
         from tracer import ImageTooLarge, OverBudget, encode_png
@@ -69,10 +73,15 @@ def cmd_grade(args: argparse.Namespace) -> int:
         except OverBudget as exc:
             raise outgrown_error(args, exc) from None
         try:
-            graded = pipeline.grade_png(reference, image, args.tolerance, args.max_fraction,
-                                        kind if args.heatmap else None, legend=True,
-                                        explaining=pipeline.Explaining(
-                                            lambda: scene, pipeline.Checks(diagnose=not args.no_diagnosis)))
+            graded = pipeline.grade_png(
+                reference,
+                image,
+                args.tolerance,
+                args.max_fraction,
+                kind if args.heatmap else None,
+                legend=True,
+                explaining=pipeline.Explaining(lambda: scene, pipeline.Checks(diagnose=not args.no_diagnosis)),
+            )
         except grading.ImageError as exc:
             raise CliError(f"{args.image}: {exc}") from None
         result, heat = graded.as_dict(), graded.heatmap
@@ -96,19 +105,27 @@ def cmd_compare(args: argparse.Namespace) -> int:
         submitted = pipeline.read_image(image, (pixels.shape[1], pixels.shape[0]))
     except grading.ImageError as exc:
         raise CliError(f"{args.image}: {str(exc).replace('the scene is', 'the reference is')}") from None
-    graded = pipeline.compare(reference, submitted, args.tolerance, args.max_fraction,
-                              ("raw" if args.raw_heatmap else "verdict") if args.heatmap else None, legend=True,
-                              reference=pixels)
+    graded = pipeline.compare(
+        reference,
+        submitted,
+        args.tolerance,
+        args.max_fraction,
+        ("raw" if args.raw_heatmap else "verdict") if args.heatmap else None,
+        legend=True,
+        reference=pixels,
+    )
     if args.heatmap and graded.heatmap is not None:
         write(args.heatmap, graded.heatmap)
     return _verdict(args, graded.as_dict())
 
 
-
 def add(sub: Commands) -> None:
-    p = command(sub, "grade", "grade a submitted PNG against the scene's reference render",
-                description="Grade a submitted PNG against the scene's reference render. Exit 0 pass, 1 fail, "
-                            "2 bad input.")
+    p = command(
+        sub,
+        "grade",
+        "grade a submitted PNG against the scene's reference render",
+        description="Grade a submitted PNG against the scene's reference render. Exit 0 pass, 1 fail, 2 bad input.",
+    )
     p.add_argument("scene", help="scene JSON file")
     p.add_argument("image", help="the submitted PNG")
     verdict(p)
@@ -117,9 +134,13 @@ def add(sub: Commands) -> None:
     remote_options(p)
     p.set_defaults(func=cmd_grade)
 
-    p = command(sub, "compare", "grade one PNG against another, without a scene",
-                description="Grade IMAGE against REFERENCE (two PNGs of one size) as 'grade' would against a "
-                            "render. Exit 0 pass, 1 fail, 2 bad input.")
+    p = command(
+        sub,
+        "compare",
+        "grade one PNG against another, without a scene",
+        description="Grade IMAGE against REFERENCE (two PNGs of one size) as 'grade' would against a "
+        "render. Exit 0 pass, 1 fail, 2 bad input.",
+    )
     p.add_argument("reference", help="the reference PNG")
     p.add_argument("image", help="the PNG to grade")
     verdict(p)

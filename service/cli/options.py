@@ -76,45 +76,70 @@ def seconds(text: str) -> float:
     return value
 
 
-
-
 def remote(p: argparse.ArgumentParser, cluster: bool = False) -> None:
-    p.add_argument("--server", metavar="URL", help="send the work to a running phongray service "
-                                                   "(http:// is assumed when the URL has no scheme)")
-    p.add_argument("--api-key", metavar="KEY", default=None,
-                   help="the service's API key, for --server (default: $PHONGRAY_API_KEY)")
+    p.add_argument(
+        "--server",
+        metavar="URL",
+        help="send the work to a running phongray service (http:// is assumed when the URL has no scheme)",
+    )
+    p.add_argument(
+        "--api-key",
+        metavar="KEY",
+        default=None,
+        help="the service's API key, for --server (default: $PHONGRAY_API_KEY)",
+    )
     if cluster:
-        p.add_argument("--cluster", metavar="tcp://HOST:PORT",
-                       help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
-                            "needs 'phongray[cluster]')")
-        p.add_argument("--cluster-wait", metavar="SECONDS", type=seconds,
-                       help="how long to wait for the cluster's first worker before giving up "
-                            "(default: $PHONGRAY_CLUSTER_WAIT, else 30)")
+        p.add_argument(
+            "--cluster",
+            metavar="tcp://HOST:PORT",
+            help="run the work on this Dask scheduler's cluster (default: $PHONGRAY_CLUSTER; "
+            "needs 'phongray[cluster]')",
+        )
+        p.add_argument(
+            "--cluster-wait",
+            metavar="SECONDS",
+            type=seconds,
+            help="how long to wait for the cluster's first worker before giving up "
+            "(default: $PHONGRAY_CLUSTER_WAIT, else 30)",
+        )
 
 
 def limits(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--limits", action="store_true",
-                   help="hold the scene to the service's limits (PHONGRAY_* settings: pixels, samples, depth, "
-                        "the cost counted as it renders, render_timeout for grade-class), as a server would; "
-                        "without it a scene here is trusted")
+    p.add_argument(
+        "--limits",
+        action="store_true",
+        help="hold the scene to the service's limits (PHONGRAY_* settings: pixels, samples, depth, "
+        "the cost counted as it renders, render_timeout for grade-class), as a server would; "
+        "without it a scene here is trusted",
+    )
 
 
 def thresholds(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tolerance", type=float, default=2.0, help="8-bit levels a pixel may differ by (0–255)")
-    p.add_argument("--max-fraction", type=float, default=0.001,
-                   help="fraction of pixels that may be off even against their 3×3 neighbourhood (0–1)")
+    p.add_argument(
+        "--max-fraction",
+        type=float,
+        default=0.001,
+        help="fraction of pixels that may be off even against their 3×3 neighbourhood (0–1)",
+    )
 
 
 def no_diagnosis(p: argparse.ArgumentParser, what: str = "") -> None:
-    p.add_argument("--no-diagnosis", action="store_true",
-                   help=what or "skip naming the likely mistake of a failing image (it renders the scene once "
-                                "per classic mistake)")
+    p.add_argument(
+        "--no-diagnosis",
+        action="store_true",
+        help=what
+        or "skip naming the likely mistake of a failing image (it renders the scene once per classic mistake)",
+    )
 
 
 def verdict(p: argparse.ArgumentParser) -> None:
     thresholds(p)
-    p.add_argument("--heatmap", metavar="OUT.png", help="write the heat-map here: the pixels that decided the "
-                                                        "verdict, brighter and darker, with a legend")
+    p.add_argument(
+        "--heatmap",
+        metavar="OUT.png",
+        help="write the heat-map here: the pixels that decided the verdict, brighter and darker, with a legend",
+    )
     p.add_argument("--raw-heatmap", action="store_true", help="draw the plain difference in the heat-map instead")
     p.add_argument("--json", action="store_true", help="print the grade as JSON (the numbers of /grade)")
 
@@ -125,5 +150,6 @@ Commands = Any
 
 def command(sub: Commands, name: str, help: str, **kw: Any) -> argparse.ArgumentParser:
     """A subcommand's parser, described by its help (capitalised, with a full stop) unless given its own."""
-    return sub.add_parser(name, help=help, description=kw.pop("description", help[0].upper() + help[1:] + "."),
-                          formatter_class=Help, **kw)
+    return sub.add_parser(
+        name, help=help, description=kw.pop("description", help[0].upper() + help[1:] + "."), formatter_class=Help, **kw
+    )

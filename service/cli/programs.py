@@ -18,8 +18,18 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from service.programs.program import Program
 
-UNITS = {"": 1, "K": 1 << 10, "KIB": 1 << 10, "M": 1 << 20, "MIB": 1 << 20, "G": 1 << 30, "GIB": 1 << 30,
-         "KB": 1000, "MB": 1000**2, "GB": 1000**3}
+UNITS = {
+    "": 1,
+    "K": 1 << 10,
+    "KIB": 1 << 10,
+    "M": 1 << 20,
+    "MIB": 1 << 20,
+    "G": 1 << 30,
+    "GIB": 1 << 30,
+    "KB": 1000,
+    "MB": 1000**2,
+    "GB": 1000**3,
+}
 _SIZE = re.compile(r"\s*(\d+(?:\.\d+)?)\s*([A-Za-z]*)\s*")
 
 
@@ -28,13 +38,16 @@ def size(text: str) -> int:
     found = _SIZE.fullmatch(text)
     unit = found.group(2).upper() if found else ""
     if found is None or unit not in UNITS or float(found.group(1)) * UNITS[unit] < 1:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a size: a number of bytes with an optional unit, "
-                                         f"K, M, G (powers of 1024) or KB, MB, GB (of 1000), such as 2G")
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a size: a number of bytes with an optional unit, "
+            f"K, M, G (powers of 1024) or KB, MB, GB (of 1000), such as 2G"
+        )
     return int(float(found.group(1)) * UNITS[unit])
 
 
 def _positive(kind: Callable[[str], float]) -> Callable[[str], float]:
     """argparse's type: a number of ``kind`` (int, float) above 0."""
+
     def parse(text: str) -> float:
         try:
             value = kind(text)
@@ -50,23 +63,36 @@ def _positive(kind: Callable[[str], float]) -> Callable[[str], float]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of students' programs, as a group of ``parser``'s."""
     group = parser.add_argument_group(
-        "students' programs", "with --run, SUBMISSIONS/<student>/ holds each student's program, run in a sandbox "
-        "(bubblewrap) on every task scene; its image is then graded as an uploaded one")
-    group.add_argument("--run", metavar="TEMPLATE",
-                       help="the program's command line, with {scene} and {output} (python3 render.py {scene} "
-                            "{output}, ./raytracer {scene} {output})")
+        "students' programs",
+        "with --run, SUBMISSIONS/<student>/ holds each student's program, run in a sandbox "
+        "(bubblewrap) on every task scene; its image is then graded as an uploaded one",
+    )
+    group.add_argument(
+        "--run",
+        metavar="TEMPLATE",
+        help="the program's command line, with {scene} and {output} (python3 render.py {scene} "
+        "{output}, ./raytracer {scene} {output})",
+    )
     group.add_argument("--build", metavar="CMD", help="a command run once per student first, in the sandbox (make)")
-    group.add_argument("--run-timeout", type=_positive(float), metavar="S",
-                       help="wall time of a run, and of a build (default: 60); the CPU time of each process is "
-                            "held to the same number of seconds")
-    group.add_argument("--memory", type=size, metavar="SIZE",
-                       help="address space of each process (default: 2G)")
-    group.add_argument("--processes", type=_positive(int), metavar="N",
-                       help="processes and threads of a run at once (default: 64)")
-    group.add_argument("--output-size", type=size, metavar="SIZE",
-                       help="any one file a program writes, and its image (default: 100MB)")
-    group.add_argument("--no-sandbox", action="store_true",
-                       help="run the programs without bubblewrap (only the limits apply; every run says so)")
+    group.add_argument(
+        "--run-timeout",
+        type=_positive(float),
+        metavar="S",
+        help="wall time of a run, and of a build (default: 60); the CPU time of each process is "
+        "held to the same number of seconds",
+    )
+    group.add_argument("--memory", type=size, metavar="SIZE", help="address space of each process (default: 2G)")
+    group.add_argument(
+        "--processes", type=_positive(int), metavar="N", help="processes and threads of a run at once (default: 64)"
+    )
+    group.add_argument(
+        "--output-size", type=size, metavar="SIZE", help="any one file a program writes, and its image (default: 100MB)"
+    )
+    group.add_argument(
+        "--no-sandbox",
+        action="store_true",
+        help="run the programs without bubblewrap (only the limits apply; every run says so)",
+    )
 
 
 PROGRAM_OPTIONS = ("build", "no_sandbox", "run_timeout", "memory", "processes", "output_size")
@@ -83,8 +109,7 @@ def program(args: argparse.Namespace) -> Program | None:
     from service.programs.limits import Limits
     from service.programs.program import Program
 
-    given: dict[str, Any] = {"memory_bytes": args.memory, "processes": args.processes,
-                             "output_bytes": args.output_size}
+    given: dict[str, Any] = {"memory_bytes": args.memory, "processes": args.processes, "output_bytes": args.output_size}
     if args.run_timeout is not None:
         given.update(wall_seconds=args.run_timeout, cpu_seconds=max(1, int(args.run_timeout)))
     limits = Limits(**{name: value for name, value in given.items() if value is not None})

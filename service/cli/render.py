@@ -12,8 +12,18 @@ from service.cli.options import remote as remote_options
 from service.display import ProgressBar
 
 #: tracer.passes.NAMES, here so that the parser needs no tracer import (a test keeps them equal)
-PASS_NAMES = ("background", "ambient", "diffuse", "specular", "reflection", "refraction", "shadow", "normal",
-              "depth", "object")
+PASS_NAMES = (
+    "background",
+    "ambient",
+    "diffuse",
+    "specular",
+    "reflection",
+    "refraction",
+    "shadow",
+    "normal",
+    "depth",
+    "object",
+)
 
 
 def cmd_render(args: argparse.Namespace) -> int:
@@ -57,8 +67,10 @@ def cmd_render(args: argparse.Namespace) -> int:
         bar.close()
     write(args.output, encode_png(pixels))
     if not args.quiet:
-        print(f"{args.output}: {pixels.shape[1]}×{pixels.shape[0]} in {time.perf_counter() - started:.3f} s",
-              file=sys.stderr)
+        print(
+            f"{args.output}: {pixels.shape[1]}×{pixels.shape[0]} in {time.perf_counter() - started:.3f} s",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -87,35 +99,54 @@ def _render_pass(args: argparse.Namespace) -> int:
 
         scene = load(args.scene, text, overrides)
         try:
-            data = passes.encoded(args.pass_, passes.values(scene, args.pass_, args.light, args.threads,
-                                                            budget=budget_of(args, scene)), fmt)
+            data = passes.encoded(
+                args.pass_,
+                passes.values(scene, args.pass_, args.light, args.threads, budget=budget_of(args, scene)),
+                fmt,
+            )
         except ValueError as exc:
             raise CliError(f"{args.scene}: {exc}") from None
         except OverBudget as exc:
             raise outgrown_error(args, exc) from None
     write(args.output, data)
     if not args.quiet:
-        of = "" if args.pass_ not in passes.OF_A_LIGHT else " of every light" if args.light is None else \
-            f" of light {args.light}"
-        print(f"{args.output}: the {args.pass_} pass{of} ({'values' if fmt == 'npy' else 'PNG'}) in "
-              f"{time.perf_counter() - started:.3f} s", file=sys.stderr)
+        of = (
+            ""
+            if args.pass_ not in passes.OF_A_LIGHT
+            else " of every light"
+            if args.light is None
+            else f" of light {args.light}"
+        )
+        print(
+            f"{args.output}: the {args.pass_} pass{of} ({'values' if fmt == 'npy' else 'PNG'}) in "
+            f"{time.perf_counter() - started:.3f} s",
+            file=sys.stderr,
+        )
     return 0
-
 
 
 def add(sub: Commands) -> None:
     p = command(sub, "render", "render a scene to a PNG")
     p.add_argument("scene", help="scene JSON file ('-' for stdin)")
-    p.add_argument("-o", "--output", required=True, help="output PNG, *.png ('-' for stdout); with --pass, "
-                                                          "*.npy writes the pass's values as a NumPy array")
+    p.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        help="output PNG, *.png ('-' for stdout); with --pass, *.npy writes the pass's values as a NumPy array",
+    )
     p.add_argument("--width", type=positive_int, help="image width in pixels (default: the scene's)")
     p.add_argument("--height", type=positive_int, help="image height in pixels (default: the scene's)")
-    p.add_argument("--samples", type=positive_int, help="n: an n×n grid of sub-samples per pixel "
-                                                        "(default: the scene's)")
+    p.add_argument(
+        "--samples", type=positive_int, help="n: an n×n grid of sub-samples per pixel (default: the scene's)"
+    )
     p.add_argument("--threads", type=positive_int, help="worker threads (default: all cores)")
-    p.add_argument("--pass", dest="pass_", metavar="NAME", choices=PASS_NAMES,
-                   help="render one pass instead: " + ", ".join(PASS_NAMES) + " (the first six are the image's "
-                        "additive terms)")
+    p.add_argument(
+        "--pass",
+        dest="pass_",
+        metavar="NAME",
+        choices=PASS_NAMES,
+        help="render one pass instead: " + ", ".join(PASS_NAMES) + " (the first six are the image's additive terms)",
+    )
     p.add_argument("--light", type=index, metavar="K", help="with --pass: light K alone (its index in lights)")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
     limits(p)

@@ -26,7 +26,6 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
-
 def add(sub: Commands) -> None:
     p = command(sub, "serve", "run the HTTP service (settings from PHONGRAY_* variables, see docs/service.md)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on")

@@ -54,13 +54,11 @@ def _warn_of_limits(name: str, scene: Any) -> None:
         print(f"{name}: warning: {warning}", file=sys.stderr)
 
 
-
 def cmd_schema(args: argparse.Namespace) -> int:
     from schemas import json_schema
 
     print(json.dumps(json_schema(), indent=2))
     return 0
-
 
 
 def add(sub: Commands) -> None:

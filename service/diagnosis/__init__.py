@@ -30,5 +30,19 @@ from .records import Cause, Diagnosis, Share, Term, headline, term_words, unavai
 from .rendered import renders_needed, renders_of
 from .renders import Renders
 
-__all__ = ["CACHE", "Cached", "Cause", "Diagnosis", "Renders", "Share", "Term", "diagnose", "headline",
-           "renders_needed", "renders_of", "sampled_rows", "term_words", "unavailable"]
+__all__ = [
+    "CACHE",
+    "Cached",
+    "Cause",
+    "Diagnosis",
+    "Renders",
+    "Share",
+    "Term",
+    "diagnose",
+    "headline",
+    "renders_needed",
+    "renders_of",
+    "sampled_rows",
+    "term_words",
+    "unavailable",
+]

@@ -102,8 +102,13 @@ class Failing:
     failed: Grade
 
 
-def accept(scene: Scene, pair: Failing, accepted: dict[str, float] | None = None, threads: int | None = None,
-           cancel: Callable[[], bool] | None = None) -> Acceptance | None:
+def accept(
+    scene: Scene,
+    pair: Failing,
+    accepted: dict[str, float] | None = None,
+    threads: int | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Acceptance | None:
     """The first accepted variant (``accepted``: name → largest amount; None: the defaults) whose range of
     amounts, from the reference to its largest, the submitted pixels pass against (:func:`envelope_off`, with
     the failed grade's thresholds), and which explains the failure (at most :data:`EXPLAINED` of the pixels off
@@ -124,13 +129,16 @@ def accept(scene: Scene, pair: Failing, accepted: dict[str, float] | None = None
         kept = all(KEPT_RENDERS.has((key, options)) for _, options in rungs)
         if not kept and first_look(scene, rungs, pair, Look(key, threads, cancel)) > allowed:
             continue  # (its rows alone leave too many pixels off: it cannot pass, whole)
-        images = [KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
-                  for _, options in rungs]
+        images = [
+            KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
+            for _, options in rungs
+        ]
         off = envelope_off([pair.reference, *images], submitted, failed.tolerance)
         if off > allowed:
             continue
-        grades = [grade(image, submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction)
-                  for image in images]
+        grades = [
+            grade(image, submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction) for image in images
+        ]
         best = min(range(len(rungs)), key=lambda k: grades[k].fraction_off_nearby)
         return Acceptance(rungs[best][0], replace(grades[best], passed=True, fraction_off_nearby=off / pixels))
     return None
@@ -146,8 +154,11 @@ class Look:
 
     def rows(self, scene: Scene, options: Options, rows: np.ndarray) -> np.ndarray:
         """Rows ``rows`` of the scene rendered with ``options``, kept for the next failing image."""
-        return KEPT_RENDERS.get((self.key, options, "rows"), partial(_render_rows, scene, options, rows, self),
-                                scene.image.width * len(rows))
+        return KEPT_RENDERS.get(
+            (self.key, options, "rows"),
+            partial(_render_rows, scene, options, rows, self),
+            scene.image.width * len(rows),
+        )
 
 
 def first_look(scene: Scene, rungs: list[tuple[str, Options]], pair: Failing, how: Look) -> int:
@@ -161,8 +172,10 @@ def first_look(scene: Scene, rungs: list[tuple[str, Options]], pair: Failing, ho
     if not len(middles):
         return 0
     images = [pair.reference[rows]] + [how.rows(scene, options, rows) for _, options in rungs]
-    return sum(_middle_off([image[3 * k:3 * k + 3] for image in images], pair.submitted[m],
-                           pair.failed.tolerance) for k, m in enumerate(middles))
+    return sum(
+        _middle_off([image[3 * k : 3 * k + 3] for image in images], pair.submitted[m], pair.failed.tolerance)
+        for k, m in enumerate(middles)
+    )
 
 
 def _middle_off(triplets: list[np.ndarray], row: np.ndarray, tolerance: float) -> int:
@@ -176,7 +189,7 @@ def _middle_off(triplets: list[np.ndarray], row: np.ndarray, tolerance: float) -
     near = np.zeros(w, dtype=bool)
     for dy in range(3):
         for dx in range(3):
-            near |= np.all((sub >= lo[dy, dx:dx + w]) & (sub <= hi[dy, dx:dx + w]), axis=1)
+            near |= np.all((sub >= lo[dy, dx : dx + w]) & (sub <= hi[dy, dx : dx + w]), axis=1)
     return int(np.count_nonzero(~near))
 
 
@@ -206,8 +219,7 @@ def envelope_off(renders: list[np.ndarray], submitted: np.ndarray, tolerance: fl
     return off
 
 
-def _render(scene: Scene, options: Options, threads: int | None, cancel: Callable[[], bool] | None
-            ) -> np.ndarray:
+def _render(scene: Scene, options: Options, threads: int | None, cancel: Callable[[], bool] | None) -> np.ndarray:
     return Renderer(scene, options).pixels(threads=threads, cancel=cancel)
 
 

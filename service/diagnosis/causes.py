@@ -136,8 +136,9 @@ class _Scoring:
         ``beyond`` says is too many (then False, as :meth:`score`)."""
         # the variant's own speckles are one pattern of many: only lying between the reference and the far
         # end, in speckles, is evidence of the mistake
-        far = bound_unless_outside(name, self.reference, self.submitted, self.verdict, self.renders, beyond,
-                                   self.counts)
+        far = bound_unless_outside(
+            name, self.reference, self.submitted, self.verdict, self.renders, beyond, self.counts
+        )
         if far is None:
             return False
         outside = speckled(self.reference, far, self.submitted, self.verdict.tolerance)
@@ -155,15 +156,19 @@ class _Scoring:
                 continue  # (a speckled mistake is scored against its far end below, not by its own render)
             # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot
             # pass is scored only if none passes, and then only if it may come closest
-            least = None if name in BOUNDS else off_at_least(name, self.submitted, self.verdict, renders,
-                                                             self.cannot_pass, self.first)
+            least = (
+                None
+                if name in BOUNDS
+                else off_at_least(name, self.submitted, self.verdict, renders, self.cannot_pass, self.first)
+            )
             if (least is not None and self.cannot_pass(least)) or not self.score(name, self.cannot_pass):
                 later.append(name)
         later_bounds = []
         for name in filter(self.shown, BOUNDS) if renders.bound is not None else ():
             renders.check()
-            least = outside_at_least(name, self.reference, self.submitted, self.verdict, renders, self.cannot_pass,
-                                     self.first)
+            least = outside_at_least(
+                name, self.reference, self.submitted, self.verdict, renders, self.cannot_pass, self.first
+            )
             if (least is not None and self.cannot_pass(least)) or not self.score_speckled(name, self.cannot_pass):
                 later_bounds.append(name)
         return later, later_bounds

@@ -163,6 +163,7 @@ def candidates(looks: Looks, terms: list[Fitted]) -> dict[str, str]:
 
 # -- the differences of mistakes add up ------------------------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class Rows:
     """The rows a combination is chosen on: the reference's, the submission's (image-level mistakes undone), and
@@ -186,11 +187,9 @@ class Rows:
         """How far the submission's rows are from the reference's with the mistakes ``names`` made, their
         differences added: the mean, over the pixels, of the largest channel difference beyond the tolerance
         (levels).  A small highlight missing weighs as its pixels do, rounding not at all."""
-        model = self.reference.astype(np.float64) + sum((self.deltas[n] for n in names if n not in STORED),
-                                                        np.zeros(1))
+        model = self.reference.astype(np.float64) + sum((self.deltas[n] for n in names if n not in STORED), np.zeros(1))
         stored = np.floor(np.clip(model, 0.0, 255.0) + 0.5).astype(np.uint8)
-        return _beyond(outer(stored, (*self.outer, *(n for n in names if n in STORED))), self.submitted,
-                       self.tolerance)
+        return _beyond(outer(stored, (*self.outer, *(n for n in names if n in STORED))), self.submitted, self.tolerance)
 
 
 def _beyond(a: np.ndarray, b: np.ndarray, tolerance: float) -> float:
@@ -201,7 +200,7 @@ def _beyond(a: np.ndarray, b: np.ndarray, tolerance: float) -> float:
     sub, w = b.astype(np.int16), b.shape[1]
     diff = np.abs(wide[:, 0:w] - sub).max(axis=-1)
     for dx in (1, 2):
-        np.minimum(diff, np.abs(wide[:, dx:dx + w] - sub).max(axis=-1), out=diff)
+        np.minimum(diff, np.abs(wide[:, dx : dx + w] - sub).max(axis=-1), out=diff)
     return float(np.mean(np.maximum(diff - tolerance, 0.0)))
 
 
@@ -243,8 +242,7 @@ def chosen(rows: Rows) -> tuple[str, ...]:
     if pairs and better(error, pairs[0][1]) is not None:
         best, error = pairs[0][1], pairs[0][0]
     while 2 <= len(best) < MAX_TOGETHER:
-        more = sorted((rows.error((*best, n)), (*best, n)) for n in names if n not in best
-                      and compatible((*best, n)))
+        more = sorted((rows.error((*best, n)), (*best, n)) for n in names if n not in best and compatible((*best, n)))
         if not more or better(error, more[0][1]) is None:
             break
         best, error = more[0][1], more[0][0]
@@ -263,8 +261,15 @@ def shares(rows: Rows, names: tuple[str, ...]) -> dict[str, float]:
 
 # -- one render confirms -----------------------------------------------------------------------------------------
 
-def compose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, looks: Looks, terms: list[Fitted],
-            numbers: np.ndarray | None = None) -> Combination | None:
+
+def compose(
+    reference: np.ndarray,
+    submitted: np.ndarray,
+    verdict: Grade,
+    looks: Looks,
+    terms: list[Fitted],
+    numbers: np.ndarray | None = None,
+) -> Combination | None:
     """The mistakes made together that explain a failing ``submitted`` (graded ``verdict``), chosen on rows
     ``numbers`` (None: :func:`telling_rows`) and confirmed by one render of them all (none when they are
     image-level mistakes alone: the reference's pixels stored with them); None when no mistake helps, or when
@@ -307,8 +312,13 @@ def stored_only(reference: np.ndarray, submitted: np.ndarray, verdict: Grade) ->
     return Combination(tuple(sorted(members, key=lambda m: -m.share)), g.fraction_off_nearby, True)
 
 
-def _rows(reference: np.ndarray, submitted: np.ndarray, looks: Looks, tried: dict[str, str],
-          how: tuple[dict[str, float], float, np.ndarray | None]) -> Rows:
+def _rows(
+    reference: np.ndarray,
+    submitted: np.ndarray,
+    looks: Looks,
+    tried: dict[str, str],
+    how: tuple[dict[str, float], float, np.ndarray | None],
+) -> Rows:
     """The :class:`Rows` of a submission with the image-level mistakes ``found`` (undone on it, or, grey,
     applied to the models), the render-level mistakes ``tried`` each rendered on the rows (gamma applied)."""
     found, tolerance, numbers = how
@@ -317,15 +327,21 @@ def _rows(reference: np.ndarray, submitted: np.ndarray, looks: Looks, tried: dic
     if numbers is None:
         numbers = telling_rows(outer(reference, grey), sub, tolerance)
     ref_rows = reference[numbers].astype(np.float64)
-    deltas = {n: np.zeros(1) if n in STORED else looks.rows(n, numbers).astype(np.float64) - ref_rows
-              for n in tried if n not in found}
+    deltas = {
+        n: np.zeros(1) if n in STORED else looks.rows(n, numbers).astype(np.float64) - ref_rows
+        for n in tried
+        if n not in found
+    }
     return Rows(reference[numbers], sub[numbers], grey, deltas, tolerance)
 
 
 def _why(pointer: str, share: float) -> str:
     accounts = f"accounts for {round(100 * share)} % of the difference"
-    return f"{pointer} out of scale; the mistake {accounts}" if pointer.startswith("the fit") else \
-        f"the mistake {accounts}"
+    return (
+        f"{pointer} out of scale; the mistake {accounts}"
+        if pointer.startswith("the fit")
+        else f"the mistake {accounts}"
+    )
 
 
 @dataclass(frozen=True)
@@ -337,8 +353,13 @@ class Explanation:
     term: Fitted | None = None
 
 
-def nearest(reference: np.ndarray, submitted: np.ndarray, looks: Looks, terms: list[tuple[Fitted, float]],
-            tolerance: float = 2.0) -> list[Explanation]:
+def nearest(
+    reference: np.ndarray,
+    submitted: np.ndarray,
+    looks: Looks,
+    terms: list[tuple[Fitted, float]],
+    tolerance: float = 2.0,
+) -> list[Explanation]:
     """When nothing fits: every mistake tried and every term out of scale (with the share of the difference the
     fit says it accounts for), ranked by how much of the submission's difference from the reference each
     accounts for, most first; those that account for less than :data:`NOTHING` are left out, but for the first

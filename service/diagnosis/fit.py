@@ -46,9 +46,13 @@ def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
     problem on (terms + 1) rows instead of the used values (the same answer up to rounding), and memory does
     not grow with the pixels."""
     columns = [(name, None) for name in BASE_TERMS] + [
-        (term, k) for k, kind in enumerate(renders.lights) if kind != "ambient" for term in ("diffuse", "specular")]
-    fit = _Fit([name if k is None else f"{name}:{k}" for name, k in columns],
-               submitted.reshape(-1, 3).astype(np.float64) / 255.0, renders.check)
+        (term, k) for k, kind in enumerate(renders.lights) if kind != "ambient" for term in ("diffuse", "specular")
+    ]
+    fit = _Fit(
+        [name if k is None else f"{name}:{k}" for name, k in columns],
+        submitted.reshape(-1, 3).astype(np.float64) / 255.0,
+        renders.check,
+    )
     if renders.blocks is not None:
         renders.blocks(fit.fold)
     else:  # (renders without blocks: the whole passes, as one block)
@@ -60,8 +64,11 @@ def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
                 whole |= {f"{t}:{k}": own[t].reshape(-1, 3) for t in ("diffuse", "specular")}
         fit.fold(0, whole)
     free, coef = fit.solve()
-    terms = [Term(columns[i][0], columns[i][1], float(c), fit.share(i, float(c))) for i, c in zip(free, coef)
-             if abs(c - 1.0) > TERM_SLACK]
+    terms = [
+        Term(columns[i][0], columns[i][1], float(c), fit.share(i, float(c)))
+        for i, c in zip(free, coef)
+        if abs(c - 1.0) > TERM_SLACK
+    ]
     return sorted(terms, key=lambda t: -abs(t.scale - 1.0))
 
 
@@ -83,7 +90,7 @@ class _Fit:
         self.check()
         cols = [part[name] for name in self.names]
         total = sum(cols)  # (in the order the whole image's sum takes: the same values)
-        sub = self.sub[first:first + len(cols[0])]
+        sub = self.sub[first : first + len(cols[0])]
         use = (total < 1.0 - 1e-3) & (sub > 0) & (sub < 1)  # neither image clips there: the values are linear
         count = int(use.sum())
         if count == 0:
@@ -126,8 +133,9 @@ class _Fit:
         return _forward(f[:, :-1], f[:, -1], self.energy, self.used, self.check)
 
 
-def _forward(a: np.ndarray, b: np.ndarray, energy: np.ndarray, used: int | None,
-             check: Callable[[], None]) -> tuple[list[int], np.ndarray]:
+def _forward(
+    a: np.ndarray, b: np.ndarray, energy: np.ndarray, used: int | None, check: Callable[[], None]
+) -> tuple[list[int], np.ndarray]:
     """Forward selection over the columns of ``a`` against ``b``: the used values themselves (``used`` None), or
     the rows of their triangular factor, which give the same sums of squares, over ``used`` values."""
     keep = [i for i, e in enumerate(energy) if e > TERM_FLOOR * energy.sum()]
@@ -135,7 +143,7 @@ def _forward(a: np.ndarray, b: np.ndarray, energy: np.ndarray, used: int | None,
     every = None if used is None else a.sum(axis=1)  # (R's rows are few: the others' sum from the whole's)
 
     def rms(r: np.ndarray) -> float:
-        return float(np.sqrt(np.mean(r ** 2))) if used is None else float(np.sqrt(np.sum(r ** 2) / used))
+        return float(np.sqrt(np.mean(r**2))) if used is None else float(np.sqrt(np.sum(r**2) / used))
 
     def fitted(free: list[int]) -> tuple[float, np.ndarray]:
         if every is None:
@@ -185,4 +193,3 @@ def nnls(a: np.ndarray, b: np.ndarray, rounds: int = 200) -> np.ndarray:
             x = x + alpha * (z - x)
             free &= x > 1e-12
     return x
-

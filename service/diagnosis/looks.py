@@ -35,7 +35,7 @@ def _looks(height: int, first: np.ndarray | None = None) -> list[np.ndarray]:
     middle rows)."""
     middles, _ = sampled_rows(height)
     if first is None or len(first) == 0:
-        first = middles[FIRST_LOOK // 2::FIRST_LOOK]
+        first = middles[FIRST_LOOK // 2 :: FIRST_LOOK]
     return [look for look in (first, np.setdiff1d(middles, first)) if len(look)]
 
 
@@ -60,14 +60,20 @@ def telling_middles(counts: np.ndarray, enough: float) -> np.ndarray:
     ``enough``: it is ruled out by this one look; only a variant that changes these very rows is looked at
     further."""
     ranked = np.argsort(-counts, kind="stable")
-    ranked = ranked[counts[ranked] > 0][:len(sampled_rows(len(counts))[0])]
+    ranked = ranked[counts[ranked] > 0][: len(sampled_rows(len(counts))[0])]
     held = np.cumsum(counts[ranked])
     take = int(np.searchsorted(held, enough, side="right")) + 1
     return np.sort(ranked[:take])
 
 
-def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                 beyond: Callable[[int], bool] | None = None, first: np.ndarray | None = None) -> int | None:
+def off_at_least(
+    name: str,
+    submitted: np.ndarray,
+    verdict: Grade,
+    renders: Renders,
+    beyond: Callable[[int], bool] | None = None,
+    first: np.ndarray | None = None,
+) -> int | None:
     """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
     look at a few of its rows (None when :class:`Renders` has no rows to give); once ``beyond`` says the count
     is too many, no more rows are looked at.
@@ -100,9 +106,14 @@ def off_at_least(name: str, submitted: np.ndarray, verdict: Grade, renders: Rend
 BANDS = 4
 
 
-def whole_unless_off(name: str, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                     beyond: Callable[[int], bool] | None = None, counts: np.ndarray | None = None
-                     ) -> np.ndarray | None:
+def whole_unless_off(
+    name: str,
+    submitted: np.ndarray,
+    verdict: Grade,
+    renders: Renders,
+    beyond: Callable[[int], bool] | None = None,
+    counts: np.ndarray | None = None,
+) -> np.ndarray | None:
     """Variant ``name``'s whole image, rendered a band of rows at a time; None as soon as ``beyond`` says the
     pixels of ``submitted`` off even nearby in the rows so far are too many.
 
@@ -143,8 +154,11 @@ def _bands(height: int, bands: int = BANDS) -> list[np.ndarray]:
     order = [0]
     while len(order) < bands:
         step = len(order)
-        order += [k + bands // (2 * step) for k in order] if bands % (2 * step) == 0 else \
-            [k for k in range(bands) if k not in order]
+        order += (
+            [k + bands // (2 * step) for k in order]
+            if bands % (2 * step) == 0
+            else [k for k in range(bands) if k not in order]
+        )
     edges = np.linspace(0, height, bands + 1).round().astype(np.int64)
     return [np.arange(edges[k], edges[k + 1]) for k in order[:bands] if edges[k + 1] > edges[k]]
 
@@ -158,9 +172,15 @@ def _ranked(bands: list[np.ndarray], counts: np.ndarray | None) -> list[np.ndarr
     return [bands[k] for k in sorted(range(len(bands)), key=lambda k: -int(counts[bands[k]].sum()))]
 
 
-def bound_unless_outside(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
-                         renders: Renders, beyond: Callable[[int], bool] | None = None,
-                         counts: np.ndarray | None = None) -> np.ndarray | None:
+def bound_unless_outside(
+    name: str,
+    reference: np.ndarray,
+    submitted: np.ndarray,
+    verdict: Grade,
+    renders: Renders,
+    beyond: Callable[[int], bool] | None = None,
+    counts: np.ndarray | None = None,
+) -> np.ndarray | None:
     """Speckled mistake ``name``'s far end, whole, rendered a band of rows at a time as
     :func:`whole_unless_off` renders a variant; None as soon as ``beyond`` says the pixels of ``submitted``
     outside the reference and the far end in the bands so far are too many.
@@ -186,8 +206,11 @@ def _outside(reference: np.ndarray, far: np.ndarray, submitted: np.ndarray, tole
     """How many pixels of ``submitted`` lie outside the reference and the far end, each channel within
     ``tolerance`` (as :func:`speckled` counts them)."""
     ref, low, sub = (a.astype(np.int16) for a in (reference, far, submitted))
-    return int(np.count_nonzero(np.any((sub < np.minimum(ref, low) - tolerance) |
-                                       (sub > np.maximum(ref, low) + tolerance), axis=2)))
+    return int(
+        np.count_nonzero(
+            np.any((sub < np.minimum(ref, low) - tolerance) | (sub > np.maximum(ref, low) + tolerance), axis=2)
+        )
+    )
 
 
 def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int:
@@ -208,14 +231,21 @@ def _off_per_row(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> np
     best = np.full((k, w), 255, dtype=np.uint8)
     for dy in range(3):
         for dx in range(3):
-            near = padded[:, :, dy, dx:dx + w]
+            near = padded[:, :, dy, dx : dx + w]
             diff = [np.maximum(near[c], sub[c]) - np.minimum(near[c], sub[c]) for c in range(3)]
             np.minimum(best, np.maximum(np.maximum(diff[0], diff[1]), diff[2]), out=best)
     return np.count_nonzero(best > tolerance, axis=1)
 
 
-def outside_at_least(name: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                     beyond: Callable[[int], bool] | None = None, first: np.ndarray | None = None) -> int | None:
+def outside_at_least(
+    name: str,
+    reference: np.ndarray,
+    submitted: np.ndarray,
+    verdict: Grade,
+    renders: Renders,
+    beyond: Callable[[int], bool] | None = None,
+    first: np.ndarray | None = None,
+) -> int | None:
     """For a speckled mistake ``name`` of :data:`tracer.variants.BOUNDS`: a lower bound of how many pixels of
     ``submitted`` lie outside the reference and the mistake's far end (:func:`speckled`'s share, as a count),
     from a look at the sampled middle rows of the far end (None when :class:`Renders` has no rows to give);
@@ -262,4 +292,3 @@ def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, to
     if not pairs.any() or float(np.abs(np.diff(share, axis=1))[pairs].mean()) < SPECKLE:
         return None
     return float(outside.mean())
-

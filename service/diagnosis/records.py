@@ -83,8 +83,10 @@ class Diagnosis:
             c = self.causes[0]
             how = "matches" if not self.closest else "comes closest to"
             advice = f". {SENTENCES[c.variant]}" if c.variant in SENTENCES else ""  # (a new mistake's advice)
-            return (f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake "
-                    f"({percent(c.fraction_off_nearby)} of pixels off){advice}")
+            return (
+                f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake "
+                f"({percent(c.fraction_off_nearby)} of pixels off){advice}"
+            )
         if self.terms:
             return f"Likely: {term_words(self.terms[0])}"
         return "No known mistake fits: compare the heat-map with the reference"
@@ -110,17 +112,28 @@ class Diagnosis:
 
     def as_dict(self) -> dict[str, Any]:
         """As the service and the command line give it (JSON): the sentence, then the evidence."""
-        return {"sentence": self.sentence(), "closest": self.closest,
-                "causes": [c.as_dict() for c in self.causes], "terms": [asdict(t) for t in self.terms],
-                "objects": [asdict(s) for s in self.objects], "lights": [asdict(s) for s in self.lights]}
+        return {
+            "sentence": self.sentence(),
+            "closest": self.closest,
+            "causes": [c.as_dict() for c in self.causes],
+            "terms": [asdict(t) for t in self.terms],
+            "objects": [asdict(s) for s in self.objects],
+            "lights": [asdict(s) for s in self.lights],
+        }
 
     @classmethod
     def from_dict(cls, found: dict[str, Any]) -> Diagnosis:
         """The record of :meth:`as_dict`'s answer (a class worker's, read back): ``as_dict`` of it is ``found``."""
         sentence: str = found["sentence"]
         why = sentence.removeprefix("No diagnosis: ") if sentence.startswith("No diagnosis: ") else None
-        return cls([Cause(**c) for c in found["causes"]], found["closest"], [Term(**t) for t in found["terms"]],
-                   [Share(**s) for s in found["objects"]], [Share(**s) for s in found["lights"]], why)
+        return cls(
+            [Cause(**c) for c in found["causes"]],
+            found["closest"],
+            [Term(**t) for t in found["terms"]],
+            [Share(**s) for s in found["objects"]],
+            [Share(**s) for s in found["lights"]],
+            why,
+        )
 
 
 def term_words(term: Term) -> str:

@@ -43,11 +43,24 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     image's worth of them in all, and the gamma and flipped variants are rendered, first a few rows of
     them, like any other: the same pixels either way."""
     made = SceneRenders(scene, threads)
-    made.out = Renders(made.variant, made.of, [light.type for light in scene.lights],
-                       [obj.type for obj in scene.objects], made.bound, rows=made.rows, bound_rows=made.bound_rows,
-                       at=made.at, unchanged=made.unchanged, done=made.done, cancel_in_thread=made.cancel_in_thread,
-                       blocks=made.blocks, nbytes=made.nbytes, polled=made.polled, render=made.render,
-                       names=names_of(scene))
+    made.out = Renders(
+        made.variant,
+        made.of,
+        [light.type for light in scene.lights],
+        [obj.type for obj in scene.objects],
+        made.bound,
+        rows=made.rows,
+        bound_rows=made.bound_rows,
+        at=made.at,
+        unchanged=made.unchanged,
+        done=made.done,
+        cancel_in_thread=made.cancel_in_thread,
+        blocks=made.blocks,
+        nbytes=made.nbytes,
+        polled=made.polled,
+        render=made.render,
+        names=names_of(scene),
+    )
     return made.out
 
 
@@ -129,8 +142,10 @@ class SceneRenders:
         if "images" not in self.made:
             if self.whole or "all" in self.made:
                 colour = self.passes()["colour"]
-                self.made["images"] = {"reference": quantize(colour),
-                                       "gamma": quantize(np.clip(colour, 0.0, None) ** (1.0 / 2.2))}
+                self.made["images"] = {
+                    "reference": quantize(colour),
+                    "gamma": quantize(np.clip(colour, 0.0, None) ** (1.0 / 2.2)),
+                }
             else:
                 self.folded(None)
         return self.made["images"]
@@ -145,15 +160,17 @@ class SceneRenders:
 
         def each(first: int, part: dict[str, np.ndarray]) -> None:
             if mine:  # as Renderer.pixels stores each chunk's colour (and a gamma variant's)
-                reference[first:first + len(part["colour"])] = quantize(part["colour"])
-                gamma[first:first + len(part["colour"])] = quantize(np.clip(part["colour"], 0.0, None) ** (1.0 / 2.2))
+                reference[first : first + len(part["colour"])] = quantize(part["colour"])
+                gamma[first : first + len(part["colour"])] = quantize(np.clip(part["colour"], 0.0, None) ** (1.0 / 2.2))
             if fold is not None:
                 fold(first, part)
 
         self.prepared(REFERENCE).diagnosis_passes(threads=self.threads, cancel=self.polled(), fold=each)
         if mine:
-            self.made["images"] = {"reference": reference.reshape(self.height, self.width, 3),
-                                   "gamma": gamma.reshape(self.height, self.width, 3)}
+            self.made["images"] = {
+                "reference": reference.reshape(self.height, self.width, 3),
+                "gamma": gamma.reshape(self.height, self.width, 3),
+            }
 
     def blocks(self, fold: Fold) -> None:
         if not self.whole:
@@ -161,8 +178,14 @@ class SceneRenders:
             return
         every, total = self.passes(), self.total
         for first in range(0, total, FIT_BLOCK_PIXELS):
-            fold(first, {name: plane.reshape(total, -1)[first:first + FIT_BLOCK_PIXELS]
-                         for name, plane in every.items() if name not in ("object", "colour")})
+            fold(
+                first,
+                {
+                    name: plane.reshape(total, -1)[first : first + FIT_BLOCK_PIXELS]
+                    for name, plane in every.items()
+                    if name not in ("object", "colour")
+                },
+            )
 
     def made_whole(self) -> bool:
         """Whether the reference's images are at hand, without a render."""
@@ -180,17 +203,17 @@ class SceneRenders:
         found = np.empty(len(pixels), dtype=np.int64)
 
         def each(first: int, part: dict[str, np.ndarray]) -> None:
-            found[first:first + len(part["object"])] = part["object"]
+            found[first : first + len(part["object"])] = part["object"]
             fold(first, part)
 
-        self.prepared(REFERENCE).diagnosis_passes(threads=self.threads, cancel=self.polled(), pixels=pixels,
-                                                  first_hits=True, fold=each)
+        self.prepared(REFERENCE).diagnosis_passes(
+            threads=self.threads, cancel=self.polled(), pixels=pixels, first_hits=True, fold=each
+        )
         return found
 
     def of(self, names: list[str], light: int | None) -> dict[str, np.ndarray]:
         every = self.passes()
-        return {name: every[name if light is None or name not in LIGHT_TERMS else f"{name}:{light}"]
-                for name in names}
+        return {name: every[name if light is None or name not in LIGHT_TERMS else f"{name}:{light}"] for name in names}
 
     # -- the variants and the far ends -------------------------------------------------------------------------
 
@@ -211,8 +234,9 @@ class SceneRenders:
                 variants[name] = self.prepared(options_of(name)).pixels(threads=self.threads, cancel=self.polled())
         return variants[name]
 
-    def kept_rows(self, key: str, name: str, options: Options, wholes: dict[str, np.ndarray],
-                  numbers: np.ndarray) -> np.ndarray:
+    def kept_rows(
+        self, key: str, name: str, options: Options, wholes: dict[str, np.ndarray], numbers: np.ndarray
+    ) -> np.ndarray:
         """Rows ``numbers`` of a render: its rows are kept as they come (first looks, bands), under ``key``, and
         are not rendered again; once every row has come, they are its whole image, ``wholes[name]``."""
         with self.guard:
@@ -260,9 +284,14 @@ class SceneRenders:
         return self.kept_rows("bound:" + name, name, BOUNDS[name], self.bounds, numbers)
 
     def nbytes(self) -> int:
-        return held_bytes([*list(self.variants.values()), *list(self.bounds.values()),
-                           *(r for rows in list(self.kept.values()) for r in list(rows.values())),
-                           *(a for planes in list(self.made.values()) for a in list(planes.values()))])
+        return held_bytes(
+            [
+                *list(self.variants.values()),
+                *list(self.bounds.values()),
+                *(r for rows in list(self.kept.values()) for r in list(rows.values())),
+                *(a for planes in list(self.made.values()) for a in list(planes.values())),
+            ]
+        )
 
 
 #: the most renders a diagnosis may need: the variants the scene can show (gamma and the flipped image too, when

@@ -63,4 +63,3 @@ class Renders:
     render: Callable[[Options], np.ndarray] | None = None
     #: how a student is told of the scene's objects and lights (:mod:`.words`); None: by index
     names: Names | None = None
-

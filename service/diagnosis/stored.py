@@ -83,6 +83,10 @@ def image_level(reference: np.ndarray, submitted: np.ndarray) -> dict[str, float
 
 
 #: how an image-level mistake shows, for its evidence
-SHOWN = {"gamma": "brightened as gamma 1/2.2 brightens it", "image-flipped": "upside down",
-         "camera-left-handed": "mirrored left to right", "grayscale": "in grey",
-         "channels-swapped": "with red and blue swapped"}
+SHOWN = {
+    "gamma": "brightened as gamma 1/2.2 brightens it",
+    "image-flipped": "upside down",
+    "camera-left-handed": "mirrored left to right",
+    "grayscale": "in grey",
+    "channels-swapped": "with red and blue swapped",
+}

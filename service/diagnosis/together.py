@@ -41,8 +41,9 @@ def fitted(terms: list[Term]) -> list[Fitted]:
     return [Fitted(t.name, t.light, t.scale) for t in terms]
 
 
-def combined(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
-             terms: list[Term]) -> Combination | None:
+def combined(
+    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders, terms: list[Term]
+) -> Combination | None:
     """The mistakes made together the submission matches or comes nearest (:func:`.compose.compose`); None
     when no mistake helps, the one found is a classic one alone, or the renders cannot make a combination."""
     looks = looks_of(renders)
@@ -55,12 +56,23 @@ def combined(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
 def together_causes(combination: Combination) -> list[Cause]:
     """The causes of a combination, one per mistake, each with the combination's grade and its evidence."""
     names = combination.names
-    return [Cause(m.variant, m.mistake, combination.fraction_off_nearby, combination.passes,
-                  [n for n in names if n != m.variant], m.share, m.evidence) for m in combination.members]
+    return [
+        Cause(
+            m.variant,
+            m.mistake,
+            combination.fraction_off_nearby,
+            combination.passes,
+            [n for n in names if n != m.variant],
+            m.share,
+            m.evidence,
+        )
+        for m in combination.members
+    ]
 
 
-def closer(combination: Combination | None, causes: list[Cause], closest: bool,
-           verdict: Grade) -> tuple[list[Cause], bool]:
+def closer(
+    combination: Combination | None, causes: list[Cause], closest: bool, verdict: Grade
+) -> tuple[list[Cause], bool]:
     """The causes named when nothing passes: the combination when it comes closer than the closest single
     mistake (and far closer than the reference, as :data:`CLOSEST_SHARE` says), else the causes as they are."""
     if combination is None:
@@ -80,8 +92,9 @@ def explanation_words(e: Explanation, names: Names) -> str:
     return f"what {ALL[e.variant or ''][1]} changes"
 
 
-def nearest_causes(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders,
-                   terms: list[Term]) -> list[Cause]:
+def nearest_causes(
+    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders, terms: list[Term]
+) -> list[Cause]:
     """The nearest explanations as causes, none passed against, most of the difference first: a mistake by its
     id, a term as ``term:NAME`` or ``term:NAME:LIGHT``, each with its share of the difference and its words."""
     looks = looks_of(renders)
@@ -98,6 +111,15 @@ def nearest_causes(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
             variant = "term:" + (e.term.name if e.term.light is None else f"{e.term.name}:{e.term.light}")
         else:
             variant = e.variant or ""
-        out.append(Cause(variant, explanation_words(e, names), verdict.fraction_off_nearby, False, [], e.share,
-                         f"accounts for about {round(100 * e.share)} % of the difference"))
+        out.append(
+            Cause(
+                variant,
+                explanation_words(e, names),
+                verdict.fraction_off_nearby,
+                False,
+                [],
+                e.share,
+                f"accounts for about {round(100 * e.share)} % of the difference",
+            )
+        )
     return out

@@ -9,8 +9,9 @@ from .records import Share
 from .renders import Renders
 
 
-def where(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
-          renders: Renders) -> tuple[list[Share], list[Share]]:
+def where(
+    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders
+) -> tuple[list[Share], list[Share]]:
     """The objects the failing pixels show and the lights that fall on them, each with its share.  The lights'
     terms at the failing pixels come a block at a time and are counted as they come, never held for all the
     lights at once."""
@@ -35,7 +36,9 @@ def where(reference: np.ndarray, submitted: np.ndarray, verdict: Grade,
             own = renders.passes(["diffuse", "specular"], k)
             there |= {f"diffuse:{k}": own["diffuse"][diff], f"specular:{k}": own["specular"][diff]}
         fold(0, there)
-    objects = [Share(int(k), renders.objects[int(k)] if k >= 0 else "background", float(np.mean(found == k)))
-               for k in np.unique(found)]
+    objects = [
+        Share(int(k), renders.objects[int(k)] if k >= 0 else "background", float(np.mean(found == k)))
+        for k in np.unique(found)
+    ]
     lights = [Share(k, renders.lights[k], int(lit_by[k]) / len(found)) for k in shining if lit_by[k]]
     return (sorted(objects, key=lambda s: -s.share), sorted(lights, key=lambda s: -s.share))

@@ -16,9 +16,17 @@ from schemas.names import light_words, object_words
 MISSING = 0.05
 #: plain words for a ratio near a simple fraction or multiple: (ratio, words); a ratio within
 #: :data:`NEAR` (relative) of one is said in its words, any other as "about N times as bright"
-RATIOS = ((0.25, "a quarter as bright"), (1 / 3, "a third as bright"), (0.5, "half as bright"),
-          (2 / 3, "two thirds as bright"), (0.75, "three quarters as bright"), (1.5, "half again as bright"),
-          (2.0, "twice as bright"), (3.0, "three times as bright"), (4.0, "four times as bright"))
+RATIOS = (
+    (0.25, "a quarter as bright"),
+    (1 / 3, "a third as bright"),
+    (0.5, "half as bright"),
+    (2 / 3, "two thirds as bright"),
+    (0.75, "three quarters as bright"),
+    (1.5, "half again as bright"),
+    (2.0, "twice as bright"),
+    (3.0, "three times as bright"),
+    (4.0, "four times as bright"),
+)
 #: how near (relative) a ratio must be to one of :data:`RATIOS` to be said in its words
 NEAR = 0.08
 
@@ -45,8 +53,10 @@ class Names:
 
 def names_of(scene: Any) -> Names:
     """The words of every object and light of a validated scene."""
-    return Names(tuple(object_words(scene, k) for k in range(len(scene.objects))),
-                 tuple(light_words(scene, k) for k in range(len(scene.lights))))
+    return Names(
+        tuple(object_words(scene, k) for k in range(len(scene.objects))),
+        tuple(light_words(scene, k) for k in range(len(scene.lights))),
+    )
 
 
 def how_bright(scale: float) -> str:
@@ -61,15 +71,16 @@ def how_bright(scale: float) -> str:
 
 
 def term_name(name: str, light: int | None, names: Names) -> str:
-    """"the specular of light 'key'", "the ambient term", "the reflections"."""
+    """ "the specular of light 'key'", "the ambient term", "the reflections"."""
     if light is not None:
         return f"the {name} of {names.light(light)}"
-    return {"reflection": "the reflections", "refraction": "the refractions",
-            "background": "the background"}.get(name, f"the {name} term")
+    return {"reflection": "the reflections", "refraction": "the refractions", "background": "the background"}.get(
+        name, f"the {name} term"
+    )
 
 
 def term_sentence(name: str, light: int | None, scale: float, names: Names, joined: str = " ") -> str:
-    """"the specular of light 'key' is missing", "the diffuse of the second light (point) is twice as bright as
+    """ "the specular of light 'key' is missing", "the diffuse of the second light (point) is twice as bright as
     the reference's"; with ``joined=", which "``, "the specular of light 'key', which is missing"."""
     how = how_bright(scale)
     tail = "" if how == "missing" else " as the reference's"
@@ -89,30 +100,36 @@ def share_words(share: float) -> str:
 
 
 def objects_line(shares: list[tuple[int, float]], names: Names) -> str:
-    """"the first sphere 58 %, sphere 'ball' 20 %" for (object index, share) pairs."""
+    """ "the first sphere 58 %, sphere 'ball' 20 %" for (object index, share) pairs."""
     return ", ".join(f"{names.object(k)} {round(100 * s)} %" for k, s in shares)
 
 
 def lights_line(shares: list[tuple[int, float]], names: Names) -> str:
-    """"light 'key' 85 %, the third light (area) 40 %" for (light index, share) pairs."""
+    """ "light 'key' 85 %, the third light (area) 40 %" for (light index, share) pairs."""
     return ", ".join(f"{names.light(k)} {round(100 * s)} %" for k, s in shares)
 
 
 def together_sentence(mistakes: list[str], fraction: float, passes: bool) -> str:
-    """"Likely two mistakes together: no shadow rays, and gamma 1/2.2 applied to the output — the submission
+    """ "Likely two mistakes together: no shadow rays, and gamma 1/2.2 applied to the output — the submission
     matches the reference rendered with both (0.02 % of pixels off)"."""
     from ..display import percent
 
     count = {2: "two", 3: "three"}.get(len(mistakes), str(len(mistakes)))
-    listed = ", ".join(mistakes[:-1]) + (", and " if len(mistakes) > 2 else " and ") + mistakes[-1] \
-        if len(mistakes) > 1 else mistakes[0]
+    listed = (
+        ", ".join(mistakes[:-1]) + (", and " if len(mistakes) > 2 else " and ") + mistakes[-1]
+        if len(mistakes) > 1
+        else mistakes[0]
+    )
     how = "matches" if passes else "comes closest to"
     every = "both" if len(mistakes) == 2 else "all of them"
-    return (f"Likely {count} mistakes together: {listed} — the submission {how} the reference rendered with "
-            f"{every} ({percent(fraction)} of pixels off)")
+    return (
+        f"Likely {count} mistakes together: {listed} — the submission {how} the reference rendered with "
+        f"{every} ({percent(fraction)} of pixels off)"
+    )
 
 
 def nearest_sentence(what: str, share: float) -> str:
-    """"No known mistake fits exactly: most of the difference is the specular of light 'key' (about 60 %)"."""
-    return (f"No known mistake fits exactly: {share_words(share)} the difference is {what} "
-            f"(about {round(100 * share)} %)")
+    """ "No known mistake fits exactly: most of the difference is the specular of light 'key' (about 60 %)"."""
+    return (
+        f"No known mistake fits exactly: {share_words(share)} the difference is {what} (about {round(100 * share)} %)"
+    )

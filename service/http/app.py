@@ -20,8 +20,13 @@ from service.settings import Settings
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings.from_env()
-    app = FastAPI(title="phongray", version="0.1.0", docs_url=None, redoc_url=None,
-                  description="A reference Phong/Whitted ray tracer: render, validate and grade scenes.")
+    app = FastAPI(
+        title="phongray",
+        version="0.1.0",
+        docs_url=None,
+        redoc_url=None,
+        description="A reference Phong/Whitted ray tracer: render, validate and grade scenes.",
+    )
     app.state.service = RenderService(settings)
     app.state.flights = {}  # scene key → the render in progress that requests for it wait on (service.http.waiting)
     app.include_router(render.router)
@@ -47,8 +52,9 @@ def _answer_errors(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def on_invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
-        errors = [{"path": ".".join(str(p) for p in err["loc"]), "message": err["msg"], "line": None}
-                  for err in exc.errors()]
+        errors = [
+            {"path": ".".join(str(p) for p in err["loc"]), "message": err["msg"], "line": None} for err in exc.errors()
+        ]
         return SafeJSONResponse({"detail": "invalid request", "errors": errors}, status_code=422)
 
 
@@ -81,8 +87,15 @@ def _guard(app: FastAPI, settings: Settings) -> None:
         return settings.max_body_bytes + extra
 
     app.state.body_limit = body_limit  # (also the most a form part may be: service.http.routers.grade)
-    app.add_middleware(BodyLimit, limit=body_limit, grace=settings.body_timeout, min_rate=settings.body_min_rate,
-                       budget=settings.max_buffered_bytes, wait=settings.buffer_wait, retry_after=settings.retry_after)
+    app.add_middleware(
+        BodyLimit,
+        limit=body_limit,
+        grace=settings.body_timeout,
+        min_rate=settings.body_min_rate,
+        budget=settings.max_buffered_bytes,
+        wait=settings.buffer_wait,
+        retry_after=settings.retry_after,
+    )
     if settings.api_key:
         app.add_middleware(ApiKey, key=settings.api_key)
     app.add_middleware(Framing)  # (the outermost: before the key is asked for)

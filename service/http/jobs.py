@@ -139,8 +139,13 @@ class RenderService:
         with self._slot() as late:
             client = self._client() if self.settings.cluster else None
             try:
-                pixels = render_pixels(job.scene, client, threads=self.threads, cancel=lambda: cancelled() or late(),
-                                       budget=budget(job.scene, self.settings))
+                pixels = render_pixels(
+                    job.scene,
+                    client,
+                    threads=self.threads,
+                    cancel=lambda: cancelled() or late(),
+                    budget=budget(job.scene, self.settings),
+                )
             except RenderCancelled:
                 if late():
                     raise TooSlow() from None
@@ -153,8 +158,9 @@ class RenderService:
         self.cache.put(job.key, data)
         return data
 
-    def pass_file(self, job: Job, name: str, light: int | None, fmt: Format,
-                  gone: Callable[[], bool] = lambda: False) -> tuple[PassFile, int]:
+    def pass_file(
+        self, job: Job, name: str, light: int | None, fmt: Format, gone: Callable[[], bool] = lambda: False
+    ) -> tuple[PassFile, int]:
         """Render pass ``name`` of a job (of light ``light``) as a PNG or ``.npy`` file (:mod:`service.passes`),
         from the cache, or rendered in a render slot within ``render_timeout`` (on the cluster when there is
         one), and the bytes of :attr:`answers` it holds: the caller gives them back once it is sent.  Priced up
@@ -171,9 +177,11 @@ class RenderService:
             return passes.PassFile(b"", cached, media), 0
         price = passes.price(job.scene, name, fmt)
         if price > self.answers.total:
-            raise LimitError(f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt} "
-                             f"holds about {price} bytes, more than the limit max_answer_bytes = "
-                             f"{self.answers.total}")
+            raise LimitError(
+                f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt} "
+                f"holds about {price} bytes, more than the limit max_answer_bytes = "
+                f"{self.answers.total}"
+            )
         if not self.answers.take(price):
             raise AnswersFull()
         held = price
@@ -184,12 +192,25 @@ class RenderService:
                     if self.settings.cluster:
                         from service.cluster import run
 
-                        data = run(self._client(), passes.pass_task, job.scene.model_dump_json().encode(), name,
-                                   light, fmt, self.settings.render_timeout, cancelled=stop)
+                        data = run(
+                            self._client(),
+                            passes.pass_task,
+                            job.scene.model_dump_json().encode(),
+                            name,
+                            light,
+                            fmt,
+                            self.settings.render_timeout,
+                            cancelled=stop,
+                        )
                         made = passes.PassFile(b"", data, media)
                     else:
-                        made = passes.as_file(name, passes.values(job.scene, name, light, self.threads, stop,
-                                                                  budget=budget(job.scene, self.settings)), fmt)
+                        made = passes.as_file(
+                            name,
+                            passes.values(
+                                job.scene, name, light, self.threads, stop, budget=budget(job.scene, self.settings)
+                            ),
+                            fmt,
+                        )
                 except RenderCancelled:
                     if gone():
                         raise
@@ -207,8 +228,14 @@ class RenderService:
             self.answers.give(held)
             raise
 
-    def explain(self, job: Job, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
-                gone: Callable[[], bool] = lambda: False) -> Graded:
+    def explain(
+        self,
+        job: Job,
+        graded: Graded,
+        reference: np.ndarray,
+        submitted: np.ndarray,
+        gone: Callable[[], bool] = lambda: False,
+    ) -> Graded:
         """``graded`` with the diagnosis of a failing grade, rendered in one of this worker's render slots
         within ``render_timeout`` (on the cluster when there is one); when no slot is free or time runs out, a
         diagnosis that says so.  RenderCancelled once ``gone()``: its client left, no one reads the answer.
@@ -221,20 +248,37 @@ class RenderService:
                 if self.settings.cluster:
                     from service.cluster import run
 
-                    return run(self._client(), explain_task, job.scene.model_dump_json().encode(), graded,
-                               reference, submitted, self.settings.render_timeout, cancelled=stop)
-                return explain(job.scene, graded, reference, submitted,
-                               run=Run(self.threads, cancel=stop, cache=self.diagnoses))
+                    return run(
+                        self._client(),
+                        explain_task,
+                        job.scene.model_dump_json().encode(),
+                        graded,
+                        reference,
+                        submitted,
+                        self.settings.render_timeout,
+                        cancelled=stop,
+                    )
+                return explain(
+                    job.scene, graded, reference, submitted, run=Run(self.threads, cancel=stop, cache=self.diagnoses)
+                )
         except Busy:
             return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
         except MemoryError:
-            return replace(graded, diagnosis=unavailable("its renders ran out of memory beside the worker's other "
-                                                         "work; grade again for one"))
+            return replace(
+                graded,
+                diagnosis=unavailable(
+                    "its renders ran out of memory beside the worker's other work; grade again for one"
+                ),
+            )
         except RenderCancelled:
             if gone():
                 raise
-            return replace(graded, diagnosis=unavailable(
-                f"its renders ran past the limit render_timeout = {self.settings.render_timeout:g} s"))
+            return replace(
+                graded,
+                diagnosis=unavailable(
+                    f"its renders ran past the limit render_timeout = {self.settings.render_timeout:g} s"
+                ),
+            )
 
     def _client(self) -> Any:
         """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the
@@ -252,21 +296,26 @@ class RenderService:
         return self._dask
 
     def status(self) -> dict[str, Any]:  # (on the event loop: counters only, nothing that waits)
-        return {"worker": os.getpid(), "cache_entries": len(self.cache), "cache_bytes": self.cache.size,
-                "diagnosis_scenes": len(self.diagnoses), "answer_bytes": self.answers.held,
-                "cache_hits": self.cache.hits,
-                "renders": self.renders}
+        return {
+            "worker": os.getpid(),
+            "cache_entries": len(self.cache),
+            "cache_bytes": self.cache.size,
+            "diagnosis_scenes": len(self.diagnoses),
+            "answer_bytes": self.answers.held,
+            "cache_hits": self.cache.hits,
+            "renders": self.renders,
+        }
 
 
-def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted: np.ndarray,
-                 seconds: float) -> Graded:
+def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted: np.ndarray, seconds: float) -> Graded:
     """A diagnosis on a Dask worker (:meth:`RenderService.explain`), within ``seconds`` of its start there; one
     that runs past them says so, as the service's own does."""
     from schemas import load_scene
 
     deadline = time.monotonic() + seconds
     try:
-        return explain(load_scene(scene), graded, reference, submitted,
-                       run=Run(1, cancel=lambda: time.monotonic() > deadline))
+        return explain(
+            load_scene(scene), graded, reference, submitted, run=Run(1, cancel=lambda: time.monotonic() > deadline)
+        )
     except RenderCancelled:
         return replace(graded, diagnosis=unavailable(f"its renders ran past the limit render_timeout = {seconds:g} s"))

@@ -23,14 +23,24 @@ ASGIApp = Callable[..., Any]
 DRAINS = 4
 
 
-async def _send_json(send: Callable[..., Any], status: int, detail: str, headers: list | None = None,
-                     close: bool = False) -> None:
+async def _send_json(
+    send: Callable[..., Any], status: int, detail: str, headers: list | None = None, close: bool = False
+) -> None:
     """A JSON error; ``close`` when the rest of the request will not be read (the connection cannot be reused)."""
     body = json.dumps({"detail": detail}).encode()
     extra = [(b"connection", b"close")] if close else []
-    await send({"type": "http.response.start", "status": status,
-                "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
-                            *extra, *(headers or [])]})
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status,
+            "headers": [
+                (b"content-type", b"application/json"),
+                (b"content-length", str(len(body)).encode()),
+                *extra,
+                *(headers or []),
+            ],
+        }
+    )
     await send({"type": "http.response.body", "body": body})
 
 
@@ -46,8 +56,13 @@ class Framing:
         if scope["type"] == "http":
             names = {name for name, _ in scope.get("headers", [])}
             if b"content-length" in names and b"transfer-encoding" in names:
-                await _send_json(send, 400, "the request has both Content-Length and Transfer-Encoding headers; "
-                                            "send exactly one of them (RFC 9112 section 6.1)", close=True)
+                await _send_json(
+                    send,
+                    400,
+                    "the request has both Content-Length and Transfer-Encoding headers; "
+                    "send exactly one of them (RFC 9112 section 6.1)",
+                    close=True,
+                )
                 return
         await self.app(scope, receive, send)
 
@@ -118,8 +133,16 @@ class BodyLimit:
     Each of these errors closes the connection: the rest of the request is not read.
     """
 
-    def __init__(self, app: ASGIApp, limit: Callable[[str], int], grace: float = 10.0, min_rate: float = 65536,
-                 budget: int = 1 << 62, wait: float = 5.0, retry_after: int = 1):
+    def __init__(
+        self,
+        app: ASGIApp,
+        limit: Callable[[str], int],
+        grace: float = 10.0,
+        min_rate: float = 65536,
+        budget: int = 1 << 62,
+        wait: float = 5.0,
+        retry_after: int = 1,
+    ):
         self.app = app
         self.limit = limit
         self.grace = grace
@@ -145,8 +168,12 @@ class BodyLimit:
                     await _send_json(send, 400, "invalid Content-Length", close=True)
                     return
                 if declared > limit:
-                    await _send_json(send, 413, f"request body of {declared} bytes exceeds the limit "
-                                                f"max_body_bytes = {limit}", close=True)
+                    await _send_json(
+                        send,
+                        413,
+                        f"request body of {declared} bytes exceeds the limit max_body_bytes = {limit}",
+                        close=True,
+                    )
                     return
             elif name == b"transfer-encoding":
                 framed = True
@@ -158,9 +185,14 @@ class BodyLimit:
                     await self._discard(receive, limit)
                 finally:
                     self.draining -= 1
-            await _send_json(send, 503, f"this worker holds as many request bodies as it may "
-                                        f"(max_buffered_bytes = {self.budget.total}); try again shortly",
-                             [(b"retry-after", str(self.retry_after).encode())], close=True)
+            await _send_json(
+                send,
+                503,
+                f"this worker holds as many request bodies as it may "
+                f"(max_buffered_bytes = {self.budget.total}); try again shortly",
+                [(b"retry-after", str(self.retry_after).encode())],
+                close=True,
+            )
             return
         try:
             await self._read_and_run(scope, receive, send, limit, too_large)
@@ -180,8 +212,9 @@ class BodyLimit:
                 continue
             return
 
-    async def _read_and_run(self, scope: Scope, receive: Callable[..., Any], send: Callable[..., Any], limit: int,
-                            too_large: str) -> None:
+    async def _read_and_run(
+        self, scope: Scope, receive: Callable[..., Any], send: Callable[..., Any], limit: int, too_large: str
+    ) -> None:
         chunks: deque[bytes] = deque()
         size = 0
         started = time.monotonic()
@@ -190,8 +223,13 @@ class BodyLimit:
             with anyio.move_on_after(max(due - time.monotonic(), 0.0)) as waiting:
                 message = await receive()
             if waiting.cancelled_caught:
-                await _send_json(send, 408, f"the request body arrived too slowly (body_timeout = {self.grace:g} s, "
-                                            f"then body_min_rate = {self.min_rate:g} bytes per second)", close=True)
+                await _send_json(
+                    send,
+                    408,
+                    f"the request body arrived too slowly (body_timeout = {self.grace:g} s, "
+                    f"then body_min_rate = {self.min_rate:g} bytes per second)",
+                    close=True,
+                )
                 return
             if message["type"] != "http.request":
                 return  # the client went away before sending its body
@@ -261,7 +299,11 @@ class ApiKey:
             return
         given = credential(scope.get("headers", []))
         if given is None or not hmac.compare_digest(given, self.key):
-            await _send_json(send, 401, "missing or wrong API key (send exactly one of 'Authorization: Bearer KEY' "
-                                        "and 'X-API-Key: KEY')", [(b"www-authenticate", b"Bearer")])
+            await _send_json(
+                send,
+                401,
+                "missing or wrong API key (send exactly one of 'Authorization: Bearer KEY' and 'X-API-Key: KEY')",
+                [(b"www-authenticate", b"Bearer")],
+            )
             return
         await self.app(scope, receive, send)

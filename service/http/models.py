@@ -36,31 +36,45 @@ class GradeAnswer(BaseModel):
     psnr: float | None = Field(description="dB; null for identical images")
     max_error: int
     fraction_off: float = Field(description="pixels off by more than the tolerance")
-    fraction_off_nearby: float = Field(description="pixels off against every reference pixel of their 3×3 "
-                                                   "neighbourhood: the ones the verdict counts")
+    fraction_off_nearby: float = Field(
+        description="pixels off against every reference pixel of their 3×3 neighbourhood: the ones the verdict counts"
+    )
     width: int
     height: int
     reference_sha256: str
     reason: str = Field(description="why it failed, in words; empty when it passed")
-    diagnosis: Diagnosis | None = Field(description="what the student most likely got wrong; null when it "
-                                                    "passed or diagnose=false")
-    accepted: str | None = Field(None, examples=["a 1e-3 ray offset"],
-                                 description="the accepted variant of the reference it passed against (an "
-                                             "honest tracer's ray offset); null when it passed against the "
-                                             "reference itself, or failed")
+    diagnosis: Diagnosis | None = Field(
+        description="what the student most likely got wrong; null when it passed or diagnose=false"
+    )
+    accepted: str | None = Field(
+        None,
+        examples=["a 1e-3 ray offset"],
+        description="the accepted variant of the reference it passed against (an "
+        "honest tracer's ray offset); null when it passed against the "
+        "reference itself, or failed",
+    )
 
 
 class Cause(BaseModel):
-    variant: str = Field(examples=["no-shadows"], description="a mistake's id; for a nearest explanation that is "
-                                                              "a term, term:NAME or term:NAME:LIGHT")
+    variant: str = Field(
+        examples=["no-shadows"],
+        description="a mistake's id; for a nearest explanation that is a term, term:NAME or term:NAME:LIGHT",
+    )
     mistake: str = Field(examples=["no shadow rays"])
-    fraction_off_nearby: float = Field(description="the submission graded against the reference rendered with "
-                                                   "the mistake (with the others of a combination)")
+    fraction_off_nearby: float = Field(
+        description="the submission graded against the reference rendered with "
+        "the mistake (with the others of a combination)"
+    )
     passes: bool = Field(description="the submission passes against that render")
-    together: list[str] | None = Field(None, description="the other mistakes it was rendered with (mistakes made "
-                                                         "together); absent for a single mistake")
-    share: float | None = Field(None, description="of the submission's difference from the reference, what this "
-                                                  "accounts for (a combination's or a nearest explanation's)")
+    together: list[str] | None = Field(
+        None,
+        description="the other mistakes it was rendered with (mistakes made together); absent for a single mistake",
+    )
+    share: float | None = Field(
+        None,
+        description="of the submission's difference from the reference, what this "
+        "accounts for (a combination's or a nearest explanation's)",
+    )
     evidence: str | None = Field(None, description="why it is named, in words")
 
 
@@ -68,8 +82,9 @@ class Term(BaseModel):
     name: Literal["background", "ambient", "diffuse", "specular", "reflection", "refraction"]
     light: int | None = Field(description="the index in lights of a light's own term")
     scale: float = Field(description="the fitted coefficient against the reference's term: 1 is right")
-    share: float | None = Field(None, description="of the submission's difference from the reference, what this "
-                                                  "term accounts for")
+    share: float | None = Field(
+        None, description="of the submission's difference from the reference, what this term accounts for"
+    )
     words: str = Field("", examples=["the specular of light 'key' is missing"], description="for a student")
 
 
@@ -77,13 +92,20 @@ class Share(BaseModel):
     index: int = Field(description="the index in objects (or lights); -1 for the background")
     kind: str
     share: float = Field(description="of the failing pixels")
-    words: str = Field("", examples=["sphere 'ball'", "the third light (area)"],
-                       description="for a student: its name in quotes, else its place and kind")
+    words: str = Field(
+        "",
+        examples=["sphere 'ball'", "the third light (area)"],
+        description="for a student: its name in quotes, else its place and kind",
+    )
 
 
 class Diagnosis(BaseModel):
-    sentence: str = Field(examples=["Likely: no shadow rays — the submission matches the reference rendered "
-                                    "with that mistake (0.02 % of pixels off)"])
+    sentence: str = Field(
+        examples=[
+            "Likely: no shadow rays — the submission matches the reference rendered "
+            "with that mistake (0.02 % of pixels off)"
+        ]
+    )
     closest: bool = Field(description="the first cause is only the closest, not passed against")
     causes: list[Cause] = Field(description="the mistakes whose render the submission matches, best first")
     terms: list[Term] = Field(description="the additive terms out of scale, most first")

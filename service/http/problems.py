@@ -22,14 +22,21 @@ ERRORS: dict[int | str, dict[str, Any]] = {
     413: {"description": "a limit was exceeded", "model": ErrorAnswer},
     415: {"description": "wrong content type", "model": ErrorAnswer},
     422: {"description": "invalid scene or image, with every problem", "model": ErrorAnswer},
-    503: {"description": "every render slot is busy, or the render ran past its time", "model": ErrorAnswer}}
+    503: {"description": "every render slot is busy, or the render ran past its time", "model": ErrorAnswer},
+}
 
 
 class HTTPProblem(Exception):
     """An error answer; ``part`` names the form part it concerns (``"image"``: the submission, not the scene)."""
 
-    def __init__(self, status: int, detail: str, errors: list[dict[str, Any]] | None = None,
-                 headers: dict[str, str] | None = None, part: str | None = None):
+    def __init__(
+        self,
+        status: int,
+        detail: str,
+        errors: list[dict[str, Any]] | None = None,
+        headers: dict[str, str] | None = None,
+        part: str | None = None,
+    ):
         self.status, self.detail, self.errors, self.headers, self.part = status, detail, errors, headers, part
 
 
@@ -84,11 +91,16 @@ def prepared(body: bytes | str, overrides: dict[str, int | None], service: Rende
 def unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
     """503 with Retry-After for a render that cannot be had now: the slots busy, past its time, no cluster."""
     settings = service.settings
-    detail = (f"the pass answers this worker holds leave no room for this one now (max_answer_bytes = "
-              f"{settings.max_answer_bytes}); try again shortly" if isinstance(exc, AnswersFull) else
-              "the render ran out of memory beside this worker's other work; try again shortly"
-              if isinstance(exc, OutOfMemory) else
-              "every render slot is busy; try again shortly" if isinstance(exc, Busy) else
-              f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
-              if isinstance(exc, TooSlow) else "the render cluster cannot be reached; try again shortly")
+    detail = (
+        f"the pass answers this worker holds leave no room for this one now (max_answer_bytes = "
+        f"{settings.max_answer_bytes}); try again shortly"
+        if isinstance(exc, AnswersFull)
+        else "the render ran out of memory beside this worker's other work; try again shortly"
+        if isinstance(exc, OutOfMemory)
+        else "every render slot is busy; try again shortly"
+        if isinstance(exc, Busy)
+        else f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
+        if isinstance(exc, TooSlow)
+        else "the render cluster cannot be reached; try again shortly"
+    )
     return HTTPProblem(503, detail, headers={"Retry-After": str(settings.retry_after)})

@@ -113,7 +113,15 @@ def serve(host: str, port: int, workers: int) -> None:
     the fewest (:mod:`service.balance`)."""
     settings = Settings.from_env()
     with balance.board_for(workers) as board:
-        uvicorn.run("service.http.server:worker_app", factory=True, host=host, port=port, workers=workers,
-                    http=Protocol, log_level="info", timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
-                    limit_concurrency=settings.max_connections,
-                    loop="service.balance:balanced_loop" if board is not None else "auto")
+        uvicorn.run(
+            "service.http.server:worker_app",
+            factory=True,
+            host=host,
+            port=port,
+            workers=workers,
+            http=Protocol,
+            log_level="info",
+            timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
+            limit_concurrency=settings.max_connections,
+            loop="service.balance:balanced_loop" if board is not None else "auto",
+        )

@@ -136,9 +136,17 @@ class Streamed(Response):
         assert file is not None
         self.file = None
         try:
-            await send({"type": "http.response.start", "status": 200, "headers": [
-                (b"content-type", file.media.encode()), (b"content-length", str(file.size).encode()),
-                (b"cache-control", b"no-cache")]})
+            await send(
+                {
+                    "type": "http.response.start",
+                    "status": 200,
+                    "headers": [
+                        (b"content-type", file.media.encode()),
+                        (b"content-length", str(file.size).encode()),
+                        (b"cache-control", b"no-cache"),
+                    ],
+                }
+            )
             for piece in file.chunks():
                 with anyio.move_on_after(self.timeout) as waiting:
                     await send({"type": "http.response.body", "body": piece, "more_body": True})

@@ -9,5 +9,16 @@ from .outcome import Reason, RunOutcome
 from .runner import BuildStep, Built, ProgramRun, build_program, check_sandbox, command_argv, run_program
 from .sandbox import SandboxUnavailable
 
-__all__ = ["BuildStep", "Built", "Limits", "ProgramRun", "Reason", "RunOutcome", "SandboxUnavailable",
-           "build_program", "check_sandbox", "command_argv", "run_program"]
+__all__ = [
+    "BuildStep",
+    "Built",
+    "Limits",
+    "ProgramRun",
+    "Reason",
+    "RunOutcome",
+    "SandboxUnavailable",
+    "build_program",
+    "check_sandbox",
+    "command_argv",
+    "run_program",
+]

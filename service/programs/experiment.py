@@ -71,10 +71,15 @@ def matches(reference: bytes, image: bytes, scene: bytes, limits: Thresholds) ->
     from .. import grading, pipeline
 
     try:
-        graded = pipeline.grade_png(reference, image, limits.tolerance, limits.max_fraction,
-                                    explaining=pipeline.Explaining(lambda: load_scene(scene),
-                                                                   pipeline.Checks(limits.accepted, diagnose=False),
-                                                                   pipeline.Run(threads=1)))
+        graded = pipeline.grade_png(
+            reference,
+            image,
+            limits.tolerance,
+            limits.max_fraction,
+            explaining=pipeline.Explaining(
+                lambda: load_scene(scene), pipeline.Checks(limits.accepted, diagnose=False), pipeline.Run(threads=1)
+            ),
+        )
     except grading.ImageError:
         return False
     return graded.grade.passed
@@ -106,13 +111,11 @@ def ask(probe: Probe, run: Callable[[bytes], RunOutcome], limits: Thresholds) ->
     reference = render_png(scene)
     if matches(reference, outcome.image, scene, limits):
         return Answer(probe, "right")
-    in_ramp = probe.region is not None and _in_ramp(reference, outcome.image, render_png(text(probe.region)),
-                                                    limits)
+    in_ramp = probe.region is not None and _in_ramp(reference, outcome.image, render_png(text(probe.region)), limits)
     return Answer(probe, "wrong", in_ramp)
 
 
-def experiment(scene: bytes, image: bytes | None, run: Callable[[bytes], RunOutcome], limits: Thresholds
-               ) -> Experiment:
+def experiment(scene: bytes, image: bytes | None, run: Callable[[bytes], RunOutcome], limits: Thresholds) -> Experiment:
     """Ask a failing pair's program the probes of its task's ``scene`` (its text), ``image`` being what it
     rendered of the task (None when the run failed), and say what the answers show."""
     parsed = json.loads(scene)
@@ -135,8 +138,7 @@ def _left_out(answers: list[Answer], image: bytes, limits: Thresholds) -> set[st
 
 
 #: a term taken out by a probe, in a sentence
-TERM_WORDS = {"reflectance": "reflection", "transmittance": "refraction", "diffuse": "diffuse",
-              "specular": "specular"}
+TERM_WORDS = {"reflectance": "reflection", "transmittance": "refraction", "diffuse": "diffuse", "specular": "specular"}
 #: the probe that takes out each of mirrors and glass: with the other one's probe, they say which is wrong
 WITHOUT = {"reflectance": "no mirrors", "transmittance": "no glass"}
 
@@ -174,9 +176,11 @@ def _lights(answers: list[Answer]) -> list[str]:
 
 
 def _terms(by_name: dict[str, Answer]) -> str | None:
-    words = [f"{TERM_WORDS[by_name[name].probe.subject]} {by_name[name].verdict}"
-             for name in ("diffuse only", "specular only")
-             if name in by_name and by_name[name].verdict in ("right", "wrong")]
+    words = [
+        f"{TERM_WORDS[by_name[name].probe.subject]} {by_name[name].verdict}"
+        for name in ("diffuse only", "specular only")
+        if name in by_name and by_name[name].verdict in ("right", "wrong")
+    ]
     return ", ".join(words) if any(w.endswith("wrong") for w in words) else None
 
 
@@ -189,8 +193,7 @@ def sentences(answers: list[Answer], left_out: set[str]) -> list[str]:
     camera = by_name.get("the camera moved")
     others = [a for a in answers if a is not camera]
     if camera is not None and camera.verdict == "wrong" and all(a.verdict == "right" for a in others):
-        said.append("your program's image is wrong once the camera moves: it follows the task's picture, "
-                    "not the scene")
+        said.append("your program's image is wrong once the camera moves: it follows the task's picture, not the scene")
     failed = [a for a in answers if a.verdict not in ("right", "wrong")]
     if failed:
         said.append(f"on the probe '{failed[0].probe.name}' the program's run failed: {failed[0].detail}")

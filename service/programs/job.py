@@ -64,14 +64,23 @@ def run_info(outcome: RunOutcome) -> dict[str, Any]:
     """A run's end as a grade keeps it, plain values only: ``run`` (its reason's word: ``ok``, ``timeout``,
     ...), ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold
     what the program read of a hidden scene), ``run_seconds`` and ``run_warning`` (a run without a sandbox)."""
-    return {"run": str(outcome.reason), "run_output": outcome.stderr_tail[-OUTPUT_KEPT:],
-            "run_seconds": round(outcome.wall_seconds, 3), "run_warning": outcome.warning}
+    return {
+        "run": str(outcome.reason),
+        "run_output": outcome.stderr_tail[-OUTPUT_KEPT:],
+        "run_seconds": round(outcome.wall_seconds, 3),
+        "run_warning": outcome.warning,
+    }
 
 
 def failed_run(outcome: RunOutcome, what: str = "the run") -> dict[str, Any]:
     """The grade of a pair whose run (or build) failed: a failing pair, its reason in words."""
-    return {"status": "fail", "passed": False, "reason": f"{what} failed: {outcome.reason}: {outcome.detail}",
-            "diagnosis": None, **run_info(outcome)}
+    return {
+        "status": "fail",
+        "passed": False,
+        "reason": f"{what} failed: {outcome.reason}: {outcome.detail}",
+        "diagnosis": None,
+        **run_info(outcome),
+    }
 
 
 def _grade_image(task: TaskScene, image: bytes) -> dict[str, Any]:
@@ -82,6 +91,7 @@ def _grade_image(task: TaskScene, image: bytes) -> dict[str, Any]:
 
 def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunOutcome]:
     """Run the program on a scene's text, written as ``name`` (the task's file name) for it to read."""
+
     def run(scene: bytes) -> RunOutcome:
         with tempfile.TemporaryDirectory(prefix="phongray-scene-") as place:
             path = Path(place, name)
@@ -125,8 +135,7 @@ def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
         if folder is None:
             assert failed is not None
             return {task.task: failed_run(failed, "the build") for task in job.tasks}
-        return {task.task: grade_run(task, _runner(folder, job.program, f"{task.task}.json"))
-                for task in job.tasks}
+        return {task.task: grade_run(task, _runner(folder, job.program, f"{task.task}.json")) for task in job.tasks}
 
 
 def digest(folder: Path, program: Program) -> str:

@@ -33,8 +33,15 @@ class Limits:
     stderr_bytes: int = 4096
 
     def __post_init__(self) -> None:
-        for name in ("memory_bytes", "processes", "wall_seconds", "cpu_seconds", "output_bytes", "folder_bytes",
-                     "stderr_bytes"):
+        for name in (
+            "memory_bytes",
+            "processes",
+            "wall_seconds",
+            "cpu_seconds",
+            "output_bytes",
+            "folder_bytes",
+            "stderr_bytes",
+        ):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, not {getattr(self, name)!r}")
 
@@ -42,9 +49,15 @@ class Limits:
         """``prlimit`` (util-linux) setting these limits, soft and hard, on the command that follows it.  The CPU
         limit's hard value is one second above the soft one, so a program first gets ``SIGXCPU`` (which
         :mod:`service.programs.outcome` names) and is killed a second later if it ignores it."""
-        return ["prlimit", f"--as={self.memory_bytes}", f"--nproc={self.processes}",
-                f"--cpu={self.cpu_seconds}:{self.cpu_seconds + 1}", f"--fsize={self.output_bytes}",
-                "--core=0", "--"]
+        return [
+            "prlimit",
+            f"--as={self.memory_bytes}",
+            f"--nproc={self.processes}",
+            f"--cpu={self.cpu_seconds}:{self.cpu_seconds + 1}",
+            f"--fsize={self.output_bytes}",
+            "--core=0",
+            "--",
+        ]
 
     @property
     def workdir_bytes(self) -> int:

@@ -66,10 +66,12 @@ def _value(material: dict[str, Any], key: str, default: float) -> float:
 #: the scene format's defaults of the terms a probe sets
 DEFAULTS = {"ambient": 0.3, "diffuse": 0.5, "specular": 0.8, "reflectance": 0.0, "transmittance": 0.0}
 #: each term probe: its name, the term it isolates, and the material keys it sets to zero
-TERMS = (("diffuse only", "diffuse", ("ambient", "specular", "reflectance", "transmittance")),
-         ("specular only", "specular", ("ambient", "diffuse", "reflectance", "transmittance")),
-         ("no glass", "transmittance", ("transmittance",)),
-         ("no mirrors", "reflectance", ("reflectance",)))
+TERMS = (
+    ("diffuse only", "diffuse", ("ambient", "specular", "reflectance", "transmittance")),
+    ("specular only", "specular", ("ambient", "diffuse", "reflectance", "transmittance")),
+    ("no glass", "transmittance", ("transmittance",)),
+    ("no mirrors", "reflectance", ("reflectance",)),
+)
 
 
 def _has(scene: Scene, key: str) -> bool:
@@ -86,8 +88,7 @@ def _zeroed(scene: Scene, keys: tuple[str, ...]) -> Scene:
 def _term_probes(scene: Scene) -> list[Probe]:
     """The terms the scene has: ``diffuse only`` and ``specular only`` where a material has that term, ``no
     glass`` where one is glass (the mirrors then shown without it), ``no mirrors`` where one is a mirror."""
-    return [Probe(name, Kind.TERM, term, _zeroed(scene, keys)) for name, term, keys in TERMS
-            if _has(scene, term)]
+    return [Probe(name, Kind.TERM, term, _zeroed(scene, keys)) for name, term, keys in TERMS if _has(scene, term)]
 
 
 def light_label(light: dict[str, Any], index: int) -> str:
@@ -136,4 +137,4 @@ def probes(scene: Scene) -> list[Probe]:
     picture fails."""
     found = _term_probes(scene) + _light_probes(scene)
     camera = Probe("the camera moved", Kind.CAMERA, "camera", _turned(scene))
-    return [*found[:MAX_PROBES - 1], camera]
+    return [*found[: MAX_PROBES - 1], camera]

@@ -81,7 +81,7 @@ class _Tail:
 
     def read(self, pipe: IO[bytes]) -> None:
         while chunk := pipe.read1(CHUNK):  # type: ignore[attr-defined]
-            self.data = (self.data + chunk)[-self.limit:]
+            self.data = (self.data + chunk)[-self.limit :]
         pipe.close()
 
 
@@ -105,9 +105,16 @@ TEARDOWN_SECONDS = 30.0
 def _start(command: Command) -> subprocess.Popen[bytes]:
     fds = () if command.info is None else (command.info[1],)
     try:
-        return subprocess.Popen(command.argv, cwd=command.cwd, env=command.env, stdin=subprocess.DEVNULL,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
-                                pass_fds=fds)
+        return subprocess.Popen(
+            command.argv,
+            cwd=command.cwd,
+            env=command.env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            start_new_session=True,
+            pass_fds=fds,
+        )
     finally:
         if command.info is not None:
             os.close(command.info[1])
@@ -179,8 +186,10 @@ def _watch(group: _Group, head: _Head, stop: threading.Event, wall: float) -> th
 
 def _read(proc: subprocess.Popen[bytes], head: _Head, tail: _Tail) -> list[threading.Thread]:
     assert proc.stdout is not None and proc.stderr is not None
-    readers = [threading.Thread(target=head.read, args=(proc.stdout,), daemon=True),
-               threading.Thread(target=tail.read, args=(proc.stderr,), daemon=True)]
+    readers = [
+        threading.Thread(target=head.read, args=(proc.stdout,), daemon=True),
+        threading.Thread(target=tail.read, args=(proc.stderr,), daemon=True),
+    ]
     for reader in readers:
         reader.start()
     return readers

@@ -39,5 +39,7 @@ def _installed(command: str) -> None:
     system's ``/usr`` is what a sandboxed program sees, so a name missing here is missing for every student."""
     first = command_argv(command)[0]
     if "/" not in first and "{" not in first and shutil.which(first, path=ENVIRONMENT["PATH"]) is None:
-        raise ValueError(f"command {command!r}: no program {first!r} in {ENVIRONMENT['PATH']} (what a student's "
-                         f"program finds in its sandbox); install it, or name it by its path")
+        raise ValueError(
+            f"command {command!r}: no program {first!r} in {ENVIRONMENT['PATH']} (what a student's "
+            f"program finds in its sandbox); install it, or name it by its path"
+        )

@@ -82,6 +82,7 @@ class Built:
 
 def _remove(root: Path) -> None:
     """Remove ``root`` and everything in it, also folders a program made unreadable (without a sandbox)."""
+
     def retry(function: Callable[[str], object], path: str, _exc: object) -> None:
         os.chmod(os.path.dirname(path), stat.S_IRWXU)
         function(path)
@@ -106,8 +107,7 @@ def _prepare(root: Path, folder: Path, scene: Path | None, limits: Limits) -> Mo
         shutil.copyfile(scene, root / "scene.json")
     output = root / "output.png"
     output.touch(mode=0o600)
-    return Mounts(root / "submission", root / "scene.json" if scene else None, scene.name if scene else "",
-                  output)
+    return Mounts(root / "submission", root / "scene.json" if scene else None, scene.name if scene else "", output)
 
 
 @dataclass(frozen=True)
@@ -126,13 +126,25 @@ def _command(session: _Session, words: list[str], body: str) -> Command:
     shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
     if not session.sandbox:
         env = {**ENVIRONMENT, "HOME": str(session.mounts.submission)}
-        return Command([*prefix, *shell], str(session.mounts.submission), env, limits.wall_seconds,
-                       limits.workdir_bytes, limits.stderr_bytes)
+        return Command(
+            [*prefix, *shell],
+            str(session.mounts.submission),
+            env,
+            limits.wall_seconds,
+            limits.workdir_bytes,
+            limits.stderr_bytes,
+        )
     bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
     info = os.pipe()
-    return Command([*prefix, *bwrap, "--info-fd", str(info[1]), *shell], "/",
-                   {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}, limits.wall_seconds, limits.workdir_bytes,
-                   limits.stderr_bytes, info)
+    return Command(
+        [*prefix, *bwrap, "--info-fd", str(info[1]), *shell],
+        "/",
+        {"PATH": os.environ.get("PATH", "/usr/bin:/bin")},
+        limits.wall_seconds,
+        limits.workdir_bytes,
+        limits.stderr_bytes,
+        info,
+    )
 
 
 def _execute(session: _Session, words: list[str], body: str) -> Finished:
@@ -143,8 +155,9 @@ def _execute(session: _Session, words: list[str], body: str) -> Finished:
     return finished
 
 
-def _outcome(reason: Reason, detail: str, finished: Finished | None, warning: str | None,
-             image: bytes | None = None) -> RunOutcome:
+def _outcome(
+    reason: Reason, detail: str, finished: Finished | None, warning: str | None, image: bytes | None = None
+) -> RunOutcome:
     if finished is None:
         return RunOutcome(reason, detail, warning=warning)
     tail, cpu = split_times(finished.stderr_tail, finished.cpu_seconds)

@@ -44,10 +44,14 @@ class SandboxUnavailable(Exception):
     """A run is to be sandboxed and cannot be: bubblewrap is not installed, or cannot start a sandbox here."""
 
 
-MISSING = ("bubblewrap (bwrap) is not installed, and students' programs only run in its sandbox: install it "
-           "(apt-get install bubblewrap), or run them unsandboxed on purpose (--no-sandbox)")
-UNSANDBOXED = ("WARNING: run without a sandbox: the program could read and write anything this user can, "
-               "and use the network; only its limits applied")
+MISSING = (
+    "bubblewrap (bwrap) is not installed, and students' programs only run in its sandbox: install it "
+    "(apt-get install bubblewrap), or run them unsandboxed on purpose (--no-sandbox)"
+)
+UNSANDBOXED = (
+    "WARNING: run without a sandbox: the program could read and write anything this user can, "
+    "and use the network; only its limits applied"
+)
 
 
 def find_bwrap() -> str:
@@ -108,13 +112,42 @@ def _environment() -> list[str]:
 
 def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
     """bubblewrap's arguments up to the command it runs (see the module's docstring for what they show)."""
-    args = [bwrap, "--unshare-all", "--unshare-user", "--disable-userns", "--die-with-parent", "--new-session",
-            "--hostname", "sandbox", *_environment(), *_system(),
-            "--proc", "/proc", "--dev", "/dev",
-            "--size", str(limits.output_bytes), "--tmpfs", "/tmp",
-            "--size", str(limits.output_bytes), "--tmpfs", "/dev/shm",
-            "--perms", "0700", "--size", str(limits.workdir_bytes), "--tmpfs", HOME,
-            "--ro-bind", str(mounts.submission), SUBMISSION, "--bind", str(mounts.output), OUTPUT]
+    args = [
+        bwrap,
+        "--unshare-all",
+        "--unshare-user",
+        "--disable-userns",
+        "--die-with-parent",
+        "--new-session",
+        "--hostname",
+        "sandbox",
+        *_environment(),
+        *_system(),
+        "--proc",
+        "/proc",
+        "--dev",
+        "/dev",
+        "--size",
+        str(limits.output_bytes),
+        "--tmpfs",
+        "/tmp",
+        "--size",
+        str(limits.output_bytes),
+        "--tmpfs",
+        "/dev/shm",
+        "--perms",
+        "0700",
+        "--size",
+        str(limits.workdir_bytes),
+        "--tmpfs",
+        HOME,
+        "--ro-bind",
+        str(mounts.submission),
+        SUBMISSION,
+        "--bind",
+        str(mounts.output),
+        OUTPUT,
+    ]
     if mounts.scene is not None:
         args += ["--ro-bind", str(mounts.scene), f"{SCENE_DIR}/{mounts.scene_name}"]
     return [*args, "--remount-ro", "/dev", "--remount-ro", "/", "--chdir", HOME]

@@ -57,8 +57,16 @@ def colour(value):
 
 
 def material(given):
-    m = {"ambient": 0.3, "diffuse": 0.5, "specular": 0.8, "shininess": 100, "reflectance": 0, "transmittance": 0,
-         "ior": 1.5, **given}
+    m = {
+        "ambient": 0.3,
+        "diffuse": 0.5,
+        "specular": 0.8,
+        "shininess": 100,
+        "reflectance": 0,
+        "transmittance": 0,
+        "ior": 1.5,
+        **given,
+    }
     for key in ("ambient", "diffuse", "specular"):
         m[key] = colour(m[key])
     return m
@@ -197,8 +205,12 @@ def write_png(path, width, height, data):
         return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
 
     with open(path, "wb") as out:
-        out.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
-                  + chunk(b"IDAT", zlib.compress(data)) + chunk(b"IEND", b""))
+        out.write(
+            b"\x89PNG\r\n\x1a\n"
+            + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(data))
+            + chunk(b"IEND", b"")
+        )
 
 
 def main():

@@ -24,26 +24,60 @@ from tracer.memory import release
 
 router = APIRouter()
 
-GRADE_BODY = {"requestBody": {"required": True, "content": {"multipart/form-data": {"schema": {
-    "type": "object", "required": ["scene", "image"],
-    "properties": {"scene": {"type": "string", "description": "the scene, as JSON text or a JSON file",
-                             "example": EXAMPLE_TEXT},
-                   "image": {"type": "string", "format": "binary", "description": "the submitted PNG"},
-                   "tolerance": {"type": "number", "minimum": 0, "maximum": 255, "default": 2},
-                   "max_fraction": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.001},
-                   "diagnose": {"type": "boolean", "default": True,
-                                "description": "name the likely mistake of a failing image (renders the scene "
-                                               "once per classic mistake, in a render slot)"}}}}}}}
+GRADE_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "multipart/form-data": {
+                "schema": {
+                    "type": "object",
+                    "required": ["scene", "image"],
+                    "properties": {
+                        "scene": {
+                            "type": "string",
+                            "description": "the scene, as JSON text or a JSON file",
+                            "example": EXAMPLE_TEXT,
+                        },
+                        "image": {"type": "string", "format": "binary", "description": "the submitted PNG"},
+                        "tolerance": {"type": "number", "minimum": 0, "maximum": 255, "default": 2},
+                        "max_fraction": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.001},
+                        "diagnose": {
+                            "type": "boolean",
+                            "default": True,
+                            "description": "name the likely mistake of a failing image (renders the scene "
+                            "once per classic mistake, in a render slot)",
+                        },
+                    },
+                }
+            }
+        },
+    }
+}
 
 
-@router.post("/grade", openapi_extra=GRADE_BODY, summary="Grade a submitted PNG against the reference render",
-             response_model=None, responses={200: {"model": GradeAnswer, "content": {"image/png": {}}, "description":
-                                                   "the grade, or with format=png the heat-map"}, **ERRORS})
-async def grade(request: Request, format: Literal["json", "png"] = "json",
-                heatmap: Annotated[Kind, Query(description="verdict: the pixels that decided the grade, brighter "
-                                                           "and darker; raw: the plain difference")] = "verdict",
-                legend: Annotated[bool, Query(description="a band beneath the heat-map naming its colours")] = True,
-                ) -> Response:
+@router.post(
+    "/grade",
+    openapi_extra=GRADE_BODY,
+    summary="Grade a submitted PNG against the reference render",
+    response_model=None,
+    responses={
+        200: {
+            "model": GradeAnswer,
+            "content": {"image/png": {}},
+            "description": "the grade, or with format=png the heat-map",
+        },
+        **ERRORS,
+    },
+)
+async def grade(
+    request: Request,
+    format: Literal["json", "png"] = "json",
+    heatmap: Annotated[
+        Kind,
+        Query(description="verdict: the pixels that decided the grade, brighter and darker; raw: the plain difference"),
+    ] = "verdict",
+    legend: Annotated[bool, Query(description="a band beneath the heat-map naming its colours")] = True,
+) -> Response:
     service: RenderService = request.app.state.service
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind not in ("multipart/form-data", "application/x-www-form-urlencoded"):
@@ -64,19 +98,28 @@ async def grade(request: Request, format: Literal["json", "png"] = "json",
     diagnose = _flag(form.get("diagnose"), "diagnose", True)
     settings = service.settings
     if len(scene_text) > settings.max_body_bytes:
-        raise HTTPProblem(413, f"scene: {len(scene_text)} bytes exceed the limit max_body_bytes = "
-                               f"{settings.max_body_bytes}")
+        raise HTTPProblem(
+            413, f"scene: {len(scene_text)} bytes exceed the limit max_body_bytes = {settings.max_body_bytes}"
+        )
     if len(image) > settings.max_image_bytes:
-        raise HTTPProblem(413, f"image: {len(image)} bytes exceed the limit max_image_bytes = "
-                               f"{settings.max_image_bytes}", part="image")
+        raise HTTPProblem(
+            413,
+            f"image: {len(image)} bytes exceed the limit max_image_bytes = {settings.max_image_bytes}",
+            part="image",
+        )
     job = await anyio.to_thread.run_sync(prepared, scene_text, {}, service, limiter=service.parsing)
     size = (job.scene.image.width, job.scene.image.height)
     # the submission is checked (and decoded) before any rendering is spent on it; decoding and comparing
     # run on pool threads, a bounded number at once
     decoded = [await anyio.to_thread.run_sync(_read_image, image, size, limiter=service.grading)]
     png = await rendered(request, job)
-    asked = Comparison(tolerance, max_fraction, heatmap if format == "png" else None, legend,
-                       job if diagnose and format == "json" else None)
+    asked = Comparison(
+        tolerance,
+        max_fraction,
+        heatmap if format == "png" else None,
+        legend,
+        job if diagnose and format == "json" else None,
+    )
 
     def work(gone: Callable[[], bool]) -> Response:
         return _compare(png, decoded, asked, service, gone)
@@ -108,16 +151,18 @@ class Comparison:
     explain: Job | None
 
 
-def _compare(png: bytes, decoded: list[Any], asked: Comparison, service: RenderService,
-             gone: Callable[[], bool] = lambda: False) -> Response:
+def _compare(
+    png: bytes, decoded: list[Any], asked: Comparison, service: RenderService, gone: Callable[[], bool] = lambda: False
+) -> Response:
     """Grade the submission in ``decoded`` (taken out of it, so that nothing else holds its pixels) as ``asked``,
     or draw its heat-map, diagnose a failing grade of ``asked.explain``'s scene, and hand the memory of the images
     back to the OS before answering."""
     submitted = decoded.pop()
     try:
         reference = decode_png(png)
-        graded = pipeline.compare(png, submitted, asked.tolerance, asked.max_fraction, asked.heatmap, asked.legend,
-                                  reference=reference)
+        graded = pipeline.compare(
+            png, submitted, asked.tolerance, asked.max_fraction, asked.heatmap, asked.legend, reference=reference
+        )
         if asked.explain is not None:
             graded = service.explain(asked.explain, graded, reference, submitted, gone)
         if graded.heatmap is not None:

@@ -24,46 +24,79 @@ router = APIRouter()
 #: the request example: a real scene of examples/ (the one the package ships), so that "Try it out" renders
 EXAMPLE_TEXT = (Path(__file__).parents[2] / "static" / "example.json").read_text()
 
-SCENE_BODY = {"requestBody": {"required": True, "content": {"application/json": {
-    "schema": {"$ref": "#/components/schemas/Scene"}, "example": json.loads(EXAMPLE_TEXT)}}}}
+SCENE_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/json": {"schema": {"$ref": "#/components/schemas/Scene"}, "example": json.loads(EXAMPLE_TEXT)}
+        },
+    }
+}
 
 
-PassName = Literal["background", "ambient", "diffuse", "specular", "reflection", "refraction", "shadow", "normal",
-                   "depth", "object"]
+PassName = Literal[
+    "background", "ambient", "diffuse", "specular", "reflection", "refraction", "shadow", "normal", "depth", "object"
+]
 
-PASS_HELP = ("render one pass instead of the image: an additive term (background, ambient, diffuse, specular, "
-             "reflection, refraction; they sum to the image's linear value), a light's visibility (shadow), or "
-             "normal, depth, object for debugging")
+PASS_HELP = (
+    "render one pass instead of the image: an additive term (background, ambient, diffuse, specular, "
+    "reflection, refraction; they sum to the image's linear value), a light's visibility (shadow), or "
+    "normal, depth, object for debugging"
+)
 
 
 def _validate(body: bytes, service: RenderService) -> None:
     answering(lambda: validate_scene(parse_counted(body, service.settings)), body)
 
 
-@router.post("/render", openapi_extra=SCENE_BODY, responses={
-    200: {"content": {"image/png": {}, "application/x-npy": {}},
-          "description": "the image (or with pass, the pass as a PNG or a .npy array)"}, 304: {}, **ERRORS},
-             response_class=Response, summary="Render a scene to a PNG")
-async def render_scene(request: Request, width: Annotated[int | None, Query(ge=1)] = None,
-                       height: Annotated[int | None, Query(ge=1)] = None,
-                       samples: Annotated[int | None, Query(ge=1)] = None,
-                       pass_: Annotated[PassName | None, Query(alias="pass", description=PASS_HELP)] = None,
-                       light: Annotated[int | None, Query(ge=0, description="with pass: the index in lights of "
-                                                          "the one light whose diffuse, specular or shadow is "
-                                                          "shown (default: every light)")] = None,
-                       format: Annotated[Literal["png", "npy"], Query(description="with pass: a PNG to look "
-                                         "at, or the values as a NumPy .npy array")] = "png") -> Response:
+@router.post(
+    "/render",
+    openapi_extra=SCENE_BODY,
+    responses={
+        200: {
+            "content": {"image/png": {}, "application/x-npy": {}},
+            "description": "the image (or with pass, the pass as a PNG or a .npy array)",
+        },
+        304: {},
+        **ERRORS,
+    },
+    response_class=Response,
+    summary="Render a scene to a PNG",
+)
+async def render_scene(
+    request: Request,
+    width: Annotated[int | None, Query(ge=1)] = None,
+    height: Annotated[int | None, Query(ge=1)] = None,
+    samples: Annotated[int | None, Query(ge=1)] = None,
+    pass_: Annotated[PassName | None, Query(alias="pass", description=PASS_HELP)] = None,
+    light: Annotated[
+        int | None,
+        Query(
+            ge=0,
+            description="with pass: the index in lights of "
+            "the one light whose diffuse, specular or shadow is "
+            "shown (default: every light)",
+        ),
+    ] = None,
+    format: Annotated[
+        Literal["png", "npy"], Query(description="with pass: a PNG to look at, or the values as a NumPy .npy array")
+    ] = "png",
+) -> Response:
     require_json(request)
     if pass_ is None:  # (as the command line refuses --light or an .npy file without --pass; format=png, the
         # default, which the API page's "Try it out" sends with every render, asks for what a render gives)
         for option in ("format", "light"):
             if option in request.query_params and request.query_params.get(option) != "png":
-                raise HTTPProblem(422, f"{option}: applies to a render pass only; add pass=NAME (one of "
-                                       f"{', '.join(get_args(PassName))}) or leave {option} out")
+                raise HTTPProblem(
+                    422,
+                    f"{option}: applies to a render pass only; add pass=NAME (one of "
+                    f"{', '.join(get_args(PassName))}) or leave {option} out",
+                )
     service: RenderService = request.app.state.service
     body = await request.body()
-    job = await anyio.to_thread.run_sync(prepared, body, {"width": width, "height": height, "samples": samples},
-                                         service, limiter=service.parsing)
+    job = await anyio.to_thread.run_sync(
+        prepared, body, {"width": width, "height": height, "samples": samples}, service, limiter=service.parsing
+    )
     if pass_ is not None:
         return await _pass(request, job, PassRequest(pass_, light, format))
     headers = {"ETag": job.etag, "Cache-Control": "no-cache"}
@@ -100,8 +133,13 @@ async def _pass(request: Request, job: Job, asked: PassRequest) -> Response:
     return Streamed(made, service.settings.send_timeout, lambda: service.answers.give(held))
 
 
-@router.post("/validate", openapi_extra=SCENE_BODY, summary="Check a scene; list every error with its place",
-             response_model=ValidAnswer, responses={413: ERRORS[413], 415: ERRORS[415], 422: ERRORS[422]})
+@router.post(
+    "/validate",
+    openapi_extra=SCENE_BODY,
+    summary="Check a scene; list every error with its place",
+    response_model=ValidAnswer,
+    responses={413: ERRORS[413], 415: ERRORS[415], 422: ERRORS[422]},
+)
 async def validate(request: Request) -> dict[str, bool]:
     require_json(request)
     body = await request.body()
