@@ -3,10 +3,14 @@
 Three kinds of evidence, each from renders of the reference scene:
 
 * **Variants.** The reference rendered with each classic mistake
-  (:data:`tracer.variants.VARIANTS`), graded against the submission with the
-  same measure as the grade itself.  A variant the submission passes against
-  is a likely cause; when none passes, one that comes far closer than the
-  reference does is named as the closest, and otherwise nothing fits.
+  (:data:`tracer.variants.VARIANTS`, and where the terms point, those of
+  ``MORE_VARIANTS``), graded against the submission with the same measure as
+  the grade itself.  A variant the submission passes against is a likely
+  cause; two or three made together are found by fitting the sum of their
+  differences and confirmed by one render of them all (:mod:`.compose`);
+  when none passes, one that comes far closer than the reference does is
+  named as the closest, and otherwise the nearest explanations are ranked by
+  their share of the difference (:mod:`.together`).
 * **Terms.** A non-negative least-squares fit of the submission's linear
   values against the reference's additive passes (background, ambient, each
   light's diffuse and specular, reflection, refraction), on the pixels neither
@@ -20,7 +24,9 @@ Everything here is pure: the renders come in through a :class:`Renders`.  The mo
 :mod:`.causes` (the variants scored, :func:`diagnose`), :mod:`.looks` (variants ruled out from a few rows),
 :mod:`.fit` (the terms out of scale), :mod:`.where` (the objects and lights), :mod:`.rendered` (the renders
 of a scene, made when first asked for), :mod:`.cache` (those of the last few scenes, kept) and
-:mod:`.accepting` (the accepted variants a failing image is graded against before it is diagnosed).
+:mod:`.accepting` (the accepted variants a failing image is graded against before it is diagnosed),
+:mod:`.compose` and :mod:`.stored` (mistakes made together; mistakes of the stored image, found without a
+render), :mod:`.together` (the nearest explanations) and :mod:`.words` (names and scales in a student's words).
 """
 
 from .cache import CACHE, Cached

@@ -1,19 +1,8 @@
-"""What a failing submission most likely got wrong: named mistakes, terms out of scale, and where.
-
-Three kinds of evidence, each from renders of the reference scene:
-
-* **Variants.** The reference rendered with each classic mistake
-  (:data:`tracer.variants.VARIANTS`), graded against the submission with the
-  same measure as the grade itself.  A variant the submission passes against
-  is a likely cause; when none passes, one that comes far closer than the
-  reference does is named as the closest, and otherwise nothing fits.
-* **Terms.** A non-negative least-squares fit of the submission's linear
-  values against the reference's additive passes (background, ambient, each
-  light's diffuse and specular, reflection, refraction), on the pixels neither
-  image clips: a coefficient far from 1 says a term is too strong or too weak,
-  and by how much.
-* **Where.** The objects the failing pixels show (the object pass), and the
-  lights whose light falls on them.
+""":func:`diagnose`, the one place that knows the order of a diagnosis's rounds: mistakes of the stored image
+alone (no render), the classic mistakes scored on the rows most off, the terms out of scale, mistakes made
+together (confirmed by one render), the closest mistake, and, when nothing fits, the nearest explanations
+ranked by their share of the difference.  The evidence each round uses is described in the package's
+docstring (:mod:`service.diagnosis`).
 
 Everything here is pure: the renders come in through a :class:`Renders`.
 """
