@@ -592,3 +592,18 @@ def test_a_grade_record_has_the_reports_columns_in_their_order():
     from service.classgrade.records import Grade
 
     assert [f.name for f in fields(Grade)] == report_module.COLUMNS
+
+
+def test_a_programs_failed_run_is_named_in_the_report_not_left_undiagnosed():
+    from service.classgrade.report import likely_by_task
+
+    rows = [
+        {"task": "spot", "status": "fail", "likely": None, "run": "timeout"},
+        {"task": "spot", "status": "fail", "likely": None, "run": "ok"},
+        {"task": "spot", "status": "fail", "likely": "no shadow rays", "run": "ok"},
+    ]
+    assert likely_by_task(rows, ["spot"])["spot"] == [
+        ("no shadow rays", 1, 3),
+        ("not diagnosed", 1, 3),
+        ("run: timeout", 1, 3),
+    ]

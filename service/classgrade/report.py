@@ -192,7 +192,8 @@ def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, li
         failing = [r for r in rows if r["task"] == task and r["status"] == "fail"]
         counts: dict[str, int] = {}
         for r in failing:
-            counts[r["likely"] or "not diagnosed"] = counts.get(r["likely"] or "not diagnosed", 0) + 1
+            said = r["likely"] or _run_failed(r) or "not diagnosed"
+            counts[said] = counts.get(said, 0) + 1
         out[task] = [(m, n, len(failing)) for m, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))]
     return out
 
@@ -231,12 +232,17 @@ def esc(text: str) -> str:
 SHOWN_MISTAKES = 3
 
 
+def _run_failed(r: dict[str, Any]) -> str:
+    """How a program's run ended when it made no image to grade (``run: timeout``), else ''."""
+    return f"run: {r['run']}" if r.get("run") not in (None, "ok") else ""
+
+
 def _cell(r: dict[str, Any], anchor: str) -> str:
     """A pair's cell of the table: the status and, without the file it names, the reason (or the error)."""
     if r["status"] == "pass":
         note = _percent(r["fraction_off_nearby"])
-    elif r["status"] == "fail":  # the likely mistake, when one was named
-        note = esc((r.get("likely") or "")[:60]) or _percent(r["fraction_off_nearby"])
+    elif r["status"] == "fail":  # the likely mistake, when one was named, or how a program's run ended
+        note = esc((r.get("likely") or _run_failed(r))[:60]) or _percent(r["fraction_off_nearby"])
         note += f" · {r['score']:g}/{r['points']:g}" if r.get("deducted") else ""
     else:
         note = esc(_without_file(r["reason"])[:80])
