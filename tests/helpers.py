@@ -5,6 +5,10 @@ from __future__ import annotations
 import copy
 import json
 import os
+import shutil
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -99,3 +103,24 @@ def scaled(data: dict[str, Any], factor: float) -> dict[str, Any]:
             if key in light:
                 light[key] = mul(light[key])
     return out
+
+
+def run_autograder(bundle: Path, root: Path, files: dict[str, Path]) -> tuple[subprocess.CompletedProcess[str], dict]:
+    """Lay ``root`` out as Gradescope does (the bundle in source/, the files in submission/) and run
+    run_autograder there as Gradescope runs it; its output and results.json."""
+    for folder in ("source", "submission", "results"):
+        (root / folder).mkdir(parents=True)
+    with zipfile.ZipFile(bundle) as archive:
+        archive.extractall(root / "source")
+    for name, path in files.items():
+        shutil.copyfile(path, root / "submission" / name)
+    env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
+    done = subprocess.run(
+        ["bash", str(root / "source" / "run_autograder")],
+        cwd=root,
+        env=env,
+        text=True,
+        capture_output=True,
+        timeout=600,
+    )
+    return done, json.loads((root / "results" / "results.json").read_text())

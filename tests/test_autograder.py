@@ -15,6 +15,8 @@ import pytest
 from service.classgrade.autograder import task_files
 from service.cli import main
 
+from helpers import run_autograder
+
 CLASS = Path(__file__).resolve().parent.parent / "examples" / "class"
 
 
@@ -23,27 +25,6 @@ def bundle(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("bundle") / "autograder.zip"
     assert main(["autograder", str(CLASS / "scenes"), "-o", str(out), "--tasks", str(CLASS / "tasks.json")]) == 0
     return out
-
-
-def _run(bundle: Path, root: Path, files: dict[str, Path]) -> tuple[subprocess.CompletedProcess[str], dict]:
-    """Lay ``root`` out as Gradescope does (the bundle in source/, the files in submission/) and run
-    run_autograder there as Gradescope runs it; its output and results.json."""
-    for folder in ("source", "submission", "results"):
-        (root / folder).mkdir(parents=True)
-    with zipfile.ZipFile(bundle) as archive:
-        archive.extractall(root / "source")
-    for name, path in files.items():
-        shutil.copyfile(path, root / "submission" / name)
-    env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
-    done = subprocess.run(
-        ["bash", str(root / "source" / "run_autograder")],
-        cwd=root,
-        env=env,
-        text=True,
-        capture_output=True,
-        timeout=600,
-    )
-    return done, json.loads((root / "results" / "results.json").read_text())
 
 
 def test_the_bundle_has_gradescopes_two_scripts_at_its_root_and_phongray_beside_them(bundle: Path):
@@ -59,7 +40,7 @@ def test_the_bundle_has_gradescopes_two_scripts_at_its_root_and_phongray_beside_
 
 
 def test_a_submission_is_graded_a_test_per_task_with_its_names_forgiven(bundle: Path, tmp_path: Path):
-    done, results = _run(
+    done, results = run_autograder(
         bundle,
         tmp_path,
         {
@@ -96,14 +77,14 @@ def test_an_honest_tracers_ray_offset_passes_in_the_autograder_and_says_so(tmp_p
     honest.write_bytes(
         encode_png(student.render(load_scene(whitted.read_bytes()), style=student.STYLES["offset 1e-3"]))
     )
-    done, results = _run(out, tmp_path / "root", {"Whitted.png": honest})
+    done, results = run_autograder(out, tmp_path / "root", {"Whitted.png": honest})
     (test,) = results["tests"]
     assert (test["score"], test["status"]) == (1.0, "passed"), test["output"]
     assert test["output"].startswith("passed, as rendered with a 1e-3 ray offset: ")
 
 
 def test_a_broken_bundle_writes_results_that_say_so_and_exits_2(tmp_path: Path, bundle: Path):
-    done, results = _run(bundle, tmp_path, {})
+    done, results = run_autograder(bundle, tmp_path, {})
     assert done.returncode == 0
     shutil.rmtree(tmp_path / "source" / "course" / "scenes")
     env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(tmp_path), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
@@ -162,7 +143,7 @@ def test_the_bundles_accepted_variants_are_rendered_beforehand(tmp_path: Path):
     assert len(stored) == 8 and "normal-0.001.png" in stored and "ray-0.000125.png" in stored
     wrong = tmp_path / "wrong.png"
     wrong.write_bytes(encode_png(Renderer(load_scene(whitted.read_bytes()), VARIANTS["no-shadows"][0]).pixels()))
-    done, results = _run(out, tmp_path / "honest", {"whitted.png": wrong})
+    done, results = run_autograder(out, tmp_path / "honest", {"whitted.png": wrong})
     assert results["tests"][0]["status"] == "failed"  # (against the bundle's true renders)
     root = tmp_path / "faked"
     for folder in ("source", "submission", "results"):

@@ -21,6 +21,8 @@ from service.cli import main
 from service.programs import Limits, check_sandbox
 from service.programs.program import Program
 
+from helpers import run_autograder
+
 HERE = Path(__file__).parent / "programs"
 RUN = "python3 tracer.py {scene} {output}"
 
@@ -55,24 +57,11 @@ def bundle(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def run_autograder(bundle: Path, root: Path, mistakes: str) -> tuple[subprocess.CompletedProcess[str], dict]:
-    """Lay ``root`` out as Gradescope does, the student's program uploaded, and run run_autograder."""
-    for folder in ("source", "submission", "results"):
-        (root / folder).mkdir(parents=True)
-    with zipfile.ZipFile(bundle) as archive:
-        archive.extractall(root / "source")
-    shutil.copyfile(HERE / "tracer.py", root / "submission" / "tracer.py")
-    (root / "submission" / "mistakes.txt").write_text(mistakes)
-    env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
-    done = subprocess.run(
-        ["bash", str(root / "source" / "run_autograder")],
-        cwd=root,
-        env=env,
-        text=True,
-        capture_output=True,
-        timeout=600,
-    )
-    return done, json.loads((root / "results" / "results.json").read_text())
+def graded(bundle: Path, tmp_path: Path, mistakes: str) -> tuple[subprocess.CompletedProcess[str], dict]:
+    """The student's program, with its ``mistakes``, uploaded and graded by the bundle as Gradescope runs it."""
+    (tmp_path / "mistakes.txt").write_text(mistakes)
+    files = {"tracer.py": HERE / "tracer.py", "mistakes.txt": tmp_path / "mistakes.txt"}
+    return run_autograder(bundle, tmp_path / "autograder", files)
 
 
 def test_the_bundle_keeps_the_programs_commands_and_limits(bundle: Path, tmp_path: Path):
@@ -84,7 +73,7 @@ def test_the_bundle_keeps_the_programs_commands_and_limits(bundle: Path, tmp_pat
 
 def test_an_uploaded_program_is_run_on_the_hidden_scenes_and_graded(bundle: Path, tmp_path: Path):
     check_sandbox()
-    done, results = run_autograder(bundle, tmp_path / "autograder", "no-refraction")
+    done, results = graded(bundle, tmp_path, "no-refraction")
     assert done.returncode == 0, done.stderr
     tests = {t["name"]: t for t in results["tests"]}
     assert tests["spot"]["status"] == "passed" and tests["glass"]["status"] == "failed"
@@ -94,7 +83,7 @@ def test_an_uploaded_program_is_run_on_the_hidden_scenes_and_graded(bundle: Path
 
 def test_verdict_shows_no_diagnosis(bundle: Path, tmp_path: Path):
     check_sandbox()
-    done, results = run_autograder(bundle, tmp_path / "autograder", "spot-hard-edge")
+    done, results = graded(bundle, tmp_path, "spot-hard-edge")
     spot = {t["name"]: t for t in results["tests"]}["spot"]
     assert spot["status"] == "failed" and spot["output"].startswith("fail: ")
     assert "Likely" not in spot["output"] and "cone" not in spot["output"]  # show: verdict
