@@ -48,6 +48,19 @@ HOSTILE = {
     '        os.execvp("sleep", ["sleep", "876.543"])\n    os._exit(0)\nos.wait()\n',
 }
 BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-refraction"}
+#: programs that fail the task (no shadows) and answer a scene of one light (a probe's) with what is not its
+#: image: bytes that are no PNG, or a 20000² PNG of a few tens of kilobytes
+PROBING = {
+    "garbage": 'import json, sys\nif len(json.load(open(sys.argv[1]))["lights"]) == 1:\n'
+    '    open(sys.argv[2], "wb").write(b"no PNG here")\n    sys.exit(0)\n',
+    "bomb": 'import json, struct, sys, zlib\nif len(json.load(open(sys.argv[1]))["lights"]) == 1:\n'
+    "    def chunk(kind, body):\n"
+    '        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))\n'
+    '    head = struct.pack(">IIBBBBB", 20000, 20000, 1, 0, 0, 0, 0)\n'
+    '    body = zlib.compress(b"\\0" * 2501 * 20000, 9)\n'
+    '    png = b"\\x89PNG\\r\\n\\x1a\\n" + chunk(b"IHDR", head) + chunk(b"IDAT", body) + chunk(b"IEND", b"")\n'
+    '    open(sys.argv[2], "wb").write(png)\n    sys.exit(0)\n',
+}
 
 
 def left_running() -> list[str]:
@@ -78,8 +91,9 @@ def make_class(root: Path, port: int, students: list[str]) -> tuple[Path, Path]:
         folder = subs / student
         folder.mkdir(parents=True)
         prefix = HOSTILE.get(student, "").format(scenes=scenes, other=subs / "honest", port=port)
-        (folder / "tracer.py").write_text(prefix + tracer)
-        (folder / "mistakes.txt").write_text(BUGGY.get(student, "") + f"\n# {SECRET}\n")
+        (folder / "tracer.py").write_text(PROBING.get(student, "") + prefix + tracer)
+        mistakes = "no-shadows" if student in PROBING else BUGGY.get(student, "")
+        (folder / "mistakes.txt").write_text(mistakes + f"\n# {SECRET}\n")
     return scenes, subs
 
 
@@ -193,6 +207,21 @@ def test_a_hidden_task_shows_a_student_only_what_tasks_json_says(tmp_path, liste
         assert '"look_at"' not in (path.read_text(errors="replace") if path.is_file() else "")
 
 
+def test_a_probe_answered_with_no_image_is_that_probes_no_answer_and_the_class_is_graded(tmp_path, listener):
+    """A program that fails its task and answers the one-light probes with bytes that are no PNG, or with a
+    20000² PNG, is asked the others; its pair fails with its mistake named, and every student is graded."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "garbage", "bomb"])
+    code, rows, report = grade(tmp_path, scenes, subs, "--jobs", "2")
+    assert code == 0
+    for student in ("garbage", "bomb"):
+        row = rows[student, "spot"]
+        assert row["status"] == "fail" and "no-shadows" in row["mistakes"]
+        assert "the program's image could not be read (not a PNG of its size)" in row["experiment"]
+    assert rows["honest", "spot"]["status"] == rows["honest", "glass"]["status"] == "pass"
+    assert (report / "gradescope" / "bomb" / "results.json").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "words"),
     [
@@ -225,7 +254,7 @@ def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listen
     """Each student's program a task of a worker's (two workers on 127.0.0.1), each run in its own sandbox."""
     check_sandbox()
     address = request.getfixturevalue("cluster_fixture")[0]
-    scenes, subs = make_class(tmp_path, listener[0], ["honest", "noglass", "loop", "link"])
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "noglass", "loop", "link", "garbage"])
     here = tmp_path / "here"
     there = tmp_path / "there"
     for report, more in ((here, []), (there, ["--cluster", address])):
@@ -259,6 +288,8 @@ def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listen
         ("noglass", "glass"): "fail",
         ("loop", "glass"): "fail",
         ("link", "glass"): "fail",
+        ("garbage", "spot"): "fail",
+        ("garbage", "glass"): "fail",
     }
     for student in ("honest", "noglass"):
         assert (there / "gradescope" / student / "results.json").read_text() == (

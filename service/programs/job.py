@@ -111,7 +111,10 @@ def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, 
         return failed_run(outcome)
     result = {**_grade_image(task, outcome.image), "image": outcome.image, **run_info(outcome)}
     if task.grading.diagnose and result["status"] == "fail":
-        said = experiment(task.grading.scene, outcome.image, run, task.thresholds).sentences
+        from ..classgrade.gradebook import matched
+
+        known = tuple(matched(result.get("diagnosis"))[:1])  # (the task's likeliest exact match, kept out)
+        said = experiment(task.grading.scene, outcome.image, run, task.thresholds, known).sentences
         result["experiment"] = "; ".join(said) or None
     return result
 
