@@ -28,6 +28,7 @@ from typing import Any
 
 from ..classgrade.records import GradeJob
 from .experiment import Thresholds, experiment
+from .folder import MAX_ENTRIES
 from .outcome import RunOutcome
 from .program import Program
 from .runner import BuildStep, ProgramRun, build_program, run_program
@@ -143,12 +144,15 @@ def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
 
 def digest(folder: Path, program: Program) -> str:
     """What a kept grade of the program stands for: the student's regular files (paths and bytes, read without
-    following a link, as the sandbox's copy leaves links out, and no more than the folder limit's worth: a
-    larger folder is not run) and how it is built, run and limited."""
+    following a link, as the sandbox's copy leaves links out, and no more than the folder limit's worth or
+    :data:`~.folder.MAX_ENTRIES` entries: a larger folder is not run) and how it is built, run and limited."""
     sha = hashlib.sha256(repr((program.run, program.build, program.limits, program.sandbox)).encode())
-    left = program.limits.folder_bytes
+    left, entries = program.limits.folder_bytes, MAX_ENTRIES
     for root, dirs, files in os.walk(folder, followlinks=False):
         dirs.sort()
+        entries -= len(dirs) + len(files)
+        if entries < 0:  # (a folder of too many files is not run either)
+            break
         for name in sorted(files):
             path = Path(root, name)
             with contextlib.suppress(OSError):
