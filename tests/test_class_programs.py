@@ -207,6 +207,20 @@ def test_a_hidden_task_shows_a_student_only_what_tasks_json_says(tmp_path, liste
         assert '"look_at"' not in (path.read_text(errors="replace") if path.is_file() else "")
 
 
+def test_a_hidden_scenes_run_is_told_to_a_student_without_its_exit_status(tmp_path, listener):
+    """Under ``show: verdict`` a program that exits 43 on the hidden scene is told "crashed": its exit status
+    could carry 8 bits of the scene.  The TA's report keeps the status."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["exit43"])
+    (subs / "exit43" / "tracer.py").write_text('import sys\nif "glass" in sys.argv[1]:\n    sys.exit(43)\n')
+    (tmp_path / "tasks.json").write_text(json.dumps({"glass": {"show": "verdict"}}))
+    code, rows, report = grade(tmp_path, scenes, subs)
+    assert code == 0 and rows["exit43", "glass"]["reason"] == "the run failed: crashed: crashed (exit 43)"
+    results = json.loads((report / "gradescope" / "exit43" / "results.json").read_text())
+    assert {t["name"]: t["output"] for t in results["tests"]}["glass"] == "fail: the run failed: crashed"
+    assert "43" not in json.dumps(results)
+
+
 def test_a_probe_answered_with_no_image_is_that_probes_no_answer_and_the_class_is_graded(tmp_path, listener):
     """A program that fails its task and answers the one-light probes with bytes that are no PNG, or with a
     20000² PNG, is asked the others; its pair fails with its mistake named, and every student is graded."""

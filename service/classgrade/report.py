@@ -21,8 +21,9 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from ..display import counted, percent
+from ..display import counted
 from ..heatmap import LEGEND
+from .feedback import gradescope, test_output  # noqa: F401  (test_output: what a student reads, here too)
 from .gradebook import gradebook_csv, partial, totals
 from .taskfile import TaskSettings
 
@@ -164,27 +165,6 @@ def _drop_stale_results(folder: Path, students: set[str]) -> None:
             (folder / name).rmdir()
 
 
-def test_output(row: dict[str, Any], show: str = "images") -> str:
-    """What a student reads of one task, as its ``show`` (tasks.json) allows: the verdict alone
-    (``verdict-only``); with its reason or numbers (``verdict``); and the likely mistake, what a program's
-    probes found and the partial credit (``diagnosis``, ``images``).  Never a program's output."""
-    if show == "verdict-only":
-        return "passed" if row["status"] == "pass" else ("failed" if row["status"] == "fail" else row["status"])
-    if row["status"] == "pass":
-        how = f", {row['reason']}" if row.get("reason") else ""  # (as rendered with an accepted variant)
-        return (
-            f"passed{how}: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
-            f"(at most {percent(row['max_fraction'])} may be)"
-        )
-    if show == "verdict":
-        return f"{row['status']}: {row['reason']}"
-    likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
-    found = row.get("experiment")
-    probes = f"\nBy experiment: {found}" if found and found != row.get("likely") else ""
-    credit = f"\n{partial(row)}" if row.get("deducted") else ""
-    return f"{row['status']}: {row['reason']}{likely}{probes}{credit}"
-
-
 def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
     """Per task, its failing pairs' likely mistakes, most common first: (mistake, pairs, failing pairs)."""
     out: dict[str, list[tuple[str, int, int]]] = {}
@@ -196,23 +176,6 @@ def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, li
             counts[said] = counts.get(said, 0) + 1
         out[task] = [(m, n, len(failing)) for m, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))]
     return out
-
-
-def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> dict[str, Any]:
-    """One student's results in Gradescope's autograder format (``results.json``): the total ``score`` and a
-    test per task with its ``name``, ``score``, ``max_score``, ``status``, ``output`` and ``visibility``."""
-    tests = [
-        {
-            "name": r["task"],
-            "score": r["score"],
-            "max_score": r["points"],
-            "status": "passed" if r["status"] == "pass" else "failed",
-            "output": test_output(r, tasks[r["task"]].show),
-            "visibility": tasks[r["task"]].visibility,
-        }
-        for r in rows
-    ]
-    return {"score": sum(t["score"] for t in tests), "visibility": "visible", "tests": tests}
 
 
 def _legend() -> str:

@@ -8,7 +8,7 @@
 A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS` and ``MORE_VARIANTS``): an image whose
 one fault is that mistake scores the task's points less the deduction (:mod:`service.classgrade.gradebook`).
 
-``show`` is what a student reads of the task in Gradescope's output (:func:`~.report.test_output`):
+``show`` is what a student reads of the task in Gradescope's output (:func:`~.feedback.test_output`):
 ``images`` (the default) and ``diagnosis`` the verdict, its reason, the likely mistake and the partial credit,
 ``verdict`` the verdict and its reason, ``verdict-only`` passed or failed: for a hidden scene (a program's
 task), the TA's choice of how much of it the feedback gives away.
