@@ -111,7 +111,11 @@ def _environment() -> list[str]:
 
 
 def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
-    """bubblewrap's arguments up to the command it runs (see the module's docstring for what they show)."""
+    """bubblewrap's arguments up to the command it runs (see the module's docstring for what they show), with
+    every installation of phongray in the system's folders covered (:mod:`.hidden`)."""
+    from .hidden import argv as hidden
+
+    system = _system()
     args = [
         bwrap,
         "--unshare-all",
@@ -122,7 +126,8 @@ def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
         "--hostname",
         "sandbox",
         *_environment(),
-        *_system(),
+        *system,
+        *hidden(system),
         "--proc",
         "/proc",
         "--dev",
