@@ -6,6 +6,7 @@ Every program is tests/programs/tracer.py (the system's python3, the standard li
 mistake switched on, a hostile one with a few lines before it that misbehave on the task ``glass`` only."""
 
 import json
+import shutil
 import socket
 import tempfile
 import threading
@@ -14,6 +15,7 @@ from pathlib import Path
 import pytest
 from test_cluster import dask as cluster_fixture  # noqa: F401  (the fixture 'dask': a scheduler, two workers)
 
+from service.classgrade.feedback import ZEROED
 from service.cli import main
 from service.programs import check_sandbox
 
@@ -230,6 +232,34 @@ def test_a_probe_answered_with_no_image_is_that_probes_no_answer_and_the_class_i
         assert "the program's image could not be read (not a PNG of its size)" in row["experiment"]
     assert rows["honest", "spot"]["status"] == rows["honest", "glass"]["status"] == "pass"
     assert (report / "gradescope" / "bomb" / "results.json").exists()
+
+
+def test_a_program_holding_phongray_is_flagged_and_scored_as_tasks_json_says(tmp_path, listener):
+    """phongray's code in a student's folder (here beside the honest tracer it runs) is flagged for the TA:
+    the spot task scores nothing for it (``"phongray_code": "zero"``, and the student reads why), the glass
+    task keeps its grade (``review``).  An honest program whose images are the references byte for byte is
+    flagged for review only: its score stands and the student reads nothing of it."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "vendor"])
+    root = Path(__file__).parent.parent
+    for package in ("tracer", "schemas"):
+        shutil.copytree(root / package, subs / "vendor" / package, ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "tasks.json").write_text(json.dumps({"spot": {"phongray_code": "zero"}}))
+    code, rows, report = grade(tmp_path, scenes, subs)
+    assert code == 0
+    spot, glass = rows["vendor", "spot"], rows["vendor", "glass"]
+    assert spot["status"] == glass["status"] == "pass" and spot["flag"] == glass["flag"] == "phongray-code"
+    assert "lines of phongray's own code" in spot["flag_reason"]
+    assert (spot["score"], glass["score"]) == (0, 1)
+    tests = {t["name"]: t for t in json.loads((report / "gradescope" / "vendor" / "results.json").read_text())["tests"]}
+    assert tests["spot"]["output"].endswith(ZEROED) and "phongray" not in tests["glass"]["output"]
+    assert tests["glass"]["extra_data"]["flag"] == "phongray-code"
+    honest = rows["honest", "spot"]
+    assert honest["flag"] == "identical" and honest["score"] == 1
+    assert "phongray" not in json.dumps(
+        [t["output"] for t in json.loads((report / "gradescope" / "honest" / "results.json").read_text())["tests"]]
+    )
+    assert "4 flagged for review" in (report / "index.html").read_text()
 
 
 @pytest.mark.parametrize(

@@ -7,7 +7,9 @@ never with its exit status, its signal or its output (the TA's report keeps them
 ``hidden`` is never shown; Gradescope still shows a student their total, which holds its score, unless a test is
 not yet shown (a ``hidden`` test does not count: Gradescope means it for tests worth no points), so the results
 of a student with a hidden task worth points carry one more test, worth nothing, shown once the grades are
-published: until then the student sees no total, and so nothing of the hidden task.
+published: until then the student sees no total, and so nothing of the hidden task.  A pair flagged for the TA
+(:mod:`service.programs.copied`) carries its flag in the test's ``extra_data``, which Gradescope keeps and does
+not show; a student reads of it only the zero it costs, where the task says so.
 """
 
 from __future__ import annotations
@@ -27,6 +29,11 @@ WITHHELD = {
     "output": "Some tasks are graded on scenes you have not seen; your total is shown once the grades are published.",
     "visibility": "after_published",
 }
+
+
+#: what a student reads of a task scored nothing for phongray's own code in the program (tasks.json's
+#: ``"phongray_code": "zero"``)
+ZEROED = "Scored 0: your program holds phongray's own code, which this course does not accept as your work."
 
 
 def run_failed(row: dict[str, Any]) -> str:
@@ -78,7 +85,20 @@ def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> di
         }
         for r in rows
     ]
+    for test, r in zip(tests, rows, strict=True):
+        if r.get("flag"):  # (the TA's, in Gradescope's stored data; a student reads only a zero it costs)
+            test["extra_data"] = {"flag": r["flag"], "flag_reason": r.get("flag_reason")}
+            if r["flag"] == "phongray-code" and tasks[r["task"]].phongray_code == "zero":
+                test["output"] = f"{test['output']}\n{ZEROED}"
     total = sum(t["score"] for t in tests)
     if any(t["visibility"] == "hidden" and t["max_score"] > 0 for t in tests):
         tests.append(dict(WITHHELD))
     return {"score": total, "visibility": "visible", "tests": tests}
+
+
+def printed(test: dict[str, Any]) -> str:
+    """A test's line in what ``run_autograder`` prints (the instructors' to read): its score, its output's first
+    line, and its flag for the TA."""
+    flag = (test.get("extra_data") or {}).get("flag_reason")
+    line = f"{test['name']}: {test['score']:g}/{test['max_score']:g} {test['output'].splitlines()[0]}"
+    return f"{line} [flagged for review: {flag}]" if flag else line

@@ -40,7 +40,7 @@ NUMBERS = [
     "reference_sha256",
 ]
 #: the columns of a program's run (grade-class --run; empty for an image)
-PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output"]
+PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output", "flag", "flag_reason"]
 #: the columns of report.csv (and the keys of each row of report.json), in order
 COLUMNS = [
     "student",
@@ -118,10 +118,15 @@ def neutral_cell(value: Any) -> Any:
 
 
 def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
+    """The run in a line: its pairs by status, those flagged for the TA (a program holding phongray's code, or
+    rendering the references byte for byte), the references rendered and the time."""
     counts = {s: sum(r["status"] == s for r in rows) for s in STATUSES}
+    flagged = sum(bool(r.get("flag")) for r in rows)
     return (
         f"{counted(len(rows), 'pair')}: {counts['pass']} passed, {counts['fail']} failed, {counts['missing']} "
-        f"missing, {counts['invalid']} invalid; {counted(renders, 'reference')} rendered; {seconds:.1f} s"
+        f"missing, {counts['invalid']} invalid; "
+        + (f"{flagged} flagged for review (⚑); " if flagged else "")
+        + f"{counted(renders, 'reference')} rendered; {seconds:.1f} s"
     )
 
 
@@ -210,6 +215,7 @@ def _cell(r: dict[str, Any], anchor: str) -> str:
     else:
         note = esc(_without_file(r["reason"])[:80])
     own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
+    own += f' <span class="flag" title="{esc(r["flag_reason"] or "")}">⚑</span>' if r.get("flag") else ""
     status = esc(r["status"])
     kind = f"{status} partial" if r.get("deducted") else status
     return f'<td class="{kind}"><a href="#{anchor}">{status}{own}<small>{note}</small></a></td>'
@@ -231,6 +237,7 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     probes = f"<p>By experiment: {esc(found)}</p>" if found and found != r.get("likely") else ""
     output = f"<pre>{esc(r['run_output'])}</pre>" if r.get("run_output") else ""  # (the TA's page only)
     credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
+    credit += f'<p class="likely">⚑ {esc(r["flag"])}: {esc(r["flag_reason"] or "")}</p>' if r.get("flag") else ""
     return (
         f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
         f'</h2><p>{esc(r["reason"])}</p>{likely}{probes}{credit}{output}<div class="images">{images}</div>'
@@ -287,7 +294,7 @@ table.grid {{ border-collapse: collapse; }}
 td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
 td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
 td.partial {{ background: #fbe3cf; }} td.total {{ font-weight: bold; white-space: nowrap; }}
-.own {{ color: #36c; }}
+.own {{ color: #36c; }} .flag {{ color: #c60; }}
 .pair {{ display: none; }}
 .pair:target {{ display: block; position: fixed; top: 4%; left: 4%; right: 4%; max-height: 88%; overflow: auto;
                border: 1px solid #888; padding: 0 1.5em 1em; background: #fff; box-shadow: 0 4px 30px #0006; }}

@@ -13,6 +13,10 @@ one fault is that mistake scores the task's points less the deduction (:mod:`ser
 ``verdict`` the verdict and its reason, ``verdict-only`` passed or failed: for a hidden scene (a program's
 task), the TA's choice of how much of it the feedback gives away.
 
+``phongray_code`` is what a program's pair scores when its folder holds phongray's own code
+(:mod:`service.programs.copied`): ``review`` (the default) keeps its grade and flags it in the TA's report,
+``zero`` scores it nothing and tells the student why.
+
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
 teaching assistant's: a mistake in it stops the run (:class:`~service.classgrade.errors.ClassError`).
 """
@@ -46,6 +50,9 @@ class TaskSettings(BaseModel):
     #: what a student reads of the task (Gradescope's output): a hidden scene's TA may show less
     show: Literal["images", "diagnosis", "verdict", "verdict-only"] = "images"
     deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
+    #: what a pair of a program holding phongray's own code scores (service.programs.copied): its grade, flagged
+    #: for the TA (review), or nothing (zero)
+    phongray_code: Literal["review", "zero"] = "review"
     #: the accepted variants of honest tracers, name → largest amount × the scene's size (None: the defaults,
     #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
     accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from ..classgrade.records import GradeJob
+from .copied import flags
 from .experiment import Thresholds, experiment
 from .folder import MAX_ENTRIES
 from .outcome import RunOutcome
@@ -134,12 +135,16 @@ def _built(job: ProgramJob) -> Iterator[tuple[Path | None, RunOutcome | None]]:
 
 
 def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
-    """Every task's grade of one student's program, by task name (see the module's docstring)."""
+    """Every task's grade of one student's program, by task name (see the module's docstring), flagged for the
+    TA when the program holds phongray's code or its images are the references (:mod:`.copied`)."""
     with _built(job) as (folder, failed):
         if folder is None:
             assert failed is not None
-            return {task.task: failed_run(failed, "the build") for task in job.tasks}
-        return {task.task: grade_run(task, _runner(folder, job.program, f"{task.task}.json")) for task in job.tasks}
+            results = {task.task: failed_run(failed, "the build") for task in job.tasks}
+        else:
+            results = {t.task: grade_run(t, _runner(folder, job.program, f"{t.task}.json")) for t in job.tasks}
+    flags(job.folder, results, {task.task: task.grading.reference for task in job.tasks}, job.program.limits)
+    return results
 
 
 def digest(folder: Path, program: Program) -> str:
