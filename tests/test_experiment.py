@@ -57,10 +57,11 @@ def test_glass_left_out_is_refraction_missing_with_reflection_right(tmp_path):
     assert found.sentences == ["reflection right, refraction missing"]
 
 
-def test_no_shadows_found_by_the_diagnosis_is_kept_out_and_no_light_is_blamed(tmp_path):
+@pytest.mark.parametrize("task", ["spot", "lamps"])
+def test_no_shadows_found_by_the_diagnosis_is_kept_out_and_no_light_is_blamed(tmp_path, task):
     """The task's diagnosis names no shadow rays: the probes' references are rendered without them too, so a
-    light the program gets right is not told wrong for the shadows."""
-    found = asked(tmp_path, "no-shadows", "spot")
+    light (or the glass) the program gets right is not told wrong for the shadows."""
+    found = asked(tmp_path, "no-shadows", task)
     assert [a.verdict for a in found.answers] == ["right"] * len(found.answers)
     assert found.sentences == []
 

@@ -207,10 +207,12 @@ class _Asking:
 
 @dataclass(frozen=True)
 class _Task:
-    """The task's image (None: the run made none) and phongray's reference of it (without any mistake)."""
+    """The task's image (None: the run made none), phongray's reference of it (without any mistake), and
+    whether the mistakes already known explain the image whole (it matches the reference made with them)."""
 
     image: np.ndarray | None
     reference: np.ndarray
+    explained: bool = False
 
 
 def _state(term: str, by_name: dict[str, Answer], task: _Task, limits: Thresholds) -> str | None:
@@ -224,7 +226,7 @@ def _state(term: str, by_name: dict[str, Answer], task: _Task, limits: Threshold
         return "missing"
     if kept is not None and kept.verdict == "right":
         return "right"
-    return "wrong" if without.verdict == "right" else None
+    return "wrong" if without.verdict == "right" and not task.explained else None
 
 
 def _missing(without: Answer, task: _Task, limits: Thresholds) -> bool:
@@ -274,7 +276,7 @@ def experiment(
     terms = {a.probe.name: a for a in asking.all(term_probes(parsed, known), keep=1)}
     states = {}
     if "no glass" in terms or "no mirrors" in terms:
-        task = _task(image, parsed)
+        task = _task(image, parsed, known, limits)
         states = {t: s for t in ("reflectance", "transmittance") if (s := _state(t, terms, task, limits)) is not None}
     aside = tuple(t for t in ("transmittance", "reflectance") if states.get(t) in ("missing", "wrong"))
     base, found = parsed, known
@@ -292,17 +294,19 @@ def experiment(
     return Experiment(asking.answers, said, behind)
 
 
-def _task(image: bytes | None, scene: Scene) -> _Task:
-    """The task's image, read as its grade read it, and its reference."""
+def _task(image: bytes | None, scene: Scene, known: tuple[str, ...], limits: Thresholds) -> _Task:
+    """The task's image, read as its grade read it, its reference, and whether ``known`` explains it."""
     from tracer import decode_png
 
     from ..grading import ImageError
 
     reference = decode_png(render_png(scene))
     try:
-        return _Task(None if image is None else read_answer(image, reference), reference)
+        pixels = None if image is None else read_answer(image, reference)
     except ImageError:
         return _Task(None, reference)
+    explained = bool(known) and pixels is not None and same(decode_png(render_png(scene, known)), pixels, limits)
+    return _Task(pixels, reference, explained)
 
 
 def _rest(
