@@ -119,7 +119,7 @@ def test_every_status_and_reason(klass, tmp_path, capsys):
     assert rows[("own", "balls")]["scene"] == "own" and rows[("copycat", "balls")]["scene"] == "shared"
     assert rows[("junk", "balls")]["reason"] == cli_reason(capsys, scenes / "balls.json", subs / "junk/balls.png")
     assert rows[("junk", "lamps")]["reason"] == cli_reason(capsys, scenes / "lamps.json", subs / "junk/lamps.png")
-    assert rows[("junk", "balls")]["reason"].endswith("image is a GIF; PNG required")
+    assert rows[("junk", "balls")]["reason"].endswith("image is a GIF; PNG or PPM required")
     assert rows[("none", "lamps")]["reason"] == "no lamps.png"
     assert sorted(outcome.ignored) == [
         (f"{scenes}/README.txt", "not a task scene (<task>.json)"),

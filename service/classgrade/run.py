@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from ..diagnosis import Diagnosis, headline
+from ..ppm import viewable
 from ..settings import Settings
 from . import journal
 from .backends import Backend, open_backend
@@ -278,7 +279,7 @@ def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> Grade
 
 def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stamp: dict[str, Any]) -> None:
     """Keep a grade task's row; write its heat-map and the copy of the submission (the very bytes graded), then
-    the grade itself, for a run that resumes."""
+    the grade itself, for a run that resumes (a PPM's copy is the PNG of its pixels)."""
     if result["status"] == "invalid":
         pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
     else:
@@ -294,7 +295,7 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         if _has_image(result):
             heat, copy = _paths(pair, report)
             write_atomic(heat, result.pop("heatmap_png"))
-            write_atomic(copy, image)
+            write_atomic(copy, viewable(image))  # (a PPM's copy: the PNG of its pixels, which a browser shows)
         pair.row = result
     journal.keep(journal.path(report, pair.student, pair.task), stamp, pair.row)
 

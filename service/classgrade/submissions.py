@@ -27,7 +27,9 @@ from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_na
 from .records import Batch, Pair
 from .untrusted import UntrustedFileError
 
-#: extensions of images other than PNG: such a file named after a task is that task's (wrong) submission
+#: the extensions of the image formats graded (service.grading: PNG, and the PPM students' tracers print)
+GRADED = ("png", "ppm")
+#: extensions of images other than those graded: such a file named after a task is that task's (wrong) submission
 OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "heif", "avif"}
 #: the most bytes read of a submission when no limit is given (the service's max_image_bytes)
 DEFAULT_LIMIT = 16 << 20
@@ -127,7 +129,7 @@ def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames
                     for task in {
                         n.task
                         for n in map(names.match, (e.name for e in below.entries()))
-                        if n.task is not None and n.ext == "png"
+                        if n.task is not None and n.ext in GRADED
                     }:
                         held[task] = held.get(task, 0) + 1
     except OSError:  # (a folder that cannot be read: the student's row says so)
@@ -157,7 +159,7 @@ class Submitted:
 class Candidate:
     """A file that may be a task's submission, in the folder it was found in (held open)."""
 
-    rank: tuple[int, bool, bool]  # (depth, not a PNG, not named as the task is spelt): the lowest is graded
+    rank: tuple[int, bool, bool]  # (depth, not a PNG or PPM, not named as the task is spelt): the lowest is graded
     folder: Folder
     name: str
 
@@ -210,7 +212,7 @@ class _Walk:
     def look(self, folder: Folder, entry: Entry, depth: int, given: str | None = None) -> None:
         """Take one entry: a candidate for a task, or ignored with the reason."""
         named, shown = self.names.match(given or entry.name), str(folder.shown / entry.name)
-        image = named.ext == "png" or named.ext in OTHER_IMAGES
+        image = named.ext in GRADED or named.ext in OTHER_IMAGES
         if entry.folder and not (named.task is not None and image):
             if depth:  # (a folder named as a task's image is a candidate: reading it says it is a folder)
                 self.ignored.append((shown, "a folder two levels down (phongray looks one folder deep)"))
@@ -223,7 +225,7 @@ class _Walk:
         elif named.ext == "json":
             self.ignored.append((shown, SCENE_IGNORED))
         elif image:
-            rank = (depth, named.ext != "png", not named.exact)
+            rank = (depth, named.ext not in GRADED, not named.exact)
             self.candidates.setdefault(named.task, []).append(Candidate(rank, folder, entry.name))
         else:
             self.ignored.append((shown, f"matches task {named.task}, but is no image"))
