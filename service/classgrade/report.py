@@ -238,14 +238,15 @@ def _run_failed(r: dict[str, Any]) -> str:
 
 
 def _cell(r: dict[str, Any], anchor: str) -> str:
-    """A pair's cell of the table: the status and, without the file it names, the reason (or the error)."""
+    """A pair's cell of the table: the status and, without the file it names, the reason (or the error), whole:
+    a long text wraps within the cell's width (``overflow-wrap``), never cut."""
     if r["status"] == "pass":
         note = _percent(r["fraction_off_nearby"])
     elif r["status"] == "fail":  # the likely mistake, when one was named, or how a program's run ended
-        note = esc((r.get("likely") or _run_failed(r))[:60]) or _percent(r["fraction_off_nearby"])
+        note = esc(r.get("likely") or _run_failed(r)) or _percent(r["fraction_off_nearby"])
         note += f" · {r['score']:g}/{r['points']:g}" if r.get("deducted") else ""
     else:
-        note = esc(_without_file(r["reason"])[:80])
+        note = esc(_without_file(r["reason"]))
     own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
     status = esc(r["status"])
     kind = f"{status} partial" if r.get("deducted") else status
@@ -320,7 +321,7 @@ body {{ font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }}
 table.grid {{ border-collapse: collapse; }}
 .grid th, .grid td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: center; }}
 .grid td a {{ color: inherit; text-decoration: none; display: block; }}
-.grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow: hidden; }}
+.grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow-wrap: anywhere; }}
 td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
 td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
 td.partial {{ background: #fbe3cf; }} td.total {{ font-weight: bold; white-space: nowrap; }}
