@@ -528,11 +528,11 @@ def test_the_gradebook_the_totals_and_gradescope_agree(mistaken):
     report, rows = mistaken
     with open(report / "gradebook.csv", newline="") as f:
         table = list(csv.reader(f))
-    assert table[0] == ["student", "id", "lamps", "total"]
+    assert table[0] == ["student", "id", "lamps", "total", "late"]
     assert [r[0] for r in table[1:]] == sorted(rows)
     page = (report / "index.html").read_text()
-    for student, lms_id, lamps, total in table[1:]:
-        assert lms_id == ""  # (folders of no learning-management system)
+    for student, lms_id, lamps, total, late in table[1:]:
+        assert lms_id == late == ""  # (folders of no learning-management system, which marks nothing late)
         assert float(lamps) == float(total) == rows[student]["score"]
         results = json.loads((report / "gradescope" / student / "results.json").read_text())
         assert results["score"] == float(total) == sum(t["score"] for t in results["tests"])
