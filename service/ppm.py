@@ -37,6 +37,13 @@ MAXVAL = 255
 WHITE = b" \t\n\v\f\r"
 
 
+#: what each byte is among a P3's values: anything else, white space, a digit
+OTHER, SPACE, DIGIT = 0, 1, 2
+KINDS = np.zeros(256, np.uint8)
+KINDS[list(WHITE)] = SPACE
+KINDS[48:58] = DIGIT
+
+
 class PpmError(ValueError):
     """A PPM that cannot be graded, and why (the words of :class:`service.grading.ImageError`)."""
 
@@ -138,35 +145,61 @@ def _only_white(rest: memoryview) -> None:
 
 def _text_values(raw: memoryview, head: Header) -> np.ndarray:
     """A P3's values: each 1 to 3 decimal digits, separated by white space, at most the maxval, three for each
-    pixel its header declares."""
+    pixel its header declares; read :data:`BLOCK` bytes at a time (each block ending in white space), so that
+    the temporaries of a large file stay a few tens of MiB."""
     count = head.width * head.height * 3
     text = np.frombuffer(raw, np.uint8)
-    digit = (text >= 48) & (text <= 57)
-    other = ~digit & ~np.isin(text, np.frombuffer(WHITE, np.uint8))
-    if other.any():
+    kind = KINDS[text]  # one lookup per byte: a digit, white space, or anything else
+    if (kind == OTHER).any():
         raise PpmError(
             f"image is a P3 PPM whose pixel data holds something other than numbers (byte "
-            f"{int(np.argmax(other))} of it)"
+            f"{int(np.argmax(kind == OTHER))} of it)"
         )
-    edges = np.diff(digit.view(np.int8), prepend=np.int8(0), append=np.int8(0))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    if len(starts) != count:
-        few = len(starts) < count
+    out, found, at = np.empty(count, np.uint8), 0, 0
+    while at < len(text):
+        end = _block_end(kind, at)
+        values = _block(text[at:end], kind[at:end] == DIGIT)
+        out[found : found + len(values)] = values[: max(0, count - found)]
+        found, at = found + len(values), end
+    if found != count:
         raise PpmError(
-            f"image is {'truncated' if few else 'a PPM with values after its pixels'}: its P3 pixel data holds "
-            f"{len(starts)} values, and its {head.width}×{head.height} pixels are {count}"
+            f"image is {'truncated' if found < count else 'a PPM with values after its pixels'}: its P3 pixel "
+            f"data holds {found} values, and its {head.width}×{head.height} pixels are {count}"
         )
+    return out
+
+
+#: the bytes of a P3's values read at a time
+BLOCK = 1 << 20
+
+
+def _block_end(kind: np.ndarray, at: int) -> int:
+    """Where the block of a P3's text that starts at ``at`` ends: after the last white space of its
+    :data:`BLOCK` bytes (or, in none, after the next), so that no value is cut in two; or at the text's end."""
+    end = at + BLOCK
+    if end >= len(kind):
+        return len(kind)
+    spaces = np.flatnonzero(kind[at:end] == SPACE)
+    if len(spaces):
+        return at + int(spaces[-1]) + 1
+    rest = kind[end:] == SPACE  # (a run of digits as long as a block: a value that is refused, once read)
+    return end + int(np.argmax(rest)) + 1 if rest.any() else len(kind)
+
+
+def _block(text: np.ndarray, digit: np.ndarray) -> np.ndarray:
+    """The values of a block of a P3's text (whole values only: it ends in white space, or the file does)."""
+    changes = np.flatnonzero(np.diff(digit.view(np.int8), prepend=np.int8(0), append=np.int8(0)))
+    starts, ends = changes[0::2], changes[1::2]  # (a value's start, then its end, and so on)
     lengths = ends - starts
     if len(lengths) and int(lengths.max()) > 3:
         raise PpmError(f"image is a P3 PPM with a value of {int(lengths.max())} digits; each is 0–255")
-    digits = text.astype(np.uint16) - 48 if count else np.zeros(0, np.uint16)
-    values = digits[starts]
+    values = text[starts].astype(np.uint16) - 48
     for k in (1, 2):
-        longer = lengths > k
-        values[longer] = values[longer] * 10 + digits[starts[longer] + k]
+        longer = np.flatnonzero(lengths > k)
+        values[longer] = values[longer] * 10 + (text[starts[longer] + k] - 48)
     if len(values) and int(values.max()) > MAXVAL:
         raise PpmError(f"image is a P3 PPM with the value {int(values.max())}, above its maxval {MAXVAL}")
-    return values.astype(np.uint8)
+    return values
 
 
 def viewable(data: bytes) -> bytes:

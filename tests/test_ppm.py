@@ -149,3 +149,28 @@ def test_a_class_of_ppm_submissions_is_graded_as_its_pngs(tmp_path, rendered):
         and grading.read_submission(copies[1], (96, 72)).tolist()
         == grading.read_submission(copies[0], (96, 72)).tolist()
     )
+
+
+def test_a_p3_is_read_a_block_at_a_time_with_no_value_cut_in_two(monkeypatch):
+    import service.ppm
+
+    px = np.random.default_rng(9).integers(0, 256, (7, 11, 3), dtype=np.uint8)
+    data = p3(px)
+    for block in (1, 2, 3, 5, 64):  # (a block of 1 to 3 bytes may hold no white space: it ends where it must)
+        monkeypatch.setattr(service.ppm, "BLOCK", block)
+        assert np.array_equal(grading.read_submission(data, (11, 7)), px), block
+    monkeypatch.setattr(service.ppm, "BLOCK", 4)
+    with pytest.raises(grading.ImageError, match="a value of 4 digits"):
+        grading.read_submission(b"P3 1 1 255\n1 2 0003\n", (1, 1))
+
+
+def test_a_large_p3_is_decoded_in_bounded_memory():
+    """A P3 of 1280×1024 (13 MiB of text): its temporaries are a byte per byte of text and a few MiB a block,
+    not the ~190 MiB that reading the whole file's values at once takes."""
+    data = b"P3 1280 1024 255\n" + b" ".join([b"255"] * (1280 * 1024 * 3)) + b"\n"
+    tracemalloc.start()
+    pixels = grading.read_submission(data, (1280, 1024))
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert pixels.shape == (1024, 1280, 3) and int(pixels.min()) == 255
+    assert peak < len(data) + (24 << 20), peak
