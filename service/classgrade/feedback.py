@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..display import percent
-from .gradebook import partial
+from .gradebook import late_note, partial
 from .taskfile import TaskSettings
 
 #: the test that keeps a student's total unseen until the grades are published (see the module's docstring)
@@ -80,7 +80,7 @@ def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> di
             "score": r["score"],
             "max_score": r["points"],
             "status": "passed" if r["status"] == "pass" else "failed",
-            "output": test_output(r, tasks[r["task"]].show),
+            "output": test_output(r, tasks[r["task"]].show) + (f"\n{late_note(r)}" if r.get("late") else ""),
             "visibility": tasks[r["task"]].visibility,
         }
         for r in rows
