@@ -87,6 +87,19 @@ def test_refraction_missing_and_no_shadows_are_both_found(tmp_path, task):
     assert not any("light" in s or "diffuse" in s or "specular" in s for s in found.sentences)
 
 
+@pytest.mark.parametrize("task", ["spot", "lamps"])
+def test_no_shadows_and_a_spot_without_its_ramp_are_both_found(tmp_path, task):
+    """Every light is wrong (no shadows), so one alone (the point light) is diagnosed: no shadow rays; judged
+    again without shadows, the point light is right and the spot is wrong in its ramp alone."""
+    found = asked(tmp_path, "no-shadows\nspot-hard-edge", task)
+    assert found.sentences[-3:] == [
+        "no shadow rays (seen with the point light 'fill' alone)",
+        "your spot light 'key' is wrong between its inner and outer cone",
+        "alone, your point light 'fill' is right",
+    ]
+    assert found.found == ("no-shadows",)
+
+
 def fake_program(answer: bytes) -> Callable[[bytes], RunOutcome]:
     """A program (no sandbox: its answers are made here) that renders every scene without shadows, but for a
     scene with one light, which it answers with ``answer``."""

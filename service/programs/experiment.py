@@ -16,8 +16,10 @@ The probes are asked in stages, so that a part found wrong is not blamed on the 
    rays``) is a second mistake, found behind the first;
 3. each light alone and the camera moved, from that scene, their references rendered with the classic
    mistakes already found (the task's own diagnosis's, and stage 2's): a light is told wrong only for what
-   is wrong of it.  For a spot's probe, the pixels it gets wrong against those of the spot's ramp between
-   its inner and outer cone say whether the mistake is in that ramp alone.
+   is wrong of it.  When no mistake is known and every light is wrong, one light's image alone (one without
+   a spot's ramp first) is diagnosed: a mistake of every light (no shadow rays) shows there, and the
+   answers are judged again with it.  For a spot's probe, the pixels it gets wrong against those of the
+   spot's ramp between its inner and outer cone say whether the mistake is in that ramp alone.
 
 A probe's answer is read as an uploaded image is (:func:`service.grading.read_submission`: a PNG of the
 probe's size, checked on its header before anything is decompressed); one that cannot be read is that
@@ -36,7 +38,7 @@ import numpy as np
 
 from .findings import sentences, unseen
 from .outcome import RunOutcome
-from .probes import MAX_PROBES, Probe, Scene, aside_probe, camera_probe, light_probes, term_probes
+from .probes import LEFT_OUT, MAX_PROBES, Probe, Scene, aside_probe, camera_probe, light_probes, term_probes
 
 if TYPE_CHECKING:
     from tracer.variants import Options
@@ -208,7 +210,8 @@ class _Asking:
 @dataclass(frozen=True)
 class _Task:
     """The task's image (None: the run made none), phongray's reference of it (without any mistake), and
-    whether the mistakes already known explain the image whole (it matches the reference made with them)."""
+    whether the mistakes already known explain the image whole (it matches the reference made with them, or
+    the reference itself when none is known)."""
 
     image: np.ndarray | None
     reference: np.ndarray
@@ -279,19 +282,38 @@ def experiment(
         task = _task(image, parsed, known, limits)
         states = {t: s for t in ("reflectance", "transmittance") if (s := _state(t, terms, task, limits)) is not None}
     aside = tuple(t for t in ("transmittance", "reflectance") if states.get(t) in ("missing", "wrong"))
-    base, found = parsed, known
+    base, seen = parsed, ""
     behind: tuple[str, ...] = ()
     if aside:
         base = aside_probe(parsed, aside).scene
-        rest = _rest(asking, terms, aside, parsed, known)
-        if rest is not None and rest.verdict == "wrong":
-            behind = _diagnosed(rest, limits)
-            found = known + behind
-            asking.rejudge(found)
-    asking.all(light_probes(base, found), keep=1)
-    asking.all([camera_probe(base, found)])
-    said = sentences(asking.answers, states, unseen(behind, aside))
+        behind = _behind(asking, _rest(asking, terms, aside, parsed, known), known)
+        seen = f"{' and '.join(LEFT_OUT[t] for t in aside)} left out"
+    lights = asking.all(light_probes(base, known + behind), keep=1)
+    alone = _alone(lights) if not (known or behind) else None
+    if alone is not None:  # (no mistake known yet, and the lights are wrong: what one of them shows alone)
+        behind, seen = _behind(asking, alone, known), f"the {alone.probe.name}"
+    asking.all([camera_probe(base, known + behind)])
+    said = sentences(asking.answers, states, unseen(behind, seen))
     return Experiment(asking.answers, said, behind)
+
+
+def _alone(lights: list[Answer]) -> Answer | None:
+    """The light's answer to diagnose when every light is wrong: a classic mistake of them all (no shadow rays)
+    shows in each; one without a spot's ramp first (a ramp may be a mistake of its own)."""
+    wrong = [a for a in lights if a.verdict == "wrong"]
+    if not wrong or len(wrong) < len(lights):
+        return None
+    return next((a for a in wrong if a.probe.region is None), wrong[0])
+
+
+def _behind(asking: _Asking, answer: Answer | None, known: tuple[str, ...]) -> tuple[str, ...]:
+    """The classic mistake a wrong answer shows (diagnosed), and every answer so far judged again with it."""
+    if answer is None or answer.verdict != "wrong":
+        return ()
+    found = _diagnosed(answer, asking.limits)
+    if found:
+        asking.rejudge(known + found)
+    return found
 
 
 def _task(image: bytes | None, scene: Scene, known: tuple[str, ...], limits: Thresholds) -> _Task:
@@ -305,8 +327,8 @@ def _task(image: bytes | None, scene: Scene, known: tuple[str, ...], limits: Thr
         pixels = None if image is None else read_answer(image, reference)
     except ImageError:
         return _Task(None, reference)
-    explained = bool(known) and pixels is not None and same(decode_png(render_png(scene, known)), pixels, limits)
-    return _Task(pixels, reference, explained)
+    with_known = decode_png(render_png(scene, known)) if known else reference
+    return _Task(pixels, reference, pixels is not None and same(with_known, pixels, limits))
 
 
 def _rest(

@@ -1,9 +1,11 @@
 """What a program's answers to its probes show, in sentences a student reads (:mod:`.experiment` asks them).
 
 The likeliest mistake comes first: glass or mirrors missing or wrong (the parts the later probes were made
-without), a classic mistake found behind them, a light wrong (between a spot's inner and outer cone, where
-that is all that is wrong), diffuse or specular wrong, a picture right only from the task's camera, and then
-a probe the program gave no answer to.  A sentence names a light by its ``name`` in the scene, or its place,
+without), a classic mistake found behind them (or in a light's image alone), a light wrong (between a spot's
+inner and outer cone, where that is all that is wrong), diffuse or specular wrong, a picture right only from
+the task's camera, and then a probe the program gave no answer to.  A light wrong while another is right
+locates the mistake, and diffuse or specular is not blamed for it; every light wrong with a term wrong is the
+term's mistake, and no light is blamed for it.  A sentence names a light by its ``name`` in the scene, or its place,
 and says nothing else of the scene; a run that failed is told as it is told to a student
 (:func:`.outcome.told`), never with its exit status.
 """
@@ -13,7 +15,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from .outcome import Reason, told
-from .probes import LEFT_OUT, Kind, light_label
+from .probes import Kind, light_label
 
 if TYPE_CHECKING:
     from .experiment import Answer
@@ -22,15 +24,16 @@ if TYPE_CHECKING:
 TERM_WORDS = {"reflectance": "reflection", "transmittance": "refraction", "diffuse": "diffuse", "specular": "specular"}
 
 
-def unseen(found: tuple[str, ...], aside: tuple[str, ...]) -> str | None:
-    """``no shadow rays (seen with the glass left out)``: the classic mistakes found behind the parts set aside."""
+def unseen(found: tuple[str, ...], seen: str) -> str | None:
+    """``no shadow rays (seen with the glass left out)``: the classic mistakes found behind another, and the
+    probe that showed them."""
     if not found:
         return None
     from tracer.variants import MORE_VARIANTS, VARIANTS
 
     words = {name: said for name, (_, said) in {**VARIANTS, **MORE_VARIANTS}.items()}
     named = " and ".join(words.get(part, part) for mistake in found for part in mistake.split("+"))
-    return f"{named} (seen with {' and '.join(LEFT_OUT[t] for t in aside)} left out)"
+    return f"{named} (seen with {seen})"
 
 
 def _mirrors_and_glass(states: dict[str, str]) -> str | None:
@@ -76,8 +79,12 @@ def sentences(answers: list[Answer], states: dict[str, str], behind: str | None 
     ``behind`` the sentence of a mistake found behind them."""
     by_name = {a.probe.name: a for a in answers}
     said = [s for s in (_mirrors_and_glass(states), behind) if s]
-    said += _lights(answers)
-    said += [s for s in (_terms(by_name),) if s]
+    lights = [a.verdict for a in answers if a.probe.kind is Kind.LIGHT and a.verdict in ("right", "wrong")]
+    located = "wrong" in lights and "right" in lights  # (a light alone is wrong: not diffuse or specular)
+    terms = None if located else _terms(by_name)
+    if not (terms and lights and set(lights) == {"wrong"}):  # (every light wrong, and a term: the term)
+        said += _lights(answers)
+    said += [terms] if terms else []
     camera = by_name.get("the camera moved")
     others = [a for a in answers if a is not camera]
     if camera is not None and camera.verdict == "wrong" and all(a.verdict == "right" for a in others):
