@@ -336,7 +336,7 @@ def _glass_over_floor(opaque_ball: bool):
             "image": {"width": 40, "height": 30},
             "materials": {"floor": {}, "glass": {"transmittance": 0.9, "specular": 0.0}},
             "objects": objects,
-            "lights": [{"type": "point", "color": 1, "position": [0.5, 4, 1]}, {"type": "ambient", "color": 0.2}],
+            "lights": [{"type": "point", "color": 1, "position": [3, 3, 3]}, {"type": "ambient", "color": 0.2}],
         }
     )
 
