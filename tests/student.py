@@ -299,6 +299,6 @@ def render(
         linear = np.clip(linear, 0.0, 1.0)
     if "gamma" in wrong:
         linear = linear ** (1 / 2.2)
-    # (unclamped, 1.1 is 280: kept to 8 bits as an integer cast keeps it, 24)
+    # (unclamped, 1.2 is 306: kept to 8 bits as an integer cast keeps it, 50)
     image = np.floor(255 * linear + 0.5).astype(np.int64).astype(np.uint8)
     return image[::-1].copy() if "image-flipped" in wrong else image

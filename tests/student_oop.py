@@ -261,7 +261,7 @@ def render(scene, mistakes: tuple[str, ...] | list[str] = ()) -> np.ndarray:  # 
                 c = (c[0] ** (1 / 2.2), c[1] ** (1 / 2.2), c[2] ** (1 / 2.2))
             row.append([math.floor(255 * x + 0.5) for x in c])
         rows.append(row)
-    return saved(np.array(rows).astype(np.uint8), wrong)  # (unclamped, 280 is kept as 24)
+    return saved(np.array(rows).astype(np.uint8), wrong)  # (unclamped, 306 is kept as 50)
 
 
 def saved(image: np.ndarray, wrong: set[str]) -> np.ndarray:

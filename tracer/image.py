@@ -25,7 +25,7 @@ def quantize(colour: np.ndarray) -> np.ndarray:
 
 def wrapped(colour: np.ndarray) -> np.ndarray:
     """:func:`quantize` of a student who does not clamp: ``floor(255·v + 0.5)`` kept modulo 256, as a cast of a
-    larger integer to 8 bits keeps it (1.1 is 280, stored as 24); below 0 (never: light adds up) is 0, and NaN
+    larger integer to 8 bits keeps it (1.2 is 306, stored as 50); below 0 (never: light adds up) is 0, and NaN
     is 0. Same shape, uint8."""
     v = np.clip(np.nan_to_num(colour, nan=0.0, posinf=0.0, neginf=0.0), 0.0, 2.0**40)
     return (np.floor(255.0 * v + (0.5 + NUDGE)).astype(np.int64) & 0xFF).astype(np.uint8)
