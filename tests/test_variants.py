@@ -263,8 +263,8 @@ def test_a_variant_that_misreads_the_scene_reads_a_copy():
 
 # -- the mistakes an image may not tell from another, and more that tracers written from the format make ---------
 
-#: each a switch of both students' tracers (tests/student.py, tests/student_oop.py), made their own way
-ALIKE = (
+#: classic mistakes each a switch of both students' tracers (tests/student.py, tests/student_oop.py), made their own way
+BOTH_STUDENTS = (
     "reflect-sign",
     "checker-ignored",
     "colours-not-clamped",
@@ -274,7 +274,7 @@ ALIKE = (
 )
 
 
-@pytest.mark.parametrize("name", ALIKE)
+@pytest.mark.parametrize("name", BOTH_STUDENTS)
 def test_a_variant_is_the_image_of_either_student_who_makes_the_mistake(bright, name):
     import student
     import student_oop
