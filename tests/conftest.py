@@ -1,7 +1,42 @@
+import os
+import secrets
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
+
+
+def _own_sandbox_uids() -> None:
+    """This session's runs of students' programs (run as root) get user ids of a range no other session
+    draws from (PHONGRAY_SANDBOX_UIDS, inherited by the pool's processes and the Dask workers the tests
+    start), so that a test that looks for a run's processes left running finds its own only."""
+    from service.programs.sandbox import UID_BASE, UID_SPAN, UIDS_VARIABLE
+
+    width = 1_000_000
+    first = UID_BASE + width * secrets.randbelow(UID_SPAN // width)
+    os.environ[UIDS_VARIABLE] = f"{first}-{first + width - 1}"
+
+
+def _own_temporary_folder() -> None:
+    """This session's temporary files (pytest's, and the runs' folders of students' programs) in a folder of
+    its own, inherited by the processes it starts (TMPDIR), so that a test that looks for a run's folder left
+    behind finds its own only; traversable by a run's user (0711), removed at the end."""
+    import tempfile
+
+    folder = tempfile.mkdtemp(prefix="phongray-tests-")
+    os.chmod(folder, 0o711)
+    os.environ["TMPDIR"] = folder
+    tempfile.tempdir = None
+
+
+_own_sandbox_uids()
+_own_temporary_folder()
+
+
+def pytest_unconfigure(config) -> None:  # noqa: ANN001
+    import shutil
+
+    shutil.rmtree(os.environ["TMPDIR"], ignore_errors=True)
 
 
 def pytest_collection_finish(session) -> None:  # noqa: ANN001
@@ -16,7 +51,15 @@ def pytest_collection_finish(session) -> None:  # noqa: ANN001
 
 
 #: the test modules that run students' programs in bubblewrap's sandbox
-SANDBOXED = {"test_programs.py", "test_experiment.py", "test_job.py", "test_class_programs.py", "test_bundled.py"}
+SANDBOXED = {
+    "test_programs.py",
+    "test_experiment.py",
+    "test_job.py",
+    "test_class_programs.py",
+    "test_bundled.py",
+    "test_guard.py",
+    "test_seccomp.py",
+}
 
 
 def pytest_collection_modifyitems(config, items) -> None:  # noqa: ANN001

@@ -26,7 +26,7 @@ from service.programs import (
     check_sandbox,
     run_program,
 )
-from service.programs.sandbox import UID_BASE, UID_SPAN
+from service.programs.sandbox import uid_range
 
 #: a small PNG writer every test program starts with: write_png(path) writes a 4×3 red image
 PRELUDE = textwrap.dedent("""\
@@ -47,6 +47,10 @@ QUICK = Limits(wall_seconds=5.0, cpu_seconds=10, memory_bytes=512 << 20, output_
 
 @pytest.fixture
 def course(tmp_path):
+    return make_course(tmp_path)
+
+
+def make_course(tmp_path: Path) -> Path:
     """The TA's scene folder (with a secret reference) and a class of two students: 'ann' (the one run) and
     'bob', whose folder holds his own secret."""
     scenes = tmp_path / "scenes"
@@ -73,15 +77,19 @@ def run(course: Path, body: str, limits: Limits = QUICK, sandbox: bool = True):
 
 
 def left_running(word: str | None = None) -> list[str]:
-    """The processes on the machine whose command line holds ``word``, or that run as a sandbox's user, not
-    counting zombies: the sandbox's first process, once dead, is not reaped by bubblewrap but by the
-    machine's init, a moment later (a zombie runs nothing and holds no memory)."""
+    """This session's processes (a sandbox's user of its own, or run as root) whose command line holds
+    ``word``, or that run as a sandbox's user, not counting zombies: the sandbox's first process, once dead,
+    is not reaped by bubblewrap but by the machine's init, a moment later (a zombie runs nothing and holds no
+    memory)."""
+    first, last = uid_range()  # (this session's: conftest.py)
     ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
     left = []
     for line in ps.splitlines():
         uid, stat, args = line.split(None, 2)
-        sandboxed = UID_BASE <= int(uid) < UID_BASE + UID_SPAN
-        if not stat.startswith("Z") and (sandboxed or (word is not None and word in args and "ps -eo" not in args)):
+        sandboxed = first <= int(uid) <= last
+        ours = sandboxed or (os.geteuid() != 0 and int(uid) == os.getuid())
+        named = word is not None and word in args and "ps -eo" not in args
+        if not stat.startswith("Z") and (sandboxed or (named and ours)):
             left.append(line)
     return left
 

@@ -7,7 +7,7 @@ wrote exactly as an uploaded image of that task is graded (:func:`service.classg
 thresholds, the accepted variants, the diagnosis).  A run that fails (a timeout, memory, a crash, no output,
 an output that is a link...) makes a failing grade whose reason says so in words, and the others go on; a
 failing image is then diagnosed by experiment too (:mod:`service.programs.experiment`), within the same
-limits.  Only a sandbox that cannot start stops the batch (:class:`SandboxUnavailable`).
+limits.  Only a sandbox that cannot start stops the batch (the TA's :class:`ClassError`, in one line).
 
 The student's folder is read where the task runs: a Dask worker sees the submissions folder at the same path
 (one machine, or a shared file system).  Nothing of a run is left on that machine's disk.
@@ -26,11 +26,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from ..classgrade.errors import ClassError
 from ..classgrade.records import GradeJob
 from .experiment import Thresholds, experiment
 from .outcome import RunOutcome
 from .program import Program
 from .runner import BuildStep, ProgramRun, build_program, run_program
+from .sandbox import SandboxUnavailable
 
 
 @dataclass(frozen=True)
@@ -130,12 +132,18 @@ def _built(job: ProgramJob) -> Iterator[tuple[Path | None, RunOutcome | None]]:
 
 
 def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
-    """Every task's grade of one student's program, by task name (see the module's docstring)."""
-    with _built(job) as (folder, failed):
-        if folder is None:
-            assert failed is not None
-            return {task.task: failed_run(failed, "the build") for task in job.tasks}
-        return {task.task: grade_run(task, _runner(folder, job.program, f"{task.task}.json")) for task in job.tasks}
+    """Every task's grade of one student's program, by task name (see the module's docstring).
+    :class:`ClassError` (the TA's, in one line, naming the student whose run found it) when a sandbox cannot
+    start: the machine's set-up, never the student's."""
+    try:
+        with _built(job) as (folder, failed):
+            if folder is None:
+                assert failed is not None
+                return {task.task: failed_run(failed, "the build") for task in job.tasks}
+            runs = {task.task: _runner(folder, job.program, f"{task.task}.json") for task in job.tasks}
+            return {task.task: grade_run(task, runs[task.task]) for task in job.tasks}
+    except SandboxUnavailable as exc:
+        raise ClassError(f"{job.folder.name}'s program: {exc}") from None
 
 
 def digest(folder: Path, program: Program) -> str:

@@ -21,12 +21,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..classgrade.untrusted import UntrustedFileError, read_untrusted
+from .cgroup import CgroupError
 from .folder import FolderTooLarge, chown_tree, copy_folder, unpack
+from .guard import Guard, guard
 from .limits import Limits
 from .outcome import Reason, RunOutcome, failure
 from .process import Command, Finished, run_command
-from .sandbox import ENVIRONMENT, OUTPUT, SCENE_DIR, UNSANDBOXED, Mounts, as_user, bwrap_argv, find_bwrap, sandbox_uid
+from .sandbox import (
+    ENVIRONMENT,
+    OUTPUT,
+    SCENE_DIR,
+    UNSANDBOXED,
+    Mounts,
+    SandboxUnavailable,
+    as_user,
+    bwrap_argv,
+    find_bwrap,
+    sandbox_uid,
+)
 from .scripts import BUILD, BUILD_IN_PLACE, RUN, not_started, script, split_times
+from .seccomp import filter_fd
+from .watchdog import Watchdog
 
 
 def command_argv(template: str, scene: str = "", output: str = "") -> list[str]:
@@ -112,39 +127,49 @@ def _prepare(root: Path, folder: Path, scene: Path | None, limits: Limits) -> Mo
 
 @dataclass(frozen=True)
 class _Session:
-    """One sandboxed (or not) command in its run folder: what it is given and how it is limited."""
+    """One sandboxed (or not) command in its run folder: what it is given, how it is limited, and the guard
+    that holds its memory and processes (with the argv that runs a command under it)."""
 
     mounts: Mounts
     limits: Limits
     sandbox: bool
     uid: int
+    guard: Guard
+    guarded: list[str]
 
 
 def _command(session: _Session, words: list[str], body: str) -> Command:
+    """The command line: under the guard, the limits (the address space where the watchdog holds memory;
+    the processes outside the sandbox only for a user of the run's own), as the run's user, in the sandbox
+    (whose own user namespace counts its processes), the shell that runs the student's command."""
     limits = session.limits
-    prefix = [*limits.prlimit_argv(), *as_user(session.uid)]
+    own_user = os.geteuid() == 0
+    outer = limits.prlimit_argv(isinstance(session.guard, Watchdog), not session.sandbox and own_user)
+    prefix = [*session.guarded, *outer, *as_user(session.uid)]
     shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
     if not session.sandbox:
         env = {**ENVIRONMENT, "HOME": str(session.mounts.submission)}
-        return Command(
-            [*prefix, *shell],
-            str(session.mounts.submission),
-            env,
-            limits.wall_seconds,
-            limits.workdir_bytes,
-            limits.stderr_bytes,
-        )
+        place = str(session.mounts.submission)
+        return Command([*prefix, *shell], place, env, *_kept(limits), guard=session.guard)
     bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
+    seccomp = filter_fd()
+    filtered = [] if seccomp is None else ["--seccomp", str(seccomp)]
     info = os.pipe()
+    inner = ["prlimit", f"--nproc={limits.processes}", "--"]
     return Command(
-        [*prefix, *bwrap, "--info-fd", str(info[1]), *shell],
+        [*prefix, *bwrap, *filtered, "--info-fd", str(info[1]), *inner, *shell],
         "/",
         {"PATH": os.environ.get("PATH", "/usr/bin:/bin")},
-        limits.wall_seconds,
-        limits.workdir_bytes,
-        limits.stderr_bytes,
+        *_kept(limits),
         info,
+        () if seccomp is None else (seccomp,),
+        session.guard,
     )
+
+
+def _kept(limits: Limits) -> tuple[float, int, int]:
+    """A command's wall time, and how much of its standard output and error is kept."""
+    return limits.wall_seconds, limits.workdir_bytes, limits.stderr_bytes
 
 
 def _execute(session: _Session, words: list[str], body: str) -> Finished:
@@ -189,7 +214,14 @@ def _session(folder: Path, scene: Path | None, limits: Limits, sandbox: bool) ->
     with _scratch() as root:
         mounts = _prepare(root, folder, scene, limits)
         chown_tree(root, uid)
-        yield _Session(mounts, limits, sandbox, uid)
+        try:
+            watch, guarded = guard(limits, sandbox)
+        except CgroupError as exc:
+            raise SandboxUnavailable(f"the run's cgroup cannot be made: {exc}") from None
+        try:
+            yield _Session(mounts, limits, sandbox, uid, watch, guarded)
+        finally:
+            watch.close()
 
 
 def run_program(run: ProgramRun) -> RunOutcome:
