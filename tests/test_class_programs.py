@@ -7,6 +7,7 @@ mistake switched on, a hostile one with a few lines before it that misbehave on 
 
 import json
 import os
+import shutil
 import socket
 import subprocess
 import tempfile
@@ -224,6 +225,28 @@ def test_without_bubblewrap_a_class_stops_unless_asked_to_run_unsandboxed(tmp_pa
     code, rows, _ = grade(tmp_path, scenes, subs, "--no-sandbox")
     assert code == 0 and rows["honest", "spot"]["status"] == "pass"
     assert capsys.readouterr().err.count("WARNING: run without a sandbox") == 2  # one for each run
+
+
+def test_a_sandbox_that_stops_starting_mid_batch_is_the_tas_one_line(tmp_path, listener, capsys, monkeypatch):
+    """The batch's check started a sandbox; then a student's does not start (a limit on processes reached):
+    exit 2 and one line naming the cause, never a traceback, and no student marked for it."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest"])
+    fake = Path(tempfile.mkdtemp(prefix="fake-bwrap-"))
+    fake.chmod(0o755)  # (a run's user runs it)
+    (fake / "bwrap").write_text(
+        '#!/bin/sh\ncase "$*" in *tracer.py*)\n'
+        "  echo 'bwrap: Creating new namespace failed: Resource temporarily unavailable' >&2; exit 1;;\nesac\n"
+        f'exec {shutil.which("bwrap")} "$@"\n'
+    )
+    (fake / "bwrap").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake}:{os.environ['PATH']}")
+    code, _, report = grade(tmp_path, scenes, subs, "--jobs", "1")
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "honest's program: the sandbox cannot start here: bwrap: Creating new namespace failed" in err
+    assert "a limit on processes was reached: the grading user's (ulimit -u" in err
+    assert not list(report.glob("gradescope/*/results.json"))
 
 
 def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listener, request):
