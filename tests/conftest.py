@@ -1,42 +1,37 @@
+import ctypes
 import os
-import secrets
 import sys
+import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-
-def _own_sandbox_uids() -> None:
-    """This session's runs of students' programs (run as root) get user ids of a range no other session
-    draws from (PHONGRAY_SANDBOX_UIDS, inherited by the pool's processes and the Dask workers the tests
-    start), so that a test that looks for a run's processes left running finds its own only."""
-    from service.programs.sandbox import UID_BASE, UID_SPAN, UIDS_VARIABLE
-
-    width = 1_000_000
-    first = UID_BASE + width * secrets.randbelow(UID_SPAN // width)
-    os.environ[UIDS_VARIABLE] = f"{first}-{first + width - 1}"
+#: prctl's option that makes this process the reaper of its orphaned descendants
+PR_SET_CHILD_SUBREAPER = 36
 
 
 def _own_temporary_folder() -> None:
-    """This session's temporary files (pytest's, and the runs' folders of students' programs) in a folder of
-    its own, inherited by the processes it starts (TMPDIR), so that a test that looks for a run's folder left
-    behind finds its own only; traversable by a run's user (0711), removed at the end."""
-    import tempfile
-
+    """Every temporary file and folder of this test session (students' run folders, builds, bundles) in a
+    folder of its own, which its children inherit through ``TMPDIR``: a test that checks it left no run folder
+    behind looks there, not at what other programs on the machine (another test session, a TA's
+    ``grade-class --run``) are doing in ``/tmp``.  Open to be traversed (0711), as ``/tmp`` is, so that a
+    sandbox's user reaches the run folder made for it."""
     folder = tempfile.mkdtemp(prefix="phongray-tests-")
     os.chmod(folder, 0o711)
     os.environ["TMPDIR"] = folder
-    tempfile.tempdir = None
+    tempfile.tempdir = None  # (read TMPDIR again)
 
 
-_own_sandbox_uids()
+def _reap_orphans() -> None:
+    """This session adopts whatever its children leave orphaned (a student's daemon that double-forked away
+    from its parent), so that every process it started, directly or not, stays among its descendants, which
+    is all that :func:`helpers.own_processes` looks at."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+
+
 _own_temporary_folder()
-
-
-def pytest_unconfigure(config) -> None:  # noqa: ANN001
-    import shutil
-
-    shutil.rmtree(os.environ["TMPDIR"], ignore_errors=True)
+_reap_orphans()
 
 
 def pytest_collection_finish(session) -> None:  # noqa: ANN001
@@ -82,3 +77,10 @@ def pytest_collection_modifyitems(config, items) -> None:  # noqa: ANN001
                 "installs it and sets PHONGRAY_REQUIRE_SANDBOX)"
             )
         )
+
+
+def pytest_sessionfinish(session, exitstatus) -> None:  # noqa: ANN001
+    """The session's own temporary folder goes with it (what a test left there was checked by that test)."""
+    import shutil
+
+    shutil.rmtree(os.environ["TMPDIR"], ignore_errors=True)

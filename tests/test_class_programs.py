@@ -9,7 +9,6 @@ import json
 import os
 import shutil
 import socket
-import subprocess
 import tempfile
 import threading
 from pathlib import Path
@@ -19,7 +18,8 @@ from test_cluster import dask as cluster_fixture  # noqa: F401  (the fixture 'da
 
 from service.cli import main
 from service.programs import check_sandbox
-from service.programs.sandbox import uid_range
+
+from helpers import left_in_sandboxes
 
 HERE = Path(__file__).parent / "programs"
 SECRET = "TA-SECRET-51c0"
@@ -53,22 +53,14 @@ BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-
 
 
 def left_running() -> list[str]:
-    """Processes of a sandbox's user, or the hostile daemon's sleep, not counting zombies."""
-    first, last = uid_range()  # (this session's: conftest.py)
-    ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
-    return [
-        line
-        for line in ps.splitlines()
-        if not line.split()[1].startswith("Z")
-        and (
-            first <= int(line.split()[0]) <= last
-            or ("876.543" in line and os.geteuid() != 0 and int(line.split()[0]) == os.getuid())
-        )
-    ]
+    """What this test's runs left running: a sandbox or anything under it, or the hostile daemon's sleep;
+    zombies do not count."""
+    return left_in_sandboxes("876.543")
 
 
 def scratch() -> set[str]:
-    """The temporary folders of runs, builds and scenes on the machine."""
+    """The temporary folders of runs, builds and scenes of this test session (tests/conftest.py gives it a
+    temporary folder of its own)."""
     return {p.name for p in Path(tempfile.gettempdir()).glob("phongray-*")}
 
 

@@ -4,7 +4,7 @@ own, whoever runs phongray.
 
 Runs of a grading user that is not root all run as that user; as root each run has a user of its own.  The
 tests that are about a shared user make every run of theirs one user when they are run as root (a user of
-this session's range), so that they test what a teaching assistant's account would meet."""
+a sandbox's user drawn for the test), so that they test what a teaching assistant's account would meet."""
 
 import os
 import signal
@@ -18,7 +18,7 @@ from test_programs import PRELUDE, make_course, nothing_left  # noqa: F401  (aft
 
 from service.programs import Limits, ProgramRun, Reason, run_program
 from service.programs.guard import enforcement
-from service.programs.sandbox import uid_range
+from service.programs.sandbox import sandbox_uid
 from service.programs.watchdog import Watchdog, family
 
 #: four children touching 200 MB each and holding it: each within the 512 MiB limit, together far over it
@@ -69,10 +69,10 @@ def run(root, body: str, limits: Limits):
 @pytest.fixture
 def shared_user(monkeypatch):
     """The one user every run of the test is, as a grading user's runs are: this process's own, or (as root)
-    a user of this session's range; with :func:`start_as` to run more processes as it."""
+    a sandbox's user drawn for the test; with :func:`start_as` to run more processes as it."""
     if os.geteuid() != 0:
         return os.getuid()
-    uid = uid_range()[0]
+    uid = sandbox_uid()
     monkeypatch.setattr("service.programs.runner.sandbox_uid", lambda: uid)
     return uid
 

@@ -38,8 +38,6 @@ ETC = ("/etc/ld.so.cache", "/etc/ld.so.conf", "/etc/ld.so.conf.d", "/etc/alterna
 ENVIRONMENT = {"PATH": "/usr/local/bin:/usr/bin:/bin", "HOME": HOME, "LANG": "C.UTF-8", "TMPDIR": "/tmp"}
 #: the range the sandbox's user ids are drawn from when this process is root (no account uses them)
 UID_BASE, UID_SPAN = 1_900_000_000, 100_000_000
-#: the environment variable that narrows it (``FIRST-LAST``): graders that must tell their runs apart
-UIDS_VARIABLE = "PHONGRAY_SANDBOX_UIDS"
 
 
 class SandboxUnavailable(Exception):
@@ -66,24 +64,13 @@ def find_bwrap() -> str:
 
 def sandbox_uid() -> int:
     """The user a run's processes are, on the machine.  As root, an unused user id drawn at random for this
-    run (:func:`uid_range`), which owns nothing of the machine and no other run's files (two runs draw the
+    run, which owns nothing of the machine and no other run's files (two runs draw the
     same id with probability 1 in 10⁸ per pair).  Not root (the autograder's unprivileged user): this
     process's own user.  Either way the run's processes are counted in its sandbox's own user namespace
     (:mod:`service.programs.guard`)."""
     if os.geteuid() != 0:
         return os.getuid()
-    first, last = uid_range()
-    return first + secrets.randbelow(last - first + 1)
-
-
-def uid_range() -> tuple[int, int]:
-    """The first and last user id a run may be given: ``$PHONGRAY_SANDBOX_UIDS`` (``FIRST-LAST``, within the
-    default range) or the default range."""
-    given = os.environ.get(UIDS_VARIABLE, "")
-    first, _, last = given.partition("-")
-    if first.isdigit() and last.isdigit() and UID_BASE <= int(first) <= int(last) < UID_BASE + UID_SPAN:
-        return int(first), int(last)
-    return UID_BASE, UID_BASE + UID_SPAN - 1
+    return UID_BASE + secrets.randbelow(UID_SPAN)
 
 
 def as_user(uid: int) -> list[str]:
