@@ -3,8 +3,8 @@ is held to the limit, and its processes are counted apart from every other run's
 own, whoever runs phongray.
 
 Runs of a grading user that is not root all run as that user; as root each run has a user of its own.  The
-tests that are about a shared user make every run of theirs one user when they are run as root (a user of
-a sandbox's user drawn for the test), so that they test what a teaching assistant's account would meet."""
+tests that are about a shared user make every run of theirs one user when they are run as root (a sandbox's
+user drawn for the test), so that they test what a teaching assistant's account would meet."""
 
 import os
 import signal
