@@ -54,6 +54,7 @@ SANDBOXED = {
     "test_bundled.py",
     "test_guard.py",
     "test_seccomp.py",
+    "test_runtime.py",
 }
 
 

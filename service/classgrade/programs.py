@@ -11,7 +11,8 @@ the program's files and commands (:func:`service.programs.job.digest`): a studen
 run again.
 
 The TA's mistakes stop the batch before any student is run (:func:`check_programs`): a command that cannot
-run, bubblewrap missing or unable to start (unless ``--no-sandbox``), ``--server`` (which grades images).
+run, bubblewrap missing or unable to start (unless ``--no-sandbox``), a runtime that is not installed or does
+not start in the sandbox, ``--server`` (which grades images).
 """
 
 from __future__ import annotations
@@ -39,13 +40,21 @@ def check_programs(run: ClassRun) -> None:
             f"Dask cluster (--cluster)"
         )
     from ..programs import SandboxUnavailable, check_sandbox
+    from ..programs.runtime import check_runtime, runtime_starts
 
-    assert run.program is not None
-    if run.program.sandbox:
-        try:
+    program = run.program
+    assert program is not None
+    problem = check_runtime(program.runtime, program.packages)
+    if problem is not None:
+        raise ClassError(problem)
+    try:
+        if program.sandbox:
             check_sandbox()
-        except SandboxUnavailable as exc:
-            raise ClassError(str(exc)) from None
+        problem = None if program.runtime is None else runtime_starts(program.runtime, program.sandbox)
+    except SandboxUnavailable as exc:
+        raise ClassError(str(exc)) from None
+    if problem is not None:
+        raise ClassError(problem)
 
 
 def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Batch:

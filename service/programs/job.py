@@ -102,7 +102,8 @@ def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunO
         with tempfile.TemporaryDirectory(prefix="phongray-scene-") as place:
             path = Path(place, name)
             path.write_bytes(scene)
-            return run_program(ProgramRun(folder, program.run, path, program.limits, program.sandbox))
+            given = ProgramRun(folder, program.run, path, program.limits, program.sandbox, program.runtime)
+            return run_program(given)
 
     return run
 
@@ -143,7 +144,8 @@ def _built(job: ProgramJob, folder: Path) -> Iterator[tuple[Path | None, RunOutc
         yield folder, None
         return
     with tempfile.TemporaryDirectory(prefix="phongray-built-") as into:
-        step = BuildStep(folder, job.program.build, job.program.limits, job.program.sandbox)
+        program = job.program
+        step = BuildStep(folder, program.build or "", program.limits, program.sandbox, program.runtime)
         built = build_program(step, Path(into))
         yield built.folder, None if built.folder is not None else built.outcome
 

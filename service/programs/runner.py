@@ -17,7 +17,7 @@ import stat
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..classgrade.untrusted import UntrustedFileError, read_untrusted
@@ -38,6 +38,7 @@ from .sandbox import (
     bwrap_argv,
     find_bwrap,
     sandbox_uid,
+    search_path,
 )
 from .scripts import BUILD, BUILD_IN_PLACE, RUN, not_started, script, split_times
 from .seccomp import filter_fd
@@ -66,6 +67,7 @@ class ProgramRun:
     scene: Path
     limits: Limits = field(default_factory=Limits)
     sandbox: bool = True
+    runtime: str | None = None  # the TA's runtime folder (:mod:`service.programs.runtime`)
 
     def __post_init__(self) -> None:
         """ValueError, with the template, for a command that cannot be split or names no ``{output}``."""
@@ -82,6 +84,7 @@ class BuildStep:
     command: str
     limits: Limits = field(default_factory=Limits)
     sandbox: bool = True
+    runtime: str | None = None
 
     def __post_init__(self) -> None:
         command_argv(self.command)
@@ -148,7 +151,7 @@ def _command(session: _Session, words: list[str], body: str) -> Command:
     prefix = [*session.guarded, *outer, *as_user(session.uid)]
     shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
     if not session.sandbox:
-        env = {**ENVIRONMENT, "HOME": str(session.mounts.submission)}
+        env = {**ENVIRONMENT, "HOME": str(session.mounts.submission), "PATH": search_path(session.mounts.runtime)}
         place = str(session.mounts.submission)
         return Command([*prefix, *shell], place, env, *_kept(limits), guard=session.guard)
     bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
@@ -204,7 +207,9 @@ def _read_output(path: Path, limits: Limits) -> tuple[Reason, str, bytes | None]
 
 
 @contextmanager
-def _session(folder: Path, scene: Path | None, limits: Limits, sandbox: bool) -> Iterator[_Session]:
+def _session(
+    folder: Path, scene: Path | None, limits: Limits, sandbox: bool, runtime: str | None
+) -> Iterator[_Session]:
     """The run's folder (removed when the run ends, however it ends), given to the run's user.
     :class:`FolderTooLarge` when the student's folder is over the limit; :class:`SandboxUnavailable` when the
     run is to be sandboxed and bubblewrap is missing."""
@@ -212,7 +217,7 @@ def _session(folder: Path, scene: Path | None, limits: Limits, sandbox: bool) ->
         find_bwrap()
     uid = sandbox_uid()
     with _scratch() as root:
-        mounts = _prepare(root, folder, scene, limits)
+        mounts = replace(_prepare(root, folder, scene, limits), runtime=runtime)
         chown_tree(root, uid)
         try:
             watch, guarded = guard(limits, sandbox)
@@ -229,7 +234,7 @@ def run_program(run: ProgramRun) -> RunOutcome:
     :class:`SandboxUnavailable` when it is to be sandboxed and the sandbox is missing or cannot start."""
     warning = None if run.sandbox else UNSANDBOXED
     try:
-        with _session(run.folder, run.scene, run.limits, run.sandbox) as session:
+        with _session(run.folder, run.scene, run.limits, run.sandbox, run.runtime) as session:
             scene = f"{SCENE_DIR}/{run.scene.name}" if run.sandbox else str(session.mounts.scene)
             output = OUTPUT if run.sandbox else str(session.mounts.output)
             finished = _execute(session, command_argv(run.command, scene, output), RUN)
@@ -247,7 +252,7 @@ def build_program(step: BuildStep, into: Path) -> Built:
     removes): the runs then use it as their folder.  :class:`SandboxUnavailable` as for :func:`run_program`."""
     warning = None if step.sandbox else UNSANDBOXED
     try:
-        with _session(step.folder, None, step.limits, step.sandbox) as session:
+        with _session(step.folder, None, step.limits, step.sandbox, step.runtime) as session:
             finished = _execute(session, command_argv(step.command), BUILD if step.sandbox else BUILD_IN_PLACE)
             failed = failure(finished, step.limits)
             if finished.stdout_overflow:
@@ -263,10 +268,11 @@ def build_program(step: BuildStep, into: Path) -> Built:
         return Built(_outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning), None)
 
 
-def check_sandbox() -> None:
-    """Start one sandbox that runs ``true``: :class:`SandboxUnavailable`, with bubblewrap's own words, where
-    it cannot (bubblewrap missing, or user namespaces not allowed, as in a container without the right),
-    so that a batch can stop before its first student rather than fail each."""
+def check_sandbox(command: str = "true {output}", runtime: str | None = None) -> RunOutcome:
+    """Start one sandbox that runs ``command`` (``true``): :class:`SandboxUnavailable`, with bubblewrap's own
+    words, where it cannot (bubblewrap missing, or user namespaces not allowed, as in a container without the
+    right), so that a batch can stop before its first student rather than fail each; else how it ran."""
     with tempfile.TemporaryDirectory(prefix="phongray-check-") as empty:
         Path(empty, "scene.json").write_text("{}")
-        run_program(ProgramRun(Path(empty), "true {output}", Path(empty, "scene.json"), Limits(wall_seconds=30.0)))
+        scene, limits = Path(empty, "scene.json"), Limits(wall_seconds=30.0)
+        return run_program(ProgramRun(Path(empty), command, scene, limits, runtime=runtime))
