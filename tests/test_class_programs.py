@@ -51,9 +51,10 @@ HOSTILE = {
     '    print("refused", exc, file=sys.stderr)\n',
     "daemon": "import os\nif os.fork() == 0:\n    os.setsid()\n    if os.fork() == 0:\n"
     '        os.execvp("sleep", ["sleep", "876.543"])\n    os._exit(0)\nos.wait()\n',
-    # four children of 200 MB each: each within the 512 MiB limit, together over it
+    # four children of 140 MB each: each within the 512 MiB limit, together over it (the memory they touch
+    # before the kill is about the hog's)
     "fourkids": 'import os, sys, time\nif "glass" in sys.argv[1]:\n    kids = []\n    for _ in range(4):\n'
-    "        pid = os.fork()\n        if pid == 0:\n            block = bytearray(200 << 20)\n"
+    "        pid = os.fork()\n        if pid == 0:\n            block = bytearray(140 << 20)\n"
     "            for i in range(0, len(block), 4096):\n                block[i] = 1\n"
     "            time.sleep(30)\n            os._exit(0)\n        kids.append(pid)\n    for pid in kids:\n"
     "        os.waitpid(pid, 0)\n",
@@ -150,6 +151,7 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
     assert code == 0, capsys.readouterr().err
     summary = capsys.readouterr().out
     assert "28 pairs: 17 passed, 11 failed, 0 missing, 0 invalid" in summary
+    assert "students' programs ran here: each run's memory is held by" in summary  # (which way: the machine's)
 
     assert rows["honest", "spot"]["status"] == rows["honest", "glass"]["status"] == "pass"
     assert rows["noshadow", "spot"]["status"] == "fail" and "no-shadows" in rows["noshadow", "spot"]["mistakes"]

@@ -60,6 +60,10 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
         print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
     if not args.quiet:
         print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
+        if program is not None and not args.cluster:  # (a worker holds its runs as its own machine allows)
+            from service.programs.guard import enforcement
+
+            print(f"students' programs ran here: {enforcement().describe()}")
     return 0
 
 
