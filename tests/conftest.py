@@ -54,6 +54,9 @@ SANDBOXED = {
     "test_bundled.py",
     "test_hidden.py",
     "test_copied.py",
+    "test_guard.py",
+    "test_seccomp.py",
+    "test_runtime.py",
 }
 
 

@@ -13,7 +13,8 @@ is left stops the batch with :class:`SandboxUnavailable` (the TA's: remove that 
 phongray in a virtual environment).
 
 The look is made once per process and per set of folders the sandbox shows (a Dask worker's own machine has
-its own installations), and costs two sandboxed runs of each Python, a fraction of a second.
+its own installations; a TA's runtime, ``--runtime``, is looked into as well: a virtual environment that
+holds phongray is covered too), and costs two sandboxed runs of each Python, a fraction of a second.
 """
 
 from __future__ import annotations
@@ -133,8 +134,9 @@ def _marks() -> dict[str, list[str]]:
     return marks
 
 
-def _look() -> list[str]:
-    """What of phongray the sandbox's Pythons can import, as the sandbox is now (its current covers)."""
+def _look(runtime: str | None) -> list[str]:
+    """What of phongray the sandbox's Pythons can import, as the sandbox is now (its current covers), with the
+    TA's ``runtime`` shown (its ``bin`` first on the ``PATH``)."""
     from .limits import Limits
     from .runner import ProgramRun, run_program
 
@@ -147,7 +149,8 @@ def _look() -> list[str]:
         (folder / "pythons.sh").write_text(script)
         Path(place, "scene.json").write_text("{}")
         limits = Limits(wall_seconds=60.0, cpu_seconds=60)
-        outcome = run_program(ProgramRun(folder, "/bin/sh pythons.sh {output}", Path(place, "scene.json"), limits))
+        look = ProgramRun(folder, "/bin/sh pythons.sh {output}", Path(place, "scene.json"), limits, runtime=runtime)
+        outcome = run_program(look)
     found: set[str] = set()
     for line in (outcome.image or b"").decode("utf-8", "replace").splitlines():
         try:
@@ -157,17 +160,20 @@ def _look() -> list[str]:
     return sorted(found)
 
 
+Shown = tuple[tuple[str, ...], str | None]
+
+
 class _Hidden:
-    """The covers of each set of folders the sandbox shows (keyed by bubblewrap's arguments that show them),
-    or why phongray cannot be hidden there."""
+    """The covers of each set of folders the sandbox shows (keyed by bubblewrap's arguments that show the
+    system's, and the TA's runtime), or why phongray cannot be hidden there."""
 
     def __init__(self) -> None:
         self.lock = threading.RLock()
-        self.covers: dict[tuple[str, ...], list[str]] = {}
-        self.failed: dict[tuple[str, ...], str] = {}
+        self.covers: dict[Shown, list[str]] = {}
+        self.failed: dict[Shown, str] = {}
         self.looking = False
 
-    def of(self, shown: tuple[str, ...]) -> list[str]:
+    def of(self, shown: Shown) -> list[str]:
         with self.lock:
             if self.looking:  # (the look's own sandboxes: as the sandbox is, covers so far)
                 return self.covers.get(shown, [])
@@ -177,13 +183,13 @@ class _Hidden:
                 self._hide(shown)
             return self.covers[shown]
 
-    def _hide(self, shown: tuple[str, ...]) -> None:
+    def _hide(self, shown: Shown) -> None:
         self.looking = True
         try:
             self.covers[shown] = []
-            found = _look()
+            found = _look(shown[1])
             self.covers[shown] = found
-            left = _look() if found else []
+            left = _look(shown[1]) if found else []
         finally:
             self.looking = False
         if left:
@@ -198,12 +204,13 @@ class _Hidden:
 HIDDEN = _Hidden()
 
 
-def argv(shown: list[str]) -> list[str]:
-    """bubblewrap's arguments that cover every installation of phongray in the folders ``shown`` (the
-    arguments that show them): an empty read-only folder over a folder, ``/dev/null`` over a file.
-    :class:`SandboxUnavailable` when one cannot be hidden."""
+def argv(system: list[str], runtime: str | None = None) -> list[str]:
+    """bubblewrap's arguments that cover every installation of phongray in the folders a sandbox shows (the
+    system's, shown by the arguments ``system``, and the TA's ``runtime``): an empty read-only folder over a
+    folder, ``/dev/null`` over a file; to follow the arguments that show them.  :class:`SandboxUnavailable`
+    when one cannot be hidden."""
     args: list[str] = []
-    for path in HIDDEN.of(tuple(shown)):
+    for path in HIDDEN.of((tuple(system), runtime)):
         if path.endswith("/"):  # (the look says a folder so)
             args += ["--perms", "0555", "--size", "4096", "--tmpfs", path[:-1], "--remount-ro", path[:-1]]
         else:
