@@ -6,8 +6,10 @@ The system's Python here has no phongray, and a test may not install one there f
 machine: each test shows the sandbox one more folder where the system's Python looks for packages
 (``/usr/local/lib/python3.X/dist-packages``, bound from a folder of the test's), as if it were installed."""
 
+import json
 import shutil
 import site
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -34,14 +36,20 @@ scene = load_scene(open(sys.argv[1], "rb").read())
 with open(sys.argv[2], "wb") as out:
     out.write(encode_png(render(scene, threads=1)))
 """
-#: a program that says whether phongray's tracer is there to import, without importing it (no NumPy needed)
-LOOKS = """import importlib.util, os, sys
+#: a program that says whether phongray's tracer is there to import, without importing it (no NumPy needed):
+#: exit 7 if it is, else a black 40×30 PNG
+LOOKS = """import importlib.util, os, struct, sys, zlib
 
 spec = importlib.util.find_spec("tracer")
 places = list(spec.submodule_search_locations or []) if spec else []
 if any(os.path.exists(os.path.join(p, "render.py")) for p in places):
     sys.exit(7)
-open(sys.argv[2], "wb").write(b"not found")
+def chunk(kind, body):
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+rows = zlib.compress(b"\\0" * (1 + 3 * 40) * 30)
+head = struct.pack(">IIBBBBB", 40, 30, 8, 2, 0, 0, 0)
+png = b"\\x89PNG\\r\\n\\x1a\\n" + chunk(b"IHDR", head) + chunk(b"IDAT", rows) + chunk(b"IEND", b"")
+open(sys.argv[2], "wb").write(png)
 """
 
 
@@ -127,3 +135,30 @@ def test_with_nothing_of_phongray_installed_nothing_is_covered():
     check_sandbox()
     assert hidden_module.HIDDEN.covers[(tuple(sandbox._system()), None)] == []
     assert hidden_module.argv(sandbox._system()) == []
+
+
+def test_phongray_in_the_tas_runtime_is_hidden_from_a_class(tmp_path):
+    """A TA's runtime (--runtime: a virtual environment of the system's python3) that holds phongray, as a TA
+    might make one for NumPy: a class's programs cannot find it there."""
+    folder = Path(tempfile.mkdtemp(prefix="runtime-"))  # (in the session's folder: the sandbox's user reads it)
+    try:
+        folder.chmod(0o755)
+        env = folder / "env"
+        subprocess.run(["/usr/bin/python3", "-m", "venv", "--without-pip", str(env)], check=True)
+        (site_packages,) = env.glob("lib/python3*/site-packages")
+        for package in ("tracer", "schemas", "service"):
+            shutil.copytree(ROOT / package, site_packages / package, ignore=shutil.ignore_patterns("__pycache__"))
+        subprocess.run(["chmod", "-R", "a+rX", str(folder)], check=True)
+        scenes, subs = tmp_path / "scenes", tmp_path / "subs"
+        scenes.mkdir()
+        (subs / "ann").mkdir(parents=True)
+        shutil.copy(SCENE, scenes / "spot.json")
+        (subs / "ann" / "render.py").write_text(LOOKS)
+        report = tmp_path / "report"
+        code = main(["grade-class", str(scenes), str(subs), "-o", str(report), "-q", "--jobs", "1", "--runtime",
+                     str(env), "--run", "python3 render.py {scene} {output}"])  # fmt: skip
+        assert code == 0
+        (row,) = json.loads((report / "report.json").read_text())
+        assert row["run"] == "ok" and row["status"] == "fail", row  # (it found no phongray: its black image)
+    finally:
+        shutil.rmtree(folder)
