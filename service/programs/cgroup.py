@@ -74,7 +74,7 @@ class RunGroup:
             raise
         self.prefix = ["/bin/sh", "-c", MOVE_IN, str(path)]
 
-    def start(self, pid: int, kill: Callable[[], None]) -> None:
+    def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None:
         """Nothing to do: the kernel holds the limits."""
 
     def stop(self) -> str | None:

@@ -38,7 +38,7 @@ class Command:
     wall_seconds: float
     stdout_bytes: int  # standard output kept (beyond it, the command is killed)
     stderr_bytes: int  # the end of standard error kept
-    info: tuple[int, int] | None = None  # a pipe (read, write) bubblewrap writes its --info-fd to
+    status: tuple[int, int] | None = None  # a pipe (read, write) bubblewrap writes its --json-status-fd to
     fds: tuple[int, ...] = ()  # more descriptors the command is given (and the parent closes once it has)
     guard: Guard | None = None  # what holds the run's memory and processes (started with the command)
 
@@ -56,6 +56,7 @@ class Finished:
     cpu_seconds: float
     exceeded: str | None = None  # the limit the run's guard ended it for (``memory``, ``processes``)
     held_by: str = ""  # the guard's name (``the watchdog``, ``its cgroup``)
+    started: bool | None = None  # bubblewrap's word: it ran the command (None: no sandbox)
 
     @property
     def exit_code(self) -> int | None:
@@ -110,7 +111,7 @@ TEARDOWN_SECONDS = 30.0
 
 
 def _start(command: Command) -> subprocess.Popen[bytes]:
-    fds = command.fds if command.info is None else (command.info[1], *command.fds)
+    fds = command.fds if command.status is None else (command.status[1], *command.fds)
     try:
         return subprocess.Popen(
             command.argv,
@@ -127,17 +128,49 @@ def _start(command: Command) -> subprocess.Popen[bytes]:
             os.close(fd)
 
 
-def _sandbox_pidfd(info: tuple[int, int] | None) -> int | None:
-    """A pidfd of the sandbox's first process, from bubblewrap's ``--info-fd`` (``{"child-pid": N}``, written
-    as soon as it is started, while bubblewrap is its parent and it cannot have been reaped); None when
-    there is none (bubblewrap failed, or the process is gone already)."""
-    if info is None:
-        return None
-    with os.fdopen(info[0], "rb") as pipe:
-        text = pipe.read(4096)  # (to its end: bubblewrap closes it once it has written, at its start)
+class _Status:
+    """bubblewrap's ``--json-status-fd``: a line ``{"child-pid": N, ...}`` once it has started the sandbox's
+    first process, and a line ``{"exit-code": N}`` when the command it ran has ended, written only when it did
+    run it (its set-up done and the command executed: bubblewrap knows it by a pipe of its own that closes on
+    ``exec``).  Only bubblewrap writes it: its sandbox's processes never hold it, so no program can forge it."""
+
+    def __init__(self, fd: int | None):
+        self.fd, self.text = fd, b""
+
+    def child(self) -> int | None:
+        """The sandbox's first process, once bubblewrap has started it; None when it failed before."""
+        while self.fd is not None and b"\n" not in self.text:
+            chunk = os.read(self.fd, 4096)
+            if not chunk:
+                break
+            self.text += chunk
+        try:
+            return int(json.loads(self.text.split(b"\n")[0])["child-pid"])
+        except (ValueError, KeyError, TypeError):
+            return None
+
+    def started(self) -> bool | None:
+        """Whether bubblewrap ran the command (read to the end, once bubblewrap has ended); None: no sandbox."""
+        if self.fd is None:
+            return None
+        poller = select.poll()
+        poller.register(self.fd, select.POLLIN)
+        while poller.poll(DRAIN_SECONDS * 1000) and (chunk := os.read(self.fd, 4096)):
+            self.text += chunk
+        return b'"exit-code"' in self.text
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+
+def _pidfd(pid: int | None) -> int | None:
+    """A pidfd of the sandbox's first process (read from bubblewrap's status as soon as it is started, while
+    bubblewrap is its parent and it cannot have been reaped); None when there is none."""
     try:
-        return os.pidfd_open(int(json.loads(text)["child-pid"]))
-    except (ValueError, KeyError, TypeError, OSError):
+        return None if pid is None else os.pidfd_open(pid)
+    except OSError:
         return None
 
 
@@ -207,33 +240,37 @@ def run_command(command: Command) -> Finished:
     until every process in it has ended too.  Its process group is killed once it has ended, before it is
     reaped, so that the group's id cannot have been reused."""
     start = time.monotonic()
+    status = _Status(None if command.status is None else command.status[0])
     try:
         proc = _start(command)
     except BaseException:
-        if command.info is not None:
-            os.close(command.info[0])
+        status.close()
         raise
     stop = threading.Event()
     head, tail, group = _Head(command.stdout_bytes, stop), _Tail(command.stderr_bytes), _Group(proc.pid)
     readers = _read(proc, head, tail)
     timed_out = _watch(group, head, stop, command.wall_seconds)
-    if command.guard is not None:
-        command.guard.start(proc.pid, group.kill)
-    pidfd = None
+    pidfd, started = None, None
     try:
-        pidfd = _sandbox_pidfd(command.info)
+        inside = status.child()
+        pidfd = _pidfd(inside)
+        if command.guard is not None:
+            command.guard.start(proc.pid, group.kill, inside)
     except BaseException:
         group.kill()
         raise
     finally:
-        status, cpu = group.reap()
-        proc.returncode = os.waitstatus_to_exitcode(status)
+        status_code, cpu = group.reap()
+        proc.returncode = os.waitstatus_to_exitcode(status_code)
         stop.set()
         _await_teardown(pidfd)
         exceeded = None if command.guard is None else command.guard.stop()
+        started = status.started()
+        status.close()
     wall = time.monotonic() - start
     for reader in readers:
         reader.join(DRAIN_SECONDS)
     timed = timed_out.is_set() and exceeded is None
     held_by = "" if command.guard is None else command.guard.name
-    return Finished(status, timed, head.overflowed, b"".join(head.parts), tail.data, wall, cpu, exceeded, held_by)
+    out = b"".join(head.parts)
+    return Finished(status_code, timed, head.overflowed, out, tail.data, wall, cpu, exceeded, held_by, started)

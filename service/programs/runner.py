@@ -176,14 +176,14 @@ def _command(session: _Session, words: list[str], body: str) -> Command:
     bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
     seccomp = filter_fd()
     filtered = [] if seccomp is None else ["--seccomp", str(seccomp)]
-    info = os.pipe()
+    status = os.pipe()
     inner = ["prlimit", f"--nproc={limits.processes}", "--"]
     return Command(
-        [*prefix, *bwrap, *filtered, "--info-fd", str(info[1]), *inner, *shell],
+        [*prefix, *bwrap, *filtered, "--json-status-fd", str(status[1]), *inner, *shell],
         "/",
         {"PATH": os.environ.get("PATH", "/usr/bin:/bin")},
         *_kept(limits),
-        info,
+        status,
         () if seccomp is None else (seccomp,),
         session.guard,
     )

@@ -97,7 +97,7 @@ class Watchdog:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def start(self, pid: int, kill: Callable[[], None]) -> None:
+    def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None:
         def watch() -> None:
             while not self._stop.wait(self.interval):
                 self.exceeded = self.look(pid)
