@@ -271,7 +271,10 @@ def test_a_daemon_left_running_is_gone_after_the_run(course):
         course,
         """\
         if os.fork() == 0:
-            os.setsid()
+            try:
+                os.setsid()  # (refused in the sandbox: the double fork still makes a daemon)
+            except OSError:
+                pass
             if os.fork() == 0:
                 os.execvp("sleep", ["sleep", "987.654"])
             os._exit(0)
