@@ -173,3 +173,37 @@ def test_a_program_cannot_start_sessions_of_its_own(course):
     )
     assert outcome.reason is Reason.OK, outcome.stderr_tail
     assert f"REFUSED {errno.EPERM} True" in outcome.stderr_tail.splitlines()
+
+
+def test_every_thread_shares_its_processes_open_files(course):
+    """The open files a run holds are counted by process: a thread of its own files (a clone without CLONE_FILES,
+    unshare(CLONE_FILES)) is refused, clone3 (whose flags a filter cannot read) is not there, and threads the
+    C library makes (through clone) run."""
+    clone = {"x86_64": 56, "aarch64": 220}[platform.machine()]
+    outcome = run(
+        course,
+        f"""\
+        import ctypes, threading
+        libc = ctypes.CDLL(None, use_errno=True)
+        pid = os.fork()
+        if pid == 0:  # (a child: without the filter, the bare thread would crash it)
+            made = libc.syscall({clone}, 0x10000 | 0x800 | 0x100, 0, 0, 0, 0)  # clone(THREAD|SIGHAND|VM): no FILES
+            print("CLONE", made, ctypes.get_errno(), file=sys.stderr, flush=True)
+            os._exit(0)
+        os.waitpid(pid, 0)
+        made = libc.unshare(0x400)
+        print("UNSHARE", made, ctypes.get_errno(), file=sys.stderr)
+        made = libc.syscall(435, 0, 0)
+        print("CLONE3", made, ctypes.get_errno(), file=sys.stderr)
+        done = []
+        thread = threading.Thread(target=lambda: done.append(1))
+        thread.start()
+        thread.join()
+        print("THREAD", done, file=sys.stderr)
+        write_png(output)
+        """,
+    )
+    assert outcome.reason is Reason.OK, outcome.stderr_tail
+    lines = outcome.stderr_tail.splitlines()
+    assert f"CLONE -1 {errno.EINVAL}" in lines and f"UNSHARE -1 {errno.EPERM}" in lines
+    assert f"CLONE3 -1 {errno.ENOSYS}" in lines and "THREAD [1]" in lines

@@ -22,7 +22,10 @@ message queues and semaphores (``shmget``, ``msgget``, ``semget``), ``memfd_crea
 built without them answers; a socket's buffer stays the kernel's default (``setsockopt``'s ``SO_SNDBUF`` and
 ``SO_RCVBUF`` are ignored, as the kernel ignores a value over its maximum) and a pipe's its default 64 KiB
 (``fcntl``'s ``F_SETPIPE_SZ`` fails with ``EPERM``, as it does past the user's limit), so that each open
-file holds at most a known amount (:data:`service.programs.watchdog.FILE_BYTES`).  ``setsid`` fails with
+file holds at most a known amount (:data:`service.programs.usage.FILE_BYTES`); and every thread shares its
+process's open files (a ``clone`` of a thread without ``CLONE_FILES`` fails with ``EINVAL``,
+``unshare(CLONE_FILES)`` with ``EPERM``, ``clone3``, whose flags a filter cannot read, with ``ENOSYS``, after
+which the C library uses ``clone``), so that the open files counted by process are all of them.  ``setsid`` fails with
 ``EPERM``: the kernel shares the CPU between sessions (autogroups), and each sandbox is one session
 (bubblewrap's ``--new-session``), so a program cannot take another run's share by making more.
 
@@ -59,8 +62,11 @@ _ALLOW, _ERRNO, _KILL_PROCESS = 0x7FFF0000, 0x00050000, 0x80000000
 _NR, _ARCH = 0, 4
 #: the x32 ABI's calls are x86-64's with this bit set
 _X32 = 0x40000000
-_IO_URING = (425, 426, 427)  # io_uring_setup, _enter, _register: the same numbers on every architecture
-_MEMFD_SECRET = 447
+#: refused on every architecture, by the same numbers: io_uring_setup, _enter, _register; clone3 (whose flags a
+#: filter cannot read: the C library then uses clone); memfd_secret
+_REFUSED = (425, 426, 427, 435, 447)
+#: clone's flags: a thread (CLONE_THREAD) shares its process's open files (CLONE_FILES)
+CLONE_THREAD, CLONE_FILES = 0x10000, 0x400
 
 
 def _arg(n: int) -> int:
@@ -80,14 +86,15 @@ class _Abi:
     setsid: int
     setsockopt: int
     fcntl: tuple[int, ...]
+    clone: tuple[int, int]  # clone, unshare
     x32: bool = False
 
 
-# refused: io_uring; shmget, msgget, semget (and i386's ipc); memfd_create, memfd_secret; bpf
-_X86_64 = _Abi(0xC000003E, (41, 53), (*_IO_URING, 29, 68, 64, 319, _MEMFD_SECRET, 321), 112, 54, (72,), x32=True)
-_I386 = _Abi(0x40000003, (359, 360), (102, 117, *_IO_URING, 395, 399, 393, 356, _MEMFD_SECRET, 357), 66, 366, (55, 221))
-_AARCH64 = _Abi(0xC00000B7, (198, 199), (*_IO_URING, 194, 186, 190, 279, _MEMFD_SECRET, 280), 157, 208, (25,))
-_ARM = _Abi(0x40000028, (281, 288), (*_IO_URING, 307, 303, 299, 385, _MEMFD_SECRET, 386), 66, 294, (55, 221))
+# refused: io_uring and clone3; shmget, msgget, semget (and i386's ipc); memfd_create, memfd_secret; bpf
+_X86_64 = _Abi(0xC000003E, (41, 53), (*_REFUSED, 29, 68, 64, 319, 321), 112, 54, (72,), (56, 272), x32=True)
+_I386 = _Abi(0x40000003, (359, 360), (102, 117, *_REFUSED, 395, 399, 393, 356, 357), 66, 366, (55, 221), (120, 310))
+_AARCH64 = _Abi(0xC00000B7, (198, 199), (*_REFUSED, 194, 186, 190, 279, 280), 157, 208, (25,), (220, 97))
+_ARM = _Abi(0x40000028, (281, 288), (*_REFUSED, 307, 303, 299, 385, 386), 66, 294, (55, 221), (120, 337))
 ABIS = {"x86_64": (_X86_64, _I386), "amd64": (_X86_64, _I386), "aarch64": (_AARCH64, _ARM), "arm64": (_AARCH64, _ARM)}
 
 
@@ -127,6 +134,8 @@ def _abi(asm: _Assembler, abi: _Abi, n: int) -> None:
     asm.op(_JEQ_K, abi.setsockopt, "sockopt")
     for number in abi.fcntl:
         asm.op(_JEQ_K, number, "fcntl")
+    asm.op(_JEQ_K, abi.clone[0], "clone")
+    asm.op(_JEQ_K, abi.clone[1], "unshare")
     asm.op(_RET_K, _ALLOW)
 
 
@@ -168,6 +177,19 @@ def _buffers(asm: _Assembler) -> None:
     asm.op(_JEQ_K, F_SETPIPE_SZ, "eperm", "allow")
 
 
+def _files(asm: _Assembler) -> None:
+    """A thread of its own open files refused: ``clone`` of a thread without ``CLONE_FILES`` (``EINVAL``, at
+    ``clone``), ``unshare(CLONE_FILES)`` (``EPERM``, at ``unshare``); so that the open files a run holds are
+    its processes' (:mod:`service.programs.usage` counts them by process)."""
+    asm.label("clone")
+    asm.op(_LD_W_ABS, _arg(0))
+    asm.op(_AND_K, CLONE_THREAD | CLONE_FILES)
+    asm.op(_JEQ_K, CLONE_THREAD, "einval", "allow")
+    asm.label("unshare")
+    asm.op(_LD_W_ABS, _arg(0))
+    asm.op(_JSET_K, CLONE_FILES, "eperm", "allow")
+
+
 def build(abis: tuple[_Abi, ...]) -> bytes:
     """The filter's program for a machine whose calls come from ``abis`` (a call of any other architecture
     kills the process: the kernel has none)."""
@@ -180,6 +202,9 @@ def build(abis: tuple[_Abi, ...]) -> bytes:
         _abi(asm, abi, n)
     _sockets(asm)
     _buffers(asm)
+    _files(asm)
+    asm.label("einval")
+    asm.op(_RET_K, _ERRNO | errno.EINVAL)
     asm.label("eperm")
     asm.op(_RET_K, _ERRNO | errno.EPERM)
     asm.label("allow")
