@@ -7,6 +7,7 @@ tests that are about a shared user make every run of theirs one user when they a
 user drawn for the test), so that they test what a teaching assistant's account would meet."""
 
 import os
+import re
 import signal
 import subprocess
 import textwrap
@@ -165,3 +166,20 @@ def test_the_watchdog_counts_processes_where_the_kernel_does_not(tmp_path):
     finally:
         os.killpg(family_of_nine.pid, signal.SIGKILL)
         family_of_nine.wait()
+
+
+def test_a_run_killed_at_its_wall_time_says_whether_it_waited_for_a_cpu(course):
+    """Three processes that spin on one CPU wait, ready, for it twice as long as they run: a run timed out that way
+    was not given the CPU it asked for, and its reason says so (as a busy grading machine would make it)."""
+    body = """\
+        os.sched_setaffinity(0, {0})
+        for _ in range(2):
+            if os.fork() == 0:
+                break
+        while True:
+            pass
+        """
+    outcome = run(course, body, Limits(wall_seconds=3.0, cpu_seconds=60))
+    assert outcome.reason is Reason.TIMEOUT, (outcome.reason, outcome.detail)
+    ran, waited = (float(w) for w in re.findall(r"ran ([\d.]+) s and waited ([\d.]+) s for a CPU", outcome.detail)[0])
+    assert waited > ran >= 0.5 and outcome.detail.endswith("the grading machine was busy)"), outcome.detail

@@ -114,13 +114,28 @@ def _guarded(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     return None
 
 
+#: a run killed at its wall time that waited, ready, for a CPU longer than it ran and for at least this part of
+#: its wall time was on a busy machine: it was not given the CPU it asked for
+BUSY = 0.5
+
+
+def _timed_out(finished: Finished, limits: Limits) -> str:
+    """A run killed at its wall time, with the CPU time it had and how long it waited for a CPU (its guard's
+    measure): where it waited longer than it ran, most of its wall time, the machine is named busy."""
+    said = f"still running at the wall-time limit of {limits.wall_seconds:g} s; killed"
+    cpu, waited = split_times(finished.stderr_tail, finished.cpu_seconds)[1], finished.waited_seconds
+    if waited > cpu and waited >= BUSY * limits.wall_seconds:
+        return f"{said} (it ran {cpu:.1f} s and waited {waited:.1f} s for a CPU: the grading machine was busy)"
+    return f"{said} (it ran {cpu:.1f} s" + (f" and waited {waited:.1f} s for a CPU)" if waited >= 0.1 else ")")
+
+
 def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     """Why the run failed, before its output is looked at; None when it exited with status 0."""
     guarded = _guarded(finished, limits)
     if guarded is not None:
         return guarded
     if finished.timed_out:
-        return Reason.TIMEOUT, f"still running at the wall-time limit of {limits.wall_seconds:g} s; killed"
+        return Reason.TIMEOUT, _timed_out(finished, limits)
     sig = _signal(finished)
     code = finished.exit_code
     if sig is None and code == 0:

@@ -6,7 +6,8 @@ past what is kept) the group is killed with ``SIGKILL``.  That kills bubblewrap,
 kills every other process in it, so no process of the run outlives it (a daemon started with ``setsid`` and a
 double fork included).  Standard error is read as it comes and only its end kept; standard output (a build's
 tar stream) is kept up to a limit.  The wall and CPU time are measured by the parent (``wait4``'s usage: the
-CPU time of the command and of the processes reaped in it).
+CPU time of the command and of the processes reaped in it) and by the run's guard, which also says how long
+the run waited for a CPU.
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ class Finished:
     exceeded: str | None = None  # the limit the run's guard ended it for (``memory``, ``processes``)
     held_by: str = ""  # the guard's name (``the watchdog``, ``its cgroup``)
     started: bool | None = None  # bubblewrap's word: it ran the command (None: no sandbox)
+    waited_seconds: float = 0.0  # how long the run's threads waited, ready, for a CPU (its guard's measure)
 
     @property
     def exit_code(self) -> int | None:
@@ -271,6 +273,8 @@ def run_command(command: Command) -> Finished:
     for reader in readers:
         reader.join(DRAIN_SECONDS)
     timed = timed_out.is_set() and exceeded is None
-    held_by = "" if command.guard is None else command.guard.name
+    guard = command.guard
+    held_by, waited = ("", 0.0) if guard is None else (guard.name, guard.waited_seconds)
+    cpu = cpu if guard is None else max(cpu, guard.cpu_seconds)
     out = b"".join(head.parts)
-    return Finished(status_code, timed, head.overflowed, out, tail.data, wall, cpu, exceeded, held_by, started)
+    return Finished(status_code, timed, head.overflowed, out, tail.data, wall, cpu, exceeded, held_by, started, waited)
