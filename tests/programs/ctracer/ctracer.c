@@ -4,6 +4,7 @@
  * Build:  gcc -O2 -o ctracer ctracer.c -lz -lm        (trace_core.h is included from this file's folder)
  * Usage:  ctracer SCENE.json OUT.png [--mistake ID]... [--offset X] [--offset-along normal|ray]
  *                                    [--float32] [--ppm]
+ *         ctracer --mistakes                 (prints the mistake ids below, one a line)
  *
  * Default: an honest float64 tracer of the whole format: spheres, planes, triangles and meshes (with optional
  * per-vertex normals), ambient, directional, point, spot and area lights, checkers, Phong with opaque shadow
@@ -572,6 +573,10 @@ static void usage(void) {
 
 static void parse_args(int argc, char **argv, Options *opt, const char **scene, const char **out) {
     int positional = 0;
+    if (argc == 2 && strcmp(argv[1], "--mistakes") == 0) {
+        for (int m = 0; m < M_COUNT; m++) printf("%s\n", MISTAKE_IDS[m]);
+        exit(0);
+    }
     memset(opt, 0, sizeof *opt);
     opt->offset = -1;
     for (int k = 1; k < argc; k++) {

@@ -40,38 +40,6 @@ STYLES: dict[str, tuple[list[str], float | None]] = {
     "t_min 1e-4": (["--offset-along", "ray"], 1e-4),
     "t_min 1e-3": (["--offset-along", "ray"], 1e-3),
 }
-#: the mistakes ctracer makes: phongray's ids, then five it has no id for
-MISTAKES = (
-    "no-shadows",
-    "shadow-acne",
-    "blinn-phong",
-    "specular-behind",
-    "gamma",
-    "no-attenuation",
-    "no-ambient",
-    "no-specular",
-    "normals-not-flipped",
-    "image-flipped",
-    "no-half-pixel",
-    "horizontal-fov",
-    "area-not-divided",
-    "spot-radians",
-    "depth-plus-one",
-    "depth-minus-one",
-    "ior-inverted",
-    "offset-too-large",
-    "reflect-sign",
-    "checker-ignored",
-    "colours-not-clamped",
-    "ambient-from-diffuse",
-    "spot-ramp-angle",
-    "transparent-no-shadows",
-    "no-reflection",
-    "no-refraction",
-    "left-handed",
-    "samples-ignored",
-    "bgr",
-)
 
 
 def build(folder: Path) -> Path:
@@ -85,6 +53,12 @@ def build(folder: Path) -> Path:
         capture_output=True,
     )
     return binary
+
+
+def mistakes(binary: Path) -> list[str]:
+    """The ids of the mistakes ctracer makes (``ctracer --mistakes``): phongray's, and a few it has no id for."""
+    listed = subprocess.run([str(binary), "--mistakes"], check=True, capture_output=True, text=True)
+    return listed.stdout.split()
 
 
 def scene_size(scene: dict[str, Any]) -> float:
@@ -104,7 +78,7 @@ def scene_size(scene: dict[str, Any]) -> float:
 
 def switches(row: str, scene: dict[str, Any]) -> list[str]:
     """ctracer's switches for a row: a style's name or a mistake's id."""
-    if row not in STYLES:
+    if row not in STYLES:  # (a mistake)
         return ["--mistake", row]
     args, fraction = STYLES[row]
     return args + ([] if fraction is None else ["--offset", repr(fraction * scene_size(scene))])
@@ -165,15 +139,16 @@ def main(paths: list[Path]) -> None:
         honest = {path: render(binary, path, Path(folder) / "honest.png", []) for path in paths}
         print("| style / mistake | " + " | ".join(path.stem for path in paths) + " |")
         print("|---|" + "---|" * len(paths))
-        for row in [*STYLES, *MISTAKES]:
+        wrong = mistakes(binary)
+        for row in [*STYLES, *wrong]:
             cells = []
             for path in paths:
                 image = render(binary, path, Path(folder) / "out.png", switches(row, scenes[path]))
-                if row in MISTAKES and image == honest[path]:
+                if row in wrong and image == honest[path]:
                     cells.append("—")
                     continue
                 verdict = cell(grader.grade(path, image))
-                if row in MISTAKES and verdict == "PASS":
+                if row in wrong and verdict == "PASS":
                     verdict = f"PASS({differing(image, honest[path])} px differ)"
                 cells.append(verdict)
             print(f"| {row} | " + " | ".join(cells) + " |", flush=True)
