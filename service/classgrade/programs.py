@@ -7,7 +7,7 @@ in a pool here or on a Dask worker alike, the student's folder sent with the tas
 (:mod:`service.programs.pack`), so that a worker needs no shared file system.  What it returns is kept pair by
 pair as an image's grade is (:func:`~service.classgrade.run.keep_grade`: the heat-map, the copy of the image,
 the journal), so the report, resuming and Gradescope's results are those of images.  A kept grade stands for
-the program's files and commands (:func:`service.programs.job.digest`): a student who changed nothing is not
+the program's files and commands (:func:`service.programs.digest.digest`): a student who changed nothing is not
 run again.
 
 The TA's mistakes stop the batch before any student is run (:func:`check_programs`): a command that cannot
@@ -94,7 +94,8 @@ def program_jobs(
 ) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
     """Per student with a task left to grade, the job and its pairs with their stamps; a pair an earlier run
     kept for the same program, scene and thresholds is taken as it was (``resumed``)."""
-    from ..programs.job import ProgramJob, digest
+    from ..programs.digest import digest
+    from ..programs.job import ProgramJob
 
     assert run.program is not None
     jobs: dict[str, tuple[ProgramJob, list[Stamped]]] = {}

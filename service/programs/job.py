@@ -16,10 +16,6 @@ system and no path of the grading machine's.  Nothing of a run is left on that m
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
-import os
-import stat
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -30,8 +26,8 @@ from typing import Any
 from ..classgrade.errors import ClassError
 from ..classgrade.records import GradeJob
 from .copied import flags
+from .digest import digest as digest  # (what a kept grade stands for: its own module)
 from .experiment import Thresholds, experiment
-from .folder import MAX_ENTRIES
 from .outcome import Reason, RunOutcome
 from .pack import DamagedPack, Pack, unpacked
 from .program import Program
@@ -183,37 +179,3 @@ def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
             return results
     except (SandboxUnavailable, DamagedPack) as exc:
         raise ClassError(f"{job.folder.name}'s program: {exc}") from None
-
-
-def digest(folder: Path, program: Program) -> str:
-    """What a kept grade of the program stands for: the student's regular files (paths and bytes, read without
-    following a link, as the sandbox's copy leaves links out, and no more than the folder limit's worth or
-    :data:`~.folder.MAX_ENTRIES` entries: a larger folder is not run) and how it is built, run and limited."""
-    sha = hashlib.sha256(repr((program.run, program.build, program.limits, program.sandbox)).encode())
-    left, entries = program.limits.folder_bytes, MAX_ENTRIES
-    for root, dirs, files in os.walk(folder, followlinks=False):
-        dirs.sort()
-        entries -= len(dirs) + len(files)
-        if entries < 0:  # (a folder of too many files is not run either)
-            break
-        for name in sorted(files):
-            path = Path(root, name)
-            with contextlib.suppress(OSError):
-                left = _hash_file(path, path.relative_to(folder), sha, left)
-            if left < 0:
-                return sha.hexdigest()
-    return sha.hexdigest()
-
-
-def _hash_file(path: Path, name: Path, sha: Any, left: int) -> int:
-    """Add a regular file's name and bytes to ``sha`` (not a link's, a FIFO's or a device's), at most
-    ``left`` + 1 bytes; what is left of the budget (negative: over it)."""
-    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-    with os.fdopen(fd, "rb") as f:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return left
-        sha.update(f"{name}\0".encode("utf-8", "surrogateescape"))
-        while left >= 0 and (chunk := f.read(1 << 20)):
-            sha.update(chunk)
-            left -= len(chunk)
-    return left
