@@ -49,19 +49,21 @@ class Limits:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, not {getattr(self, name)!r}")
 
-    def prlimit_argv(self, address_space: bool = True, processes: bool = False) -> list[str]:
+    def prlimit_argv(
+        self, address_space: bool = True, processes: bool = False, file_bytes: int | None = None
+    ) -> list[str]:
         """``prlimit`` (util-linux) setting these limits, soft and hard, on the command that follows it: the CPU
-        time, file size, :data:`OPEN_FILES` and no core file; with ``address_space``, each process's address
-        space at most the memory limit; with ``processes``, ``RLIMIT_NPROC`` (which counts the processes of a
-        user, in a user namespace).  The CPU limit's hard value is one second above the soft one, so a program
-        first gets ``SIGXCPU`` (which :mod:`service.programs.outcome` names) and is killed a second later if it
-        ignores it."""
+        time, file size (``file_bytes`` in place of the output limit: a build's result), :data:`OPEN_FILES` and
+        no core file; with ``address_space``, each process's address space at most the memory limit; with
+        ``processes``, ``RLIMIT_NPROC`` (which counts the processes of a user, in a user namespace).  The CPU
+        limit's hard value is one second above the soft one, so a program first gets ``SIGXCPU`` (which
+        :mod:`service.programs.outcome` names) and is killed a second later if it ignores it."""
         return [
             "prlimit",
             *([f"--as={self.memory_bytes}"] if address_space else []),
             *([f"--nproc={self.processes}"] if processes else []),
             f"--cpu={self.cpu_seconds}:{self.cpu_seconds + 1}",
-            f"--fsize={self.output_bytes}",
+            f"--fsize={file_bytes or self.output_bytes}",
             f"--nofile={OPEN_FILES}",
             "--core=0",
             "--",

@@ -4,10 +4,10 @@ The command starts in a process group of its own; at the wall-time limit (or whe
 past what is kept) the group is killed with ``SIGKILL``.  That kills bubblewrap, and with it, through
 ``--die-with-parent``, the sandbox's first process: when the first process of a PID namespace dies, the kernel
 kills every other process in it, so no process of the run outlives it (a daemon started with ``setsid`` and a
-double fork included).  Standard error is read as it comes and only its end kept; standard output (a build's
-tar stream) is kept up to a limit.  The wall and CPU time are measured by the parent (``wait4``'s usage: the
-CPU time of the command and of the processes reaped in it) and by the run's guard, which also says how long
-the run waited for a CPU.
+double fork included).  Standard error is read as it comes and only its end kept; standard output, where a
+command's is kept, up to a limit (the sandbox's own is the null device: :mod:`service.programs.runner`).  The
+wall and CPU time are measured by the parent (``wait4``'s usage: the CPU time of the command and of the
+processes reaped in it) and by the run's guard, which also says how long the run waited for a CPU.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ class Command:
     cwd: str
     env: dict[str, str]
     wall_seconds: float
-    stdout_bytes: int  # standard output kept (beyond it, the command is killed)
+    stdout_bytes: int  # standard output kept (beyond it, the command is killed); 0: the null device
     stderr_bytes: int  # the end of standard error kept
     status: tuple[int, int] | None = None  # a pipe (read, write) bubblewrap writes its --json-status-fd to
     fds: tuple[int, ...] = ()  # more descriptors the command is given (and the parent closes once it has)
@@ -120,7 +120,7 @@ def _start(command: Command) -> subprocess.Popen[bytes]:
             cwd=command.cwd,
             env=command.env,
             stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
+            stdout=subprocess.PIPE if command.stdout_bytes else subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             start_new_session=True,
             pass_fds=fds,
@@ -227,11 +227,10 @@ def _watch(group: _Group, head: _Head, stop: threading.Event, wall: float) -> th
 
 
 def _read(proc: subprocess.Popen[bytes], head: _Head, tail: _Tail) -> list[threading.Thread]:
-    assert proc.stdout is not None and proc.stderr is not None
-    readers = [
-        threading.Thread(target=head.read, args=(proc.stdout,), daemon=True),
-        threading.Thread(target=tail.read, args=(proc.stderr,), daemon=True),
-    ]
+    assert proc.stderr is not None
+    readers = [threading.Thread(target=tail.read, args=(proc.stderr,), daemon=True)]
+    if proc.stdout is not None:  # (standard output kept)
+        readers.append(threading.Thread(target=head.read, args=(proc.stdout,), daemon=True))
     for reader in readers:
         reader.start()
     return readers

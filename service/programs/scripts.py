@@ -15,7 +15,7 @@ from __future__ import annotations
 import re
 
 from .process import Finished
-from .sandbox import SUBMISSION, SandboxUnavailable
+from .sandbox import OUTPUT, SUBMISSION, SandboxUnavailable
 from .unavailable import explain
 
 MARK = "--- phongray: CPU time of the program ---"
@@ -27,8 +27,11 @@ RUN = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
 #: a run whose program prints its image: its standard output written to the output file (``$1``), within the
 #: same limits as a file it writes itself (RLIMIT_FSIZE), then its CPU time
 RUN_PRINTED = f'o=$1; shift; "$@" >"$o"; s=$?; {_REPORT}; exit $s'
-#: a build: the command with its output on standard error, its CPU time, then (built) the folder as a tar stream
-BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || tar -cf - . || s=125; exit $s'
+#: a build: the command with its output on standard error, its CPU time, then (built) every other process of the
+#: sandbox killed (``kill -1`` spares the shell and the sandbox's first process, bubblewrap's) and the folder
+#: written as a tar stream to the output file, which no process of the student's can then write
+_KEEP = f"{{ kill -9 -1 2>/dev/null; tar -cf {OUTPUT} . || s=125; }}"
+BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || {_KEEP}; exit $s'
 #: a build without a sandbox, in the run's folder on the machine (copied from there)
 BUILD_IN_PLACE = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
 _TIME = re.compile(r"(\d+)m([\d.]+)s")
