@@ -11,8 +11,8 @@ the program's files and commands (:func:`service.programs.digest.digest`): a stu
 run again.
 
 The TA's mistakes stop the batch before any student is run (:func:`check_programs`): a command that cannot
-run, bubblewrap missing or unable to start (unless ``--no-sandbox``), a runtime that is not installed or does
-not start in the sandbox, ``--server`` (which grades images).
+run, bubblewrap missing or unable to start (unless ``--no-sandbox``), a runtime that is not installed, does
+not start in the sandbox or would show programs what they may not see, ``--server`` (which grades images).
 """
 
 from __future__ import annotations
@@ -44,7 +44,13 @@ def check_programs(run: ClassRun) -> None:
 
     program = run.program
     assert program is not None
-    problem = check_runtime(program.runtime, program.packages)
+    private = {
+        "the task scenes": run.scenes,
+        "the students' folders": run.submissions,
+        "the report": run.report,
+        "the students' own scenes": run.student_scenes,
+    }
+    problem = check_runtime(program.runtime, program.packages, private)
     if problem is not None:
         raise ClassError(problem)
     try:
