@@ -107,10 +107,10 @@ def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunO
 
 
 def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, Any]:
-    """One task: the run, its image graded (with ``image``, the bytes graded, and how the run went:
-    :func:`run_info`), and a failing image diagnosed by experiment (``experiment``: its sentences, the
-    likeliest first, joined by "; "; a run that failed is not asked more).  An image that cannot be read as
-    a PNG is an invalid pair, as an uploaded one is."""
+    """One task: the run, its image graded (with ``image``, the bytes graded, which :func:`grade_program` keeps
+    as the PNG of their pixels, and how the run went: :func:`run_info`), and a failing image diagnosed by
+    experiment (``experiment``: its sentences, the likeliest first, joined by "; "; a run that failed is not
+    asked more).  An image that cannot be read as a PNG is an invalid pair, as an uploaded one is."""
     outcome = run(task.grading.scene)
     if not outcome.ok or outcome.image is None:
         return failed_run(outcome)
@@ -165,6 +165,20 @@ def _graded(job: ProgramJob, folder: Path | None) -> dict[str, dict[str, Any]]:
         return {task.task: grade_run(task, runs[task.task]) for task in job.tasks}
 
 
+def _kept_image(image: bytes, reference: bytes) -> bytes | None:
+    """What a grade keeps of a program's image (the report's copy): the PNG of its pixels as they were graded,
+    never the program's own bytes, which can carry megabytes of chunks no decoder shows; None where it cannot
+    be read (an invalid pair keeps no copy)."""
+    from tracer.image import encode_png
+
+    from ..grading import ImageError, declared_size, read_submission
+
+    try:
+        return encode_png(read_submission(image, declared_size(reference)))
+    except (ImageError, ValueError):
+        return None
+
+
 def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
     """Every task's grade of one student's program, by task name (see the module's docstring), flagged for the
     TA when the program holds phongray's code or its images are the references (:mod:`.copied`).
@@ -176,6 +190,9 @@ def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
             if folder is not None:
                 references = {task.task: task.grading.reference for task in job.tasks}
                 flags(folder, results, references, job.program.limits)
+            for task in job.tasks:  # (once flagged: the flag is on the very bytes the program wrote)
+                if results[task.task].get("image") is not None:
+                    results[task.task]["image"] = _kept_image(results[task.task]["image"], task.grading.reference)
             return results
     except (SandboxUnavailable, DamagedPack) as exc:
         raise ClassError(f"{job.folder.name}'s program: {exc}") from None
