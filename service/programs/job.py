@@ -27,7 +27,7 @@ from ..classgrade.errors import ClassError
 from ..classgrade.records import GradeJob
 from .copied import flags
 from .digest import digest as digest  # (what a kept grade stands for: its own module)
-from .experiment import Thresholds, experiment
+from .experiment import Allowance, Thresholds, experiment
 from .outcome import Reason, RunOutcome
 from .pack import DamagedPack, Pack, unpacked
 from .program import Program
@@ -59,6 +59,11 @@ class ProgramJob:
     tasks: tuple[TaskScene, ...]
     pack: Pack | None = None
 
+
+#: the wall-time limits a student's probes may take, per task it has, all its experiments together: an honest
+#: program answers each of a task's probes about as fast as the task, far within its limit, while one that
+#: fails its task and then waits on every probe would cost (1 + probes) limits a task
+PROBE_WALLS = 2
 
 #: how much of the end of a run's output (its standard error) a grade keeps for the TA
 OUTPUT_KEPT = 2000
@@ -106,7 +111,9 @@ def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunO
     return run
 
 
-def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, Any]:
+def grade_run(
+    task: TaskScene, run: Callable[[bytes], RunOutcome], allowance: Allowance | None = None
+) -> dict[str, Any]:
     """One task: the run, its image graded (with ``image``, the bytes graded, which :func:`grade_program` keeps
     as the PNG of their pixels, and how the run went: :func:`run_info`), and a failing image diagnosed by
     experiment (``experiment``: its sentences, the likeliest first, joined by "; "; a run that failed is not
@@ -119,7 +126,7 @@ def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, 
         from ..classgrade.gradebook import matched
 
         known = tuple(matched(result.get("diagnosis"))[:1])  # (the task's likeliest exact match, kept out)
-        said = experiment(task.grading.scene, outcome.image, run, task.thresholds, known).sentences
+        said = experiment(task.grading.scene, outcome.image, run, task.thresholds, known, allowance).sentences
         result["experiment"] = "; ".join(said) or None
     return result
 
@@ -162,7 +169,8 @@ def _graded(job: ProgramJob, folder: Path | None) -> dict[str, dict[str, Any]]:
             assert failed is not None
             return {task.task: failed_run(failed, "the build") for task in job.tasks}
         runs = {task.task: _runner(runs_in, job.program, f"{task.task}.json") for task in job.tasks}
-        return {task.task: grade_run(task, runs[task.task]) for task in job.tasks}
+        allowance = Allowance(PROBE_WALLS * len(job.tasks) * job.program.limits.wall_seconds)
+        return {task.task: grade_run(task, runs[task.task], allowance) for task in job.tasks}
 
 
 def _kept_image(image: bytes, reference: bytes) -> bytes | None:
