@@ -12,11 +12,15 @@ processes reaped in it) and by the run's guard, which also says how long the run
 
 from __future__ import annotations
 
+import array
+import contextlib
+import fcntl
 import json
 import os
 import select
 import signal
 import subprocess
+import termios
 import threading
 import time
 from dataclasses import dataclass
@@ -83,16 +87,44 @@ class _Head:
         pipe.close()
 
 
+#: the size asked for the parent's end of a pipe it drains (the most an unprivileged process may ask, 1 MiB)
+PIPE_BYTES = 1 << 20
+F_SETPIPE_SZ = 1031
+#: bytes of a command's standard error drained as fast as they come; past them, a pipe's worth at most every
+#: THROTTLE seconds (a program that floods it is slowed to 100 MiB/s, and costs the parent ~1% of a CPU)
+FREE_BYTES, THROTTLE = 16 << 20, 0.01
+
+
 class _Tail:
-    """The last ``limit`` bytes of a pipe."""
+    """The last ``limit`` bytes of a pipe.  What is more than the limit behind what is waiting in the pipe is
+    never read: it is moved to the null device by the kernel (``splice``, no copy), so a program that floods
+    its standard error costs the parent a few calls per mebibyte, not a copy of every byte; and past
+    :data:`FREE_BYTES`, the pipe is drained at most every :data:`THROTTLE` seconds."""
 
     def __init__(self, limit: int):
-        self.limit, self.data = limit, b""
+        self.limit, self.data, self.seen = limit, b"", 0
 
     def read(self, pipe: IO[bytes]) -> None:
-        while chunk := pipe.read1(CHUNK):  # type: ignore[attr-defined]
-            self.data = (self.data + chunk)[-self.limit :]
-        pipe.close()
+        fd = pipe.fileno()
+        with contextlib.suppress(OSError):
+            fcntl.fcntl(fd, F_SETPIPE_SZ, PIPE_BYTES)
+        null = os.open(os.devnull, os.O_WRONLY | os.O_CLOEXEC)
+        waiting = array.array("i", [0])
+        try:
+            while True:
+                if self.seen > FREE_BYTES:
+                    time.sleep(THROTTLE)
+                fcntl.ioctl(fd, termios.FIONREAD, waiting)
+                if waiting[0] > self.limit:
+                    self.seen += os.splice(fd, null, waiting[0] - self.limit)
+                chunk = os.read(fd, max(CHUNK, self.limit))
+                if not chunk:
+                    break
+                self.seen += len(chunk)
+                self.data = (self.data + chunk)[-self.limit :]
+        finally:
+            os.close(null)
+            pipe.close()
 
 
 #: how long the parent waits, once the command has ended, for the rest of its output: only a process that
