@@ -63,11 +63,13 @@ def _deduction(mistake: str, task: TaskSettings) -> float | None:
 
 
 def partial(row: dict[str, Any]) -> str:
-    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty."""
+    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty; for
+    mistakes made together (``no-shadows+gamma``) each one is named: ``(no shadow rays and gamma …: -3)``."""
     if not row.get("deducted"):
         return ""
     lost = row["points"] - row["score"]
-    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({MISTAKES[row['deducted']]}: -{lost:g})"
+    words = " and ".join(MISTAKES.get(part, part) for part in row["deducted"].split("+"))
+    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({words}: -{lost:g})"
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ import json
 import os
 import re
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -24,6 +25,7 @@ from urllib.parse import quote
 from ..display import counted, percent
 from ..heatmap import LEGEND
 from .gradebook import gradebook_csv, partial, totals
+from .isolation import isolated, noted
 from .taskfile import TaskSettings
 
 #: the numbers of a graded pair, in report.csv's order
@@ -131,8 +133,44 @@ def write_report(
     students: list[str],
     tasks: dict[str, TaskSettings],
     headline: str,
-) -> None:
-    write_atomic(report / "report.json", _text(json.dumps(rows, indent=1, ensure_ascii=False) + "\n"))
+) -> tuple[list[dict[str, Any]], list[str]]:
+    """Write the report's files; a pair's row that one of them cannot write is written as its
+    :func:`~service.classgrade.isolation.unwritable` row, the rest of the class as it is.  The rows as
+    written, and a line per row replaced."""
+    rows, faults = isolated(rows, _writers(tasks), COLUMNS)
+    write_atomic(report / "report.json", _text(_json(rows)))
+    write_atomic(report / "report.csv", _text(report_csv(rows)))
+    write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
+    for student in students:
+        mine = [r for r in rows if r["student"] == student]
+        write_atomic(report / "gradescope" / student / "results.json", _text(_json(gradescope(mine, tasks))))
+    _drop_stale_results(report / "gradescope", set(students))
+    html_text = render_html(rows, ignored, students, list(tasks), noted(headline, faults))
+    write_atomic(report / "index.html", _text(html_text))
+    return rows, faults
+
+
+def _writers(tasks: dict[str, TaskSettings]) -> dict[str, Callable[[list[dict[str, Any]]], object]]:
+    """Each file's writer, for rows of any students and tasks (:func:`isolated` tries each pair alone)."""
+
+    def of(rows: list[dict[str, Any]], key: str) -> list[str]:
+        return list(dict.fromkeys(r[key] for r in rows))
+
+    return {
+        "report.json": _json,
+        "report.csv": report_csv,
+        "gradebook.csv": lambda rows: gradebook_csv(rows, of(rows, "student"), of(rows, "task"), safe_cell),
+        "results.json": lambda rows: [_json(gradescope([r], tasks)) for r in rows],
+        "index.html": lambda rows: render_html(rows, [], of(rows, "student"), of(rows, "task"), ""),
+    }
+
+
+def _json(value: Any) -> str:
+    return json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+def report_csv(rows: list[dict[str, Any]]) -> str:
+    """``report.csv``: a row per pair, its cells made safe to open (:func:`safe_cell`)."""
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     # a carriage return in a cell (a student's name can hold one) is quoted only by a writer that quotes all
@@ -141,16 +179,7 @@ def write_report(
     for row in rows:
         cells = {k: safe_cell(v) for k, v in row.items()}
         (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
-    write_atomic(report / "report.csv", _text(buf.getvalue()))
-    write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
-    for student in students:
-        mine = [r for r in rows if r["student"] == student]
-        write_atomic(
-            report / "gradescope" / student / "results.json",
-            _text(json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n"),
-        )
-    _drop_stale_results(report / "gradescope", set(students))
-    write_atomic(report / "index.html", _text(render_html(rows, ignored, students, list(tasks), headline)))
+    return buf.getvalue()
 
 
 def _drop_stale_results(folder: Path, students: set[str]) -> None:
