@@ -35,7 +35,8 @@ class Settings(BaseSettings):
     max_light_samples: int = 1_024  # directional + point + spot lights + all area-light samples
     max_cost: float = 1e8  # ray work a render may do, counted as it runs (service/limits.py, docs/cost-model.md)
     max_ray_bytes: int = 1024 * 1024 * 1024  # memory a render's rays in flight may hold
-    max_concurrent_renders: int = 2  # renders at once per worker process; more get 503
+    max_concurrent_renders: int = 2  # renders at once per worker process; more wait their turn ...
+    queue_wait: float = 60.0  # ... at most this many seconds, then get 503 with a Retry-After of the queue
     render_threads: int = 0  # threads per render; 0 means every core
     render_timeout: float = 120.0  # seconds; a longer render is stopped and answered with 503
     cache_bytes: int = 64 * 1024 * 1024  # reference renders kept for /grade and /render

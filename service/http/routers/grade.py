@@ -14,7 +14,7 @@ from starlette.datastructures import UploadFile
 
 from service import grading, pipeline
 from service.heatmap import Kind
-from service.http.jobs import ClusterDown, Job, RenderService
+from service.http.jobs import Busy, ClusterDown, Job, RenderService, TooSlow
 from service.http.models import GradeAnswer
 from service.http.problems import ERRORS, HTTPProblem, prepared, unavailable
 from service.http.routers.render import EXAMPLE_TEXT
@@ -126,7 +126,7 @@ async def grade(
 
     try:
         return await watched(request, work, service.grading)
-    except ClusterDown as exc:
+    except (Busy, TooSlow, ClusterDown) as exc:  # (the verdict could not be decided now: never a FAIL)
         raise unavailable(exc, service) from None
 
 
