@@ -49,7 +49,7 @@ class Settings(BaseSettings):
     max_connections: int = 1_000  # open connections per worker process; beyond it, 503
     max_buffered_bytes: int = 96 * 1024 * 1024  # request bodies one worker process holds at once ...
     buffer_wait: float = 30.0  # ... beyond which a body waits this many seconds for room, then gets 503
-    max_answer_bytes: int = 1024 * 1024 * 1024  # what the pass answers one worker holds at once, priced up front
+    max_answer_bytes: int = 1024 * 1024 * 1024  # image answers (renders, passes, heat-maps) a worker holds
     send_timeout: float = 30.0  # seconds a chunk of an answer may wait for the client to read it; then dropped
     cluster: str = ""  # a Dask scheduler (tcp://HOST:PORT): renders go to its workers instead of this process
     cluster_wait: float = CLUSTER_WAIT  # seconds to wait for a cluster's first worker before giving up

@@ -43,7 +43,8 @@ class ClusterDown(Exception):
 
 
 class AnswersFull(Busy):
-    """The pass answers this worker holds leave no room for another now (``max_answer_bytes``)."""
+    """The image answers this worker holds (renders, passes, heat-maps) leave no room for another now
+    (``max_answer_bytes``)."""
 
 
 class Answers:
@@ -65,6 +66,15 @@ class Answers:
     def give(self, size: int) -> None:
         with self._lock:
             self.held -= size
+
+    def hold(self, size: int, what: str) -> int:
+        """Take ``size`` bytes for an answer (``what`` it is, in words): LimitError when it could never fit in
+        ``total``, AnswersFull when it does not now; the bytes taken, to give back once it is sent."""
+        if size > self.total:
+            raise LimitError(f"{what} holds about {size} bytes, more than the limit max_answer_bytes = {self.total}")
+        if not self.take(size):
+            raise AnswersFull()
+        return size
 
 
 @dataclass(frozen=True)
@@ -169,19 +179,11 @@ class RenderService:
 
         media = "application/x-npy" if fmt == "npy" else "image/png"
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
+        what = f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt}"
         cached = self.cache.get(key)
-        if cached is not None:
-            return passes.PassFile(b"", cached, media), 0
-        price = passes.price(job.scene, name, fmt)
-        if price > self.answers.total:
-            raise LimitError(
-                f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt} "
-                f"holds about {price} bytes, more than the limit max_answer_bytes = "
-                f"{self.answers.total}"
-            )
-        if not self.answers.take(price):
-            raise AnswersFull()
-        held = price
+        if cached is not None:  # (held as long as it is sent: the cache may let it go meanwhile)
+            return passes.PassFile(b"", cached, media), self.answers.hold(len(cached), what)
+        held = self.answers.hold(passes.price(job.scene, name, fmt), what)
         try:
             with self._slot(gone) as late:
                 stop = lambda: late() or gone()  # noqa: E731

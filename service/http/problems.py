@@ -95,7 +95,7 @@ def unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
     retry = settings.retry_after
     if isinstance(exc, AnswersFull):
         detail = (
-            f"the pass answers this worker holds leave no room for this one now (max_answer_bytes = "
+            f"the image answers this worker holds leave no room for this one now (max_answer_bytes = "
             f"{settings.max_answer_bytes}); try again shortly"
         )
     elif isinstance(exc, OutOfMemory):
