@@ -18,6 +18,7 @@ from service import classgrade
 from service.classgrade import ClassRun, journal
 from service.classgrade import report as report_module
 from service.classgrade import run as run_module
+from service.classgrade import writing
 from service.classgrade.gradebook import MISTAKES, partial, score
 from service.classgrade.taskfile import TaskSettings
 from service.cli import main
@@ -128,23 +129,28 @@ def _faulty(real: Any, rows_of: Any) -> Any:
     return broken
 
 
-WRITERS = {  # the writer broken, and where its rows are in its arguments
-    "gradescope": lambda args: args[0],
-    "gradebook_csv": lambda args: args[0],
-    "render_html": lambda args: args[0],
-    "_cell": lambda args: [args[0]],
-    "_detail": lambda args: [args[0]],
-    "safe_cell": lambda args: [{"student": "bo", "mistakes": args[0]}] if args[0] == ["no-shadows+blinn-phong"] else [],
-    "_json": lambda args: args[0] if isinstance(args[0], list) else [],
+WRITERS = {  # the writer broken (in the module that calls it), and where its rows are in its arguments
+    "gradescope": (writing, lambda args: args[0]),
+    "gradebook_csv": (writing, lambda args: args[0]),
+    "lms_books": (writing, lambda args: args[0]),
+    "render_html": (writing, lambda args: args[0]),
+    "_cell": (report_module, lambda args: [args[0]]),
+    "_detail": (report_module, lambda args: [args[0]]),
+    "safe_cell": (
+        report_module,
+        lambda args: [{"student": "bo", "mistakes": args[0]}] if args[0] == ["no-shadows+blinn-phong"] else [],
+    ),
+    "_json": (writing, lambda args: args[0] if isinstance(args[0], list) else []),
 }
 
 
 @pytest.mark.parametrize("writer", sorted(WRITERS))
 def test_a_writers_fault_for_one_pair_is_that_pairs_row(graded, tmp_path: Path, monkeypatch, writer: str):
     _, rows = graded
-    monkeypatch.setattr(report_module, writer, _faulty(getattr(report_module, writer), WRITERS[writer]))
+    module, rows_of = WRITERS[writer]
+    monkeypatch.setattr(module, writer, _faulty(getattr(module, writer), rows_of))
     tasks = {"cornell": TaskSettings(points=10, deductions=DEDUCTIONS)}
-    written, faults = report_module.write_report(tmp_path, list(rows.values()), [], list(CLASS), tasks, "a class")
+    written, faults = writing.write_report(tmp_path, list(rows.values()), [], list(CLASS), tasks, "a class")
     assert len(faults) == 1 and faults[0].startswith("bo/cornell: ") and "KeyError" in faults[0]
     mine = {r["student"]: r for r in json.loads((tmp_path / "report.json").read_text())}
     assert mine["ann"] == rows["ann"] and mine["cy"] == rows["cy"]
@@ -167,7 +173,7 @@ def test_a_row_no_writer_can_write_is_that_pairs_row(graded, tmp_path: Path):
     broken = [dict(r) for r in rows.values()]
     broken[1]["likely"], broken[1]["score"] = object(), float("nan")  # (not text, not a number)
     tasks = {"cornell": TaskSettings(points=10, deductions=DEDUCTIONS)}
-    written, faults = report_module.write_report(tmp_path, broken, [], list(CLASS), tasks, "a class")
+    written, faults = writing.write_report(tmp_path, broken, [], list(CLASS), tasks, "a class")
     assert [f.split(":")[0] for f in faults] == ["bo/cornell"]
     assert written[1]["score"] == 0.0 and written[1]["reason"].endswith("; it is not scored)")
     assert json.loads((tmp_path / "gradescope" / "ann" / "results.json").read_text())["score"] == 10.0

@@ -1,7 +1,7 @@
 """One pair's fault in writing the report is that pair's row, never the class's lost report.
 
-Before a report's files are written, every writer (report.json, report.csv, gradebook.csv, a student's
-``results.json``, index.html) is tried on each pair's row alone (:func:`isolated`).  A row that any of them
+Before a report's files are written, every writer (report.json, report.csv, gradebook.csv, an LMS's
+import file, a student's ``results.json``, index.html) is tried on each pair's row alone (:func:`isolated`).  A row that any of them
 cannot write is replaced by a row of plain values (:func:`unwritable`): who and what, the verdict and the
 score as they were decided, and a reason that says what could not be written and why; the rest of the class
 is written as it is.  The grade itself is kept, whole, in the report's resume folder
@@ -19,7 +19,7 @@ from .faults import one_line
 #: a report file's writer, given rows (a pair's alone, or the class's): it raises for a row it cannot write
 Writer = Callable[[list[dict[str, Any]]], object]
 #: the columns an unwritable row keeps, when they hold plain values
-KEPT = ("student", "lms_id", "task", "scene", "file")
+KEPT = ("student", "lms_id", "lms", "task", "scene", "file")
 #: the verdicts a row may have (any other is the row's fault)
 STATUSES = ("pass", "fail", "missing", "invalid")
 

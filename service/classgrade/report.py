@@ -1,5 +1,5 @@
-"""The files of a class report: report.json, report.csv, gradebook.csv, index.html and Gradescope's
-results.json per student.
+"""What the files of a class report say: report.json, report.csv, gradebook.csv (and the LMSs' own,
+:mod:`.lmsbook`), index.html and Gradescope's results.json per student (:mod:`.writing` writes them).
 
 Every file is written whole or not at all (:func:`write_atomic`), so an interrupted run leaves the previous
 report readable.  A student's name (and a file's) is the students' text: in the CSV files and the HTML its
@@ -13,19 +13,16 @@ import contextlib
 import csv
 import html
 import io
-import json
 import os
 import re
 import threading
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
 from ..display import counted, percent
 from ..heatmap import LEGEND
-from .gradebook import gradebook_csv, partial, totals
-from .isolation import isolated, noted
+from .gradebook import late_note, partial, totals
 from .taskfile import TaskSettings
 
 #: the numbers of a graded pair, in report.csv's order
@@ -46,6 +43,7 @@ PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output"]
 COLUMNS = [
     "student",
     "lms_id",
+    "lms",
     "task",
     "status",
     "reason",
@@ -57,6 +55,8 @@ COLUMNS = [
     "points",
     "score",
     "deducted",
+    "late",
+    "late_deducted",
     "tolerance",
     "max_fraction",
     *NUMBERS,
@@ -126,49 +126,6 @@ def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
     )
 
 
-def write_report(
-    report: Path,
-    rows: list[dict[str, Any]],
-    ignored: list[tuple[str, str]],
-    students: list[str],
-    tasks: dict[str, TaskSettings],
-    headline: str,
-) -> tuple[list[dict[str, Any]], list[str]]:
-    """Write the report's files; a pair's row that one of them cannot write is written as its
-    :func:`~service.classgrade.isolation.unwritable` row, the rest of the class as it is.  The rows as
-    written, and a line per row replaced."""
-    rows, faults = isolated(rows, _writers(tasks), COLUMNS)
-    write_atomic(report / "report.json", _text(_json(rows)))
-    write_atomic(report / "report.csv", _text(report_csv(rows)))
-    write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
-    for student in students:
-        mine = [r for r in rows if r["student"] == student]
-        write_atomic(report / "gradescope" / student / "results.json", _text(_json(gradescope(mine, tasks))))
-    _drop_stale_results(report / "gradescope", set(students))
-    html_text = render_html(rows, ignored, students, list(tasks), noted(headline, faults))
-    write_atomic(report / "index.html", _text(html_text))
-    return rows, faults
-
-
-def _writers(tasks: dict[str, TaskSettings]) -> dict[str, Callable[[list[dict[str, Any]]], object]]:
-    """Each file's writer, for rows of any students and tasks (:func:`isolated` tries each pair alone)."""
-
-    def of(rows: list[dict[str, Any]], key: str) -> list[str]:
-        return list(dict.fromkeys(r[key] for r in rows))
-
-    return {
-        "report.json": _json,
-        "report.csv": report_csv,
-        "gradebook.csv": lambda rows: gradebook_csv(rows, of(rows, "student"), of(rows, "task"), safe_cell),
-        "results.json": lambda rows: [_json(gradescope([r], tasks)) for r in rows],
-        "index.html": lambda rows: render_html(rows, [], of(rows, "student"), of(rows, "task"), ""),
-    }
-
-
-def _json(value: Any) -> str:
-    return json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False) + "\n"
-
-
 def report_csv(rows: list[dict[str, Any]]) -> str:
     """``report.csv``: a row per pair, its cells made safe to open (:func:`safe_cell`)."""
     buf = io.StringIO()
@@ -180,17 +137,6 @@ def report_csv(rows: list[dict[str, Any]]) -> str:
         cells = {k: safe_cell(v) for k, v in row.items()}
         (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
     return buf.getvalue()
-
-
-def _drop_stale_results(folder: Path, students: set[str]) -> None:
-    """Remove the ``results.json`` an earlier run into this report wrote for a student who is not in this one
-    (another class's, or a name since changed), lest it be uploaded with this class's."""
-    with contextlib.suppress(OSError), os.scandir(folder) as entries:
-        stale = [e.name for e in entries if e.name not in students and e.is_dir(follow_symlinks=False)]
-    for name in stale:
-        with contextlib.suppress(OSError):
-            (folder / name / "results.json").unlink()
-            (folder / name).rmdir()
 
 
 def test_output(row: dict[str, Any], show: str = "images") -> str:
@@ -236,7 +182,7 @@ def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> di
             "score": r["score"],
             "max_score": r["points"],
             "status": "passed" if r["status"] == "pass" else "failed",
-            "output": test_output(r, tasks[r["task"]].show),
+            "output": test_output(r, tasks[r["task"]].show) + (f"\n{late_note(r)}" if r.get("late") else ""),
             "visibility": tasks[r["task"]].visibility,
         }
         for r in rows
@@ -267,18 +213,21 @@ def _run_failed(r: dict[str, Any]) -> str:
 
 
 def _cell(r: dict[str, Any], anchor: str) -> str:
-    """A pair's cell of the table: the status and, without the file it names, the reason (or the error)."""
+    """A pair's cell of the table: the status and, without the file it names, the reason (or the error), whole:
+    a long text wraps within the cell's width (``overflow-wrap``), never cut."""
     if r["status"] == "pass":
         note = _percent(r["fraction_off_nearby"])
     elif r["status"] == "fail":  # the likely mistake, when one was named, or how a program's run ended
-        note = esc((r.get("likely") or _run_failed(r))[:60]) or _percent(r["fraction_off_nearby"])
+        note = esc(r.get("likely") or _run_failed(r)) or _percent(r["fraction_off_nearby"])
         note += f" · {r['score']:g}/{r['points']:g}" if r.get("deducted") else ""
     else:
-        note = esc(_without_file(r["reason"])[:80])
+        note = esc(_without_file(r["reason"]))
     own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
+    lost = f" −{r['late_deducted']:g}" if r.get("late_deducted") else ""  # (what the late policy took)
+    late = f' <span class="late">late{lost}</span>' if r.get("late") else ""
     status = esc(r["status"])
     kind = f"{status} partial" if r.get("deducted") else status
-    return f'<td class="{kind}"><a href="#{anchor}">{status}{own}<small>{note}</small></a></td>'
+    return f'<td class="{kind}"><a href="#{anchor}">{status}{own}{late}<small>{note}</small></a></td>'
 
 
 def _detail(r: dict[str, Any], anchor: str) -> str:
@@ -297,6 +246,7 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     probes = f"<p>By experiment: {esc(found)}</p>" if found and found != r.get("likely") else ""
     output = f"<pre>{esc(r['run_output'])}</pre>" if r.get("run_output") else ""  # (the TA's page only)
     credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
+    credit += f'<p class="late">{esc(late_note(r))}</p>' if r.get("late") else ""
     return (
         f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
         f'</h2><p>{esc(r["reason"])}</p>{likely}{probes}{credit}{output}<div class="images">{images}</div>'
@@ -334,7 +284,8 @@ def render_html(
             cells.append(_cell(by[(total.student, task)], anchor))
             details.append(_detail(by[(total.student, task)], anchor))
         cells.append(f'<td class="total">{total.total:g} / {total.out_of:g}</td>')
-        body.append(f"<tr><th>{esc(total.student)}</th>{''.join(cells)}</tr>")
+        late = f' <span class="late">late: {esc(", ".join(total.late))}</span>' if total.late else ""
+        body.append(f"<tr><th>{esc(total.student)}{late}</th>{''.join(cells)}</tr>")
     rates = []
     for task in tasks:
         mine = [by[(s, task)] for s in students]
@@ -349,11 +300,11 @@ body {{ font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }}
 table.grid {{ border-collapse: collapse; }}
 .grid th, .grid td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: center; }}
 .grid td a {{ color: inherit; text-decoration: none; display: block; }}
-.grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow: hidden; }}
+.grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow-wrap: anywhere; }}
 td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
 td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
 td.partial {{ background: #fbe3cf; }} td.total {{ font-weight: bold; white-space: nowrap; }}
-.own {{ color: #36c; }}
+.own {{ color: #36c; }} .late {{ color: #a33f00; font-size: 11px; font-weight: bold; }}
 .pair {{ display: none; }}
 .pair:target {{ display: block; position: fixed; top: 4%; left: 4%; right: 4%; max-height: 88%; overflow: auto;
                border: 1px solid #888; padding: 0 1.5em 1em; background: #fff; box-shadow: 0 4px 30px #0006; }}
