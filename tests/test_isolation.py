@@ -15,10 +15,9 @@ import pytest
 
 import schemas
 from service import classgrade
-from service.classgrade import ClassRun, journal
+from service.classgrade import ClassRun, journal, writing
 from service.classgrade import report as report_module
 from service.classgrade import run as run_module
-from service.classgrade import writing
 from service.classgrade.gradebook import MISTAKES, partial, score
 from service.classgrade.taskfile import TaskSettings
 from service.cli import main
@@ -95,7 +94,7 @@ def test_two_deducted_mistakes_grade_the_class_whole(graded: tuple[Path, dict[st
     assert results["score"] == 4.0 and results["tests"][0]["output"].endswith(BOTH)
     assert BOTH in (report / "index.html").read_text()
     with open(report / "gradebook.csv", newline="") as f:
-        assert [r[-1] for r in csv.reader(f)][1:] == ["10", "4", "6"]
+        assert [r["total"] for r in csv.DictReader(f)] == ["10", "4", "6"]
     # the grade is kept for a run that resumes, rather than graded again each time
     kept = json.loads(journal.path(report, "bo", "cornell").read_text())
     assert journal.valid_row(kept["row"])
@@ -164,7 +163,7 @@ def test_a_writers_fault_for_one_pair_is_that_pairs_row(graded, tmp_path: Path, 
     page = (tmp_path / "index.html").read_text()
     assert "a class; 1 grade could not be written whole (see its reason)" in page and "a fault of the writer" in page
     with open(tmp_path / "gradebook.csv", newline="") as f:
-        assert [r[-1] for r in csv.reader(f)][1:] == ["10", "4", "6"]
+        assert [r["total"] for r in csv.DictReader(f)] == ["10", "4", "6"]
     assert "a fault of the writer" in (tmp_path / "report.csv").read_text()
 
 
@@ -192,8 +191,32 @@ def test_a_row_that_cannot_be_made_is_that_pairs_row(graded, course: Path, tmp_p
     outcome = _graded(course, report)
     mine = {r["student"]: r for r in outcome.rows}
     assert mine["ann"] == rows["ann"] and mine["bo"] == rows["bo"]
-    assert (
-        mine["cy"]["status"] == "fail" and mine["cy"]["score"] == 0.0 and "a fault of the score" in mine["cy"]["reason"]
-    )
+    assert (mine["cy"]["status"], mine["cy"]["score"]) == ("invalid", 0.0)  # (not scored, and says so)
+    assert "a fault of the score" in mine["cy"]["reason"] and mine["cy"]["reason"].endswith("it is not scored)")
     assert outcome.unwritten == ["cy/cornell: its row: ValueError: a fault of the score"]
     assert json.loads((report / "gradescope" / "cy" / "results.json").read_text())["score"] == 0.0
+
+
+def test_only_the_pair_at_fault_is_replaced_and_a_writer_sees_the_students_whole_rows():
+    from service.classgrade.isolation import isolated
+    from service.classgrade.report import COLUMNS
+
+    def row(student: str, task: str, bad: bool = False) -> dict[str, Any]:
+        return {**dict.fromkeys(COLUMNS), "student": student, "task": task, "status": "fail", "reason": "off"} | {
+            "points": 2.0,
+            "score": 1.0,
+            "mistakes": ["gamma"] if bad else [],
+        }
+
+    def whole(rows: list[dict[str, Any]]) -> None:  # (a writer of every task's column: each student's rows whole)
+        assert {r["task"] for r in rows} == {"a", "b"}
+
+    def breaks(rows: list[dict[str, Any]]) -> None:
+        if any(r["mistakes"] == ["gamma"] for r in rows):
+            raise KeyError("gamma")
+
+    rows = [row("ann", "a"), row("ann", "b"), row("bo", "a"), row("bo", "b", bad=True)]
+    written, faults = isolated(rows, {"whole.csv": whole, "broken.html": breaks}, COLUMNS)
+    assert written[:3] == rows[:3] and faults == ["bo/b: broken.html: KeyError: 'gamma'"]
+    mended = written[3]
+    assert (mended["student"], mended["task"], mended["score"], mended["mistakes"]) == ("bo", "b", 1.0, [])

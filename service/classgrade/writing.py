@@ -53,18 +53,19 @@ def write_report(
 
 
 def _writers(tasks: dict[str, TaskSettings]) -> dict[str, Callable[[list[dict[str, Any]]], object]]:
-    """Each file's writer, for rows of any students and tasks (:func:`isolated` tries each pair alone)."""
+    """Each file's writer, for one student's rows (:func:`isolated` tries each student's), as it writes the
+    class's."""
 
-    def of(rows: list[dict[str, Any]], key: str) -> list[str]:
-        return list(dict.fromkeys(r[key] for r in rows))
+    def who(rows: list[dict[str, Any]]) -> list[str]:
+        return list(dict.fromkeys(r["student"] for r in rows))
 
     return {
         "report.json": _json,
         "report.csv": report_csv,
-        "gradebook.csv": lambda rows: gradebook_csv(rows, of(rows, "student"), of(rows, "task"), safe_cell),
-        "the LMS's gradebook": lambda rows: lms_books(rows, of(rows, "student"), tasks, safe_cell),
-        "results.json": lambda rows: [_json(gradescope([r], tasks)) for r in rows],
-        "index.html": lambda rows: render_html(rows, [], of(rows, "student"), of(rows, "task"), ""),
+        "gradebook.csv": lambda rows: gradebook_csv(rows, who(rows), list(tasks), safe_cell),
+        "the LMS's gradebook": lambda rows: lms_books(rows, who(rows), tasks, safe_cell),
+        "results.json": lambda rows: _json(gradescope(rows, tasks)),
+        "index.html": lambda rows: render_html(rows, [], who(rows), list(tasks), ""),
     }
 
 
