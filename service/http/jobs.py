@@ -312,7 +312,7 @@ def explained(
     checked = explain(scene, graded, reference, submitted, Checks(diagnose=False), run)
     if checked.grade.passed:
         return checked
-    try:  # (the accepted variants' renders are kept: checked again at no cost before the diagnosis)
+    try:  # (checked again first, from the renders kept of them: up to 640×480, at no cost)
         return explain(scene, graded, reference, submitted, run=run)
     except MemoryError:
         why = "its renders ran out of memory beside the worker's other work; grade again for one"
