@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_json
+from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
 from .errors import ClassError
 from .taskfile import TaskSettings, load_tasks
 from .uploads import LaidOut, as_uploaded, lay_out
@@ -68,10 +68,11 @@ def build(
     tasks_file: Path | None = None,
     student_scenes: Path | None = None,
     program: Program | None = None,
+    requirements: Path | None = None,
 ) -> Built:
     """Write the autograder zip ``out`` for the task scenes in ``scenes`` (with a ``program``, for students'
-    programs: :mod:`.bundled`); :class:`ClassError` for a fault of the TA's (an invalid scene or tasks file, a
-    scene that does not render), before anything is written."""
+    programs: :mod:`.bundled`, and the ``requirements`` of their runtime); :class:`ClassError` for a fault of
+    the TA's (an invalid scene or tasks file, a scene that does not render), before anything is written."""
     from .submissions import discover
 
     with tempfile.TemporaryDirectory() as empty:  # (the TA's folders checked as a class of one empty folder)
@@ -85,8 +86,7 @@ def build(
             files[f"{COURSE}/student-scenes/{student}/{path.name}"] = _read(path)
     if tasks_file is not None:
         files[f"{COURSE}/tasks.json"] = _read(tasks_file)
-    if program is not None:
-        files[f"{COURSE}/{PROGRAM_FILE}"] = program_json(program)
+    files.update({f"{COURSE}/{name}": data for name, data in program_files(program, requirements, _read).items()})
     scenes_of = {
         name: text
         for name, text in files.items()

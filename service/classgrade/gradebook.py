@@ -3,8 +3,9 @@
 A pair that passes scores its task's points, a missing or invalid one 0.  A failing one scores 0, unless the
 tasks file gives its task ``deductions`` by mistake id (``{"no-shadows": 1}``) and the image's one fault is
 such a mistake: it passes against the reference rendered with that mistake (:mod:`service.diagnosis`).  It
-then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`); an image
-that several mistakes explain alike gets the smallest of their deductions.
+then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`).  An image
+that several mistakes explain alike (it passes against the reference rendered with each: the image cannot tell
+them apart) is graded on what it shows: it gets the smallest of the deductions the task has for them.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 from tracer.variants import VARIANTS
 
+from ..diagnosis.words import listed
 from .taskfile import TaskSettings
 
 #: the ids a deduction may name: the diagnosis's classic mistakes (tracer.variants), with what each is
@@ -77,13 +79,17 @@ def late_note(row: dict[str, Any]) -> str:
 
 
 def partial(row: dict[str, Any]) -> str:
-    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty; for
-    mistakes made together (``no-shadows+gamma``) each one is named: ``(no shadow rays and gamma …: -3)``."""
+    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty; for an
+    image several mistakes explain alike, each of them: ``(no specular term, or the reflected vector R with the
+    wrong sign: -1)`` (the deduction is for what the image shows); for mistakes made together
+    (``no-shadows+gamma``), each one: ``(no shadow rays and gamma …: -3)``."""
     if not row.get("deducted"):
         return ""
     lost = row["points"] - row["score"]
-    words = " and ".join(MISTAKES.get(part, part) for part in row["deducted"].split("+"))
-    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({words}: -{lost:g})"
+    readings = [m for m in row.get("mistakes") or [] if m in MISTAKES]
+    shown = readings if row["deducted"] in readings and len(readings) > 1 else [row["deducted"]]
+    what = listed([" and ".join(MISTAKES.get(part, part) for part in m.split("+")) for m in shown], "or")
+    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({what}: -{lost:g})"
 
 
 @dataclass(frozen=True)
