@@ -52,6 +52,8 @@ SANDBOXED = {
     "test_job.py",
     "test_class_programs.py",
     "test_bundled.py",
+    "test_hidden.py",
+    "test_copied.py",
     "test_guard.py",
     "test_seccomp.py",
     "test_runtime.py",

@@ -43,7 +43,10 @@ class Score:
 
 
 def score(row: dict[str, Any], task: TaskSettings) -> Score:
-    """What a pair scores of its task's points."""
+    """What a pair scores of its task's points (nothing for a program holding phongray's code, where the task
+    says ``"phongray_code": "zero"``)."""
+    if row.get("flag") == "phongray-code" and task.phongray_code == "zero":
+        return Score(0.0)
     if row["status"] == "pass":
         return Score(task.points)
     if row["status"] != "fail":

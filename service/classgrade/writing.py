@@ -15,10 +15,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from .feedback import gradescope
 from .gradebook import gradebook_csv
 from .isolation import isolated, noted
 from .lmsbook import lms_books
-from .report import COLUMNS, _text, gradescope, render_html, report_csv, safe_cell, write_atomic
+from .report import COLUMNS, _text, render_html, report_csv, safe_cell, write_atomic
 from .taskfile import TaskSettings
 
 

@@ -29,7 +29,9 @@ from typing import Any
 
 from ..classgrade.errors import ClassError
 from ..classgrade.records import GradeJob
+from .copied import flags
 from .experiment import Thresholds, experiment
+from .folder import MAX_ENTRIES
 from .outcome import Reason, RunOutcome
 from .pack import DamagedPack, Pack, unpacked
 from .program import Program
@@ -118,7 +120,10 @@ def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, 
         return failed_run(outcome)
     result = {**_grade_image(task, outcome.image), "image": outcome.image, **run_info(outcome)}
     if task.grading.diagnose and result["status"] == "fail":
-        said = experiment(task.grading.scene, outcome.image, run, task.thresholds).sentences
+        from ..classgrade.gradebook import matched
+
+        known = tuple(matched(result.get("diagnosis"))[:1])  # (the task's likeliest exact match, kept out)
+        said = experiment(task.grading.scene, outcome.image, run, task.thresholds, known).sentences
         result["experiment"] = "; ".join(said) or None
     return result
 
@@ -165,24 +170,32 @@ def _graded(job: ProgramJob, folder: Path | None) -> dict[str, dict[str, Any]]:
 
 
 def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
-    """Every task's grade of one student's program, by task name (see the module's docstring).
+    """Every task's grade of one student's program, by task name (see the module's docstring), flagged for the
+    TA when the program holds phongray's code or its images are the references (:mod:`.copied`).
     :class:`ClassError` (the TA's, in one line, naming the student whose run found it) when a sandbox cannot
     start: the machine's set-up, never the student's."""
     try:
         with _source(job) as folder:
-            return _graded(job, folder)
+            results = _graded(job, folder)
+            if folder is not None:
+                references = {task.task: task.grading.reference for task in job.tasks}
+                flags(folder, results, references, job.program.limits)
+            return results
     except (SandboxUnavailable, DamagedPack) as exc:
         raise ClassError(f"{job.folder.name}'s program: {exc}") from None
 
 
 def digest(folder: Path, program: Program) -> str:
     """What a kept grade of the program stands for: the student's regular files (paths and bytes, read without
-    following a link, as the sandbox's copy leaves links out, and no more than the folder limit's worth: a
-    larger folder is not run) and how it is built, run and limited."""
+    following a link, as the sandbox's copy leaves links out, and no more than the folder limit's worth or
+    :data:`~.folder.MAX_ENTRIES` entries: a larger folder is not run) and how it is built, run and limited."""
     sha = hashlib.sha256(repr((program.run, program.build, program.limits, program.sandbox)).encode())
-    left = program.limits.folder_bytes
+    left, entries = program.limits.folder_bytes, MAX_ENTRIES
     for root, dirs, files in os.walk(folder, followlinks=False):
         dirs.sort()
+        entries -= len(dirs) + len(files)
+        if entries < 0:  # (a folder of too many files is not run either)
+            break
         for name in sorted(files):
             path = Path(root, name)
             with contextlib.suppress(OSError):

@@ -35,6 +35,18 @@ class Reason(StrEnum):
     PROCESSES = "processes"
 
 
+#: how a run's end is told to a student: the scene it ran on is hidden from them, and a program chooses its
+#: exit status, its signal and how it fails (a crash, memory, no output...), so it could spell out in them what
+#: it read of the scene; a student is told only whether it ran out of time or failed otherwise (the TA's report
+#: keeps every reason and detail).  A folder over its limit is the student's own files, told as it is.
+TOLD = {"timeout": "timed out", "cpu-time": "timed out", "folder-too-large": "did not start: the folder is too large"}
+
+
+def told(reason: Reason) -> str:
+    """A run's end as a student is told it: ``timed out``, ``crashed``, or the folder too large."""
+    return TOLD.get(str(reason), "crashed")
+
+
 #: the end of standard error's words for running out of memory, and for writing a file past the limit
 MEMORY_WORDS = ("MemoryError", "std::bad_alloc", "Cannot allocate memory", "out of memory")
 FILE_SIZE_WORDS = ("File too large", "No space left on device")
