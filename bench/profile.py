@@ -89,7 +89,7 @@ STAGES = [
     Stage("tracer.intersect", "Intersector._describe", "hit reconstruction", lambda a, r: len(a[2].t)),
     Stage("tracer.intersect", "Intersector._direct", "direct tests"),
     Stage("tracer.walk", "Walk.walk", "walk", _n_second),
-    Stage("tracer.walk", "Walk._test", "exact tests", _n_second),
+    Stage("tracer.pairs", "PairTests.test", "exact tests", _n_second),
     Stage("tracer.embree", "Bvh.nearest", "Embree", _n_first),
     Stage("tracer.embree", "Bvh.any_hit", "Embree", _n_first),
     Stage("tracer.render", "through_point", "cones", lambda a, r: len(a[3])),

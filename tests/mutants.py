@@ -27,7 +27,7 @@ MUTANTS = [
     (
         "the origin's part of a cell is not tested",
         "walk.py",
-        "            self._test_cells(best, inside, cell, but, table, from_prim, shadows)\n",
+        "            self._test_cells(best, inside, cell, but, batch)\n",
         "            pass\n",
     ),
     (

@@ -7,7 +7,7 @@ from schemas import Scene
 from .budget import Budget, OverBudget
 from .image import decode_png, encode_png
 from .memory import tune_allocator
-from .render import ImageTooLarge, RenderCancelled, Renderer, render
+from .render import ImageTooLarge, Picture, RenderCancelled, Renderer, render
 
 tune_allocator()
 
@@ -15,6 +15,7 @@ __all__ = [
     "Budget",
     "ImageTooLarge",
     "OverBudget",
+    "Picture",
     "RenderCancelled",
     "Renderer",
     "decode_png",

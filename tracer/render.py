@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
@@ -25,11 +26,12 @@ from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Pixels, Run, chunking, or
 from .direct import DirectLight, Meter
 from .film import Film, stored
 from .intersect import PLANE, SPHERE, TRIANGLE, Intersector
-from .lights import LIGHT_TYPES, emitter_count, light_groups
+from .lights import LIGHT_TYPES, light_groups
 from .passes import ADDITIVE, LIGHT_TERMS, UNOBSERVED, PassObserver, Tally, check_passes
 from .planner import plan_proofs, scene_sightlines
 from .rays import Among, Rays, Work
 from .shading import resolve_material, shading_normal
+from .sizes import ImageTooLarge, check_size
 from .spawn import Spawner
 from .variants import REFERENCE, Options
 from .vec import scaled
@@ -41,41 +43,23 @@ __all__ = ["CHUNK_RAYS", "ONE_THREAD_CHUNK_RAYS", "Budget", "ImageTooLarge", "Ov
            "Renderer", "render"]
 
 
-#: the largest image the renderer will make (16384 × 16384): its pixels alone take 768 MiB
-MAX_PIXELS = 1 << 28
-#: the most primary rays (pixels × sub-samples) one render will cast
-MAX_PRIMARY_RAYS = 1 << 32
-
-
-#: the most point lights (lights plus area-light samples) one render will shade with
-MAX_LIGHT_SAMPLES = 1 << 20
 #: the most bytes a chunk's tally of diagnosis passes holds (:meth:`Renderer.diagnosis_passes`): every light's
 #: terms per sub-sample, so a scene of many lights takes fewer pixels per chunk
 TALLY_BYTES = 8 << 20
 #: what :meth:`Renderer.diagnosis_passes` hands each chunk's passes to: the chunk's first position, its passes
 Fold = Callable[[int, dict[str, np.ndarray]], None]
 
-
-class ImageTooLarge(ValueError):
-    """The render asked for is beyond what phongray does: too many pixels, rays or light samples."""
-
-
 R = TypeVar("R")
 
 
-def _check_size(scene: Scene) -> None:
-    """Raises :class:`ImageTooLarge` for a render beyond what phongray does."""
-    img = scene.image
-    if img.width * img.height > MAX_PIXELS:
-        raise ImageTooLarge(f"image: {img.width}×{img.height} pixels is more than phongray renders "
-                            f"({MAX_PIXELS} pixels, 16384×16384)")
-    if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
-        raise ImageTooLarge(f"image: {img.width}×{img.height} pixels × {img.samples}² sub-samples is more "
-                            f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})")
-    lights = emitter_count(scene.lights)
-    if lights > MAX_LIGHT_SAMPLES:
-        raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders "
-                            f"({MAX_LIGHT_SAMPLES})")
+@dataclass(frozen=True)
+class Picture:
+    """A render's stored pixels, and which of them the format leaves open: their ray tree met, at some depth, a
+    tie between overlapping coplanar surfaces of two objects (:mod:`tracer.ties`), which a grade does not count
+    against a submission.  Found as the render goes, at no cost but in scenes with such surfaces."""
+
+    pixels: np.ndarray  # (H, W, 3) uint8
+    open: np.ndarray  # (H, W) bool
 
 
 class Renderer:
@@ -86,7 +70,7 @@ class Renderer:
 
     def __init__(self, scene: Scene, options: Options = REFERENCE):
         scene = options.read(scene)  # (the scene itself, but in a variant that misreads it)
-        _check_size(scene)
+        check_size(scene)
         img = scene.image
         self.scene = scene
         self._count = RayCount()
@@ -147,6 +131,17 @@ class Renderer:
         :class:`RenderCancelled` is raised.  A render that outgrows its ``budget``
         stops with :class:`OverBudget`, polled where ``cancel`` is.
         """
+        return self._picture(threads, chunk_rays, progress, cancel, rows, budget, False).pixels
+
+    def picture(self, threads: int | None = None, chunk_rays: int | None = None,
+                progress: Progress | None = None, cancel: Callable[[], bool] | None = None,
+                rows: tuple[int, int] | None = None, budget: Budget = UNLIMITED) -> Picture:
+        """:meth:`pixels`, with the pixels the format leaves open (:class:`Picture`) found in the same render."""
+        return self._picture(threads, chunk_rays, progress, cancel, rows, budget, True)
+
+    def _picture(self, threads: int | None, chunk_rays: int | None, progress: Progress | None,
+                 cancel: Callable[[], bool] | None, rows: tuple[int, int] | None, budget: Budget,
+                 with_open: bool) -> Picture:
         img = self.scene.image
         top, bottom = rows if rows is not None else (0, img.height)
         if not 0 <= top <= bottom <= img.height:
@@ -155,18 +150,22 @@ class Renderer:
         pixel = range(top * img.width, bottom * img.width)
         self._count.plan(len(pixel) * img.samples * img.samples)
         out = np.empty((len(pixel), 3), dtype=np.uint8)
+        opened = np.zeros(len(pixel) if with_open else 0, dtype=bool)
         done = 0
 
-        def each(first: int, part: np.ndarray) -> None:
+        def each(first: int, part: tuple[np.ndarray, np.ndarray]) -> None:
             nonlocal done
-            out[first:first + len(part)] = part
-            done += len(part)
+            out[first:first + len(part[0])] = part[0]
+            if with_open:
+                opened[first:first + len(part[0])] = part[1]
+            done += len(part[0])
             if progress:
                 progress(done, len(pixel))
 
         self._drive(parts_of(pixel, run.per_chunk), self._stored, run, each)
         image = out.reshape(bottom - top, img.width, 3)
-        return image[::-1] if self.options.flip_image else image
+        mask = opened.reshape(bottom - top, img.width if with_open else 0)
+        return Picture(image[::-1], mask[::-1]) if self.options.flip_image else Picture(image, mask)
 
     def pixels_of_rows(self, rows: np.ndarray, threads: int | None = None, chunk_rays: int | None = None,
                        cancel: Callable[[], bool] | None = None) -> np.ndarray:
@@ -179,7 +178,7 @@ class Renderer:
             shown = img.height - 1 - shown
         pixel = (shown[:, None] * img.width + np.arange(img.width)[None, :]).ravel()
         out = self._drive(parts_of(pixel, run.per_chunk), self._stored, run)
-        return np.concatenate(out).reshape(len(shown), img.width, 3)
+        return np.concatenate([part for part, _ in out]).reshape(len(shown), img.width, 3)
 
     def passes(self, names: list[str], light: int | None = None, threads: int | None = None,
                chunk_rays: int | None = None, cancel: Callable[[], bool] | None = None,
@@ -262,9 +261,10 @@ class Renderer:
         self.slice_rays = rays
         return Run(workers, max(1, rays // (self.scene.image.samples ** 2)))
 
-    def _stored(self, part: Pixels) -> np.ndarray:
-        """The stored bytes of the pixels ``part``. Shape (len(part), 3), uint8."""
-        return stored(self.chunk(0, len(part), pixels=part), self.options)
+    def _stored(self, part: Pixels) -> tuple[np.ndarray, np.ndarray]:
+        """The stored bytes of the pixels ``part`` (len(part), 3) uint8, and which are open (len(part),) bool."""
+        film = self._film(0, len(part), pixels=part)
+        return stored(film.colour(), self.options), film.open_pixels()
 
     def _drive(self, parts: list[Pixels], work: Callable[[Pixels], R], run: Run,
                each: Callable[[int, R], None] | None = None) -> list[R]:
@@ -301,6 +301,11 @@ class Renderer:
         the branch of the ray tree it belongs to).  With ``depth``, the tree stops
         there (0: the camera rays' hits alone), if not before.
         """
+        return self._film(start, stop, tally, pixels, depth).colour()
+
+    def _film(self, start: int, stop: int, tally: Tally | None = None, pixels: Pixels | None = None,
+              depth: int | None = None) -> Film:
+        """:meth:`chunk`'s film, its sums and its open sub-samples."""
         s = self.scene.image.samples ** 2
         deepest = self.max_depth if depth is None else min(depth, self.max_depth)
         with np.errstate(all="ignore"):
@@ -332,7 +337,7 @@ class Renderer:
                     stack.append(children)
             self._count.hold(holder, 0)
             self._count.foresee(holder, 0.0)
-            return film.colour()
+            return film
 
     def _trace(self, work: Work, film: Film, tally: Tally | None, deepest: int) -> Work | None:
         """One slice of one depth, stage by stage: intersect → misses take the background → direct light → the
@@ -341,6 +346,8 @@ class Renderer:
         best = self.intersector.nearest(work.rays, self._camera_among(work.rays) if work.depth == 0 else
                                         self._mirror_among(work.rays))
         missed = best.key == NO_HIT
+        if best.open is not None:  # a tie the format leaves open (tracer.ties): its sample's pixel is open
+            film.opened(work.sample[best.open])
         once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
         film.add(work.sample[missed], scaled(background, work.weight[missed]), once)
         (UNOBSERVED if tally is None else PassObserver(tally, work)).missed(missed, background)
