@@ -7,7 +7,6 @@ mistake switched on, a hostile one with a few lines before it that misbehave on 
 
 import json
 import socket
-import subprocess
 import tempfile
 import threading
 from pathlib import Path
@@ -17,7 +16,8 @@ from test_cluster import dask as cluster_fixture  # noqa: F401  (the fixture 'da
 
 from service.cli import main
 from service.programs import check_sandbox
-from service.programs.sandbox import UID_BASE, UID_SPAN
+
+from helpers import left_in_sandboxes
 
 HERE = Path(__file__).parent / "programs"
 SECRET = "TA-SECRET-51c0"
@@ -51,18 +51,14 @@ BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-
 
 
 def left_running() -> list[str]:
-    """Processes of a sandbox's user, or the hostile daemon's sleep, not counting zombies."""
-    ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
-    return [
-        line
-        for line in ps.splitlines()
-        if not line.split()[1].startswith("Z")
-        and (UID_BASE <= int(line.split()[0]) < UID_BASE + UID_SPAN or "876.543" in line)
-    ]
+    """What this test's runs left running: a sandbox or anything under it, or the hostile daemon's sleep;
+    zombies do not count."""
+    return left_in_sandboxes("876.543")
 
 
 def scratch() -> set[str]:
-    """The temporary folders of runs, builds and scenes on the machine."""
+    """The temporary folders of runs, builds and scenes of this test session (tests/conftest.py gives it a
+    temporary folder of its own)."""
     return {p.name for p in Path(tempfile.gettempdir()).glob("phongray-*")}
 
 
