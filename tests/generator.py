@@ -619,8 +619,9 @@ def contact(rng: Rng) -> tuple[dict[str, Any], list, list]:
         hi = lo + [0.125 * int(rng.integers(4, 12)), 0.125 * int(rng.integers(2, 10)), 0.125 * int(rng.integers(4, 12))]
         objects.append(box(lo, hi, _any(rng, 0.6)))
         if rng.random() < 0.3:
-            objects.append(box(lo + [0.25, 0, 0.25] * np.array([1, 0, 1]) + [0, hi[1] - lo[1], 0], hi + [0, 1, 0],
-                               _any(rng, 0.6)))
+            objects.append(
+                box(lo + [0.25, 0, 0.25] * np.array([1, 0, 1]) + [0, hi[1] - lo[1], 0], hi + [0, 1, 0], _any(rng, 0.6))
+            )
     for _ in range(int(rng.integers(0, 3))):  # tiles lying on the floor
         c = np.array(_grid(rng, -2, 2)) * [1, 0, 1]
         tile = [c + [-0.5, 0, -0.5], c + [0.5, 0, 0.75], c + [0.25, 0, -0.5]]

@@ -184,3 +184,45 @@ def test_the_best_hit_and_its_openness_do_not_depend_on_the_order_of_candidates(
 def test_without_coplanar_surfaces_there_are_no_groups():
     world = build_world(schemas.validate_scene(box_scene(bottom=False)))
     assert world.coplanar is None and coplanar_groups(world.planes, world.triangles) is None
+
+
+@pytest.mark.parametrize("lift", [2.0**-52, 2.0**-50, 2.0**-49, 0.9 * 2.0**-48])
+def test_a_tile_within_rounding_of_a_floor_is_in_it(lift):
+    # a tile lifted off a floor by less than the groups' tolerance (of the magnitudes, about 1 here) lies in the
+    # floor's plane: the image of a tile lying on it, the floor lit under it too (a shadow ray leaving the floor
+    # leaves the tile's group: it starts in their plane), not shadowed by the tile a rounding above it
+    def data(y):
+        tile = {"type": "triangle", "material": "tile", "vertices": [[-1, y, 1], [1, y, 1], [0, y, -1]]}
+        return {
+            "camera": {"position": [0.3, 3, 2], "look_at": [0, 0, 0], "fov": 50},
+            "image": {"width": 40, "height": 30},
+            "materials": {"tile": {"diffuse": [0.2, 0.8, 0.2]}, "floor": {"diffuse": [0.8, 0.2, 0.2]}},
+            "objects": [{"type": "plane", "material": "floor", "point": [0, 0, 0], "normal": [0, 1, 0]}, tile],
+            "lights": [{"type": "point", "position": [1, 4, 1], "color": 1}],
+        }
+
+    assert np.array_equal(picture(data(lift)).pixels, picture(data(0.0)).pixels)
+
+
+def test_a_grade_does_not_count_the_open_pixels_against_a_submission():
+    # a student whose tracer breaks the tie the other way shows the background through the glass box's bottom:
+    # every open pixel differs, and nothing else does
+    from service import grading, pipeline
+    from tracer import encode_png
+
+    data = box_scene(size=(80, 60))
+    scene = schemas.validate_scene(data)
+    ref = picture(data)
+    student = ref.pixels.copy()
+    student[ref.open] = [128, 179, 255]
+    assert not grading.grade(ref.pixels, student, "", 2.0, 0.001).passed
+    assert grading.grade(ref.pixels, student, "", 2.0, 0.001, ref.open).passed
+    png = encode_png(ref.pixels)
+    explaining = pipeline.Explaining(lambda: scene, pipeline.Checks({}, diagnose=False), pipeline.Run(threads=1))
+    assert pipeline.grade_png(png, encode_png(student), 2.0, 0.001, explaining=explaining).grade.passed
+    # a mistake outside them still fails: the box's shadow on the floor around it lit
+    shadow = np.all(ref.pixels < 60, axis=2) & ~ref.open
+    assert shadow.mean() > 0.005
+    wrong = student.copy()
+    wrong[shadow] += 100
+    assert not pipeline.grade_png(png, encode_png(wrong), 2.0, 0.001, explaining=explaining).grade.passed
