@@ -41,9 +41,12 @@ from .vec import dot
 TOLERANCE = 2.0**-48
 #: how far from parallel (the sine of the angle) the normals of two surfaces in one plane may be
 SINE = 2.0**-26
-#: the grid a plane's canonical normal (and its offset, relative to the largest point) is filed on: far coarser
-#: than SINE, so that surfaces in one plane differ by under a quarter of a cell
-QUANTUM = 2.0**-20
+#: the grid a plane's canonical normal (two of its components) and its offset (relative to the largest point) are
+#: filed on, in cells of this size; a surface within :data:`EDGE` of a cell's edge is filed under the neighbour
+#: too.  Surfaces in one plane differ by at most 2^-25 in each (normals parallel within SINE, offsets within
+#: SINE of the largest point plus TOLERANCE), under EDGE: they share a key
+QUANTUM = 2.0**-16
+EDGE = 2.0**-24 / QUANTUM
 #: the most candidate pairs examined; past it, no groups
 PAIRS = 1 << 24
 #: a direction no plane of a scene is likely to be perpendicular to, for the canonical sign of a normal (a normal
@@ -102,36 +105,49 @@ class _Flat:
     """The flat surfaces as one list, planes first: what grouping reads of each."""
 
     kind: np.ndarray  # (F,) PLANE or TRIANGLE
-    index: np.ndarray  # (F,) within its kind
     obj: np.ndarray  # (F,) the object
     normal: np.ndarray  # (F, 3)
     point: np.ndarray  # (F, 3) local: a plane's point, a triangle's first corner
-    corners: np.ndarray  # (F, 3, 3) local: a triangle's corners; a plane's point three times
+    e1: np.ndarray  # (F, 3) a triangle's edges from its first corner (0 for a plane)
+    e2: np.ndarray  # (F, 3)
     mag: np.ndarray  # (F,) world magnitude
     lo: np.ndarray  # (F, 3) the box (−inf for a plane)
     hi: np.ndarray  # (F, 3) (inf for a plane)
     extent: np.ndarray  # (F,) the box's largest side (inf for a plane)
 
+    def corner(self, rows: np.ndarray, k: int) -> np.ndarray:
+        """The ``k``-th corner of the surfaces ``rows`` (a plane's point, for each k). Shape (len(rows), 3)."""
+        return self.point[rows] + (0.0 if k == 0 else (self.e1 if k == 1 else self.e2)[rows])
+
+    @property
+    def usable(self) -> np.ndarray:
+        """Which surfaces have finite numbers (a hostile 1e300 may overflow in the eye's frame). Shape (F,)."""
+        ok = np.isfinite(self.mag) & ((self.kind == PLANE) | np.isfinite(self.extent))
+        for a in (self.point, self.normal):
+            ok &= np.isfinite(a[:, 0]) & np.isfinite(a[:, 1]) & np.isfinite(a[:, 2])
+        return ok
+
 
 def _flat(planes: Planes, triangles: Triangles) -> _Flat:
     q, t = len(planes.normal), len(triangles.v0)
-    v0 = triangles.v0
-    corners = np.concatenate(
-        [np.repeat(planes.point[:, None], 3, axis=1), np.stack([v0, v0 + triangles.e1, v0 + triangles.e2], axis=1)]
-    )
-    lo, hi = corners.min(axis=1), corners.max(axis=1)
-    lo[:q], hi[:q] = -np.inf, np.inf
+    v0, e1, e2 = triangles.v0, triangles.e1, triangles.e2
+    v1, v2 = v0 + e1, v0 + e2
+    infinite = np.full((q, 3), np.inf)
+    lo = np.concatenate([-infinite, np.minimum(np.minimum(v0, v1), v2)])
+    hi = np.concatenate([infinite, np.maximum(np.maximum(v0, v1), v2)])
+    side = hi - lo
+    zeros = np.zeros((q, 3))
     return _Flat(
         kind=np.concatenate([np.full(q, PLANE), np.full(t, TRIANGLE)]).astype(np.int8),
-        index=np.concatenate([np.arange(q), np.arange(t)]).astype(np.int64),
         obj=np.concatenate([planes.object, triangles.object]).astype(np.int64),
         normal=np.concatenate([planes.normal, triangles.normal]),
         point=np.concatenate([planes.point, v0]),
-        corners=corners,
+        e1=np.concatenate([zeros, e1]),
+        e2=np.concatenate([zeros, e2]),
         mag=np.concatenate([planes.mag, triangles.mag]),
         lo=lo,
         hi=hi,
-        extent=np.max(hi - lo, axis=1),
+        extent=np.maximum(np.maximum(side[:, 0], side[:, 1]), side[:, 2]),
     )
 
 
@@ -167,53 +183,54 @@ def coplanar_groups(planes: Planes, triangles: Triangles) -> Groups | None:
 def _candidates(flat: _Flat) -> tuple[np.ndarray, np.ndarray] | None:
     """Pairs ``(a, b)``, ``a < b``, of surfaces of different objects that may lie in one plane with meeting boxes:
     every pair that does is among them.  None past :data:`PAIRS`."""
+    none = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    if flat.obj.min() == flat.obj.max():  # one object: no pair
+        return none
     entry, key = _plane_keys(flat)
-    if len(entry) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    order = np.lexsort(key.T[::-1])
+    order = np.argsort(key, kind="stable")
     entry, key = entry[order], key[order]
-    starts = np.r_[0, np.flatnonzero(np.any(key[1:] != key[:-1], axis=1)) + 1]
+    starts = np.r_[0, np.flatnonzero(key[1:] != key[:-1]) + 1] if len(key) else np.zeros(0, np.int64)
     bucket = np.repeat(np.arange(len(starts)), np.diff(np.r_[starts, len(entry)]))
     objects = flat.obj[entry]
+    if len(entry) == 0:
+        return none
     lowest, highest = np.minimum.reduceat(objects, starts), np.maximum.reduceat(objects, starts)
     shared = (lowest != highest)[bucket]  # a key that holds more than one object
     entry, bucket = entry[shared], bucket[shared]
     if len(entry) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return none
     return _near_pairs(flat, entry, bucket)
 
 
 def _plane_keys(flat: _Flat) -> tuple[np.ndarray, np.ndarray]:
-    """Each surface filed under its plane: ``(entry, key)``, the surface of each filing and its four grid cells
-    (canonical normal, offset), a surface filed more than once near a cell's edge or a sign's doubt."""
-    ok = np.all(np.isfinite(flat.corners), axis=(1, 2)) & np.all(np.isfinite(flat.normal), axis=1)
-    ok &= np.isfinite(flat.mag)
+    """Each surface filed under its plane: ``(entry, key)``, the surface of each filing and one int64 of its
+    three grid cells (two components of the canonical normal, and the offset); a surface is filed more than
+    once near a cell's edge (:data:`EDGE`) or where its normal's sign is in doubt."""
+    ok = flat.usable
     n, p = flat.normal, flat.point
-    scale = float(np.max(np.sqrt(dot(p[ok], p[ok])), initial=0.0)) if ok.any() else 0.0
+    size = np.sqrt(p[:, 0] * p[:, 0] + p[:, 1] * p[:, 1] + p[:, 2] * p[:, 2])
+    scale = float(np.max(size[ok], initial=0.0))
     scale = scale if scale > 0 else 1.0
-    side = n @ GENERIC
-    entries, signs = [np.flatnonzero(ok & (side >= 0)), np.flatnonzero(ok & (side < 0))], [1.0, -1.0]
+    side = n[:, 0] * GENERIC[0] + n[:, 1] * GENERIC[1] + n[:, 2] * GENERIC[2]
+    sign = np.where(side >= 0, 1.0, -1.0)
+    offset = (n[:, 0] * p[:, 0] + n[:, 1] * p[:, 1] + n[:, 2] * p[:, 2]) * sign / scale
+    x = np.column_stack([n[:, 0] * sign, n[:, 1] * sign, offset]) / QUANTUM  # each within ±2^16·√3
     doubt = np.flatnonzero(ok & (np.abs(side) <= 2.0**-24))  # filed under both signs
-    entries.append(doubt)
-    signs.append(0.0)
-    rows, coords = [], []
-    for e, sign in zip(entries, signs):
-        s = np.where(side[e] >= 0, -1.0, 1.0) if sign == 0.0 else np.full(len(e), sign)  # (the other sign)
-        m = n[e] * s[:, None]
-        coords.append(np.column_stack([m, dot(m, p[e]) / scale]) / QUANTUM)
-        rows.append(e)
-    entry, x = np.concatenate(rows), np.concatenate(coords)
+    entry = np.concatenate([np.flatnonzero(ok), doubt])
+    x = np.concatenate([x[ok], -x[doubt]])
     cell = np.floor(x)
     frac = x - cell
-    keys = cell.astype(np.int64)
-    for axis in range(4):  # near a cell's edge: filed under the neighbour too
-        for near, step in ((frac[:, axis] < 0.25, -1), (frac[:, axis] > 0.75, 1)):
+    cells = cell.astype(np.int64) + (1 << 18)
+    for axis in range(3):  # near a cell's edge: filed under the neighbour too
+        for near, step in ((frac[:, axis] < EDGE, -1), (frac[:, axis] > 1.0 - EDGE, 1)):
             more = np.flatnonzero(near)
-            extra = keys[more].copy()
+            if len(more) == 0:
+                continue
+            extra = cells[more].copy()
             extra[:, axis] += step
-            entry, keys = np.concatenate([entry, entry[more]]), np.concatenate([keys, extra])
+            entry, cells = np.concatenate([entry, entry[more]]), np.concatenate([cells, extra])
             frac = np.concatenate([frac, frac[more]])
-    return entry, keys
+    return entry, (cells[:, 0] << 38) | (cells[:, 1] << 19) | cells[:, 2]
 
 
 def _near_pairs(flat: _Flat, entry: np.ndarray, bucket: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -289,7 +306,7 @@ def _in_one_plane(flat: _Flat, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     swap = (flat.extent[b] > flat.extent[a]) | ((flat.extent[b] == flat.extent[a]) & (b < a))
     big, little = np.where(swap, b, a), np.where(swap, a, b)
     for k in range(3):
-        off = plane_side(flat.corners[little, k], flat.point[big], flat.normal[big])
+        off = plane_side(flat.corner(little, k), flat.point[big], flat.normal[big])
         ok &= np.abs(off) <= tol
     both_planes = (flat.kind[a] == PLANE) & (flat.kind[b] == PLANE)
     back = plane_side(flat.point[big], flat.point[little], flat.normal[little])
