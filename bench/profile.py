@@ -98,7 +98,7 @@ STAGES = [
     Stage("tracer.direct", "along_direction", "cones", lambda a, r: len(a[2])),
     Stage("tracer.render", "resolve_material", "materials and checker", _n_out),
     Stage("tracer.render", "shading_normal", "shading normals", _n_out),
-    *_direct_light("tracer.direct", "DirectLight.shade", "area_terms", "DirectLight.blocked"),
+    *_direct_light("tracer.direct", "DirectLight.shade", "area_terms", "ShadowRays.blocked"),
     Stage("tracer.area", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
     # (an older tracer's, where direct light was the renderer's own: profiled when the bench runs it)
     *_direct_light("tracer.render", "Renderer.direct", "Renderer._area_light", "Renderer._blocked"),

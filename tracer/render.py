@@ -18,12 +18,11 @@ import numpy as np
 
 from schemas import Scene
 
-from .area import area_terms
 from .best import NO_HIT
 from .budget import UNLIMITED, Budget, Growth, OverBudget, RayCount, RenderCancelled, Stop
 from .camera import CameraRays
 from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Pixels, Run, chunking, ordered, parts_of, pixel_numbers
-from .direct import DirectLight, Meter
+from .direct import DirectLight
 from .film import Film, stored
 from .intersect import PLANE, SPHERE, TRIANGLE, Intersector
 from .lights import LIGHT_TYPES, light_groups
@@ -31,6 +30,7 @@ from .passes import ADDITIVE, LIGHT_TERMS, UNOBSERVED, PassObserver, Tally, chec
 from .planner import plan_proofs, scene_sightlines
 from .rays import Among, Rays, Work
 from .shading import resolve_material, shading_normal
+from .shadows import Meter, ShadowRays
 from .sizes import ImageTooLarge, check_size
 from .spawn import Spawner
 from .variants import REFERENCE, Options
@@ -90,24 +90,19 @@ class Renderer:
             if options.left_handed:  # a variant's r = up × f (u kept): the image mirrored left to right
                 self.camera.right = -self.camera.right
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
-            self.shading = self._direct_light()
+            #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
+            self.spawner = Spawner(self.world, options, options.spawn(scene))
+            #: which proofs spare which rays (:mod:`tracer.planner`)
+            self.plan = plan_proofs(self.world, options, self.spawner.offset)
+            #: the shadow rays every light's terms ask, and the direct-light stage
+            self.shadows = ShadowRays(self.world, options, self.intersector, self.plan, self.spawner,
+                                      Meter(self._stop, self._count))
+            self.shading = DirectLight(light_groups(scene, self.world.origin), self.shadows)
         #: the index in ``scene.objects`` of each surface, by kind (the passes' ``object``)
         self._owners = {SPHERE: self.world.spheres.object, PLANE: self.world.planes.object,
                         TRIANGLE: self.world.triangles.object}
         self.intersector.check = self._stop
         self.intersector.tested = self._count.tested
-
-    def _direct_light(self) -> DirectLight:
-        """The direct-light stage, with the proofs that spare shadow rays (:mod:`tracer.planner`)."""
-        world, options = self.world, self.options
-        #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
-        self.spawner = Spawner(world, options, options.spawn(self.scene))
-        #: which proofs spare which rays (:mod:`tracer.planner`)
-        self.plan = plan_proofs(world, options, self.spawner.offset)
-        shading = DirectLight(world, options, self.intersector, light_groups(self.scene, world.origin), self.plan,
-                              Meter(self._stop, self._count), area_terms)
-        shading.spawner = self.spawner
-        return shading
 
     @property
     def spent(self) -> int:

@@ -24,7 +24,7 @@ from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
 from .coplanar import Groups, coplanar_groups
 from .lights import Emitters, build_emitters
-from .surfaces import Materials, Planes, Spheres, Triangles, unit
+from .surfaces import Materials, Planes, Spheres, Triangles, magnitude, unit
 from .variants import REFERENCE, Options
 from .vec import cross, most, rows_of
 
@@ -43,6 +43,10 @@ class World:
     emitters: Emitters
     #: flat surfaces of different objects in one plane, grouped (:mod:`tracer.coplanar`); None: no such surfaces
     coplanar: Groups | None = None
+
+    def magnitude(self, points: np.ndarray) -> np.ndarray:
+        """The world magnitude of local ``points (N, 3)`` (:func:`tracer.surfaces.magnitude`). Shape (N,)."""
+        return magnitude(points, self.origin_mag)
 
     @property
     def flat_mag(self) -> float:
