@@ -45,8 +45,8 @@ MUTANTS = [
     (
         "a crossing tests only the crossed primitive",
         "walk.py",
-        "        self._test_cells(best, live[fresh], region[fresh],\n",
-        "        if False: self._test_cells(best, live[fresh], region[fresh],\n",
+        "        self._test_cells(\n            best,\n            live[fresh],\n",
+        "        if False: self._test_cells(\n            best,\n            live[fresh],\n",
     ),
     (
         "the walk jumps a part further than the part it tested",

@@ -9,10 +9,7 @@ from schemas import Scene
 
 from .budget import Budget, OverBudget
 from .image import decode_png, encode_png
-from .memory import tune_allocator
 from .render import ImageTooLarge, Picture, RenderCancelled, Renderer, render
-
-tune_allocator()
 
 __all__ = [
     "Budget",

@@ -50,8 +50,7 @@ class Walk:
     behind one Embree BVH and one grid of cells.  ``lines``, when given, promises that every ray cast will lie
     on them (:mod:`tracer.sightlines`), which lets mesh faces go to Embree without proxies."""
 
-    def __init__(self, world: World, tris: np.ndarray, spheres: np.ndarray, lines: Sightlines | None,
-                 ties: Ties):
+    def __init__(self, world: World, tris: np.ndarray, spheres: np.ndarray, lines: Sightlines | None, ties: Ties):
         #: the exact tests of the walk's primitives (their ids: triangles, then spheres)
         self.pairs = PairTests(world, tris, spheres, ties)
         self._check: Callable[[], None] = self.pairs.check
@@ -66,8 +65,9 @@ class Walk:
         v0, e1, e2, normal, ids = mine(tr.v0), mine(tr.e1), mine(tr.e2), mine(tr.normal), mine(tr.corner_ids)
         center, radius = rows_of(sp.center, spheres), sp.radius[spheres]
         parts = [v0, v0 + e1, v0 + e2, center - radius[:, None], center + radius[:, None]]
-        centre, half = frame(np.min([lowest(a) for a in parts if len(a)], axis=0),
-                             np.max([highest(a) for a in parts if len(a)], axis=0))
+        centre, half = frame(
+            np.min([lowest(a) for a in parts if len(a)], axis=0), np.max([highest(a) for a in parts if len(a)], axis=0)
+        )
         plain, mates = (None, None) if lines is None else plain_triangles(v0, e1, e2, normal, ids, lines, half)
         some_plain = plain is not None and bool(plain.any())
         #: a plain triangle's faces across its edges, which a shadow ray leaving it never meets (n_tri, 3)
@@ -107,8 +107,9 @@ class Walk:
     def tested(self, value: Callable[[int], None]) -> None:
         self.pairs.tested = value
 
-    def _test_cells(self, best: Best, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None,
-                    batch: Batch) -> None:
+    def _test_cells(
+        self, best: Best, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None, batch: Batch
+    ) -> None:
         """:meth:`PairTests.test` of the pairs :meth:`Cells.pairs` makes of rays ``rows`` and their ``region``, but for
         ``but``, made and tested a group of rays at a time (:data:`PAIR_GROUP` candidates), so that what they
         hold is bounded; the best hits do not depend on the order pairs come in (:class:`Best`)."""
@@ -119,8 +120,9 @@ class Walk:
                 self.check()
             self.pairs.test(best, *cells.pairs(rows[part], region[part], None if but is None else but[part]), batch)
 
-    def test_pairs(self, best: Best, rays: Rays, rows: np.ndarray, prims: np.ndarray,
-                   shadows: Shadows | None = None) -> None:
+    def test_pairs(
+        self, best: Best, rays: Rays, rows: np.ndarray, prims: np.ndarray, shadows: Shadows | None = None
+    ) -> None:
         """Test primitives ``prims`` exactly against ``rays`` ``rows`` (pairs; either may repeat), with the
         exact tests a walk makes, and no walk: for a caller that knows which primitives each ray can hit."""
         if len(rows):
@@ -159,8 +161,9 @@ class Walk:
         if len(live) == 0:
             return
         count = len(self.prim_index)
-        self.pairs.test(best, np.repeat(live, count), np.tile(np.arange(count), len(live)),
-                        self.pairs.batch(rays, shadows))
+        self.pairs.test(
+            best, np.repeat(live, count), np.tile(np.arange(count), len(live)), self.pairs.batch(rays, shadows)
+        )
 
     def walk(self, best: Best, rays: Rays, shadows: Shadows | None = None) -> None:
         """Test, exactly, every BVH primitive that one of ``rays`` could hit before its best hit, or, for
@@ -220,8 +223,9 @@ class Walk:
         batch = self.pairs.batch(rays, shadows, gathered(o, d, rays.mag))
         from_prim = batch.from_prim
         t_in, t_out = slab(o, d, self.box_lo, self.box_hi)
-        w = Walking(best, shadows, best.t.copy(), batch, t_out, t_in.copy(), np.full(len(o), -2, dtype=np.int64),
-                    rays, any_hit)
+        w = Walking(
+            best, shadows, best.t.copy(), batch, t_out, t_in.copy(), np.full(len(o), -2, dtype=np.int64), rays, any_hit
+        )
         start = w.start
         inside = np.flatnonzero(from_prim >= 0)
         if len(inside):  # every proxy that contains an origin meets the origin's part of a cell: test them now
@@ -262,8 +266,13 @@ class Walk:
             self.pairs.test(best, rows, prim[fresh], w.batch)
             if any_hit:
                 fresh[fresh] = ~(best.t[rows] < limit[rows])
-        self._test_cells(best, live[fresh], region[fresh],
-                         self.pairs.done_with(best, live[fresh], prim[fresh], any_hit) if first else None, w.batch)
+        self._test_cells(
+            best,
+            live[fresh],
+            region[fresh],
+            self.pairs.done_with(best, live[fresh], prim[fresh], any_hit) if first else None,
+            w.batch,
+        )
         last[live] = region
         leave = slab(o_l, d_l, lo, hi)[1]
         start[live] = np.fmax(start[live] + tau + p.step, leave)
