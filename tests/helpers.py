@@ -113,7 +113,8 @@ def run_autograder(bundle: Path, root: Path, files: dict[str, Path]) -> tuple[su
         (root / folder).mkdir(parents=True)
     with zipfile.ZipFile(bundle) as archive:
         archive.extractall(root / "source")
-    for name, path in files.items():
+    for name, path in files.items():  # (a name may hold a folder: hw3/cornell.png, as a zip's unpacking has it)
+        (root / "submission" / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(path, root / "submission" / name)
     env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
     done = subprocess.run(

@@ -26,24 +26,39 @@ from .limits import Limits
 from .outcome import Reason, RunOutcome, failure
 from .process import Command, Finished, run_command
 from .sandbox import ENVIRONMENT, OUTPUT, SCENE_DIR, UNSANDBOXED, Mounts, as_user, bwrap_argv, find_bwrap, sandbox_uid
-from .scripts import BUILD, BUILD_IN_PLACE, RUN, not_started, script, split_times
+from .scripts import BUILD, BUILD_IN_PLACE, RUN, RUN_PRINTED, not_started, script, split_times
+
+#: the word of a run's template that makes the program's standard output its image (in place of ``{output}``)
+STDOUT = "{stdout}"
 
 
 def command_argv(template: str, scene: str = "", output: str = "") -> list[str]:
     """The words of a command ``template`` (shell quoting, no shell), ``{scene}`` and ``{output}`` replaced
-    in each; ValueError on a template that cannot be split or is empty."""
+    in each and a ``{stdout}`` word left out; ValueError on a template that cannot be split or is empty."""
     try:
         words = shlex.split(template)
     except ValueError as exc:
         raise ValueError(f"command {template!r}: {exc}") from None
-    if not words:
+    if not words or words == [STDOUT]:
         raise ValueError("the command is empty")
-    return [w.replace("{scene}", scene).replace("{output}", output) for w in words]
+    return [w.replace("{scene}", scene).replace("{output}", output) for w in words if w != STDOUT]
+
+
+def prints_image(template: str) -> bool:
+    """Whether a run's template makes the program's standard output its image (a ``{stdout}`` word): ValueError
+    for one that names ``{stdout}`` inside a word, or names both it and ``{output}``."""
+    words = shlex.split(template)
+    if any(STDOUT in w and w != STDOUT for w in words):
+        raise ValueError(f"command {template!r}: {STDOUT} stands alone, a word of its own")
+    if STDOUT in words and any("{output}" in w for w in words):
+        raise ValueError(f"command {template!r}: it names both {{output}} and {STDOUT}; the image is one of them")
+    return STDOUT in words
 
 
 @dataclass(frozen=True)
 class ProgramRun:
-    """One run: the student's folder (or a build's result), the command template (``{scene}``, ``{output}``),
+    """One run: the student's folder (or a build's result), the command template (``{scene}``, ``{output}`` or
+    ``{stdout}``),
     the one scene it renders, its limits, and whether it runs in the sandbox (off only on purpose)."""
 
     folder: Path
@@ -53,10 +68,14 @@ class ProgramRun:
     sandbox: bool = True
 
     def __post_init__(self) -> None:
-        """ValueError, with the template, for a command that cannot be split or names no ``{output}``."""
+        """ValueError, with the template, for a command that cannot be split or names neither ``{output}`` nor
+        ``{stdout}`` (the image is what the program prints)."""
         command_argv(self.command)
-        if "{output}" not in self.command:
-            raise ValueError(f"command {self.command!r}: it names no {{output}}, the file the program writes")
+        if not prints_image(self.command) and "{output}" not in self.command:
+            raise ValueError(
+                f"command {self.command!r}: it names no {{output}}, the file the program writes (or {STDOUT}, for "
+                f"a program that prints its image)"
+            )
 
 
 @dataclass(frozen=True)
@@ -200,7 +219,9 @@ def run_program(run: ProgramRun) -> RunOutcome:
         with _session(run.folder, run.scene, run.limits, run.sandbox) as session:
             scene = f"{SCENE_DIR}/{run.scene.name}" if run.sandbox else str(session.mounts.scene)
             output = OUTPUT if run.sandbox else str(session.mounts.output)
-            finished = _execute(session, command_argv(run.command, scene, output), RUN)
+            words = command_argv(run.command, scene, output)
+            printed = prints_image(run.command)  # (its standard output, into the output file: the same limits)
+            finished = _execute(session, [output, *words] if printed else words, RUN_PRINTED if printed else RUN)
             failed = failure(finished, run.limits)
             if failed is not None:
                 return _outcome(*failed, finished, warning)
