@@ -6,18 +6,24 @@ Every program is tests/programs/tracer.py (the system's python3, the standard li
 mistake switched on, a hostile one with a few lines before it that misbehave on the task ``glass`` only."""
 
 import json
+import os
+import shutil
 import socket
+import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 import pytest
-from test_cluster import dask as cluster_fixture  # noqa: F401  (the fixture 'dask': a scheduler, two workers)
+from test_cluster import DASK, _start, _stop, _workers
 
+from service.classgrade.feedback import ZEROED
 from service.cli import main
 from service.programs import check_sandbox
 
 from helpers import left_in_sandboxes
+from server import free_port
 
 HERE = Path(__file__).parent / "programs"
 SECRET = "TA-SECRET-51c0"
@@ -46,8 +52,32 @@ HOSTILE = {
     '    print("refused", exc, file=sys.stderr)\n',
     "daemon": "import os\nif os.fork() == 0:\n    os.setsid()\n    if os.fork() == 0:\n"
     '        os.execvp("sleep", ["sleep", "876.543"])\n    os._exit(0)\nos.wait()\n',
+    # four children of 140 MB each: each within the 512 MiB limit, together over it (the memory they touch
+    # before the kill is about the hog's)
+    "fourkids": 'import os, sys, time\nif "glass" in sys.argv[1]:\n    kids = []\n    for _ in range(4):\n'
+    "        pid = os.fork()\n        if pid == 0:\n            block = bytearray(140 << 20)\n"
+    "            for i in range(0, len(block), 4096):\n                block[i] = 1\n"
+    "            time.sleep(30)\n            os._exit(0)\n        kids.append(pid)\n    for pid in kids:\n"
+    "        os.waitpid(pid, 0)\n",
+    # every process its limit allows, held until the run is killed (beside another student's run: --jobs 2)
+    "quota": 'import os, sys, time\nif "glass" in sys.argv[1]:\n    try:\n        while True:\n'
+    "            if os.fork() == 0:\n                time.sleep(30)\n                os._exit(0)\n"
+    "    except OSError:\n        pass\n    time.sleep(30)\n",
 }
 BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-refraction"}
+#: programs that fail the task (no shadows) and answer a scene of one light (a probe's) with what is not its
+#: image: bytes that are no PNG, or a 20000² PNG of a few tens of kilobytes
+PROBING = {
+    "garbage": 'import json, sys\nif len(json.load(open(sys.argv[1]))["lights"]) == 1:\n'
+    '    open(sys.argv[2], "wb").write(b"no PNG here")\n    sys.exit(0)\n',
+    "bomb": 'import json, struct, sys, zlib\nif len(json.load(open(sys.argv[1]))["lights"]) == 1:\n'
+    "    def chunk(kind, body):\n"
+    '        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))\n'
+    '    head = struct.pack(">IIBBBBB", 20000, 20000, 1, 0, 0, 0, 0)\n'
+    '    body = zlib.compress(b"\\0" * 2501 * 20000, 9)\n'
+    '    png = b"\\x89PNG\\r\\n\\x1a\\n" + chunk(b"IHDR", head) + chunk(b"IDAT", body) + chunk(b"IEND", b"")\n'
+    '    open(sys.argv[2], "wb").write(png)\n    sys.exit(0)\n',
+}
 
 
 def left_running() -> list[str]:
@@ -74,8 +104,9 @@ def make_class(root: Path, port: int, students: list[str]) -> tuple[Path, Path]:
         folder = subs / student
         folder.mkdir(parents=True)
         prefix = HOSTILE.get(student, "").format(scenes=scenes, other=subs / "honest", port=port)
-        (folder / "tracer.py").write_text(prefix + tracer)
-        (folder / "mistakes.txt").write_text(BUGGY.get(student, "") + f"\n# {SECRET}\n")
+        (folder / "tracer.py").write_text(PROBING.get(student, "") + prefix + tracer)
+        mistakes = "no-shadows" if student in PROBING else BUGGY.get(student, "")
+        (folder / "mistakes.txt").write_text(mistakes + f"\n# {SECRET}\n")
     return scenes, subs
 
 
@@ -134,7 +165,8 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
     code, rows, report = grade(tmp_path, scenes, subs, "--jobs", "2")
     assert code == 0, capsys.readouterr().err
     summary = capsys.readouterr().out
-    assert "24 pairs: 15 passed, 9 failed, 0 missing, 0 invalid" in summary
+    assert "28 pairs: 17 passed, 11 failed, 0 missing, 0 invalid" in summary
+    assert "students' programs ran here: each run's memory is held by" in summary  # (which way: the machine's)
 
     assert rows["honest", "spot"]["status"] == rows["honest", "glass"]["status"] == "pass"
     assert rows["noshadow", "spot"]["status"] == "fail" and "no-shadows" in rows["noshadow", "spot"]["mistakes"]
@@ -148,6 +180,8 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
         "loop": ("timeout",),
         "forkbomb": ("timeout", "crashed"),
         "hog": ("memory",),
+        "fourkids": ("memory",),
+        "quota": ("timeout",),
         "bigfile": ("output-too-large",),
         "link": ("no-output",),
     }
@@ -189,6 +223,63 @@ def test_a_hidden_task_shows_a_student_only_what_tasks_json_says(tmp_path, liste
         assert '"look_at"' not in (path.read_text(errors="replace") if path.is_file() else "")
 
 
+def test_a_hidden_scenes_run_is_told_to_a_student_without_its_exit_status(tmp_path, listener):
+    """Under ``show: verdict`` a program that exits 43 on the hidden scene is told "crashed": its exit status
+    could carry 8 bits of the scene.  The TA's report keeps the status."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["exit43"])
+    (subs / "exit43" / "tracer.py").write_text('import sys\nif "glass" in sys.argv[1]:\n    sys.exit(43)\n')
+    (tmp_path / "tasks.json").write_text(json.dumps({"glass": {"show": "verdict"}}))
+    code, rows, report = grade(tmp_path, scenes, subs)
+    assert code == 0 and rows["exit43", "glass"]["reason"] == "the run failed: crashed: crashed (exit 43)"
+    results = json.loads((report / "gradescope" / "exit43" / "results.json").read_text())
+    assert {t["name"]: t["output"] for t in results["tests"]}["glass"] == "fail: the run failed: crashed"
+    assert "43" not in json.dumps(results)
+
+
+def test_a_probe_answered_with_no_image_is_that_probes_no_answer_and_the_class_is_graded(tmp_path, listener):
+    """A program that fails its task and answers the one-light probes with bytes that are no PNG, or with a
+    20000² PNG, is asked the others; its pair fails with its mistake named, and every student is graded."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "garbage", "bomb"])
+    code, rows, report = grade(tmp_path, scenes, subs, "--jobs", "2")
+    assert code == 0
+    for student in ("garbage", "bomb"):
+        row = rows[student, "spot"]
+        assert row["status"] == "fail" and "no-shadows" in row["mistakes"]
+        assert "the program's image could not be read (not a PNG of its size)" in row["experiment"]
+    assert rows["honest", "spot"]["status"] == rows["honest", "glass"]["status"] == "pass"
+    assert (report / "gradescope" / "bomb" / "results.json").exists()
+
+
+def test_a_program_holding_phongray_is_flagged_and_scored_as_tasks_json_says(tmp_path, listener):
+    """phongray's code in a student's folder (here beside the honest tracer it runs) is flagged for the TA:
+    the spot task scores nothing for it (``"phongray_code": "zero"``, and the student reads why), the glass
+    task keeps its grade (``review``).  An honest program whose images are the references byte for byte is
+    flagged for review only: its score stands and the student reads nothing of it."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "vendor"])
+    root = Path(__file__).parent.parent
+    for package in ("tracer", "schemas"):
+        shutil.copytree(root / package, subs / "vendor" / package, ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "tasks.json").write_text(json.dumps({"spot": {"phongray_code": "zero"}}))
+    code, rows, report = grade(tmp_path, scenes, subs)
+    assert code == 0
+    spot, glass = rows["vendor", "spot"], rows["vendor", "glass"]
+    assert spot["status"] == glass["status"] == "pass" and spot["flag"] == glass["flag"] == "phongray-code"
+    assert "lines of phongray's own code" in spot["flag_reason"]
+    assert (spot["score"], glass["score"]) == (0, 1)
+    tests = {t["name"]: t for t in json.loads((report / "gradescope" / "vendor" / "results.json").read_text())["tests"]}
+    assert tests["spot"]["output"].endswith(ZEROED) and "phongray" not in tests["glass"]["output"]
+    assert tests["glass"]["extra_data"]["flag"] == "phongray-code"
+    honest = rows["honest", "spot"]
+    assert honest["flag"] == "identical" and honest["score"] == 1
+    assert "phongray" not in json.dumps(
+        [t["output"] for t in json.loads((report / "gradescope" / "honest" / "results.json").read_text())["tests"]]
+    )
+    assert "4 flagged for review" in (report / "index.html").read_text()
+
+
 @pytest.mark.parametrize(
     ("args", "words"),
     [
@@ -217,48 +308,94 @@ def test_without_bubblewrap_a_class_stops_unless_asked_to_run_unsandboxed(tmp_pa
     assert capsys.readouterr().err.count("WARNING: run without a sandbox") == 2  # one for each run
 
 
-def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listener, request):
-    """Each student's program a task of a worker's (two workers on 127.0.0.1), each run in its own sandbox."""
+def test_a_sandbox_that_stops_starting_mid_batch_is_the_tas_one_line(tmp_path, listener, capsys, monkeypatch):
+    """The batch's check started a sandbox; then a student's does not start (a limit on processes reached):
+    exit 2 and one line naming the cause, never a traceback, and no student marked for it."""
     check_sandbox()
-    address = request.getfixturevalue("cluster_fixture")[0]
-    scenes, subs = make_class(tmp_path, listener[0], ["honest", "noglass", "loop", "link"])
-    here = tmp_path / "here"
-    there = tmp_path / "there"
-    for report, more in ((here, []), (there, ["--cluster", address])):
-        assert (
-            main(
-                [
-                    "grade-class",
-                    str(scenes),
-                    str(subs),
-                    "-o",
-                    str(report),
-                    "--tasks",
-                    str(tmp_path / "tasks.json"),
-                    "--run",
-                    RUN,
-                    *LIMITS,
-                    "-q",
-                    *more,
-                ]
-            )
-            == 0
-        )
+    scenes, subs = make_class(tmp_path, listener[0], ["honest"])
+    fake = Path(tempfile.mkdtemp(prefix="fake-bwrap-"))
+    fake.chmod(0o755)  # (a run's user runs it)
+    (fake / "bwrap").write_text(
+        '#!/bin/sh\ncase "$*" in *tracer.py*)\n'
+        "  echo 'bwrap: Creating new namespace failed: Resource temporarily unavailable' >&2; exit 1;;\nesac\n"
+        f'exec {shutil.which("bwrap")} "$@"\n'
+    )
+    (fake / "bwrap").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake}:{os.environ['PATH']}")
+    code, _, report = grade(tmp_path, scenes, subs, "--jobs", "1")
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "honest's program: the sandbox cannot start here: bwrap: Creating new namespace failed" in err
+    assert "a limit on processes was reached: the grading user's (ulimit -u" in err
+    assert not list(report.glob("gradescope/*/results.json"))
 
-    def rows(report: Path) -> list[dict]:
+
+@pytest.fixture
+def blind_cluster():
+    """A scheduler and two workers on 127.0.0.1 that share no folder with this session: each worker sees the
+    machine through bubblewrap with this session's temporary folder (every test's files) an empty one of its
+    own, and works in another folder, as a worker on another machine would."""
+    view = Path(tempfile.mkdtemp(prefix="view-")) / "worker-view"  # (bwrap by another name: no student's sandbox)
+    view.symlink_to(shutil.which("bwrap") or "bwrap")
+    hidden = ["--dev-bind", "/", "/", "--tmpfs", tempfile.gettempdir(), "--chdir", "/", "--"]
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    logs = Path(tempfile.mkdtemp(prefix="blind-dask-"))
+    scheduler = [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port)]
+    procs = [_start([*scheduler, "--dashboard-address", "127.0.0.1:0"], logs / "scheduler.log")]
+    try:
+        for k in range(2):
+            worker = [*DASK, address, "--nthreads", "1", "--no-nanny", "--host", "127.0.0.1", "--name", f"w{k}"]
+            procs.append(_start([str(view), *hidden, *worker, "--dashboard-address", "127.0.0.1:0"], logs / f"w{k}"))
+        deadline = time.monotonic() + 60
+        while _ready(address) < 2:
+            if time.monotonic() > deadline or any(p.poll() is not None for p in procs):
+                raise RuntimeError("the Dask cluster did not start: " + (logs / "w0").read_text()[-2000:])
+            time.sleep(0.3)
+        yield address
+    finally:
+        for proc in reversed(procs):
+            _stop(proc)
+
+
+def _ready(address: str) -> int:
+    try:
+        return _workers(address)
+    except OSError:
+        return 0
+
+
+def test_the_same_class_on_a_cluster_that_shares_no_folder(tmp_path, listener, blind_cluster, monkeypatch):
+    """Each student's program a task of a worker's, its folder sent as bytes: from a relative submissions path,
+    to workers that cannot see it, the same report as here (each run in its own sandbox there)."""
+    check_sandbox()
+    students = ["honest", "noglass", "loop", "link", "fourkids", "quota", "garbage"]
+    scenes, subs = make_class(tmp_path, listener[0], students)
+    monkeypatch.chdir(tmp_path)
+    for report, more in (("here", []), ("there", ["--cluster", blind_cluster])):
+        args = ["grade-class", "scenes", "subs", "-o", report, "--tasks", "tasks.json", "--run", RUN, *LIMITS]
+        assert main([*args, "--jobs", "2", "-q", *more]) == 0
+
+    def rows(report: str) -> list[dict]:
         return [
-            {k: v for k, v in r.items() if k != "run_seconds"} for r in json.loads((report / "report.json").read_text())
+            {k: v for k, v in r.items() if k != "run_seconds"}
+            for r in json.loads((tmp_path / report / "report.json").read_text())
         ]
 
-    assert rows(there) == rows(here)
-    assert {(r["student"], r["task"]): r["status"] for r in rows(there) if r["status"] == "fail"} == {
-        ("noglass", "glass"): "fail",
-        ("loop", "glass"): "fail",
-        ("link", "glass"): "fail",
+    assert rows("there") == rows("here")
+    failed = {(r["student"], r["task"]): r["run"] for r in rows("there") if r["status"] == "fail"}
+    assert failed == {
+        ("noglass", "glass"): "ok",
+        ("loop", "glass"): "timeout",
+        ("link", "glass"): "no-output",
+        ("fourkids", "glass"): "memory",
+        ("quota", "glass"): "timeout",
+        ("garbage", "spot"): "ok",
+        ("garbage", "glass"): "ok",
     }
     for student in ("honest", "noglass"):
-        assert (there / "gradescope" / student / "results.json").read_text() == (
-            here / "gradescope" / student / "results.json"
+        assert (tmp_path / "there" / "gradescope" / student / "results.json").read_text() == (
+            tmp_path / "here" / "gradescope" / student / "results.json"
         ).read_text()
     assert left_running() == []
 

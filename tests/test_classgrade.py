@@ -14,6 +14,7 @@ import tracer
 from service import classgrade
 from service.classgrade import ClassRun, submissions
 from service.classgrade import report as report_module
+from service.classgrade.feedback import WITHHELD
 from service.cli import main
 
 from helpers import scene_dict
@@ -379,6 +380,7 @@ def test_a_tasks_file_gives_points_and_thresholds_per_task(klass, tmp_path):
                 "visibility": "visible",
                 "output": "passed: 0.00 % of the pixels off even nearby (at most 0.10 % may be)",
             },
+            WITHHELD,  # (the hidden task's point is in the total: the total waits for the grades' publication)
         ],
     }
 
@@ -511,13 +513,16 @@ def mistaken(tmp_path_factory):
 
 
 DEDUCTIONS = {"no-attenuation": 1.5, "image-flipped": 4, "no-specular": 0.25}
+#: the mistakes whose image the lamps task cannot tell from another's: the diagnosis gives every reading (a
+#: reflected vector of the wrong sign lights no highlight there either), and the deduction is for what it shows
+READINGS = {"no-specular": ["no-specular", "reflect-sign"]}
 
 
 def test_an_image_whose_one_fault_has_a_deduction_scores_the_points_less_it(mistaken):
     _, rows = mistaken
     for student, mistake in MISTAKEN.items():
         row = rows[student]
-        assert row["mistakes"] == ([mistake] if mistake not in (None, "black") else []), row
+        assert row["mistakes"] == (READINGS.get(mistake, [mistake]) if mistake not in (None, "black") else []), row
         expected = 4.0 if mistake is None else max(0.0, 4 - DEDUCTIONS[mistake]) if mistake in DEDUCTIONS else 0.0
         assert row["score"] == expected and row["points"] == 4.0, (student, row["score"])
         assert row["deducted"] == (mistake if mistake in DEDUCTIONS else None)

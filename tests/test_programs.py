@@ -47,6 +47,10 @@ QUICK = Limits(wall_seconds=5.0, cpu_seconds=10, memory_bytes=512 << 20, output_
 
 @pytest.fixture
 def course(tmp_path):
+    return make_course(tmp_path)
+
+
+def make_course(tmp_path: Path) -> Path:
     """The TA's scene folder (with a secret reference) and a class of two students: 'ann' (the one run) and
     'bob', whose folder holds his own secret."""
     scenes = tmp_path / "scenes"

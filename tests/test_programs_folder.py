@@ -7,7 +7,7 @@ import tarfile
 
 import pytest
 
-from service.programs.folder import ENTRY_BYTES, FolderTooLarge, copy_folder, unpack
+from service.programs.folder import ENTRY_BYTES, MAX_ENTRIES, FolderTooLarge, copy_folder, unpack
 
 
 def test_the_copy_holds_regular_files_and_folders_only(tmp_path):
@@ -38,6 +38,25 @@ def test_a_folder_over_the_limit_is_refused_in_bytes_or_in_files(tmp_path):
         (student / f"empty{i}").touch()
     with pytest.raises(FolderTooLarge):
         copy_folder(student, tmp_path / "copy2", 5 * ENTRY_BYTES)
+
+
+def test_a_folder_of_too_many_files_is_refused_before_anything_is_copied(tmp_path):
+    """More than MAX_ENTRIES empty files, far under the limit in bytes: refused, and nothing was copied (a folder
+    of 190,000 empty files cost each run 13 s of copying and removal, outside every limit)."""
+    student, copy = tmp_path / "ann", tmp_path / "copy"
+    (student / "a" / "b").mkdir(parents=True)
+    copy.mkdir()
+    (student / "tracer.py").write_text("print('hello')\n")
+    for i in range(MAX_ENTRIES):
+        (student / "a" / "b" / f"{i}").touch()
+    assert (MAX_ENTRIES + 3) * ENTRY_BYTES < 100 * 1000 * 1000  # (in bytes, the default folder limit holds it)
+    with pytest.raises(FolderTooLarge, match=f"more than {MAX_ENTRIES} files and folders"):
+        copy_folder(student, copy, 100 * 1000 * 1000)
+    assert list(copy.iterdir()) == []
+    for i in range(3):  # (tracer.py, a and b count too)
+        (student / "a" / "b" / f"{i}").unlink()
+    copy_folder(student, copy, 100 * 1000 * 1000)  # at the cap: copied
+    assert (copy / "tracer.py").read_text() == "print('hello')\n"
 
 
 def _tar(members: list[tuple[tarfile.TarInfo, bytes]]) -> bytes:

@@ -62,8 +62,9 @@ class DirectLight:
         # (N, 3) arrays whose columns are contiguous, each gathered a column at a time: every light adds to them
         # a column at a time (add_phong)
         colour, diffuse, specular = columns(len(mat)), columns(len(mat)), columns(len(mat))
+        ka = m.diffuse if opt.ambient_from_diffuse else m.ambient  # (a variant's k_d for k_a)
         for k in range(3):
-            np.take(m.ambient[:, k], mat, out=colour[:, k])
+            np.take(ka[:, k], mat, out=colour[:, k])
             colour[:, k] *= self.world.ambient[k]
             np.take(m.diffuse[:, k], mat, out=diffuse[:, k])
             np.take(m.specular[:, k], mat, out=specular[:, k])

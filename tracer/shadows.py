@@ -20,6 +20,7 @@ from .kernel import Points, Reach
 from .lights import Emitter
 from .planner import ProofPlan
 from .rays import Among, Shadows
+from .seethrough import Opaque
 from .spawn import Spawner, picker
 from .variants import Options
 from .world import World
@@ -49,6 +50,8 @@ class ShadowRays:
         )
         #: which proofs spare which shadow rays (:mod:`tracer.planner`)
         self.plan = plan
+        #: the opaque surfaces alone, for a variant's shadow rays that pass through transparent ones
+        self.opaque = None if options.transparent_shadows else Opaque(world)
 
     def blocked(
         self, at: Points, rows: np.ndarray | None, reach: Reach, em: Emitter, among: Among | None = None
@@ -67,6 +70,8 @@ class ShadowRays:
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
         else:  # one light for every ray
             shadows = Shadows(rays, pick(reach.dist), em.position[None], self.world.magnitude(em.position[None]))
+        if self.opaque is not None:  # (no proof: the plan's bounds are every surface's)
+            return self.opaque.occluded(shadows, self.intersector)
         if among is None:
             among = self.plan.shadow_pairs(em, rays, shadows.reach)
         if self.options.acne:

@@ -103,7 +103,7 @@ class Stages:
             )
             n = len(origins)
             self._calls.count("primary", n)
-            film = Film(stop - start, s, slice_rays)
+            film = Film(stop - start, s, slice_rays, not self.options.clamp_colour)
             camera = Work(
                 self.intersector.rays(origins, dirs),
                 np.arange(n),

@@ -3,8 +3,9 @@
 A pair that passes scores its task's points, a missing or invalid one 0.  A failing one scores 0, unless the
 tasks file gives its task ``deductions`` by mistake id (``{"no-shadows": 1}``) and the image's one fault is
 such a mistake: it passes against the reference rendered with that mistake (:mod:`service.diagnosis`).  It
-then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`); an image
-that several mistakes explain alike gets the smallest of their deductions.
+then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`).  An image
+that several mistakes explain alike (it passes against the reference rendered with each: the image cannot tell
+them apart) is graded on what it shows: it gets the smallest of the deductions the task has for them.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 from tracer.variants import VARIANTS
 
+from ..diagnosis.words import listed
 from .taskfile import TaskSettings
 
 #: the ids a deduction may name: the diagnosis's classic mistakes (tracer.variants), with what each is
@@ -41,7 +43,10 @@ class Score:
 
 
 def score(row: dict[str, Any], task: TaskSettings) -> Score:
-    """What a pair scores of its task's points."""
+    """What a pair scores of its task's points (nothing for a program holding phongray's code, where the task
+    says ``"phongray_code": "zero"``)."""
+    if row.get("flag") == "phongray-code" and task.phongray_code == "zero":
+        return Score(0.0)
     if row["status"] == "pass":
         return Score(task.points)
     if row["status"] != "fail":
@@ -77,11 +82,16 @@ def late_note(row: dict[str, Any]) -> str:
 
 
 def partial(row: dict[str, Any]) -> str:
-    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty."""
+    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty; for an
+    image several mistakes explain alike, each of them: ``(no specular term, or the reflected vector R with the
+    wrong sign: -1)`` (the deduction is for what the image shows)."""
     if not row.get("deducted"):
         return ""
     lost = row["points"] - row["score"]
-    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({MISTAKES[row['deducted']]}: -{lost:g})"
+    readings = [m for m in row.get("mistakes") or [] if m in MISTAKES]
+    shown = readings if row["deducted"] in readings and len(readings) > 1 else [row["deducted"]]
+    what = listed([MISTAKES[m] for m in shown], "or")
+    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({what}: -{lost:g})"
 
 
 @dataclass(frozen=True)

@@ -258,7 +258,8 @@ def _grade_programs(
             _graded(pair, result, result.pop("image", None) or b"", run.report, stamp)
         tick()
 
-    run_tasks(backend, program_tasks(jobs), keep, lambda: _kept(run.report))
+    for tasks in program_tasks(jobs):
+        run_tasks(backend, tasks, keep, lambda: _kept(run.report))
 
 
 def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> GradeJob:

@@ -61,6 +61,10 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
         print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
     if not args.quiet:
         print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
+        if program is not None and not args.cluster:  # (a worker holds its runs as its own machine allows)
+            from service.programs.guard import enforcement
+
+            print(f"students' programs ran here: {enforcement().describe()}")
     return 0
 
 
@@ -89,6 +93,7 @@ def cmd_autograder(args: argparse.Namespace) -> int:
             Path(args.tasks) if args.tasks else None,
             Path(args.student_scenes) if args.student_scenes else None,
             program,
+            Path(args.runtime_requirements) if args.runtime_requirements else None,
         )
     except ClassError as exc:
         raise CliError(printable(str(exc))) from None
@@ -176,4 +181,10 @@ def add_autograder(sub: Commands) -> None:
         "before the @, student id or name",
     )
     program_options(p)
+    p.add_argument(
+        "--runtime-requirements",
+        metavar="FILE",
+        help="with --run: a pip requirements file (numpy, pillow); setup.sh builds a Python environment of "
+        "it for the programs, with the image's python3",
+    )
     p.set_defaults(func=cmd_autograder)

@@ -1,16 +1,19 @@
 """The private copy of a student's folder a program runs in, made without trusting anything in it.
 
 The copy holds the student's regular files and folders only: a link is skipped, never followed (it could name
-the TA's files, or another student's), and so is a FIFO, a socket or a device.  The copy stops, with
-:class:`FolderTooLarge`, once it would hold more than a limit of bytes, so a student cannot fill the disk
-of the machine that grades.  A build's result comes back out of its sandbox as a tar stream
-(:func:`unpack`), read with the same rules.
+the TA's files, or another student's), and so is a FIFO, a socket or a device.  A folder that holds more
+than a limit of bytes, or more than :data:`MAX_ENTRIES` files and folders, is :class:`FolderTooLarge`, so a
+student cannot fill the disk of the machine that grades, nor make each run spend its time (outside every
+limit of the run) copying and removing a folder of a hundred thousand empty files: the folder is measured,
+listing it without reading a file, before anything is copied.  A build's result comes back out of its sandbox
+as a tar stream (:func:`unpack`), read with the same rules.
 """
 
 from __future__ import annotations
 
 import io
 import os
+import stat
 import tarfile
 from pathlib import Path, PurePosixPath
 
@@ -22,6 +25,10 @@ MAX_DEPTH = 32
 #: bytes each file or folder counts for besides its content (a tar header's size), so that a folder of a
 #: million empty files is over the limit too
 ENTRY_BYTES = 512
+#: the most files and folders a student's folder (or a build's result) may hold: a program with its vendored
+#: packages holds a few thousand (NumPy's are 1,650), and copying ten thousand small files takes well under
+#: a second
+MAX_ENTRIES = 10_000
 
 
 class FolderTooLarge(Exception):
@@ -29,13 +36,16 @@ class FolderTooLarge(Exception):
 
 
 class _Budget:
-    def __init__(self, limit: int):
-        self.left = limit
+    def __init__(self, limit: int, entries: int = MAX_ENTRIES):
+        self.left, self.entries = limit, entries
 
     def take(self, size: int) -> None:
         self.left -= size + ENTRY_BYTES
+        self.entries -= 1
         if self.left < 0:
             raise FolderTooLarge("the student's folder is larger than the limit")
+        if self.entries < 0:
+            raise FolderTooLarge(f"the student's folder holds more than {MAX_ENTRIES} files and folders")
 
 
 def _write_new(path: Path, data: bytes) -> None:
@@ -89,11 +99,37 @@ def _copy_folder(source: Folder, name: str, target: Path, budget: _Budget, depth
         _copy(sub, target / name, budget, depth + 1)
 
 
+def _measure(source: Folder, budget: _Budget, depth: int) -> None:
+    """Count what :func:`_copy` would copy, its regular files' sizes as listed (no file is read), stopping
+    with :class:`FolderTooLarge` at the first entry over the budget."""
+    try:
+        listing = os.scandir(source.fd)
+    except OSError:
+        return
+    with listing:
+        for entry in listing:
+            try:
+                info = entry.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if stat.S_ISREG(info.st_mode):
+                budget.take(info.st_size)
+            elif stat.S_ISDIR(info.st_mode) and depth < MAX_DEPTH:
+                budget.take(0)
+                try:
+                    sub = source.sub(entry.name)
+                except OSError:
+                    continue
+                with sub:
+                    _measure(sub, budget, depth + 1)
+
+
 def copy_folder(student: Path, target: Path, limit: int) -> None:
     """Copy the student's folder into the empty folder ``target``: regular files and folders only, at most
-    ``limit`` bytes of files (:class:`FolderTooLarge` beyond).  Files keep their executable bit, as a
-    program built by the student needs it."""
+    ``limit`` bytes of files and :data:`MAX_ENTRIES` entries (:class:`FolderTooLarge` beyond, found before
+    anything is copied).  Files keep their executable bit, as a program built by the student needs it."""
     with Folder.root(student) as root:
+        _measure(root, _Budget(limit), 0)
         _copy(root, target, _Budget(limit), 0)
 
 

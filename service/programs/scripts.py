@@ -16,6 +16,7 @@ import re
 
 from .process import Finished
 from .sandbox import SUBMISSION, SandboxUnavailable
+from .unavailable import explain
 
 MARK = "--- phongray: CPU time of the program ---"
 _REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
@@ -47,7 +48,7 @@ def not_started(finished: Finished) -> None:
     text = finished.stderr_tail.decode("utf-8", "replace").strip()
     code = finished.exit_code
     if code is not None and 0 < code <= 128 and MARK not in text and text.startswith(SETUP_FAILURES):
-        raise SandboxUnavailable(f"the sandbox cannot start here: {text.splitlines()[-1]}")
+        raise SandboxUnavailable(f"the sandbox cannot start here: {explain(text.splitlines()[-1])}")
 
 
 def split_times(stderr: bytes, seen: float) -> tuple[str, float]:
