@@ -226,3 +226,27 @@ def test_a_grade_does_not_count_the_open_pixels_against_a_submission():
     wrong = student.copy()
     wrong[shadow] += 100
     assert not pipeline.grade_png(png, encode_png(wrong), 2.0, 0.001, explaining=explaining).grade.passed
+
+
+def test_a_variant_world_of_the_opaque_surfaces_alone_keeps_its_own_groups():
+    # the variant whose glass casts no shadow traces shadow rays in a world of the opaque surfaces alone: its
+    # coplanar groups are those of the surfaces it keeps, numbered as it numbers them (the glass box's bottom
+    # gone, an opaque box resting on the floor is grouped with it), and the glass box on the floor renders as the
+    # box without its bottom renders
+    from tracer.seethrough import Opaque
+    from tracer.variants import VARIANTS
+
+    data = box_scene("mesh", floor_first=False)
+    cube = copy.deepcopy(glass_box())
+    cube["material"] = "tile"
+    cube["vertices"] = [[x + 3.0, y, z] for x, y, z in cube["vertices"]]
+    data["objects"].insert(1, cube)
+    opaque = Opaque(build_world(schemas.validate_scene(data))).world
+    assert opaque.coplanar is not None and len(opaque.coplanar.triangle) == len(opaque.triangles.v0) == 14
+    grouped = (opaque.triangles.object == 2) | ((opaque.triangles.object == 1) & (opaque.triangles.face < 2))
+    assert np.all(opaque.coplanar.triangle[grouped] == 0) and np.all(opaque.coplanar.triangle[~grouped] == -1)
+    options = VARIANTS["transparent-no-shadows"][0]
+    for kind in ("plane", "mesh"):
+        with_bottom = Renderer(schemas.validate_scene(box_scene(kind, floor_first=False)), options).pixels()
+        without = Renderer(schemas.validate_scene(box_scene(kind, floor_first=False, bottom=False)), options).pixels()
+        assert np.array_equal(with_bottom, without)
