@@ -4,7 +4,8 @@ Differences are in 8-bit levels (0–255).  A pixel is *off* when its largest
 channel difference exceeds the tolerance; it is *off even nearby* when no
 reference pixel in its 3×3 neighbourhood is within the tolerance, which
 forgives anti-aliasing and one-pixel edge shifts.  A submission passes when
-the fraction of pixels off even nearby is at most ``max_fraction``.
+the fraction of pixels off even nearby is at most ``max_fraction``.  Pixels the
+format leaves open (``open_pixels``) are not counted off even nearby.
 """
 
 from __future__ import annotations
@@ -269,7 +270,11 @@ def grade(
     reference_sha256: str,
     tolerance: float = DEFAULT_TOLERANCE,
     max_fraction: float = DEFAULT_MAX_FRACTION,
+    open_pixels: np.ndarray | None = None,
 ) -> Grade:
+    """The grade of ``submitted`` against ``reference`` (each ``(H, W, 3) uint8``); ``open_pixels``, a boolean
+    ``(H, W)`` mask, marks the pixels whose value the format leaves open (two coplanar surfaces overlap there,
+    :class:`tracer.Picture`): they are not counted against the submission."""
     h, w, _ = reference.shape
     levels = np.arange(256, dtype=np.int64)
     histogram = np.zeros(256, dtype=np.int64)  # of every channel difference: exact sums from it
@@ -285,7 +290,10 @@ def grade(
         if band_off:  # only then can a pixel be off even nearby (its own reference pixel is one of the nine)
             off += band_off
             max_error = max(max_error, int(diff.max()))
-            off_nearby += int(np.count_nonzero(nearby_difference(reference, sub, top, bottom) > tolerance))
+            near = nearby_difference(reference, sub, top, bottom) > tolerance
+            if open_pixels is not None:
+                near &= ~open_pixels[top:bottom]
+            off_nearby += int(np.count_nonzero(near))
         else:
             max_error = max(max_error, int(diff.max()))
     values, pixels = 3 * h * w, h * w

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -18,7 +18,7 @@ from pydantic import ValidationError
 from schemas import Image, Scene, SceneError, parse_json, validate_scene
 from schemas.errors import problems_from_validation
 from schemas.locate import as_lines, format_located
-from tracer import decode_png
+from tracer import decode_png, open_pixels
 
 from . import grading
 from .heatmap import Kind, heatmap_png
@@ -128,7 +128,11 @@ def explain(
     """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the
     diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic
     mistake and its passes, cached by canonical scene (in ``run.cache``), compared with the submission.  A
-    passing grade comes back as it is."""
+    passing grade comes back as it is; a failing one is first graded without the pixels the format leaves open,
+    where the scene has any (:func:`without_open`)."""
+    if graded.grade.passed:
+        return graded
+    graded = without_open(scene, graded, reference, submitted, run)
     if graded.grade.passed:
         return graded
     from .diagnosis.accepting import Failing, accept
@@ -152,6 +156,18 @@ def explain(
     finally:
         held.trim()  # (what it rendered counted, cancelled or not)
     return Graded(graded.grade, graded.heatmap, found)
+
+
+def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Run) -> Graded:
+    """``graded`` graded again without the pixels of ``scene`` the format leaves open: which of two overlapping
+    coplanar surfaces shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces)."""
+    opened = open_pixels(scene, run.threads, run.cancel)
+    if opened is None or not opened.any():
+        return graded
+    g = graded.grade
+    return replace(
+        graded, grade=grading.grade(reference, submitted, g.reference_sha256, g.tolerance, g.max_fraction, opened)
+    )
 
 
 def read_image(data: bytes, size: tuple[int, int]) -> np.ndarray:

@@ -1,5 +1,5 @@
-"""The files of a class report: report.json, report.csv, gradebook.csv (and the LMSs' own, :mod:`.lmsbook`),
-index.html and Gradescope's results.json per student.
+"""What the files of a class report say: report.json, report.csv, gradebook.csv (and the LMSs' own,
+:mod:`.lmsbook`), index.html and Gradescope's results.json per student (:mod:`.writing` writes them).
 
 Every file is written whole or not at all (:func:`write_atomic`), so an interrupted run leaves the previous
 report readable.  A student's name (and a file's) is the students' text: in the CSV files and the HTML its
@@ -13,7 +13,6 @@ import contextlib
 import csv
 import html
 import io
-import json
 import os
 import re
 import threading
@@ -24,9 +23,7 @@ from urllib.parse import quote
 from ..display import counted
 from ..heatmap import LEGEND
 from .feedback import gradescope, test_output  # noqa: F401  (test_output: what a student reads, here too)
-from .gradebook import gradebook_csv, late_note, partial, totals
-from .lmsbook import lms_books
-from .taskfile import TaskSettings
+from .gradebook import late_note, partial, totals
 
 #: the numbers of a graded pair, in report.csv's order
 NUMBERS = [
@@ -134,15 +131,8 @@ def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
     )
 
 
-def write_report(
-    report: Path,
-    rows: list[dict[str, Any]],
-    ignored: list[tuple[str, str]],
-    students: list[str],
-    tasks: dict[str, TaskSettings],
-    headline: str,
-) -> None:
-    write_atomic(report / "report.json", _text(json.dumps(rows, indent=1, ensure_ascii=False) + "\n"))
+def report_csv(rows: list[dict[str, Any]]) -> str:
+    """``report.csv``: a row per pair, its cells made safe to open (:func:`safe_cell`)."""
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     # a carriage return in a cell (a student's name can hold one) is quoted only by a writer that quotes all
@@ -151,33 +141,7 @@ def write_report(
     for row in rows:
         cells = {k: safe_cell(v) for k, v in row.items()}
         (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
-    write_atomic(report / "report.csv", _text(buf.getvalue()))
-    write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
-    for name, text in lms_books(rows, students, tasks, safe_cell).items():  # (Canvas's and Moodle's import files)
-        if text is not None:
-            write_atomic(report / name, _text(text))
-        else:  # none for this class: an earlier run's is not imported by mistake
-            with contextlib.suppress(OSError):
-                (report / name).unlink()
-    for student in students:
-        mine = [r for r in rows if r["student"] == student]
-        write_atomic(
-            report / "gradescope" / student / "results.json",
-            _text(json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n"),
-        )
-    _drop_stale_results(report / "gradescope", set(students))
-    write_atomic(report / "index.html", _text(render_html(rows, ignored, students, list(tasks), headline)))
-
-
-def _drop_stale_results(folder: Path, students: set[str]) -> None:
-    """Remove the ``results.json`` an earlier run into this report wrote for a student who is not in this one
-    (another class's, or a name since changed), lest it be uploaded with this class's."""
-    with contextlib.suppress(OSError), os.scandir(folder) as entries:
-        stale = [e.name for e in entries if e.name not in students and e.is_dir(follow_symlinks=False)]
-    for name in stale:
-        with contextlib.suppress(OSError):
-            (folder / name / "results.json").unlink()
-            (folder / name).rmdir()
+    return buf.getvalue()
 
 
 def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
