@@ -130,9 +130,10 @@ def program_jobs(
 
 
 def warn(pair: Pair, result: dict[str, Any]) -> None:
-    """A run without a sandbox says so, every time."""
-    if result.get("run_warning"):
-        print(f"{pair.student}/{pair.task}: {result['run_warning']}", file=sys.stderr)
+    """A run without a sandbox says so, every time; so does a run timed out on a busy machine."""
+    for said in (result.get("run_warning"), result.pop("run_busy", None)):
+        if said:
+            print(f"{pair.student}/{pair.task}: {said}", file=sys.stderr)
 
 
 #: bytes of students' folders (their packs) sent to the backend at once: a batch of students is sent when the

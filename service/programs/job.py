@@ -28,7 +28,7 @@ from ..classgrade.records import GradeJob
 from .copied import flags
 from .digest import digest as digest  # (what a kept grade stands for: its own module)
 from .experiment import Allowance, Thresholds, experiment
-from .outcome import Reason, RunOutcome
+from .outcome import Reason, RunOutcome, busy
 from .pack import DamagedPack, Pack, unpacked
 from .program import Program
 from .runner import BuildStep, ProgramRun, build_program, run_program
@@ -72,12 +72,14 @@ OUTPUT_KEPT = 2000
 def run_info(outcome: RunOutcome) -> dict[str, Any]:
     """A run's end as a grade keeps it, plain values only: ``run`` (its reason's word: ``ok``, ``timeout``,
     ...), ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold
-    what the program read of a hidden scene), ``run_seconds`` and ``run_warning`` (a run without a sandbox)."""
+    what the program read of a hidden scene), ``run_seconds``, ``run_warning`` (a run without a sandbox) and
+    ``run_busy`` (a run timed out on a busy machine: :func:`~.outcome.busy`), both said to the TA."""
     return {
         "run": str(outcome.reason),
         "run_output": outcome.stderr_tail[-OUTPUT_KEPT:],
         "run_seconds": round(outcome.wall_seconds, 3),
         "run_warning": outcome.warning,
+        "run_busy": busy(outcome),
     }
 
 

@@ -65,6 +65,7 @@ class RunOutcome:
     wall_seconds: float = 0.0
     cpu_seconds: float = 0.0
     warning: str | None = None
+    waited_seconds: float = 0.0  # how long it waited, ready, for a CPU (:func:`busy`)
 
     @property
     def ok(self) -> bool:
@@ -119,14 +120,19 @@ def _guarded(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
 BUSY = 0.5
 
 
-def _timed_out(finished: Finished, limits: Limits) -> str:
-    """A run killed at its wall time, with the CPU time it had and how long it waited for a CPU (its guard's
-    measure): where it waited longer than it ran, most of its wall time, the machine is named busy."""
-    said = f"still running at the wall-time limit of {limits.wall_seconds:g} s; killed"
-    cpu, waited = split_times(finished.stderr_tail, finished.cpu_seconds)[1], finished.waited_seconds
-    if waited > cpu and waited >= BUSY * limits.wall_seconds:
-        return f"{said} (it ran {cpu:.1f} s and waited {waited:.1f} s for a CPU: the grading machine was busy)"
-    return f"{said} (it ran {cpu:.1f} s" + (f" and waited {waited:.1f} s for a CPU)" if waited >= 0.1 else ")")
+def busy(outcome: RunOutcome) -> str | None:
+    """For a run killed at its wall time that waited, ready, for a CPU longer than it ran and for most of that
+    time, a line for the TA naming the busy machine (the run's CPU time and its wait: its guard's measure);
+    else None.  Kept out of the run's reason, which stays the same however busy the machine."""
+    if outcome.reason is not Reason.TIMEOUT:
+        return None
+    cpu, waited = outcome.cpu_seconds, outcome.waited_seconds
+    if waited <= cpu or waited < BUSY * outcome.wall_seconds:
+        return None
+    return (
+        f"timed out having run {cpu:.1f} s and waited {waited:.1f} s for a CPU: the grading machine was busy "
+        f"(grade it again with fewer --jobs, or a longer --run-timeout)"
+    )
 
 
 def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
@@ -135,7 +141,7 @@ def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     if guarded is not None:
         return guarded
     if finished.timed_out:
-        return Reason.TIMEOUT, _timed_out(finished, limits)
+        return Reason.TIMEOUT, f"still running at the wall-time limit of {limits.wall_seconds:g} s; killed"
     sig = _signal(finished)
     code = finished.exit_code
     if sig is None and code == 0:

@@ -212,7 +212,7 @@ def _outcome(
     if finished is None:
         return RunOutcome(reason, detail, warning=warning)
     tail, cpu = split_times(finished.stderr_tail, finished.cpu_seconds)
-    return RunOutcome(reason, detail, image, tail, finished.wall_seconds, cpu, warning)
+    return RunOutcome(reason, detail, image, tail, finished.wall_seconds, cpu, warning, finished.waited_seconds)
 
 
 def _read_output(path: Path, limits: Limits) -> tuple[Reason, str, bytes | None]:
