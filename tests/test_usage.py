@@ -168,3 +168,20 @@ def test_a_look_at_a_real_family_sees_its_files_and_cpu(tmp_path):
     finally:
         os.killpg(child.pid, 9)
         child.wait()
+
+
+def test_a_process_that_ends_during_a_walk_counts_nothing(monkeypatch):
+    """Children that shared their parent's 300 MiB end while the watchdog walks: one read as resident before
+    its walk has no rollup by then (nor resident pages), and counts nothing, not its pages of before."""
+    statuses = {1: [300], 2: [300], 3: [300, 0]}  # (3's status read twice: before the walk, then ended)
+
+    def read(path: str) -> str:
+        pid = int(path.split("/")[2])
+        if path.endswith("/status"):
+            mib = statuses[pid].pop(0) if len(statuses[pid]) > 1 else statuses[pid][0]
+            return f"RssAnon:\t{mib << 10} kB\n" if mib else ""
+        return "" if pid == 3 else "Pss_Anon:\t102400 kB\nPss_Shmem:\t0 kB\n"
+
+    monkeypatch.setattr(usage, "read", read)
+    pages, exact = Shares().pages([1, 2, 3], 512 * MIB)
+    assert exact and pages == 200 * MIB

@@ -157,12 +157,15 @@ def _cheap(pid: int) -> tuple[int, int]:
 
 
 def _share(pid: int, resident: int) -> int:
-    """A process's share of its pages (``Pss``), a walk of its page tables."""
+    """A process's share of its pages (``Pss``), a walk of its page tables; ``resident`` is what it had when
+    its status was read (a process that has ended since has nothing)."""
     rollup = read(f"/proc/{pid}/smaps_rollup")
     if "Pss_Anon:" in rollup:
         return fields(rollup, PRECISE)
-    # (a kernel before 5.8 has no Pss_Anon; one that would not show it, the bound)
-    return fields(rollup, ("Pss",)) if rollup else resident
+    if rollup:  # (a kernel before 5.8 has no Pss_Anon)
+        return fields(rollup, ("Pss",))
+    # (no rollup: the process has ended, or the kernel would not show it: then the bound, read again now)
+    return min(resident, _cheap(pid)[0])
 
 
 class Shares:
