@@ -49,7 +49,7 @@ def describe(result: dict[str, Any]) -> list[str]:
 
 
 def _pass(result: dict[str, Any]) -> str:
-    """PASS, and the accepted variant it passed as ("PASS, as rendered with a 1e-3 ray offset")."""
+    """PASS, and the accepted variant it passed as ("PASS, as rendered with a ray offset of 0.003 along the normal")."""
     accepted = result.get("accepted")
     return f"PASS, as rendered with {accepted}" if accepted else "PASS"
 

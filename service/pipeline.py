@@ -24,7 +24,8 @@ from . import grading
 from .heatmap import Kind, heatmap_png
 
 if TYPE_CHECKING:
-    from .diagnosis import Cached, Diagnosis
+    from .diagnosis import Cached, Diagnosis, Renders
+    from .diagnosis.accepting import Failing
 
 
 class BadInput(ValueError):
@@ -73,7 +74,8 @@ class Graded:
     grade: grading.Grade
     heatmap: bytes | None  # PNG, when one was asked for
     diagnosis: Diagnosis | None = None  # of a failing grade, when one was asked for
-    accepted: str | None = None  # the accepted variant it passed as ("a 1e-3 ray offset"), None: the reference
+    #: the accepted variant it passed as ("a ray offset of 0.003 along the normal"), None: the reference
+    accepted: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The grade's numbers, its ``reason`` (why it failed; empty when it passed), its ``diagnosis``
@@ -138,20 +140,38 @@ def explain(
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
         return graded
-    from .diagnosis import CACHE, diagnose, renders_of
+    from .diagnosis import renders_of
     from .scenekey import scene_key
 
+    failing = Failing(reference, submitted, graded.grade)
+    found = _diagnosed(scene, failing, lambda: renders_of(scene, run.threads), scene_key(scene), run)
+    if not any(c.passes for c in found.causes) and found.unavailable is None:
+        found = _behind_offset(scene, failing, checks, run, found) or found
+    return Graded(graded.grade, graded.heatmap, found)
+
+
+def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Run) -> Diagnosis:
+    """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
+    from .diagnosis import CACHE, diagnose
+
     held = CACHE if run.cache is None else run.cache
-    renders = held.get(scene_key(scene), lambda: renders_of(scene, run.threads), scene.image.width * scene.image.height)
+    renders = held.get(key, make, scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
         renders.cancel_in_thread(run.cancel)
     else:
         renders.cancel = run.cancel
     try:
-        found = diagnose(reference, submitted, graded.grade, renders)
+        return diagnose(failing.reference, failing.submitted, failing.failed, renders)
     finally:
         held.trim()  # (what it rendered counted, cancelled or not)
-    return Graded(graded.grade, graded.heatmap, found)
+
+
+def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Run, found: Diagnosis) -> Diagnosis | None:
+    """``found`` with a mistake the submission matches at the honest offset it shows besides it (fitted as a
+    nuisance, :mod:`service.diagnosis.nuisance`); None when there is none."""
+    from .diagnosis.nuisance import behind_offset
+
+    return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
 
 
 def read_image(data: bytes, size: tuple[int, int]) -> np.ndarray:

@@ -185,8 +185,14 @@ class DirectLight:
             )
             lowered = rays.origins - scaled(pick(at.normal), below * rays.mag * 2.0**-30)
             rays = Rays(lowered, shadow_dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
+        spawn = self.spawner.offset
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
+        elif spawn is not None and spawn.along == "normal":
+            # a student's offset along the normal: as long as from the hit point to the light, from where the ray
+            # starts (as the students' own do: the distance to the light is the hit point's), so that its far end
+            # passes the light by as much as the offset moved it; no surface is exempt at the light
+            shadows = Shadows(rays, pick(reach.dist), None, None)
         else:
             mag_light = max_abs(em.position[None]) + self.world.origin_mag
             shadows = Shadows(rays, pick(reach.dist), em.position[None], mag_light)  # one light for every ray

@@ -31,8 +31,9 @@ from .planner import plan_proofs, scene_sightlines
 from .rays import Among, Rays, Work
 from .shading import resolve_material, shading_normal
 from .spawn import Spawner
-from .variants import REFERENCE, Options
+from .variants import REFERENCE, Options, scene_size
 from .vec import scaled
+from .visible import visible_size
 from .world import World, build_world
 
 Progress = Callable[[int, int], None]
@@ -117,13 +118,18 @@ class Renderer:
         """The direct-light stage, with the proofs that spare shadow rays (:mod:`tracer.planner`)."""
         world, options = self.world, self.options
         #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
-        self.spawner = Spawner(world, options, options.spawn(self.scene))
+        self.spawner = Spawner(world, options, options.spawn(self.visible_size))
         #: which proofs spare which rays (:mod:`tracer.planner`)
         self.plan = plan_proofs(world, options, self.spawner.offset)
         shading = DirectLight(world, options, self.intersector, light_groups(self.scene, world.origin), self.plan,
                               Meter(self._stop, self._count), area_terms)
         shading.spawner = self.spawner
         return shading
+
+    def visible_size(self) -> float:
+        """The size of what the camera sees (:func:`tracer.visible.visible_size`): what an offset is measured
+        against."""
+        return visible_size(self.scene, self.world, self.intersector, scene_size(self.scene))
 
     @property
     def spent(self) -> int:

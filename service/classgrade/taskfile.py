@@ -46,7 +46,7 @@ class TaskSettings(BaseModel):
     #: what a student reads of the task (Gradescope's output): a hidden scene's TA may show less
     show: Literal["images", "diagnosis", "verdict", "verdict-only"] = "images"
     deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
-    #: the accepted variants of honest tracers, name → largest amount × the scene's size (None: the defaults,
+    #: the accepted variants of honest tracers, name → largest amount × the visible size (None: the defaults,
     #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
     accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None
 

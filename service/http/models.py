@@ -48,7 +48,7 @@ class GradeAnswer(BaseModel):
     )
     accepted: str | None = Field(
         None,
-        examples=["a 1e-3 ray offset"],
+        examples=["a ray offset of 0.003 along the normal"],
         description="the accepted variant of the reference it passed against (an "
         "honest tracer's ray offset); null when it passed against the "
         "reference itself, or failed",
@@ -111,3 +111,9 @@ class Diagnosis(BaseModel):
     terms: list[Term] = Field(description="the additive terms out of scale, most first")
     objects: list[Share] = Field(description="what the failing pixels show")
     lights: list[Share] = Field(description="the lights that fall on the failing pixels")
+    offset: str | None = Field(
+        None,
+        examples=["a ray offset of 0.003 along the normal"],
+        description="the honest ray offset the submission's mistakes were named at (its own offset, fitted); "
+        "null when they were named against the reference itself",
+    )
