@@ -75,13 +75,18 @@ CALLS = ("no-shadows", "blinn-phong", "no-ambient", "no-half-pixel")
 
 def calls(students: tuple[str, ...] = CALLS, width: int = 320, height: int = 240) -> None:
     """Prints where a cold diagnosis (one thread, as a class's worker runs it) spends its time, per example and
-    student: each kind of render it asks for, by variant, as seconds and as a share of the reference render."""
+    student: each kind of render it asks for, by variant, as seconds and as a share of the reference render, and
+    how many images' worth of rows it renders in all (a whole render, a band, rows or pixels alone), then those
+    counts' least, mean and most over every student."""
     spent: dict[str, float] = defaultdict(float)
     count: dict[str, int] = defaultdict(int)
+    rows: list[float] = [0.0]  # the current diagnosis's rows rendered
+    worth: list[float] = []
     originals = {entry: getattr(Renderer, entry) for entry in ("pixels", "pixels_of_rows", "diagnosis_passes")}
 
     def timed(entry: str) -> Any:
         def wrapper(self: Renderer, *args: Any, **kwargs: Any) -> Any:
+            rows[0] += _rows_of(self, entry, args, kwargs)
             started = time.perf_counter()
             try:
                 return originals[entry](self, *args, **kwargs)
@@ -106,10 +111,15 @@ def calls(students: tuple[str, ...] = CALLS, width: int = 320, height: int = 240
                 verdict = grade(reference, submitted, "")
                 spent.clear()
                 count.clear()
+                rows[0] = 0.0
                 started = time.perf_counter()
                 diagnose(reference, submitted, verdict, renders_of(scene, threads=1))
                 total = time.perf_counter() - started
-                print(f"{name}, {student}: {total:.3f} s, {total / render_s:.1f}× its render ({render_s:.3f} s)")
+                worth.append(rows[0] / height)
+                print(
+                    f"{name}, {student}: {total:.3f} s, {total / render_s:.1f}× its render ({render_s:.3f} s), "
+                    f"{worth[-1]:.2f} images' worth of rows"
+                )
                 for key in sorted(spent, key=lambda k: -spent[k]):
                     print(f"  {key:48s} {count[key]:3d} calls {spent[key]:.3f} s {spent[key] / render_s:5.2f}×")
                 rest = total - sum(spent.values())
@@ -117,6 +127,22 @@ def calls(students: tuple[str, ...] = CALLS, width: int = 320, height: int = 240
     finally:
         for entry, original in originals.items():
             setattr(Renderer, entry, original)
+    if worth:
+        print(f"images' worth of rows: {min(worth):.2f}–{max(worth):.2f}, {sum(worth) / len(worth):.2f} on average")
+
+
+def _rows_of(renderer: Renderer, entry: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> float:
+    """How many of the image's rows a call of ``entry`` renders: the whole image, a band (``rows``), the rows
+    given, or the pixels given (as a share of a row each)."""
+    img = renderer.scene.image
+    if entry == "pixels_of_rows":
+        return float(len(args[0] if args else kwargs["rows"]))
+    if entry == "pixels" and kwargs.get("rows") is not None:
+        top, bottom = kwargs["rows"]
+        return float(bottom - top)
+    if entry == "diagnosis_passes" and kwargs.get("pixels") is not None:
+        return len(kwargs["pixels"]) / img.width
+    return float(img.height)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -3,11 +3,17 @@
 # (once, in $ROOTFS), the bundle unpacked into /autograder/source, setup.sh run once as root, then
 # run_autograder from /autograder on the images of a submission folder; prints /autograder/results/results.json.
 # bubblewrap isolates it (no image registry is needed); pip in it uses this machine's pip settings.
+# Needs debootstrap and a Debian mirror ($DEBIAN_MIRROR) the first time, and pip's package index for setup.sh.
 #   docker/gradescope-dry-run.sh autograder.zip SUBMISSION_DIR [ROOTFS]
 set -euo pipefail
 zip=$(realpath "$1"); submission=$(realpath "$2"); rootfs=${3:-/var/tmp/phongray-gradescope-root}
 MIRROR=${DEBIAN_MIRROR:-http://deb.debian.org/debian}
 if [ ! -x "$rootfs/usr/bin/python3" ]; then
+  if ! command -v debootstrap >/dev/null; then
+    echo "gradescope-dry-run.sh: debootstrap is needed (apt-get install debootstrap), and a Debian mirror" \
+      "(DEBIAN_MIRROR, now $MIRROR); without them, run the autograder as docs/course.md says (a dry run)" >&2
+    exit 2
+  fi
   debootstrap --variant=minbase --include=python3,python3-venv,python3-pip,ca-certificates,unzip bookworm \
     "$rootfs" "$MIRROR"
 fi

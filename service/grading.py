@@ -23,6 +23,7 @@ import numpy as np
 
 from tracer.image import RGBX_MODES, decode_rgbx, open_png
 
+from . import ppm
 from .display import percent
 from .nearby import BAND, distance, planes
 
@@ -39,7 +40,7 @@ GROSS_ALLOWED = 0
 
 
 class ImageError(ValueError):
-    """A submitted image that cannot be graded (not a PNG, corrupt, wrong size)."""
+    """A submitted image that cannot be graded (not a PNG or a PPM, corrupt, wrong size)."""
 
 
 @dataclass(frozen=True)
@@ -80,14 +81,20 @@ class Grade:
 
 
 def read_submission(data: bytes, expected: tuple[int, int]) -> np.ndarray:
-    """Decode a submitted PNG of ``expected = (width, height)`` safely: the size is checked on the header,
-    before anything is decompressed, so the decoded pixels are bounded by the scene's size.
+    """Decode a submitted PNG or PPM (:mod:`service.ppm`) of ``expected = (width, height)`` safely: the size is
+    checked on the header, before anything is decompressed or decoded, so the decoded pixels are bounded by the
+    scene's size.
 
     A submission must be opaque: an alpha channel is accepted only when every pixel's alpha is full (a
     render has no transparent pixels, and what a transparent one should be compared as is a guess)."""
     declared = declared_size(data)
     if declared != expected:  # checked on the header, before anything is decompressed
         raise ImageError(f"image is {declared[0]}×{declared[1]} pixels, the scene is {expected[0]}×{expected[1]}")
+    if ppm.is_ppm(data):
+        try:
+            return ppm.pixels(data, ppm.header(data))
+        except ppm.PpmError as exc:
+            raise ImageError(str(exc)) from None
     try:
         with open_png(data) as img:
             if img.format != "PNG":
@@ -174,23 +181,38 @@ CORRUPT = "image is truncated or corrupt: its data ends early or is damaged; exp
 
 
 def declared_size(data: bytes, max_pixels: int | None = None) -> tuple[int, int]:
-    """``(width, height)`` as a PNG's header declares it, before anything is decompressed; :class:`ImageError`
-    for what is not a PNG (naming the format it is, where known) or declares more than ``max_pixels``."""
+    """``(width, height)`` as a PNG's or a PPM's header declares it, before anything is decompressed or decoded;
+    :class:`ImageError` for what is neither (naming the format it is, where known), a broken PPM header, or a
+    size of more than ``max_pixels``."""
     if not data:
         raise ImageError("image is empty (0 bytes)")
-    if not data.startswith(b"\x89PNG\r\n\x1a\n"):
+    if ppm.is_ppm(data):
+        try:
+            head = ppm.header(data)
+        except ppm.PpmError as exc:
+            raise ImageError(str(exc)) from None
+        size = (head.width, head.height)
+    elif not data.startswith(b"\x89PNG\r\n\x1a\n"):
         kind = sniff(data)
-        raise ImageError(f"image is {kind}; PNG required" if kind else "image is not a PNG")
-    if len(data) < 24 or data[12:16] != b"IHDR":
+        raise ImageError(f"image is {kind}; {REQUIRED}" if kind else f"image is not a PNG or a PPM; {REQUIRED}")
+    elif len(data) < 24 or data[12:16] != b"IHDR":
         raise ImageError("image is truncated or corrupt: it ends before its PNG header; export it again as a PNG")
-    size = (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"))
+    else:
+        size = (int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big"))
     if max_pixels is not None and size[0] * size[1] > max_pixels:
         raise ImageError(f"image is {size[0]}×{size[1]} pixels, more than the {max_pixels} phongray compares")
     return size
 
 
+#: what a submission must be, said after what it is
+REQUIRED = "PNG or PPM required"
 #: how other image formats begin, so that a submission in one of them is named as what it is
 SIGNATURES = (
+    (b"P1", "a PBM (black and white Netpbm)"),
+    (b"P4", "a PBM (black and white Netpbm)"),
+    (b"P2", "a PGM (greyscale Netpbm)"),
+    (b"P5", "a PGM (greyscale Netpbm)"),
+    (b"P7", "a PAM (Netpbm)"),
     (b"\xff\xd8\xff", "a JPEG"),
     (b"GIF87a", "a GIF"),
     (b"GIF89a", "a GIF"),
@@ -203,7 +225,7 @@ SIGNATURES = (
 
 
 def sniff(data: bytes) -> str | None:
-    """What kind of image other than PNG ``data`` is (``"a JPEG"``), from its first bytes; None if unknown."""
+    """What kind of image other than PNG or PPM ``data`` is (``"a JPEG"``), from its first bytes; None if unknown."""
     if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
         return "a WebP"
     if data[4:12] in (b"ftypheic", b"ftypheix", b"ftypmif1", b"ftypavif"):

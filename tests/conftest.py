@@ -1,7 +1,37 @@
+import ctypes
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
+
+#: prctl's option that makes this process the reaper of its orphaned descendants
+PR_SET_CHILD_SUBREAPER = 36
+
+
+def _own_temporary_folder() -> None:
+    """Every temporary file and folder of this test session (students' run folders, builds, bundles) in a
+    folder of its own, which its children inherit through ``TMPDIR``: a test that checks it left no run folder
+    behind looks there, not at what other programs on the machine (another test session, a TA's
+    ``grade-class --run``) are doing in ``/tmp``.  Open to be traversed (0711), as ``/tmp`` is, so that a
+    sandbox's user reaches the run folder made for it."""
+    folder = tempfile.mkdtemp(prefix="phongray-tests-")
+    os.chmod(folder, 0o711)
+    os.environ["TMPDIR"] = folder
+    tempfile.tempdir = None  # (read TMPDIR again)
+
+
+def _reap_orphans() -> None:
+    """This session adopts whatever its children leave orphaned (a student's daemon that double-forked away
+    from its parent), so that every process it started, directly or not, stays among its descendants, which
+    is all that :func:`helpers.own_processes` looks at."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+
+
+_own_temporary_folder()
+_reap_orphans()
 
 
 def pytest_collection_finish(session) -> None:  # noqa: ANN001
@@ -16,7 +46,16 @@ def pytest_collection_finish(session) -> None:  # noqa: ANN001
 
 
 #: the test modules that run students' programs in bubblewrap's sandbox
-SANDBOXED = {"test_programs.py", "test_experiment.py", "test_job.py", "test_class_programs.py", "test_bundled.py"}
+SANDBOXED = {
+    "test_programs.py",
+    "test_experiment.py",
+    "test_job.py",
+    "test_class_programs.py",
+    "test_bundled.py",
+    "test_guard.py",
+    "test_seccomp.py",
+    "test_runtime.py",
+}
 
 
 def pytest_collection_modifyitems(config, items) -> None:  # noqa: ANN001
@@ -39,3 +78,10 @@ def pytest_collection_modifyitems(config, items) -> None:  # noqa: ANN001
                 "installs it and sets PHONGRAY_REQUIRE_SANDBOX)"
             )
         )
+
+
+def pytest_sessionfinish(session, exitstatus) -> None:  # noqa: ANN001
+    """The session's own temporary folder goes with it (what a test left there was checked by that test)."""
+    import shutil
+
+    shutil.rmtree(os.environ["TMPDIR"], ignore_errors=True)

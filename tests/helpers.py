@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -112,7 +113,8 @@ def run_autograder(bundle: Path, root: Path, files: dict[str, Path]) -> tuple[su
         (root / folder).mkdir(parents=True)
     with zipfile.ZipFile(bundle) as archive:
         archive.extractall(root / "source")
-    for name, path in files.items():
+    for name, path in files.items():  # (a name may hold a folder: hw3/cornell.png, as a zip's unpacking has it)
+        (root / "submission" / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(path, root / "submission" / name)
     env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
     done = subprocess.run(
@@ -124,3 +126,57 @@ def run_autograder(bundle: Path, root: Path, files: dict[str, Path]) -> tuple[su
         timeout=600,
     )
     return done, json.loads((root / "results" / "results.json").read_text())
+
+
+@dataclass(frozen=True)
+class Process:
+    """A live process of this test session's: its id, its parent's, the user it runs as and its command line."""
+
+    pid: int
+    parent: int
+    uid: int
+    args: str
+
+
+def own_processes() -> list[Process]:
+    """This test session's live descendants, zombies left out: every process it started, directly or through
+    others (tests/conftest.py makes the session the reaper of its orphans, so a daemon that double-forked is
+    still among them), and nothing that other programs on the machine run."""
+    live: dict[int, Process] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+            args = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+            uid = entry.stat().st_uid
+        except OSError:  # (gone meanwhile)
+            continue
+        fields = stat[stat.rfind(")") + 2 :].split()  # (after the command's name, which may hold spaces)
+        if fields[0] != "Z":
+            live[int(entry.name)] = Process(int(entry.name), int(fields[1]), uid, args)
+    return [live[pid] for pid in sorted(_descendants(live, os.getpid()))]
+
+
+def _descendants(live: dict[int, Process], root: int) -> set[int]:
+    mine: set[int] = set()
+    for _ in range(len(live)):  # (each round adds a generation; bounded by the number of processes)
+        grown = {p.pid for p in live.values() if p.parent == root or p.parent in mine}
+        if grown == mine:
+            break
+        mine = grown
+    return mine
+
+
+def left_in_sandboxes(word: str | None = None) -> list[str]:
+    """This session's processes that a student's run left: bubblewrap and everything under it, whatever user
+    it runs as, and any process whose command line holds ``word`` (a hostile program's marker)."""
+    own = own_processes()
+    sandboxes = {p.pid for p in own if Path(p.args.split(" ", 1)[0]).name == "bwrap"}
+    under = {p.pid for p in own if p.pid in sandboxes}
+    for _ in range(len(own)):
+        grown = under | {p.pid for p in own if p.parent in under}
+        if grown == under:
+            break
+        under = grown
+    return [f"{p.pid} uid {p.uid}: {p.args}" for p in own if p.pid in under or (word is not None and word in p.args)]

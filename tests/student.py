@@ -37,6 +37,12 @@ MISTAKES = (
     "depth-minus-one",
     "ior-inverted",
     "offset-too-large",
+    "reflect-sign",
+    "checker-ignored",
+    "colours-not-clamped",
+    "ambient-from-diffuse",
+    "spot-ramp-angle",
+    "transparent-no-shadows",
 )
 
 
@@ -89,6 +95,7 @@ class Lamp:
     direction: np.ndarray | None  # the way the light travels (directional, spot)
     attenuation: tuple[float, float, float] = (1.0, 0.0, 0.0)
     cone: tuple[float, float, float] | None = None  # spot: cos(outer), cos(inner), exponent
+    angles: tuple[float, float] | None = None  # spot of a student who ramps in the angle: outer, inner (radians)
 
 
 def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN001
@@ -112,6 +119,7 @@ def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN
                     _unit(np.array(light.direction, dtype=np.float64)),
                     atten,
                     (math.cos(angle(light.cutoff)), math.cos(angle(inner)), light.exponent),
+                    (angle(light.cutoff), angle(inner)) if "spot-ramp-angle" in wrong else None,
                 )
             )
         else:
@@ -141,6 +149,9 @@ def shine(lamp: Lamp, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
         outer, inner, exponent = lamp.cone
         s = _dot(-to, np.broadcast_to(lamp.direction, to.shape))
         ramp = np.clip((s - outer) / (inner - outer), 0.0, 1.0) if inner > outer else (s >= outer) * 1.0
+        if lamp.angles is not None and inner > outer:  # the angle off the axis, ramped from the cutoff inwards
+            wide, narrow = lamp.angles
+            ramp = np.clip((wide - np.arccos(np.clip(s, -1.0, 1.0))) / (wide - narrow), 0.0, 1.0)
         strength = strength * np.where(s >= outer, ramp * np.maximum(s, 0.0) ** exponent, 0.0)
     return to, d, strength
 
@@ -177,6 +188,10 @@ def render(
         style = TOO_LARGE
     img = scene.image
     surfaces = ref.surfaces_of(scene)
+    see_through = [scene.materials[s.material].transmittance > 0 for s in surfaces]
+    opaque = [s for s, clear in zip(surfaces, see_through) if not clear]
+    renumber = np.append(np.cumsum(np.logical_not(see_through)) - 1, -1)  # (index −1 stays −1)
+    renumber[:-1][np.array(see_through, dtype=bool)] = -1
     ambient, lights = lamps(scene, wrong)
     o, d, pixel = eye_rays(scene, wrong)
     weight, start = np.ones(len(o)), np.full(len(o), -1)
@@ -202,13 +217,17 @@ def render(
             if "normals-not-flipped" in wrong:
                 n[at] = outward[at]
             other, _ = ref._checker_material(scene, surface, p[at])
+            if "checker-ignored" in wrong:  # every point in the object's own material
+                other = np.zeros_like(other)
             main = scene.materials[surface.material]
             alt = scene.materials[main.checker.material] if main.checker else main
             for array, name in ((ka, "ambient"), (kd, "diffuse"), (ks, "specular")):
                 array[at] = np.where(other[:, None], np.array(getattr(alt, name)), np.array(getattr(main, name)))
             for array, name in ((shininess, "shininess"), (kr, "reflectance"), (kt, "transmittance"), (ior, "ior")):
                 array[at] = np.where(other, getattr(alt, name), getattr(main, name))
-        colour = np.zeros_like(o) if "no-ambient" in wrong else ka * ambient
+        colour = (
+            np.zeros_like(o) if "no-ambient" in wrong else (kd if "ambient-from-diffuse" in wrong else ka) * ambient
+        )
         view = -d
         for lamp in lights:
             to, dist, strength = shine(lamp, p)
@@ -221,10 +240,15 @@ def render(
                     speck = (np.floor(np.abs(origin).sum(axis=1) * 977.0) % 2 == 1)[:, None]
                     origin = origin - np.where(speck, 1e-7, 0.0) * n[rows]
                     leaving = np.full(len(rows), -1)
-                shadowed, _ = ref.blocked(surfaces, origin, to[rows], dist[rows], leaving, lamp.position)
+                if "transparent-no-shadows" in wrong:  # the loop over the objects skips glass
+                    shadowed, _ = ref.blocked(opaque, origin, to[rows], dist[rows], renumber[leaving], lamp.position)
+                else:
+                    shadowed, _ = ref.blocked(surfaces, origin, to[rows], dist[rows], leaving, lamp.position)
                 gets[rows[shadowed]] = False
             if "blinn-phong" in wrong:
                 rv = _dot(n, _unit(to + view))
+            elif "reflect-sign" in wrong:  # reflect(L, N) = L − 2(N·L)N where reflect(−L, N) was meant
+                rv = _dot(to - 2 * nl[:, None] * n, view)
             else:
                 rv = _dot(2 * nl[:, None] * n - to, view)
             spec = np.where(rv > 0, np.abs(rv) ** shininess, 0.0)
@@ -253,8 +277,11 @@ def render(
         )
         weight = np.concatenate([weight[r] * kr[r], weight[t] * kt[t]])
         pixel = np.concatenate([pixel[r], pixel[t]])
-    linear = np.clip(total / img.samples**2, 0.0, 1.0).reshape(img.height, img.width, 3)
+    linear = (total / img.samples**2).reshape(img.height, img.width, 3)
+    if "colours-not-clamped" not in wrong:
+        linear = np.clip(linear, 0.0, 1.0)
     if "gamma" in wrong:
         linear = linear ** (1 / 2.2)
-    image = np.floor(255 * linear + 0.5).astype(np.uint8)
+    # (unclamped, 1.2 is 306: kept to 8 bits as an integer cast keeps it, 50)
+    image = np.floor(255 * linear + 0.5).astype(np.int64).astype(np.uint8)
     return image[::-1].copy() if "image-flipped" in wrong else image

@@ -64,6 +64,12 @@ CLASSIC = (
     "depth-minus-one",
     "ior-inverted",
     "offset-too-large",
+    "reflect-sign",
+    "checker-ignored",
+    "colours-not-clamped",
+    "ambient-from-diffuse",
+    "spot-ramp-angle",
+    "transparent-no-shadows",
 )
 NEW = (
     "reflection-blended",
@@ -143,6 +149,8 @@ class Tracer:
     def in_shadow(self, origin: Vec, s: LightSample) -> bool:
         ray = Ray(origin, s.to_light)
         for shape in self.shapes:
+            if "transparent-no-shadows" in self.wrong and self.scene.materials[shape.material].transmittance > 0:
+                continue  # glass lets the light through
             hit = shape.intersect(ray)  # (t > 0: with no offset, rounding puts half the points below)
             if hit is not None and hit.t < s.distance * (1 - 1e-9):
                 return True
@@ -150,7 +158,7 @@ class Tracer:
 
     def material(self, hit: Hit, p: Vec):  # noqa: ANN201
         m = self.scene.materials[hit.shape.material]
-        if m.checker is None:
+        if m.checker is None or "checker-ignored" in self.wrong:
             return m
         q = p
         if hit.shape.flat:
@@ -165,7 +173,8 @@ class Tracer:
         return add(p, mul(n, eps if dot(n, towards) > 0 else -eps))
 
     def local(self, hit: Hit, m, p: Vec, n: Vec, v: Vec) -> Vec:  # noqa: ANN001
-        colour = BLACK if "no-ambient" in self.wrong else times(vec(m.ambient), self.ambient)
+        ka = vec(m.diffuse) if "ambient-from-diffuse" in self.wrong else vec(m.ambient)
+        colour = BLACK if "no-ambient" in self.wrong else times(ka, self.ambient)
         kd, ks = vec(m.diffuse), vec(m.specular)
         for light in self.lights:
             diffuse, specular = BLACK, BLACK
@@ -180,6 +189,8 @@ class Tracer:
                 diffuse = add(diffuse, mul(times(s.intensity, kd), max(nl, 0.0)))
                 if "blinn-phong" in self.wrong:
                     rv = dot(n, normalize(add(s.to_light, v)))
+                elif "reflect-sign" in self.wrong:
+                    rv = dot(sub(s.to_light, mul(n, 2 * nl)), v)
                 else:
                     rv = dot(sub(mul(n, 2 * nl), s.to_light), v)
                 if rv > 0 and "no-specular" not in self.wrong:
@@ -243,12 +254,14 @@ def render(scene, mistakes: tuple[str, ...] | list[str] = ()) -> np.ndarray:  # 
             for b in range(n):
                 for a in range(n):
                     total = add(total, tracer.trace(camera.ray(i, j, a, b, n), 0))
-            c = clamp(mul(total, 1.0 / (n * n)))
+            c = mul(total, 1.0 / (n * n))
+            if "colours-not-clamped" not in wrong:
+                c = clamp(c)
             if "gamma" in wrong:
                 c = (c[0] ** (1 / 2.2), c[1] ** (1 / 2.2), c[2] ** (1 / 2.2))
             row.append([math.floor(255 * x + 0.5) for x in c])
         rows.append(row)
-    return saved(np.array(rows, dtype=np.uint8), wrong)
+    return saved(np.array(rows).astype(np.uint8), wrong)  # (unclamped, 306 is kept as 50)
 
 
 def saved(image: np.ndarray, wrong: set[str]) -> np.ndarray:

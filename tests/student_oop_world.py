@@ -221,6 +221,8 @@ class SpotLight(PointLight):
         angle = (lambda a: a) if "spot-radians" in wrong else math.radians
         inner = light.cutoff if light.inner_cutoff is None else light.inner_cutoff
         self.cos_outer, self.cos_inner = math.cos(angle(light.cutoff)), math.cos(angle(inner))
+        self.outer, self.inner = angle(light.cutoff), angle(inner)
+        self.in_angle = "spot-ramp-angle" in wrong
         self.exponent = 0.0 if "spot-exponent-ignored" in wrong else light.exponent
 
     def samples(self, p: Vec) -> list[LightSample]:
@@ -231,6 +233,8 @@ class SpotLight(PointLight):
         if s < self.cos_outer:
             return []
         falloff = 1.0 if s >= self.cos_inner else (s - self.cos_outer) / (self.cos_inner - self.cos_outer)
+        if self.in_angle and s < self.cos_inner:  # from the cutoff in, linear in the angle off the axis
+            falloff = (self.outer - math.acos(min(s, 1.0))) / (self.outer - self.inner)
         out[0].intensity = mul(out[0].intensity, max(s, 0.0) ** self.exponent * falloff)
         return out
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from service.classgrade.autograder import task_files
+from service.classgrade.uploads import task_files
 from service.cli import main
 
 from helpers import run_autograder
@@ -60,6 +60,40 @@ def test_a_submission_is_graded_a_test_per_task_with_its_names_forgiven(bundle: 
     assert results["score"] == 6.0
     assert "graded as mirror: Mirror (1).png" in done.stdout
     assert "not graded: notes.txt: names no task" in done.stdout
+
+
+def test_uploads_as_students_make_them_images_one_folder_down_near_misses_and_their_own_names(
+    bundle: Path, tmp_path: Path
+):
+    import io
+    import tempfile
+
+    import numpy as np
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(CLASS / "submissions" / "ada" / "lights.png").convert("RGB"))
+    h, w, _ = pixels.shape
+    (tmp_path / "lights.ppm").write_bytes(f"P6\n{w} {h}\n255\n".encode() + pixels.tobytes())
+    buf = io.BytesIO()
+    Image.open(CLASS / "submissions" / "ada" / "spheres.png").convert("RGB").save(buf, format="JPEG")
+    (tmp_path / "spheres.jpg").write_bytes(buf.getvalue())
+    done, results = run_autograder(
+        bundle,
+        tmp_path / "root",
+        {
+            "hw3/Lights.ppm": tmp_path / "lights.ppm",  # one folder down (a zip's folder), a PPM
+            "hw3/Mirrors.png": CLASS / "submissions" / "ada" / "mirror.png",  # named nearly as the task
+            "Spheres (2).jpg": tmp_path / "spheres.jpg",
+        },
+    )
+    assert done.returncode == 0, done.stderr
+    tests = {t["name"]: t for t in results["tests"]}
+    assert (tests["lights"]["status"], tests["lights"]["score"]) == ("passed", 3.0), tests["lights"]["output"]
+    assert tests["mirror"]["output"] == "missing: no mirror.png (found hw3/Mirrors.png: did you mean mirror.png?)"
+    assert tests["spheres"]["output"] == "invalid: Spheres (2).jpg: image is a JPEG; PNG or PPM required"
+    assert tempfile.gettempdir() not in json.dumps(results)  # no temporary path, anywhere a student reads
+    assert "submissions/" not in json.dumps(results) + done.stdout  # (the class of one it was graded as)
+    assert "not graded: hw3/Mirrors.png: names no task (did you mean mirror?)" in done.stdout
 
 
 def test_an_honest_tracers_ray_offset_passes_in_the_autograder_and_says_so(tmp_path: Path):

@@ -6,18 +6,23 @@ Every program is tests/programs/tracer.py (the system's python3, the standard li
 mistake switched on, a hostile one with a few lines before it that misbehave on the task ``glass`` only."""
 
 import json
+import os
+import shutil
 import socket
-import subprocess
+import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 import pytest
-from test_cluster import dask as cluster_fixture  # noqa: F401  (the fixture 'dask': a scheduler, two workers)
+from test_cluster import DASK, _start, _stop, _workers
 
 from service.cli import main
 from service.programs import check_sandbox
-from service.programs.sandbox import UID_BASE, UID_SPAN
+
+from helpers import left_in_sandboxes
+from server import free_port
 
 HERE = Path(__file__).parent / "programs"
 SECRET = "TA-SECRET-51c0"
@@ -46,23 +51,30 @@ HOSTILE = {
     '    print("refused", exc, file=sys.stderr)\n',
     "daemon": "import os\nif os.fork() == 0:\n    os.setsid()\n    if os.fork() == 0:\n"
     '        os.execvp("sleep", ["sleep", "876.543"])\n    os._exit(0)\nos.wait()\n',
+    # four children of 140 MB each: each within the 512 MiB limit, together over it (the memory they touch
+    # before the kill is about the hog's)
+    "fourkids": 'import os, sys, time\nif "glass" in sys.argv[1]:\n    kids = []\n    for _ in range(4):\n'
+    "        pid = os.fork()\n        if pid == 0:\n            block = bytearray(140 << 20)\n"
+    "            for i in range(0, len(block), 4096):\n                block[i] = 1\n"
+    "            time.sleep(30)\n            os._exit(0)\n        kids.append(pid)\n    for pid in kids:\n"
+    "        os.waitpid(pid, 0)\n",
+    # every process its limit allows, held until the run is killed (beside another student's run: --jobs 2)
+    "quota": 'import os, sys, time\nif "glass" in sys.argv[1]:\n    try:\n        while True:\n'
+    "            if os.fork() == 0:\n                time.sleep(30)\n                os._exit(0)\n"
+    "    except OSError:\n        pass\n    time.sleep(30)\n",
 }
 BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-refraction"}
 
 
 def left_running() -> list[str]:
-    """Processes of a sandbox's user, or the hostile daemon's sleep, not counting zombies."""
-    ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
-    return [
-        line
-        for line in ps.splitlines()
-        if not line.split()[1].startswith("Z")
-        and (UID_BASE <= int(line.split()[0]) < UID_BASE + UID_SPAN or "876.543" in line)
-    ]
+    """What this test's runs left running: a sandbox or anything under it, or the hostile daemon's sleep;
+    zombies do not count."""
+    return left_in_sandboxes("876.543")
 
 
 def scratch() -> set[str]:
-    """The temporary folders of runs, builds and scenes on the machine."""
+    """The temporary folders of runs, builds and scenes of this test session (tests/conftest.py gives it a
+    temporary folder of its own)."""
     return {p.name for p in Path(tempfile.gettempdir()).glob("phongray-*")}
 
 
@@ -138,7 +150,8 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
     code, rows, report = grade(tmp_path, scenes, subs, "--jobs", "2")
     assert code == 0, capsys.readouterr().err
     summary = capsys.readouterr().out
-    assert "24 pairs: 15 passed, 9 failed, 0 missing, 0 invalid" in summary
+    assert "28 pairs: 17 passed, 11 failed, 0 missing, 0 invalid" in summary
+    assert "students' programs ran here: each run's memory is held by" in summary  # (which way: the machine's)
 
     assert rows["honest", "spot"]["status"] == rows["honest", "glass"]["status"] == "pass"
     assert rows["noshadow", "spot"]["status"] == "fail" and "no-shadows" in rows["noshadow", "spot"]["mistakes"]
@@ -152,6 +165,8 @@ def test_a_class_of_honest_buggy_and_hostile_programs(tmp_path, listener, capsys
         "loop": ("timeout",),
         "forkbomb": ("timeout", "crashed"),
         "hog": ("memory",),
+        "fourkids": ("memory",),
+        "quota": ("timeout",),
         "bigfile": ("output-too-large",),
         "link": ("no-output",),
     }
@@ -221,48 +236,91 @@ def test_without_bubblewrap_a_class_stops_unless_asked_to_run_unsandboxed(tmp_pa
     assert capsys.readouterr().err.count("WARNING: run without a sandbox") == 2  # one for each run
 
 
-def test_the_same_class_on_a_dask_cluster_gives_the_same_report(tmp_path, listener, request):
-    """Each student's program a task of a worker's (two workers on 127.0.0.1), each run in its own sandbox."""
+def test_a_sandbox_that_stops_starting_mid_batch_is_the_tas_one_line(tmp_path, listener, capsys, monkeypatch):
+    """The batch's check started a sandbox; then a student's does not start (a limit on processes reached):
+    exit 2 and one line naming the cause, never a traceback, and no student marked for it."""
     check_sandbox()
-    address = request.getfixturevalue("cluster_fixture")[0]
-    scenes, subs = make_class(tmp_path, listener[0], ["honest", "noglass", "loop", "link"])
-    here = tmp_path / "here"
-    there = tmp_path / "there"
-    for report, more in ((here, []), (there, ["--cluster", address])):
-        assert (
-            main(
-                [
-                    "grade-class",
-                    str(scenes),
-                    str(subs),
-                    "-o",
-                    str(report),
-                    "--tasks",
-                    str(tmp_path / "tasks.json"),
-                    "--run",
-                    RUN,
-                    *LIMITS,
-                    "-q",
-                    *more,
-                ]
-            )
-            == 0
-        )
+    scenes, subs = make_class(tmp_path, listener[0], ["honest"])
+    fake = Path(tempfile.mkdtemp(prefix="fake-bwrap-"))
+    fake.chmod(0o755)  # (a run's user runs it)
+    (fake / "bwrap").write_text(
+        '#!/bin/sh\ncase "$*" in *tracer.py*)\n'
+        "  echo 'bwrap: Creating new namespace failed: Resource temporarily unavailable' >&2; exit 1;;\nesac\n"
+        f'exec {shutil.which("bwrap")} "$@"\n'
+    )
+    (fake / "bwrap").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake}:{os.environ['PATH']}")
+    code, _, report = grade(tmp_path, scenes, subs, "--jobs", "1")
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "honest's program: the sandbox cannot start here: bwrap: Creating new namespace failed" in err
+    assert "a limit on processes was reached: the grading user's (ulimit -u" in err
+    assert not list(report.glob("gradescope/*/results.json"))
 
-    def rows(report: Path) -> list[dict]:
+
+@pytest.fixture
+def blind_cluster():
+    """A scheduler and two workers on 127.0.0.1 that share no folder with this session: each worker sees the
+    machine through bubblewrap with this session's temporary folder (every test's files) an empty one of its
+    own, and works in another folder, as a worker on another machine would."""
+    view = Path(tempfile.mkdtemp(prefix="view-")) / "worker-view"  # (bwrap by another name: no student's sandbox)
+    view.symlink_to(shutil.which("bwrap") or "bwrap")
+    hidden = ["--dev-bind", "/", "/", "--tmpfs", tempfile.gettempdir(), "--chdir", "/", "--"]
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    logs = Path(tempfile.mkdtemp(prefix="blind-dask-"))
+    scheduler = [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port)]
+    procs = [_start([*scheduler, "--dashboard-address", "127.0.0.1:0"], logs / "scheduler.log")]
+    try:
+        for k in range(2):
+            worker = [*DASK, address, "--nthreads", "1", "--no-nanny", "--host", "127.0.0.1", "--name", f"w{k}"]
+            procs.append(_start([str(view), *hidden, *worker, "--dashboard-address", "127.0.0.1:0"], logs / f"w{k}"))
+        deadline = time.monotonic() + 60
+        while _ready(address) < 2:
+            if time.monotonic() > deadline or any(p.poll() is not None for p in procs):
+                raise RuntimeError("the Dask cluster did not start: " + (logs / "w0").read_text()[-2000:])
+            time.sleep(0.3)
+        yield address
+    finally:
+        for proc in reversed(procs):
+            _stop(proc)
+
+
+def _ready(address: str) -> int:
+    try:
+        return _workers(address)
+    except OSError:
+        return 0
+
+
+def test_the_same_class_on_a_cluster_that_shares_no_folder(tmp_path, listener, blind_cluster, monkeypatch):
+    """Each student's program a task of a worker's, its folder sent as bytes: from a relative submissions path,
+    to workers that cannot see it, the same report as here (each run in its own sandbox there)."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "noglass", "loop", "link", "fourkids", "quota"])
+    monkeypatch.chdir(tmp_path)
+    for report, more in (("here", []), ("there", ["--cluster", blind_cluster])):
+        args = ["grade-class", "scenes", "subs", "-o", report, "--tasks", "tasks.json", "--run", RUN, *LIMITS]
+        assert main([*args, "--jobs", "2", "-q", *more]) == 0
+
+    def rows(report: str) -> list[dict]:
         return [
-            {k: v for k, v in r.items() if k != "run_seconds"} for r in json.loads((report / "report.json").read_text())
+            {k: v for k, v in r.items() if k != "run_seconds"}
+            for r in json.loads((tmp_path / report / "report.json").read_text())
         ]
 
-    assert rows(there) == rows(here)
-    assert {(r["student"], r["task"]): r["status"] for r in rows(there) if r["status"] == "fail"} == {
-        ("noglass", "glass"): "fail",
-        ("loop", "glass"): "fail",
-        ("link", "glass"): "fail",
+    assert rows("there") == rows("here")
+    failed = {(r["student"], r["task"]): r["run"] for r in rows("there") if r["status"] == "fail"}
+    assert failed == {
+        ("noglass", "glass"): "ok",
+        ("loop", "glass"): "timeout",
+        ("link", "glass"): "no-output",
+        ("fourkids", "glass"): "memory",
+        ("quota", "glass"): "timeout",
     }
     for student in ("honest", "noglass"):
-        assert (there / "gradescope" / student / "results.json").read_text() == (
-            here / "gradescope" / student / "results.json"
+        assert (tmp_path / "there" / "gradescope" / student / "results.json").read_text() == (
+            tmp_path / "here" / "gradescope" / student / "results.json"
         ).read_text()
     assert left_running() == []
 

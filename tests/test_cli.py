@@ -516,12 +516,12 @@ def test_compare_grades_two_images_without_a_scene(files, capsys, tmp_path):
     assert capsys.readouterr().out.startswith("FAIL: ") and (tmp_path / "h.png").exists()
     for image, says in (
         ("small.png", "small.png: image is 10×10 pixels, the reference is 160×120"),
-        ("photo.jpg", "photo.jpg: image is a JPEG; PNG required"),
+        ("photo.jpg", "photo.jpg: image is a JPEG; PNG or PPM required"),
     ):
         assert main(["compare", str(files / "right.png"), str(files / image)]) == 2
         assert capsys.readouterr().err == f"phongray: {files}/{says}\n"
     assert main(["compare", str(files / "photo.jpg"), str(files / "right.png")]) == 2
-    assert capsys.readouterr().err == f"phongray: {files}/photo.jpg: image is a JPEG; PNG required\n"
+    assert capsys.readouterr().err == f"phongray: {files}/photo.jpg: image is a JPEG; PNG or PPM required\n"
 
 
 def test_no_traceback_for_a_closed_pipe(tmp_path):

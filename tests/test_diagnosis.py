@@ -92,16 +92,22 @@ def test_nnls_is_non_negative_and_exact_where_it_can_be():
 
 
 def classroom() -> dict[str, dict]:
-    """Three scenes that every mistake of the list changes: anti-aliased, every light type, glass and a mirror."""
+    """Three scenes that every mistake of the list changes: anti-aliased, every light type (a spot with a soft
+    edge), glass, a mirror and a checkerboard."""
     a = copy.deepcopy(EVERYTHING)
     a["image"] = {"width": 64, "height": 48, "max_depth": 2, "samples": 2}
+    a["lights"][2]["inner_cutoff"] = 16
+    a["objects"][4]["material"] = "tiles"  # the triangle at the back
+    a["materials"]["tiles"] = {"diffuse": [0.6, 0.5, 0.4], "specular": 0.7, "shininess": 30}
+    a["materials"]["tiles"]["checker"] = {"size": 0.4, "material": "dark"}
+    a["materials"]["dark"] = {"diffuse": [0.1, 0.1, 0.3], "specular": 0.5, "shininess": 10}
     b = copy.deepcopy(a)
     b["camera"] = {"position": [-2.5, 1.5, 4.5], "look_at": [0.3, 0.5, 0], "fov": 50}
     b["lights"][1]["position"] = [2, 5, 2]
     c = copy.deepcopy(a)
     c["camera"] = {"position": [1.5, 3.5, 4], "look_at": [-0.2, 0.4, 0], "fov": 40}
     c["materials"]["m"]["checker"] = {"size": 0.5, "material": "dark"}
-    c["materials"]["dark"] = {"diffuse": [0.1, 0.1, 0.3], "specular": 0.5, "shininess": 10}
+    c["objects"][4]["material"] = "m"  # (checkered with the rest)
     return {"front": a, "side": b, "checker": c}
 
 

@@ -342,6 +342,37 @@ def test_playground_grades_right_and_wrong_images(server, browser, tmp_path):
     page.close()
 
 
+def test_playground_grades_a_ppm_and_shows_it(server, browser, tmp_path):
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(io.BytesIO(post_json(server, "/render", SCENE))).convert("RGB"))
+    h, w, _ = pixels.shape
+    (tmp_path / "image.ppm").write_bytes(f"P6\n# a student's\n{w} {h}\n255\n".encode() + pixels.tobytes())
+    text = "\n".join(" ".join(map(str, p)) for p in pixels.reshape(-1, 3))
+    (tmp_path / "plain.ppm").write_text(f"P3\n{w} {h}\n255\n{text}\n")
+    page = offline_page(browser, server)
+    page.goto(server + "/")
+    page.click("#tab-grade")
+    for name in ("image.ppm", "plain.ppm"):
+        page.set_input_files("#upload", str(tmp_path / name))
+        page.wait_for_selector("#verdict.pass", timeout=20_000)
+        page.wait_for_function(
+            "() => { const i = document.getElementById('grade-submission'); return i && i.naturalWidth === 160; }",
+            timeout=20_000,
+        )
+        shown = page.evaluate(
+            """() => { const i = document.getElementById('grade-submission'), c = document.createElement('canvas');
+                c.width = i.naturalWidth; c.height = i.naturalHeight; const x = c.getContext('2d');
+                x.drawImage(i, 0, 0); return Array.from(x.getImageData(80, 60, 1, 1).data.slice(0, 3)); }"""
+        )
+        assert shown == pixels[60, 80].tolist(), name  # the submission shown is its very pixels
+    assert page.outside == []
+    page.close()
+
+
 def test_playground_with_an_api_key(tmp_path, browser):
     with running_server(tmp_path, api_key="opensesame") as (url, _):
         page = browser.new_page()

@@ -177,7 +177,7 @@ def multipart(scene: bytes, image: bytes) -> tuple[bytes, str]:
     [
         ("PNG bomb", png_bomb(), "50000×50000"),
         ("corrupt PNG", b"\x89PNG\r\n\x1a\n" + b"\x00" * 40, "corrupt"),
-        ("JPEG", b"\xff\xd8\xff\xe0" + b"\x00" * 100, "image is a JPEG; PNG required"),
+        ("JPEG", b"\xff\xd8\xff\xe0" + b"\x00" * 100, "image is a JPEG; PNG or PPM required"),
     ],
 )
 def test_hostile_images_are_refused_fast(server, name, image, says):

@@ -10,6 +10,7 @@ from schemas import load_scene
 from service.classgrade.records import GradeJob
 from service.programs import Limits, check_sandbox
 from service.programs.job import Program, ProgramJob, TaskScene, digest, grade_program
+from service.programs.pack import pack_folder
 from tracer import encode_png, render
 
 HERE = Path(__file__).parent / "programs"
@@ -106,3 +107,19 @@ def test_an_output_that_is_not_a_png_is_invalid_as_an_upload_would_be(tmp_path, 
     garbage = 'import sys\nopen(sys.argv[2], "wb").write(b"GIF89a not a png")\nsys.exit(0)\n'
     graded = grade_program(ProgramJob(folder(tmp_path, extra=garbage), Program(RUN, limits=LIMITS), tasks[:1]))
     assert graded["spot"]["status"] == "invalid" and "experiment" not in graded["spot"]
+
+
+def test_a_job_sent_with_its_pack_runs_the_packed_folder_wherever_it_is(tmp_path, tasks):
+    """Where a job runs the student's folder may not exist (a Dask worker): what runs is the pack it carries;
+    a pack of a folder over the limit fails every task, as the folder would."""
+    student = folder(tmp_path, "no-refraction")
+    program = Program(RUN, build="sh build.sh", limits=LIMITS)
+    (student / "build.sh").write_text("echo built\n")
+    pack = pack_folder(student, LIMITS.folder_bytes)
+    elsewhere = tmp_path / "not-here" / "student"
+    graded = grade_program(ProgramJob(elsewhere, program, tasks, pack))
+    assert graded["spot"]["status"] == "pass"
+    assert graded["glass"]["experiment"] == "reflection right, refraction missing"
+    too_large = pack_folder(student, 100)
+    for row in grade_program(ProgramJob(elsewhere, program, tasks, too_large)).values():
+        assert row["reason"] == "the build failed: folder-too-large: the student's folder is larger than the limit"

@@ -7,7 +7,6 @@ struct).  Each test asserts the outcome's reason, and what a hostile program cou
 import os
 import shutil
 import socket
-import subprocess
 import tempfile
 import textwrap
 import threading
@@ -26,7 +25,8 @@ from service.programs import (
     check_sandbox,
     run_program,
 )
-from service.programs.sandbox import UID_BASE, UID_SPAN
+
+from helpers import left_in_sandboxes
 
 #: a small PNG writer every test program starts with: write_png(path) writes a 4×3 red image
 PRELUDE = textwrap.dedent("""\
@@ -47,6 +47,10 @@ QUICK = Limits(wall_seconds=5.0, cpu_seconds=10, memory_bytes=512 << 20, output_
 
 @pytest.fixture
 def course(tmp_path):
+    return make_course(tmp_path)
+
+
+def make_course(tmp_path: Path) -> Path:
     """The TA's scene folder (with a secret reference) and a class of two students: 'ann' (the one run) and
     'bob', whose folder holds his own secret."""
     scenes = tmp_path / "scenes"
@@ -73,17 +77,9 @@ def run(course: Path, body: str, limits: Limits = QUICK, sandbox: bool = True):
 
 
 def left_running(word: str | None = None) -> list[str]:
-    """The processes on the machine whose command line holds ``word``, or that run as a sandbox's user, not
-    counting zombies: the sandbox's first process, once dead, is not reaped by bubblewrap but by the
-    machine's init, a moment later (a zombie runs nothing and holds no memory)."""
-    ps = subprocess.run(["ps", "-eo", "uid=,stat=,args="], capture_output=True, text=True, check=True).stdout
-    left = []
-    for line in ps.splitlines():
-        uid, stat, args = line.split(None, 2)
-        sandboxed = UID_BASE <= int(uid) < UID_BASE + UID_SPAN
-        if not stat.startswith("Z") and (sandboxed or (word is not None and word in args and "ps -eo" not in args)):
-            left.append(line)
-    return left
+    """What this test's runs left running: a sandbox or anything under it, or a process whose command line
+    holds ``word``; zombies do not count (a zombie runs nothing and holds no memory)."""
+    return left_in_sandboxes(word)
 
 
 def runs_on_disk() -> set[str]:

@@ -234,7 +234,7 @@ def test_one_pixel_shift_is_forgiven_by_the_neighbourhood_measure(api, reference
     "image, says",
     [
         (png_of(np.zeros((10, 10, 3), np.uint8)), "10×10 pixels, the scene is 160×120"),
-        (b"GIF89a" + b"\0" * 100, "image is a GIF; PNG required"),
+        (b"GIF89a" + b"\0" * 100, "image is a GIF; PNG or PPM required"),
         (b"", "image is empty (0 bytes)"),
     ],
 )

@@ -49,6 +49,23 @@ def pixels(options=REFERENCE, data=EVERYTHING):
     return Renderer(schemas.validate_scene(data), options).pixels()
 
 
+def _bright():
+    """EVERYTHING anti-aliased, with a coloured light bright enough that a term alone passes 1, a spot of a
+    steep falloff and a soft edge, and a checkerboard: every mistake of VARIANTS and MORE_VARIANTS shows in it."""
+    import copy
+
+    data = copy.deepcopy(EVERYTHING)
+    data["image"].update(samples=2)
+    data["lights"][1].update(color=[4.0, 2.0, 1.0])
+    data["lights"][2].update(exponent=8, color=[0.6, 0.9, 1.4], inner_cutoff=12)
+    data["materials"]["m"]["checker"] = {"size": 0.5, "material": "dark"}
+    data["materials"]["dark"] = {"diffuse": [0.1, 0.1, 0.3], "specular": 0.5, "shininess": 10}
+    return data
+
+
+BRIGHT = _bright()
+
+
 def test_the_reference_options_are_the_reference_render():
     data = scene_dict("04_whitted")
     assert np.array_equal(pixels(Options(), data), Renderer(schemas.validate_scene(data)).pixels())
@@ -58,7 +75,7 @@ def test_the_reference_options_are_the_reference_render():
 
 @pytest.mark.parametrize("name", sorted(VARIANTS))
 def test_every_variant_changes_the_image(name):
-    assert np.mean(np.any(pixels(VARIANTS[name][0]) != pixels(), axis=2)) > 0.001
+    assert np.mean(np.any(pixels(VARIANTS[name][0], BRIGHT) != pixels(data=BRIGHT), axis=2)) > 0.001
 
 
 def test_variants_that_are_a_function_of_the_image():
@@ -155,26 +172,11 @@ def test_every_rule_holds_somewhere_and_every_variant_the_rules_allow_shows_in_e
 
     held = {name for data in PLAIN.values() for name in UNCHANGED if unchanged(name, schemas.validate_scene(data))}
     assert held == set(UNCHANGED)
-    scene = schemas.validate_scene(EVERYTHING)
+    scene = schemas.validate_scene(BRIGHT)
     assert not any(unchanged(name, scene) for name in VARIANTS)  # (each changes it: the test above)
 
 
 # -- more mistakes (MORE_VARIANTS): each the render of a student's tracer that makes it (tests/student_oop.py) ----
-
-
-def _bright():
-    """EVERYTHING anti-aliased, with a coloured light bright enough that a term alone passes 1 and a spot of a
-    steep falloff: every mistake of MORE_VARIANTS shows in it."""
-    import copy
-
-    data = copy.deepcopy(EVERYTHING)
-    data["image"].update(samples=2)
-    data["lights"][1].update(color=[4.0, 2.0, 1.0])
-    data["lights"][2].update(exponent=8, color=[0.6, 0.9, 1.4])
-    return data
-
-
-BRIGHT = _bright()
 
 
 @pytest.fixture(scope="module")
@@ -257,3 +259,106 @@ def test_a_variant_that_misreads_the_scene_reads_a_copy():
     assert all(light.color == (1.0, 1.0, 1.0) for light in read.lights if light.type != "ambient")
     assert [light.exponent for light in read.lights if light.type == "spot"] == [0.0]
     assert read.lights[0] == scene.lights[0]  # the ambient light as it is
+
+
+# -- the mistakes an image may not tell from another, and more that tracers written from the format make ---------
+
+#: classic mistakes each a switch of both students' tracers (tests/student.py, tests/student_oop.py), made their own way
+BOTH_STUDENTS = (
+    "reflect-sign",
+    "checker-ignored",
+    "colours-not-clamped",
+    "ambient-from-diffuse",
+    "spot-ramp-angle",
+    "transparent-no-shadows",
+)
+
+
+@pytest.mark.parametrize("name", BOTH_STUDENTS)
+def test_a_variant_is_the_image_of_either_student_who_makes_the_mistake(bright, name):
+    import student
+    import student_oop
+
+    from service.grading import grade
+
+    scene, reference = bright
+    variant = Renderer(scene, VARIANTS[name][0]).pixels()
+    for made in (student.render(scene, [name]), student_oop.render(scene, [name])):
+        assert not grade(reference, made, "").passed  # the mistake shows
+        assert grade(variant, made, "").passed  # and the variant is it
+
+
+def test_colours_not_clamped_are_kept_modulo_256():
+    from tracer.image import wrapped
+
+    assert wrapped(np.array([0.5, 1.0, 1.5, 2.0, np.nan])).tolist() == [128, 255, 127, 254, 0]
+    scene = schemas.validate_scene(BRIGHT | {"image": BRIGHT["image"] | {"samples": 1}})
+    renderer = Renderer(scene, VARIANTS["colours-not-clamped"][0])
+    img = scene.image
+    linear = renderer.chunk(0, img.width * img.height)
+    # brighter than the reference's film keeps a pixel of one sample (it saturates it at 2): a student wraps it
+    assert Renderer(scene).chunk(0, img.width * img.height).max() <= 2.0 < linear.max()
+    assert np.array_equal(renderer.pixels().reshape(-1, 3), wrapped(linear))
+
+
+def test_a_spot_ramped_in_the_angle_is_half_way_at_the_middle_angle():
+    from tracer.lights import Emitter, spot_factor
+
+    outer, inner = np.radians(30.0), np.radians(10.0)
+    spot = Emitter(
+        "point",
+        np.ones(3),
+        np.zeros(3),
+        np.array([0.0, 0.0, -1.0]),
+        np.array([1.0, 0.0, 0.0]),
+        cos_outer=float(np.cos(outer)),
+        cos_inner=float(np.cos(inner)),
+        exponent=0.0,
+    )
+    angled = Emitter(**{**spot.__dict__, "ramp_in_angle": True})
+    off = np.radians([0.0, 5.0, 20.0, 25.0, 35.0])
+    rays = np.stack([np.sin(off), np.zeros(5), -np.cos(off)], axis=1)
+    assert np.allclose(spot_factor(angled, rays), [1.0, 1.0, 0.5, 0.25, 0.0], atol=1e-12)
+    cosine = (np.cos(off[2:4]) - np.cos(outer)) / (np.cos(inner) - np.cos(outer))  # the format's ramp
+    assert np.allclose(spot_factor(spot, rays)[2:4], cosine, atol=1e-12)
+
+
+def _glass_over_floor(opaque_ball: bool):
+    objects = [
+        {"type": "plane", "material": "floor", "point": [0, 0, 0], "normal": [0, 1, 0]},
+        {"type": "sphere", "material": "glass", "center": [-0.6, 0.6, 0], "radius": 0.5},
+    ]
+    if opaque_ball:
+        objects.append({"type": "sphere", "material": "floor", "center": [0.7, 0.5, 0], "radius": 0.4})
+    return schemas.validate_scene(
+        {
+            "camera": {"position": [0, 2.5, 4], "look_at": [0, 0.3, 0], "fov": 50},
+            "image": {"width": 40, "height": 30},
+            "materials": {"floor": {}, "glass": {"transmittance": 0.9, "specular": 0.0}},
+            "objects": objects,
+            "lights": [{"type": "point", "color": 1, "position": [3, 3, 3]}, {"type": "ambient", "color": 0.2}],
+        }
+    )
+
+
+def test_transparent_objects_that_cast_no_shadow_leave_the_opaque_ones_theirs():
+    alone, both = _glass_over_floor(False), _glass_over_floor(True)
+    through, unshadowed = VARIANTS["transparent-no-shadows"][0], VARIANTS["no-shadows"][0]
+    # glass alone: its shadow is gone, as if nothing cast one (the same numbers, to the byte)
+    assert np.array_equal(Renderer(alone, through).pixels(), Renderer(alone, unshadowed).pixels())
+    assert not np.array_equal(Renderer(alone, through).pixels(), Renderer(alone).pixels())
+    # an opaque ball beside it keeps its shadow
+    assert np.any(Renderer(both, through).pixels() != Renderer(both, unshadowed).pixels())
+
+
+def test_the_ambient_from_k_d_and_the_checker_ignored_are_the_scene_so_changed():
+    import copy
+
+    data = copy.deepcopy(BRIGHT)
+    plain = copy.deepcopy(data)
+    plain["materials"]["m"].pop("checker")
+    assert np.array_equal(pixels(VARIANTS["checker-ignored"][0], data), pixels(data=plain))
+    swapped = copy.deepcopy(data)
+    for m in swapped["materials"].values():
+        m["ambient"] = m.get("diffuse", 0.5)
+    assert np.array_equal(pixels(VARIANTS["ambient-from-diffuse"][0], data), pixels(data=swapped))

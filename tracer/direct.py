@@ -37,6 +37,7 @@ from .lights import Emitter, LightGroup
 from .passes import UNOBSERVED, Observer, Seen
 from .planner import ProofPlan
 from .rays import Among, Hits, Rays, Shadows
+from .seethrough import Opaque
 from .shading import add_phong, planes_holding
 from .spawn import Spawner, picker
 from .surfaces import max_abs
@@ -82,6 +83,8 @@ class DirectLight:
         self.holds = planes_holding(world, world.emitters)
         #: where shadow rays are born (the renderer's, with a variant's offset when it has one)
         self.spawner = Spawner(world, options, None)
+        #: the opaque surfaces alone, for a variant's shadow rays that pass through transparent ones
+        self.opaque = None if options.transparent_shadows else Opaque(world)
 
     def shade(
         self, hit: Hits, mat: np.ndarray, normal: np.ndarray, dirs: np.ndarray, observer: Observer = UNOBSERVED
@@ -94,8 +97,9 @@ class DirectLight:
         # (N, 3) arrays whose columns are contiguous, each gathered a column at a time: every light adds to them
         # a column at a time (add_phong)
         colour, diffuse, specular = columns(len(mat)), columns(len(mat)), columns(len(mat))
+        ka = m.diffuse if opt.ambient_from_diffuse else m.ambient  # (a variant's k_d for k_a)
         for k in range(3):
-            np.take(m.ambient[:, k], mat, out=colour[:, k])
+            np.take(ka[:, k], mat, out=colour[:, k])
             colour[:, k] *= self.world.ambient[k]
             np.take(m.diffuse[:, k], mat, out=diffuse[:, k])
             np.take(m.specular[:, k], mat, out=specular[:, k])
@@ -196,6 +200,8 @@ class DirectLight:
         else:
             mag_light = max_abs(em.position[None]) + self.world.origin_mag
             shadows = Shadows(rays, pick(reach.dist), em.position[None], mag_light)  # one light for every ray
+        if self.opaque is not None:  # (no proof: the plan's bounds are every surface's)
+            return self.opaque.occluded(shadows, self.intersector)
         if among is None:
             among = self.plan.shadow_pairs(em, rays, shadows.reach)
         if opt.acne:

@@ -14,23 +14,30 @@ import math
 
 import numpy as np
 
-from .image import quantize
+from .image import quantize, wrapped
 from .variants import Options
 
 #: the most rays a slice of a chunk's ray tree holds for which the fixed-point unit is the same whatever the slice
 #: (the renderer's chunks on several threads: :data:`tracer.render.CHUNK_RAYS`): larger slices leave more room
 UNIT_RAYS = 1 << 16
+#: the film of a student whose colours are not clamped (a variant) saturates a sub-sample only this many times
+#: above 1 (per sub-sample of its pixel, as the reference's does at 2): its pixels wrap around in 8 bits up to
+#: there, 1024 times white, far brighter than any light a scene of a course gives a surface
+UNCLAMPED_CEILING = 1024.0
 
 
 class Film:
     """The sums of ``pixels`` pixels of ``per_pixel`` sub-samples each, added to by slices of at most
-    ``slice_rays`` rays."""
+    ``slice_rays`` rays; ``unclamped``: for a student who stores colours unclamped (wrapped), whose sub-samples
+    saturate only at :data:`UNCLAMPED_CEILING` (a fixed-point unit 2⁹ times the reference's, still
+    far finer than a level)."""
 
-    def __init__(self, pixels: int, per_pixel: int, slice_rays: int):
+    def __init__(self, pixels: int, per_pixel: int, slice_rays: int, unclamped: bool = False):
         n = pixels * per_pixel
         self.pixels, self.per_pixel = pixels, per_pixel
         self.acc = np.zeros((3, n), dtype=np.int64).T  # (n, 3), its columns contiguous (add)
-        self.ceiling = float(2 * per_pixel)  # a sub-sample this bright saturates its pixel: sums are clamped there
+        # a sub-sample this bright saturates its pixel: sums are clamped there
+        self.ceiling = float((UNCLAMPED_CEILING if unclamped else 2) * per_pixel)
         # the fixed-point unit leaves room for a slice's worth of contributions on top of a clamped sum (for slices
         # of up to UNIT_RAYS, one unit whatever the slice: the same sums, and bytes, for every size)
         room = math.ceil(math.log2(max(slice_rays, UNIT_RAYS)))
@@ -66,7 +73,9 @@ class Film:
 
 
 def stored(colour: np.ndarray, options: Options) -> np.ndarray:
-    """Linear colours as the image stores them: 8-bit values (:func:`tracer.image.quantize`), after gamma 1/2.2
-    in the variant that applies it, and as a variant's student stores them (:meth:`tracer.variants.Options.stored`).
+    """Linear colours as the image stores them: 8-bit values (:func:`tracer.image.quantize`, or wrapped around
+    in the variant that does not clamp them, :func:`tracer.image.wrapped`), after gamma 1/2.2 in the variant
+    that applies it, and as a variant's student stores them (:meth:`tracer.variants.Options.stored`).
     Same shape, uint8."""
-    return options.stored(quantize(colour if not options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2)))
+    linear = colour if not options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2)
+    return options.stored(quantize(linear) if options.clamp_colour else wrapped(linear))

@@ -12,7 +12,8 @@ a column at a time):
   elsewhere;
 * the caller's shadow rays set ``w`` to 0 where the light is blocked;
 * :meth:`Kernel.terms`: ``wd = w·(N·L)`` and ``ws = w·max(0, R·V)^n``, with
-  ``R·V = 2(N·L)(N·V) + L·D`` (V = −D), or N·H for Blinn–Phong (a variant).
+  ``R·V = 2(N·L)(N·V) + L·D`` (V = −D), or N·H for Blinn–Phong (a variant), or
+  −R·V for a reflected vector of the wrong sign (another).
 
 ``max(0, R·V)^n`` is 0 where R·V ≤ 0, also for n = 0: the power is taken of 1
 there and multiplied by 0.
@@ -112,6 +113,8 @@ class Kernel:
             dot_into(rv, reach.to_light, self.dirs, tmp)
             np.multiply(nl, self.nv2, out=tmp)
             rv += tmp
+            if self.options.reflect_flipped:  # a variant's R = L − 2(N·L)N: −R·V
+                np.negative(rv, out=rv)
         np.greater(rv, 0.0, out=pos)
         np.copyto(rv, 1.0, where=~pos)
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):

@@ -35,6 +35,7 @@ class Emitter:
     cos_outer: float = -2.0  # spot: cos(cutoff); -2 means "no cone"
     cos_inner: float = -2.0
     exponent: float = 0.0
+    ramp_in_angle: bool = False  # spot: the ramp linear in the angle off the axis (a variant's), not its cosine
 
     @property
     def is_spot(self) -> bool:
@@ -87,6 +88,7 @@ def _spot(light: SpotLight, origin: np.ndarray, options: Options) -> Emitters:
             cos_outer=math.cos(angle(light.cutoff)),
             cos_inner=math.cos(angle(light.inner)),
             exponent=light.exponent,
+            ramp_in_angle=options.spot_ramp_angle,
         )
     ]
 
@@ -209,7 +211,13 @@ def spot_factor(em: Emitter, from_light: np.ndarray) -> np.ndarray:
     s = from_light @ em.direction
     with np.errstate(invalid="ignore", divide="ignore"):
         span = em.cos_inner - em.cos_outer
-        ramp = np.where(s >= em.cos_inner, 1.0, (s - em.cos_outer) / (span if span > 0 else 1.0))
+        if em.ramp_in_angle:  # a variant's F = (θ_out − θ) / (θ_out − θ_in), θ the angle off the axis
+            outer = math.acos(max(-1.0, min(1.0, em.cos_outer)))
+            wide = outer - math.acos(max(-1.0, min(1.0, em.cos_inner)))
+            into = (outer - np.arccos(np.clip(s, -1.0, 1.0))) / (wide if wide > 0 else 1.0)
+        else:
+            into = (s - em.cos_outer) / (span if span > 0 else 1.0)
+        ramp = np.where(s >= em.cos_inner, 1.0, into)
         powered = np.where(s > 0, np.power(np.maximum(s, 0.0), em.exponent), 0.0 if em.exponent > 0 else 1.0)
     return np.where(s < em.cos_outer, 0.0, powered * ramp)
 

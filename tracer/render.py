@@ -314,7 +314,7 @@ class Renderer:
                 self.camera.rays_of(pixel_numbers(pixels))
             n = len(origins)
             self._count("primary", n)
-            film = Film(stop - start, s, self.slice_rays)
+            film = Film(stop - start, s, self.slice_rays, not self.options.clamp_colour)
             camera = Work(self.intersector.rays(origins, dirs), np.arange(n), np.ones(n), 0,
                           None if tally is None else np.zeros(n, dtype=np.int8))
             stack: list[Work] = [camera]

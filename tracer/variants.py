@@ -48,6 +48,13 @@ class Options:
     exit_normal_flipped: bool = True  # a refracted ray leaving uses w = −n (False: the outward n, as entering)
     grayscale: bool = False  # the 8-bit image stored as grey, L = 0.299 R + 0.587 G + 0.114 B (Pillow's "L")
     channels_swapped: bool = False  # the 8-bit image stored as BGR
+    # -- the mistakes that image alone may not tell from another (issue 52) --
+    reflect_flipped: bool = False  # the specular's R = L − 2(N·L)N, the reflected vector with the wrong sign
+    checker_read: bool = True  # a material's checker read (False: every hit shaded with its object's material)
+    clamp_colour: bool = True  # pixels clamped to [0, 1] (False: floor(255·v + 0.5) stored modulo 256, wrapped)
+    ambient_from_diffuse: bool = False  # the ambient term k_d ⊙ Σ ambient instead of k_a ⊙ Σ ambient
+    spot_ramp_angle: bool = False  # a spot's ramp from inner_cutoff to cutoff linear in the angle, not its cosine
+    transparent_shadows: bool = True  # objects with k_t > 0 block shadow rays (False: shadow rays pass them)
 
     @property
     def reference(self) -> bool:
@@ -60,13 +67,19 @@ class Options:
 
     def read(self, scene: Any) -> Any:
         """``scene`` as this render's student reads it: one sample per pixel, spots without their exponent,
-        lights without their colour, as the options say; ``scene`` itself when they read it as it is (the
-        reference's path).  The copy is not validated again: each change keeps it valid (samples 1, exponent 0,
-        colour [1, 1, 1] are all in range)."""
-        if self.samples_read and self.spot_exponent and self.light_colour:
+        lights without their colour, materials without their checker, as the options say; ``scene`` itself
+        when they read it as it is (the reference's path).  The copy is not validated again: each change keeps
+        it valid (samples 1, exponent 0, colour [1, 1, 1] are all in range; a material with no checker is one)."""
+        if self.samples_read and self.spot_exponent and self.light_colour and self.checker_read:
             return scene
         image = scene.image if self.samples_read else scene.image.model_copy(update={"samples": 1})
-        return scene.model_copy(update={"image": image, "lights": [self._light(light) for light in scene.lights]})
+        materials = (
+            scene.materials
+            if self.checker_read
+            else {name: m.model_copy(update={"checker": None}) for name, m in scene.materials.items()}
+        )
+        lights = [self._light(light) for light in scene.lights]
+        return scene.model_copy(update={"image": image, "lights": lights, "materials": materials})
 
     def _light(self, light: Any) -> Any:
         update: dict[str, Any] = {}
@@ -152,6 +165,21 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "ior-inverted": (Options(ior_inverted=True), "the index of refraction inverted"),
     # (rendered at 2e-2 of the visible size; the diagnosis scores it against a ladder of amounts, and says which)
     "offset-too-large": (Options(offset=2e-2), "shadow and secondary rays offset too far from the surface"),
+    "reflect-sign": (Options(reflect_flipped=True), "the reflected vector R with the wrong sign (L − 2(N·L)N)"),
+    "checker-ignored": (Options(checker_read=False), "the checkerboard ignored"),
+    "colours-not-clamped": (
+        Options(clamp_colour=False),
+        "colours not clamped: values above 1 wrap around in 8 bits instead of staying white",
+    ),
+    "ambient-from-diffuse": (Options(ambient_from_diffuse=True), "the ambient term scaled by k_d instead of k_a"),
+    "spot-ramp-angle": (
+        Options(spot_ramp_angle=True),
+        "a spot's falloff from inner_cutoff to cutoff linear in the angle instead of in its cosine",
+    ),
+    "transparent-no-shadows": (
+        Options(transparent_shadows=False),
+        "transparent objects cast no shadows (shadow rays pass through objects with k_t > 0)",
+    ),
 }
 
 #: more mistakes a student's tracer written from the format makes (issue 47): name → (options, what a student
@@ -297,6 +325,24 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     # the normal is read only where a refracted ray is spawned
     "exit-normal-not-flipped": lambda scene: (
         scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0)
+    ),
+    # -- of the mistakes an image may not tell from another --
+    # −R·V is read only where R·V is: in the specular term
+    "reflect-sign": lambda scene: not _specular(scene),
+    # a checker is read only of an object's own material (the other cell's has none)
+    "checker-ignored": lambda scene: not any(scene.materials[o.material].checker for o in scene.objects),
+    # k_d read for k_a: the same where they are equal, and times 0 without ambient light
+    "ambient-from-diffuse": lambda scene: (
+        not any(light.type == "ambient" and any(v != 0 for v in light.color) for light in scene.lights)
+        or not _materials(scene, lambda m: m.ambient != m.diffuse)
+    ),
+    # with inner_cutoff = cutoff there is no ramp to be linear: S is s^exponent inside the cone, 0 outside
+    "spot-ramp-angle": lambda scene: (
+        not any(light.type == "spot" and light.inner < light.cutoff for light in scene.lights)
+    ),
+    # with no transparent object (or no light to cast shadows), every surface blocks either way
+    "transparent-no-shadows": lambda scene: (
+        not _lit(scene) or not any(scene.materials[o.material].transmittance > 0 for o in scene.objects)
     ),
 }
 

@@ -10,7 +10,9 @@ student's files in ``/autograder/submission``; the results go to
 ``/autograder/results/results.json``.
 
 A submission is graded as a class of one student by :func:`service.classgrade.grade_class`, so its
-``results.json`` is the one a class report gives that student.  ``PHONGRAY_AUTOGRADER_ROOT`` moves
+``results.json`` is the one a class report gives that student; the upload is laid out as that student's
+folder by :mod:`.uploads` (images one folder down found, near misses named, files named as the student
+named them).  ``PHONGRAY_AUTOGRADER_ROOT`` moves
 ``/autograder`` elsewhere (a test, a dry run).
 """
 
@@ -20,7 +22,6 @@ import importlib.metadata
 import io
 import json
 import os
-import re
 import shutil
 import sys
 import tempfile
@@ -29,10 +30,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_json
+from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
 from .errors import ClassError
 from .taskfile import TaskSettings, load_tasks
-from .untrusted import UntrustedFileError, read_untrusted
+from .uploads import LaidOut, as_uploaded, lay_out
 
 if TYPE_CHECKING:
     from ..programs.program import Program
@@ -47,8 +48,6 @@ PACKAGES = ("schemas", "tracer", "service", "bench")
 STAMP = (2024, 1, 1, 0, 0, 0)
 #: the variable that names the bundle's accepted variants rendered beforehand (service.diagnosis.accepting.STORED)
 STORED = "PHONGRAY_ACCEPTED_RENDERS"
-#: the largest submitted file read (as the service's max_image_bytes)
-MAX_BYTES = 16 * 1024 * 1024
 
 
 @dataclass(frozen=True)
@@ -69,10 +68,11 @@ def build(
     tasks_file: Path | None = None,
     student_scenes: Path | None = None,
     program: Program | None = None,
+    requirements: Path | None = None,
 ) -> Built:
     """Write the autograder zip ``out`` for the task scenes in ``scenes`` (with a ``program``, for students'
-    programs: :mod:`.bundled`); :class:`ClassError` for a fault of the TA's (an invalid scene or tasks file, a
-    scene that does not render), before anything is written."""
+    programs: :mod:`.bundled`, and the ``requirements`` of their runtime); :class:`ClassError` for a fault of
+    the TA's (an invalid scene or tasks file, a scene that does not render), before anything is written."""
     from .submissions import discover
 
     with tempfile.TemporaryDirectory() as empty:  # (the TA's folders checked as a class of one empty folder)
@@ -86,8 +86,7 @@ def build(
             files[f"{COURSE}/student-scenes/{student}/{path.name}"] = _read(path)
     if tasks_file is not None:
         files[f"{COURSE}/tasks.json"] = _read(tasks_file)
-    if program is not None:
-        files[f"{COURSE}/{PROGRAM_FILE}"] = program_json(program)
+    files.update({f"{COURSE}/{name}": data for name, data in program_files(program, requirements, _read).items()})
     scenes_of = {
         name: text
         for name, text in files.items()
@@ -236,44 +235,6 @@ def _zip(files: dict[str, bytes]) -> bytes:
 
 # -- in Gradescope's container ---------------------------------------------------------------------------------
 
-#: what learning-management systems and browsers add to a file's name: "Spheres (1)", "spheres-2"
-SUFFIX = re.compile(r"^(?P<task>.+?)(?: ?\((?P<copy>\d+)\)|-(?P<again>\d+))?$")
-
-
-@dataclass(frozen=True)
-class Found:
-    """A submitted file taken as a task's: its name in the submission, and how late a copy it is."""
-
-    name: str
-    copy: int  # 0 for the name itself, N for "(N)" or "-N"
-
-
-def task_files(names: list[str], tasks: list[str]) -> tuple[dict[str, Found], list[tuple[str, str]]]:
-    """Which submitted file is each task's, and the files left out with the reason.  A file is a task's when
-    its name without its extension is the task's in any case, or is with a copy's suffix (``Spheres (1).png``,
-    ``spheres-1.png``); of several, the latest copy (the highest number; the name itself is the first), a PNG
-    before another format."""
-    folded = {t.casefold(): t for t in tasks}
-    found: dict[str, list[Found]] = {}
-    left: list[tuple[str, str]] = []
-    for name in names:
-        stem = name.rsplit(".", 1)[0] if "." in name else name
-        task, copy = folded.get(stem.casefold()), 0
-        match = SUFFIX.match(stem)
-        if task is None and match:
-            task = folded.get(match["task"].casefold())
-            copy = int(match["copy"] or match["again"] or 0)
-        if task is None:
-            left.append((name, f"names no task (the tasks are {', '.join(sorted(tasks))})"))
-        else:
-            found.setdefault(task, []).append(Found(name, copy))
-    chosen: dict[str, Found] = {}
-    for task, files in found.items():
-        files.sort(key=lambda f: (-f.copy, not f.name.lower().endswith(".png"), f.name))
-        chosen[task] = files[0]
-        left += [(f.name, f"another file for {task} is graded: {files[0].name}") for f in files[1:]]
-    return chosen, left
-
 
 def submitter(root: Path) -> list[str]:
     """The names a submission's students go by (``submission_metadata.json``: each user's email, the email's
@@ -327,11 +288,11 @@ def _grade(root: Path) -> dict[str, Any]:
         student = place / "submissions" / (who or "submission")
         student.mkdir(parents=True)
         laid = (
-            _lay_out(root / "submission", student, tasks)
+            lay_out(root / "submission", student, tasks)
             if program is None
-            else lay_out_program(root / "submission", student, program)
+            else LaidOut(lay_out_program(root / "submission", student, program))
         )
-        for line in laid:
+        for line in laid.lines:
             print(line)
         own = None
         if who is not None:
@@ -353,7 +314,8 @@ def _grade(root: Path) -> dict[str, Any]:
                 program=program,
             )
         )
-        return json.loads((report / "gradescope" / student.name / "results.json").read_text())
+        results = json.loads((report / "gradescope" / student.name / "results.json").read_text())
+        return as_uploaded(results, student, laid.shown)
 
 
 def _own_folder(folder: Path, names: list[str]) -> str | None:
@@ -362,28 +324,6 @@ def _own_folder(folder: Path, names: list[str]) -> str | None:
         return None
     folded = {n.casefold() for n in names}
     return next((p.name for p in sorted(folder.iterdir()) if p.name.casefold() in folded), None)
-
-
-def _lay_out(submission: Path, student: Path, tasks: list[str]) -> list[str]:
-    """Copy each task's file of the flat ``submission`` folder into ``student`` under the task's name (the
-    extension kept: a JPEG is graded as the JPEG it is); lines that say what was left out and why."""
-    try:
-        names = sorted(e.name for e in os.scandir(submission) if e.is_file(follow_symlinks=False))
-    except OSError:
-        names = []
-    chosen, left = task_files(names, tasks)
-    lines = [f"not graded: {name}: {why}" for name, why in left]
-    for task, found in chosen.items():
-        ext = found.name.rsplit(".", 1)[1].lower() if "." in found.name else "png"
-        try:
-            data = read_untrusted(submission / found.name, MAX_BYTES)
-        except UntrustedFileError as exc:
-            lines.append(f"not graded: {found.name}: {exc}")
-            continue
-        (student / f"{task}.{ext}").write_bytes(data)
-        if found.name != f"{task}.{ext}":
-            lines.append(f"graded as {task}: {found.name}")
-    return lines
 
 
 def _write(path: Path, results: dict[str, Any]) -> None:

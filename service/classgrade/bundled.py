@@ -12,6 +12,7 @@ that owns nothing of the machine), each image graded as an uploaded one.  The sc
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -23,17 +24,37 @@ if TYPE_CHECKING:
 
 #: the program's commands and limits, in the bundle's course folder
 PROGRAM_FILE = "program.json"
+#: the pip requirements of the programs' runtime (``--runtime-requirements``), which setup.sh builds
+REQUIREMENTS_FILE = "runtime-requirements.txt"
 
 
 def program_json(program: Program) -> bytes:
     """The TA's program options as the bundle keeps them."""
     return (
         json.dumps(
-            {"run": program.run, "build": program.build, "sandbox": program.sandbox, "limits": asdict(program.limits)},
+            {
+                "run": program.run,
+                "build": program.build,
+                "sandbox": program.sandbox,
+                "limits": asdict(program.limits),
+                "runtime": program.runtime,
+                "packages": list(program.packages),
+            },
             indent=1,
         )
         + "\n"
     ).encode()
+
+
+def program_files(
+    program: Program | None, requirements: Path | None, read: Callable[[Path], bytes]
+) -> dict[str, bytes]:
+    """The course folder's files of a program assignment: its program file, and the requirements of its
+    programs' runtime (which setup.sh builds), read with ``read``."""
+    files = {} if program is None else {PROGRAM_FILE: program_json(program)}
+    if requirements is not None:
+        files[REQUIREMENTS_FILE] = read(requirements)
+    return files
 
 
 def load_program(course: Path) -> Program | None:
@@ -47,7 +68,8 @@ def load_program(course: Path) -> Program | None:
         return None
     try:
         given = json.loads(path.read_text())
-        return Program(given["run"], given["build"], Limits(**given["limits"]), given["sandbox"])
+        limits, packages = Limits(**given["limits"]), tuple(given.get("packages", ()))
+        return Program(given["run"], given["build"], limits, given["sandbox"], given.get("runtime"), packages)
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ClassError(f"{path}: not a program file of this phongray's ({exc})") from None
 

@@ -3,8 +3,9 @@
 A pair that passes scores its task's points, a missing or invalid one 0.  A failing one scores 0, unless the
 tasks file gives its task ``deductions`` by mistake id (``{"no-shadows": 1}``) and the image's one fault is
 such a mistake: it passes against the reference rendered with that mistake (:mod:`service.diagnosis`).  It
-then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`); an image
-that several mistakes explain alike gets the smallest of their deductions.
+then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`).  An image
+that several mistakes explain alike (it passes against the reference rendered with each: the image cannot tell
+them apart) is graded on what it shows: it gets the smallest of the deductions the task has for them.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 from tracer.variants import VARIANTS
 
+from ..diagnosis.words import listed
 from .taskfile import TaskSettings
 
 #: the ids a deduction may name: the diagnosis's classic mistakes (tracer.variants), with what each is
@@ -62,12 +64,31 @@ def _deduction(mistake: str, task: TaskSettings) -> float | None:
     return sum(task.deductions[part] for part in parts)
 
 
+def late_policy(earned: float, task: TaskSettings) -> float:
+    """The points the late policy takes from a late pair's ``earned`` score: the task's ``late_penalty`` of its
+    points (as Canvas's late policy takes a percentage of the points possible), never below 0."""
+    return min(earned, task.late_penalty * task.points)
+
+
+def late_note(row: dict[str, Any]) -> str:
+    """What a student reads of a late pair: ``Late: handed in late (the late policy took 1 of its points)``."""
+    if not row.get("late"):
+        return ""
+    took = f"the late policy took {row['late_deducted']:g} of its points" if row.get("late_deducted") else "no penalty"
+    return f"Late: handed in late ({took})"
+
+
 def partial(row: dict[str, Any]) -> str:
-    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty."""
+    """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty; for an
+    image several mistakes explain alike, each of them: ``(no specular term, or the reflected vector R with the
+    wrong sign: -1)`` (the deduction is for what the image shows)."""
     if not row.get("deducted"):
         return ""
     lost = row["points"] - row["score"]
-    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({MISTAKES[row['deducted']]}: -{lost:g})"
+    readings = [m for m in row.get("mistakes") or [] if m in MISTAKES]
+    shown = readings if row["deducted"] in readings and len(readings) > 1 else [row["deducted"]]
+    what = listed([MISTAKES[m] for m in shown], "or")
+    return f"Partial credit: {row['score']:g} of {row['points']:g} points ({what}: -{lost:g})"
 
 
 @dataclass(frozen=True)
@@ -77,6 +98,7 @@ class Total:
     scores: dict[str, float]  # task → score
     total: float
     out_of: float
+    late: list[str]  # the tasks the LMS marked late
 
 
 def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
@@ -91,6 +113,7 @@ def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
                 {r["task"]: r["score"] for r in mine},
                 sum(r["score"] for r in mine),
                 sum(r["points"] for r in mine),
+                [r["task"] for r in mine if r.get("late")],
             )
         )
     return out
@@ -98,13 +121,14 @@ def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
 
 def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[str], cell: Any = lambda v: v) -> str:
     """``gradebook.csv``: a row per student (their name and, from a Canvas or Moodle export, the LMS's id, to
-    match on import), a column per task (its score) and the total; ``cell`` makes a text cell safe to open
-    (:func:`service.classgrade.report.safe_cell`)."""
+    match on import), a column per task (its score), the total and the tasks handed in late; ``cell`` makes a
+    text cell safe to open (:func:`service.classgrade.report.safe_cell`)."""
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_MINIMAL)
-    writer.writerow(["student", "id", *map(cell, tasks), "total"])
+    writer.writerow(["student", "id", *map(cell, tasks), "total", "late"])
     for t in totals(rows, students):
         name = cell(t.student)
-        row = [name, t.lms_id, *(f"{t.scores[task]:g}" for task in tasks), f"{t.total:g}"]
+        late = cell(" ".join(t.late))
+        row = [name, t.lms_id, *(f"{t.scores[task]:g}" for task in tasks), f"{t.total:g}", late]
         (csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_ALL) if "\r" in name else writer).writerow(row)
     return buf.getvalue()

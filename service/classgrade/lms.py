@@ -5,7 +5,7 @@ a file's name is for.
 * **Moodle** downloads a folder per submission, ``Ada Adams_123456_assignsubmission_file_/<task>.png``
   (the student is "Ada Adams"), or, not in folders, ``Ada Adams_123456_assignsubmission_file_<task>.png``.
 * **Canvas** downloads one flat folder of ``<login>[_LATE]_<user id>_<submission id>_<task>.png``
-  (``adamsada_LATE_12345_67890_spheres-1.png`` is adamsada's spheres).
+  (``adamsada_LATE_12345_67890_spheres-1.png`` is adamsada's spheres, handed in late).
 
 A file's name is forgiven its case (``Spheres.PNG``) and the suffixes a resubmission or a browser's second
 download adds (``spheres-1.png``, ``Spheres (1).png``).  Two students of one name (two ids) are told apart by
@@ -27,7 +27,7 @@ MOODLE_FOLDER = re.compile(r"^(?P<name>[^.].*)_(?P<id>\d+)_assignsubmission_[a-z
 #: Moodle's file of one submission when it is downloaded without folders
 MOODLE_FILE = re.compile(r"^(?P<name>[^.].*?)_(?P<id>\d+)_assignsubmission_file_(?P<file>.+)$")
 #: Canvas's file of one submission: login, LATE when late, user id, submission id, the file's own name
-CANVAS_FILE = re.compile(r"^(?P<name>[^_.][^_]*?)(?:_late)?_(?P<id>\d+)_\d+_(?P<file>.+)$", re.IGNORECASE)
+CANVAS_FILE = re.compile(r"^(?P<name>[^_.][^_]*?)(?P<late>_late)?_(?P<id>\d+)_\d+_(?P<file>.+)$", re.IGNORECASE)
 #: what a resubmission or a second download appends to a file's name: ``-1`` (Canvas), `` (1)`` (browsers)
 RESUBMITTED = re.compile(r"^(?P<base>.+?)(?:-\d+| \(\d+\))$")
 #: the layouts a submissions folder may have, in words, for a folder in which no student is found
@@ -46,6 +46,8 @@ class Owner:
     name: str  # the student's name as the LMS gives it
     id: str  # the LMS's id of the student ("" for a plain folder)
     file: str = ""  # for a flat file, the name the student gave it (spheres-1.png)
+    lms: str = ""  # the LMS whose naming it is: "canvas", "moodle" ("" for a plain folder)
+    late: bool = False  # the LMS marked the file late (Canvas's _LATE_)
 
 
 def composed(name: str) -> str:
@@ -59,13 +61,17 @@ def composed(name: str) -> str:
 def folder_owner(name: str) -> Owner:
     """The student a folder of the submissions folder is of: Moodle's name and id, else the folder's name."""
     moodle = MOODLE_FOLDER.match(name)
-    return Owner(composed(moodle["name"]), moodle["id"]) if moodle else Owner(composed(name), "")
+    return Owner(composed(moodle["name"]), moodle["id"], lms="moodle") if moodle else Owner(composed(name), "")
 
 
 def file_owner(name: str) -> Owner | None:
-    """The student a file lying in the submissions folder itself is of (Moodle's or Canvas's naming), or None."""
-    found = MOODLE_FILE.match(name) or CANVAS_FILE.match(name)
-    return Owner(composed(found["name"]), found["id"], found["file"]) if found else None
+    """The student a file lying in the submissions folder itself is of (Moodle's or Canvas's naming), or None;
+    a Canvas file marked ``_LATE_`` (or ``_late_``) is late."""
+    if moodle := MOODLE_FILE.match(name):
+        return Owner(composed(moodle["name"]), moodle["id"], moodle["file"], "moodle")
+    if canvas := CANVAS_FILE.match(name):
+        return Owner(composed(canvas["name"]), canvas["id"], canvas["file"], "canvas", canvas["late"] is not None)
+    return None
 
 
 def student_names(owners: Iterable[Owner]) -> dict[Owner, str]:

@@ -3,19 +3,23 @@
 ``SUBMISSIONS/<student>/`` holds a student's program (:func:`discover_programs`).  Each student with a task
 left to grade is one task of the backend, :func:`service.programs.job.grade_program`: the program built once,
 then run on each of its task scenes, each run in a sandbox of its own, each image graded as an uploaded one;
-in a pool here or on a Dask worker alike.  What it returns is kept pair by pair as an image's grade is
-(:func:`~service.classgrade.run.keep_grade`: the heat-map, the copy of the image, the journal), so the
-report, resuming and Gradescope's results are those of images.  A kept grade stands for the program's files
-and commands (:func:`service.programs.job.digest`): a student who changed nothing is not run again.
+in a pool here or on a Dask worker alike, the student's folder sent with the task as bytes
+(:mod:`service.programs.pack`), so that a worker needs no shared file system.  What it returns is kept pair by
+pair as an image's grade is (:func:`~service.classgrade.run.keep_grade`: the heat-map, the copy of the image,
+the journal), so the report, resuming and Gradescope's results are those of images.  A kept grade stands for
+the program's files and commands (:func:`service.programs.job.digest`): a student who changed nothing is not
+run again.
 
 The TA's mistakes stop the batch before any student is run (:func:`check_programs`): a command that cannot
-run, bubblewrap missing or unable to start (unless ``--no-sandbox``), ``--server`` (which grades images).
+run, bubblewrap missing or unable to start (unless ``--no-sandbox``), a runtime that is not installed or does
+not start in the sandbox, ``--server`` (which grades images).
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,13 +40,21 @@ def check_programs(run: ClassRun) -> None:
             f"Dask cluster (--cluster)"
         )
     from ..programs import SandboxUnavailable, check_sandbox
+    from ..programs.runtime import check_runtime, runtime_starts
 
-    assert run.program is not None
-    if run.program.sandbox:
-        try:
+    program = run.program
+    assert program is not None
+    problem = check_runtime(program.runtime, program.packages)
+    if problem is not None:
+        raise ClassError(problem)
+    try:
+        if program.sandbox:
             check_sandbox()
-        except SandboxUnavailable as exc:
-            raise ClassError(str(exc)) from None
+        problem = None if program.runtime is None else runtime_starts(program.runtime, program.sandbox)
+    except SandboxUnavailable as exc:
+        raise ClassError(str(exc)) from None
+    if problem is not None:
+        raise ClassError(problem)
 
 
 def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Batch:
@@ -116,10 +128,27 @@ def warn(pair: Pair, result: dict[str, Any]) -> None:
         print(f"{pair.student}/{pair.task}: {result['run_warning']}", file=sys.stderr)
 
 
+#: bytes of students' folders (their packs) sent to the backend at once: a batch of students is sent when the
+#: one before has been graded, so that a class of large folders is never all in memory
+PACKS_AT_ONCE = 512 << 20
+
+
 def program_tasks(
     jobs: dict[str, tuple[ProgramJob, list[Stamped]]],
-) -> dict[str, tuple[Callable[..., Any], tuple[Any, ...]]]:
-    """The backend's tasks: one :func:`grade_program` per student."""
+) -> Iterator[dict[str, tuple[Callable[..., Any], tuple[Any, ...]]]]:
+    """The backend's tasks, one :func:`grade_program` per student, its folder sent with it as bytes (its
+    :class:`~service.programs.pack.Pack`, made here), in batches of at most :data:`PACKS_AT_ONCE` bytes."""
     from ..programs.job import grade_program
+    from ..programs.pack import pack_folder
 
-    return {student: (grade_program, (job,)) for student, (job, _) in jobs.items()}
+    batch: dict[str, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
+    size = 0
+    for student, (job, _) in jobs.items():
+        pack = pack_folder(job.folder, job.program.limits.folder_bytes)
+        if batch and size + len(pack.data) > PACKS_AT_ONCE:
+            yield batch
+            batch, size = {}, 0
+        batch[student] = (grade_program, (replace(job, pack=pack),))
+        size += len(pack.data)
+    if batch:
+        yield batch

@@ -33,6 +33,7 @@ class ClassRun:
     limits: bool = False
     diagnose: bool = True
     program: Program | None = None  # the students' programs to run (--run); None: they handed in images
+    canvas: str | None = None  # the Canvas assignment of every task tasks.json gives none (--canvas-assignment)
 
 
 @dataclass
@@ -50,6 +51,8 @@ class Pair:
     row: dict[str, Any] = field(default_factory=dict)
     data: bytes | None = None  # the submitted bytes, read once, when the class was found
     lms_id: str = ""  # the student's id in the learning-management system's export (Canvas's, Moodle's), if any
+    lms: str = ""  # which LMS's export it is ("canvas", "moodle"; "" for a folder per student)
+    late: bool = False  # the file graded was handed in late (Canvas marks it _LATE_)
 
 
 @dataclass(frozen=True)
@@ -89,6 +92,7 @@ class Grade:
 
     student: str
     lms_id: str
+    lms: str  # the LMS whose export the student is of ("canvas", "moodle", "")
     task: str
     status: str
     reason: str
@@ -100,6 +104,8 @@ class Grade:
     points: float
     score: float
     deducted: str | None
+    late: bool  # the LMS marked the file graded late (Canvas's _LATE_)
+    late_deducted: float | None  # the points the late policy took (None: on time)
     tolerance: float | None
     max_fraction: float | None
     mean_abs_error: float | None

@@ -1,5 +1,5 @@
-"""The files of a class report: report.json, report.csv, gradebook.csv, index.html and Gradescope's
-results.json per student.
+"""The files of a class report: report.json, report.csv, gradebook.csv (and the LMSs' own, :mod:`.lmsbook`),
+index.html and Gradescope's results.json per student.
 
 Every file is written whole or not at all (:func:`write_atomic`), so an interrupted run leaves the previous
 report readable.  A student's name (and a file's) is the students' text: in the CSV files and the HTML its
@@ -23,7 +23,8 @@ from urllib.parse import quote
 
 from ..display import counted, percent
 from ..heatmap import LEGEND
-from .gradebook import gradebook_csv, partial, totals
+from .gradebook import gradebook_csv, late_note, partial, totals
+from .lmsbook import lms_books
 from .taskfile import TaskSettings
 
 #: the numbers of a graded pair, in report.csv's order
@@ -44,6 +45,7 @@ PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output"]
 COLUMNS = [
     "student",
     "lms_id",
+    "lms",
     "task",
     "status",
     "reason",
@@ -55,6 +57,8 @@ COLUMNS = [
     "points",
     "score",
     "deducted",
+    "late",
+    "late_deducted",
     "tolerance",
     "max_fraction",
     *NUMBERS,
@@ -143,6 +147,12 @@ def write_report(
         (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
     write_atomic(report / "report.csv", _text(buf.getvalue()))
     write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
+    for name, text in lms_books(rows, students, tasks, safe_cell).items():  # (Canvas's and Moodle's import files)
+        if text is not None:
+            write_atomic(report / name, _text(text))
+        else:  # none for this class: an earlier run's is not imported by mistake
+            with contextlib.suppress(OSError):
+                (report / name).unlink()
     for student in students:
         mine = [r for r in rows if r["student"] == student]
         write_atomic(
@@ -207,7 +217,7 @@ def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> di
             "score": r["score"],
             "max_score": r["points"],
             "status": "passed" if r["status"] == "pass" else "failed",
-            "output": test_output(r, tasks[r["task"]].show),
+            "output": test_output(r, tasks[r["task"]].show) + (f"\n{late_note(r)}" if r.get("late") else ""),
             "visibility": tasks[r["task"]].visibility,
         }
         for r in rows
@@ -238,18 +248,21 @@ def _run_failed(r: dict[str, Any]) -> str:
 
 
 def _cell(r: dict[str, Any], anchor: str) -> str:
-    """A pair's cell of the table: the status and, without the file it names, the reason (or the error)."""
+    """A pair's cell of the table: the status and, without the file it names, the reason (or the error), whole:
+    a long text wraps within the cell's width (``overflow-wrap``), never cut."""
     if r["status"] == "pass":
         note = _percent(r["fraction_off_nearby"])
     elif r["status"] == "fail":  # the likely mistake, when one was named, or how a program's run ended
-        note = esc((r.get("likely") or _run_failed(r))[:60]) or _percent(r["fraction_off_nearby"])
+        note = esc(r.get("likely") or _run_failed(r)) or _percent(r["fraction_off_nearby"])
         note += f" · {r['score']:g}/{r['points']:g}" if r.get("deducted") else ""
     else:
-        note = esc(_without_file(r["reason"])[:80])
+        note = esc(_without_file(r["reason"]))
     own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
+    lost = f" −{r['late_deducted']:g}" if r.get("late_deducted") else ""  # (what the late policy took)
+    late = f' <span class="late">late{lost}</span>' if r.get("late") else ""
     status = esc(r["status"])
     kind = f"{status} partial" if r.get("deducted") else status
-    return f'<td class="{kind}"><a href="#{anchor}">{status}{own}<small>{note}</small></a></td>'
+    return f'<td class="{kind}"><a href="#{anchor}">{status}{own}{late}<small>{note}</small></a></td>'
 
 
 def _detail(r: dict[str, Any], anchor: str) -> str:
@@ -268,6 +281,7 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     probes = f"<p>By experiment: {esc(found)}</p>" if found and found != r.get("likely") else ""
     output = f"<pre>{esc(r['run_output'])}</pre>" if r.get("run_output") else ""  # (the TA's page only)
     credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
+    credit += f'<p class="late">{esc(late_note(r))}</p>' if r.get("late") else ""
     return (
         f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
         f'</h2><p>{esc(r["reason"])}</p>{likely}{probes}{credit}{output}<div class="images">{images}</div>'
@@ -305,7 +319,8 @@ def render_html(
             cells.append(_cell(by[(total.student, task)], anchor))
             details.append(_detail(by[(total.student, task)], anchor))
         cells.append(f'<td class="total">{total.total:g} / {total.out_of:g}</td>')
-        body.append(f"<tr><th>{esc(total.student)}</th>{''.join(cells)}</tr>")
+        late = f' <span class="late">late: {esc(", ".join(total.late))}</span>' if total.late else ""
+        body.append(f"<tr><th>{esc(total.student)}{late}</th>{''.join(cells)}</tr>")
     rates = []
     for task in tasks:
         mine = [by[(s, task)] for s in students]
@@ -320,11 +335,11 @@ body {{ font: 14px/1.4 system-ui, sans-serif; margin: 1.5em; color: #222; }}
 table.grid {{ border-collapse: collapse; }}
 .grid th, .grid td {{ border: 1px solid #ccc; padding: 4px 8px; text-align: center; }}
 .grid td a {{ color: inherit; text-decoration: none; display: block; }}
-.grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow: hidden; }}
+.grid small {{ display: block; font-size: 11px; color: #555; max-width: 14em; overflow-wrap: anywhere; }}
 td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
 td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
 td.partial {{ background: #fbe3cf; }} td.total {{ font-weight: bold; white-space: nowrap; }}
-.own {{ color: #36c; }}
+.own {{ color: #36c; }} .late {{ color: #a33f00; font-size: 11px; font-weight: bold; }}
 .pair {{ display: none; }}
 .pair:target {{ display: block; position: fixed; top: 4%; left: 4%; right: 4%; max-height: 88%; overflow: auto;
                border: 1px solid #888; padding: 0 1.5em 1em; background: #fff; box-shadow: 0 4px 30px #0006; }}

@@ -11,13 +11,14 @@ from pathlib import Path
 from typing import Any
 
 from ..diagnosis import Diagnosis, headline
+from ..ppm import viewable
 from ..settings import Settings
 from . import journal
 from .backends import Backend, open_backend
 from .checks import outside, scene_keys, writable
 from .errors import ClassError
 from .faults import run_tasks
-from .gradebook import matched, score
+from .gradebook import late_policy, matched, score
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
 from .records import Batch, ClassRun, Grade, GradeJob, Pair
 from .report import COLUMNS, summary, write_atomic, write_report
@@ -71,7 +72,7 @@ def grade_class(run: ClassRun, progress: Progress | None = None) -> Outcome:
         batch = discover_programs(run.scenes, run.submissions, run.student_scenes)
     else:
         batch = discover(run.scenes, run.submissions, run.student_scenes, settings.max_image_bytes)
-    tasks = load_tasks(run.tasks_file, batch.tasks)
+    tasks = load_tasks(run.tasks_file, batch.tasks, run.canvas)
     scene_of_key, texts = scene_keys(batch, settings if run.limits else None)
     made = not run.report.exists()
     writable(run.report)
@@ -257,7 +258,8 @@ def _grade_programs(
             _graded(pair, result, result.pop("image", None) or b"", run.report, stamp)
         tick()
 
-    run_tasks(backend, program_tasks(jobs), keep, lambda: _kept(run.report))
+    for tasks in program_tasks(jobs):
+        run_tasks(backend, tasks, keep, lambda: _kept(run.report))
 
 
 def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> GradeJob:
@@ -278,7 +280,7 @@ def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> Grade
 
 def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stamp: dict[str, Any]) -> None:
     """Keep a grade task's row; write its heat-map and the copy of the submission (the very bytes graded), then
-    the grade itself, for a run that resumes."""
+    the grade itself, for a run that resumes (a PPM's copy is the PNG of its pixels)."""
     if result["status"] == "invalid":
         pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
     else:
@@ -294,7 +296,7 @@ def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stam
         if _has_image(result):
             heat, copy = _paths(pair, report)
             write_atomic(heat, result.pop("heatmap_png"))
-            write_atomic(copy, image)
+            write_atomic(copy, viewable(image))  # (a PPM's copy: the PNG of its pixels, which a browser shows)
         pair.row = result
     journal.keep(journal.path(report, pair.student, pair.task), stamp, pair.row)
 
@@ -316,7 +318,10 @@ def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskS
     row["points"] = tasks[pair.task].points
     row["mistakes"] = row["mistakes"] or []
     row["score"], row["deducted"] = astuple(score(row, tasks[pair.task]))
-    row["file"], row["lms_id"] = pair.file, pair.lms_id
+    row["file"], row["lms_id"], row["lms"], row["late"] = pair.file, pair.lms_id, pair.lms, pair.late
+    if pair.late:  # the late policy, on what the pair earned
+        row["late_deducted"] = late_policy(row["score"], tasks[pair.task])
+        row["score"] -= row["late_deducted"]
     ref = refs.get(pair.key or "")
     if ref is not None and ref.exists():
         row["reference"] = str(ref.relative_to(report))

@@ -27,7 +27,9 @@ from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_na
 from .records import Batch, Pair
 from .untrusted import UntrustedFileError
 
-#: extensions of images other than PNG: such a file named after a task is that task's (wrong) submission
+#: the extensions of the image formats graded (service.grading: PNG, and the PPM students' tracers print)
+GRADED = ("png", "ppm")
+#: extensions of images other than those graded: such a file named after a task is that task's (wrong) submission
 OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "heif", "avif"}
 #: the most bytes read of a submission when no limit is given (the service's max_image_bytes)
 DEFAULT_LIMIT = 16 << 20
@@ -52,14 +54,14 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
         found = {student: _student(root, source, names, limit, ignored) for student, source in sources.items()}
     if student_scenes is not None:
         _scenes_name_students(student_scenes, own, sources)
-    ids = {student: source.id for student, source in sources.items()}
     pairs = []
     students = sorted({*found, *own})
     for student in students:
         mine = found.get(student, {})
+        source = sources.get(student, Source())
         for task, shared in tasks.items():
             scene = own.get(student, {}).get(task)
-            pair = Pair(student, task, None, scene or shared, scene is not None, lms_id=ids.get(student, ""))
+            pair = Pair(student, task, None, scene or shared, scene is not None, lms_id=source.id, lms=source.lms)
             mine.get(task, Submitted(row={"status": "missing", "reason": f"no {task}.png"})).fill(pair)
             pairs.append(pair)
     return Batch(tasks, students, pairs, ignored)
@@ -71,8 +73,9 @@ class Source:
     and their files lying in it (Canvas's), each with the name the student gave it."""
 
     folders: list[str] = field(default_factory=list)
-    files: list[tuple[Entry, str]] = field(default_factory=list)
+    files: list[tuple[Entry, Owner]] = field(default_factory=list)  # (the file, whose it is and what it is)
     id: str = ""  # the LMS's id of the student, if the names gave one
+    lms: str = ""  # the LMS whose naming gave it ("canvas", "moodle")
 
 
 def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
@@ -89,7 +92,7 @@ def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
         elif entry.folder:
             owners.setdefault(folder_owner(entry.name), Source()).folders.append(entry.name)
         elif (owner := file_owner(entry.name)) is not None:  # a link too: reading it says it is one
-            owners.setdefault(Owner(owner.name, owner.id), Source()).files.append((entry, owner.file))
+            owners.setdefault(Owner(owner.name, owner.id, lms=owner.lms), Source()).files.append((entry, owner))
         else:  # (a link to a folder is not a student's: it is never listed, let alone read)
             ignored.append((shown, "a symbolic link (not followed)" if entry.link else "not in a student's folder"))
     out: dict[str, Source] = {}
@@ -98,6 +101,7 @@ def _sources(root: Folder, ignored: list[tuple[str, str]]) -> dict[str, Source]:
         merged.folders += owners[owner].folders
         merged.files += owners[owner].files
         merged.id = merged.id or owner.id
+        merged.lms = merged.lms or owner.lms
     return out
 
 
@@ -127,7 +131,7 @@ def _not_one_level_up(root: Folder, sources: dict[str, Source], names: TaskNames
                     for task in {
                         n.task
                         for n in map(names.match, (e.name for e in below.entries()))
-                        if n.task is not None and n.ext == "png"
+                        if n.task is not None and n.ext in GRADED
                     }:
                         held[task] = held.get(task, 0) + 1
     except OSError:  # (a folder that cannot be read: the student's row says so)
@@ -148,18 +152,21 @@ class Submitted:
     file: str | None = None
     data: bytes | None = None
     row: dict[str, Any] = field(default_factory=dict)
+    late: bool = False  # the LMS marked the file late
 
     def fill(self, pair: Pair) -> None:
         pair.image, pair.file, pair.data, pair.row = self.image, self.file, self.data, dict(self.row)
+        pair.late = self.late
 
 
 @dataclass(frozen=True)
 class Candidate:
     """A file that may be a task's submission, in the folder it was found in (held open)."""
 
-    rank: tuple[int, bool, bool]  # (depth, not a PNG, not named as the task is spelt): the lowest is graded
+    rank: tuple[int, bool, bool]  # (depth, not a PNG or PPM, not named as the task is spelt): the lowest is graded
     folder: Folder
     name: str
+    late: bool = False  # the LMS marked it late (Canvas's _LATE_)
 
     @property
     def shown(self) -> Path:
@@ -168,9 +175,10 @@ class Candidate:
     def read(self, limit: int) -> Submitted:
         rel = self.folder.rel + self.name
         try:
-            return Submitted(self.shown, rel, self.folder.read(self.name, limit))
+            return Submitted(self.shown, rel, self.folder.read(self.name, limit), late=self.late)
         except UntrustedFileError as exc:
-            return Submitted(self.shown, rel, row={"status": "invalid", "reason": f"{self.shown}: {exc}"})
+            reason = f"{self.shown}: {exc}"
+            return Submitted(self.shown, rel, row={"status": "invalid", "reason": reason}, late=self.late)
 
 
 #: the most files a reason names (a student's folder may hold thousands: the report stays readable)
@@ -207,24 +215,27 @@ class _Walk:
                 self.ignored.append((str(parent.shown / name), why))
             return None
 
-    def look(self, folder: Folder, entry: Entry, depth: int, given: str | None = None) -> None:
-        """Take one entry: a candidate for a task, or ignored with the reason."""
-        named, shown = self.names.match(given or entry.name), str(folder.shown / entry.name)
-        image = named.ext == "png" or named.ext in OTHER_IMAGES
+    def look(self, folder: Folder, entry: Entry, depth: int, given: Owner | None = None) -> None:
+        """Take one entry (``given``: whose a flat file is, by an LMS's naming): a candidate for a task, or ignored
+        with the reason."""
+        name = given.file if given else entry.name
+        named, shown = self.names.match(name), str(folder.shown / entry.name)
+        image = named.ext in GRADED or named.ext in OTHER_IMAGES
         if entry.folder and not (named.task is not None and image):
             if depth:  # (a folder named as a task's image is a candidate: reading it says it is a folder)
                 self.ignored.append((shown, "a folder two levels down (phongray looks one folder deep)"))
             return
         if named.task is None:
-            near = self.names.near(given or entry.name) if image else None
+            near = self.names.near(name) if image else None
             self.ignored.append((shown, "matches no task" + (f" (did you mean {near}?)" if near else "")))
             if near is not None:
                 self.near.setdefault(near, []).append(folder.rel + entry.name)
         elif named.ext == "json":
             self.ignored.append((shown, SCENE_IGNORED))
         elif image:
-            rank = (depth, named.ext != "png", not named.exact)
-            self.candidates.setdefault(named.task, []).append(Candidate(rank, folder, entry.name))
+            rank = (depth, named.ext not in GRADED, not named.exact)
+            late = given is not None and given.late
+            self.candidates.setdefault(named.task, []).append(Candidate(rank, folder, entry.name, late))
         else:
             self.ignored.append((shown, f"matches task {named.task}, but is no image"))
 
@@ -262,7 +273,7 @@ def _student(
     with ExitStack() as stack:
         walk = _Walk(root, names, ignored, stack)
         places = [(0, root, [entry for entry, _ in source.files])] if source.files else []
-        given = {entry.name: name for entry, name in source.files}
+        given = {entry.name: owner for entry, owner in source.files}
         for name in source.folders:
             listed = walk.folder(root, name, 0)
             if listed is None:

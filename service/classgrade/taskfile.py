@@ -13,16 +13,25 @@ one fault is that mistake scores the task's points less the deduction (:mod:`ser
 ``verdict`` the verdict and its reason, ``verdict-only`` passed or failed: for a hidden scene (a program's
 task), the TA's choice of how much of it the feedback gives away.
 
+``canvas`` is the Canvas assignment a task's score goes to in the Canvas gradebook (:mod:`.lmsbook`), as
+Canvas's gradebook names its column, ``Homework 3 (12345)``; ``late_penalty`` the late policy, the fraction of
+the task's points a submission the LMS marked late loses (0, the default: none; Canvas's own late policy is a
+percentage of the points, too).  The key ``"*"`` gives every task's settings, which a task's own replace:
+``{"*": {"canvas": "Homework 3 (12345)", "late_penalty": 0.1}, "mirror": {"points": 5}}`` sends every task
+to one assignment (its column holds the total) with a tenth of the points off for late work.
+
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
 teaching assistant's: a mistake in it stops the run (:class:`~service.classgrade.errors.ClassError`).
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, field_validator
+from pydantic_core import PydanticCustomError
 
 from schemas import SceneError, parse_json
 from schemas.errors import problems_from_validation, suggestion
@@ -34,6 +43,15 @@ from .lms import did_you_mean
 
 #: a number of the TA's: a JSON number, finite (a string "5", true or 1e400 is a mistake, not 5, 1 or infinity)
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+#: a Canvas assignment as Canvas's gradebook names its column, its title and id: ``Homework 3 (12345)``
+CANVAS_ASSIGNMENT = re.compile(r"^(.*\S)\s\((\d+)\)$")
+#: what a Canvas assignment must be given as
+CANVAS_WORDS = (
+    "give the assignment as Canvas's gradebook names its column, its title and id: 'Homework 3 (12345)' (the id "
+    "is the number in the assignment's address, .../assignments/12345)"
+)
+#: the key of tasks.json whose settings are every task's, unless the task's own say otherwise
+EVERY = "*"
 
 
 class TaskSettings(BaseModel):
@@ -49,6 +67,17 @@ class TaskSettings(BaseModel):
     #: the accepted variants of honest tracers, name → largest amount × the visible size (None: the defaults,
     #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
     accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None
+    #: the Canvas assignment the task's score goes to, as Canvas's gradebook names its column (None: the task's name)
+    canvas: str | None = None
+    #: the late policy: the fraction of the task's points a late submission loses (0: none)
+    late_penalty: Annotated[Number, Field(ge=0, le=1)] = 0.0
+
+    @field_validator("canvas")
+    @classmethod
+    def _canvas_column(cls, value: str | None) -> str | None:
+        if value is not None and not CANVAS_ASSIGNMENT.match(value):
+            raise PydanticCustomError("canvas_assignment", CANVAS_WORDS)
+        return value
 
 
 _FILE = TypeAdapter(dict[str, TaskSettings])
@@ -65,9 +94,13 @@ def _suggested(problems: list[tuple[str, str]]) -> list[tuple[str, str]]:
     ]
 
 
-def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSettings]:
-    """Every task's settings: from the file at ``path`` where it names the task, else the defaults."""
+def load_tasks(path: Path | None, tasks: dict[str, Path], canvas: str | None = None) -> dict[str, TaskSettings]:
+    """Every task's settings: from the file at ``path`` where it names the task, over its ``"*"`` (every task's),
+    over the defaults; ``canvas`` (``--canvas-assignment``) in place of the ``"*"``'s Canvas assignment."""
     given: dict[str, TaskSettings] = {}
+    text = b""
+    if canvas is not None:
+        _canvas_option(canvas)
     if path is not None:
         try:
             text = path.read_bytes()
@@ -80,17 +113,43 @@ def load_tasks(path: Path | None, tasks: dict[str, Path]) -> dict[str, TaskSetti
         except ValidationError as exc:
             problems = _suggested(problems_from_validation(exc))
             raise ClassError("; ".join(as_lines(str(path), problems, text))) from None
-        unknown = sorted(set(given) - set(tasks))
+        unknown = sorted(set(given) - set(tasks) - {EVERY})
         if unknown:
             named = ", ".join(name + suggestion(name, tasks) for name in unknown)
             raise ClassError(f"{path}: no task {named} (the tasks are {', '.join(sorted(tasks))})")
+        if EVERY in given and EVERY in tasks:
+            raise ClassError(f"{path}: {EVERY!r} is every task's settings, and also a task's name: rename its scene")
         _known_mistakes(path, given, text)
-    return {task: given.get(task, TaskSettings()) for task in tasks}
+    every = given.get(EVERY, TaskSettings())
+    if canvas is not None:
+        every = TaskSettings.model_validate({**_given(every), "canvas": canvas})
+    merged = {task: _over(every, given.get(task)) for task in tasks}
+    if path is not None:
+        _within_points(path, merged, text)
+    return merged
+
+
+def _over(every: TaskSettings, own: TaskSettings | None) -> TaskSettings:
+    """A task's settings: its own where it gives them, else every task's (``"*"``)."""
+    if own is None:
+        return every
+    return TaskSettings.model_validate({**_given(every), **_given(own)})
+
+
+def _given(settings: TaskSettings) -> dict[str, object]:
+    """The settings a file (or an option) gave, not the defaults."""
+    return settings.model_dump(include=settings.model_fields_set)
+
+
+def _canvas_option(canvas: str) -> None:
+    """``--canvas-assignment`` names an assignment as Canvas's gradebook names its column (else exit 2)."""
+    if not CANVAS_ASSIGNMENT.match(canvas):
+        raise ClassError(f"--canvas-assignment {canvas!r}: {CANVAS_WORDS}")
 
 
 def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> None:
-    """Every deduction names a mistake the diagnosis knows and takes at most the task's points (else the
-    run stops, naming the place; a misspelt id with the nearest one)."""
+    """Every deduction names a mistake the diagnosis knows (else the run stops, naming the place; a misspelt id
+    with the nearest one)."""
     known = {**VARIANTS, **MORE_VARIANTS}
     problems = [
         (
@@ -101,7 +160,13 @@ def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> 
         for mistake in settings.deductions
         if mistake not in known
     ]
-    problems += [
+    if problems:
+        raise ClassError("; ".join(as_lines(str(path), problems, text)))
+
+
+def _within_points(path: Path, given: dict[str, TaskSettings], text: bytes) -> None:
+    """Every deduction takes at most its task's points (else the run stops, naming the place)."""
+    problems = [
         (
             f"{task}.deductions.{mistake}",
             f"must be ≤ the task's points, {settings.points:g}"

@@ -48,6 +48,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
             diagnose=not args.no_diagnosis,
             limits=args.limits,
             program=program,
+            canvas=args.canvas_assignment,
         )
         outcome = grade_class(run, progress=bar)
     except (ClassError, ClusterError) as exc:  # (names in it are printed with their control characters escaped)
@@ -60,6 +61,10 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
         print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
     if not args.quiet:
         print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
+        if program is not None and not args.cluster:  # (a worker holds its runs as its own machine allows)
+            from service.programs.guard import enforcement
+
+            print(f"students' programs ran here: {enforcement().describe()}")
     return 0
 
 
@@ -88,6 +93,7 @@ def cmd_autograder(args: argparse.Namespace) -> int:
             Path(args.tasks) if args.tasks else None,
             Path(args.student_scenes) if args.student_scenes else None,
             program,
+            Path(args.runtime_requirements) if args.runtime_requirements else None,
         )
     except ClassError as exc:
         raise CliError(printable(str(exc))) from None
@@ -106,14 +112,14 @@ def add(sub: Commands) -> None:
         sub,
         "grade-class",
         "grade every student's images of every task; write a report",
-        description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png the images (any "
-        "case of the name, a resubmission's -1 or (1), or one folder deeper; Moodle's "
+        description="SCENES/<task>.json are the tasks, SUBMISSIONS/<student>/<task>.png (or .ppm) the images "
+        "(any case of the name, a resubmission's -1 or (1), or one folder deeper; Moodle's "
         "<name>_<id>_assignsubmission_file_ folders and Canvas's flat <login>_<id>_<id>_<task>.png "
         "too). A student's own scene comes from the TA's --student-scenes "
         "DIR/<student>/<task>.json, never from the submissions. Writes report.json, report.csv, "
-        "gradebook.csv, index.html, gradescope/<student>/results.json, references and heat-maps "
-        "into REPORT. Exit 0 when the batch ran, 2 when the TA's input or set-up is unusable "
-        "(nothing is graded then).",
+        "gradebook.csv (and Canvas's and Moodle's import files for their exports' students), "
+        "index.html, gradescope/<student>/results.json, references and heat-maps into REPORT. Exit 0 "
+        "when the batch ran, 2 when the TA's input or set-up is unusable (nothing is graded then).",
     )
     p.add_argument("scenes", metavar="SCENES_DIR", help="a <task>.json per task")
     p.add_argument("submissions", metavar="SUBMISSIONS_DIR", help="the students' images, as an LMS downloads them")
@@ -127,6 +133,12 @@ def add(sub: Commands) -> None:
         help="per task its points, thresholds and deductions by "
         'mistake id: {"spheres": {"points": 10, "tolerance": 3, '
         '"deductions": {"no-shadows": 4}}}',
+    )
+    p.add_argument(
+        "--canvas-assignment",
+        metavar="'TITLE (ID)'",
+        help="the Canvas assignment every task's score goes to in canvas-gradebook.csv, as Canvas's gradebook "
+        "names its column: 'Homework 3 (12345)' (tasks.json's \"*\": {\"canvas\": ...}; a task's own wins)",
     )
     threshold_options(p)
     p.add_argument("--jobs", type=positive_int, help="processes (default: all cores; with --server, 4 requests)")
@@ -169,4 +181,10 @@ def add_autograder(sub: Commands) -> None:
         "before the @, student id or name",
     )
     program_options(p)
+    p.add_argument(
+        "--runtime-requirements",
+        metavar="FILE",
+        help="with --run: a pip requirements file (numpy, pillow); setup.sh builds a Python environment of "
+        "it for the programs, with the image's python3",
+    )
     p.set_defaults(func=cmd_autograder)

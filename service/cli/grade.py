@@ -123,11 +123,12 @@ def add(sub: Commands) -> None:
     p = command(
         sub,
         "grade",
-        "grade a submitted PNG against the scene's reference render",
-        description="Grade a submitted PNG against the scene's reference render. Exit 0 pass, 1 fail, 2 bad input.",
+        "grade a submitted PNG or PPM against the scene's reference render",
+        description="Grade a submitted PNG or PPM against the scene's reference render. Exit 0 pass, 1 fail, "
+        "2 bad input.",
     )
     p.add_argument("scene", help="scene JSON file")
-    p.add_argument("image", help="the submitted PNG")
+    p.add_argument("image", help="the submitted PNG or PPM")
     verdict(p)
     no_diagnosis(p)
     limits(p)
@@ -142,7 +143,7 @@ def add(sub: Commands) -> None:
         "render. Exit 0 pass, 1 fail, 2 bad input.",
     )
     p.add_argument("reference", help="the reference PNG")
-    p.add_argument("image", help="the PNG to grade")
+    p.add_argument("image", help="the PNG or PPM to grade")
     verdict(p)
     no_diagnosis(p, "accepted as grade accepts it: without a scene, compare never names a likely mistake")
     p.set_defaults(func=cmd_compare)

@@ -93,16 +93,43 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="run the programs without bubblewrap (only the limits apply; every run says so)",
     )
+    group.add_argument(
+        "--runtime",
+        metavar="DIR",
+        help="a folder the programs are given, read-only at the same path, its bin/ first on their PATH (a "
+        "virtual environment made with /usr/bin/python3 holding NumPy and Pillow)",
+    )
+    group.add_argument(
+        "--runtime-packages",
+        type=_names,
+        metavar="PKG,...",
+        help="Debian packages the programs need (python3-numpy,python3-pil): checked here, installed by the "
+        "autograder's setup.sh",
+    )
 
 
-PROGRAM_OPTIONS = ("build", "no_sandbox", "run_timeout", "memory", "processes", "output_size")
+def _names(text: str) -> tuple[str, ...]:
+    return tuple(name.strip() for name in text.split(",") if name.strip())
+
+
+PROGRAM_OPTIONS = (
+    "build",
+    "no_sandbox",
+    "run_timeout",
+    "memory",
+    "processes",
+    "output_size",
+    "runtime",
+    "runtime_packages",
+    "runtime_requirements",
+)
 
 
 def program(args: argparse.Namespace) -> Program | None:
     """The options' program (None without ``--run``); ValueError, in words, for a TA's mistake: a command
     that cannot run, or a program option without ``--run``."""
     if args.run is None:
-        named = [f"--{name.replace('_', '-')}" for name in PROGRAM_OPTIONS if getattr(args, name)]
+        named = [f"--{name.replace('_', '-')}" for name in PROGRAM_OPTIONS if getattr(args, name, None)]
         if named:
             raise ValueError(f"{', '.join(named)}: only with --run (the students' program's command line)")
         return None
@@ -113,4 +140,18 @@ def program(args: argparse.Namespace) -> Program | None:
     if args.run_timeout is not None:
         given.update(wall_seconds=args.run_timeout, cpu_seconds=max(1, int(args.run_timeout)))
     limits = Limits(**{name: value for name, value in given.items() if value is not None})
-    return Program(args.run, args.build, limits, sandbox=not args.no_sandbox)
+    runtime = args.runtime
+    bundled = hasattr(args, "runtime_requirements")  # (the autograder's options: it builds its own runtime)
+    if bundled and args.runtime_requirements:
+        from service.programs.runtime import BUNDLED
+
+        if runtime is not None:
+            raise ValueError("--runtime and --runtime-requirements: choose one")
+        runtime = BUNDLED
+    elif bundled and runtime is not None:
+        raise ValueError(
+            f"--runtime {runtime}: a folder of this machine does not reach Gradescope; name a requirements "
+            f"file (--runtime-requirements) or Debian packages (--runtime-packages)"
+        )
+    packages = args.runtime_packages or ()
+    return Program(args.run, args.build, limits, not args.no_sandbox, runtime, packages)

@@ -9,7 +9,7 @@ from typing import Any
 from tracer.variants import SENTENCES
 
 from ..display import percent
-from .words import Names, nearest_sentence, term_sentence, together_sentence
+from .words import Names, nearest_sentence, readings_sentence, term_sentence, together_sentence
 
 
 @dataclass(frozen=True)
@@ -68,6 +68,13 @@ class Diagnosis:
         return bool(self.causes and self.causes[0].together)
 
     @property
+    def readings(self) -> list[Cause]:
+        """The mistakes the image cannot tell apart: every single mistake the submission passes against (each
+        renders an image the grade cannot tell from it), when there are two or more; else none."""
+        passing = [c for c in self.causes if c.passes and not c.together]
+        return passing if len(passing) > 1 else []
+
+    @property
     def nearest(self) -> bool:
         """The causes are only the nearest explanations: none passed against, none the closest."""
         return bool(self.causes) and not self.closest and not any(c.passes for c in self.causes)
@@ -83,6 +90,11 @@ class Diagnosis:
         if self.together:
             first = self.causes[0]
             return together_sentence([c.mistake for c in self.causes], first.fraction_off_nearby, first.passes, also)
+        if self.readings:
+            readings = self.readings
+            return readings_sentence(
+                [c.variant for c in readings], [c.mistake for c in readings], readings[0].fraction_off_nearby
+            )
         if self.causes:
             c = self.causes[0]
             how = "matches" if not self.closest else "comes closest to"
@@ -100,6 +112,8 @@ class Diagnosis:
         explanation, the term out of scale, that nothing fits, or why there is no diagnosis."""
         if self.nearest:
             return "nearest: " + self.causes[0].mistake
+        if self.readings:  # (what the image cannot tell apart)
+            return " or ".join(c.mistake for c in self.readings)
         if self.causes:
             shown = self.causes if self.together else self.causes[:1]
             return " + ".join(c.mistake for c in shown) + (" (closest)" if self.closest else "")

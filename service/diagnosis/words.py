@@ -116,16 +116,45 @@ def together_sentence(mistakes: list[str], fraction: float, passes: bool, also: 
     from ..display import percent
 
     count = {2: "two", 3: "three"}.get(len(mistakes), str(len(mistakes)))
-    listed = (
-        ", ".join(mistakes[:-1]) + (", and " if len(mistakes) > 2 else " and ") + mistakes[-1]
-        if len(mistakes) > 1
-        else mistakes[0]
-    )
     how = "matches" if passes else "comes closest to"
     every = "both" if len(mistakes) == 2 else "all of them"
     return (
-        f"Likely {count} mistakes together: {listed} — the submission {how} the reference rendered with "
+        f"Likely {count} mistakes together: {listed(mistakes)} — the submission {how} the reference rendered with "
         f"{every}{also} ({percent(fraction)} of pixels off)"
+    )
+
+
+#: what an image shows, in a student's words, where distinct mistakes give the same image: said of an image's
+#: readings (:func:`readings_sentence`) when every one of them has the same words here
+SHOWS = {
+    "no-specular": "no specular highlight",
+    "reflect-sign": "no specular highlight",
+    "no-shadows": "no shadows",
+    "transparent-no-shadows": "no shadows",
+}
+
+
+def listed(items: list[str], joined: str = "and") -> str:
+    """ "a", "a and b", "a, b, and c" (``joined`` "or": "a, or b", "a, b, or c")."""
+    if len(items) == 1:
+        return items[0]
+    if joined == "or":
+        return ", ".join(items[:-1]) + ", or " + items[-1]
+    return ", ".join(items[:-1]) + (", and " if len(items) > 2 else " and ") + items[-1]
+
+
+def readings_sentence(variants: list[str], mistakes: list[str], fraction: float) -> str:
+    """ "Likely: no specular term, or the reflected vector R with the wrong sign — the image cannot tell them apart
+    (it shows no specular highlight): the submission matches the reference rendered with either (0.00 % of
+    pixels off)", for the mistakes (``variants``, in words ``mistakes``) an image passes against each alone."""
+    from ..display import percent
+
+    shows = {SHOWS.get(v) for v in variants}
+    what = f" (it shows {shows.pop()})" if len(shows) == 1 and None not in shows else ""
+    every = "either" if len(mistakes) == 2 else "any of them"
+    return (
+        f"Likely: {listed(mistakes, 'or')} — the image cannot tell them apart{what}: the submission matches the "
+        f"reference rendered with {every} ({percent(fraction)} of pixels off)"
     )
 
 

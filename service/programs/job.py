@@ -7,10 +7,11 @@ wrote exactly as an uploaded image of that task is graded (:func:`service.classg
 thresholds, the accepted variants, the diagnosis).  A run that fails (a timeout, memory, a crash, no output,
 an output that is a link...) makes a failing grade whose reason says so in words, and the others go on; a
 failing image is then diagnosed by experiment too (:mod:`service.programs.experiment`), within the same
-limits.  Only a sandbox that cannot start stops the batch (:class:`SandboxUnavailable`).
+limits.  Only a sandbox that cannot start stops the batch (the TA's :class:`ClassError`, in one line).
 
-The student's folder is read where the task runs: a Dask worker sees the submissions folder at the same path
-(one machine, or a shared file system).  Nothing of a run is left on that machine's disk.
+The student's folder travels with the job as a :class:`~service.programs.pack.Pack` (its bytes, digested):
+where the job runs, it is checked and unpacked into a folder of its own, so a Dask worker needs no shared file
+system and no path of the grading machine's.  Nothing of a run is left on that machine's disk.
 """
 
 from __future__ import annotations
@@ -26,11 +27,14 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from ..classgrade.errors import ClassError
 from ..classgrade.records import GradeJob
 from .experiment import Thresholds, experiment
-from .outcome import RunOutcome
+from .outcome import Reason, RunOutcome
+from .pack import DamagedPack, Pack, unpacked
 from .program import Program
 from .runner import BuildStep, ProgramRun, build_program, run_program
+from .sandbox import SandboxUnavailable
 
 
 @dataclass(frozen=True)
@@ -49,11 +53,13 @@ class TaskScene:
 
 @dataclass(frozen=True)
 class ProgramJob:
-    """A student's program and the tasks it renders."""
+    """A student's program and the tasks it renders: the student's folder where the job was made, and, for a
+    job sent to where that folder may not be (a Dask worker), the folder's :class:`Pack`, which is what runs."""
 
     folder: Path
     program: Program
     tasks: tuple[TaskScene, ...]
+    pack: Pack | None = None
 
 
 #: how much of the end of a run's output (its standard error) a grade keeps for the TA
@@ -96,7 +102,8 @@ def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunO
         with tempfile.TemporaryDirectory(prefix="phongray-scene-") as place:
             path = Path(place, name)
             path.write_bytes(scene)
-            return run_program(ProgramRun(folder, program.run, path, program.limits, program.sandbox))
+            given = ProgramRun(folder, program.run, path, program.limits, program.sandbox, program.runtime)
+            return run_program(given)
 
     return run
 
@@ -117,25 +124,55 @@ def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, 
 
 
 @contextmanager
-def _built(job: ProgramJob) -> Iterator[tuple[Path | None, RunOutcome | None]]:
+def _source(job: ProgramJob) -> Iterator[Path | None]:
+    """The student's folder where the job runs: its own, or its pack unpacked (removed afterwards); None
+    for a pack of a folder over the limit."""
+    if job.pack is None:
+        yield job.folder
+    elif job.pack.too_large is not None:
+        yield None
+    else:
+        with unpacked(job.pack, job.program.limits.folder_bytes) as folder:
+            yield folder
+
+
+@contextmanager
+def _built(job: ProgramJob, folder: Path) -> Iterator[tuple[Path | None, RunOutcome | None]]:
     """The folder the runs use: the student's, or what its build left (removed afterwards); the build's
     outcome when it failed."""
     if job.program.build is None:
-        yield job.folder, None
+        yield folder, None
         return
     with tempfile.TemporaryDirectory(prefix="phongray-built-") as into:
-        step = BuildStep(job.folder, job.program.build, job.program.limits, job.program.sandbox)
+        program = job.program
+        step = BuildStep(folder, program.build or "", program.limits, program.sandbox, program.runtime)
         built = build_program(step, Path(into))
         yield built.folder, None if built.folder is not None else built.outcome
 
 
-def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
-    """Every task's grade of one student's program, by task name (see the module's docstring)."""
-    with _built(job) as (folder, failed):
-        if folder is None:
+def _graded(job: ProgramJob, folder: Path | None) -> dict[str, dict[str, Any]]:
+    what = "the build" if job.program.build is not None else "the run"
+    if folder is None:
+        assert job.pack is not None and job.pack.too_large is not None
+        too_large = RunOutcome(Reason.FOLDER_TOO_LARGE, job.pack.too_large)
+        return {task.task: failed_run(too_large, what) for task in job.tasks}
+    with _built(job, folder) as (runs_in, failed):
+        if runs_in is None:
             assert failed is not None
             return {task.task: failed_run(failed, "the build") for task in job.tasks}
-        return {task.task: grade_run(task, _runner(folder, job.program, f"{task.task}.json")) for task in job.tasks}
+        runs = {task.task: _runner(runs_in, job.program, f"{task.task}.json") for task in job.tasks}
+        return {task.task: grade_run(task, runs[task.task]) for task in job.tasks}
+
+
+def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
+    """Every task's grade of one student's program, by task name (see the module's docstring).
+    :class:`ClassError` (the TA's, in one line, naming the student whose run found it) when a sandbox cannot
+    start: the machine's set-up, never the student's."""
+    try:
+        with _source(job) as folder:
+            return _graded(job, folder)
+    except (SandboxUnavailable, DamagedPack) as exc:
+        raise ClassError(f"{job.folder.name}'s program: {exc}") from None
 
 
 def digest(folder: Path, program: Program) -> str:

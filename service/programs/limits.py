@@ -1,8 +1,9 @@
 """The limits a student's program runs within, and how each is put on it.
 
-CPU time, memory, processes and file size are resource limits (``setrlimit``) that the sandbox and every
-process in it inherit; wall time is the parent's (:mod:`service.programs.process` kills the whole sandbox);
-the output size is also the size of the tmpfs folders a program can write to (:mod:`service.programs.sandbox`).
+CPU time and file size are resource limits (``setrlimit``) that the sandbox and every process in it inherit;
+memory and processes are the run's, all its processes together (:mod:`service.programs.guard` says how they
+are held); wall time is the parent's (:mod:`service.programs.process` kills the whole sandbox); the output
+size is also the size of the tmpfs folders a program can write to (:mod:`service.programs.sandbox`).
 """
 
 from __future__ import annotations
@@ -17,9 +18,8 @@ MB = 1000 * 1000
 class Limits:
     """What one run (or one build) of a student's program may use; the defaults are a course's.
 
-    ``memory_bytes`` is each process's address space (``RLIMIT_AS``), ``processes`` the processes of the run's
-    user at once (``RLIMIT_NPROC``: it bites because the program runs as an unprivileged user of its own,
-    :func:`service.programs.sandbox.sandbox_uid`), ``cpu_seconds`` each process's CPU time (``RLIMIT_CPU``),
+    ``memory_bytes`` is the memory of the run's processes together, ``processes`` its processes and threads at
+    once (:mod:`service.programs.guard`), ``cpu_seconds`` each process's CPU time (``RLIMIT_CPU``),
     ``wall_seconds`` the whole run from start to end, ``output_bytes`` any one file written (``RLIMIT_FSIZE``) and
     the image read back; ``folder_bytes`` the private copy of the student's folder (and of a build's result);
     ``stderr_bytes`` how much of the end of the program's output is kept to show."""
@@ -45,14 +45,16 @@ class Limits:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, not {getattr(self, name)!r}")
 
-    def prlimit_argv(self) -> list[str]:
-        """``prlimit`` (util-linux) setting these limits, soft and hard, on the command that follows it.  The CPU
-        limit's hard value is one second above the soft one, so a program first gets ``SIGXCPU`` (which
-        :mod:`service.programs.outcome` names) and is killed a second later if it ignores it."""
+    def prlimit_argv(self, address_space: bool = True, processes: bool = False) -> list[str]:
+        """``prlimit`` (util-linux) setting these limits, soft and hard, on the command that follows it: the CPU
+        time, file size and no core file; with ``address_space``, each process's address space at most the
+        memory limit; with ``processes``, ``RLIMIT_NPROC`` (which counts the processes of a user, in a user
+        namespace).  The CPU limit's hard value is one second above the soft one, so a program first gets
+        ``SIGXCPU`` (which :mod:`service.programs.outcome` names) and is killed a second later if it ignores it."""
         return [
             "prlimit",
-            f"--as={self.memory_bytes}",
-            f"--nproc={self.processes}",
+            *([f"--as={self.memory_bytes}"] if address_space else []),
+            *([f"--nproc={self.processes}"] if processes else []),
             f"--cpu={self.cpu_seconds}:{self.cpu_seconds + 1}",
             f"--fsize={self.output_bytes}",
             "--core=0",

@@ -32,6 +32,7 @@ class Reason(StrEnum):
     NO_OUTPUT = "no-output"
     OUTPUT_NOT_REGULAR = "output-not-a-regular-file"
     FOLDER_TOO_LARGE = "folder-too-large"
+    PROCESSES = "processes"
 
 
 #: the end of standard error's words for running out of memory, and for writing a file past the limit
@@ -82,8 +83,30 @@ def _signal(finished: Finished) -> int | None:
     return code - 128 if code > 128 else None
 
 
+def size(count: int) -> str:
+    """A number of bytes in words: ``2 GiB``, ``512 MiB``, ``1000 bytes``."""
+    for unit, name in ((1 << 30, "GiB"), (1 << 20, "MiB"), (1 << 10, "KiB")):
+        if count % unit == 0:
+            return f"{count // unit} {name}"
+    return f"{count} bytes"
+
+
+def _guarded(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
+    """The limit the run's guard ended it for (:mod:`service.programs.guard`), in words."""
+    if finished.exceeded == "memory":
+        by = finished.held_by or "its guard"
+        limit = size(limits.memory_bytes)
+        return Reason.MEMORY, f"ran out of memory (limit {limit}, its processes together, held by {by}; killed)"
+    if finished.exceeded == "processes":
+        return Reason.PROCESSES, f"ran more than {limits.processes} processes and threads at once; killed"
+    return None
+
+
 def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     """Why the run failed, before its output is looked at; None when it exited with status 0."""
+    guarded = _guarded(finished, limits)
+    if guarded is not None:
+        return guarded
     if finished.timed_out:
         return Reason.TIMEOUT, f"still running at the wall-time limit of {limits.wall_seconds:g} s; killed"
     sig = _signal(finished)
@@ -97,5 +120,5 @@ def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
         return Reason.OUTPUT_TOO_LARGE, f"wrote more than the output limit of {limits.output_bytes} bytes"
     ended = f"killed by {_signal_name(sig)}" if sig is not None else f"exit {code}"
     if any(word in tail for word in MEMORY_WORDS):
-        return Reason.MEMORY, f"ran out of memory (limit {limits.memory_bytes} bytes; {ended})"
+        return Reason.MEMORY, f"ran out of memory (limit {size(limits.memory_bytes)}; {ended})"
     return Reason.CRASHED, f"crashed ({ended})"

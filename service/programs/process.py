@@ -19,7 +19,10 @@ import subprocess
 import threading
 import time
 from dataclasses import dataclass
-from typing import IO
+from typing import IO, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .guard import Guard
 
 #: bytes read from a pipe at a time
 CHUNK = 65536
@@ -36,6 +39,8 @@ class Command:
     stdout_bytes: int  # standard output kept (beyond it, the command is killed)
     stderr_bytes: int  # the end of standard error kept
     info: tuple[int, int] | None = None  # a pipe (read, write) bubblewrap writes its --info-fd to
+    fds: tuple[int, ...] = ()  # more descriptors the command is given (and the parent closes once it has)
+    guard: Guard | None = None  # what holds the run's memory and processes (started with the command)
 
 
 @dataclass(frozen=True)
@@ -49,6 +54,8 @@ class Finished:
     stderr_tail: bytes
     wall_seconds: float
     cpu_seconds: float
+    exceeded: str | None = None  # the limit the run's guard ended it for (``memory``, ``processes``)
+    held_by: str = ""  # the guard's name (``the watchdog``, ``its cgroup``)
 
     @property
     def exit_code(self) -> int | None:
@@ -103,7 +110,7 @@ TEARDOWN_SECONDS = 30.0
 
 
 def _start(command: Command) -> subprocess.Popen[bytes]:
-    fds = () if command.info is None else (command.info[1],)
+    fds = command.fds if command.info is None else (command.info[1], *command.fds)
     try:
         return subprocess.Popen(
             command.argv,
@@ -116,8 +123,8 @@ def _start(command: Command) -> subprocess.Popen[bytes]:
             pass_fds=fds,
         )
     finally:
-        if command.info is not None:
-            os.close(command.info[1])
+        for fd in fds:
+            os.close(fd)
 
 
 def _sandbox_pidfd(info: tuple[int, int] | None) -> int | None:
@@ -210,6 +217,8 @@ def run_command(command: Command) -> Finished:
     head, tail, group = _Head(command.stdout_bytes, stop), _Tail(command.stderr_bytes), _Group(proc.pid)
     readers = _read(proc, head, tail)
     timed_out = _watch(group, head, stop, command.wall_seconds)
+    if command.guard is not None:
+        command.guard.start(proc.pid, group.kill)
     pidfd = None
     try:
         pidfd = _sandbox_pidfd(command.info)
@@ -221,7 +230,10 @@ def run_command(command: Command) -> Finished:
         proc.returncode = os.waitstatus_to_exitcode(status)
         stop.set()
         _await_teardown(pidfd)
+        exceeded = None if command.guard is None else command.guard.stop()
     wall = time.monotonic() - start
     for reader in readers:
         reader.join(DRAIN_SECONDS)
-    return Finished(status, timed_out.is_set(), head.overflowed, b"".join(head.parts), tail.data, wall, cpu)
+    timed = timed_out.is_set() and exceeded is None
+    held_by = "" if command.guard is None else command.guard.name
+    return Finished(status, timed, head.overflowed, b"".join(head.parts), tail.data, wall, cpu, exceeded, held_by)

@@ -9,18 +9,22 @@ from pathlib import Path
 
 from .limits import Limits
 from .runner import BuildStep, ProgramRun, command_argv
-from .sandbox import ENVIRONMENT
+from .runtime import check_names
+from .sandbox import search_path
 
 
 @dataclass(frozen=True)
 class Program:
     """How the TA runs every student's program: the command template (``{scene}``, ``{output}``), the build
-    command run once first (None: none), the limits, and the sandbox (off only on purpose)."""
+    command run once first (None: none), the limits, the sandbox (off only on purpose), and the runtime the
+    programs are given (:mod:`service.programs.runtime`: a folder shown read-only, Debian packages)."""
 
     run: str
     build: str | None = None
     limits: Limits = field(default_factory=Limits)
     sandbox: bool = True
+    runtime: str | None = None
+    packages: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         """ValueError for a command that cannot be run (the TA's mistake, found before any student is run):
@@ -29,17 +33,19 @@ class Program:
         ProgramRun(Path("."), self.run, Path("scene.json"))
         if self.build is not None:
             BuildStep(Path("."), self.build)
+        check_names(self.runtime, self.packages)
         for command in (self.run, self.build):
             if command is not None:
-                _installed(command)
+                _installed(command, search_path(self.runtime))
 
 
-def _installed(command: str) -> None:
+def _installed(command: str, path: str) -> None:
     """The command's program, when a bare name (``python3``, ``make``), is in the sandbox's ``PATH``: the
-    system's ``/usr`` is what a sandboxed program sees, so a name missing here is missing for every student."""
+    system's ``/usr`` (and the runtime) is what a sandboxed program sees, so a name missing here is missing
+    for every student."""
     first = command_argv(command)[0]
-    if "/" not in first and "{" not in first and shutil.which(first, path=ENVIRONMENT["PATH"]) is None:
+    if "/" not in first and "{" not in first and shutil.which(first, path=path) is None:
         raise ValueError(
-            f"command {command!r}: no program {first!r} in {ENVIRONMENT['PATH']} (what a student's "
-            f"program finds in its sandbox); install it, or name it by its path"
+            f"command {command!r}: no program {first!r} in {path} (what a student's program finds in "
+            f"its sandbox); install it, or name it by its path"
         )

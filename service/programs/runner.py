@@ -17,33 +17,64 @@ import stat
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..classgrade.untrusted import UntrustedFileError, read_untrusted
+from .cgroup import CgroupError
 from .folder import FolderTooLarge, chown_tree, copy_folder, unpack
+from .guard import Guard, guard
 from .limits import Limits
 from .outcome import Reason, RunOutcome, failure
 from .process import Command, Finished, run_command
-from .sandbox import ENVIRONMENT, OUTPUT, SCENE_DIR, UNSANDBOXED, Mounts, as_user, bwrap_argv, find_bwrap, sandbox_uid
-from .scripts import BUILD, BUILD_IN_PLACE, RUN, not_started, script, split_times
+from .sandbox import (
+    ENVIRONMENT,
+    OUTPUT,
+    SCENE_DIR,
+    UNSANDBOXED,
+    Mounts,
+    SandboxUnavailable,
+    as_user,
+    bwrap_argv,
+    find_bwrap,
+    sandbox_uid,
+    search_path,
+)
+from .scripts import BUILD, BUILD_IN_PLACE, RUN, RUN_PRINTED, not_started, script, split_times
+from .seccomp import filter_fd
+from .watchdog import Watchdog
+
+#: the word of a run's template that makes the program's standard output its image (in place of ``{output}``)
+STDOUT = "{stdout}"
 
 
 def command_argv(template: str, scene: str = "", output: str = "") -> list[str]:
     """The words of a command ``template`` (shell quoting, no shell), ``{scene}`` and ``{output}`` replaced
-    in each; ValueError on a template that cannot be split or is empty."""
+    in each and a ``{stdout}`` word left out; ValueError on a template that cannot be split or is empty."""
     try:
         words = shlex.split(template)
     except ValueError as exc:
         raise ValueError(f"command {template!r}: {exc}") from None
-    if not words:
+    if not words or words == [STDOUT]:
         raise ValueError("the command is empty")
-    return [w.replace("{scene}", scene).replace("{output}", output) for w in words]
+    return [w.replace("{scene}", scene).replace("{output}", output) for w in words if w != STDOUT]
+
+
+def prints_image(template: str) -> bool:
+    """Whether a run's template makes the program's standard output its image (a ``{stdout}`` word): ValueError
+    for one that names ``{stdout}`` inside a word, or names both it and ``{output}``."""
+    words = shlex.split(template)
+    if any(STDOUT in w and w != STDOUT for w in words):
+        raise ValueError(f"command {template!r}: {STDOUT} stands alone, a word of its own")
+    if STDOUT in words and any("{output}" in w for w in words):
+        raise ValueError(f"command {template!r}: it names both {{output}} and {STDOUT}; the image is one of them")
+    return STDOUT in words
 
 
 @dataclass(frozen=True)
 class ProgramRun:
-    """One run: the student's folder (or a build's result), the command template (``{scene}``, ``{output}``),
+    """One run: the student's folder (or a build's result), the command template (``{scene}``, ``{output}`` or
+    ``{stdout}``),
     the one scene it renders, its limits, and whether it runs in the sandbox (off only on purpose)."""
 
     folder: Path
@@ -51,12 +82,17 @@ class ProgramRun:
     scene: Path
     limits: Limits = field(default_factory=Limits)
     sandbox: bool = True
+    runtime: str | None = None  # the TA's runtime folder (:mod:`service.programs.runtime`)
 
     def __post_init__(self) -> None:
-        """ValueError, with the template, for a command that cannot be split or names no ``{output}``."""
+        """ValueError, with the template, for a command that cannot be split or names neither ``{output}`` nor
+        ``{stdout}`` (the image is what the program prints)."""
         command_argv(self.command)
-        if "{output}" not in self.command:
-            raise ValueError(f"command {self.command!r}: it names no {{output}}, the file the program writes")
+        if not prints_image(self.command) and "{output}" not in self.command:
+            raise ValueError(
+                f"command {self.command!r}: it names no {{output}}, the file the program writes (or {STDOUT}, for "
+                f"a program that prints its image)"
+            )
 
 
 @dataclass(frozen=True)
@@ -67,6 +103,7 @@ class BuildStep:
     command: str
     limits: Limits = field(default_factory=Limits)
     sandbox: bool = True
+    runtime: str | None = None
 
     def __post_init__(self) -> None:
         command_argv(self.command)
@@ -112,39 +149,49 @@ def _prepare(root: Path, folder: Path, scene: Path | None, limits: Limits) -> Mo
 
 @dataclass(frozen=True)
 class _Session:
-    """One sandboxed (or not) command in its run folder: what it is given and how it is limited."""
+    """One sandboxed (or not) command in its run folder: what it is given, how it is limited, and the guard
+    that holds its memory and processes (with the argv that runs a command under it)."""
 
     mounts: Mounts
     limits: Limits
     sandbox: bool
     uid: int
+    guard: Guard
+    guarded: list[str]
 
 
 def _command(session: _Session, words: list[str], body: str) -> Command:
+    """The command line: under the guard, the limits (the address space where the watchdog holds memory;
+    the processes outside the sandbox only for a user of the run's own), as the run's user, in the sandbox
+    (whose own user namespace counts its processes), the shell that runs the student's command."""
     limits = session.limits
-    prefix = [*limits.prlimit_argv(), *as_user(session.uid)]
+    own_user = os.geteuid() == 0
+    outer = limits.prlimit_argv(isinstance(session.guard, Watchdog), not session.sandbox and own_user)
+    prefix = [*session.guarded, *outer, *as_user(session.uid)]
     shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
     if not session.sandbox:
-        env = {**ENVIRONMENT, "HOME": str(session.mounts.submission)}
-        return Command(
-            [*prefix, *shell],
-            str(session.mounts.submission),
-            env,
-            limits.wall_seconds,
-            limits.workdir_bytes,
-            limits.stderr_bytes,
-        )
+        env = {**ENVIRONMENT, "HOME": str(session.mounts.submission), "PATH": search_path(session.mounts.runtime)}
+        place = str(session.mounts.submission)
+        return Command([*prefix, *shell], place, env, *_kept(limits), guard=session.guard)
     bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
+    seccomp = filter_fd()
+    filtered = [] if seccomp is None else ["--seccomp", str(seccomp)]
     info = os.pipe()
+    inner = ["prlimit", f"--nproc={limits.processes}", "--"]
     return Command(
-        [*prefix, *bwrap, "--info-fd", str(info[1]), *shell],
+        [*prefix, *bwrap, *filtered, "--info-fd", str(info[1]), *inner, *shell],
         "/",
         {"PATH": os.environ.get("PATH", "/usr/bin:/bin")},
-        limits.wall_seconds,
-        limits.workdir_bytes,
-        limits.stderr_bytes,
+        *_kept(limits),
         info,
+        () if seccomp is None else (seccomp,),
+        session.guard,
     )
+
+
+def _kept(limits: Limits) -> tuple[float, int, int]:
+    """A command's wall time, and how much of its standard output and error is kept."""
+    return limits.wall_seconds, limits.workdir_bytes, limits.stderr_bytes
 
 
 def _execute(session: _Session, words: list[str], body: str) -> Finished:
@@ -179,7 +226,9 @@ def _read_output(path: Path, limits: Limits) -> tuple[Reason, str, bytes | None]
 
 
 @contextmanager
-def _session(folder: Path, scene: Path | None, limits: Limits, sandbox: bool) -> Iterator[_Session]:
+def _session(
+    folder: Path, scene: Path | None, limits: Limits, sandbox: bool, runtime: str | None
+) -> Iterator[_Session]:
     """The run's folder (removed when the run ends, however it ends), given to the run's user.
     :class:`FolderTooLarge` when the student's folder is over the limit; :class:`SandboxUnavailable` when the
     run is to be sandboxed and bubblewrap is missing."""
@@ -187,9 +236,16 @@ def _session(folder: Path, scene: Path | None, limits: Limits, sandbox: bool) ->
         find_bwrap()
     uid = sandbox_uid()
     with _scratch() as root:
-        mounts = _prepare(root, folder, scene, limits)
+        mounts = replace(_prepare(root, folder, scene, limits), runtime=runtime)
         chown_tree(root, uid)
-        yield _Session(mounts, limits, sandbox, uid)
+        try:
+            watch, guarded = guard(limits, sandbox)
+        except CgroupError as exc:
+            raise SandboxUnavailable(f"the run's cgroup cannot be made: {exc}") from None
+        try:
+            yield _Session(mounts, limits, sandbox, uid, watch, guarded)
+        finally:
+            watch.close()
 
 
 def run_program(run: ProgramRun) -> RunOutcome:
@@ -197,10 +253,12 @@ def run_program(run: ProgramRun) -> RunOutcome:
     :class:`SandboxUnavailable` when it is to be sandboxed and the sandbox is missing or cannot start."""
     warning = None if run.sandbox else UNSANDBOXED
     try:
-        with _session(run.folder, run.scene, run.limits, run.sandbox) as session:
+        with _session(run.folder, run.scene, run.limits, run.sandbox, run.runtime) as session:
             scene = f"{SCENE_DIR}/{run.scene.name}" if run.sandbox else str(session.mounts.scene)
             output = OUTPUT if run.sandbox else str(session.mounts.output)
-            finished = _execute(session, command_argv(run.command, scene, output), RUN)
+            words = command_argv(run.command, scene, output)
+            printed = prints_image(run.command)  # (its standard output, into the output file: the same limits)
+            finished = _execute(session, [output, *words] if printed else words, RUN_PRINTED if printed else RUN)
             failed = failure(finished, run.limits)
             if failed is not None:
                 return _outcome(*failed, finished, warning)
@@ -215,7 +273,7 @@ def build_program(step: BuildStep, into: Path) -> Built:
     removes): the runs then use it as their folder.  :class:`SandboxUnavailable` as for :func:`run_program`."""
     warning = None if step.sandbox else UNSANDBOXED
     try:
-        with _session(step.folder, None, step.limits, step.sandbox) as session:
+        with _session(step.folder, None, step.limits, step.sandbox, step.runtime) as session:
             finished = _execute(session, command_argv(step.command), BUILD if step.sandbox else BUILD_IN_PLACE)
             failed = failure(finished, step.limits)
             if finished.stdout_overflow:
@@ -231,10 +289,11 @@ def build_program(step: BuildStep, into: Path) -> Built:
         return Built(_outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning), None)
 
 
-def check_sandbox() -> None:
-    """Start one sandbox that runs ``true``: :class:`SandboxUnavailable`, with bubblewrap's own words, where
-    it cannot (bubblewrap missing, or user namespaces not allowed, as in a container without the right),
-    so that a batch can stop before its first student rather than fail each."""
+def check_sandbox(command: str = "true {output}", runtime: str | None = None) -> RunOutcome:
+    """Start one sandbox that runs ``command`` (``true``): :class:`SandboxUnavailable`, with bubblewrap's own
+    words, where it cannot (bubblewrap missing, or user namespaces not allowed, as in a container without the
+    right), so that a batch can stop before its first student rather than fail each; else how it ran."""
     with tempfile.TemporaryDirectory(prefix="phongray-check-") as empty:
         Path(empty, "scene.json").write_text("{}")
-        run_program(ProgramRun(Path(empty), "true {output}", Path(empty, "scene.json"), Limits(wall_seconds=30.0)))
+        scene, limits = Path(empty, "scene.json"), Limits(wall_seconds=30.0)
+        return run_program(ProgramRun(Path(empty), command, scene, limits, runtime=runtime))

@@ -10,7 +10,8 @@ from the run's private copy of the student's folder (bound read-only at ``/submi
 file of the machine it can write to.  There is no network (an empty network namespace: not even the
 loopback of the host), no other process of the machine, no home or work folder, nothing of the TA's
 (scenes, references, reports) and no other student.  Every path above is in the sandbox; the machine's own
-are the private temporary copies of :mod:`service.programs.runner`.
+are the private temporary copies of :mod:`service.programs.runner`.  A runtime the TA names
+(:mod:`service.programs.runtime`) is shown read-only at its own path, its ``bin`` first on the ``PATH``.
 """
 
 from __future__ import annotations
@@ -64,10 +65,10 @@ def find_bwrap() -> str:
 
 def sandbox_uid() -> int:
     """The user a run's processes are, on the machine.  As root, an unused user id drawn at random for this
-    run: the process limit (``RLIMIT_NPROC``) counts the processes of a user and does not apply to root, so a
-    user of its own makes it bite, and counts only this run's processes (two runs draw the same id with
-    probability 1 in 10⁸ per pair, and then share one budget of processes: still contained).  Not root (the
-    autograder's unprivileged user): this process's own user, whose other processes then count too."""
+    run, which owns nothing of the machine and no other run's files (two runs draw the
+    same id with probability 1 in 10⁸ per pair).  Not root (the autograder's unprivileged user): this
+    process's own user.  Either way the run's processes are counted in its sandbox's own user namespace
+    (:mod:`service.programs.guard`)."""
     if os.geteuid() != 0:
         return os.getuid()
     return UID_BASE + secrets.randbelow(UID_SPAN)
@@ -83,12 +84,13 @@ def as_user(uid: int) -> list[str]:
 @dataclass(frozen=True)
 class Mounts:
     """The machine's files a sandbox shows: the private copy of the student's folder, the scene's copy, and
-    the output file (all in the run's temporary folder)."""
+    the output file (all in the run's temporary folder), and the TA's runtime folder."""
 
     submission: Path
     scene: Path | None  # None for a build, which renders no scene
     scene_name: str
     output: Path
+    runtime: str | None = None  # the TA's runtime folder, shown read-only at its own path
 
 
 def _system() -> list[str]:
@@ -103,9 +105,14 @@ def _system() -> list[str]:
     return args
 
 
-def _environment() -> list[str]:
+def search_path(runtime: str | None) -> str:
+    """The programs' ``PATH``: the runtime's ``bin`` first, where there is one."""
+    return ENVIRONMENT["PATH"] if runtime is None else f"{runtime}/bin:{ENVIRONMENT['PATH']}"
+
+
+def _environment(runtime: str | None) -> list[str]:
     args = ["--clearenv"]
-    for name, value in ENVIRONMENT.items():
+    for name, value in {**ENVIRONMENT, "PATH": search_path(runtime)}.items():
         args += ["--setenv", name, value]
     return args
 
@@ -121,7 +128,7 @@ def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
         "--new-session",
         "--hostname",
         "sandbox",
-        *_environment(),
+        *_environment(mounts.runtime),
         *_system(),
         "--proc",
         "/proc",
@@ -150,4 +157,6 @@ def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
     ]
     if mounts.scene is not None:
         args += ["--ro-bind", str(mounts.scene), f"{SCENE_DIR}/{mounts.scene_name}"]
+    if mounts.runtime is not None:
+        args += ["--ro-bind", mounts.runtime, mounts.runtime]
     return [*args, "--remount-ro", "/dev", "--remount-ro", "/", "--chdir", HOME]

@@ -16,6 +16,7 @@ import re
 
 from .process import Finished
 from .sandbox import SUBMISSION, SandboxUnavailable
+from .unavailable import explain
 
 MARK = "--- phongray: CPU time of the program ---"
 _REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
@@ -23,6 +24,9 @@ _REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
 FILL = f"cp -R {SUBMISSION}/. . || exit 125; "
 #: a run: the command (its standard output joined to its standard error), then its CPU time
 RUN = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
+#: a run whose program prints its image: its standard output written to the output file (``$1``), within the
+#: same limits as a file it writes itself (RLIMIT_FSIZE), then its CPU time
+RUN_PRINTED = f'o=$1; shift; "$@" >"$o"; s=$?; {_REPORT}; exit $s'
 #: a build: the command with its output on standard error, its CPU time, then (built) the folder as a tar stream
 BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || tar -cf - . || s=125; exit $s'
 #: a build without a sandbox, in the run's folder on the machine (copied from there)
@@ -44,7 +48,7 @@ def not_started(finished: Finished) -> None:
     text = finished.stderr_tail.decode("utf-8", "replace").strip()
     code = finished.exit_code
     if code is not None and 0 < code <= 128 and MARK not in text and text.startswith(SETUP_FAILURES):
-        raise SandboxUnavailable(f"the sandbox cannot start here: {text.splitlines()[-1]}")
+        raise SandboxUnavailable(f"the sandbox cannot start here: {explain(text.splitlines()[-1])}")
 
 
 def split_times(stderr: bytes, seen: float) -> tuple[str, float]:

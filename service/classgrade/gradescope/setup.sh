@@ -41,5 +41,27 @@ if [ -f "$SOURCE/course/program.json" ] && grep -q '"sandbox": true' "$SOURCE/co
   apt-get update -q
   apt-get install -y -q bubblewrap util-linux
 fi
+# the runtime the TA named for the programs (course/program.json, course/runtime-requirements.txt): Debian
+# packages installed for the system's Python, which the sandbox shows; a Python environment built of a
+# requirements file with the image's python3 at /opt/phongray-runtime, shown read-only to every run
+packages="$("$VENV/bin/python" -c 'import json, sys; print(" ".join(json.load(open(sys.argv[1])).get("packages", [])))' \
+    "$SOURCE/course/program.json" 2>/dev/null || true)"
+if [ -n "$packages" ]; then
+  apt-get update -q
+  # shellcheck disable=SC2086  # (the names are Debian packages', checked when the bundle was made)
+  apt-get install -y -q $packages
+fi
+if [ -f "$SOURCE/course/runtime-requirements.txt" ]; then
+  RUNTIME=/opt/phongray-runtime
+  if ! /usr/bin/python3 -m venv "$RUNTIME"; then
+    rm -rf "$RUNTIME"
+    apt-get update -q
+    apt-get install -y -q python3-venv
+    /usr/bin/python3 -m venv "$RUNTIME"
+  fi
+  "$RUNTIME/bin/pip" install -q --disable-pip-version-check -r "$SOURCE/course/runtime-requirements.txt"
+  chmod -R a+rX "$RUNTIME"
+  echo "phongray: the programs' runtime is built in $RUNTIME"
+fi
 "$VENV/bin/phongray" --version
 echo "phongray: installed with Python $version in $VENV"

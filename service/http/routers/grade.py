@@ -38,7 +38,7 @@ GRADE_BODY = {
                             "description": "the scene, as JSON text or a JSON file",
                             "example": EXAMPLE_TEXT,
                         },
-                        "image": {"type": "string", "format": "binary", "description": "the submitted PNG"},
+                        "image": {"type": "string", "format": "binary", "description": "the submitted PNG or PPM"},
                         "tolerance": {"type": "number", "minimum": 0, "maximum": 255, "default": 2},
                         "max_fraction": {"type": "number", "minimum": 0, "maximum": 1, "default": 0.001},
                         "diagnose": {
@@ -58,7 +58,7 @@ GRADE_BODY = {
 @router.post(
     "/grade",
     openapi_extra=GRADE_BODY,
-    summary="Grade a submitted PNG against the reference render",
+    summary="Grade a submitted PNG or PPM against the reference render",
     response_model=None,
     responses={
         200: {

@@ -1,0 +1,133 @@
+"""What an image cannot tell apart (service/diagnosis/records.py, words.py, classgrade/gradebook.py): where two
+mistakes give the same image, the diagnosis says both readings, and a deduction applies to what the image shows."""
+
+import numpy as np
+import pytest
+import student
+from test_variants import _glass_over_floor
+
+import schemas
+from service.classgrade.gradebook import matched, partial, score
+from service.classgrade.taskfile import TaskSettings
+from service.diagnosis import Cause, Diagnosis, diagnose, renders_of
+from service.grading import grade
+from tracer import Renderer
+from tracer.variants import VARIANTS
+
+from helpers import scene_dict
+
+
+@pytest.fixture(scope="module")
+def spotlights():
+    """The spotlights example, small: a reflected vector of the wrong sign gives exactly its no-specular image."""
+    data = scene_dict("07_spotlights")
+    data["image"].update(width=64, height=48)
+    scene = schemas.validate_scene(data)
+    return scene, Renderer(scene).pixels(), renders_of(scene)
+
+
+def test_the_two_mistakes_render_the_same_image_there(spotlights):
+    scene, reference, _ = spotlights
+    flipped = Renderer(scene, VARIANTS["reflect-sign"][0]).pixels()
+    assert np.array_equal(flipped, Renderer(scene, VARIANTS["no-specular"][0]).pixels())
+    assert not grade(reference, flipped, "").passed
+
+
+@pytest.mark.parametrize("mistake", ["reflect-sign", "no-specular"])
+def test_a_student_with_either_mistake_is_told_both_readings(spotlights, mistake):
+    scene, reference, renders = spotlights
+    made = student.render(scene, [mistake])
+    verdict = grade(reference, made, "")
+    assert not verdict.passed
+    found = diagnose(reference, made, verdict, renders)
+    assert {c.variant for c in found.readings} == {"reflect-sign", "no-specular"}
+    sentence = found.sentence()
+    assert sentence.startswith(
+        "Likely: no specular term, or the reflected vector R with the wrong sign (L − 2(N·L)N) — the image cannot "
+        "tell them apart (it shows no specular highlight): the submission matches the reference rendered with either"
+    ), sentence
+    assert found.headline() == "no specular term or the reflected vector R with the wrong sign (L − 2(N·L)N)"
+
+
+def test_glass_that_casts_no_shadow_where_only_glass_could_is_no_shadows_either():
+    scene = _glass_over_floor(False)
+    reference = Renderer(scene).pixels()
+    made = student.render(scene, ["transparent-no-shadows"])
+    verdict = grade(reference, made, "")
+    assert not verdict.passed
+    found = diagnose(reference, made, verdict, renders_of(scene))
+    assert {c.variant for c in found.readings} == {"no-shadows", "transparent-no-shadows"}
+    assert "the image cannot tell them apart (it shows no shadows)" in found.sentence()
+    # with an opaque ball beside the glass, its shadow tells them apart: one mistake, named alone
+    scene = _glass_over_floor(True)
+    reference = Renderer(scene).pixels()
+    made = student.render(scene, ["transparent-no-shadows"])
+    found = diagnose(reference, made, grade(reference, made, ""), renders_of(scene))
+    assert found.readings == [] and found.causes[0].variant == "transparent-no-shadows"
+    assert found.sentence().startswith("Likely: transparent objects cast no shadows")
+
+
+def test_the_honest_students_image_still_passes(spotlights):
+    scene, reference, renders = spotlights
+    right = student.render(scene)
+    verdict = grade(reference, right, "")
+    assert verdict.passed and diagnose(reference, right, verdict, renders).causes == []
+
+
+def _readings(*names: str, fraction: float = 0.0) -> Diagnosis:
+    return Diagnosis([Cause(n, VARIANTS[n][1], fraction, True) for n in names])
+
+
+def test_readings_are_the_single_mistakes_passed_against_when_there_are_several():
+    one = _readings("no-shadows")
+    assert one.readings == [] and one.sentence().startswith("Likely: no shadow rays — the submission matches")
+    three = _readings("no-attenuation", "area-not-divided", "gamma", fraction=0.0004)
+    assert three.sentence() == (
+        "Likely: no attenuation of point, spot and area lights, an area light not divided by nu·nv, or gamma 1/2.2 "
+        "applied to the output — the image cannot tell them apart: the submission matches the reference rendered "
+        "with any of them (0.04 % of pixels off)"
+    )
+    together = Diagnosis([Cause("no-shadows", "no shadow rays", 0.0, True, ["gamma"]), Cause("gamma", "g", 0.0, True)])
+    assert together.readings == []  # mistakes made together are one reading, not two
+    closest = Diagnosis([Cause("no-shadows", "no shadow rays", 0.01, False), Cause("gamma", "g", 0.02, False)], True)
+    assert closest.readings == []
+
+
+# -- a deduction applies to what the image shows ------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def alike_row(spotlights):
+    """The class report's row of a student whose image shows no specular highlight (a reflected vector of the
+    wrong sign): its mistakes are both readings."""
+    scene, reference, renders = spotlights
+    made = student.render(scene, ["reflect-sign"])
+    verdict = grade(reference, made, "")
+    mistakes = matched(diagnose(reference, made, verdict, renders).as_dict())
+    assert sorted(mistakes) == ["no-specular", "reflect-sign"]
+    return {"status": "fail", "mistakes": mistakes, "points": 2.0}
+
+
+@pytest.mark.parametrize(
+    ("deductions", "expected"),
+    [
+        ({"no-specular": 1}, (1.0, "no-specular")),  # only what the image shows has one: it is taken
+        ({"reflect-sign": 0.5}, (1.5, "reflect-sign")),
+        ({"no-specular": 1, "reflect-sign": 0.5}, (1.5, "reflect-sign")),  # two that differ: the smaller
+        ({"no-shadows": 1}, (0.0, None)),  # none for either reading: an unnamed fault, nothing
+    ],
+)
+def test_the_deduction_is_the_smallest_of_the_readings(alike_row, deductions, expected):
+    got = score(alike_row, TaskSettings(points=2, deductions=deductions))
+    assert (got.score, got.deducted) == expected
+
+
+def test_the_partial_credit_names_every_reading(alike_row):
+    got = score(alike_row, TaskSettings(points=2, deductions={"no-specular": 1}))
+    row = alike_row | {"score": got.score, "deducted": got.deducted}
+    assert partial(row) == (
+        "Partial credit: 1 of 2 points (no specular term, or the reflected vector R with the wrong sign "
+        "(L − 2(N·L)N): -1)"
+    )
+    alone = {"status": "fail", "mistakes": ["no-shadows"], "points": 2.0, "score": 1.0, "deducted": "no-shadows"}
+    assert partial(alone) == "Partial credit: 1 of 2 points (no shadow rays: -1)"
