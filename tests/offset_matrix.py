@@ -9,8 +9,8 @@ one ray at a time) on the eight examples, the Cornell-box homework and the hard 
 of view), and prints a Markdown table per section and the confusion matrix:
 
 * ``honest``: offsets along the normal of 1e-4, 1e-3 and 3e-3 of the visible size (:mod:`tracer.visible`), t_min
-  of 1e-4 to 1e-2 of it, float32 and float64 tracers, 2×2 samples: each must pass (``pass``, or ``pass*`` as an
-  accepted variant);
+  of 1e-4 to 1e-2 of it, float32 and float64 tracers, 2×2 samples (on the scenes sampled once per pixel): each
+  must pass (``pass``, or ``pass*`` as an accepted variant);
 * ``alone``: each mistake of tests/student.py alone: ``—`` where the image is the reference's (the scene cannot
   show it), else it must fail and be named (``named``; ``both`` when it is one of several readings);
 * ``offset``: each mistake behind an honest offset (3e-3 of the visible size): named, and matched (so that its
@@ -114,11 +114,18 @@ def flip_error(scene, image: np.ndarray) -> float | None:  # noqa: ANN001
     return float(np.max(error_map))
 
 
-def outcome(scene, image: np.ndarray, expected: set[str] | None, flip: bool) -> dict[str, Any]:  # noqa: ANN001
-    """One cell: the verdict, what it names, and (with ``flip``) the largest ꟻLIP error."""
+def outcome(  # noqa: ANN201
+    scene,  # noqa: ANN001
+    image: np.ndarray,
+    expected: set[str] | None,
+    flip: bool,
+    honest: np.ndarray | None = None,
+):
+    """One cell: the verdict, what it names, and (with ``flip``) the largest ꟻLIP error; a mistake's image that is
+    the honest one (``honest``, by default the reference) is ``—``, a mistake the scene does not show."""
     reference = Renderer(scene).pixels()
     cell: dict[str, Any] = {"flip": flip_error(scene, image) if flip else None}
-    if expected is not None and np.array_equal(image, reference):
+    if expected is not None and np.array_equal(image, reference if honest is None else honest):
         return {**cell, "verdict": "—"}
     found = graded(scene, image)
     cell["verdict"] = ("pass*" if found.accepted else "pass") if found.grade.passed else "FAIL"
@@ -157,6 +164,8 @@ def sections(scenes: dict[str, Any], which: list[str], pair_width: int, flip: bo
     for stem, scene in scenes.items():
         if "honest" in which:
             for style in HONEST:
+                if style.endswith("2x2") and scene.image.samples != 1:
+                    continue  # (a scene sampled already: its own samples are the anti-aliased cell)
                 made, image = honest_image(scene, style)
                 out["honest"][(style, stem)] = outcome(made, image, None, flip)
                 _progress("honest", style, stem, out["honest"][(style, stem)])
@@ -167,10 +176,11 @@ def sections(scenes: dict[str, Any], which: list[str], pair_width: int, flip: bo
                 _progress("alone", name, stem, cell)
         if "offset" in which:
             behind = student.Offset(BEHIND * visible_size(scene))
+            honest = student.render(scene, style=behind)
             for name in student.MISTAKES:
                 if name == "offset-too-large":
                     continue
-                cell = outcome(scene, student.render(scene, [name], style=behind), {name}, flip)
+                cell = outcome(scene, student.render(scene, [name], style=behind), {name}, flip, honest)
                 out["offset"][(name, stem)] = cell
                 _progress("offset", name, stem, cell)
         if "pairs" in which:

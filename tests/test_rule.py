@@ -123,8 +123,11 @@ def test_the_cornell_homework_passes_a_float32_tracers_textbook_offsets():
 def test_a_mistake_behind_an_honest_offset_keeps_its_name_and_its_deduction():
     """A student who offsets by 3e-3 of the visible size (0.018 in the Whitted example, accepted) and applies
     gamma fails every accepted variant and the gamma variant; the offset, fitted with the mistake made, leaves
-    only gamma: named as matched, and its deduction taken."""
-    scene = _scene(ROOT / "examples" / "04_whitted.json")
+    only gamma: named as matched, and its deduction taken, as a class grades an upload or a program's image."""
+    from service.classgrade.tasks import grade_task
+
+    path = ROOT / "examples" / "04_whitted.json"
+    scene = _scene(path)
     size = Renderer(scene).visible_size()
     image = student.render(scene, ["gamma"], style=student.Offset(3e-3 * size))
     graded = _graded(scene, image)
@@ -133,7 +136,9 @@ def test_a_mistake_behind_an_honest_offset_keeps_its_name_and_its_deduction():
     assert found.causes[0].variant == "gamma" and found.causes[0].passes and not found.closest
     assert found.offset is not None and found.offset.endswith("along the normal")
     assert "matches the reference rendered with that mistake and a ray offset of" in found.sentence()
-    said = found.as_dict()
-    assert matched(said) == ["gamma"]
-    row = {"status": "fail", "mistakes": matched(said)}
-    assert score(row, TaskSettings(points=2, deductions={"gamma": 1})).score == 1
+    row = grade_task(encode_png(Renderer(scene).pixels()), encode_png(image), 2.0, 0.001, path.read_bytes())
+    assert row["status"] == "fail" and matched(row["diagnosis"]) == ["gamma"]
+    assert (
+        score({**row, "mistakes": matched(row["diagnosis"])}, TaskSettings(points=2, deductions={"gamma": 1})).score
+        == 1
+    )

@@ -180,7 +180,7 @@ class DirectLight:
         pick = picker(rows)
         shadow_dirs = np.ascontiguousarray(pick(reach.to_light))
         # from the exact hit point, leaving its surface by identity, to the light itself
-        rays = self.spawner.spawn(hit, at.mag, rows, shadow_dirs)
+        rays = self.spawner.spawn(hit, at.mag, rows, shadow_dirs, at.normal)
         if opt.acne:  # a student's shadow ray: its surface not left, half the points a hair below it
             below = (
                 np.ones(n, dtype=bool)

@@ -136,7 +136,7 @@ def scene_size(scene: Any) -> float:
 @dataclass(frozen=True)
 class Spawn:
     """A student's way of starting shadow and secondary rays off the surface: ``amount`` (local units) along the
-    geometric normal, to the side the ray leaves by (``along="normal"``), or along the ray itself
+    shading normal, to the side the ray leaves by (``along="normal"``), or along the ray itself
     (``along="ray"``: the same as ignoring hits nearer than ``amount``, a t_min, since the ray starts on the
     surface).  The rays are moved by :func:`tracer.spawn.offset`."""
 

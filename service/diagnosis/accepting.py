@@ -175,17 +175,50 @@ def accept(
     )
     allowed = min(pair.failed.max_fraction, EXPLAINED * pair.failed.fraction_off_nearby) * pair.submitted[..., 0].size
     for rungs in accepted_ladders(scene, accepted, key):
-        for k, (low, high) in enumerate(brackets(rungs)):
-            after = rungs[k + 1] if k + 1 < len(rungs) else None
-            found = _bracket(
-                scene, pair, [r for r in (low, high) if r is not None], look, (allowed, low is None), after
-            )
-            if found is not None:
-                return found
-        found = _narrowed(scene, pair, rungs, look, allowed)
+        found = _found(scene, pair, rungs, look, allowed)
+        if found is not None:
+            return _quoted(scene, pair, rungs, look, found)
+    return None
+
+
+def _found(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:
+    """The image accepted as a range of one ladder's amounts: two neighbouring rungs, smallest first, else a
+    narrower range (:func:`_narrowed`); None when none holds it."""
+    for k, (low, high) in enumerate(brackets(rungs)):
+        after = rungs[k + 1] if k + 1 < len(rungs) else None
+        parts = [r for r in (low, high) if r is not None]
+        found = _bracket(scene, pair, parts, look, (allowed, low is None), after)
         if found is not None:
             return found
-    return None
+    return _narrowed(scene, pair, rungs, look, allowed)
+
+
+def _quoted(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, found: Acceptance) -> Acceptance:
+    """``found``, said as the rung of its ladder whose render the image comes closest to, when that is not the one
+    it was found as (an image within the range of two small amounts, where larger ones change little, made with a
+    larger one): every rung looked at on a few rows first, and the nearest rendered whole."""
+
+    def alone(r: Rung) -> tuple[int, int]:
+        return sampled_off(scene, [r], pair, look, reference=False)
+
+    best = min(rungs, key=alone)
+    if alone(best) >= alone(found.rung):
+        return found
+    pixels, failed = pair.submitted[..., 0].size, pair.failed
+    own = [
+        grade(
+            KEPT_RENDERS.get(
+                (look.key, r.options), partial(_render, scene, r.options, look.threads, look.cancel), pixels
+            ),
+            pair.submitted,
+            failed.reference_sha256,
+            failed.tolerance,
+            failed.max_fraction,
+            pair.open_pixels,
+        ).fraction_off_nearby
+        for r in (found.rung, best)
+    ]
+    return replace(found, words=best.words, rung=best) if own[1] < own[0] else found
 
 
 def _narrowed(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:

@@ -42,6 +42,12 @@ class GradeAnswer(BaseModel):
     width: int
     height: int
     reference_sha256: str
+    grossly_off: int = Field(
+        0,
+        description="pixels off even nearby by more than 128 levels (a dot or speckle of the wrong colour): "
+        "none may be, whatever the fraction",
+    )
+    open_pixels: int = Field(0, description="pixels the scene format leaves open, not counted")
     reason: str = Field(description="why it failed, in words; empty when it passed")
     diagnosis: Diagnosis | None = Field(
         description="what the student most likely got wrong; null when it passed or diagnose=false"
