@@ -79,7 +79,8 @@ def _direct_light(module: str, shade: str, area: str, blocked: str) -> list[Stag
     ]
 
 
-#: the stages, by the names the render calls them by (render.py imports its helpers by name)
+#: the stages, by the names the render calls them by (stages.py, and an older tracer's render.py, import their
+#: helpers by name)
 STAGES = [
     Stage("tracer.camera", "CameraRays.rays", "camera rays", _n_result),
     Stage("tracer.intersect", "Intersector.closest", "closest hit", _n_first),
@@ -89,22 +90,26 @@ STAGES = [
     Stage("tracer.intersect", "Intersector._describe", "hit reconstruction", lambda a, r: len(a[2].t)),
     Stage("tracer.intersect", "Intersector._direct", "direct tests"),
     Stage("tracer.walk", "Walk.walk", "walk", _n_second),
-    Stage("tracer.walk", "Walk._test", "exact tests", _n_second),
+    Stage("tracer.pairs", "PairTests.test", "exact tests", _n_second),
     Stage("tracer.embree", "Bvh.nearest", "Embree", _n_first),
     Stage("tracer.embree", "Bvh.any_hit", "Embree", _n_first),
     Stage("tracer.render", "through_point", "cones", lambda a, r: len(a[3])),
     Stage("tracer.render", "along_direction", "cones", lambda a, r: len(a[2])),
     Stage("tracer.direct", "through_point", "cones", lambda a, r: len(a[3])),
     Stage("tracer.direct", "along_direction", "cones", lambda a, r: len(a[2])),
+    Stage("tracer.stages", "resolve_material", "materials and checker", _n_out),
+    Stage("tracer.stages", "shading_normal", "shading normals", _n_out),
     Stage("tracer.render", "resolve_material", "materials and checker", _n_out),
     Stage("tracer.render", "shading_normal", "shading normals", _n_out),
-    *_direct_light("tracer.direct", "DirectLight.shade", "area_terms", "DirectLight.blocked"),
+    *_direct_light("tracer.direct", "DirectLight.shade", "area_terms", "ShadowRays.blocked"),
     Stage("tracer.area", "classify", "area-light culling", lambda a, r: len(getattr(r, "state", r))),
     # (an older tracer's, where direct light was the renderer's own: profiled when the bench runs it)
     *_direct_light("tracer.render", "Renderer.direct", "Renderer._area_light", "Renderer._blocked"),
     Stage("tracer.render", "Renderer.secondary", "reflection and refraction", _n_out),
     Stage("tracer.render", "_accumulate", "adding up", _n_second),
     Stage("tracer.render", "quantize", "quantisation", _n_first),
+    Stage("tracer.stages", "Spawner.bounce", "reflection and refraction", _n_out),
+    Stage("tracer.stages", "Film.add", "adding up", _n_first),
     Stage("tracer.render", "Spawner.bounce", "reflection and refraction", _n_out),
     Stage("tracer.render", "Film.add", "adding up", _n_first),
     Stage("tracer.film", "quantize", "quantisation", _n_first),

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -18,7 +18,7 @@ from pydantic import ValidationError
 from schemas import Image, Scene, SceneError, parse_json, validate_scene
 from schemas.errors import problems_from_validation
 from schemas.locate import as_lines, format_located
-from tracer import decode_png
+from tracer import decode_png, open_pixels
 
 from . import grading
 from .heatmap import Kind, heatmap_png
@@ -130,12 +130,19 @@ def explain(
     """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the
     diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic
     mistake and its passes, cached by canonical scene (in ``run.cache``), compared with the submission.  A
-    passing grade comes back as it is."""
+    passing grade comes back as it is; a failing one is first graded without the pixels the format leaves open,
+    where the scene has any (:func:`without_open`)."""
     if graded.grade.passed:
         return graded
+    opened = left_open(scene, run)
+    if opened is not None:
+        graded = _without(graded, reference, submitted, opened)
+        if graded.grade.passed:
+            return graded
     from .diagnosis.accepting import Failing, accept
 
-    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, run.threads, run.cancel)
+    failing = Failing(reference, submitted, graded.grade, opened)  # (the open pixels are not counted by any check)
+    found_variant = accept(scene, failing, checks.accepted, run.threads, run.cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
@@ -143,8 +150,9 @@ def explain(
     from .diagnosis import renders_of
     from .scenekey import scene_key
 
-    failing = Failing(reference, submitted, graded.grade)
-    found = _diagnosed(scene, failing, lambda: renders_of(scene, run.threads), scene_key(scene), run)
+    found = _diagnosed(
+        scene, failing, lambda: renders_of(scene, run.threads, open_pixels=opened), scene_key(scene), run
+    )
     if not any(c.passes for c in found.causes) and found.unavailable is None:
         found = _behind_offset(scene, failing, checks, run, found) or found
     return Graded(graded.grade, graded.heatmap, found)
@@ -172,6 +180,27 @@ def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Run, fou
     from .diagnosis.nuisance import behind_offset
 
     return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
+
+
+def left_open(scene: Scene, run: Run) -> np.ndarray | None:
+    """The pixels of ``scene`` the format leaves open, ``(H, W)`` bool: which of two overlapping coplanar surfaces
+    shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces); None where none is."""
+    opened = open_pixels(scene, run.threads, run.cancel)
+    return None if opened is None or not opened.any() else opened
+
+
+def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Run) -> Graded:
+    """``graded`` graded again without the pixels of ``scene`` the format leaves open (:func:`left_open`)."""
+    opened = left_open(scene, run)
+    return graded if opened is None else _without(graded, reference, submitted, opened)
+
+
+def _without(graded: Graded, reference: np.ndarray, submitted: np.ndarray, opened: np.ndarray) -> Graded:
+    """``graded`` graded again with the pixels ``opened`` not counted."""
+    g = graded.grade
+    return replace(
+        graded, grade=grading.grade(reference, submitted, g.reference_sha256, g.tolerance, g.max_fraction, opened)
+    )
 
 
 def read_image(data: bytes, size: tuple[int, int]) -> np.ndarray:

@@ -35,7 +35,8 @@ class Settings(BaseSettings):
     max_light_samples: int = 1_024  # directional + point + spot lights + all area-light samples
     max_cost: float = 1e8  # ray work a render may do, counted as it runs (service/limits.py, docs/cost-model.md)
     max_ray_bytes: int = 1024 * 1024 * 1024  # memory a render's rays in flight may hold
-    max_concurrent_renders: int = 2  # renders at once per worker process; more get 503
+    max_concurrent_renders: int = 2  # renders at once per worker process; more wait their turn ...
+    queue_wait: float = 60.0  # ... at most this many seconds, then get 503 with a Retry-After of the queue
     render_threads: int = 0  # threads per render; 0 means every core
     render_timeout: float = 120.0  # seconds; a longer render is stopped and answered with 503
     cache_bytes: int = 64 * 1024 * 1024  # reference renders kept for /grade and /render
@@ -48,7 +49,7 @@ class Settings(BaseSettings):
     max_connections: int = 1_000  # open connections per worker process; beyond it, 503
     max_buffered_bytes: int = 96 * 1024 * 1024  # request bodies one worker process holds at once ...
     buffer_wait: float = 30.0  # ... beyond which a body waits this many seconds for room, then gets 503
-    max_answer_bytes: int = 1024 * 1024 * 1024  # what the pass answers one worker holds at once, priced up front
+    max_answer_bytes: int = 1024 * 1024 * 1024  # image answers (renders, passes, heat-maps) a worker holds
     send_timeout: float = 30.0  # seconds a chunk of an answer may wait for the client to read it; then dropped
     cluster: str = ""  # a Dask scheduler (tcp://HOST:PORT): renders go to its workers instead of this process
     cluster_wait: float = CLUSTER_WAIT  # seconds to wait for a cluster's first worker before giving up

@@ -52,9 +52,12 @@ SANDBOXED = {
     "test_job.py",
     "test_class_programs.py",
     "test_bundled.py",
+    "test_hidden.py",
+    "test_copied.py",
     "test_guard.py",
     "test_seccomp.py",
     "test_runtime.py",
+    "test_usage.py",
 }
 
 

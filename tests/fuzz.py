@@ -5,7 +5,8 @@ For each scene, three comparisons, each only where the brute force is clear:
 * every primary ray: hit or miss, the same surface, t to a relative tolerance;
 * every shadow decision from those hits: from the brute force's own hit point,
   leaving its surface, towards every light and area-light sample that faces it;
-* every pixel: within one 8-bit level.
+* every pixel: within one 8-bit level, and whether the format leaves it open
+  (a tie between overlapping coplanar surfaces of two objects in its ray tree).
 
 As a soak::
 
@@ -106,7 +107,8 @@ def compare(seed: int, data: dict[str, Any], family: str = "") -> Outcome:
         warnings.simplefilter("ignore")
         frame = reference.render(scene)
         renderer = Renderer(scene)
-        image = renderer.pixels(threads=1)
+        picture = renderer.picture(threads=1)
+        image = picture.pixels
         _rays(out, scene, renderer)
     clear = ~frame.unclear
     diff = np.abs(image.astype(np.int16) - frame.pixels().astype(np.int16)).max(axis=2)
@@ -119,6 +121,17 @@ def compare(seed: int, data: dict[str, Any], family: str = "") -> Outcome:
         [
             f"pixel (x={x}, y={y}): phongray {image[y, x].tolist()} brute force {frame.pixels()[y, x].tolist()}"
             for y, x in where[:3]
+        ],
+    )
+    wrong = clear & (picture.open != frame.open)
+    out.note(
+        "open pixel",
+        int(np.count_nonzero(clear & frame.open)),
+        wrong,
+        [
+            f"pixel (x={x}, y={y}): phongray {'open' if picture.open[y, x] else 'decided'}, brute force "
+            f"{'open' if frame.open[y, x] else 'decided'}"
+            for y, x in np.argwhere(wrong)[:3]
         ],
     )
     return out
@@ -450,6 +463,7 @@ def main(argv: list[str] | None = None) -> int:
         "mirror hit",
         "shadow",
         "pixel",
+        "open pixel",
         "hit by cones",
         "hit by lines",
         "shadow by cones",

@@ -21,7 +21,12 @@ what breaks walks and careless numerics:
   view, where float32 cannot tell their outlines (the proxies' margins);
 * ``thin``: a thin area light far away (edge over distance 10⁻⁴ to 10⁻¹⁰)
   over a floor, balls grazing the pyramid from the point in view to the
-  light, seen through a view a few rounding errors of its faces wide.
+  light, seen through a view a few rounding errors of its faces wide;
+* ``contact``: surfaces of different objects in one plane: glass, mirror and
+  opaque boxes resting on a floor (a plane, a mesh or lone triangles), on one
+  another and against a wall, tiles lying on the floor, the whole often
+  turned so that its corners round; drawn for a tenth of the seeds, apart
+  from the others, so that theirs stay the scenes they were.
 
 Any scene may then be moved by up to 10⁶ and scaled by a power of ten
 (attenuation scaled with it).  Coordinates are often on a grid of 1/8, so that
@@ -594,6 +599,76 @@ def thin(rng: Rng) -> tuple[dict[str, Any], list, list]:
     return _camera(rng, eye, [0.0, 0.0, 0.0], height=view * 2), objects, lights
 
 
+def _floor(rng: Rng, size: float, mat: str) -> list[dict[str, Any]]:
+    """A floor in the plane y = 0: a plane, a mesh of a few faces, or the same faces as lone triangles."""
+    kind = rng.choice(["plane", "mesh", "lone"])
+    if kind == "plane":
+        return [plane([0, 0, 0], [0, 1, 0], mat)]
+    n = int(rng.integers(1, 4))
+    grid = terrain(rng, -size, size, 0.0, n, 0.0, mat)
+    if kind == "mesh":
+        return [grid]
+    v = grid["vertices"]
+    return [{"type": "triangle", "material": mat, "vertices": [v[i] for i in f]} for f in grid["faces"]]
+
+
+def contact(rng: Rng) -> tuple[dict[str, Any], list, list]:
+    objects = _floor(rng, 3.0, _opaque(rng))
+    for _ in range(int(rng.integers(1, 4))):  # boxes resting on the floor, some on one another
+        lo = np.array([_grid(rng, -2, 1)[0], 0.0, _grid(rng, -2, 1)[2]])
+        hi = lo + [0.125 * int(rng.integers(4, 12)), 0.125 * int(rng.integers(2, 10)), 0.125 * int(rng.integers(4, 12))]
+        objects.append(box(lo, hi, _any(rng, 0.6)))
+        if rng.random() < 0.3:
+            objects.append(
+                box(lo + [0.25, 0, 0.25] * np.array([1, 0, 1]) + [0, hi[1] - lo[1], 0], hi + [0, 1, 0], _any(rng, 0.6))
+            )
+    for _ in range(int(rng.integers(0, 3))):  # tiles lying on the floor
+        c = np.array(_grid(rng, -2, 2)) * [1, 0, 1]
+        tile = [c + [-0.5, 0, -0.5], c + [0.5, 0, 0.75], c + [0.25, 0, -0.5]]
+        objects.append({"type": "triangle", "material": _any(rng, 0.4), "vertices": [_vec(p) for p in tile]})
+    if rng.random() < 0.4:  # a wall, and a box pushed against it
+        objects.append(plane([0, 0, -2.5], [0, 0, 1], _opaque(rng)))
+        objects.append(box([0.5, 0, -2.5], [1.5, 1, -1.75], _any(rng, 0.6)))
+    order = rng.permutation(len(objects))
+    objects = [objects[k] for k in order]
+    lights = _lights(rng, [0, 3, 1], 2.0, int(rng.integers(1, 3)))
+    eye = np.array([float(rng.uniform(-3, 3)), float(rng.uniform(1.5, 5)), float(rng.uniform(2.5, 5))])
+    camera = _camera(rng, eye, [0, 0.3, 0], height=6.0)
+    if rng.random() < 0.5:  # the whole turned: the planes stay planes, the corners round
+        camera, objects, lights = _turned(rng, camera, objects, lights)
+    return camera, objects, lights
+
+
+def _turned(rng: Rng, camera: dict[str, Any], objects: list, lights: list) -> tuple[dict[str, Any], list, list]:
+    q = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+
+    def pos(p: list[float]) -> list[float]:
+        return _vec(q @ np.asarray(p, float))
+
+    camera = {**camera, "position": pos(camera["position"]), "look_at": pos(camera["look_at"])}
+    camera.pop("up", None)
+    out = []
+    for o in objects:
+        o = dict(o)
+        for key in ("center", "point", "normal"):
+            if key in o:
+                o[key] = pos(o[key])
+        if "vertices" in o:
+            o["vertices"] = [pos(v) for v in o["vertices"]]
+        out.append(o)
+    turned = []
+    for light in lights:
+        light = dict(light)
+        for key in ("position", "corner", "edge_u", "edge_v", "direction"):
+            if key in light:
+                light[key] = pos(light[key])
+        turned.append(light)
+    return camera, out, turned
+
+
+#: drawn for this share of the seeds, apart from the other families (:func:`scene`)
+CONTACT_SHARE = 0.1
+
 FAMILIES: dict[str, Callable[[Rng], tuple[dict[str, Any], list, list]]] = {
     "room": room,
     "nested": nested,
@@ -604,6 +679,7 @@ FAMILIES: dict[str, Callable[[Rng], tuple[dict[str, Any], list, list]]] = {
     "mesh": mesh,
     "dust": dust,
     "thin": thin,
+    "contact": contact,
 }
 
 
@@ -664,7 +740,11 @@ def transformed(data: Scene, shift: np.ndarray, factor: float) -> Scene:
 def scene(seed: int, width: int = 20, height: int = 15, family: str | None = None) -> tuple[str, Scene]:
     """The generated scene of a seed: its family's name and the scene."""
     rng = np.random.default_rng(seed)
-    name = family or str(rng.choice(sorted(FAMILIES)))
+    if family is None:  # (the families before contact drawn as they were)
+        family = str(rng.choice(sorted(set(FAMILIES) - {"contact"})))
+        if np.random.default_rng([seed, 52]).random() < CONTACT_SHARE:
+            family = "contact"
+    name = family
     camera, objects, lights = FAMILIES[name](rng)
     image: dict[str, Any] = {
         "width": width,

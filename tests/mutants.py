@@ -27,7 +27,7 @@ MUTANTS = [
     (
         "the origin's part of a cell is not tested",
         "walk.py",
-        "            self._test_cells(best, inside, cell, but, table, from_prim, shadows)\n",
+        "            self._test_cells(best, inside, cell, but, batch)\n",
         "            pass\n",
     ),
     (
@@ -45,8 +45,8 @@ MUTANTS = [
     (
         "a crossing tests only the crossed primitive",
         "walk.py",
-        "        self._test_cells(best, live[fresh], region[fresh],\n",
-        "        if False: self._test_cells(best, live[fresh], region[fresh],\n",
+        "        self._test_cells(\n            best,\n            live[fresh],\n",
+        "        if False: self._test_cells(\n            best,\n            live[fresh],\n",
     ),
     (
         "the walk jumps a part further than the part it tested",
@@ -61,6 +61,13 @@ MUTANTS = [
         "        inside = np.flatnonzero(from_prim >= 0)\n        start[inside] = 0.0\n        inside = inside[:0]\n",
     ),
     ("boxes are registered without reach", "proxies.py", "REACH = 2.0**-14", "REACH = 0.0"),
+    (
+        "members of a coplanar group keep the t of their own planes",
+        "coplanar.py",
+        "        out[rows[ok]] = shared[ok]\n",
+        "        pass\n",
+    ),
+    ("no coplanar groups are made", "coplanar.py", "    a, b = a[keep], b[keep]\n", "    a, b = a[:0], b[:0]\n"),
     ("proxies have no margin", "proxies.py", "MARGIN = 2.0**-17", "MARGIN = 2.0**-40"),
     (
         "an area light is proven seen when its first bound lies outside its pyramid",
@@ -188,6 +195,7 @@ def run(mutant: tuple[str, str, str, str] | None, scenes: int) -> bool:
             "test_culling.py",
             "test_cones.py",
             "test_intersect.py",
+            "test_coplanar.py",
             "test_fuzz.py",
         )
         tests = [str(ROOT / "tests" / name) for name in names]

@@ -24,7 +24,15 @@ The rules, as the format states them:
 * a shadow segment is blocked by a surface hit at a distance in (0, d); a
   surface through the light's own position does not block it;
 * a light that lies in the plane of a flat surface (plane, triangle, a mesh
-  face without vertex normals) gives N·L = 0 there: it is skipped.
+  face without vertex normals) gives N·L = 0 there: it is skipped;
+* where a ray meets several surfaces at one point, it meets the first in the
+  order phongray states (scene-format.md): one that lets no light through
+  before one that does, then spheres, planes, triangles, then the earlier
+  object.  Flat surfaces of different objects in one plane whose boxes meet
+  form groups (:func:`_coplanar`), their hits timed on the group's first
+  member's plane so that a ray meets overlapping members at one t; a ray that
+  leaves a member leaves the group, and one that meets members of two objects
+  at its nearest t is *open* (:attr:`Hits.open`, :attr:`Frame.open`).
 """
 
 from __future__ import annotations
@@ -42,6 +50,15 @@ OFF = 2.0**-44
 ERR = 2.0**-43
 #: a dimensionless quantity (barycentric, cosine, relative gap) within GRAY of a threshold is unclear
 GRAY = 2.0**-34
+#: two flat surfaces of different objects are clearly in one plane with normals parallel within the first sine
+#: and corners within the first distance (over the magnitudes of both), clearly not beyond the second: between,
+#: which group they are in is unclear (phongray's own thresholds, 2^-26 and 2^-48, lie between)
+SINE_IN, SINE_OUT = 2.0**-28, 2.0**-24
+PLANE_IN, PLANE_OUT = 2.0**-50, 2.0**-46
+#: how far apart (over the magnitudes) two surfaces' boxes may be and still meet
+BOX_SLACK = 2.0**-48
+#: the order of kinds in a tie, and where a rank keeps its flag of a surface that lets light through
+KIND_ORDER = {"sphere": 1, "plane": 2, "triangle": 3}
 
 
 def _v(a) -> np.ndarray:  # noqa: ANN001
@@ -83,6 +100,10 @@ class Surface:
     v: np.ndarray | None = None  # triangle corners (3, 3)
     vn: np.ndarray | None = None  # triangle vertex normals (3, 3), or None
     mag: float = 0.0  # largest magnitude of the numbers that define it
+    rank: int = 0  # its place in a tie: the least first
+    group: int = -1  # its coplanar group, −1 for none
+    sure: bool = True  # whether its group (or none) is clear
+    plane: tuple[np.ndarray, np.ndarray] | None = None  # its group's plane: a point and the unit normal
 
     @property
     def flat(self) -> bool:
@@ -131,7 +152,72 @@ def surfaces_of(scene) -> list[Surface]:  # noqa: ANN001
                         mag=float(np.max(np.abs(v))),
                     )
                 )
+    _rank(scene, out)
+    _coplanar(out)
     return out
+
+
+def _rank(scene, surfaces: list[Surface]) -> None:  # noqa: ANN001
+    """Each surface's place in a tie: see-through last, then by kind, then by its place among its kind."""
+    count = dict.fromkeys(KIND_ORDER, 0)
+    for s in surfaces:
+        mat = scene.materials[s.material]
+        other = scene.materials[mat.checker.material] if mat.checker else mat
+        through = int(mat.transmittance > 0 or other.transmittance > 0)
+        s.rank = (through << 50) | (KIND_ORDER[s.kind] << 48) | count[s.kind]
+        count[s.kind] += 1
+
+
+def _coplanar(surfaces: list[Surface]) -> None:
+    """Flat surfaces of different objects in one plane, with meeting boxes, joined into groups; a surface in a
+    pair whose verdict is within the noise of the thresholds is marked unsure."""
+    flat = [k for k, s in enumerate(surfaces) if s.kind != "sphere"]
+    if len(flat) < 2:
+        return
+    f = [surfaces[k] for k in flat]
+    normal = np.stack([s.normal for s in f])
+    corners = np.stack([s.v if s.v is not None else np.stack([s.point] * 3) for s in f])
+    plane = np.array([s.kind == "plane" for s in f])
+    extent = np.where(plane, np.inf, np.max(np.ptp(corners, axis=1), axis=1))
+    lo = np.where(plane[:, None], -np.inf, corners.min(axis=1))
+    hi = np.where(plane[:, None], np.inf, corners.max(axis=1))
+    mag, obj = np.array([s.mag for s in f]), np.array([s.obj for s in f])
+    label = list(range(len(f)))
+
+    def root(i: int) -> int:
+        while label[i] != i:
+            i = label[i]
+        return i
+
+    for i in range(len(f) - 1):
+        j = np.arange(i + 1, len(f))
+        sine = _norm(np.cross(normal[i], normal[j]))
+        scale = mag[i] + mag[j]
+        big_i = (extent[i] > extent[j]) | (extent[i] == extent[j])  # the larger holds the smaller's corners
+        dist = np.zeros(len(j))
+        for c in range(3):
+            to_i = np.abs(_dot(corners[j, c] - f[i].point, normal[i]))
+            to_j = np.abs(_dot(corners[i, c][None] - corners[j, 0], normal[j]))
+            dist = np.maximum(dist, np.where(big_i, to_i, to_j))
+        both = plane[i] & plane[j]
+        dist = np.where(both, np.maximum(dist, np.abs(_dot(f[i].point - corners[j, 0], normal[j]))), dist) / scale
+        slack = (BOX_SLACK * scale)[:, None]
+        meet = np.all((lo[i] <= hi[j] + slack) & (lo[j] <= hi[i][None] + slack), axis=1) & (obj[j] != obj[i])
+        yes = meet & (sine <= SINE_IN) & (dist <= PLANE_IN)
+        unsure = meet & ~yes & (sine <= SINE_OUT) & (dist <= PLANE_OUT)
+        for k in j[yes]:
+            a, b = root(i), root(int(k))
+            label[max(a, b)] = min(a, b)
+        for k in j[unsure]:
+            f[i].sure = f[int(k)].sure = False
+    members: dict[int, list[int]] = {}
+    for i in range(len(f)):
+        members.setdefault(root(i), []).append(i)
+    groups = [m for m in members.values() if len(m) > 1]
+    for g, m in enumerate(groups):
+        first = min(m, key=lambda i: f[i].rank & ((1 << 50) - 1))  # planes first, then by index
+        for i in m:
+            f[i].group, f[i].plane = g, (f[first].point, f[first].normal)
 
 
 # -- one surface against many rays -------------------------------------------------------------------------------
@@ -260,6 +346,7 @@ def tests_of(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.nd
         np.zeros((count, n)),
     )
     flat = [k for k, s in enumerate(surfaces) if s.kind != "sphere"]
+    leaves = _leaving(surfaces, start)
     for k, s in enumerate(surfaces):
         if s.kind == "sphere":
             x = intersect(s, o, d, start == k)
@@ -267,11 +354,24 @@ def tests_of(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.nd
     step = max(1, (1 << 21) // max(n, 1))  # bounded temporaries: (surfaces, rays, 3) at a time
     for a in range(0, len(flat), step):
         rows = np.array(flat[a : a + step])
-        x = flat_tests([surfaces[k] for k in rows], o, d, start[None] == rows[:, None])
+        x = flat_tests([surfaces[k] for k in rows], o, d, leaves(rows))
         assert x.u is not None and x.w is not None
         out.t[rows], out.unclear[rows], out.sigma[rows], out.maybe[rows] = x.t, x.unclear, x.sigma, x.maybe
         out.u[rows], out.w[rows] = x.u, x.w  # type: ignore[index]
     return out
+
+
+def _leaving(surfaces: list[Surface], start: np.ndarray):  # noqa: ANN202
+    """``rows (F,)`` → ``(F, N)``: which rays leave each of those surfaces (start on it or on a member of its
+    coplanar group)."""
+    group = np.array([s.group for s in surfaces] + [-1])
+    from_group = group[np.where((start >= 0) & (start < len(surfaces)), start, -1)]
+
+    def leaves(rows: np.ndarray) -> np.ndarray:
+        mine = group[rows][:, None]
+        return (start[None] == rows[:, None]) | ((mine >= 0) & (from_group[None] == mine))
+
+    return leaves
 
 
 # -- rays through the scene ------------------------------------------------------------------------------------
@@ -284,30 +384,58 @@ class Hits:
     unclear: np.ndarray  # (N,)
     u: np.ndarray = field(default_factory=lambda: np.zeros(0))
     w: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: (N,) the ray met, at its t, members of its hit's coplanar group of two objects: a tie left open
+    open: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+
+
+def _timed_on_groups(surfaces: list[Surface], x: Test, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The hits ``x.t`` (S, N), those of coplanar groups' members on their group's plane (where it has one)."""
+    t = x.t.copy()
+    for k, s in enumerate(surfaces):
+        if s.plane is None:
+            continue
+        point, normal = s.plane
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shared = -_dot(o - point, normal) / _dot(d, normal)
+        ok = np.isfinite(t[k]) & np.isfinite(shared) & (shared > 0)
+        t[k] = np.where(ok, shared, t[k])
+        x.maybe[k] = np.where(ok, shared, x.maybe[k])
+    return t
 
 
 def closest(surfaces: list[Surface], o: np.ndarray, d: np.ndarray, start: np.ndarray) -> Hits:
     """First hits of rays that leave surfaces ``start`` (index, −1 for none)."""
     n = len(o)
     if not surfaces:
-        return Hits(np.full(n, np.inf), np.full(n, -1), np.zeros(n, bool), np.zeros(n), np.zeros(n))
+        return Hits(np.full(n, np.inf), np.full(n, -1), np.zeros(n, bool), np.zeros(n), np.zeros(n), np.zeros(n, bool))
     x = tests_of(surfaces, o, d, start)
-    t = x.t  # (S, N)
-    best = np.argmin(t, axis=0)
+    t = _timed_on_groups(surfaces, x, o, d)  # (S, N)
+    rank = np.array([s.rank for s in surfaces])
+    bt = np.min(t, axis=0)
+    best = np.argmin(np.where(t == bt[None], rank[:, None], np.iinfo(np.int64).max), axis=0)  # ties by rank
     cols = np.arange(n)
-    bt = t[best, cols]
     sig = np.where(np.isfinite(x.sigma), x.sigma, np.inf)
     maybe, unclear = x.maybe, x.unclear
     reach = np.where(np.isfinite(bt), bt + sig[best, cols] + GRAY * bt, np.inf)
-    # a rival: another surface whose hit, or possible hit, lies within noise of the best (or before it)
+    # a rival: another surface whose hit, or possible hit, lies within noise of the best (or before it); but a
+    # member of the best's group (both surely grouped) that it meets too, or that would lose the tie, is none
     rival = (maybe <= reach[None] + np.where(np.isfinite(maybe), sig, 0.0)) & np.isfinite(maybe)
     rival &= np.arange(len(surfaces))[:, None] != best[None]
     rival &= unclear | np.isfinite(t)
-    amb = (unclear[best, cols] & np.isfinite(bt)) | np.any(rival, axis=0)
+    group = np.array([s.group for s in surfaces])
+    sure = np.array([s.sure for s in surfaces])
+    obj = np.array([s.obj for s in surfaces])
+    mates = (group[:, None] == group[best][None]) & ((group[best] >= 0) & np.isfinite(bt))[None]
+    mates &= sure[:, None] & sure[best][None]
+    rival &= ~(mates & (np.isfinite(t) | (rank[:, None] > rank[best][None])))
+    tied = mates & (obj[:, None] != obj[best][None]) & (np.arange(len(surfaces))[:, None] != best[None])
+    opened = np.any(tied & (t == bt[None]), axis=0) & np.isfinite(bt)
+    maybe_open = np.any(tied & unclear & np.isfinite(maybe), axis=0)  # a member that may be met as well
+    amb = (unclear[best, cols] & np.isfinite(bt)) | np.any(rival, axis=0) | maybe_open
     assert x.u is not None and x.w is not None
     us, ws = x.u, x.w
     surface = np.where(np.isfinite(bt), best, -1)
-    return Hits(bt, surface, amb, us[best, cols], ws[best, cols])
+    return Hits(bt, surface, amb, us[best, cols], ws[best, cols], opened)
 
 
 def blocked(
@@ -325,6 +453,7 @@ def blocked(
         return np.zeros(n, bool), np.zeros(n, bool)
     x = tests_of(surfaces, p, to, start)
     t, unclear, maybe, sigma = x.t, x.unclear, x.maybe, x.sigma
+    leaves = _leaving(surfaces, start)
     for k, s in enumerate(surfaces if light is not None else []):
         assert light is not None
         on_l, near_l = (a[0] for a in _on(s, light[None]))
@@ -345,7 +474,7 @@ def blocked(
                 unclear[k] |= np.isfinite(t[k])
         elif on_l:  # a plane through the light meets the segment only there (or holds all of it)
             t[k] = np.inf
-            unclear[k] = _on(s, p)[1] & (start != k)  # unless the origin is too near the plane to say
+            unclear[k] = _on(s, p)[1] & ~leaves(np.array([k]))[0]  # unless the origin is too near the plane to say
             maybe[k] = np.where(unclear[k], 0.0, np.inf)
         elif near_l:
             unclear[k] |= np.isfinite(t[k])
@@ -498,6 +627,7 @@ class Frame:
 
     colour: np.ndarray  # (H, W, 3)
     unclear: np.ndarray  # (H, W) bool
+    open: np.ndarray  # (H, W) bool: a ray of the pixel's tree met a tie left open (:attr:`Hits.open`)
 
     def pixels(self) -> np.ndarray:
         v = np.clip(np.nan_to_num(self.colour, nan=0.0), 0.0, 1.0)
@@ -564,6 +694,7 @@ def render(scene) -> Frame:  # noqa: ANN001
     spp = img.samples * img.samples
     colour = np.zeros((n_px, 3))
     unclear_px = np.zeros(n_px, bool)
+    open_px = np.zeros(n_px, bool)
     weight = np.ones(len(o))
     start = np.full(len(o), -1)
     background = _v(img.background)
@@ -573,6 +704,7 @@ def render(scene) -> Frame:  # noqa: ANN001
         hits = closest(surfaces, o, d, start)
         live = weight > 2.0**-24
         np.logical_or.at(unclear_px, pixel[hits.unclear & live], True)
+        np.logical_or.at(open_px, pixel[hits.open], True)
         miss = hits.surface < 0
         np.add.at(colour, pixel[miss], weight[miss, None] * background)
         rows = np.flatnonzero(~miss)
@@ -640,4 +772,5 @@ def render(scene) -> Frame:  # noqa: ANN001
         pixel = np.concatenate([rp[refl], rp[trans]])
         start = np.concatenate([which[refl], which[trans]])
     colour /= spp
-    return Frame(colour.reshape(img.height, img.width, 3), unclear_px.reshape(img.height, img.width))
+    shape = (img.height, img.width)
+    return Frame(colour.reshape(*shape, 3), unclear_px.reshape(shape), open_px.reshape(shape))

@@ -17,7 +17,7 @@ from PIL import Image
 import schemas
 from service import passes
 from service.http.app import create_app
-from service.http.jobs import RenderService, prepare
+from service.http.jobs import OutOfMemory, RenderService, prepare
 from service.pipeline import compare
 from service.settings import Settings
 from tracer import Renderer
@@ -216,7 +216,8 @@ def test_a_client_that_leaves_stops_its_work_and_frees_its_slot(tmp_path, what):
         body = json.dumps(data).encode()
         form, kind = _form(body, _noise_png(320, 240))
         request = lambda url: _request(url, "/grade", form, kind)  # noqa: E731
-    with running_server(tmp_path, max_concurrent_renders="1", max_cost="1e12", render_timeout="600") as (url, _):
+    settings = {"max_concurrent_renders": "1", "max_cost": "1e12", "render_timeout": "600", "queue_wait": "0"}
+    with running_server(tmp_path, **settings) as (url, _):  # (queue_wait 0: the slot taken is a 503 at once)
         if what == "diagnosis":  # the reference rendered first (and cached): what remains is the diagnosis
             req = urllib.request.Request(url + "/render", body, JSON)
             with urllib.request.urlopen(req, timeout=600) as res:
@@ -236,9 +237,14 @@ def test_a_diagnosis_stops_at_render_timeout_and_says_so():
 
     service = RenderService(Settings(render_timeout=1, max_cost=1e12))
     job = prepare(json.dumps(scene(96)), {}, service.settings)
-    png = service.png(job)
+    png = RenderService(Settings(max_cost=1e12)).png(job)  # (the reference in its own time, on a busy machine too)
     reference = Renderer(job.scene).pixels()
     noise = np.random.default_rng(1).integers(0, 256, reference.shape, dtype=np.uint8)
+    # (its accepted variants checked beforehand, as an earlier grade of the scene leaves them: unchecked in
+    # time, the grade would be a 503, tests/test_service.py; here the diagnosis is what runs past the time)
+    from service.diagnosis.accepting import Failing, accept
+
+    assert accept(job.scene, Failing(reference, noise, compare(png, noise, 2, 0.001).grade)) is None
     started = time.monotonic()
     explained = service.explain(job, compare(png, noise, 2, 0.001), reference, noise)
     assert time.monotonic() - started < 10  # (ten times the deadline: stopped, not finished)
@@ -283,5 +289,17 @@ def test_a_pass_or_a_diagnosis_out_of_memory_is_a_503_not_a_500(monkeypatch):
     reference = Renderer(job.scene).pixels()
     wrong = Renderer(job.scene.model_copy(update={"lights": job.scene.lights[:1]})).pixels()
     monkeypatch.setattr("service.http.jobs.explain", starved)
+    with pytest.raises(OutOfMemory):  # (the accepted variants unchecked: no verdict now, a 503, never a FAIL)
+        service.explain(job, compare(png, wrong, 2, 0.001), reference, wrong)
+    from service.pipeline import explain
+
+    def diagnosis_starved(*args, **kwargs):  # the verdict decided, its diagnosis out of memory
+        checks = kwargs.get("checks", args[4] if len(args) > 4 else None)
+        if checks is None or checks.diagnose:
+            raise MemoryError("Unable to allocate 384. MiB")
+        return explain(*args, **kwargs)
+
+    monkeypatch.setattr("service.http.jobs.explain", diagnosis_starved)
     explained = service.explain(job, compare(png, wrong, 2, 0.001), reference, wrong)
     assert explained.diagnosis is not None and "ran out of memory" in explained.diagnosis.sentence()
+    assert explained.grade.passed is False

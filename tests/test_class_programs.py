@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from test_cluster import DASK, _start, _stop, _workers
 
+from service.classgrade.feedback import ZEROED
 from service.cli import main
 from service.programs import check_sandbox
 
@@ -64,6 +65,19 @@ HOSTILE = {
     "    except OSError:\n        pass\n    time.sleep(30)\n",
 }
 BUGGY = {"noshadow": "no-shadows", "hardspot": "spot-hard-edge", "noglass": "no-refraction"}
+#: programs that fail the task (no shadows) and answer a scene of one light (a probe's) with what is not its
+#: image: bytes that are no PNG, or a 20000² PNG of a few tens of kilobytes
+PROBING = {
+    "garbage": 'import json, sys\nif len(json.load(open(sys.argv[1]))["lights"]) == 1:\n'
+    '    open(sys.argv[2], "wb").write(b"no PNG here")\n    sys.exit(0)\n',
+    "bomb": 'import json, struct, sys, zlib\nif len(json.load(open(sys.argv[1]))["lights"]) == 1:\n'
+    "    def chunk(kind, body):\n"
+    '        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))\n'
+    '    head = struct.pack(">IIBBBBB", 20000, 20000, 1, 0, 0, 0, 0)\n'
+    '    body = zlib.compress(b"\\0" * 2501 * 20000, 9)\n'
+    '    png = b"\\x89PNG\\r\\n\\x1a\\n" + chunk(b"IHDR", head) + chunk(b"IDAT", body) + chunk(b"IEND", b"")\n'
+    '    open(sys.argv[2], "wb").write(png)\n    sys.exit(0)\n',
+}
 
 
 def left_running() -> list[str]:
@@ -90,8 +104,9 @@ def make_class(root: Path, port: int, students: list[str]) -> tuple[Path, Path]:
         folder = subs / student
         folder.mkdir(parents=True)
         prefix = HOSTILE.get(student, "").format(scenes=scenes, other=subs / "honest", port=port)
-        (folder / "tracer.py").write_text(prefix + tracer)
-        (folder / "mistakes.txt").write_text(BUGGY.get(student, "") + f"\n# {SECRET}\n")
+        (folder / "tracer.py").write_text(PROBING.get(student, "") + prefix + tracer)
+        mistakes = "no-shadows" if student in PROBING else BUGGY.get(student, "")
+        (folder / "mistakes.txt").write_text(mistakes + f"\n# {SECRET}\n")
     return scenes, subs
 
 
@@ -208,6 +223,63 @@ def test_a_hidden_task_shows_a_student_only_what_tasks_json_says(tmp_path, liste
         assert '"look_at"' not in (path.read_text(errors="replace") if path.is_file() else "")
 
 
+def test_a_hidden_scenes_run_is_told_to_a_student_without_its_exit_status(tmp_path, listener):
+    """Under ``show: verdict`` a program that exits 43 on the hidden scene is told "crashed": its exit status
+    could carry 8 bits of the scene.  The TA's report keeps the status."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["exit43"])
+    (subs / "exit43" / "tracer.py").write_text('import sys\nif "glass" in sys.argv[1]:\n    sys.exit(43)\n')
+    (tmp_path / "tasks.json").write_text(json.dumps({"glass": {"show": "verdict"}}))
+    code, rows, report = grade(tmp_path, scenes, subs)
+    assert code == 0 and rows["exit43", "glass"]["reason"] == "the run failed: crashed: crashed (exit 43)"
+    results = json.loads((report / "gradescope" / "exit43" / "results.json").read_text())
+    assert {t["name"]: t["output"] for t in results["tests"]}["glass"] == "fail: the run failed: crashed"
+    assert "43" not in json.dumps(results)
+
+
+def test_a_probe_answered_with_no_image_is_that_probes_no_answer_and_the_class_is_graded(tmp_path, listener):
+    """A program that fails its task and answers the one-light probes with bytes that are no PNG, or with a
+    20000² PNG, is asked the others; its pair fails with its mistake named, and every student is graded."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "garbage", "bomb"])
+    code, rows, report = grade(tmp_path, scenes, subs, "--jobs", "2")
+    assert code == 0
+    for student in ("garbage", "bomb"):
+        row = rows[student, "spot"]
+        assert row["status"] == "fail" and "no-shadows" in row["mistakes"]
+        assert "the program's image could not be read (not a PNG of its size)" in row["experiment"]
+    assert rows["honest", "spot"]["status"] == rows["honest", "glass"]["status"] == "pass"
+    assert (report / "gradescope" / "bomb" / "results.json").exists()
+
+
+def test_a_program_holding_phongray_is_flagged_and_scored_as_tasks_json_says(tmp_path, listener):
+    """phongray's code in a student's folder (here beside the honest tracer it runs) is flagged for the TA:
+    the spot task scores nothing for it (``"phongray_code": "zero"``, and the student reads why), the glass
+    task keeps its grade (``review``).  An honest program whose images are the references byte for byte is
+    flagged for review only: its score stands and the student reads nothing of it."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["honest", "vendor"])
+    root = Path(__file__).parent.parent
+    for package in ("tracer", "schemas"):
+        shutil.copytree(root / package, subs / "vendor" / package, ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "tasks.json").write_text(json.dumps({"spot": {"phongray_code": "zero"}}))
+    code, rows, report = grade(tmp_path, scenes, subs)
+    assert code == 0
+    spot, glass = rows["vendor", "spot"], rows["vendor", "glass"]
+    assert spot["status"] == glass["status"] == "pass" and spot["flag"] == glass["flag"] == "phongray-code"
+    assert "lines of phongray's own code" in spot["flag_reason"]
+    assert (spot["score"], glass["score"]) == (0, 1)
+    tests = {t["name"]: t for t in json.loads((report / "gradescope" / "vendor" / "results.json").read_text())["tests"]}
+    assert tests["spot"]["output"].endswith(ZEROED) and "phongray" not in tests["glass"]["output"]
+    assert tests["glass"]["extra_data"]["flag"] == "phongray-code"
+    honest = rows["honest", "spot"]
+    assert honest["flag"] == "identical" and honest["score"] == 1
+    assert "phongray" not in json.dumps(
+        [t["output"] for t in json.loads((report / "gradescope" / "honest" / "results.json").read_text())["tests"]]
+    )
+    assert "4 flagged for review" in (report / "index.html").read_text()
+
+
 @pytest.mark.parametrize(
     ("args", "words"),
     [
@@ -297,7 +369,8 @@ def test_the_same_class_on_a_cluster_that_shares_no_folder(tmp_path, listener, b
     """Each student's program a task of a worker's, its folder sent as bytes: from a relative submissions path,
     to workers that cannot see it, the same report as here (each run in its own sandbox there)."""
     check_sandbox()
-    scenes, subs = make_class(tmp_path, listener[0], ["honest", "noglass", "loop", "link", "fourkids", "quota"])
+    students = ["honest", "noglass", "loop", "link", "fourkids", "quota", "garbage"]
+    scenes, subs = make_class(tmp_path, listener[0], students)
     monkeypatch.chdir(tmp_path)
     for report, more in (("here", []), ("there", ["--cluster", blind_cluster])):
         args = ["grade-class", "scenes", "subs", "-o", report, "--tasks", "tasks.json", "--run", RUN, *LIMITS]
@@ -317,6 +390,8 @@ def test_the_same_class_on_a_cluster_that_shares_no_folder(tmp_path, listener, b
         ("link", "glass"): "no-output",
         ("fourkids", "glass"): "memory",
         ("quota", "glass"): "timeout",
+        ("garbage", "spot"): "ok",
+        ("garbage", "glass"): "ok",
     }
     for student in ("honest", "noglass"):
         assert (tmp_path / "there" / "gradescope" / student / "results.json").read_text() == (

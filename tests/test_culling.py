@@ -43,7 +43,7 @@ def with_area_light(seed):
 def test_proofs_change_no_byte(seed):
     scene = schemas.validate_scene(with_area_light(seed))
     proven, unproven = Renderer(scene), Renderer(scene)
-    unproven.shading.plan = replace(unproven.shading.plan, light_bounds=None)
+    unproven.shadows.plan = replace(unproven.shadows.plan, light_bounds=None)
     assert np.array_equal(proven.pixels(), unproven.pixels())
     assert proven.counts["shadow"] <= unproven.counts["shadow"]
 

@@ -23,8 +23,12 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    with running_server(
-        tmp_path_factory.mktemp("server"), max_concurrent_renders="1", max_body_bytes="200000", render_threads="1"
+    with running_server(  # (queue_wait 0: a render finding the one slot taken is refused at once)
+        tmp_path_factory.mktemp("server"),
+        max_concurrent_renders="1",
+        max_body_bytes="200000",
+        render_threads="1",
+        queue_wait="0",
     ) as (url, _):
         yield url
 

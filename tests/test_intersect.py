@@ -59,20 +59,34 @@ def random_field(rng, count, big=False):
 
 
 def brute_force(world, o, d, fk, fi, reach=None, ends=None):
-    """Every surface tested against every ray: best t, kind and index (the lowest kind and index on a tie)."""
+    """Every surface tested against every ray: best t, kind and index (the least key on a tie).  A member of a
+    coplanar group is left by a ray that leaves any member, and its closest hits are timed on the group's plane
+    (tracer.coplanar)."""
     n = len(o)
-    best = Best(np.full(n, np.inf) if reach is None else reach)
+    isect = Intersector(world)
+    best = Best(np.full(n, np.inf) if reach is None else reach, isect.ties)
     mag_o = max_abs(o) + world.origin_mag
     mag_e = None if ends is None else max_abs(ends) + world.origin_mag
     rows = np.arange(n)
-    sp, pl, tr = world.spheres, world.planes, world.triangles
+    sp, pl, tr, groups = world.spheres, world.planes, world.triangles, world.coplanar
+    from_group = None if groups is None else groups.of(fk, fi)
+
+    def leaving(kind, k, group):
+        own = (fk == kind) & (fi == k)
+        return own if from_group is None else own | groups.leaving(from_group, group)
+
+    def timed(t, group):
+        return t if groups is None or reach is not None else groups.retime(t, o, d, group)
+
     for k in range(len(sp.radius)):
         t = sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], (fk == SPHERE) & (fi == k), ends, reach, mag_e)
         best.offer(rows, t, SPHERE, np.full(n, k))
     for k in range(len(pl.normal)):
-        t = plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], (fk == PLANE) & (fi == k), ends, mag_e)
-        best.offer(rows, t, PLANE, np.full(n, k))
+        g = -1 if groups is None else int(groups.plane[k])
+        t = plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], leaving(PLANE, k, g), ends, mag_e)
+        best.offer(rows, timed(t, g), PLANE, np.full(n, k))
     for k in range(len(tr.v0)):
+        g = -1 if groups is None else int(groups.triangle[k])
         t, u, v = triangle_t(
             o,
             d,
@@ -82,11 +96,11 @@ def brute_force(world, o, d, fk, fi, reach=None, ends=None):
             tr.normal[k],
             mag_o,
             tr.mag[k],
-            (fk == TRIANGLE) & (fi == k),
+            leaving(TRIANGLE, k, g),
             ends,
             mag_e,
         )
-        best.offer(rows, t, TRIANGLE, np.full(n, k), u, v)
+        best.offer(rows, timed(t, g), TRIANGLE, np.full(n, k), u, v)
     return best
 
 

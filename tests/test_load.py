@@ -77,8 +77,12 @@ def load(url: str, clients: int, seconds: float) -> dict:
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    with running_server(
-        tmp_path_factory.mktemp("load"), max_concurrent_renders="1", render_threads="1", max_cost=SLOW_COST
+    with running_server(  # (queue_wait 0: a render finding the one slot taken is refused at once, the overload here)
+        tmp_path_factory.mktemp("load"),
+        max_concurrent_renders="1",
+        render_threads="1",
+        max_cost=SLOW_COST,
+        queue_wait="0",
     ) as s:
         yield s
 

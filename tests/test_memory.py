@@ -56,3 +56,32 @@ def test_with_one_arena_a_pool_threads_freed_memory_all_goes_back():
     grown, kept = map(int, out.stdout.split())
     assert grown >= 80, out.stdout  # the arrays were resident ...
     assert kept < 8, out.stdout  # ... and are not after the release
+
+
+IMPORT_PROBE = """
+import schemas
+import tracer
+from tracer import memory
+assert not memory.tuned(), "importing the tracer tuned the allocator"
+data = {"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]}, "image": {"width": 2, "height": 2}}
+tracer.Renderer(schemas.validate_scene(data))
+assert memory.tuned(), "the first renderer did not tune it"
+"""
+
+TUNED_PROBE = """
+import schemas
+import tracer
+from tracer import memory
+memory.tune_allocator(arenas=1)
+def again(arenas=0):
+    raise AssertionError("a renderer tuned the allocator again over the process's own settings")
+memory.tune_allocator = again
+data = {"camera": {"position": [0, 0, 3], "look_at": [0, 0, 0]}, "image": {"width": 2, "height": 2}}
+tracer.Renderer(schemas.validate_scene(data)).pixels()
+"""
+
+
+def test_importing_the_tracer_changes_no_setting_and_a_process_own_tuning_stands():
+    for probe in (IMPORT_PROBE, TUNED_PROBE):
+        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr

@@ -74,5 +74,5 @@ def test_points_lit_from_behind_render_as_their_shadow_rays_show():
     }
     scene = schemas.validate_scene(data)
     proven, unproven = Renderer(scene, Options(specular_behind=True)), Renderer(scene, Options(specular_behind=True))
-    unproven.shading.plan = replace(unproven.shading.plan, light_bounds=None)
+    unproven.shadows.plan = replace(unproven.shadows.plan, light_bounds=None)
     assert np.array_equal(proven.pixels(), unproven.pixels())

@@ -7,7 +7,7 @@ import tarfile
 
 import pytest
 
-from service.programs.folder import ENTRY_BYTES, FolderTooLarge, copy_folder, unpack
+from service.programs.folder import ENTRY_BYTES, MAX_ENTRIES, FolderTooLarge, copy_folder, unpack
 
 
 def test_the_copy_holds_regular_files_and_folders_only(tmp_path):
@@ -38,6 +38,25 @@ def test_a_folder_over_the_limit_is_refused_in_bytes_or_in_files(tmp_path):
         (student / f"empty{i}").touch()
     with pytest.raises(FolderTooLarge):
         copy_folder(student, tmp_path / "copy2", 5 * ENTRY_BYTES)
+
+
+def test_a_folder_of_too_many_files_is_refused_before_anything_is_copied(tmp_path):
+    """More than MAX_ENTRIES empty files, far under the limit in bytes: refused, and nothing was copied (a folder
+    of 190,000 empty files cost each run 13 s of copying and removal, outside every limit)."""
+    student, copy = tmp_path / "ann", tmp_path / "copy"
+    (student / "a" / "b").mkdir(parents=True)
+    copy.mkdir()
+    (student / "tracer.py").write_text("print('hello')\n")
+    for i in range(MAX_ENTRIES):
+        (student / "a" / "b" / f"{i}").touch()
+    assert (MAX_ENTRIES + 3) * ENTRY_BYTES < 100 * 1000 * 1000  # (in bytes, the default folder limit holds it)
+    with pytest.raises(FolderTooLarge, match=f"more than {MAX_ENTRIES} files and folders"):
+        copy_folder(student, copy, 100 * 1000 * 1000)
+    assert list(copy.iterdir()) == []
+    for i in range(3):  # (tracer.py, a and b count too)
+        (student / "a" / "b" / f"{i}").unlink()
+    copy_folder(student, copy, 100 * 1000 * 1000)  # at the cap: copied
+    assert (copy / "tracer.py").read_text() == "print('hello')\n"
 
 
 def _tar(members: list[tuple[tarfile.TarInfo, bytes]]) -> bytes:
@@ -74,3 +93,32 @@ def test_a_builds_result_is_unpacked_without_links_or_escapes(tmp_path):
     assert not (tmp_path / "escaped").exists()
     with pytest.raises(FolderTooLarge):
         unpack(_tar([(_member("big"), b"\0" * 4096)]), tmp_path / "small", 1024)
+
+
+def test_a_folder_deeper_than_the_machines_longest_path_is_copied_to_its_limit(tmp_path):
+    """Folders of 250-byte names, 20 deep: each name is legal, the whole path 5,000 bytes, longer than the
+    machine's PATH_MAX. The copy (and the pack made of it) keeps what is within MAX_PATH, as it keeps what is
+    within MAX_DEPTH, and leaves the rest out."""
+    from service.programs.folder import MAX_PATH
+    from service.programs.pack import pack_folder, unpacked
+
+    student, copy = tmp_path / "ann", tmp_path / "copy"
+    student.mkdir()
+    copy.mkdir()
+    (student / "render.py").write_text("print('hello')\n")
+    fd = os.open(student, os.O_RDONLY | os.O_DIRECTORY)
+    for _ in range(20):
+        os.mkdir("d" * 250, dir_fd=fd)
+        deeper = os.open("d" * 250, os.O_RDONLY | os.O_DIRECTORY, dir_fd=fd)
+        os.close(fd)
+        fd = deeper
+    with open(os.open("deepest.txt", os.O_WRONLY | os.O_CREAT, 0o600, dir_fd=fd), "w") as f:
+        f.write("beyond every limit")
+    os.close(fd)
+    copy_folder(student, copy, 1 << 20)
+    kept = sorted(str(p.relative_to(copy)) for p in copy.rglob("*"))
+    assert max(kept, key=len) == "/".join(["d" * 250] * (MAX_PATH // 251)) and "render.py" in kept
+    pack = pack_folder(student, 1 << 20)
+    assert pack.too_large is None
+    with unpacked(pack, 1 << 20) as folder:
+        assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) == kept

@@ -316,3 +316,58 @@ def test_an_image_holds_its_own_bytes_not_every_pixels_number():
     # for a while): what grows with the image must be the image, the chunks' work does not grow
     grown = (1024 * 1024 - 512 * 512) * 3
     assert _image_peak(1024) - _image_peak(512) < 1.5 * grown
+
+
+def test_one_renderer_on_two_threads_at_once_gives_each_render_its_own_bytes_and_stop():
+    # two calls at once on one renderer, each on its own thread with its own chunk size and cancel: each gives the
+    # bytes of a render alone, and only the call whose cancel asks for it stops.  Each cancel waits at its first
+    # poll for the other call to reach its own, so the two are surely under way together
+    import threading
+
+    data = scene_dict("04_whitted")
+    data["image"].update(width=64, height=48)
+    scene = schemas.validate_scene(data)
+    alone = Renderer(scene).pixels(threads=1)
+    shared = Renderer(scene)
+    together = threading.Barrier(2, timeout=120)
+
+    def cancel_once(answer):
+        polls = []
+
+        def cancel():
+            if not polls:
+                polls.append(1)
+                together.wait()
+            return answer
+
+        return cancel
+
+    results: dict[str, object] = {}
+
+    def run(name, answer, **kwargs):
+        try:
+            results[name] = shared.pixels(cancel=cancel_once(answer), **kwargs)
+        except RenderCancelled as exc:
+            results[name] = exc
+
+    threads = [
+        threading.Thread(target=run, args=("kept", False), kwargs={"threads": 1, "chunk_rays": 64}),
+        threading.Thread(target=run, args=("stopped", True), kwargs={"threads": 2, "chunk_rays": 1 << 22}),
+    ]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert isinstance(results["stopped"], RenderCancelled)
+    assert isinstance(results["kept"], np.ndarray) and np.array_equal(results["kept"], alone)
+    # and two calls that both finish, of different chunk and slice sizes, give the same bytes as sequential renders
+    both: dict[str, np.ndarray] = {}
+    pair = [
+        threading.Thread(target=lambda: both.update(a=shared.pixels(threads=1, chunk_rays=64))),
+        threading.Thread(target=lambda: both.update(b=shared.pixels(threads=2, chunk_rays=1 << 22))),
+    ]
+    for t in pair:
+        t.start()
+    for t in pair:
+        t.join()
+    assert np.array_equal(both["a"], alone) and np.array_equal(both["b"], alone)

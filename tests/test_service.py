@@ -219,6 +219,15 @@ def test_a_diagnosis_past_the_render_timeout_says_so():
     assert scene.image.background[2] == 0.13  # a scene no other test diagnoses
     api.app.state.service.cache.put(scene_key(scene), tracer.render_png(scene))  # only the diagnosis renders
     gamma = tracer.encode_png(tracer.Renderer(scene, VARIANTS["gamma"][0]).pixels())
+    # the accepted variants cannot be checked in no time: the grade is not decided now, never failed for it
+    late = grade(api, scene=text, image=gamma)
+    assert late.status_code == 503 and "render_timeout" in late.json()["detail"] and "retry-after" in late.headers
+    # once they are (kept from an earlier grade), only the diagnosis runs past the time, and says so
+    from service.diagnosis.accepting import Failing, accept
+    from service.grading import grade as graded
+
+    reference, submitted = tracer.render(scene), tracer.decode_png(gamma)
+    assert accept(scene, Failing(reference, submitted, graded(reference, submitted, ""))) is None
     body = grade(api, scene=text, image=gamma).json()
     assert body["passed"] is False
     assert body["diagnosis"]["sentence"] == "No diagnosis: its renders ran past the limit render_timeout = 0 s"

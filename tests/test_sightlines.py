@@ -155,7 +155,7 @@ CASES = {
 
 def without_plain(data):
     """Render with every triangle behind its proxy."""
-    with mock.patch("tracer.render.scene_sightlines", return_value=None):
+    with mock.patch("tracer.stages.scene_sightlines", return_value=None):
         return render(schemas.validate_scene(data))
 
 

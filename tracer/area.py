@@ -11,39 +11,16 @@ per light by :mod:`tracer.direct`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 
 from .bounds import SurfacePoints
 from .culling import HIDDEN, MIXED, SEEN, classify, faces_away
-from .kernel import Kernel, Points, Reach
-from .lights import Emitter, LightGroup
+from .kernel import Kernel, Points
+from .lights import LightGroup
 from .passes import Seen
 from .penumbra import Penumbra
-from .planner import ProofPlan
-from .rays import Among
-from .variants import Options
-from .world import World
-
-
-class DirectLight(Protocol):
-    """What an area light's loop takes from the direct-light stage (:class:`tracer.direct.DirectLight`): the
-    world, options and proofs of the render, the emitters flat surfaces hold, the budget's poll and count, and
-    the shadow rays."""
-
-    world: World
-    options: Options
-    plan: ProofPlan
-    holds: np.ndarray  # (E,) bool: the emitters some flat surface's plane holds
-
-    def stop(self) -> None: ...
-
-    def count(self, name: str, rays: int) -> None: ...
-
-    def blocked(
-        self, at: Points, rows: np.ndarray | None, reach: Reach, em: Emitter, among: Among | None = None
-    ) -> np.ndarray: ...
+from .shadows import ShadowRays
 
 
 @dataclass
@@ -58,8 +35,11 @@ class Sorted:
     penumbra: Penumbra | None
 
 
-def area_terms(direct: DirectLight, group: LightGroup, at: Points, seen: Seen) -> tuple[np.ndarray, np.ndarray] | None:
-    """An area light's terms ``Σwd, Σws`` at every point, summed over its samples, or None where it reaches none.
+def area_terms(
+    shadows: ShadowRays, group: LightGroup, at: Points, seen: Seen, holds: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """An area light's terms ``Σwd, Σws`` at every point, summed over its samples, or None where it reaches none;
+    ``shadows`` the render's shadow rays, ``holds`` which of its samples some flat surface's plane holds.
 
     **Points no sample can light are not shaded.**  A point proven HIDDEN (:mod:`tracer.culling`) gets
     weight 0 from every sample, and so does a point whose normal faces away from all four corners by more
@@ -79,10 +59,10 @@ def area_terms(direct: DirectLight, group: LightGroup, at: Points, seen: Seen) -
     n = len(at.hit.t)
     if n == 0:
         return None
-    points = _sort(direct, group, at)
+    points = _sort(shadows, group, at)
     if points is None:
         return None
-    sum_d, sum_s = _samples(direct, group, points, seen)
+    sum_d, sum_s = _samples(shadows, group, points, seen, holds)
     if points.every:
         return sum_d, sum_s
     out_d, out_s = np.zeros(n), np.zeros(n)
@@ -90,9 +70,9 @@ def area_terms(direct: DirectLight, group: LightGroup, at: Points, seen: Seen) -
     return out_d, out_s
 
 
-def _sort(direct: DirectLight, group: LightGroup, at: Points) -> Sorted | None:
+def _sort(shadows: ShadowRays, group: LightGroup, at: Points) -> Sorted | None:
     """The points of ``at`` that may see some of the light's samples, sorted (None: none may)."""
-    hit, corners, plan = at.hit, group.corners, direct.plan
+    hit, corners, plan = at.hit, group.corners, shadows.plan
     assert corners is not None
     n = len(hit.t)
     bounds = plan.light_bounds
@@ -120,29 +100,30 @@ def _sort(direct: DirectLight, group: LightGroup, at: Points) -> Sorted | None:
     return Sorted(active, every, ns, sub, penumbra)
 
 
-def _samples(direct: DirectLight, group: LightGroup, points: Sorted, seen: Seen) -> tuple[np.ndarray, np.ndarray]:
+def _samples(
+    shadows: ShadowRays, group: LightGroup, points: Sorted, seen: Seen, holds: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """``Σwd, Σws`` over the light's samples at the sorted points, each sample the kernel's emitter, its shadow
     rays cast from the mixed points alone (the seen points see it)."""
-    sub, ns, penumbra = points.at, points.seen, points.penumbra
-    kernel = Kernel(direct.world, direct.options, sub)
+    sub, ns, penumbra, meter = points.at, points.seen, points.penumbra, shadows.meter
+    kernel = Kernel(shadows.world, shadows.options, sub)
     m = len(sub.nv)
     sum_d, sum_s = np.zeros(m), np.zeros(m)
-    holds = direct.holds[group.first : group.end]
     rows_seen = None if points.every else points.active
-    for e, em in enumerate(direct.world.emitters[group.first : group.end]):
-        direct.stop()
+    for e, em in enumerate(shadows.world.emitters[group.first : group.end]):
+        meter.stop()
         reach = kernel.reach(em, bool(holds[e]))
         lit, weight = reach.lit, reach.weight
         rows = ns + np.flatnonzero(lit[ns:])  # the mixed points' shadow rays
         if len(rows) and penumbra is not None:  # rays decided by their pairs, the rest cast against theirs
             blocked, cast, pairs = penumbra.decide(lit[ns:], reach.to_light[ns:], reach.dist[ns:])
             if cast.any():
-                direct.count("shadow", int(np.count_nonzero(cast)))
-                blocked[cast] = direct.blocked(sub, rows[cast], reach, em, pairs)
+                meter.count("shadow", int(np.count_nonzero(cast)))
+                blocked[cast] = shadows.blocked(sub, rows[cast], reach, em, pairs)
             weight[rows[blocked]] = 0.0
         elif len(rows):
-            direct.count("shadow", len(rows))
-            weight[rows[direct.blocked(sub, rows, reach, em)]] = 0.0
+            meter.count("shadow", len(rows))
+            weight[rows[shadows.blocked(sub, rows, reach, em)]] = 0.0
         wd, ws = kernel.terms(reach)
         sum_d += wd
         sum_s += ws

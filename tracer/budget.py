@@ -3,14 +3,16 @@
 The renderer counts every ray it casts (:class:`RayCount`) and polls its stop (:class:`Stop`) between slices of
 rays, walk passes and slices of exact tests, where it already polls its caller's ``cancel``; a render that
 outgrows its :class:`Budget` there raises :class:`OverBudget`, naming what it outgrew.  The counting is one
-addition under a lock per batch and one comparison per poll, nothing per ray.
+addition under a lock per batch and one comparison per poll, nothing per ray.  Each render call has its own
+count and stop (:class:`Call`), and the stages reach the call of the thread they run on (:class:`Calls`).
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 #: bytes one ray of the renderer's work stack holds: origin and direction (48), the surface it leaves (9), its
@@ -68,8 +70,10 @@ class RayCount:
     or proven clear by :mod:`tracer.culling`, which costs work too); and the rays the work stacks hold now.
     Apart from the renderer, so that the stages that count hold no reference back to it."""
 
-    def __init__(self) -> None:
-        self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
+    def __init__(self, counts: dict[str, int] | None = None, counts_lock: threading.Lock | None = None) -> None:
+        #: the rays by kind, which go on from render to render (the renderer's, shared by its calls' counts)
+        self.counts = {"primary": 0, "shadow": 0, "secondary": 0} if counts is None else counts
+        self._counts_lock = threading.Lock() if counts_lock is None else counts_lock
         self.total = 0
         self.traced = 0  # camera, mirror and refracted rays of this render (total counts their light samples too)
         self.tests = 0  # exact (ray, sphere or triangle) tests of this render
@@ -80,8 +84,9 @@ class RayCount:
         self._lock = threading.Lock()
 
     def __call__(self, kind: str, n: int) -> None:
-        with self._lock:
+        with self._counts_lock:
             self.counts[kind] += n
+        with self._lock:
             if kind == "primary":
                 self.camera += n
             if kind != "shadow":  # (counted as the light samples of every hit, cast or proven clear: lit)
@@ -177,6 +182,73 @@ class Stop:
         held = count.held * RAY_BYTES if budget.ray_bytes < math.inf else 0
         if held > budget.ray_bytes:
             raise OverBudget("memory", held, budget.ray_bytes)
+
+
+@dataclass(frozen=True)
+class Call:
+    """One render call's count and stop (:class:`Calls`)."""
+
+    count: RayCount
+    stop: Stop
+
+
+class Calls:
+    """The render call each thread works for, so that one renderer may serve several calls at once.
+
+    The stages poll and count through this object, bound to them once (:meth:`stop`, :meth:`count` and the
+    rest); each reaches the call of the thread it runs on, which the driver sets for the time of a chunk
+    (:meth:`working`).  Work outside any call (a stage called by itself) reaches an idle call with no budget.
+    The counts by kind are the renderer's, shared by its calls.  Like :class:`Stop`, it holds no reference back
+    to the renderer."""
+
+    def __init__(self) -> None:
+        self.counts = {"primary": 0, "shadow": 0, "secondary": 0}
+        self._counts_lock = threading.Lock()
+        self._local = threading.local()
+        self.idle = self.begin(None, UNLIMITED)
+        #: the call begun last (what a renderer's ``spent`` and ``tests`` read)
+        self.last = self.idle
+
+    def begin(self, cancel: Callable[[], bool] | None, budget: Budget) -> Call:
+        """A new call, its rays counted from nothing, stopped by its own ``cancel`` and ``budget``."""
+        count = RayCount(self.counts, self._counts_lock)
+        stop = Stop(count)
+        stop.start(cancel, budget)
+        self.last = Call(count, stop)
+        return self.last
+
+    @contextmanager
+    def working(self, call: Call) -> Iterator[None]:
+        """This thread works for ``call`` within the block."""
+        before = getattr(self._local, "call", None)
+        self._local.call = call
+        try:
+            yield
+        finally:
+            self._local.call = before
+
+    def current(self) -> Call:
+        """The call this thread works for (the idle call outside any)."""
+        call: Call | None = getattr(self._local, "call", None)
+        return self.idle if call is None else call
+
+    def stop(self) -> None:
+        self.current().stop()
+
+    def count(self, kind: str, n: int) -> None:
+        self.current().count(kind, n)
+
+    def tested(self, n: int) -> None:
+        self.current().count.tested(n)
+
+    def lit(self, n: int) -> None:
+        self.current().count.lit(n)
+
+    def hold(self, holder: int, n: int) -> None:
+        self.current().count.hold(holder, n)
+
+    def foresee(self, holder: int, rays: float) -> None:
+        self.current().count.foresee(holder, rays)
 
 
 class Growth:

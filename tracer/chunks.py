@@ -15,6 +15,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from .budget import Call
 from .film import UNIT_RAYS
 
 T = TypeVar("T")
@@ -42,10 +43,13 @@ def chunking(threads: int | None, chunk_rays: int | None) -> tuple[int, int]:
 @dataclass(frozen=True)
 class Run:
     """How one render runs: on ``workers`` threads, ``per_chunk`` pixels a chunk (their sub-samples at most the
-    chunk's rays)."""
+    chunk's rays), its ray trees traced in slices of at most ``slice_rays`` rays.  The call's own, so that one
+    renderer may serve calls of different sizes at once."""
 
     workers: int
     per_chunk: int
+    slice_rays: int
+    call: Call  # its count and its stop (:class:`tracer.budget.Calls`)
 
 
 def parts_of(pixel: Pixels, per_chunk: int) -> list[Pixels]:

@@ -42,6 +42,21 @@ class Film:
         # of up to UNIT_RAYS, one unit whatever the slice: the same sums, and bytes, for every size)
         room = math.ceil(math.log2(max(slice_rays, UNIT_RAYS)))
         self.fixed = 2.0 ** (48 - math.ceil(math.log2(self.ceiling)) - max(0, room - 14))
+        #: the sub-samples whose ray tree met a tie the format leaves open (:mod:`tracer.ties`); None: none yet
+        self.open: np.ndarray | None = None
+
+    def opened(self, index: np.ndarray) -> None:
+        """Sub-samples ``index`` met a tie the format leaves open."""
+        if len(index):
+            if self.open is None:
+                self.open = np.zeros(self.pixels * self.per_pixel, dtype=bool)
+            self.open[index] = True
+
+    def open_pixels(self) -> np.ndarray:
+        """Which pixels have an open sub-sample. Shape (pixels,), bool."""
+        if self.open is None:
+            return np.zeros(self.pixels, dtype=bool)
+        return np.asarray(self.open.reshape(self.pixels, self.per_pixel).any(axis=1))
 
     def add(self, index: np.ndarray, values: np.ndarray, fresh: bool = False) -> None:
         """``acc[index] += values (len(index), 3)`` in fixed point; repeated indices are summed.

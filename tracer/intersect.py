@@ -20,12 +20,14 @@ import numpy as np
 
 from .best import NO_HIT, Best
 from .embree import Bvh
+from .pairs import _ignored
 from .rays import Among, Hits, Rays, Shadows
 from .shapes import MISS, PLANE, SPHERE, TRIANGLE, Segments, plane_separates, plane_t, sphere_t, triangle_t
 from .sightlines import Sightlines
 from .surfaces import unit
+from .ties import INDEX_MASK, KIND_SHIFT, Ties
 from .vec import along, divided, dot, median_of, minus, most, rows_of
-from .walk import Walk, _ignored
+from .walk import Walk
 from .world import World
 
 __all__ = ["BIG", "DIRECT_MAX", "Hits", "Intersector", "MISS", "PLANE", "SPHERE", "TRIANGLE"]
@@ -73,8 +75,17 @@ class Intersector:
         self.direct_spheres = np.flatnonzero(big_sphere)
         self.direct_triangles = np.flatnonzero(big_tri)
         walked_tris, walked_spheres = np.flatnonzero(~big_tri), np.flatnonzero(~big_sphere)
+        #: the order ties go by, and which are open (:mod:`tracer.ties`)
+        self.ties = Ties(
+            world.materials,
+            {SPHERE: spheres.material, PLANE: world.planes.material, TRIANGLE: tris.material},
+            {SPHERE: spheres.object, PLANE: world.planes.object, TRIANGLE: tris.object},
+            world.coplanar,
+        )
         self.walker = (
-            Walk(world, walked_tris, walked_spheres, lines) if len(walked_tris) + len(walked_spheres) else None
+            Walk(world, walked_tris, walked_spheres, lines, self.ties)
+            if len(walked_tris) + len(walked_spheres)
+            else None
         )
         self._check: Callable[[], None] = _nothing
         self._tested: Callable[[int], None] = _ignored
@@ -126,7 +137,7 @@ class Intersector:
         """:meth:`closest` as the surface and parameter of each ray's first hit, before the hits are described
         (:meth:`describe`)."""
         n = len(rays)
-        best = Best(np.full(n, np.inf))
+        best = Best(np.full(n, np.inf), self.ties)
         for kind, k, t, u, v in self._direct(rays, among=among):
             best.offer_all(t, kind, k, u, v)
         if among is not None:
@@ -145,10 +156,10 @@ class Intersector:
         blocked = np.zeros(n, dtype=bool)
         if ends is not None and mag_e is not None:  # a plane blocks a segment exactly when it separates its ends
             pl = self.world.planes
-            fk, fi = rays.from_kind, rays.from_index
             segments = Segments(rays.origins, ends, rays.mag, mag_e)
             for k in range(len(pl.normal)):
-                blocked |= plane_separates(segments, pl.point[k], pl.normal[k], pl.mag[k], (fk == PLANE) & (fi == k))
+                leaving = self._leaving(rays, PLANE, k)
+                blocked |= plane_separates(segments, pl.point[k], pl.normal[k], pl.mag[k], leaving)
         for _, _, t, _, _ in self._direct(rays, shadows, among):
             blocked |= t < reach
         if among is not None:
@@ -241,19 +252,37 @@ class Intersector:
         """The exact test of one surface against every ray of ``rays`` (the rays of ``shadows``, if given):
         ``t, u, v`` (u, v for triangles only)."""
         w = self.world
-        o, d, fk, fi, mag_o = rays.origins, rays.dirs, rays.from_kind, rays.from_index, rays.mag
+        o, d, mag_o = rays.origins, rays.dirs, rays.mag
         ends = reach = mag_e = None
         if shadows is not None:
             ends, reach, mag_e = shadows.ends, shadows.reach, shadows.mag_end
-        leaving = (fk == kind) & (fi == k)
-        if kind == PLANE:
-            pl = w.planes
-            return plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], leaving, ends, mag_e), None, None
+        leaving = self._leaving(rays, kind, k)
         if kind == SPHERE:
             sp = w.spheres
             return sphere_t(o, d, sp.center[k], sp.radius[k], mag_o, sp.mag[k], leaving, ends, reach, mag_e), None, None
-        tr = w.triangles
-        return triangle_t(o, d, tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k], mag_o, tr.mag[k], leaving, ends, mag_e)
+        if kind == PLANE:
+            pl = w.planes
+            t, u, v = plane_t(o, d, pl.point[k], pl.normal[k], mag_o, pl.mag[k], leaving, ends, mag_e), None, None
+        else:
+            tr = w.triangles
+            corners = tr.v0[k], tr.e1[k], tr.e2[k], tr.normal[k]
+            t, u, v = triangle_t(o, d, *corners, mag_o, tr.mag[k], leaving, ends, mag_e)
+        groups = w.coplanar
+        if groups is not None and shadows is None:  # a member of a coplanar group: its t on the group's plane
+            t = groups.retime(t, o, d, int((groups.plane if kind == PLANE else groups.triangle)[k]))
+        return t, u, v
+
+    def _leaving(self, rays: Rays, kind: int, k: int) -> np.ndarray:
+        """Which ``rays`` leave surface ``kind``, ``k``: they start from it, or from a member of its coplanar group
+        (:mod:`tracer.coplanar`). Shape (N,), bool."""
+        leaving = (rays.from_kind == kind) & (rays.from_index == k)
+        groups = self.world.coplanar
+        if groups is None or kind == SPHERE:
+            return leaving
+        group = int((groups.plane if kind == PLANE else groups.triangle)[k])
+        if group < 0:
+            return leaving
+        return leaving | groups.leaving(groups.of(rays.from_kind, rays.from_index), group)
 
     def describe(self, rays: Rays, best: Best, rows: np.ndarray | None = None) -> Hits:
         """The hits of ``best`` (of the rays ``rows`` alone, when given: those that hit something, say):
@@ -264,8 +293,8 @@ class Intersector:
             t, key, uv = best.t, best.key, best.uv
         else:
             t, key, uv = best.t[rows], best.key[rows], rows_of(best.uv, rows)
-        kind = np.where(key == NO_HIT, MISS, key >> 48).astype(np.int8)
-        index = np.where(key == NO_HIT, -1, key & ((1 << 48) - 1))
+        kind = np.where(key == NO_HIT, MISS, (key >> KIND_SHIFT) & 3).astype(np.int8)
+        index = np.where(key == NO_HIT, -1, key & INDEX_MASK)
         n = len(t)
 
         def rays_of(sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,9 @@
 A render allocates and frees the same large arrays chunk after chunk.  With
 glibc's defaults each one is a fresh ``mmap`` whose pages fault in one by one,
 which costs as much as the arithmetic: :func:`tune_allocator` raises the mmap
-and trim thresholds so that the allocator reuses the memory.  A long-running
+and trim thresholds so that the allocator reuses the memory.  Importing the
+tracer changes nothing; a process's first renderer tunes it (:func:`tune_once`)
+unless the process tuned it already (a service, for one arena).  A long-running
 service gives memory back only after a render that made the process grow
 (:func:`release_if_grown`): memory handed back must fault its pages in again
 on the next render.  Elsewhere (not glibc) this does nothing.
@@ -14,6 +16,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import os
+import threading
 
 M_TRIM_THRESHOLD, M_TOP_PAD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -2, -3, -8
 
@@ -60,6 +63,22 @@ def release() -> None:
         trim(0)
 
 
+#: whether this process tuned its allocator, and the lock that makes it once
+_tuned, _tuning = False, threading.Lock()
+
+
+def tune_once() -> None:
+    """:func:`tune_allocator` with its defaults, the first time a process renders, unless it was tuned already."""
+    with _tuning:
+        if not _tuned:
+            tune_allocator()
+
+
+def tuned() -> bool:
+    """Whether this process tuned its allocator (:func:`tune_allocator`)."""
+    return _tuned
+
+
 def tune_allocator(arenas: int = 0) -> bool:
     """Returns True when the allocator accepted the settings.
 
@@ -68,6 +87,8 @@ def tune_allocator(arenas: int = 0) -> bool:
     one, before it starts any thread: ``malloc_trim`` returns the free top of
     the main heap but not always that of a thread's arena, which can keep up
     to one 64 MiB heap per arena resident after the render that grew it."""
+    global _tuned
+    _tuned = True
     mallopt = getattr(_libc(), "mallopt", None)
     if mallopt is None:
         return False

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kinds import MISS
+from .surfaces import magnitude
 from .vec import rows_of
 
 
@@ -49,9 +50,8 @@ class Rays:
         n = len(origins)
         if from_kind is None or from_index is None:
             from_kind, from_index = np.full(n, MISS, dtype=np.int8), np.full(n, -1, dtype=np.int64)
-        if mag is None:  # (a column at a time: a reduction over a row of three is a loop per row in NumPy)
-            mag = np.maximum(np.maximum(np.abs(origins[:, 0]), np.abs(origins[:, 1])), np.abs(origins[:, 2]))
-            mag += origin_mag
+        if mag is None:
+            mag = magnitude(origins, origin_mag)
         return Rays(origins, dirs, from_kind, from_index, mag)
 
     def __len__(self) -> int:
@@ -81,7 +81,7 @@ class Shadows:
 
     @staticmethod
     def towards(rays: Rays, reach: np.ndarray, ends: np.ndarray | None, origin_mag: float) -> Shadows:
-        mag_end = None if ends is None else np.max(np.abs(ends), axis=1) + origin_mag
+        mag_end = None if ends is None else magnitude(ends, origin_mag)
         return Shadows(rays, np.asarray(reach, dtype=np.float64), ends, mag_end)
 
     def __len__(self) -> int:

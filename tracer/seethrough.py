@@ -15,6 +15,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from .coplanar import coplanar_groups
 from .intersect import Intersector
 from .kinds import MISS, PLANE, SPHERE, TRIANGLE
 from .rays import Rays, Shadows
@@ -40,11 +41,13 @@ class Opaque:
         }
         #: per kind, each surface's index in the opaque world (−1: a transparent surface, not in it)
         self.index = {kind: np.where(k, np.cumsum(k) - 1, -1) for kind, k in keep.items()}
+        planes, triangles = _kept(world.planes, keep[PLANE]), _kept(world.triangles, keep[TRIANGLE])
         self.world = replace(
             world,
             spheres=_kept(world.spheres, keep[SPHERE]),
-            planes=_kept(world.planes, keep[PLANE]),
-            triangles=_kept(world.triangles, keep[TRIANGLE]),
+            planes=planes,
+            triangles=triangles,
+            coplanar=coplanar_groups(planes, triangles),  # (of the surfaces kept, numbered as they are here)
         )
         self.intersector = Intersector(self.world)
 

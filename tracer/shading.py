@@ -11,7 +11,7 @@ from .kinds import PLANE, TRIANGLE
 from .lights import Emitter
 from .rays import Hits
 from .shapes import PARALLEL, on_tolerance
-from .surfaces import max_abs, unit
+from .surfaces import unit
 from .vec import along, dot, rows_of
 from .world import World
 
@@ -119,7 +119,7 @@ def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: 
     if em.kind == "directional":
         near = np.abs(nl) <= 2.0 * PARALLEL
     else:
-        bound = on_tolerance(max_abs(em.position[None]) + world.origin_mag, world.flat_mag)
+        bound = on_tolerance(world.magnitude(em.position[None]), world.flat_mag)
         near = np.abs(nl) * dist <= 2.0 * bound
     if not near.any():
         return nl
@@ -134,7 +134,7 @@ def light_in_plane(world: World, hits: Hits, em: Emitter, nl: np.ndarray, dist: 
         inside = np.abs(dot(normal, em.direction)) <= PARALLEL
     else:
         inside = np.zeros(len(rows), dtype=bool)
-        position_mag = max_abs(em.position[None]) + world.origin_mag
+        position_mag = world.magnitude(em.position[None])
         for code, anchor, mag in (
             (PLANE, world.planes.point, world.planes.mag),
             (TRIANGLE, world.triangles.v0, world.triangles.mag),
@@ -176,7 +176,7 @@ def planes_holding(world: World, emitters: list[Emitter]) -> np.ndarray:
             continue
         if len(at):  # (E, F) at once, each pair as light_in_plane computes it
             position = np.array([em.position for em in points])
-            tol = on_tolerance((max_abs(position) + world.origin_mag)[:, None], mag[None, :])
+            tol = on_tolerance(world.magnitude(position)[:, None], mag[None, :])
             out[at] |= np.any(np.abs(dot(position[:, None, :] - anchor[None, :, :], normal[None, :, :])) <= tol, axis=1)
         for e in directional:
             out[e] |= bool(np.any(np.abs(dot(normal, emitters[e].direction)) <= PARALLEL))

@@ -6,7 +6,8 @@ is never hit again, a sphere left outward never, inward only at its far
 root), with the world magnitude of its origin, which scales the rounding that
 decides whether it lies on another surface.  No epsilon moves it; only a
 variant of a student's offset (:class:`tracer.variants.Spawn`) moves it off
-the surface, as that student's tracer did.
+the surface, as that student's tracer did, and the acne variant's shadow rays
+start on or just below it without leaving it (:meth:`Spawner.shadow`).
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .kinds import MISS
 from .passes import REFLECTED, REFRACTED
 from .rays import Hits, Rays, Work
 from .shading import mirror, refract
-from .surfaces import max_abs
 from .variants import Options, Spawn
-from .vec import rows_of
+from .vec import rows_of, scaled
 from .world import World
 
 
@@ -68,9 +69,24 @@ class Spawner:
             rays = offset(self.offset, rays, pick(shading))
         return rays
 
+    def shadow(self, hit: Hits, mag: np.ndarray, rows: np.ndarray | None, dirs: np.ndarray, normal: np.ndarray) -> Rays:
+        """Shadow rays along ``dirs`` from the hit points ``rows`` (as :meth:`spawn`); in the acne variant, a
+        student's shadow rays: their surface not left, and half the points (every point, with
+        ``acne_everywhere``) a hair (2^-30 of their magnitude) below it, against the facing ``normal (N, 3)``."""
+        rays = self.spawn(hit, mag, rows, dirs, normal)
+        if not self.options.acne:
+            return rays
+        pick, n = picker(rows), len(dirs)
+        if self.options.acne_everywhere:
+            below = np.ones(n, dtype=bool)
+        else:  # (a bit of the point's x: half the points, the same ones on every run)
+            below = ((pick(hit.point).view(np.int64)[:, 0] >> 20) & 1).astype(bool)
+        lowered = rays.origins - scaled(pick(normal), below * rays.mag * 2.0**-30)
+        return Rays(lowered, dirs, np.full(n, MISS, dtype=np.int8), np.full(n, -1), rays.mag)
+
     def magnitudes(self, hit: Hits) -> np.ndarray:
         """The world magnitudes of the hit points, where their rays start. Shape (N,)."""
-        return max_abs(hit.point) + self.world.origin_mag
+        return self.world.magnitude(hit.point)
 
     def bounce(self, hit: Hits, mat: np.ndarray, normal: np.ndarray, work: Work) -> Work:
         """Mirror and refracted rays of the hits whose material asks for them: the next depth's work."""

@@ -19,6 +19,15 @@ def max_abs(v: np.ndarray) -> np.ndarray:
     return most(np.abs(v))
 
 
+def magnitude(points: np.ndarray, origin_mag: float) -> np.ndarray:
+    """The world magnitude of local ``points (N, 3)``: each one's largest absolute coordinate plus the local
+    origin's world magnitude (:mod:`tracer.world`).  What scales the rounding that decides whether a point lies
+    on a surface (:func:`tracer.shapes.on_tolerance`): the one place it is computed. Shape (N,)."""
+    out = np.maximum(np.maximum(np.abs(points[:, 0]), np.abs(points[:, 1])), np.abs(points[:, 2]))
+    out += origin_mag
+    return out
+
+
 def unit(v: np.ndarray) -> np.ndarray:
     """Rows of ``v`` scaled to length 1 (zero rows stay zero), computed without overflow."""
     v = np.asarray(v, dtype=np.float64)

@@ -27,19 +27,16 @@ import numpy as np
 from .best import Best, slab
 from .cells import Cells, build_cells
 from .embree import Bvh, frame
+from .pairs import Batch, PairTests, gathered
 from .proxies import Proxies, build_proxies
-from .rays import Rays, Shadows, shared_rows
-from .shapes import SPHERE, TRIANGLE, sphere_t, triangle_t
+from .rays import Rays, Shadows
 from .sightlines import Sightlines, plain_triangles
+from .ties import Ties
 from .vec import along, highest, lowest, rows_of
 from .world import World
 
-#: (ray, primitive) pairs tested exactly at a time
-PAIR_SLICE = 1 << 16
 #: candidates (ray, member of its part of a cell) made into pairs at a time: about 80 MiB of pairs at once
 PAIR_GROUP = 1 << 20
-#: a hit this far inside a triangle, in each barycentric coordinate, is far from its edges beyond any rounding
-INSIDE = 2.0**-24
 #: a walk over primitives worth at most this many sphere tests per ray (a triangle counts :data:`TRIANGLE_COST`)
 #: tests every primitive against each ray its broad phase keeps, instead of walking the cells
 #: (:meth:`Walk.walk_few`): the cells' bookkeeping costs more than a few exact tests
@@ -48,50 +45,18 @@ FEW = 6
 TRIANGLE_COST = 2
 
 
-def _nothing() -> None:
-    return None
-
-
-def _ignored(n: int) -> None:
-    return None
-
-
-def gathered(*columns: np.ndarray) -> np.ndarray:
-    """``(N, k)`` and ``(N,)`` arrays side by side in one ``(N, Σk)`` array, so that the walk gathers a ray's
-    (or a primitive's) values with one row copy instead of one per array: pairs reach all over the tables, and
-    a gather's cost is its cache misses (measured on 150k random rows of 208k: 4 ms against 20 ms for four
-    ``(N, 3)`` arrays)."""
-    return np.concatenate([c if c.ndim == 2 else c[:, None] for c in columns], axis=1)
-
-
-def _columns_of(rows: np.ndarray) -> np.ndarray:
-    """Gathered rows ``(n, k)`` as ``(k, n)`` columns, each contiguous: ``out[0:3].T`` is then an ``(n, 3)``
-    view whose x, y and z (all :mod:`tracer.vec` reads) are contiguous, faster to compute on than the rows'
-    own strided columns (measured: a triangle test 4.7 ms against 11.4 ms on 100k pairs, 2.7 ms to copy)."""
-    return np.ascontiguousarray(rows.T)
-
-
 class Walk:
     """The world's triangles ``tris`` and spheres ``spheres`` (indices within their kinds, not empty together)
     behind one Embree BVH and one grid of cells.  ``lines``, when given, promises that every ray cast will lie
     on them (:mod:`tracer.sightlines`), which lets mesh faces go to Embree without proxies."""
 
-    def __init__(self, world: World, tris: np.ndarray, spheres: np.ndarray, lines: Sightlines | None):
-        #: called between walk passes and slices of exact tests; raises to stop a render
-        self.check: Callable[[], None] = _nothing
-        #: told how many exact tests each batch makes (:meth:`tracer.budget.RayCount.tested`)
-        self.tested: Callable[[int], None] = _ignored
+    def __init__(self, world: World, tris: np.ndarray, spheres: np.ndarray, lines: Sightlines | None, ties: Ties):
+        #: the exact tests of the walk's primitives (their ids: triangles, then spheres)
+        self.pairs = PairTests(world, tris, spheres, ties)
+        self._check: Callable[[], None] = self.pairs.check
         tr, sp = world.triangles, world.spheres
         self.n_tri = len(tris)
-        self.prim_index = np.concatenate([tris, spheres]).astype(np.int64)
-        self.tri_prim = np.full(len(tr.v0), -1, dtype=np.int64)
-        self.tri_prim[tris] = np.arange(len(tris))
-        self.sphere_prim = np.full(len(sp.radius), -1, dtype=np.int64)
-        self.sphere_prim[spheres] = np.arange(len(spheres)) + len(tris)
-        #: each triangle's v0, e1, e2, normal and magnitude in one row (T, 13); each sphere's centre, radius and
-        #: magnitude (S, 5): what an exact test reads of it
-        self.tri_rows = gathered(tr.v0, tr.e1, tr.e2, tr.normal, tr.mag)
-        self.sphere_rows = gathered(sp.center, sp.radius, sp.mag)
+        self.prim_index, self.sphere_prim = self.pairs.prim_index, self.pairs.sphere_prim
         every = len(tris) == len(tr.v0)  # as usual: then no copies
 
         def mine(a: np.ndarray) -> np.ndarray:
@@ -100,12 +65,13 @@ class Walk:
         v0, e1, e2, normal, ids = mine(tr.v0), mine(tr.e1), mine(tr.e2), mine(tr.normal), mine(tr.corner_ids)
         center, radius = rows_of(sp.center, spheres), sp.radius[spheres]
         parts = [v0, v0 + e1, v0 + e2, center - radius[:, None], center + radius[:, None]]
-        centre, half = frame(np.min([lowest(a) for a in parts if len(a)], axis=0),
-                             np.max([highest(a) for a in parts if len(a)], axis=0))
+        centre, half = frame(
+            np.min([lowest(a) for a in parts if len(a)], axis=0), np.max([highest(a) for a in parts if len(a)], axis=0)
+        )
         plain, mates = (None, None) if lines is None else plain_triangles(v0, e1, e2, normal, ids, lines, half)
         some_plain = plain is not None and bool(plain.any())
         #: a plain triangle's faces across its edges, which a shadow ray leaving it never meets (n_tri, 3)
-        self.mates = mates if some_plain else None
+        self.mates = self.pairs.mates = mates if some_plain else None
         self.proxies: Proxies = build_proxies(v0, e1, e2, normal, center, radius, half, plain, ids)
         p = self.proxies
         #: every primitive is tested against every ray the broad phase keeps (:meth:`walk_few`), and no cells are
@@ -123,54 +89,28 @@ class Walk:
         # each pass of a walk consumes at least one proxy-face crossing (a ray crosses a face once)
         self.max_steps = len(p.faces) + 2
 
-    # -- exact tests of (ray, primitive) pairs ----------------------------------------------------------------
-    def _test(self, best: Best, rows: np.ndarray, prims: np.ndarray, table: np.ndarray, from_prim: np.ndarray,
-              shadows: Shadows | None) -> None:
-        """Test BVH primitives ``prims`` exactly against rays ``rows`` (pairs; either may repeat); ``table`` holds
-        each ray's origin, direction and magnitude in one row (:func:`gathered`)."""
-        self.tested(len(prims))
-        tri = prims < self.n_tri
-        n_tri = int(np.count_nonzero(tri))
-        for is_tri, count in ((True, n_tri), (False, len(prims) - n_tri)):
-            if count == 0:
-                continue
-            if count < len(prims):
-                chosen = np.flatnonzero(tri == is_tri)
-                r, q = np.take(rows, chosen), np.take(prims, chosen)
-            else:  # (all of one kind, as in a mesh: no copies)
-                r, q = rows, prims
-            for at in range(0, count, PAIR_SLICE):  # bounded temporaries, and a render can stop between slices
-                if at:
-                    self.check()
-                self._test_kind(best, is_tri, r[at:at + PAIR_SLICE], q[at:at + PAIR_SLICE], table, from_prim,
-                                shadows)
+    @property
+    def check(self) -> Callable[[], None]:
+        """Called between walk passes and slices of exact tests; raises to stop a render."""
+        return self._check
 
-    def _test_kind(self, best: Best, is_tri: bool, r: np.ndarray, q: np.ndarray, table: np.ndarray,
-                   from_prim: np.ndarray, shadows: Shadows | None) -> None:
-        """Rays ``r`` against primitives ``q`` of :meth:`_test`, all of one kind (triangles when ``is_tri``)."""
-        k = np.take(self.prim_index, q)
-        leaving = np.take(from_prim, r) == q
-        e = me = reach = None
-        if shadows is not None:  # a shadow walk: only whether something lies before the light matters
-            e, me, reach = shared_rows(shadows.ends, r), shared_rows(shadows.mag_end, r), shadows.reach[r]
-        u = v = None
-        ray = _columns_of(rows_of(table, r))  # one gather per pair for the ray, one for the primitive (gathered)
-        o, d, mag_o = ray[0:3].T, ray[3:6].T, ray[6]
-        if is_tri:
-            g = _columns_of(rows_of(self.tri_rows, k))
-            t, u, v = triangle_t(o, d, g[0:3].T, g[3:6].T, g[6:9].T, g[9:12].T, mag_o, g[12], leaving, e, me,
-                                 uv=shadows is None)
-        else:
-            g = _columns_of(rows_of(self.sphere_rows, k))
-            t = sphere_t(o, d, g[0:3].T, g[3], mag_o, g[4], leaving, e, reach, me)
-        if shadows is not None:
-            best.block(r, t)
-        else:
-            best.offer(r, t, TRIANGLE if is_tri else SPHERE, k, u, v)
+    @check.setter
+    def check(self, value: Callable[[], None]) -> None:
+        self._check = self.pairs.check = value
 
-    def _test_cells(self, best: Best, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None,
-                    table: np.ndarray, from_prim: np.ndarray, shadows: Shadows | None) -> None:
-        """:meth:`_test` of the pairs :meth:`Cells.pairs` makes of rays ``rows`` and their ``region``, but for
+    @property
+    def tested(self) -> Callable[[int], None]:
+        """Told how many exact tests each batch makes (:meth:`tracer.budget.RayCount.tested`)."""
+        return self.pairs.tested
+
+    @tested.setter
+    def tested(self, value: Callable[[int], None]) -> None:
+        self.pairs.tested = value
+
+    def _test_cells(
+        self, best: Best, rows: np.ndarray, region: np.ndarray, but: np.ndarray | None, batch: Batch
+    ) -> None:
+        """:meth:`PairTests.test` of the pairs :meth:`Cells.pairs` makes of rays ``rows`` and their ``region``, but for
         ``but``, made and tested a group of rays at a time (:data:`PAIR_GROUP` candidates), so that what they
         hold is bounded; the best hits do not depend on the order pairs come in (:class:`Best`)."""
         cells = self.cells
@@ -178,57 +118,19 @@ class Walk:
         for part in cells.groups(region, PAIR_GROUP):
             if part.start:
                 self.check()
-            self._test(best, *cells.pairs(rows[part], region[part], None if but is None else but[part]), table,
-                       from_prim, shadows)
+            self.pairs.test(best, *cells.pairs(rows[part], region[part], None if but is None else but[part]), batch)
 
-    def test_pairs(self, best: Best, rays: Rays, rows: np.ndarray, prims: np.ndarray,
-                   shadows: Shadows | None = None) -> None:
+    def test_pairs(
+        self, best: Best, rays: Rays, rows: np.ndarray, prims: np.ndarray, shadows: Shadows | None = None
+    ) -> None:
         """Test primitives ``prims`` exactly against ``rays`` ``rows`` (pairs; either may repeat), with the
         exact tests a walk makes, and no walk: for a caller that knows which primitives each ray can hit."""
         if len(rows):
-            self._test(best, rows, prims, gathered(rays.origins, rays.dirs, rays.mag), self._from_prim(rays), shadows)
+            self.pairs.test(best, rows, prims, self.pairs.batch(rays, shadows))
 
     def prim_of(self, kind: np.ndarray, index: np.ndarray) -> np.ndarray:
-        """The walk's primitive id of each surface ``kind`` (SPHERE or TRIANGLE), ``index``; −1 for a surface
-        not in the walk (planes, and the surfaces tested directly). Shape (N,)."""
-        out = np.full(len(kind), -1, dtype=np.int64)
-        tri, sph = kind == TRIANGLE, kind == SPHERE
-        out[tri] = self.tri_prim[index[tri]]
-        out[sph] = self.sphere_prim[index[sph]]
-        return out
-
-    def _with_mates(self, prims: np.ndarray, where: np.ndarray) -> np.ndarray:
-        """``prims (n,)`` (−1 for none) and, where ``where``, a plain triangle's mates (its faces across its
-        edges, :func:`tracer.sightlines.plain_triangles`): ``(n, 4)`` primitive ids, −1 for none, or ``(n, 1)``
-        in a scene without mates."""
-        if self.mates is None:
-            return prims[:, None]
-        out = np.full((len(prims), 4), -1, dtype=np.int64)
-        out[:, 0] = prims
-        tri = np.flatnonzero(where & (prims >= 0) & (prims < self.n_tri))
-        out[tri, 1:] = rows_of(self.mates, prims[tri])
-        return out
-
-    def _tested(self, best: Best, rows: np.ndarray, prims: np.ndarray, any_hit: bool) -> np.ndarray:
-        """What the rays ``rows``, having just tested the primitives ``prims`` they crossed, need not test again
-        at that crossing (as :meth:`_with_mates` gives it).
-
-        The primitive itself; and, for a camera ray that hits a plain triangle well inside it, its mates: the
-        plane through a shared edge and the eye (or along the view) has the ray's line on the triangle's side,
-        so the ray meets no mate anywhere.
-        """
-        inside = np.zeros(len(rows), dtype=bool)
-        if not any_hit and self.mates is not None:
-            tri = np.flatnonzero(prims < self.n_tri)
-            k = self.prim_index[prims[tri]]
-            u, v = best.uv[rows[tri], 0], best.uv[rows[tri], 1]
-            inside[tri] = ((best.key[rows[tri]] == (TRIANGLE << 48) | k) & (u > INSIDE) & (v > INSIDE)
-                           & (1.0 - u - v > INSIDE))
-        return self._with_mates(prims, inside)
-
-    def _from_prim(self, rays: Rays) -> np.ndarray:
-        """The BVH primitive each ray leaves, −1 for none. Shape (N,)."""
-        return self.prim_of(rays.from_kind, rays.from_index)
+        """The walk's primitive id of each surface (:meth:`PairTests.prim_of`). Shape (N,)."""
+        return self.pairs.prim_of(kind, index)
 
     # -- the walk ---------------------------------------------------------------------------------------------
     def walk_few(self, best: Best, rays: Rays, shadows: Shadows | None = None) -> None:
@@ -259,8 +161,9 @@ class Walk:
         if len(live) == 0:
             return
         count = len(self.prim_index)
-        self._test(best, np.repeat(live, count), np.tile(np.arange(count), len(live)),
-                   gathered(o, d, rays.mag), self._from_prim(rays), shadows)
+        self.pairs.test(
+            best, np.repeat(live, count), np.tile(np.arange(count), len(live)), self.pairs.batch(rays, shadows)
+        )
 
     def walk(self, best: Best, rays: Rays, shadows: Shadows | None = None) -> None:
         """Test, exactly, every BVH primitive that one of ``rays`` could hit before its best hit, or, for
@@ -308,7 +211,7 @@ class Walk:
             live = w.open_rows(self._pass(w, live, step))
         if len(live):  # (not seen: each pass consumes a crossing) every primitive, rather than a wrong answer
             every = np.arange(len(self.prim_index))
-            self._test(best, np.repeat(live, len(every)), np.tile(every, len(live)), w.table, w.from_prim, shadows)
+            self.pairs.test(best, np.repeat(live, len(every)), np.tile(every, len(live)), w.batch)
 
     def _begin(self, best: Best, rays: Rays, shadows: Shadows | None) -> Walking:
         """A walk's start (:meth:`walk`): where each ray starts, and the part of a cell holding the origin of a
@@ -317,18 +220,20 @@ class Walk:
         assert cells is not None  # (made for every walk but a few primitives')
         any_hit = shadows is not None
         o, d = rays.origins, rays.dirs
-        from_prim = self._from_prim(rays)
+        batch = self.pairs.batch(rays, shadows, gathered(o, d, rays.mag))
+        from_prim = batch.from_prim
         t_in, t_out = slab(o, d, self.box_lo, self.box_hi)
-        w = Walking(best, shadows, best.t.copy(), gathered(o, d, rays.mag), from_prim, t_out, t_in.copy(),
-                    np.full(len(o), -2, dtype=np.int64), rays, any_hit)
-        start, table = w.start, w.table
+        w = Walking(
+            best, shadows, best.t.copy(), batch, t_out, t_in.copy(), np.full(len(o), -2, dtype=np.int64), rays, any_hit
+        )
+        start = w.start
         inside = np.flatnonzero(from_prim >= 0)
         if len(inside):  # every proxy that contains an origin meets the origin's part of a cell: test them now
             cell, lo, hi = cells.locate(rows_of(o, inside))
             q = from_prim[inside]  # a triangle is never met again by a ray that leaves it; a sphere may be
             # nor, on its way to a light, are a plain triangle's mates
-            but = self._with_mates(np.where(q < self.n_tri, q, -1), np.full(len(q), any_hit))
-            self._test_cells(best, inside, cell, but, table, from_prim, shadows)
+            but = self.pairs.with_mates(np.where(q < self.n_tri, q, -1), np.full(len(q), any_hit))
+            self._test_cells(best, inside, cell, but, batch)
             start[inside] = slab(rows_of(o, inside), rows_of(d, inside), lo, hi)[1]
             w.last[inside] = cell
             if not any_hit:  # a hit inside the origin's part is the nearest there is
@@ -340,9 +245,9 @@ class Walk:
         """One pass of a walk (:meth:`walk`'s step) for the rays ``live``: the nearest crossing of each, its part
         of a cell tested, the walk moved on past it.  Returns the rays still walking (before
         :meth:`Walking.open_rows`)."""
-        p, cells, best, shadows, any_hit = self.proxies, self.cells, w.best, w.shadows, w.any_hit
+        p, cells, best, any_hit = self.proxies, self.cells, w.best, w.any_hit
         assert cells is not None
-        start, last, limit, table, from_prim = w.start, w.last, w.limit, w.table, w.from_prim
+        start, last, limit = w.start, w.last, w.limit
         first = any_hit or self.mates is not None  # test the crossed primitive before the rest of its region
         s = start[live]
         # a plain triangle hit before best.t may be crossed in float32 up to p.slack after it
@@ -358,12 +263,16 @@ class Walk:
         fresh = last[live] != region
         if first:  # the primitive crossed first: a ray it blocks needs no more
             rows = live[fresh]
-            self._test(best, rows, prim[fresh], table, from_prim, shadows)
+            self.pairs.test(best, rows, prim[fresh], w.batch)
             if any_hit:
                 fresh[fresh] = ~(best.t[rows] < limit[rows])
-        self._test_cells(best, live[fresh], region[fresh],
-                         self._tested(best, live[fresh], prim[fresh], any_hit) if first else None, table,
-                         from_prim, shadows)
+        self._test_cells(
+            best,
+            live[fresh],
+            region[fresh],
+            self.pairs.done_with(best, live[fresh], prim[fresh], any_hit) if first else None,
+            w.batch,
+        )
         last[live] = region
         leave = slab(o_l, d_l, lo, hi)[1]
         start[live] = np.fmax(start[live] + tau + p.step, leave)
@@ -380,8 +289,7 @@ class Walking:
     best: Best
     shadows: Shadows | None  # the shadow query the rays are of
     limit: np.ndarray  # (N,) each ray's best hit (or its light) when the walk began
-    table: np.ndarray  # the rays' origins, directions and magnitudes, a row each (gathered)
-    from_prim: np.ndarray  # (N,) the BVH primitive each ray leaves, −1 for none
+    batch: Batch  # the rays as the exact tests read them: a row each, what each leaves
     t_out: np.ndarray  # (N,) where each ray's line leaves the BVH's box
     start: np.ndarray  # (N,) where each ray's walk goes on from
     last: np.ndarray  # (N,) the part of a cell each ray tested last (rounding may report a part twice)

@@ -22,8 +22,9 @@ import numpy as np
 
 from schemas import Mesh, Plane, Scene, Sphere, Triangle
 
+from .coplanar import Groups, coplanar_groups
 from .lights import Emitters, build_emitters
-from .surfaces import Materials, Planes, Spheres, Triangles, unit
+from .surfaces import Materials, Planes, Spheres, Triangles, magnitude, unit
 from .variants import REFERENCE, Options
 from .vec import cross, most, rows_of
 
@@ -40,6 +41,12 @@ class World:
     triangles: Triangles
     ambient: np.ndarray  # (3,) sum of ambient light colours
     emitters: Emitters
+    #: flat surfaces of different objects in one plane, grouped (:mod:`tracer.coplanar`); None: no such surfaces
+    coplanar: Groups | None = None
+
+    def magnitude(self, points: np.ndarray) -> np.ndarray:
+        """The world magnitude of local ``points (N, 3)`` (:func:`tracer.surfaces.magnitude`). Shape (N,)."""
+        return magnitude(points, self.origin_mag)
 
     @property
     def flat_mag(self) -> float:
@@ -61,18 +68,20 @@ def scene_centre(scene: Scene) -> np.ndarray:
 def build_world(scene: Scene, options: Options = REFERENCE) -> World:
     origin = scene_centre(scene)
     names = {name: k for k, name in enumerate(scene.materials)}
+    planes, triangles = _planes(scene, names, origin), _triangles(scene, names, origin)
     return World(
         origin=origin,
         origin_mag=float(np.max(np.abs(origin))),
         materials=_materials(scene, names),
         spheres=_spheres(scene, names, origin),
-        planes=_planes(scene, names, origin),
-        triangles=_triangles(scene, names, origin),
+        planes=planes,
+        triangles=triangles,
         ambient=np.sum(
             np.array([light.color for light in scene.lights if light.type == "ambient"], dtype=F64).reshape(-1, 3),
             axis=0,
         ),
         emitters=build_emitters(scene.lights, origin, options),
+        coplanar=coplanar_groups(planes, triangles),
     )
 
 

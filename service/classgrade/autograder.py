@@ -1,12 +1,10 @@
 """A Gradescope autograder: the bundle (``phongray autograder``) and what runs in Gradescope's container.
 
-The bundle is a zip with ``setup.sh`` and ``run_autograder`` at its root, as
-Gradescope's autograder specification asks, beside phongray's own source tree
-(``phongray/``) and the course (``course/``: the task scenes, the students' own
-scenes, the tasks file, and each scene's reference, rendered when the bundle
-is built).  Gradescope unpacks it into ``/autograder/source`` and runs
-``setup.sh`` once, then ``run_autograder`` for each submission, with the
-student's files in ``/autograder/submission``; the results go to
+The bundle is a zip with ``setup.sh`` and ``run_autograder`` at its root, as Gradescope's autograder
+specification asks, beside phongray's own source tree (``phongray/``) and the course (``course/``: the task
+scenes, the students' own scenes, the tasks file, and each scene's reference, rendered when the bundle is
+built).  Gradescope unpacks it into ``/autograder/source`` and runs ``setup.sh`` once, then ``run_autograder``
+for each submission, with the student's files in ``/autograder/submission``; the results go to
 ``/autograder/results/results.json``.
 
 A submission is graded as a class of one student by :func:`service.classgrade.grade_class`, so its
@@ -32,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
 from .errors import ClassError
+from .feedback import printed
 from .taskfile import TaskSettings, load_tasks
 from .uploads import LaidOut, as_uploaded, lay_out
 
@@ -264,7 +263,7 @@ def run(root: Path) -> int:
         return 2
     _write(results, outcome)
     for test in outcome["tests"]:
-        print(f"{test['name']}: {test['score']:g}/{test['max_score']:g} {test['output'].splitlines()[0]}")
+        print(printed(test))  # (Gradescope shows what run_autograder prints to the instructors only)
     print(f"total: {outcome['score']:g}; results in {results}")
     return 0
 

@@ -43,7 +43,10 @@ class Score:
 
 
 def score(row: dict[str, Any], task: TaskSettings) -> Score:
-    """What a pair scores of its task's points."""
+    """What a pair scores of its task's points (nothing for a program holding phongray's code, where the task
+    says ``"phongray_code": "zero"``)."""
+    if row.get("flag") == "phongray-code" and task.phongray_code == "zero":
+        return Score(0.0)
     if row["status"] == "pass":
         return Score(task.points)
     if row["status"] != "fail":
@@ -81,13 +84,14 @@ def late_note(row: dict[str, Any]) -> str:
 def partial(row: dict[str, Any]) -> str:
     """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty; for an
     image several mistakes explain alike, each of them: ``(no specular term, or the reflected vector R with the
-    wrong sign: -1)`` (the deduction is for what the image shows)."""
+    wrong sign: -1)`` (the deduction is for what the image shows); for mistakes made together
+    (``no-shadows+gamma``), each one: ``(no shadow rays and gamma …: -3)``."""
     if not row.get("deducted"):
         return ""
     lost = row["points"] - row["score"]
     readings = [m for m in row.get("mistakes") or [] if m in MISTAKES]
     shown = readings if row["deducted"] in readings and len(readings) > 1 else [row["deducted"]]
-    what = listed([MISTAKES[m] for m in shown], "or")
+    what = listed([" and ".join(MISTAKES.get(part, part) for part in m.split("+")) for m in shown], "or")
     return f"Partial credit: {row['score']:g} of {row['points']:g} points ({what}: -{lost:g})"
 
 

@@ -93,9 +93,9 @@ def _scalar(value: Any) -> bool:
 
 def valid_row(row: Any) -> bool:
     """A row as a grade of this version keeps it: ``{"status": "invalid", "reason": text}``, or a graded one
-    with every number of its type, ``passed`` agreeing with its status, and known mistake ids (a key of its
-    own, such as a newer grade may give, only as a plain value); or a program's failed run: a failing row of
-    plain values and no numbers."""
+    with every number of its type, ``passed`` agreeing with its status, and known mistake ids (``a+b`` for
+    mistakes made together; a key of its own, such as a newer grade may give, only as a plain value); or a
+    program's failed run: a failing row of plain values and no numbers."""
     if not isinstance(row, dict) or row.get("status") not in KEPT:
         return False
     if row["status"] == "invalid":
@@ -117,5 +117,5 @@ def valid_row(row: Any) -> bool:
         and all(isinstance(row[k], str) for k in TEXTS)
         and (row["psnr"] is None or _number(row["psnr"]))
         and isinstance(row["mistakes"], list)
-        and all(isinstance(m, str) and m in VARIANTS for m in row["mistakes"])
+        and all(isinstance(m, str) and all(part in VARIANTS for part in m.split("+")) for m in row["mistakes"])
     )

@@ -124,6 +124,8 @@ class Grade:
     run: str | None = None  # a program's: how its run ended, in a word (ok, timeout, memory, ...)
     run_seconds: float | None = None
     run_output: str | None = None  # the end of the run's output: the TA's, never shown to a student
+    flag: str | None = None  # a program's: phongray-code or identical (service.programs.copied), for the TA
+    flag_reason: str | None = None
 
     def row(self) -> dict[str, Any]:
         """The grade as the report's row: its columns, in order."""

@@ -1,5 +1,5 @@
-"""The files of a class report: report.json, report.csv, gradebook.csv (and the LMSs' own, :mod:`.lmsbook`),
-index.html and Gradescope's results.json per student.
+"""What the files of a class report say: report.json, report.csv, gradebook.csv (and the LMSs' own,
+:mod:`.lmsbook`), index.html and Gradescope's results.json per student (:mod:`.writing` writes them).
 
 Every file is written whole or not at all (:func:`write_atomic`), so an interrupted run leaves the previous
 report readable.  A student's name (and a file's) is the students' text: in the CSV files and the HTML its
@@ -13,7 +13,6 @@ import contextlib
 import csv
 import html
 import io
-import json
 import os
 import re
 import threading
@@ -21,11 +20,10 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from ..display import counted, percent
+from ..display import counted
 from ..heatmap import LEGEND
-from .gradebook import gradebook_csv, late_note, partial, totals
-from .lmsbook import lms_books
-from .taskfile import TaskSettings
+from .feedback import gradescope, test_output  # noqa: F401  (test_output: what a student reads, here too)
+from .gradebook import late_note, partial, totals
 
 #: the numbers of a graded pair, in report.csv's order
 NUMBERS = [
@@ -40,7 +38,7 @@ NUMBERS = [
     "reference_sha256",
 ]
 #: the columns of a program's run (grade-class --run; empty for an image)
-PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output"]
+PROGRAM_COLUMNS = ["experiment", "run", "run_seconds", "run_output", "flag", "flag_reason"]
 #: the columns of report.csv (and the keys of each row of report.json), in order
 COLUMNS = [
     "student",
@@ -121,22 +119,20 @@ def neutral_cell(value: Any) -> Any:
 
 
 def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
+    """The run in a line: its pairs by status, those flagged for the TA (a program holding phongray's code, or
+    rendering the references byte for byte), the references rendered and the time."""
     counts = {s: sum(r["status"] == s for r in rows) for s in STATUSES}
+    flagged = sum(bool(r.get("flag")) for r in rows)
     return (
         f"{counted(len(rows), 'pair')}: {counts['pass']} passed, {counts['fail']} failed, {counts['missing']} "
-        f"missing, {counts['invalid']} invalid; {counted(renders, 'reference')} rendered; {seconds:.1f} s"
+        f"missing, {counts['invalid']} invalid; "
+        + (f"{flagged} flagged for review (⚑); " if flagged else "")
+        + f"{counted(renders, 'reference')} rendered; {seconds:.1f} s"
     )
 
 
-def write_report(
-    report: Path,
-    rows: list[dict[str, Any]],
-    ignored: list[tuple[str, str]],
-    students: list[str],
-    tasks: dict[str, TaskSettings],
-    headline: str,
-) -> None:
-    write_atomic(report / "report.json", _text(json.dumps(rows, indent=1, ensure_ascii=False) + "\n"))
+def report_csv(rows: list[dict[str, Any]]) -> str:
+    """``report.csv``: a row per pair, its cells made safe to open (:func:`safe_cell`)."""
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
     # a carriage return in a cell (a student's name can hold one) is quoted only by a writer that quotes all
@@ -145,54 +141,7 @@ def write_report(
     for row in rows:
         cells = {k: safe_cell(v) for k, v in row.items()}
         (quoted if any(isinstance(v, str) and "\r" in v for v in cells.values()) else writer).writerow(cells)
-    write_atomic(report / "report.csv", _text(buf.getvalue()))
-    write_atomic(report / "gradebook.csv", _text(gradebook_csv(rows, students, list(tasks), safe_cell)))
-    for name, text in lms_books(rows, students, tasks, safe_cell).items():  # (Canvas's and Moodle's import files)
-        if text is not None:
-            write_atomic(report / name, _text(text))
-        else:  # none for this class: an earlier run's is not imported by mistake
-            with contextlib.suppress(OSError):
-                (report / name).unlink()
-    for student in students:
-        mine = [r for r in rows if r["student"] == student]
-        write_atomic(
-            report / "gradescope" / student / "results.json",
-            _text(json.dumps(gradescope(mine, tasks), indent=1, ensure_ascii=False) + "\n"),
-        )
-    _drop_stale_results(report / "gradescope", set(students))
-    write_atomic(report / "index.html", _text(render_html(rows, ignored, students, list(tasks), headline)))
-
-
-def _drop_stale_results(folder: Path, students: set[str]) -> None:
-    """Remove the ``results.json`` an earlier run into this report wrote for a student who is not in this one
-    (another class's, or a name since changed), lest it be uploaded with this class's."""
-    with contextlib.suppress(OSError), os.scandir(folder) as entries:
-        stale = [e.name for e in entries if e.name not in students and e.is_dir(follow_symlinks=False)]
-    for name in stale:
-        with contextlib.suppress(OSError):
-            (folder / name / "results.json").unlink()
-            (folder / name).rmdir()
-
-
-def test_output(row: dict[str, Any], show: str = "images") -> str:
-    """What a student reads of one task, as its ``show`` (tasks.json) allows: the verdict alone
-    (``verdict-only``); with its reason or numbers (``verdict``); and the likely mistake, what a program's
-    probes found and the partial credit (``diagnosis``, ``images``).  Never a program's output."""
-    if show == "verdict-only":
-        return "passed" if row["status"] == "pass" else ("failed" if row["status"] == "fail" else row["status"])
-    if row["status"] == "pass":
-        how = f", {row['reason']}" if row.get("reason") else ""  # (as rendered with an accepted variant)
-        return (
-            f"passed{how}: {percent(row['fraction_off_nearby'])} of the pixels off even nearby "
-            f"(at most {percent(row['max_fraction'])} may be)"
-        )
-    if show == "verdict":
-        return f"{row['status']}: {row['reason']}"
-    likely = f"\nLikely: {row['likely']}" if row.get("likely") else ""
-    found = row.get("experiment")
-    probes = f"\nBy experiment: {found}" if found and found != row.get("likely") else ""
-    credit = f"\n{partial(row)}" if row.get("deducted") else ""
-    return f"{row['status']}: {row['reason']}{likely}{probes}{credit}"
+    return buf.getvalue()
 
 
 def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
@@ -206,23 +155,6 @@ def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, li
             counts[said] = counts.get(said, 0) + 1
         out[task] = [(m, n, len(failing)) for m, n in sorted(counts.items(), key=lambda kv: (-kv[1], kv[0]))]
     return out
-
-
-def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> dict[str, Any]:
-    """One student's results in Gradescope's autograder format (``results.json``): the total ``score`` and a
-    test per task with its ``name``, ``score``, ``max_score``, ``status``, ``output`` and ``visibility``."""
-    tests = [
-        {
-            "name": r["task"],
-            "score": r["score"],
-            "max_score": r["points"],
-            "status": "passed" if r["status"] == "pass" else "failed",
-            "output": test_output(r, tasks[r["task"]].show) + (f"\n{late_note(r)}" if r.get("late") else ""),
-            "visibility": tasks[r["task"]].visibility,
-        }
-        for r in rows
-    ]
-    return {"score": sum(t["score"] for t in tests), "visibility": "visible", "tests": tests}
 
 
 def _legend() -> str:
@@ -258,6 +190,7 @@ def _cell(r: dict[str, Any], anchor: str) -> str:
     else:
         note = esc(_without_file(r["reason"]))
     own = ' <span class="own" title="the student\'s own scene">●</span>' if r["scene"] == "own" else ""
+    own += f' <span class="flag" title="{esc(r["flag_reason"] or "")}">⚑</span>' if r.get("flag") else ""
     lost = f" −{r['late_deducted']:g}" if r.get("late_deducted") else ""  # (what the late policy took)
     late = f' <span class="late">late{lost}</span>' if r.get("late") else ""
     status = esc(r["status"])
@@ -281,6 +214,7 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     probes = f"<p>By experiment: {esc(found)}</p>" if found and found != r.get("likely") else ""
     output = f"<pre>{esc(r['run_output'])}</pre>" if r.get("run_output") else ""  # (the TA's page only)
     credit = f"<p>{esc(partial(r))}</p>" if r.get("deducted") else ""
+    credit += f'<p class="likely">⚑ {esc(r["flag"])}: {esc(r["flag_reason"] or "")}</p>' if r.get("flag") else ""
     credit += f'<p class="late">{esc(late_note(r))}</p>' if r.get("late") else ""
     return (
         f'<section class="pair" id="{anchor}"><h2>{esc(r["student"])} · {esc(r["task"])}: {esc(r["status"])}'
@@ -339,7 +273,7 @@ table.grid {{ border-collapse: collapse; }}
 td.pass {{ background: #d8f5d8; }} td.fail {{ background: #f8d4d4; }}
 td.missing {{ background: #eee; color: #777; }} td.invalid {{ background: #fbe7c2; }}
 td.partial {{ background: #fbe3cf; }} td.total {{ font-weight: bold; white-space: nowrap; }}
-.own {{ color: #36c; }} .late {{ color: #a33f00; font-size: 11px; font-weight: bold; }}
+.own {{ color: #36c; }} .flag {{ color: #c60; }} .late {{ color: #a33f00; font-size: 11px; font-weight: bold; }}
 .pair {{ display: none; }}
 .pair:target {{ display: block; position: fixed; top: 4%; left: 4%; right: 4%; max-height: 88%; overflow: auto;
                border: 1px solid #888; padding: 0 1.5em 1em; background: #fff; box-shadow: 0 4px 30px #0006; }}

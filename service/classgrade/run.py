@@ -6,7 +6,7 @@ import contextlib
 import hashlib
 import time
 from collections.abc import Callable
-from dataclasses import astuple, dataclass, replace
+from dataclasses import astuple, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -17,13 +17,15 @@ from . import journal
 from .backends import Backend, open_backend
 from .checks import outside, scene_keys, writable
 from .errors import ClassError
-from .faults import run_tasks
+from .faults import one_line, run_tasks
 from .gradebook import late_policy, matched, score
+from .isolation import unwritable
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
 from .records import Batch, ClassRun, Grade, GradeJob, Pair
-from .report import COLUMNS, summary, write_atomic, write_report
+from .report import COLUMNS, summary, write_atomic
 from .submissions import discover
 from .taskfile import TaskSettings, load_tasks
+from .writing import write_report
 
 
 @dataclass
@@ -35,6 +37,7 @@ class Outcome:
     ignored: list[tuple[str, str]]
     renders: int
     seconds: float
+    unwritten: list[str] = field(default_factory=list)  # a line per grade the report could not write whole
 
     def count(self, status: str) -> int:
         return sum(r["status"] == status for r in self.rows)
@@ -115,9 +118,13 @@ def _run(run: ClassRun, checked: Checked, progress: Progress | None) -> Outcome:
         raise
     backend.close()
     _drop_stale_references(report, refs)
-    rows = [_row(p, refs, report, checked.tasks).row() for p in batch.pairs]
+    unmade: list[str] = []
+    rows = [_row_of(p, refs, report, checked.tasks, unmade) for p in batch.pairs]
     outcome = Outcome(rows, batch.ignored, len(needed), time.perf_counter() - checked.started)
-    write_report(report, rows, batch.ignored, batch.students, checked.tasks, outcome.summary())
+    outcome.rows, unwritten = write_report(
+        report, rows, batch.ignored, batch.students, checked.tasks, outcome.summary()
+    )
+    outcome.unwritten = unmade + unwritten
     return outcome
 
 
@@ -306,6 +313,20 @@ def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
         report / "heatmaps" / pair.student / f"{pair.task}.png",
         report / "submissions" / pair.student / f"{pair.task}.png",
     )
+
+
+def _row_of(
+    pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings], faults: list[str]
+) -> dict[str, Any]:
+    """A pair's row (:func:`_row`); one that cannot be made is the pair's :func:`unwritable` row (and a line
+    in ``faults``), never the class's lost report."""
+    try:
+        return _row(pair, refs, report, tasks).row()
+    except Exception as exc:
+        faults.append(f"{pair.student}/{pair.task}: its row: {one_line(exc)}")
+        known = {**pair.row, "student": pair.student, "task": pair.task, "lms_id": pair.lms_id, "lms": pair.lms}
+        known.update(file=pair.file, scene="own" if pair.own else "shared", points=tasks[pair.task].points)
+        return unwritable(known, COLUMNS, "its row", exc)
 
 
 def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> Grade:

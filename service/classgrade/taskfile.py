@@ -8,10 +8,14 @@
 A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS` and ``MORE_VARIANTS``): an image whose
 one fault is that mistake scores the task's points less the deduction (:mod:`service.classgrade.gradebook`).
 
-``show`` is what a student reads of the task in Gradescope's output (:func:`~.report.test_output`):
+``show`` is what a student reads of the task in Gradescope's output (:func:`~.feedback.test_output`):
 ``images`` (the default) and ``diagnosis`` the verdict, its reason, the likely mistake and the partial credit,
 ``verdict`` the verdict and its reason, ``verdict-only`` passed or failed: for a hidden scene (a program's
 task), the TA's choice of how much of it the feedback gives away.
+
+``phongray_code`` is what a program's pair scores when its folder holds phongray's own code
+(:mod:`service.programs.copied`): ``review`` (the default) keeps its grade and flags it in the TA's report,
+``zero`` scores it nothing and tells the student why.
 
 ``canvas`` is the Canvas assignment a task's score goes to in the Canvas gradebook (:mod:`.lmsbook`), as
 Canvas's gradebook names its column, ``Homework 3 (12345)``; ``late_penalty`` the late policy, the fraction of
@@ -64,6 +68,9 @@ class TaskSettings(BaseModel):
     #: what a student reads of the task (Gradescope's output): a hidden scene's TA may show less
     show: Literal["images", "diagnosis", "verdict", "verdict-only"] = "images"
     deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
+    #: what a pair of a program holding phongray's own code scores (service.programs.copied): its grade, flagged
+    #: for the TA (review), or nothing (zero)
+    phongray_code: Literal["review", "zero"] = "review"
     #: the accepted variants of honest tracers, name → largest amount × the visible size (None: the defaults,
     #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
     accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None

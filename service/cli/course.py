@@ -59,6 +59,8 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
         bar.close()
     for name, why in outcome.ignored:
         print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
+    for line in outcome.unwritten:  # (each such grade's row says so, with its verdict and score)
+        print(printable(f"not written whole: {line}"), file=sys.stderr)
     if not args.quiet:
         print(printable(f"{outcome.summary()}; report in {Path(args.output) / 'index.html'}"))
         if program is not None and not args.cluster:  # (a worker holds its runs as its own machine allows)

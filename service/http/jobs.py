@@ -18,18 +18,15 @@ import numpy as np
 from schemas import Scene, parse_json, validate_scene
 from service.diagnosis import Cached, unavailable
 from service.http.cache import RenderCache
+from service.http.slots import Busy, Slots
 from service.limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
 from service.passes import Format, PassFile
-from service.pipeline import Graded, Run, explain, with_overrides
+from service.pipeline import Checks, Graded, Run, explain, with_overrides
 from service.rendering import render_pixels
 from service.scenekey import scene_key
 from service.settings import Settings
 from tracer import OverBudget, RenderCancelled, encode_png
 from tracer.memory import release_if_grown, resident, tune_allocator
-
-
-class Busy(Exception):
-    """Every render slot is taken."""
 
 
 class TooSlow(Exception):
@@ -46,7 +43,8 @@ class ClusterDown(Exception):
 
 
 class AnswersFull(Busy):
-    """The pass answers this worker holds leave no room for another now (``max_answer_bytes``)."""
+    """The image answers this worker holds (renders, passes, heat-maps) leave no room for another now
+    (``max_answer_bytes``)."""
 
 
 class Answers:
@@ -68,6 +66,15 @@ class Answers:
     def give(self, size: int) -> None:
         with self._lock:
             self.held -= size
+
+    def hold(self, size: int, what: str) -> int:
+        """Take ``size`` bytes for an answer (``what`` it is, in words): LimitError when it could never fit in
+        ``total``, AnswersFull when it does not now; the bytes taken, to give back once it is sent."""
+        if size > self.total:
+            raise LimitError(f"{what} holds about {size} bytes, more than the limit max_answer_bytes = {self.total}")
+        if not self.take(size):
+            raise AnswersFull()
+        return size
 
 
 @dataclass(frozen=True)
@@ -103,7 +110,7 @@ class RenderService:
         self.diagnoses = Cached(room=lambda: settings.cache_bytes - self.cache.size)
         self.cache = RenderCache(settings.cache_bytes, others=lambda: self.diagnoses.size)
         self.answers = Answers(settings.max_answer_bytes)
-        self.slots = threading.BoundedSemaphore(settings.max_concurrent_renders)
+        self.slots = Slots(settings.max_concurrent_renders, settings.queue_wait)
         self.threads = settings.render_threads or os.cpu_count() or 1
         self.grading = anyio.CapacityLimiter(settings.max_concurrent_renders)  # decoding and comparing images
         # parsing and validating: a thread per core at most, so that a burst of requests never has dozens of
@@ -114,17 +121,17 @@ class RenderService:
         self._client_lock = threading.Lock()
 
     @contextlib.contextmanager
-    def _slot(self) -> Iterator[Callable[[], bool]]:
-        """One of this worker's render slots (Busy when none is free) for at most ``render_timeout``: yields the
-        deadline's test, and hands what the work freed back to the OS afterwards."""
-        if not self.slots.acquire(blocking=False):
-            raise Busy()
+    def _slot(self, cancelled: Callable[[], bool] = lambda: False) -> Iterator[Callable[[], bool]]:
+        """One of this worker's render slots, in turn (:class:`service.http.slots.Slots`: Busy when none came
+        within ``queue_wait``, RenderCancelled once ``cancelled()`` while waiting) for at most
+        ``render_timeout``: yields the deadline's test, and hands what the work freed back to the OS afterwards."""
+        taken = self.slots.take(cancelled)
         before = resident()
         deadline = time.monotonic() + self.settings.render_timeout
         try:
             yield lambda: time.monotonic() > deadline
         finally:
-            self.slots.release()
+            self.slots.give(taken)
             release_if_grown(before)  # a large render gives what it freed back to the OS: memory returns to baseline
 
     def png(self, job: Job, cancelled: Callable[[], bool] = lambda: False) -> bytes:
@@ -136,7 +143,7 @@ class RenderService:
         cached = self.cache.get(job.key)
         if cached is not None:
             return cached
-        with self._slot() as late:
+        with self._slot(cancelled) as late:
             client = self._client() if self.settings.cluster else None
             try:
                 pixels = render_pixels(
@@ -172,21 +179,13 @@ class RenderService:
 
         media = "application/x-npy" if fmt == "npy" else "image/png"
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
+        what = f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt}"
         cached = self.cache.get(key)
-        if cached is not None:
-            return passes.PassFile(b"", cached, media), 0
-        price = passes.price(job.scene, name, fmt)
-        if price > self.answers.total:
-            raise LimitError(
-                f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt} "
-                f"holds about {price} bytes, more than the limit max_answer_bytes = "
-                f"{self.answers.total}"
-            )
-        if not self.answers.take(price):
-            raise AnswersFull()
-        held = price
+        if cached is not None:  # (held as long as it is sent: the cache may let it go meanwhile)
+            return passes.PassFile(b"", cached, media), self.answers.hold(len(cached), what)
+        held = self.answers.hold(passes.price(job.scene, name, fmt), what)
         try:
-            with self._slot() as late:
+            with self._slot(gone) as late:
                 stop = lambda: late() or gone()  # noqa: E731
                 try:
                     if self.settings.cluster:
@@ -236,15 +235,17 @@ class RenderService:
         submitted: np.ndarray,
         gone: Callable[[], bool] = lambda: False,
     ) -> Graded:
-        """``graded`` with the diagnosis of a failing grade, rendered in one of this worker's render slots
-        within ``render_timeout`` (on the cluster when there is one); when no slot is free or time runs out, a
-        diagnosis that says so.  RenderCancelled once ``gone()``: its client left, no one reads the answer.
-        ClusterDown when the cluster has no worker, as for a render."""
+        """``graded`` checked against the accepted variants and, when it fails them too, with its diagnosis
+        (:func:`explained`), in one of this worker's render slots, in turn, within ``render_timeout`` (on the
+        cluster when there is one).  The verdict never depends on the load: when no slot came within
+        ``queue_wait`` (Busy), or the accepted variants' renders ran out of memory (OutOfMemory) or past the
+        time (TooSlow), the grade is not answered now (503) rather than failed.  RenderCancelled once ``gone()``:
+        its client left, no one reads the answer.  ClusterDown when the cluster has no worker, as for a render."""
         if graded.grade.passed:
             return graded
-        try:
-            with self._slot() as late:
-                stop = lambda: late() or gone()  # noqa: E731
+        with self._slot(gone) as late:
+            stop = lambda: late() or gone()  # noqa: E731
+            try:
                 if self.settings.cluster:
                     from service.cluster import run
 
@@ -258,27 +259,14 @@ class RenderService:
                         self.settings.render_timeout,
                         cancelled=stop,
                     )
-                return explain(
-                    job.scene, graded, reference, submitted, run=Run(self.threads, cancel=stop, cache=self.diagnoses)
-                )
-        except Busy:
-            return replace(graded, diagnosis=unavailable("every render slot is busy; grade again for one"))
-        except MemoryError:
-            return replace(
-                graded,
-                diagnosis=unavailable(
-                    "its renders ran out of memory beside the worker's other work; grade again for one"
-                ),
-            )
-        except RenderCancelled:
-            if gone():
-                raise
-            return replace(
-                graded,
-                diagnosis=unavailable(
-                    f"its renders ran past the limit render_timeout = {self.settings.render_timeout:g} s"
-                ),
-            )
+                here = Run(self.threads, cancel=stop, cache=self.diagnoses)
+                return explained(job.scene, graded, (reference, submitted), here, gone, self.settings.render_timeout)
+            except RenderCancelled:
+                if gone():
+                    raise
+                raise TooSlow() from None
+            except MemoryError:
+                raise OutOfMemory() from None
 
     def _client(self) -> Any:
         """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the
@@ -307,15 +295,39 @@ class RenderService:
         }
 
 
+def explained(
+    scene: Scene,
+    graded: Graded,
+    images: tuple[np.ndarray, np.ndarray],
+    run: Run,
+    gone: Callable[[], bool],
+    seconds: float,
+) -> Graded:
+    """``graded`` (failing) checked against the accepted variants, then, when it fails them too, diagnosed
+    (:func:`service.pipeline.explain`) from the ``(reference, submitted)`` images.  Running out of time
+    (:class:`tracer.RenderCancelled`) or memory while the accepted variants are checked is raised: the verdict
+    is not known.  Once it is, a diagnosis cut short says why (``seconds``: the time it was given), unless
+    ``gone()`` (its client left: RenderCancelled is raised)."""
+    reference, submitted = images
+    checked = explain(scene, graded, reference, submitted, Checks(diagnose=False), run)
+    if checked.grade.passed:
+        return checked
+    try:  # (checked again first, from the renders kept of them: up to 640×480, at no cost)
+        return explain(scene, graded, reference, submitted, run=run)
+    except MemoryError:
+        why = "its renders ran out of memory beside the worker's other work; grade again for one"
+    except RenderCancelled:
+        if gone():
+            raise
+        why = f"its renders ran past the limit render_timeout = {seconds:g} s"
+    return replace(graded, diagnosis=unavailable(why))
+
+
 def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted: np.ndarray, seconds: float) -> Graded:
-    """A diagnosis on a Dask worker (:meth:`RenderService.explain`), within ``seconds`` of its start there; one
-    that runs past them says so, as the service's own does."""
+    """A failing grade explained on a Dask worker (:func:`explained`), within ``seconds`` of its start there:
+    RenderCancelled when the accepted variants could not be checked in them."""
     from schemas import load_scene
 
     deadline = time.monotonic() + seconds
-    try:
-        return explain(
-            load_scene(scene), graded, reference, submitted, run=Run(1, cancel=lambda: time.monotonic() > deadline)
-        )
-    except RenderCancelled:
-        return replace(graded, diagnosis=unavailable(f"its renders ran past the limit render_timeout = {seconds:g} s"))
+    run = Run(1, cancel=lambda: time.monotonic() > deadline)
+    return explained(load_scene(scene), graded, (reference, submitted), run, lambda: False, seconds)

@@ -89,18 +89,26 @@ def prepared(body: bytes | str, overrides: dict[str, int | None], service: Rende
 
 
 def unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
-    """503 with Retry-After for a render that cannot be had now: the slots busy, past its time, no cluster."""
+    """503 with Retry-After for a render that cannot be had now: the slots busy (Retry-After: when the work
+    waiting for them is likely done, :meth:`service.http.slots.Slots.retry_after`), past its time, no cluster."""
     settings = service.settings
-    detail = (
-        f"the pass answers this worker holds leave no room for this one now (max_answer_bytes = "
-        f"{settings.max_answer_bytes}); try again shortly"
-        if isinstance(exc, AnswersFull)
-        else "the render ran out of memory beside this worker's other work; try again shortly"
-        if isinstance(exc, OutOfMemory)
-        else "every render slot is busy; try again shortly"
-        if isinstance(exc, Busy)
-        else f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
-        if isinstance(exc, TooSlow)
-        else "the render cluster cannot be reached; try again shortly"
-    )
-    return HTTPProblem(503, detail, headers={"Retry-After": str(settings.retry_after)})
+    retry = settings.retry_after
+    if isinstance(exc, AnswersFull):
+        detail = (
+            f"the image answers this worker holds leave no room for this one now (max_answer_bytes = "
+            f"{settings.max_answer_bytes}); try again shortly"
+        )
+    elif isinstance(exc, OutOfMemory):
+        detail = "the render ran out of memory beside this worker's other work; try again shortly"
+    elif isinstance(exc, Busy):
+        retry = service.slots.retry_after(retry)
+        detail = (
+            f"every render slot is busy ({service.slots.waiting} waiting their turn for "
+            f"{settings.max_concurrent_renders}, longer than queue_wait = {settings.queue_wait:g} s); "
+            f"try again in {retry} s"
+        )
+    elif isinstance(exc, TooSlow):
+        detail = f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
+    else:
+        detail = "the render cluster cannot be reached; try again shortly"
+    return HTTPProblem(503, detail, headers={"Retry-After": str(retry)})

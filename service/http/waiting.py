@@ -1,5 +1,6 @@
 """Waiting on work without blocking the event loop: one render shared by every request for its scene, work on
-a pool thread that stops once its client has left, and a large answer streamed to a client that must read it."""
+a pool thread that stops once its client has left, and every answer of an image's bytes (a render, a pass, a
+heat-map) priced against the worker's answers and streamed to a client that must read it."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from typing import Any, TypeVar
 import anyio
 from fastapi import Request, Response
 
-from service.http.jobs import Busy, ClusterDown, Job, RenderService, TooSlow
+from service.http.jobs import AnswersFull, Busy, ClusterDown, Job, RenderService, TooSlow
 from service.http.problems import HTTPProblem, unavailable
 from service.limits import LimitError
 from service.passes import PassFile
@@ -121,15 +122,38 @@ async def watched(request: Request, work: Callable[[Callable[[], bool]], T], lim
     return result
 
 
+def whole(
+    service: RenderService, data: bytes, media: str, what: str, headers: dict[str, str] | None = None
+) -> Response:
+    """An answer made whole beforehand (a render's PNG, a heat-map; ``what`` it is, in words) served as a pass
+    is (:func:`streamed`), priced at its size against ``max_answer_bytes``: 503 with Retry-After when it does not
+    fit now, 422 when it never would."""
+    try:
+        held = service.answers.hold(len(data), what)
+    except AnswersFull as exc:
+        raise unavailable(exc, service) from None
+    except LimitError as exc:
+        raise HTTPProblem(exc.status, str(exc)) from None
+    return streamed(service, PassFile(b"", data, media), held, headers)
+
+
+def streamed(service: RenderService, file: PassFile, held: int, headers: dict[str, str] | None = None) -> Response:
+    """Every answer of a render's bytes, a pass's or a whole one's: ``held`` bytes of the worker's answers
+    (``max_answer_bytes``, taken by the caller) until it is over, sent a chunk at a time within
+    ``send_timeout`` (:class:`Streamed`), with ``headers`` besides its own."""
+    return Streamed(file, service.settings.send_timeout, lambda: service.answers.give(held), headers)
+
+
 class Streamed(Response):
     """A large answer sent a chunk at a time (:meth:`service.passes.PassFile.chunks`), never joined: each chunk
     must be taken by the client within ``timeout`` seconds (``send_timeout``), else the connection is dropped;
     either way ``done()`` runs once it is over (the answer's memory is let go and its budget given back)."""
 
-    def __init__(self, file: PassFile, timeout: float, done: Callable[[], None]):
+    def __init__(self, file: PassFile, timeout: float, done: Callable[[], None], extra: dict[str, str] | None = None):
         super().__init__(media_type=file.media)
         self.file: PassFile | None = file
         self.timeout, self.done = timeout, done
+        self.extra = [(k.lower().encode(), v.encode()) for k, v in (extra or {}).items()]
 
     async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
         file = self.file
@@ -144,6 +168,7 @@ class Streamed(Response):
                         (b"content-type", file.media.encode()),
                         (b"content-length", str(file.size).encode()),
                         (b"cache-control", b"no-cache"),
+                        *self.extra,
                     ],
                 }
             )

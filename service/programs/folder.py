@@ -1,27 +1,37 @@
 """The private copy of a student's folder a program runs in, made without trusting anything in it.
 
 The copy holds the student's regular files and folders only: a link is skipped, never followed (it could name
-the TA's files, or another student's), and so is a FIFO, a socket or a device.  The copy stops, with
-:class:`FolderTooLarge`, once it would hold more than a limit of bytes, so a student cannot fill the disk
-of the machine that grades.  A build's result comes back out of its sandbox as a tar stream
-(:func:`unpack`), read with the same rules.
+the TA's files, or another student's), and so is a FIFO, a socket or a device, and whatever is deeper or has a
+longer path than the copy keeps (:data:`MAX_DEPTH`, :data:`MAX_PATH`).  A folder that holds more
+than a limit of bytes, or more than :data:`MAX_ENTRIES` files and folders, is :class:`FolderTooLarge`, so a
+student cannot fill the disk of the machine that grades, nor make each run spend its time (outside every
+limit of the run) copying and removing a folder of a hundred thousand empty files: the folder is measured,
+listing it without reading a file, before anything is copied.  A build's result comes back out of its sandbox
+as a tar stream (:func:`unpack`), read with the same rules.
 """
 
 from __future__ import annotations
 
 import io
 import os
+import stat
 import tarfile
 from pathlib import Path, PurePosixPath
 
 from ..classgrade.folders import Folder
 from ..classgrade.untrusted import UntrustedFileError
 
-#: how deep a student's folders are followed (deeper ones are skipped, as links are)
-MAX_DEPTH = 32
+#: how deep a student's folders are followed, and the longest path (in bytes, below the student's folder) a
+#: file or folder may have: deeper and longer ones are left out, as links are (each name may be 255 bytes, so a
+#: folder can hold paths longer than the machine's PATH_MAX, 4096, which no file of the copy could then have)
+MAX_DEPTH, MAX_PATH = 32, 1024
 #: bytes each file or folder counts for besides its content (a tar header's size), so that a folder of a
 #: million empty files is over the limit too
 ENTRY_BYTES = 512
+#: the most files and folders a student's folder (or a build's result) may hold: a program with its vendored
+#: packages holds a few thousand (NumPy's are 1,650), and copying ten thousand small files takes well under
+#: a second
+MAX_ENTRIES = 10_000
 
 
 class FolderTooLarge(Exception):
@@ -29,13 +39,16 @@ class FolderTooLarge(Exception):
 
 
 class _Budget:
-    def __init__(self, limit: int):
-        self.left = limit
+    def __init__(self, limit: int, entries: int = MAX_ENTRIES):
+        self.left, self.entries = limit, entries
 
     def take(self, size: int) -> None:
         self.left -= size + ENTRY_BYTES
+        self.entries -= 1
         if self.left < 0:
             raise FolderTooLarge("the student's folder is larger than the limit")
+        if self.entries < 0:
+            raise FolderTooLarge(f"the student's folder holds more than {MAX_ENTRIES} files and folders")
 
 
 def _write_new(path: Path, data: bytes) -> None:
@@ -54,13 +67,18 @@ def _mode(source: Folder, name: str) -> int:
     return 0o700 if executable else 0o600
 
 
+def _left_out(source: Folder, name: str) -> bool:
+    """A file or folder whose path below the student's folder is longer than :data:`MAX_PATH`."""
+    return len(os.fsencode(source.rel + name)) > MAX_PATH
+
+
 def _copy(source: Folder, target: Path, budget: _Budget, depth: int) -> None:
     try:
         entries = source.entries()
     except OSError:  # (a folder that cannot be listed is copied empty)
         return
     for entry in entries:
-        if entry.link:
+        if entry.link or _left_out(source, entry.name):
             continue
         if entry.folder:
             if depth < MAX_DEPTH:
@@ -89,20 +107,51 @@ def _copy_folder(source: Folder, name: str, target: Path, budget: _Budget, depth
         _copy(sub, target / name, budget, depth + 1)
 
 
+def _measure(source: Folder, budget: _Budget, depth: int) -> None:
+    """Count what :func:`_copy` would copy, its regular files' sizes as listed (no file is read), stopping
+    with :class:`FolderTooLarge` at the first entry over the budget."""
+    try:
+        listing = os.scandir(source.fd)
+    except OSError:
+        return
+    with listing:
+        for entry in listing:
+            if _left_out(source, entry.name):
+                continue
+            try:
+                info = entry.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if stat.S_ISREG(info.st_mode):
+                budget.take(info.st_size)
+            elif stat.S_ISDIR(info.st_mode) and depth < MAX_DEPTH:
+                budget.take(0)
+                try:
+                    sub = source.sub(entry.name)
+                except OSError:
+                    continue
+                with sub:
+                    _measure(sub, budget, depth + 1)
+
+
 def copy_folder(student: Path, target: Path, limit: int) -> None:
     """Copy the student's folder into the empty folder ``target``: regular files and folders only, at most
-    ``limit`` bytes of files (:class:`FolderTooLarge` beyond).  Files keep their executable bit, as a
-    program built by the student needs it."""
+    ``limit`` bytes of files and :data:`MAX_ENTRIES` entries (:class:`FolderTooLarge` beyond, found before
+    anything is copied).  Files keep their executable bit, as a program built by the student needs it."""
     with Folder.root(student) as root:
+        _measure(root, _Budget(limit), 0)
         _copy(root, target, _Budget(limit), 0)
 
 
 def _safe_name(name: str) -> PurePosixPath | None:
+    """A name of a build's tar stream as a path in the folder; None for one that leaves it, is deeper than
+    :data:`MAX_DEPTH` or longer than :data:`MAX_PATH` (left out, as the copy of a student's folder leaves them)."""
     path = PurePosixPath(name)
     parts = [p for p in path.parts if p not in ("", ".")]
-    if path.is_absolute() or ".." in parts or not parts:
+    if path.is_absolute() or ".." in parts or not parts or len(parts) > MAX_DEPTH + 1:
         return None
-    return PurePosixPath(*parts)
+    kept = PurePosixPath(*parts)
+    return kept if len(os.fsencode(str(kept))) <= MAX_PATH else None
 
 
 def unpack(stream: bytes, target: Path, limit: int) -> None:

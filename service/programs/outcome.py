@@ -35,6 +35,18 @@ class Reason(StrEnum):
     PROCESSES = "processes"
 
 
+#: how a run's end is told to a student: the scene it ran on is hidden from them, and a program chooses its
+#: exit status, its signal and how it fails (a crash, memory, no output...), so it could spell out in them what
+#: it read of the scene; a student is told only whether it ran out of time or failed otherwise (the TA's report
+#: keeps every reason and detail).  A folder over its limit is the student's own files, told as it is.
+TOLD = {"timeout": "timed out", "cpu-time": "timed out", "folder-too-large": "did not start: the folder is too large"}
+
+
+def told(reason: Reason) -> str:
+    """A run's end as a student is told it: ``timed out``, ``crashed``, or the folder too large."""
+    return TOLD.get(str(reason), "crashed")
+
+
 #: the end of standard error's words for running out of memory, and for writing a file past the limit
 MEMORY_WORDS = ("MemoryError", "std::bad_alloc", "Cannot allocate memory", "out of memory")
 FILE_SIZE_WORDS = ("File too large", "No space left on device")
@@ -53,6 +65,7 @@ class RunOutcome:
     wall_seconds: float = 0.0
     cpu_seconds: float = 0.0
     warning: str | None = None
+    waited_seconds: float = 0.0  # how long it waited, ready, for a CPU (:func:`busy`)
 
     @property
     def ok(self) -> bool:
@@ -100,6 +113,26 @@ def _guarded(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     if finished.exceeded == "processes":
         return Reason.PROCESSES, f"ran more than {limits.processes} processes and threads at once; killed"
     return None
+
+
+#: a run killed at its wall time that waited, ready, for a CPU longer than it ran and for at least this part of
+#: its wall time was on a busy machine: it was not given the CPU it asked for
+BUSY = 0.5
+
+
+def busy(outcome: RunOutcome) -> str | None:
+    """For a run killed at its wall time that waited, ready, for a CPU longer than it ran and for most of that
+    time, a line for the TA naming the busy machine (the run's CPU time and its wait: its guard's measure);
+    else None.  Kept out of the run's reason, which stays the same however busy the machine."""
+    if outcome.reason is not Reason.TIMEOUT:
+        return None
+    cpu, waited = outcome.cpu_seconds, outcome.waited_seconds
+    if waited <= cpu or waited < BUSY * outcome.wall_seconds:
+        return None
+    return (
+        f"timed out having run {cpu:.1f} s and waited {waited:.1f} s for a CPU: the grading machine was busy "
+        f"(grade it again with fewer --jobs, or a longer --run-timeout)"
+    )
 
 
 def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:

@@ -12,9 +12,12 @@ render of the same probe, says whether the program gets that one thing right:
 * the camera moved (turned 20° about the vertical through the point it looks at; a camera straight above it
   is not moved): the program's image follows the camera, not only the task's picture.
 
-A probe is a pure function of the scene's JSON (:func:`probes`): the same scene gives the same probes, in
-the same order (the terms, then the lights in the scene's order, then the camera), at most :data:`MAX_PROBES`
-of them, so that a failing pair costs at most that many runs of the student's program.
+A probe is a pure function of the scene's JSON: the same scene gives the same probes, in the same order (the
+terms, then the lights in the scene's order, then the camera; :func:`probes`), at most :data:`MAX_PROBES` of
+them, so that a failing pair costs at most that many runs of the student's program.  What a program is
+already found to get wrong is kept out of the probes asked after (:mod:`.experiment`): the scene they are
+made from has those terms taken out (:func:`zeroed`), and phongray renders their reference with the classic
+mistakes found (:attr:`Probe.mistakes`), so that a light is not blamed for the glass or the shadows.
 """
 
 from __future__ import annotations
@@ -44,13 +47,15 @@ class Probe:
     """One question: its name in words (``light 'key' alone``), what it isolates (its kind and subject: the
     term's name, the light's index, ``camera``), the scene, and for a spot's probe, a second scene (the spot
     without its ramp: ``inner_cutoff`` = ``cutoff``) whose render differs from the probe's exactly on the
-    ramp's pixels, the region a mistake can be located in."""
+    ramp's pixels, the region a mistake can be located in; the classic mistakes (``tracer.variants`` ids)
+    the program is already found to make, which phongray renders the probe's reference with."""
 
     name: str
     kind: Kind
     subject: str
     scene: Scene
     region: Scene | None = None
+    mistakes: tuple[str, ...] = ()
 
 
 def _materials(scene: Scene) -> list[dict[str, Any]]:
@@ -78,17 +83,33 @@ def _has(scene: Scene, key: str) -> bool:
     return any(_value(m, key, DEFAULTS[key]) > 0 for m in _materials(scene))
 
 
-def _zeroed(scene: Scene, keys: tuple[str, ...]) -> Scene:
+def zeroed(scene: Scene, keys: tuple[str, ...]) -> Scene:
+    """The scene with the material ``keys`` (terms: ``transmittance``, ``reflectance``, ...) set to zero."""
     out = copy.deepcopy(scene)
     for material in out.get("materials", {}).values():
         material.update({key: 0 for key in keys})
     return out
 
 
-def _term_probes(scene: Scene) -> list[Probe]:
+def term_probes(scene: Scene, mistakes: tuple[str, ...] = ()) -> list[Probe]:
     """The terms the scene has: ``diffuse only`` and ``specular only`` where a material has that term, ``no
     glass`` where one is glass (the mirrors then shown without it), ``no mirrors`` where one is a mirror."""
-    return [Probe(name, Kind.TERM, term, _zeroed(scene, keys)) for name, term, keys in TERMS if _has(scene, term)]
+    return [
+        Probe(name, Kind.TERM, term, zeroed(scene, keys), mistakes=mistakes)
+        for name, term, keys in TERMS
+        if _has(scene, term)
+    ]
+
+
+#: a term taken out of the scene, as a probe's name says it
+LEFT_OUT = {"transmittance": "the glass", "reflectance": "the mirrors", "specular": "specular", "diffuse": "diffuse"}
+
+
+def aside_probe(scene: Scene, keys: tuple[str, ...], mistakes: tuple[str, ...] = ()) -> Probe:
+    """The task's scene with the terms ``keys`` taken out (those found wrong): what the program makes of the
+    rest of it (``without the glass and the mirrors``)."""
+    words = " and ".join(LEFT_OUT[key] for key in keys)
+    return Probe(f"without {words}", Kind.TERM, "+".join(keys), zeroed(scene, keys), mistakes=mistakes)
 
 
 def light_label(light: dict[str, Any], index: int) -> str:
@@ -104,7 +125,8 @@ def _ramp(light: dict[str, Any]) -> bool:
     return light["type"] == "spot" and light.get("inner_cutoff", outer) < outer
 
 
-def _light_probes(scene: Scene) -> list[Probe]:
+def light_probes(scene: Scene, mistakes: tuple[str, ...] = ()) -> list[Probe]:
+    """Each light alone, where the scene has more than one or the one is a spot with a ramp (else none)."""
     lights = scene.get("lights", [])
     lit = [(n, light) for n, light in enumerate(lights) if light["type"] != "ambient"]
     if len(lit) < 2 and not any(_ramp(light) for _, light in lit):
@@ -115,7 +137,7 @@ def _light_probes(scene: Scene) -> list[Probe]:
         region = None
         if _ramp(light):
             region = {**copy.deepcopy(alone), "lights": [{**copy.deepcopy(light), "inner_cutoff": light["cutoff"]}]}
-        found.append(Probe(f"{light_label(light, index)} alone", Kind.LIGHT, str(index), alone, region))
+        found.append(Probe(f"{light_label(light, index)} alone", Kind.LIGHT, str(index), alone, region, mistakes))
     return found
 
 
@@ -131,10 +153,13 @@ def _turned(scene: Scene) -> Scene:
     return out
 
 
+def camera_probe(scene: Scene, mistakes: tuple[str, ...] = ()) -> Probe:
+    return Probe("the camera moved", Kind.CAMERA, "camera", _turned(scene), mistakes=mistakes)
+
+
 def probes(scene: Scene) -> list[Probe]:
-    """The probes of a task's scene (its parsed JSON), at most :data:`MAX_PROBES`, in the module's order.  The
-    camera's probe is kept when there are more: it is the one a program that only reproduces the task's
-    picture fails."""
-    found = _term_probes(scene) + _light_probes(scene)
-    camera = Probe("the camera moved", Kind.CAMERA, "camera", _turned(scene))
-    return [*found[: MAX_PROBES - 1], camera]
+    """The probes of a task's scene (its parsed JSON) before anything is known of the program, at most
+    :data:`MAX_PROBES`, in the module's order.  The camera's probe is kept when there are more: it is the one
+    a program that only reproduces the task's picture fails."""
+    found = term_probes(scene) + light_probes(scene)
+    return [*found[: MAX_PROBES - 1], camera_probe(scene)]

@@ -118,7 +118,11 @@ def _environment(runtime: str | None) -> list[str]:
 
 
 def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
-    """bubblewrap's arguments up to the command it runs (see the module's docstring for what they show)."""
+    """bubblewrap's arguments up to the command it runs (see the module's docstring for what they show), with
+    every installation of phongray in the system's folders covered (:mod:`.hidden`)."""
+    from .hidden import argv as hidden
+
+    system = _system()
     args = [
         bwrap,
         "--unshare-all",
@@ -129,7 +133,7 @@ def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
         "--hostname",
         "sandbox",
         *_environment(mounts.runtime),
-        *_system(),
+        *system,
         "--proc",
         "/proc",
         "--dev",
@@ -159,4 +163,5 @@ def bwrap_argv(bwrap: str, mounts: Mounts, limits: Limits) -> list[str]:
         args += ["--ro-bind", str(mounts.scene), f"{SCENE_DIR}/{mounts.scene_name}"]
     if mounts.runtime is not None:
         args += ["--ro-bind", mounts.runtime, mounts.runtime]
+    args += hidden(system, mounts.runtime)  # (after every folder shown: the runtime may hold phongray too)
     return [*args, "--remount-ro", "/dev", "--remount-ro", "/", "--chdir", HOME]

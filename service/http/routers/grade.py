@@ -14,11 +14,11 @@ from starlette.datastructures import UploadFile
 
 from service import grading, pipeline
 from service.heatmap import Kind
-from service.http.jobs import ClusterDown, Job, RenderService
+from service.http.jobs import Busy, ClusterDown, Job, RenderService, TooSlow
 from service.http.models import GradeAnswer
 from service.http.problems import ERRORS, HTTPProblem, prepared, unavailable
 from service.http.routers.render import EXAMPLE_TEXT
-from service.http.waiting import rendered, watched
+from service.http.waiting import rendered, watched, whole
 from tracer import decode_png
 from tracer.memory import release
 
@@ -121,13 +121,16 @@ async def grade(
         job if diagnose and format == "json" else None,
     )
 
-    def work(gone: Callable[[], bool]) -> Response:
+    def work(gone: Callable[[], bool]) -> Response | bytes:
         return _compare(png, decoded, asked, service, gone)
 
     try:
-        return await watched(request, work, service.grading)
-    except ClusterDown as exc:
+        answer = await watched(request, work, service.grading)
+    except (Busy, TooSlow, ClusterDown) as exc:  # (the verdict could not be decided now: never a FAIL)
         raise unavailable(exc, service) from None
+    if isinstance(answer, bytes):  # the heat-map, served as every image is
+        return whole(service, answer, "image/png", f"heat-map: {size[0]}×{size[1]} pixels as png")
+    return answer
 
 
 def _read_image(image: bytes, size: tuple[int, int]) -> Any:
@@ -153,10 +156,10 @@ class Comparison:
 
 def _compare(
     png: bytes, decoded: list[Any], asked: Comparison, service: RenderService, gone: Callable[[], bool] = lambda: False
-) -> Response:
+) -> Response | bytes:
     """Grade the submission in ``decoded`` (taken out of it, so that nothing else holds its pixels) as ``asked``,
-    or draw its heat-map, diagnose a failing grade of ``asked.explain``'s scene, and hand the memory of the images
-    back to the OS before answering."""
+    or draw its heat-map (its PNG's bytes), diagnose a failing grade of ``asked.explain``'s scene, and hand the
+    memory of the images back to the OS before answering."""
     submitted = decoded.pop()
     try:
         reference = decode_png(png)
@@ -166,7 +169,7 @@ def _compare(
         if asked.explain is not None:
             graded = service.explain(asked.explain, graded, reference, submitted, gone)
         if graded.heatmap is not None:
-            return Response(graded.heatmap, media_type="image/png")
+            return graded.heatmap
         return JSONResponse(graded.as_dict())
     finally:
         del submitted

@@ -16,7 +16,7 @@ from schemas import validate_scene
 from service.http.jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted
 from service.http.models import ValidAnswer
 from service.http.problems import ERRORS, HTTPProblem, answering, prepared, require_json, unavailable
-from service.http.waiting import Streamed, rendered, watched
+from service.http.waiting import rendered, streamed, watched, whole
 from service.passes import PassFile
 
 router = APIRouter()
@@ -99,14 +99,15 @@ async def render_scene(
     )
     if pass_ is not None:
         return await _pass(request, job, PassRequest(pass_, light, format))
-    headers = {"ETag": job.etag, "Cache-Control": "no-cache"}
     if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
-        return Response(status_code=304, headers=headers)
+        return Response(status_code=304, headers={"ETag": job.etag, "Cache-Control": "no-cache"})
     started = time.perf_counter()
+    headers = {"ETag": job.etag}  # (Cache-Control: no-cache is every streamed answer's own)
     headers["X-Cache"] = "hit" if job.key in service.cache else "miss"  # (the playground says "from cache")
     data = await rendered(request, job)
     headers["X-Render-Seconds"] = f"{time.perf_counter() - started:.4f}"
-    return Response(data, media_type="image/png", headers=headers)
+    what = f"render: {job.scene.image.width}×{job.scene.image.height} pixels as png"
+    return whole(service, data, "image/png", what, headers)  # (served as a pass is: priced, streamed)
 
 
 @dataclass(frozen=True)
@@ -130,7 +131,7 @@ async def _pass(request: Request, job: Job, asked: PassRequest) -> Response:
         raise HTTPProblem(422, str(exc)) from None
     except (Busy, TooSlow, ClusterDown) as exc:
         raise unavailable(exc, service) from None
-    return Streamed(made, service.settings.send_timeout, lambda: service.answers.give(held))
+    return streamed(service, made, held)
 
 
 @router.post(

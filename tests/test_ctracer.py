@@ -1,0 +1,133 @@
+"""A student's tracer in C (tests/programs/ctracer), written from the scene format alone, graded by phongray.
+
+The calibration of the grading rule from outside Python: the honest float64 tracer passes every example; its
+honest styles (float32 throughout, shadow and secondary rays started 1e-4 or 1e-3 of the scene's size off the
+surface along the normal, or by a t_min of 1e-3) pass too, against the reference or an accepted variant; and
+each classic mistake, made as a student makes it in C, fails on a scene that shows it.  ctracer is compiled
+with gcc into the test's own folder; its PNG writer, JSON reader and every equation are its own.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent / "programs" / "ctracer"))
+
+import matrix  # noqa: E402
+
+from tracer import decode_png  # noqa: E402
+
+SCENES = Path(__file__).parent / "programs" / "ctracer" / "scenes"
+EXAMPLES = {path.stem: path for path in matrix.EXAMPLES}
+#: the honest styles held to a pass on every example (matrix.py also prints t_min 1e-4)
+STYLES = ("float32", "offset 1e-4", "offset 1e-3", "t_min 1e-3")
+#: each mistake, on a scene that shows it: an example, or one of ctracer's own scenes where no example does
+SHOWN_BY = {
+    "no-shadows": "01_three_spheres",
+    "shadow-acne": "01_three_spheres",
+    "blinn-phong": "01_three_spheres",
+    "specular-behind": "light_below",
+    "gamma": "01_three_spheres",
+    "no-attenuation": "02_all_lights",
+    "no-ambient": "01_three_spheres",
+    "no-specular": "01_three_spheres",
+    "normals-not-flipped": "floor_facing_down",
+    "image-flipped": "01_three_spheres",
+    "no-half-pixel": "01_three_spheres",
+    "horizontal-fov": "01_three_spheres",
+    "area-not-divided": "03_soft_shadows",
+    "spot-radians": "07_spotlights",
+    "depth-plus-one": "mirrors",
+    "depth-minus-one": "mirrors",
+    "ior-inverted": "04_whitted",
+    "offset-too-large": "02_all_lights",
+    "reflect-sign": "01_three_spheres",
+    "checker-ignored": "06_orthographic",
+    "colours-not-clamped": "overexposed",
+    "ambient-from-diffuse": "01_three_spheres",
+    "spot-ramp-angle": "07_spotlights",
+    "transparent-no-shadows": "04_whitted",
+    "no-reflection": "04_whitted",
+    "no-refraction": "04_whitted",
+    "left-handed": "01_three_spheres",
+    "samples-ignored": "08_antialiased",
+    "bgr": "01_three_spheres",
+}
+#: at most this size is rendered (a copy of a larger scene, such as the Cornell-box homework, is made smaller)
+WIDTH, HEIGHT = 160, 120
+
+
+@pytest.fixture(scope="module")
+def ctracer(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc is not installed: the C student tracer cannot be built")
+    return matrix.build(tmp_path_factory.mktemp("ctracer"))
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """Every scene by name, copied at most WIDTH × HEIGHT (the samples and everything else kept)."""
+    folder, found = tmp_path_factory.mktemp("scenes"), {}
+    for path in [*matrix.EXAMPLES, *sorted(SCENES.glob("*.json"))]:
+        scene = json.loads(path.read_text())
+        if scene["image"]["width"] * scene["image"]["height"] > WIDTH * HEIGHT:
+            scene["image"].update(width=WIDTH, height=HEIGHT)
+            path = folder / path.name
+            path.write_text(json.dumps(scene))
+        found[path.stem] = path
+    return found
+
+
+@pytest.fixture(scope="module")
+def grader() -> matrix.Grader:
+    return matrix.Grader()
+
+
+def graded(ctracer: Path, grader: matrix.Grader, scene: Path, row: str, out: Path) -> dict:
+    """ctracer's image of ``scene`` in style or with mistake ``row``, graded (without the diagnosis)."""
+    image = matrix.render(ctracer, scene, out, matrix.switches(row, json.loads(scene.read_text())))
+    return grader.grade(scene, image, diagnose=False)
+
+
+@pytest.mark.parametrize("example", list(EXAMPLES))
+def test_honest_float64_passes_against_the_reference(
+    ctracer: Path, grader: matrix.Grader, scenes: dict[str, Path], example: str, tmp_path: Path
+) -> None:
+    result = graded(ctracer, grader, scenes[example], "float64", tmp_path / "out.png")
+    assert result["passed"], result["reason"]
+    assert result["accepted"] is None  # (the reference itself, no accepted variant needed)
+
+
+@pytest.mark.parametrize("style", STYLES)
+@pytest.mark.parametrize("example", list(EXAMPLES))
+def test_honest_styles_pass(
+    ctracer: Path, grader: matrix.Grader, scenes: dict[str, Path], example: str, style: str, tmp_path: Path
+) -> None:
+    result = graded(ctracer, grader, scenes[example], style, tmp_path / "out.png")
+    assert result["passed"], f"{style} on {example}: {result['reason']}"
+
+
+@pytest.mark.parametrize("mistake", list(SHOWN_BY))
+def test_each_mistake_fails_on_a_scene_that_shows_it(
+    ctracer: Path, grader: matrix.Grader, scenes: dict[str, Path], mistake: str, tmp_path: Path
+) -> None:
+    result = graded(ctracer, grader, scenes[SHOWN_BY[mistake]], mistake, tmp_path / "out.png")
+    assert not result["passed"], f"{mistake} passes on {SHOWN_BY[mistake]}"
+
+
+def test_every_mistake_of_ctracer_is_held_to_a_scene(ctracer: Path) -> None:
+    assert sorted(SHOWN_BY) == sorted(matrix.mistakes(ctracer))
+
+
+def test_a_ppm_holds_the_pixels_of_the_png(ctracer: Path, scenes: dict[str, Path], tmp_path: Path) -> None:
+    png = decode_png(matrix.render(ctracer, scenes["04_whitted"], tmp_path / "out.png", []))
+    ppm = matrix.render(ctracer, scenes["04_whitted"], tmp_path / "out.ppm", ["--ppm"])
+    header = b"P6\n160 120\n255\n"
+    assert ppm.startswith(header)
+    assert np.array_equal(np.frombuffer(ppm[len(header) :], dtype=np.uint8).reshape(png.shape), png)
