@@ -24,7 +24,8 @@ from . import grading
 from .heatmap import Kind, heatmap_png
 
 if TYPE_CHECKING:
-    from .diagnosis import Cached, Diagnosis
+    from .diagnosis import Cached, Diagnosis, Renders
+    from .diagnosis.accepting import Failing
 
 
 class BadInput(ValueError):
@@ -73,7 +74,8 @@ class Graded:
     grade: grading.Grade
     heatmap: bytes | None  # PNG, when one was asked for
     diagnosis: Diagnosis | None = None  # of a failing grade, when one was asked for
-    accepted: str | None = None  # the accepted variant it passed as ("a 1e-3 ray offset"), None: the reference
+    #: the accepted variant it passed as ("a ray offset of 0.003 along the normal"), None: the reference
+    accepted: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The grade's numbers, its ``reason`` (why it failed; empty when it passed), its ``diagnosis``
@@ -132,38 +134,69 @@ def explain(
     where the scene has any (:func:`without_open`)."""
     if graded.grade.passed:
         return graded
-    graded = without_open(scene, graded, reference, submitted, run)
-    if graded.grade.passed:
-        return graded
+    opened = left_open(scene, run)
+    if opened is not None:
+        graded = _without(graded, reference, submitted, opened)
+        if graded.grade.passed:
+            return graded
     from .diagnosis.accepting import Failing, accept
 
-    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, run.threads, run.cancel)
+    failing = Failing(reference, submitted, graded.grade, opened)  # (the open pixels are not counted by any check)
+    found_variant = accept(scene, failing, checks.accepted, run.threads, run.cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
         return graded
-    from .diagnosis import CACHE, diagnose, renders_of
+    from .diagnosis import renders_of
     from .scenekey import scene_key
 
+    found = _diagnosed(
+        scene, failing, lambda: renders_of(scene, run.threads, open_pixels=opened), scene_key(scene), run
+    )
+    if not any(c.passes for c in found.causes) and found.unavailable is None:
+        found = _behind_offset(scene, failing, checks, run, found) or found
+    return Graded(graded.grade, graded.heatmap, found)
+
+
+def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Run) -> Diagnosis:
+    """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
+    from .diagnosis import CACHE, diagnose
+
     held = CACHE if run.cache is None else run.cache
-    renders = held.get(scene_key(scene), lambda: renders_of(scene, run.threads), scene.image.width * scene.image.height)
+    renders = held.get(key, make, scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
         renders.cancel_in_thread(run.cancel)
     else:
         renders.cancel = run.cancel
     try:
-        found = diagnose(reference, submitted, graded.grade, renders)
+        return diagnose(failing.reference, failing.submitted, failing.failed, renders)
     finally:
         held.trim()  # (what it rendered counted, cancelled or not)
-    return Graded(graded.grade, graded.heatmap, found)
+
+
+def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Run, found: Diagnosis) -> Diagnosis | None:
+    """``found`` with a mistake the submission matches at the honest offset it shows besides it (fitted as a
+    nuisance, :mod:`service.diagnosis.nuisance`); None when there is none."""
+    from .diagnosis.nuisance import behind_offset
+
+    return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
+
+
+def left_open(scene: Scene, run: Run) -> np.ndarray | None:
+    """The pixels of ``scene`` the format leaves open, ``(H, W)`` bool: which of two overlapping coplanar surfaces
+    shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces); None where none is."""
+    opened = open_pixels(scene, run.threads, run.cancel)
+    return None if opened is None or not opened.any() else opened
 
 
 def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Run) -> Graded:
-    """``graded`` graded again without the pixels of ``scene`` the format leaves open: which of two overlapping
-    coplanar surfaces shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces)."""
-    opened = open_pixels(scene, run.threads, run.cancel)
-    if opened is None or not opened.any():
-        return graded
+    """``graded`` graded again without the pixels of ``scene`` the format leaves open (:func:`left_open`)."""
+    opened = left_open(scene, run)
+    return graded if opened is None else _without(graded, reference, submitted, opened)
+
+
+def _without(graded: Graded, reference: np.ndarray, submitted: np.ndarray, opened: np.ndarray) -> Graded:
+    """``graded`` graded again with the pixels ``opened`` not counted."""
     g = graded.grade
     return replace(
         graded, grade=grading.grade(reference, submitted, g.reference_sha256, g.tolerance, g.max_fraction, opened)

@@ -145,9 +145,9 @@ def _variants(scenes: dict[str, bytes], tasks: dict[str, TaskSettings]) -> dict[
     a submission that fails the reference is graded against them without rendering them again in Gradescope's
     container: ``course/variants/<scene key>/<file name>`` (:data:`service.diagnosis.accepting.STORED`)."""
     from tracer import Renderer, encode_png
-    from tracer.variants import ACCEPTED_DEFAULT, accepted_options, unchanged
+    from tracer.variants import unchanged
 
-    from ..diagnosis.accepting import file_name
+    from ..diagnosis.accepting import accepted_ladders, file_name
     from ..pipeline import load_scene
     from ..scenekey import scene_key
 
@@ -157,12 +157,12 @@ def _variants(scenes: dict[str, bytes], tasks: dict[str, TaskSettings]) -> dict[
         given = tasks[name.rsplit("/", 1)[1][:-5]].accepted
         if unchanged("offset-too-large", scene):
             continue
-        accepted = ACCEPTED_DEFAULT if given is None else {str(k): v for k, v in given.items()}
-        for rungs in accepted_options(accepted):
-            for _, options in rungs:
-                path = f"{COURSE}/variants/{scene_key(scene)}/{file_name(options)}"
+        accepted = None if given is None else {str(k): v for k, v in given.items()}
+        for rungs in accepted_ladders(scene, accepted):
+            for rung in rungs:
+                path = f"{COURSE}/variants/{scene_key(scene)}/{file_name(rung.options)}"
                 if path not in out:
-                    out[path] = encode_png(Renderer(scene, options).pixels())
+                    out[path] = encode_png(Renderer(scene, rung.options).pixels())
     return out
 
 

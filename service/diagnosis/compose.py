@@ -59,6 +59,7 @@ class Looks:
     render: Callable[[Options], np.ndarray]  # options → the whole image (H, W, 3) uint8
     shown: Callable[[str], bool]  # name → whether the scene can show the mistake (else it renders the reference)
     lights: tuple[str, ...]  # the scene's light types, in order
+    open: np.ndarray | None = None  # (H, W) bool: the pixels not counted against a submission (Renders.open)
 
 
 @dataclass(frozen=True)
@@ -286,7 +287,7 @@ def compose(
         image = outer(reference, names)  # (exact for all but the mirror, which is within a level)
     else:
         image = looks.render(merged(names))
-    g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
+    g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
     inner_shares = shares(rows, inner)
     tried = candidates(looks, terms)
     members = [Member(n, ALL[n][1], inner_shares[n], _why(tried[n], inner_shares[n])) for n in inner]
@@ -295,7 +296,9 @@ def compose(
     return Combination(tuple(members), g.fraction_off_nearby, g.passed)
 
 
-def stored_only(reference: np.ndarray, submitted: np.ndarray, verdict: Grade) -> Combination | None:
+def stored_only(
+    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, open_pixels: np.ndarray | None = None
+) -> Combination | None:
     """The image-level mistakes alone, when the submission passes against the reference's pixels stored with
     them: found with no render at all, before any mistake is rendered (None also for the classic flip alone,
     which the single-mistake diagnosis names as it always has)."""
@@ -305,7 +308,7 @@ def stored_only(reference: np.ndarray, submitted: np.ndarray, verdict: Grade) ->
     names = tuple(n for n in OUTER if n in found)
     if not names or names == ("image-flipped",):
         return None
-    g = grade(outer(reference, names), submitted, "", verdict.tolerance, verdict.max_fraction)
+    g = grade(outer(reference, names), submitted, "", verdict.tolerance, verdict.max_fraction, open_pixels)
     if not g.passed:
         return None
     members = [Member(n, ALL[n][1], found[n], f"the image is the reference's {SHOWN[n]}") for n in names]

@@ -58,6 +58,9 @@ class Diagnosis:
     objects: list[Share] = field(default_factory=list)
     lights: list[Share] = field(default_factory=list)
     unavailable: str | None = None  # why no diagnosis could be made (:func:`unavailable`); None: it was made
+    #: the honest offset it was made at, in words ("a ray offset of 0.003 along the normal", :mod:`.nuisance`);
+    #: None: against the reference itself
+    offset: str | None = None
 
     @property
     def together(self) -> bool:
@@ -83,9 +86,10 @@ class Diagnosis:
             return f"No diagnosis: {self.unavailable}"
         if self.nearest:
             return nearest_sentence(self.causes[0].mistake, self.causes[0].share or 0.0)
+        also = "" if self.offset is None else f" and {self.offset}"
         if self.together:
             first = self.causes[0]
-            return together_sentence([c.mistake for c in self.causes], first.fraction_off_nearby, first.passes)
+            return together_sentence([c.mistake for c in self.causes], first.fraction_off_nearby, first.passes, also)
         if self.readings:
             readings = self.readings
             return readings_sentence(
@@ -96,7 +100,7 @@ class Diagnosis:
             how = "matches" if not self.closest else "comes closest to"
             advice = f". {SENTENCES[c.variant]}" if c.variant in SENTENCES else ""  # (a new mistake's advice)
             return (
-                f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake "
+                f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake{also} "
                 f"({percent(c.fraction_off_nearby)} of pixels off){advice}"
             )
         if self.terms:
@@ -125,8 +129,9 @@ class Diagnosis:
         return self
 
     def as_dict(self) -> dict[str, Any]:
-        """As the service and the command line give it (JSON): the sentence, then the evidence."""
-        return {
+        """As the service and the command line give it (JSON): the sentence, then the evidence, and the offset it
+        was made at when it was made at one."""
+        out = {
             "sentence": self.sentence(),
             "closest": self.closest,
             "causes": [c.as_dict() for c in self.causes],
@@ -134,6 +139,7 @@ class Diagnosis:
             "objects": [asdict(s) for s in self.objects],
             "lights": [asdict(s) for s in self.lights],
         }
+        return out if self.offset is None else {**out, "offset": self.offset}
 
     @classmethod
     def from_dict(cls, found: dict[str, Any]) -> Diagnosis:
@@ -147,6 +153,7 @@ class Diagnosis:
             [Share(**s) for s in found["objects"]],
             [Share(**s) for s in found["lights"]],
             why,
+            found.get("offset"),
         )
 
 

@@ -63,3 +63,9 @@ class Renders:
     render: Callable[[Options], np.ndarray] | None = None
     #: how a student is told of the scene's objects and lights (:mod:`.words`); None: by index
     names: Names | None = None
+    #: the scene's visible size (:mod:`tracer.visible`): an offset too large is rendered at a ladder of amounts
+    #: (``offset-too-large@0.05``, in the scene's units) only when it is given; None: at its variant's alone
+    size: Callable[[], float] | None = None
+    #: ``(H, W)`` bool, True where a pixel is not counted against a submission: the format leaves it open, or an
+    #: honest student's offset, fitted as a nuisance (:mod:`.nuisance`), may move it; None: every pixel counts
+    open: np.ndarray | None = None

@@ -34,7 +34,9 @@ def looks_of(renders: Renders) -> Looks | None:
         return None
     unchanged, variant = renders.unchanged, renders.variant
     rows = renders.rows if renders.rows is not None else lambda name, numbers: variant(name)[numbers]
-    return Looks(rows, renders.render, lambda name: unchanged is None or not unchanged(name), tuple(renders.lights))
+    return Looks(
+        rows, renders.render, lambda name: unchanged is None or not unchanged(name), tuple(renders.lights), renders.open
+    )
 
 
 def fitted(terms: list[Term]) -> list[Fitted]:

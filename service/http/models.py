@@ -42,13 +42,19 @@ class GradeAnswer(BaseModel):
     width: int
     height: int
     reference_sha256: str
+    grossly_off: int = Field(
+        0,
+        description="pixels off even nearby by more than 128 levels (a dot or speckle of the wrong colour): "
+        "none may be, whatever the fraction",
+    )
+    open_pixels: int = Field(0, description="pixels the scene format leaves open, not counted")
     reason: str = Field(description="why it failed, in words; empty when it passed")
     diagnosis: Diagnosis | None = Field(
         description="what the student most likely got wrong; null when it passed or diagnose=false"
     )
     accepted: str | None = Field(
         None,
-        examples=["a 1e-3 ray offset"],
+        examples=["a ray offset of 0.003 along the normal"],
         description="the accepted variant of the reference it passed against (an "
         "honest tracer's ray offset); null when it passed against the "
         "reference itself, or failed",
@@ -111,3 +117,9 @@ class Diagnosis(BaseModel):
     terms: list[Term] = Field(description="the additive terms out of scale, most first")
     objects: list[Share] = Field(description="what the failing pixels show")
     lights: list[Share] = Field(description="the lights that fall on the failing pixels")
+    offset: str | None = Field(
+        None,
+        examples=["a ray offset of 0.003 along the normal"],
+        description="the honest ray offset the submission's mistakes were named at (its own offset, fitted); "
+        "null when they were named against the reference itself",
+    )
