@@ -288,8 +288,10 @@ def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, to
     departs from the reference towards it in speckles; None when it does not.
 
     Speckles: where the submission departs, how far it goes towards the bound (0 at the reference, 1 at the
-    bound) changes from one pixel to the next by at least :data:`SPECKLE` on average.  A smooth departure
-    (a light missing, a term too weak) changes slowly, and is not this mistake."""
+    bound) changes from one pixel to the next by at least :data:`SPECKLE` on average, over the pairs of
+    neighbouring pixels one of which departs (sparse speckles on a large lit surface are speckles as much as
+    dense ones: the pairs where neither departs say nothing of how it departs).  A smooth departure (a light
+    missing, a term too weak) changes slowly inside the region it darkens, and is not this mistake."""
     ref, low, sub = (a.astype(np.int16) for a in (reference, bound, submitted))
     outside = np.any((sub < np.minimum(ref, low) - tolerance) | (sub > np.maximum(ref, low) + tolerance), axis=2)
     gap = (low - ref).astype(np.float64)
@@ -301,7 +303,7 @@ def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, to
     if departs.sum() < 16:
         return None
     share = np.where(can, moved / np.where(can, span, 1.0), 0.0)
-    pairs = can[:, 1:] & can[:, :-1]
+    pairs = can[:, 1:] & can[:, :-1] & (departs[:, 1:] | departs[:, :-1])
     if not pairs.any() or float(np.abs(np.diff(share, axis=1))[pairs].mean()) < SPECKLE:
         return None
     return float(outside.mean())
