@@ -99,7 +99,7 @@ class Checks:
 
 
 @dataclass(frozen=True)
-class Run:
+class Checking:
     """How the checks of a failing grade run: on how many threads (None: every core), what stops them (true:
     :class:`tracer.RenderCancelled`), and the cache of diagnosis renders (None: this process's,
     :data:`service.diagnosis.CACHE`)."""
@@ -116,7 +116,7 @@ class Explaining:
 
     scene: Callable[[], Scene]
     checks: Checks = Checks()
-    run: Run = Run()
+    run: Checking = Checking()
 
 
 def explain(
@@ -125,7 +125,7 @@ def explain(
     reference: np.ndarray,
     submitted: np.ndarray,
     checks: Checks = Checks(),
-    run: Run = Run(),
+    run: Checking = Checking(),
 ) -> Graded:
     """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the
     diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic
@@ -158,7 +158,7 @@ def explain(
     return Graded(graded.grade, graded.heatmap, found)
 
 
-def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Run) -> Diagnosis:
+def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Checking) -> Diagnosis:
     """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
     from .diagnosis import CACHE, diagnose
 
@@ -174,7 +174,7 @@ def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key:
         held.trim()  # (what it rendered counted, cancelled or not)
 
 
-def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Run, found: Diagnosis) -> Diagnosis | None:
+def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Checking, found: Diagnosis) -> Diagnosis | None:
     """``found`` with a mistake the submission matches at the honest offset it shows besides it (fitted as a
     nuisance, :mod:`service.diagnosis.nuisance`); None when there is none."""
     from .diagnosis.nuisance import behind_offset
@@ -182,14 +182,14 @@ def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Run, fou
     return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
 
 
-def left_open(scene: Scene, run: Run) -> np.ndarray | None:
+def left_open(scene: Scene, run: Checking) -> np.ndarray | None:
     """The pixels of ``scene`` the format leaves open, ``(H, W)`` bool: which of two overlapping coplanar surfaces
     shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces); None where none is."""
     opened = open_pixels(scene, run.threads, run.cancel)
     return None if opened is None or not opened.any() else opened
 
 
-def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Run) -> Graded:
+def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Checking) -> Graded:
     """``graded`` graded again without the pixels of ``scene`` the format leaves open (:func:`left_open`)."""
     opened = left_open(scene, run)
     return graded if opened is None else _without(graded, reference, submitted, opened)

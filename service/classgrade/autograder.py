@@ -50,7 +50,7 @@ STORED = "PHONGRAY_ACCEPTED_RENDERS"
 
 
 @dataclass(frozen=True)
-class Built:
+class Bundled:
     """What went into a bundle."""
 
     tasks: list[str]
@@ -68,7 +68,7 @@ def build(
     student_scenes: Path | None = None,
     program: Program | None = None,
     requirements: Path | None = None,
-) -> Built:
+) -> Bundled:
     """Write the autograder zip ``out`` for the task scenes in ``scenes`` (with a ``program``, for students'
     programs: :mod:`.bundled`, and the ``requirements`` of their runtime); :class:`ClassError` for a fault of
     the TA's (an invalid scene or tasks file, a scene that does not render), before anything is written."""
@@ -100,7 +100,7 @@ def build(
         out.write_bytes(data)
     except OSError as exc:
         raise ClassError(f"{out}: cannot write: {exc.strerror or exc}") from None
-    return Built(sorted(batch.tasks), len(references), len(data))
+    return Bundled(sorted(batch.tasks), len(references), len(data))
 
 
 def _own_scenes(student_scenes: Path | None) -> list[str]:

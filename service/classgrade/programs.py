@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 from . import journal
 from .errors import ClassError
 from .folders import hidden, own_scenes, sorted_entries, task_scenes
-from .records import Batch, ClassRun, Pair
+from .records import ClassRun, Coursework, Pair
 
 if TYPE_CHECKING:  # (service.programs reads files through this package's modules: imported when used)
     from ..programs.job import ProgramJob, TaskScene
@@ -63,7 +63,7 @@ def check_programs(run: ClassRun) -> None:
         raise ClassError(problem)
 
 
-def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Batch:
+def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Coursework:
     """Every (student, task) pair of a class of programs: a student is a folder of ``submissions`` (not a link,
     not a hidden one), its pairs left to grade; anything else there is ignored.  A student with an own scene
     (``--student-scenes``) but no folder has each pair missing."""
@@ -86,7 +86,7 @@ def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | No
             if student not in students:
                 pair.row = {"status": "missing", "reason": f"no folder {student}/ holding a program"}
             pairs.append(pair)
-    return Batch(tasks, sorted({*students, *own}), pairs, ignored)
+    return Coursework(tasks, sorted({*students, *own}), pairs, ignored)
 
 
 Stamped = tuple[Pair, dict[str, Any]]

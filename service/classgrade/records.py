@@ -74,7 +74,7 @@ class GradeJob:
 
 
 @dataclass
-class Batch:
+class Coursework:
     """The class as found in its folders: the tasks' scenes, the students, every pair, and what was ignored."""
 
     tasks: dict[str, Path]
@@ -84,7 +84,7 @@ class Batch:
 
 
 @dataclass
-class Grade:
+class Row:
     """A pair's grade as the report writes it: who and what, the verdict and why, the likely mistakes, the
     points, the thresholds, the comparison's numbers and the files beside the report.  Its fields are the
     report's columns in their order (:data:`~service.classgrade.report.COLUMNS`); :meth:`row` is the dict

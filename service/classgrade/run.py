@@ -21,7 +21,7 @@ from .faults import one_line, run_tasks
 from .gradebook import late_policy, matched, score
 from .isolation import unwritable
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
-from .records import Batch, ClassRun, Grade, GradeJob, Pair
+from .records import ClassRun, Coursework, GradeJob, Pair, Row
 from .report import COLUMNS, summary, write_atomic
 from .submissions import discover
 from .taskfile import TaskSettings, load_tasks
@@ -51,7 +51,7 @@ class Checked:
     """The class once the TA's input has been checked: the batch, the tasks' settings, the scene file of each
     scene key and each file's text, the service's settings, and when the run started."""
 
-    batch: Batch
+    batch: Coursework
     tasks: dict[str, TaskSettings]
     scene_of_key: dict[str, Path]
     texts: dict[Path, bytes]
@@ -329,7 +329,7 @@ def _row_of(
         return unwritable(known, COLUMNS, "its row", exc)
 
 
-def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> Grade:
+def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> Row:
     """A pair's grade as the report writes it: its row, kept or just graded, with who, what, the points and
     the report's files."""
     row: dict[str, Any] = {c: None for c in COLUMNS}
@@ -349,4 +349,4 @@ def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskS
     if _has_image(row):
         heat, copy = _paths(pair, report)
         row["heatmap"], row["submission"] = str(heat.relative_to(report)), str(copy.relative_to(report))
-    return Grade(**row)
+    return Row(**row)

@@ -69,7 +69,7 @@ def grade_task(
             explaining=None
             if scene is None
             else pipeline.Explaining(
-                lambda: load_scene(scene), pipeline.Checks(accepted, diagnose), pipeline.Run(threads=1)
+                lambda: load_scene(scene), pipeline.Checks(accepted, diagnose), pipeline.Checking(threads=1)
             ),
         )
     except grading.ImageError as exc:

@@ -39,7 +39,7 @@ TRIED = 3
 
 
 @dataclass(frozen=True)
-class Fitted:
+class AtOffset:
     """A mistake (or mistakes made together) at an honest offset: the rung, and the grade against its render."""
 
     rung: Rung
@@ -89,7 +89,7 @@ def candidates(found: Diagnosis) -> list[tuple[str, ...]]:
     return [(c.variant,) for c in known[:TRIED]]
 
 
-def fit(asked: Asked, pair: Failing, mistake: Options) -> Fitted | None:
+def fit(asked: Asked, pair: Failing, mistake: Options) -> AtOffset | None:
     """The submission graded against ``mistake`` made at the rung of the ladder that leaves the fewest of its
     pixels off on a few rows, with the pixels the offset moves between the rungs either side not counted; None
     when no rung explains enough to matter (:data:`MATTERS`)."""
@@ -116,7 +116,7 @@ def fit(asked: Asked, pair: Failing, mistake: Options) -> Fitted | None:
         moved |= pair.open_pixels
     failed = pair.failed
     graded = grade(images[options[best]], pair.submitted, "", failed.tolerance, failed.max_fraction, moved)
-    return Fitted(asked.rungs[best], graded)
+    return AtOffset(asked.rungs[best], graded)
 
 
 def _whole(asked: Asked, options: Options, pixels: int) -> np.ndarray:
@@ -126,7 +126,7 @@ def _whole(asked: Asked, options: Options, pixels: int) -> np.ndarray:
     )
 
 
-def _named(found: Diagnosis, names: tuple[str, ...], fitted: Fitted) -> Diagnosis:
+def _named(found: Diagnosis, names: tuple[str, ...], fitted: AtOffset) -> Diagnosis:
     """``found`` with the mistakes ``names`` as its causes, matched at the fitted offset."""
     by_name = {c.variant: c for c in found.causes}
     fraction = fitted.grade.fraction_off_nearby

@@ -21,7 +21,7 @@ from service.http.cache import RenderCache
 from service.http.slots import Busy, Slots
 from service.limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
 from service.passes import Format, PassFile
-from service.pipeline import Checks, Graded, Run, explain, with_overrides
+from service.pipeline import Checking, Checks, Graded, explain, with_overrides
 from service.rendering import render_pixels
 from service.scenekey import scene_key
 from service.settings import Settings
@@ -259,7 +259,7 @@ class RenderService:
                         self.settings.render_timeout,
                         cancelled=stop,
                     )
-                here = Run(self.threads, cancel=stop, cache=self.diagnoses)
+                here = Checking(self.threads, cancel=stop, cache=self.diagnoses)
                 return explained(job.scene, graded, (reference, submitted), here, gone, self.settings.render_timeout)
             except RenderCancelled:
                 if gone():
@@ -299,7 +299,7 @@ def explained(
     scene: Scene,
     graded: Graded,
     images: tuple[np.ndarray, np.ndarray],
-    run: Run,
+    run: Checking,
     gone: Callable[[], bool],
     seconds: float,
 ) -> Graded:
@@ -329,5 +329,5 @@ def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted:
     from schemas import load_scene
 
     deadline = time.monotonic() + seconds
-    run = Run(1, cancel=lambda: time.monotonic() > deadline)
+    run = Checking(1, cancel=lambda: time.monotonic() > deadline)
     return explained(load_scene(scene), graded, (reference, submitted), run, lambda: False, seconds)

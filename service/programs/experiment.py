@@ -139,7 +139,7 @@ def matches(reference_png: bytes, pixels: np.ndarray, probe: Probe, limits: Thre
         return graded.grade.passed
     checks = pipeline.Checks(limits.accepted, diagnose=False)
     scene = load_scene(text(probe.scene))
-    return pipeline.explain(scene, graded, reference, pixels, checks, pipeline.Run(threads=1)).grade.passed
+    return pipeline.explain(scene, graded, reference, pixels, checks, pipeline.Checking(threads=1)).grade.passed
 
 
 def _in_ramp(reference: np.ndarray, pixels: np.ndarray, hard: np.ndarray, limits: Thresholds) -> bool:
@@ -286,7 +286,7 @@ def _diagnosed(answer: Answer, limits: Thresholds) -> tuple[str, ...]:
     assert answer.pixels is not None and answer.reference is not None
     graded = pipeline.Graded(grade(answer.reference, answer.pixels, "", limits.tolerance, limits.max_fraction), None)
     scene = load_scene(text(answer.probe.scene))
-    checks, run = pipeline.Checks(limits.accepted), pipeline.Run(threads=1)
+    checks, run = pipeline.Checks(limits.accepted), pipeline.Checking(threads=1)
     found = pipeline.explain(scene, graded, answer.reference, answer.pixels, checks, run)
     if found.grade.passed or found.diagnosis is None:
         return ()
