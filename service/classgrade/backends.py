@@ -22,7 +22,7 @@ from typing import Any
 from ..settings import Settings
 from . import faults, tasks
 from .errors import ClassError
-from .records import ClassRun, GradeJob
+from .records import ClassRun, GradeJob, Marked
 from .remote import server_grade, server_render
 
 
@@ -62,8 +62,8 @@ class Backend:
         """The render task: a scene's text → its reference PNG, or None and why not."""
         raise NotImplementedError
 
-    def grade(self) -> Callable[[GradeJob], dict[str, Any]]:
-        """The grade task: a pair's job → its grade's row (with ``heatmap_png``), or an invalid row."""
+    def grade(self) -> Callable[[GradeJob], Marked]:
+        """The grade task: a pair's job → its grade (:class:`~.records.Marked`)."""
         return tasks.local_grade
 
     def reset(self) -> None:
@@ -94,7 +94,7 @@ class LocalBackend(Backend):
     def render(self) -> Callable[[bytes], tuple[bytes | None, str]]:
         return partial(tasks.render_task, limits=self.limits)
 
-    def grade(self) -> Callable[[GradeJob], dict[str, Any]]:
+    def grade(self) -> Callable[[GradeJob], Marked]:
         return tasks.local_grade  # (looked up now: a test may put another in its place)
 
     def _pool(self) -> None:
@@ -174,7 +174,7 @@ class ServerBackend(Backend):
     def render(self) -> Callable[[bytes], tuple[bytes | None, str]]:
         return partial(server_render, self.url, self.api_key)
 
-    def grade(self) -> Callable[[GradeJob], dict[str, Any]]:
+    def grade(self) -> Callable[[GradeJob], Marked]:
         return partial(server_grade, self.url, self.api_key)
 
 

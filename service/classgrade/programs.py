@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 from . import journal
 from .errors import ClassError
 from .folders import hidden, own_scenes, sorted_entries, task_scenes
-from .records import ClassRun, Coursework, Pair
+from .records import ClassRun, Coursework, Marked, Pair
 
 if TYPE_CHECKING:  # (service.programs reads files through this package's modules: imported when used)
     from ..programs.job import ProgramJob, TaskScene
@@ -129,9 +129,9 @@ def program_jobs(
     return jobs
 
 
-def warn(pair: Pair, result: dict[str, Any]) -> None:
+def warn(pair: Pair, result: Marked) -> None:
     """A run without a sandbox says so, every time; so does a run timed out on a busy machine."""
-    for said in (result.get("run_warning"), result.pop("run_busy", None)):
+    for said in () if result.run is None else (result.run.run_warning, result.run.run_busy):
         if said:
             print(f"{pair.student}/{pair.task}: {said}", file=sys.stderr)
 

@@ -1,11 +1,14 @@
 """The records of class grading: the run's options, a pair of a student and a task, the job a backend grades,
-the batch of pairs found in the class's folders, and a pair's grade as the report writes it."""
+what a backend returns for it, the pairs found in the class's folders, and a pair's grade as the report writes
+it."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
+
+from ..pipeline import Graded
 
 if TYPE_CHECKING:
     from ..programs.program import Program
@@ -71,6 +74,53 @@ class GradeJob:
     max_fraction: float
     accepted: dict[str, float] | None = None
     diagnose: bool = True
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """A program's run as its grade keeps it: ``run`` (its reason's word: ``ok``, ``timeout``, ...),
+    ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold what the
+    program read of a hidden scene), ``run_seconds``, ``run_warning`` (a run without a sandbox) and ``run_busy``
+    (a run timed out on a busy machine), both said to the TA, never kept in the report."""
+
+    run: str
+    run_output: str
+    run_seconds: float
+    run_warning: str | None = None
+    run_busy: str | None = None
+
+
+#: what became of a graded pair
+Status = Literal["pass", "fail", "invalid"]
+
+
+@dataclass(frozen=True)
+class Marked:
+    """A pair's grade as every backend returns it (a pool process, a Dask worker, a running service), the one
+    form between the grading and the report (:func:`service.classgrade.rows.kept_row`): picklable, no dicts.
+
+    ``graded`` is the image's grade (with its heat-map, diagnosis and accepted variant); None when the image
+    is ``invalid`` (``reason`` says why, lacking the file's name) or a program's run (or build) failed
+    (``reason`` says how).  A program's pair has its ``run``, the ``image`` it wrote (the PNG of its pixels
+    once kept), what ``experiment`` found of a failing one, and a ``flag`` for the TA."""
+
+    status: Status
+    graded: Graded | None = None
+    reason: str = ""
+    run: RunInfo | None = None
+    image: bytes | None = None
+    experiment: str | None = None
+    flag: str | None = None
+    flag_reason: str | None = None
+
+    @classmethod
+    def of(cls, graded: Graded) -> Marked:
+        """A graded image's: it passed or failed."""
+        return cls("pass" if graded.grade.passed else "fail", graded)
+
+    @classmethod
+    def invalid(cls, reason: str) -> Marked:
+        return cls("invalid", reason=reason)
 
 
 @dataclass

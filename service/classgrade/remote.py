@@ -6,10 +6,14 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
+from dataclasses import fields
 from typing import Any
 
+from ..diagnosis import Diagnosis
+from ..grading import Grade
+from ..pipeline import Graded
 from . import faults
-from .records import GradeJob
+from .records import GradeJob, Marked
 
 
 def server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes | None, str]:
@@ -27,7 +31,7 @@ def server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes
         return None, f"the server refuses it: {exc.detail}"
 
 
-def server_grade(server: str, api_key: str | None, job: GradeJob) -> dict[str, Any]:
+def server_grade(server: str, api_key: str | None, job: GradeJob) -> Marked:
     """:func:`~service.classgrade.tasks.grade_task` of a pair's job by a running service (which renders the same
     reference, from its cache, and accepts its own default variants: a task's ``accepted`` is for local
     grading)."""
@@ -47,9 +51,21 @@ def server_grade(server: str, api_key: str | None, job: GradeJob) -> dict[str, A
         heat = patient(post_form, server, "/grade", fields, files, query, api_key=api_key)
     except ServerError as exc:
         if exc.status in (413, 422) and exc.part == "image":
-            return {"status": "invalid", "reason": exc.detail.removeprefix("image: ")}
+            return Marked.invalid(exc.detail.removeprefix("image: "))
         raise
-    return {**result, "status": "pass" if result["passed"] else "fail", "heatmap_png": heat}
+    return Marked.of(answered(result, heat))
+
+
+def answered(answer: dict[str, Any], heatmap: bytes) -> Graded:
+    """The grade of the service's JSON answer to /grade (:meth:`~service.pipeline.Graded.as_dict`), read back,
+    with its ``heatmap``."""
+    found = answer.get("diagnosis")
+    return Graded(
+        Grade(**{f.name: answer[f.name] for f in fields(Grade) if f.name in answer}),
+        heatmap,
+        None if found is None else Diagnosis.from_dict(found),
+        answer.get("accepted"),
+    )
 
 
 #: the longest a request waits out a busy service's 503s (Retry-After), in seconds

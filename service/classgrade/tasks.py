@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import time
-from typing import Any
 
 from ..settings import Settings
-from .records import GradeJob
+from .records import GradeJob, Marked
 
 
 def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | None, str]:
@@ -50,11 +49,11 @@ def grade_task(
     scene: bytes | None = None,
     accepted: dict[str, float] | None = None,
     diagnose: bool = True,
-) -> dict[str, Any]:
-    """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"`` and,
-    given the reference's ``scene`` text, a failing one graded again against the task's ``accepted`` variants
-    (None: the defaults) and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid row
-    whose reason lacks only the file's name."""
+) -> Marked:
+    """The grade of a submission against a reference PNG, with its heat-map and, given the reference's
+    ``scene`` text, a failing one graded again against the task's ``accepted`` variants (None: the defaults)
+    and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid one whose reason lacks
+    only the file's name."""
     from schemas import load_scene
 
     from .. import grading, pipeline
@@ -73,11 +72,11 @@ def grade_task(
             ),
         )
     except grading.ImageError as exc:
-        return {"status": "invalid", "reason": str(exc)}
-    return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
+        return Marked.invalid(str(exc))
+    return Marked.of(graded)
 
 
-def local_grade(job: GradeJob) -> dict[str, Any]:
+def local_grade(job: GradeJob) -> Marked:
     """:func:`grade_task` of a pair's job (the reference is already rendered: the scene is for the accepted
     variants and, unless not to ``diagnose``, the diagnosis of a failing pair)."""
     return grade_task(job.reference, job.image, job.tolerance, job.max_fraction, job.scene, job.accepted, job.diagnose)

@@ -24,7 +24,10 @@ import functools
 import os
 import stat
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from ..classgrade.records import Marked
 
 #: a line of phongray's source counts when it is at least this long (stripped): shorter ones are commonplace
 LENGTH = 40
@@ -91,18 +94,17 @@ def phongray_code(folder: Path, budget: int, entries: int) -> tuple[int, str]:
     return len(held), best
 
 
-def flags(folder: Path, results: dict[str, dict[str, Any]], references: dict[str, bytes], limits: Any) -> None:
-    """Flag every task's result of a student's program (``flag``, ``flag_reason``: the TA's) when its folder
-    holds phongray's code, or when every task's image is its reference (``references``, by task) byte for
-    byte."""
+def flags(
+    folder: Path, results: dict[str, Marked], references: dict[str, bytes], limits: Any
+) -> tuple[str, str] | None:
+    """The flag of every task's result of a student's program (``flag``, ``flag_reason``: the TA's) when its
+    folder holds phongray's code, or when every task's image is its reference (``references``, by task) byte
+    for byte; else None."""
     from .folder import MAX_ENTRIES
 
     count, where = phongray_code(folder, limits.folder_bytes, MAX_ENTRIES)
     if count >= LINES:
-        flag = "phongray-code", f"the program holds {count} lines of phongray's own code (most in {where})"
-    elif results and all(r.get("image") is not None and r["image"] == references[t] for t, r in results.items()):
-        flag = "identical", "every image is the reference, byte for byte (for review: an exact tracer can make it)"
-    else:
-        return
-    for result in results.values():
-        result["flag"], result["flag_reason"] = flag
+        return "phongray-code", f"the program holds {count} lines of phongray's own code (most in {where})"
+    if results and all(r.image is not None and r.image == references[t] for t, r in results.items()):
+        return "identical", "every image is the reference, byte for byte (for review: an exact tracer can make it)"
+    return None
