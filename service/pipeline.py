@@ -10,7 +10,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
@@ -21,11 +21,11 @@ from schemas.locate import as_lines, format_located
 from tracer import decode_png, open_pixels
 
 from . import grading
+from .diagnosis import CACHE, Cached, Diagnosis, Renders, accepting, diagnose, renders_of
+from .diagnosis.accepting import Failing
+from .diagnosis.nuisance import behind_offset
 from .heatmap import Kind, heatmap_png
-
-if TYPE_CHECKING:
-    from .diagnosis import Cached, Diagnosis, Renders
-    from .diagnosis.accepting import Failing
+from .scenekey import scene_key
 
 
 class BadInput(ValueError):
@@ -139,17 +139,12 @@ def explain(
         graded = _without(graded, reference, submitted, opened)
         if graded.grade.passed:
             return graded
-    from .diagnosis.accepting import Failing, accept
-
     failing = Failing(reference, submitted, graded.grade, opened)  # (the open pixels are not counted by any check)
-    found_variant = accept(scene, failing, checks.accepted, run.threads, run.cancel)
+    found_variant = accepting.accept(scene, failing, checks.accepted, run.threads, run.cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
         return graded
-    from .diagnosis import renders_of
-    from .scenekey import scene_key
-
     found = _diagnosed(
         scene, failing, lambda: renders_of(scene, run.threads, open_pixels=opened), scene_key(scene), run
     )
@@ -160,8 +155,6 @@ def explain(
 
 def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Checking) -> Diagnosis:
     """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
-    from .diagnosis import CACHE, diagnose
-
     held = CACHE if run.cache is None else run.cache
     renders = held.get(key, make, scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
@@ -177,8 +170,6 @@ def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key:
 def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Checking, found: Diagnosis) -> Diagnosis | None:
     """``found`` with a mistake the submission matches at the honest offset it shows besides it (fitted as a
     nuisance, :mod:`service.diagnosis.nuisance`); None when there is none."""
-    from .diagnosis.nuisance import behind_offset
-
     return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
 
 

@@ -116,3 +116,11 @@ def test_no_class_name_is_defined_twice():
     assert len(where) > 100
     twice = {name: paths for name, paths in where.items() if len(paths) > 1}
     assert not twice, f"classes of one name defined more than once (one name, one concept): {twice}"
+
+
+def test_the_service_imports_at_the_top():
+    counted = {p.relative_to(ROOT).as_posix(): n for p, tree in _trees("service") if (n := len(_local_imports(tree)))}
+    assert counted, "the count sees the service's imports inside functions"
+    total = sum(counted.values())
+    most = sorted(counted.items(), key=lambda item: -item[1])[:5]
+    assert total <= LOCAL_IMPORTS, f"{total} imports inside functions in service/ (at most {LOCAL_IMPORTS}): {most}"

@@ -19,6 +19,8 @@ from concurrent.futures.process import BrokenProcessPool
 from functools import partial
 from typing import Any
 
+from ..client import ServerError, check
+from ..cluster import client, connect_timeout, wait_for_workers
 from ..settings import Settings
 from . import faults, tasks
 from .errors import ClassError
@@ -129,8 +131,6 @@ class DaskBackend(Backend):
 
     def _connect(self, timeout: float = 10.0) -> None:
         """A client of the scheduler (a new one when the old has lost it) with a worker, and its executor."""
-        from ..cluster import client, connect_timeout, wait_for_workers
-
         started = time.monotonic()
         if self.client is None or getattr(self.client, "status", "running") != "running":
             self._close_client()
@@ -160,8 +160,6 @@ class ServerBackend(Backend):
     requests are sent by ``jobs`` threads (4 by default)."""
 
     def __init__(self, url: str, api_key: str | None, jobs: int | None) -> None:
-        from ..client import ServerError, check
-
         super().__init__()
         try:
             check(url, api_key)

@@ -4,6 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from schemas import SceneError
+
+from ..limits import LimitError, check_body, check_scene
+from ..pipeline import load_scene
+from ..scenekey import scene_key
 from ..settings import Settings
 from . import journal
 from .errors import ClassError
@@ -16,12 +21,6 @@ def scene_keys(batch: Coursework, settings: Settings | None) -> tuple[dict[str, 
     limits ``settings`` when given (``--limits``): key → scene file, and each file's text.  An invalid scene, or
     one the service would refuse up front, stops the run before anything renders, every problem named by file
     (and line)."""
-    from schemas import SceneError
-
-    from ..limits import LimitError, check_body, check_scene
-    from ..pipeline import load_scene
-    from ..scenekey import scene_key
-
     keys: dict[Path, str] = {}
     texts: dict[Path, bytes] = {}
     problems: list[str] = []

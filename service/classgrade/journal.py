@@ -14,6 +14,8 @@ from __future__ import annotations
 import json
 import math
 from functools import cache
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as of
 from pathlib import Path
 from typing import Any
 
@@ -40,9 +42,6 @@ GRADED = {"status", "passed", "psnr", "mistakes", *FLOATS, *INTS, *TEXTS}
 @cache
 def version() -> str:
     """This phongray's version (a journal of another is graded again)."""
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as of
-
     try:
         return of("phongray")
     except PackageNotFoundError:

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import fields
 from typing import Any
 
+from ..client import ServerError, post_form, post_json
 from ..diagnosis import Diagnosis
 from ..grading import Grade
 from ..pipeline import Graded
@@ -19,8 +20,6 @@ from .records import GradeJob, Marked
 def server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes | None, str]:
     """:func:`~service.classgrade.tasks.render_task` by a running service (which has its own
     ``render_timeout``); a refusal of the scene (its limits, its time) is the reason."""
-    from ..client import ServerError, post_json
-
     try:
         return patient(post_json, server, "/render", scene, api_key=api_key), ""
     except ServerError as exc:
@@ -35,8 +34,6 @@ def server_grade(server: str, api_key: str | None, job: GradeJob) -> Marked:
     """:func:`~service.classgrade.tasks.grade_task` of a pair's job by a running service (which renders the same
     reference, from its cache, and accepts its own default variants: a task's ``accepted`` is for local
     grading)."""
-
-    from ..client import ServerError, post_form
 
     fields = {
         "scene": job.scene,
@@ -82,8 +79,6 @@ def patient(func: Callable[..., bytes], server: str, *args: Any, **kw: Any) -> b
     seconds) and retries a lost connection (a worker restarting: reset, refused, closed)
     :data:`~service.classgrade.faults.RETRIES` times with backoff.  Every request of class grading is a pure
     function of its body, so sending it again is safe."""
-    from ..client import ServerError
-
     deadline = time.monotonic() + BUSY_WAIT
     lost = 0
     while True:

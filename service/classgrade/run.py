@@ -10,6 +10,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from tracer import decode_png
+
+from ..client import ServerError
 from ..ppm import viewable
 from ..settings import Settings
 from . import journal
@@ -101,7 +104,6 @@ def _run(run: ClassRun, checked: Checked, progress: Progress | None) -> Outcome:
             progress(sum(bool(p.row) for p in batch.pairs), total)
 
     tick()
-    from ..client import ServerError
 
     backend = open_backend(run, len(todo) + len(needed), checked.settings if run.limits else None)
     try:
@@ -140,8 +142,6 @@ def _drop_stale_references(report: Path, refs: dict[str, Path]) -> None:
 def _usable(reference: Path) -> bool:
     """A reference an earlier run kept that decodes (one cut short, or a Git LFS pointer where a course's bundle
     was copied from, is rendered again rather than failing every pair of its scene)."""
-    from tracer import decode_png
-
     try:
         decode_png(reference.read_bytes())
     except Exception:  # (Pillow raises many kinds for a broken file; a missing one is OSError)

@@ -4,6 +4,12 @@ from __future__ import annotations
 
 import time
 
+from schemas import load_scene
+from tracer import ImageTooLarge, OverBudget, RenderCancelled, encode_png, render
+from tracer.budget import UNLIMITED
+
+from .. import grading, pipeline
+from ..limits import budget, outgrown
 from ..settings import Settings
 from .records import GradeJob, Marked
 
@@ -12,12 +18,6 @@ def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | N
     """The reference PNG of a scene's text, or (None, the reason it cannot be rendered).  With the service's
     ``limits`` (``grade-class --limits``), a render still going after their ``render_timeout`` or outgrowing
     their budget (:func:`service.limits.budget`) is stopped; without, the TA's scene is trusted."""
-    from schemas import load_scene
-    from tracer import ImageTooLarge, OverBudget, RenderCancelled, encode_png, render
-    from tracer.budget import UNLIMITED
-
-    from ..limits import budget, outgrown
-
     deadline = None if limits is None else time.monotonic() + limits.render_timeout
     loaded = load_scene(scene)
     try:
@@ -54,10 +54,6 @@ def grade_task(
     ``scene`` text, a failing one graded again against the task's ``accepted`` variants (None: the defaults)
     and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid one whose reason lacks
     only the file's name."""
-    from schemas import load_scene
-
-    from .. import grading, pipeline
-
     try:
         graded = pipeline.grade_png(
             reference,

@@ -31,6 +31,7 @@ import numpy as np
 
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
+from ..grading import grade
 from .records import Term
 from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
 
@@ -267,8 +268,6 @@ def compose(
     ``numbers`` (None: :func:`telling_rows`) and confirmed by one render of them all (none when they are
     image-level mistakes alone: the reference's pixels stored with them); None when no mistake helps, or when
     the one mistake found is a classic one alone (the single-mistake diagnosis has graded it already)."""
-    from ..grading import grade
-
     found = image_level(reference, submitted)
     rows = _rows(reference, submitted, looks, candidates(looks, terms), (found, verdict.tolerance, numbers))
     inner = chosen(rows)
@@ -294,8 +293,6 @@ def stored_only(
     """The image-level mistakes alone, when the submission passes against the reference's pixels stored with
     them: found with no render at all, before any mistake is rendered (None also for the classic flip alone,
     which the single-mistake diagnosis names as it always has)."""
-    from ..grading import grade
-
     found = image_level(reference, submitted)
     names = tuple(n for n in OUTER if n in found)
     if not names or names == ("image-flipped",):

@@ -24,6 +24,7 @@ from tracer.variants import MORE_VARIANTS, VARIANTS, Options
 
 from ..grading import Grade, grade
 from ..nearby import rows_distance
+from ..scenekey import scene_key
 from .accepting import KEPT_RENDERS, Failing, Look, _render, accepted_ladders
 from .compose import ALL, compatible, merged
 from .looks import sampled_rows
@@ -65,8 +66,6 @@ def behind_offset(
     """``found`` (a diagnosis that names no mistake the submission matches) with its first cause the submission
     matches at an honest offset (``accepted``, as :func:`.accepting.accept` takes them), fitted; None when the
     task accepts no offset along the normal or no cause matches at any."""
-    from ..scenekey import scene_key
-
     key = scene_key(scene)
     ladders = [rungs for rungs in accepted_ladders(scene, accepted, key) if rungs[0].kind == "normal-offset"]
     if not ladders or pair.submitted.shape[0] < 3:

@@ -21,10 +21,13 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib
 import os
 import stat
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from .folder import MAX_ENTRIES
 
 if TYPE_CHECKING:
     from ..classgrade.records import Marked
@@ -40,8 +43,6 @@ FILE_BYTES = 4 << 20
 @functools.cache
 def fingerprint() -> frozenset[bytes]:
     """The distinct lines of phongray's own Python source (this installation's), as :func:`_lines` makes them."""
-    import importlib
-
     roots = [Path(importlib.import_module(name).__file__ or ".").parent for name in ("tracer", "schemas", "service")]
     files = [p for root in roots for p in root.rglob("*.py")]
     found: set[bytes] = set()
@@ -100,8 +101,6 @@ def flags(
     """The flag of every task's result of a student's program (``flag``, ``flag_reason``: the TA's) when its
     folder holds phongray's code, or when every task's image is its reference (``references``, by task) byte
     for byte; else None."""
-    from .folder import MAX_ENTRIES
-
     count, where = phongray_code(folder, limits.folder_bytes, MAX_ENTRIES)
     if count >= LINES:
         return "phongray-code", f"the program holds {count} lines of phongray's own code (most in {where})"

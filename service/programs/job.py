@@ -22,10 +22,13 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from tracer.image import encode_png
+
 from ..classgrade.errors import ClassError
 from ..classgrade.gradebook import matched
 from ..classgrade.records import GradeJob, Marked, RunInfo
 from ..classgrade.tasks import local_grade
+from ..grading import ImageError, declared_size, read_submission
 from .copied import flags
 from .digest import digest as digest  # (what a kept grade stands for: its own module)
 from .experiment import Allowance, Thresholds, experiment
@@ -168,10 +171,6 @@ def _kept_image(image: bytes, reference: bytes) -> bytes | None:
     """What a grade keeps of a program's image (the report's copy): the PNG of its pixels as they were graded,
     never the program's own bytes, which can carry megabytes of chunks no decoder shows; None where it cannot
     be read (an invalid pair keeps no copy)."""
-    from tracer.image import encode_png
-
-    from ..grading import ImageError, declared_size, read_submission
-
     try:
         return encode_png(read_submission(image, declared_size(reference)))
     except (ImageError, ValueError):
