@@ -8,7 +8,7 @@ the rendering (here, a cluster, a service), these steps and their words are the 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -17,7 +17,7 @@ from pydantic import ValidationError
 
 from schemas import Image, Scene, SceneError, parse_json, validate_scene
 from schemas.errors import problems_from_validation
-from schemas.locate import as_lines, format_located
+from schemas.locate import Located, as_lines, format_located
 from tracer import decode_png, open_pixels
 
 from . import grading
@@ -27,17 +27,20 @@ from .diagnosis.nuisance import behind_offset
 from .heatmap import Kind, heatmap_png
 from .scenekey import scene_key
 
+#: values of a scene's ``image`` given beside it (``--width``, ``?samples=2``), by name; None keeps the scene's
+Overrides = Mapping[str, int | None]
+
 
 class BadInput(ValueError):
     """Input that cannot be used, as the one line to show (files named, problems joined by ``; ``)."""
 
 
-def scene_lines(name: str, errors: list[dict[str, Any]]) -> list[str]:
+def scene_lines(name: str, errors: Sequence[Located]) -> list[str]:
     """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as /validate gives)."""
     return format_located(name, errors)
 
 
-def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
+def with_overrides(scene: Scene, overrides: Overrides | None) -> Scene:
     """The scene with values of its ``image`` replaced (``--width``, ``?samples=2``; None keeps the scene's).
     Overrides apply to a valid scene: they neither complete nor mend one, so that a scene is accepted exactly
     when its JSON Schema says so.  Raises :class:`SceneError` for an override out of range."""
@@ -51,7 +54,7 @@ def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
     return scene.model_copy(update={"image": image})
 
 
-def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, shared: bool = False) -> Scene:
+def load_scene(name: str, text: bytes, overrides: Overrides | None = None, shared: bool = False) -> Scene:
     """The validated scene of a file's text, ``overrides`` applied to its ``image``; :class:`SceneError`
     (with ``.lines``) names every problem by file and line."""
     try:
@@ -61,7 +64,7 @@ def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, 
         raise
 
 
-def scene_or_bad_input(name: str, text: bytes, overrides: dict[str, Any] | None = None) -> Scene:
+def scene_or_bad_input(name: str, text: bytes, overrides: Overrides | None = None) -> Scene:
     """:func:`load_scene`, its problems as one :class:`BadInput` line."""
     try:
         return load_scene(name, text, overrides)

@@ -118,6 +118,14 @@ def test_no_class_name_is_defined_twice():
     assert not twice, f"classes of one name defined more than once (one name, one concept): {twice}"
 
 
+def test_the_service_has_few_untyped_dicts():
+    counted = {p.relative_to(ROOT).as_posix(): n for p, tree in _trees("service") if (n := _untyped_dicts(tree))}
+    assert counted, "the count sees the service's dicts"
+    total = sum(counted.values())
+    most = sorted(counted.items(), key=lambda item: -item[1])[:5]
+    assert total <= UNTYPED_DICTS, f"dict[str, Any] {total} times in service/ (at most {UNTYPED_DICTS}): {most}"
+
+
 def test_the_service_imports_at_the_top():
     counted = {p.relative_to(ROOT).as_posix(): n for p, tree in _trees("service") if (n := len(_local_imports(tree)))}
     assert counted, "the count sees the service's imports inside functions"

@@ -26,7 +26,7 @@ import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import service
 from schemas import SceneError
@@ -39,6 +39,7 @@ from ..scenekey import scene_key
 from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
 from .errors import ClassError
 from .feedback import printed
+from .forms import Results
 from .records import ClassRun
 from .run import grade_class
 from .submissions import discover
@@ -262,7 +263,7 @@ def run(root: Path) -> int:
     return 0
 
 
-def _grade(root: Path) -> dict[str, Any]:
+def _grade(root: Path) -> Results:
     """The submission graded as a class of one: its results.json, as grade-class writes it."""
     course = root / "source" / COURSE
     scenes = course / "scenes"
@@ -316,7 +317,7 @@ def _own_folder(folder: Path, names: list[str]) -> str | None:
     return next((p.name for p in sorted(folder.iterdir()) if p.name.casefold() in folded), None)
 
 
-def _write(path: Path, results: dict[str, Any]) -> None:
+def _write(path: Path, results: Results) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(results, indent=1, ensure_ascii=False) + "\n")
 

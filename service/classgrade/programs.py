@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 from . import journal
 from .errors import ClassError
 from .folders import hidden, own_scenes, sorted_entries, task_scenes
+from .forms import ReportRow, Stamp
 from .records import ClassRun, Coursework, Marked, Pair
 
 if TYPE_CHECKING:  # (service.programs reads files through this package's modules: imported when used)
@@ -89,14 +90,14 @@ def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | No
     return Coursework(tasks, sorted({*students, *own}), pairs, ignored)
 
 
-Stamped = tuple[Pair, dict[str, Any]]
+Stamped = tuple[Pair, Stamp]
 
 
 def program_jobs(
     run: ClassRun,
     todo: list[Pair],
     task_of: Callable[[Pair], TaskScene],
-    resumed: Callable[[Pair, dict[str, Any]], dict[str, Any] | None],
+    resumed: Callable[[Pair, Stamp], ReportRow | None],
 ) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
     """Per student with a task left to grade, the job and its pairs with their stamps; a pair an earlier run
     kept for the same program, scene and thresholds is taken as it was (``resumed``)."""

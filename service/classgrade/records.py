@@ -6,9 +6,10 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 from ..pipeline import Graded
+from .forms import ReportRow
 
 if TYPE_CHECKING:
     from ..programs.program import Program
@@ -51,7 +52,7 @@ class Pair:
     own: bool
     key: str | None = None  # the canonical scene hash
     file: str | None = None  # the submitted file, relative to the student's folder (spheres.png, hw3/Spheres.PNG)
-    row: dict[str, Any] = field(default_factory=dict)
+    row: ReportRow = field(default_factory=dict)
     data: bytes | None = None  # the submitted bytes, read once, when the class was found
     lms_id: str = ""  # the student's id in the learning-management system's export (Canvas's, Moodle's), if any
     lms: str = ""  # which LMS's export it is ("canvas", "moodle"; "" for a folder per student)
@@ -177,6 +178,6 @@ class Row:
     flag: str | None = None  # a program's: phongray-code or identical (service.programs.copied), for the TA
     flag_reason: str | None = None
 
-    def row(self) -> dict[str, Any]:
+    def row(self) -> ReportRow:
         """The grade as the report's row: its columns, in order."""
         return asdict(self)

@@ -6,23 +6,23 @@ from __future__ import annotations
 
 from dataclasses import asdict, astuple
 from pathlib import Path
-from typing import Any
 
 from ..diagnosis import headline
+from .forms import ReportRow
 from .gradebook import late_policy, matched, score
 from .records import Marked, Pair, Row
 from .report import COLUMNS
 from .taskfile import TaskSettings
 
 
-def kept_row(marked: Marked, file: Path | None) -> dict[str, Any]:
+def kept_row(marked: Marked, file: Path | None) -> ReportRow:
     """The row kept of a backend's grade (plain values, as the journal writes them): an invalid pair's reason
     naming its ``file``; else the grade's numbers, its reason, the likely mistake (a program's experiment's,
     where no mistake matched) and the ids of those it matches, and a program's run, experiment and flag."""
     if marked.status == "invalid":
         return {"status": "invalid", "reason": f"{file}: {marked.reason}"}
     graded = marked.graded
-    row: dict[str, Any] = {"status": marked.status, "passed": False, "reason": marked.reason}
+    row: ReportRow = {"status": marked.status, "passed": False, "reason": marked.reason}
     found = None
     if graded is not None:  # (a passed accepted variant's reason says which)
         reason = f"as rendered with {graded.accepted}" if graded.accepted else graded.grade.reason
@@ -41,7 +41,7 @@ def kept_row(marked: Marked, file: Path | None) -> dict[str, Any]:
     return row
 
 
-def has_image(row: dict[str, Any]) -> bool:
+def has_image(row: ReportRow) -> bool:
     """A graded image's row (with its heat-map and copy), not an invalid one or a program's failed run."""
     return row["status"] in ("pass", "fail") and row.get("run") in (None, "ok")
 
@@ -57,7 +57,7 @@ def files(pair: Pair, report: Path) -> tuple[Path, Path]:
 def report_row(pair: Pair, reference: Path | None, report: Path, task: TaskSettings) -> Row:
     """A pair's grade as the report writes it: its kept row (just graded, or kept by an earlier run) with who,
     what, the points (and the late policy's), the task's ``reference`` and the report's files."""
-    row: dict[str, Any] = {c: None for c in COLUMNS}
+    row: ReportRow = {c: None for c in COLUMNS}
     row.update({k: v for k, v in pair.row.items() if k in row})
     row.update(student=pair.student, task=pair.task, scene="own" if pair.own else "shared")
     row["reason"] = row["reason"] or ""

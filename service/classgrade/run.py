@@ -20,6 +20,7 @@ from .backends import Backend, open_backend
 from .checks import outside, scene_keys, writable
 from .errors import ClassError
 from .faults import one_line, run_tasks
+from .forms import ReportRow, Stamp
 from .isolation import unwritable
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
 from .records import ClassRun, Coursework, GradeJob, Marked, Pair
@@ -35,7 +36,7 @@ class Outcome:
     """A graded class: every pair's row (as the report has it), what was ignored, the references this run
     rendered (the others were already in the report) and its time."""
 
-    rows: list[dict[str, Any]]
+    rows: list[ReportRow]
     ignored: list[tuple[str, str]]
     renders: int
     seconds: float
@@ -187,7 +188,7 @@ def _render_all(
     return done
 
 
-def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] | None:
+def _resumed(pair: Pair, report: Path, stamp: Stamp) -> ReportRow | None:
     """The row of a grade an earlier run finished for the same reference, the same bytes and the same
     thresholds (with its heat-map and copy in place), or None (:mod:`service.classgrade.journal` checks the rest)."""
     row = journal.kept(journal.path(report, pair.student, pair.task), stamp)
@@ -211,7 +212,7 @@ def _grade_all(
         _grade_programs(backend, run, checked, todo, refs, tick)
         return
     pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
-    about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
+    about: dict[int, tuple[Pair, bytes, Stamp]] = {}
     grade = backend.grade()
     for n, pair in enumerate(todo):
         assert pair.key is not None and pair.data is not None
@@ -279,7 +280,7 @@ def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> Grade
     )
 
 
-def _graded(pair: Pair, marked: Marked, image: bytes, report: Path, stamp: dict[str, Any]) -> None:
+def _graded(pair: Pair, marked: Marked, image: bytes, report: Path, stamp: Stamp) -> None:
     """Keep a backend's grade of a pair: write its heat-map and the copy of the submission (the very bytes
     graded), then its row (:func:`~.rows.kept_row`), for the report and for a run that resumes (a PPM's copy
     is the PNG of its pixels)."""
@@ -293,7 +294,7 @@ def _graded(pair: Pair, marked: Marked, image: bytes, report: Path, stamp: dict[
 
 def _row_of(
     pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings], faults: list[str]
-) -> dict[str, Any]:
+) -> ReportRow:
     """A pair's row (:func:`~.rows.report_row`); one that cannot be made is the pair's :func:`unwritable` row
     (and a line in ``faults``), never the class's lost report."""
     try:

@@ -19,10 +19,10 @@ import re
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from .errors import ClassError
 from .folders import NOT_STUDENTS, Entry, Folder, own_scenes, task_scenes
+from .forms import ReportRow
 from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
 from .records import Coursework, Pair
 from .untrusted import UntrustedFileError
@@ -153,7 +153,7 @@ class Submitted:
     image: Path | None = None
     file: str | None = None
     data: bytes | None = None
-    row: dict[str, Any] = field(default_factory=dict)
+    row: ReportRow = field(default_factory=dict)
     late: bool = False  # the LMS marked the file late
 
     def fill(self, pair: Pair) -> None:

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from service.pipeline import Overrides
     from tracer.budget import OverBudget
 
 EXIT_BAD_INPUT = 2
@@ -91,7 +92,7 @@ def replace(path: Path, data: bytes) -> None:
         raise
 
 
-def load(path: str, text: bytes, overrides: dict[str, Any] | None = None) -> Any:
+def load(path: str, text: bytes, overrides: Overrides | None = None) -> Any:
     from service.pipeline import BadInput, scene_or_bad_input
 
     try:
