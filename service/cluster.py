@@ -44,6 +44,10 @@ def _distributed() -> Any:
     return distributed
 
 
+#: the size of a task's graph past which Dask warns: above any student's folder a TA may allow
+LARGE_GRAPH = "4GB"
+
+
 def client(address: str, timeout: float = 10.0) -> Any:
     """A Dask client of the scheduler at ``address`` (``tcp://HOST:PORT``)."""
     distributed = _distributed()
@@ -55,6 +59,11 @@ def client(address: str, timeout: float = 10.0) -> Any:
         raise ClusterError(
             f"--cluster {address}: not a Dask scheduler address ({exc}); expected tcp://HOST:PORT"
         ) from None
+    # a student's folder goes to the worker inside its task, as bytes (:mod:`service.programs.pack`, at most
+    # the folder limit): by design, so Dask's warning of a large graph (past 10 MB) would only alarm the TA
+    import dask
+
+    dask.config.set({"distributed.admin.large-graph-warning-threshold": LARGE_GRAPH})
     try:
         return distributed.Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
