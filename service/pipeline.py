@@ -8,36 +8,39 @@ the rendering (here, a cluster, a service), these steps and their words are the 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
 
 from schemas import Image, Scene, SceneError, parse_json, validate_scene
 from schemas.errors import problems_from_validation
-from schemas.locate import as_lines, format_located
+from schemas.locate import Located, as_lines, format_located
 from tracer import decode_png, open_pixels
 
 from . import grading
+from .diagnosis import CACHE, Cached, Diagnosis, Renders, accepting, diagnose, renders_of
+from .diagnosis.accepting import Failing
+from .diagnosis.nuisance import behind_offset
 from .heatmap import Kind, heatmap_png
+from .scenekey import scene_key
 
-if TYPE_CHECKING:
-    from .diagnosis import Cached, Diagnosis, Renders
-    from .diagnosis.accepting import Failing
+#: values of a scene's ``image`` given beside it (``--width``, ``?samples=2``), by name; None keeps the scene's
+Overrides = Mapping[str, int | None]
 
 
 class BadInput(ValueError):
     """Input that cannot be used, as the one line to show (files named, problems joined by ``; ``)."""
 
 
-def scene_lines(name: str, errors: list[dict[str, Any]]) -> list[str]:
+def scene_lines(name: str, errors: Sequence[Located]) -> list[str]:
     """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as /validate gives)."""
     return format_located(name, errors)
 
 
-def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
+def with_overrides(scene: Scene, overrides: Overrides | None) -> Scene:
     """The scene with values of its ``image`` replaced (``--width``, ``?samples=2``; None keeps the scene's).
     Overrides apply to a valid scene: they neither complete nor mend one, so that a scene is accepted exactly
     when its JSON Schema says so.  Raises :class:`SceneError` for an override out of range."""
@@ -51,7 +54,7 @@ def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
     return scene.model_copy(update={"image": image})
 
 
-def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, shared: bool = False) -> Scene:
+def load_scene(name: str, text: bytes, overrides: Overrides | None = None, shared: bool = False) -> Scene:
     """The validated scene of a file's text, ``overrides`` applied to its ``image``; :class:`SceneError`
     (with ``.lines``) names every problem by file and line."""
     try:
@@ -61,7 +64,7 @@ def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, 
         raise
 
 
-def scene_or_bad_input(name: str, text: bytes, overrides: dict[str, Any] | None = None) -> Scene:
+def scene_or_bad_input(name: str, text: bytes, overrides: Overrides | None = None) -> Scene:
     """:func:`load_scene`, its problems as one :class:`BadInput` line."""
     try:
         return load_scene(name, text, overrides)
@@ -99,7 +102,7 @@ class Checks:
 
 
 @dataclass(frozen=True)
-class Run:
+class Checking:
     """How the checks of a failing grade run: on how many threads (None: every core), what stops them (true:
     :class:`tracer.RenderCancelled`), and the cache of diagnosis renders (None: this process's,
     :data:`service.diagnosis.CACHE`)."""
@@ -116,7 +119,7 @@ class Explaining:
 
     scene: Callable[[], Scene]
     checks: Checks = Checks()
-    run: Run = Run()
+    run: Checking = Checking()
 
 
 def explain(
@@ -125,7 +128,7 @@ def explain(
     reference: np.ndarray,
     submitted: np.ndarray,
     checks: Checks = Checks(),
-    run: Run = Run(),
+    run: Checking = Checking(),
 ) -> Graded:
     """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the
     diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic
@@ -139,17 +142,12 @@ def explain(
         graded = _without(graded, reference, submitted, opened)
         if graded.grade.passed:
             return graded
-    from .diagnosis.accepting import Failing, accept
-
     failing = Failing(reference, submitted, graded.grade, opened)  # (the open pixels are not counted by any check)
-    found_variant = accept(scene, failing, checks.accepted, run.threads, run.cancel)
+    found_variant = accepting.accept(scene, failing, checks.accepted, run.threads, run.cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
         return graded
-    from .diagnosis import renders_of
-    from .scenekey import scene_key
-
     found = _diagnosed(
         scene, failing, lambda: renders_of(scene, run.threads, open_pixels=opened), scene_key(scene), run
     )
@@ -158,10 +156,8 @@ def explain(
     return Graded(graded.grade, graded.heatmap, found)
 
 
-def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Run) -> Diagnosis:
+def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Checking) -> Diagnosis:
     """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
-    from .diagnosis import CACHE, diagnose
-
     held = CACHE if run.cache is None else run.cache
     renders = held.get(key, make, scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
@@ -174,22 +170,20 @@ def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key:
         held.trim()  # (what it rendered counted, cancelled or not)
 
 
-def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Run, found: Diagnosis) -> Diagnosis | None:
+def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Checking, found: Diagnosis) -> Diagnosis | None:
     """``found`` with a mistake the submission matches at the honest offset it shows besides it (fitted as a
     nuisance, :mod:`service.diagnosis.nuisance`); None when there is none."""
-    from .diagnosis.nuisance import behind_offset
-
     return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
 
 
-def left_open(scene: Scene, run: Run) -> np.ndarray | None:
+def left_open(scene: Scene, run: Checking) -> np.ndarray | None:
     """The pixels of ``scene`` the format leaves open, ``(H, W)`` bool: which of two overlapping coplanar surfaces
     shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces); None where none is."""
     opened = open_pixels(scene, run.threads, run.cancel)
     return None if opened is None or not opened.any() else opened
 
 
-def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Run) -> Graded:
+def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Checking) -> Graded:
     """``graded`` graded again without the pixels of ``scene`` the format leaves open (:func:`left_open`)."""
     opened = left_open(scene, run)
     return graded if opened is None else _without(graded, reference, submitted, opened)

@@ -434,7 +434,7 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
 
     from bench.scenes import example
     from service.diagnosis import CACHE
-    from service.pipeline import Graded, Run, explain
+    from service.pipeline import Checking, Graded, explain
     from tracer import RenderCancelled
 
     scene = schemas.validate_scene(example("01_three_spheres", 40, 30))
@@ -448,7 +448,7 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
     def run(name, cancel):
         both.wait()
         try:
-            found = explain(scene, Graded(verdict, None), reference, submitted, run=Run(1, cancel)).diagnosis
+            found = explain(scene, Graded(verdict, None), reference, submitted, run=Checking(1, cancel)).diagnosis
             results[name] = None if found is None else found.as_dict()
         except RenderCancelled:
             results[name] = "cancelled"
@@ -493,11 +493,11 @@ def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_wo
     from service.diagnosis import Cause, Diagnosis, Share, Term, headline, unavailable
 
     found = Diagnosis(
-        [Cause("no-shadows", "no shadow rays", 0.3, False)],
-        True,
-        [Term("diffuse", 1, 0.02)],
-        [Share(0, "sphere", 0.75), Share(-1, "background", 0.25)],
-        [Share(1, "point", 0.5)],
+        causes=[Cause("no-shadows", "no shadow rays", 0.3, False)],
+        closest=True,
+        terms=[Term("diffuse", 1, 0.02)],
+        objects=[Share(0, "sphere", 0.75), Share(-1, "background", 0.25)],
+        lights=[Share(1, "point", 0.5)],
     )
     assert Diagnosis.from_dict(found.as_dict()) == found
     assert headline(found) == "no shadow rays (closest)" and headline(None) == ""
@@ -508,7 +508,7 @@ def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_wo
     assert worded.sentence() == "Likely: the diffuse of light 'key' is twice as bright"
     assert Diagnosis.from_dict(worded.as_dict()) == worded
     nearest = Diagnosis(
-        [
+        causes=[
             Cause(
                 "term:diffuse:1",
                 "the diffuse of light 'key', which is missing",
@@ -526,7 +526,7 @@ def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_wo
     )
     assert Diagnosis.from_dict(nearest.as_dict()) == nearest
     both = Diagnosis(
-        [
+        causes=[
             Cause("no-shadows", "no shadow rays", 0.0, True, ["gamma"], 0.6, "e"),
             Cause("gamma", "gamma", 0.0, True, ["no-shadows"], 0.4, "e"),
         ]

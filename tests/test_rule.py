@@ -16,7 +16,7 @@ import student_f32
 
 from schemas import load_scene
 from service import pipeline
-from service.classgrade.gradebook import matched, score
+from service.classgrade.gradebook import score
 from service.classgrade.taskfile import TaskSettings
 from service.grading import GROSS_LEVELS, grade
 from service.nearby import gap, planes
@@ -124,6 +124,7 @@ def test_a_mistake_behind_an_honest_offset_keeps_its_name_and_its_deduction():
     """A student who offsets by 3e-3 of the visible size (0.018 in the Whitted example, accepted) and applies
     gamma fails every accepted variant and the gamma variant; the offset, fitted with the mistake made, leaves
     only gamma: named as matched, and its deduction taken, as a class grades an upload or a program's image."""
+    from service.classgrade.rows import kept_row
     from service.classgrade.tasks import grade_task
 
     path = ROOT / "examples" / "04_whitted.json"
@@ -136,9 +137,7 @@ def test_a_mistake_behind_an_honest_offset_keeps_its_name_and_its_deduction():
     assert found.causes[0].variant == "gamma" and found.causes[0].passes and not found.closest
     assert found.offset is not None and found.offset.endswith("along the normal")
     assert "matches the reference rendered with that mistake and a ray offset of" in found.sentence()
-    row = grade_task(encode_png(Renderer(scene).pixels()), encode_png(image), 2.0, 0.001, path.read_bytes())
-    assert row["status"] == "fail" and matched(row["diagnosis"]) == ["gamma"]
-    assert (
-        score({**row, "mistakes": matched(row["diagnosis"])}, TaskSettings(points=2, deductions={"gamma": 1})).score
-        == 1
-    )
+    marked = grade_task(encode_png(Renderer(scene).pixels()), encode_png(image), 2.0, 0.001, path.read_bytes())
+    row = kept_row(marked, path)
+    assert row["status"] == "fail" and row["mistakes"] == ["gamma"]
+    assert score(row, TaskSettings(points=2, deductions={"gamma": 1})).score == 1

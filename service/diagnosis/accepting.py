@@ -32,6 +32,7 @@ from tracer.variants import ACCEPTED_DEFAULT, Options, unchanged
 
 from ..grading import GROSS_ALLOWED, Grade, grade, range_counts
 from ..nearby import rows_distance
+from ..scenekey import scene_key
 from .looks import off_rows, sampled_rows, telling_middles
 from .offsets import Rung, ladder, narrowed, rung, visible_size
 
@@ -164,8 +165,6 @@ def accept(
 
     A scene with no light but ambient and no mirror or glass renders every offset as the reference (no shadow or
     secondary ray is cast): it renders none of them."""
-    from ..scenekey import scene_key
-
     if unchanged("offset-too-large", scene):
         return None
     key = scene_key(scene)

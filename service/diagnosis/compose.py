@@ -31,6 +31,8 @@ import numpy as np
 
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
+from ..grading import grade
+from .records import Term
 from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
 
 if TYPE_CHECKING:
@@ -60,15 +62,6 @@ class Looks:
     shown: Callable[[str], bool]  # name → whether the scene can show the mistake (else it renders the reference)
     lights: tuple[str, ...]  # the scene's light types, in order
     open: np.ndarray | None = None  # (H, W) bool: the pixels not counted against a submission (Renders.open)
-
-
-@dataclass(frozen=True)
-class Fitted:
-    """A term of the fit out of scale (as :func:`service.diagnosis.fit_terms` finds them)."""
-
-    name: str  # "ambient", "diffuse", "specular", "reflection", "refraction", "background"
-    light: int | None  # index in scene.lights, or None
-    scale: float  # the fitted coefficient: 1 is right
 
 
 @dataclass(frozen=True)
@@ -124,7 +117,7 @@ def compatible(names: tuple[str, ...]) -> bool:
 SLACK = 0.15
 
 
-def pointed(terms: list[Fitted], lights: tuple[str, ...]) -> dict[str, str]:
+def pointed(terms: list[Term], lights: tuple[str, ...]) -> dict[str, str]:
     """The new render-level mistakes (:data:`tracer.variants.MORE_VARIANTS`) the fitted terms point to, each with
     the term that points to it, in words: a spot's term too strong (its exponent ignored), a light's term out of
     scale (its colour ignored), a light's term too weak (clamped per term; reflections blended, which darken
@@ -147,7 +140,7 @@ def pointed(terms: list[Fitted], lights: tuple[str, ...]) -> dict[str, str]:
     return out
 
 
-def candidates(looks: Looks, terms: list[Fitted]) -> dict[str, str]:
+def candidates(looks: Looks, terms: list[Term]) -> dict[str, str]:
     """The render-level mistakes to try, each with why: every classic one the scene can show (the single-mistake
     diagnosis has looked at them already), the new ones the fit points to (:func:`pointed`), or every new one
     the scene can show when the fit has no term out of scale (the difference is in no term's scale: the fit
@@ -268,15 +261,13 @@ def compose(
     submitted: np.ndarray,
     verdict: Grade,
     looks: Looks,
-    terms: list[Fitted],
+    terms: list[Term],
     numbers: np.ndarray | None = None,
 ) -> Combination | None:
     """The mistakes made together that explain a failing ``submitted`` (graded ``verdict``), chosen on rows
     ``numbers`` (None: :func:`telling_rows`) and confirmed by one render of them all (none when they are
     image-level mistakes alone: the reference's pixels stored with them); None when no mistake helps, or when
     the one mistake found is a classic one alone (the single-mistake diagnosis has graded it already)."""
-    from ..grading import grade
-
     found = image_level(reference, submitted)
     rows = _rows(reference, submitted, looks, candidates(looks, terms), (found, verdict.tolerance, numbers))
     inner = chosen(rows)
@@ -302,8 +293,6 @@ def stored_only(
     """The image-level mistakes alone, when the submission passes against the reference's pixels stored with
     them: found with no render at all, before any mistake is rendered (None also for the classic flip alone,
     which the single-mistake diagnosis names as it always has)."""
-    from ..grading import grade
-
     found = image_level(reference, submitted)
     names = tuple(n for n in OUTER if n in found)
     if not names or names == ("image-flipped",):
@@ -353,14 +342,14 @@ class Explanation:
 
     share: float
     variant: str | None = None
-    term: Fitted | None = None
+    term: Term | None = None
 
 
 def nearest(
     reference: np.ndarray,
     submitted: np.ndarray,
     looks: Looks,
-    terms: list[tuple[Fitted, float]],
+    terms: list[tuple[Term, float]],
     tolerance: float = 2.0,
 ) -> list[Explanation]:
     """When nothing fits: every mistake tried and every term out of scale (with the share of the difference the

@@ -24,6 +24,7 @@ from tracer.variants import MORE_VARIANTS, VARIANTS, Options
 
 from ..grading import Grade, grade
 from ..nearby import rows_distance
+from ..scenekey import scene_key
 from .accepting import KEPT_RENDERS, Failing, Look, _render, accepted_ladders
 from .compose import ALL, compatible, merged
 from .looks import sampled_rows
@@ -39,7 +40,7 @@ TRIED = 3
 
 
 @dataclass(frozen=True)
-class Fitted:
+class AtOffset:
     """A mistake (or mistakes made together) at an honest offset: the rung, and the grade against its render."""
 
     rung: Rung
@@ -65,8 +66,6 @@ def behind_offset(
     """``found`` (a diagnosis that names no mistake the submission matches) with its first cause the submission
     matches at an honest offset (``accepted``, as :func:`.accepting.accept` takes them), fitted; None when the
     task accepts no offset along the normal or no cause matches at any."""
-    from ..scenekey import scene_key
-
     key = scene_key(scene)
     ladders = [rungs for rungs in accepted_ladders(scene, accepted, key) if rungs[0].kind == "normal-offset"]
     if not ladders or pair.submitted.shape[0] < 3:
@@ -89,7 +88,7 @@ def candidates(found: Diagnosis) -> list[tuple[str, ...]]:
     return [(c.variant,) for c in known[:TRIED]]
 
 
-def fit(asked: Asked, pair: Failing, mistake: Options) -> Fitted | None:
+def fit(asked: Asked, pair: Failing, mistake: Options) -> AtOffset | None:
     """The submission graded against ``mistake`` made at the rung of the ladder that leaves the fewest of its
     pixels off on a few rows, with the pixels the offset moves between the rungs either side not counted; None
     when no rung explains enough to matter (:data:`MATTERS`)."""
@@ -116,7 +115,7 @@ def fit(asked: Asked, pair: Failing, mistake: Options) -> Fitted | None:
         moved |= pair.open_pixels
     failed = pair.failed
     graded = grade(images[options[best]], pair.submitted, "", failed.tolerance, failed.max_fraction, moved)
-    return Fitted(asked.rungs[best], graded)
+    return AtOffset(asked.rungs[best], graded)
 
 
 def _whole(asked: Asked, options: Options, pixels: int) -> np.ndarray:
@@ -126,7 +125,7 @@ def _whole(asked: Asked, options: Options, pixels: int) -> np.ndarray:
     )
 
 
-def _named(found: Diagnosis, names: tuple[str, ...], fitted: Fitted) -> Diagnosis:
+def _named(found: Diagnosis, names: tuple[str, ...], fitted: AtOffset) -> Diagnosis:
     """``found`` with the mistakes ``names`` as its causes, matched at the fitted offset."""
     by_name = {c.variant: c for c in found.causes}
     fraction = fitted.grade.fraction_off_nearby

@@ -20,7 +20,10 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from tracer import Renderer
 from tracer.variants import ACCEPTED_KINDS, Options
+
+from ..scenekey import scene_key
 
 #: the leading digits of the round amounts a ladder holds, by kind: a t_min changes an image far less than an
 #: offset along the normal does (it only skips what lies nearer than it), so its ladder's rungs are further apart
@@ -126,7 +129,6 @@ class _Sizes:
         with self.lock:
             if key in self.held:
                 return self.held[key]
-        from tracer import Renderer
 
         size = Renderer(scene).visible_size()  # type: ignore[arg-type]
         with self.lock:
@@ -142,7 +144,5 @@ SIZES = _Sizes()
 def visible_size(scene: object, key: str | None = None) -> float:
     """The scene's visible size (:meth:`tracer.Renderer.visible_size`), kept by scene key."""
     if key is None:
-        from ..scenekey import scene_key
-
         key = scene_key(scene)  # type: ignore[arg-type]
     return SIZES.of(scene, key)

@@ -10,10 +10,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from tracer import Renderer
+from tracer.image import quantize
 from tracer.passes import ADDITIVE, LIGHT_TERMS
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
 
 from .fit import FIT_BLOCK_PIXELS
+from .offsets import visible_size
 from .renders import Renders
 from .words import names_of
 
@@ -135,8 +138,6 @@ class SceneRenders:
         after another: one preparation of the scene (its world, its Embree scene) serves them all.  One per
         thread, and only the last: threads share no renderer; and none is held once a diagnosis is over,
         cancelled or not (:meth:`done`)."""
-        from tracer import Renderer
-
         options = on_base(options, self.base)
         if getattr(self.last, "options", None) != options:
             self.last.__dict__.clear()  # (the last one let go of before the next is built)
@@ -151,8 +152,6 @@ class SceneRenders:
     def size(self) -> float:
         """The scene's visible size (:mod:`tracer.visible`), what an offset is measured against."""
         if self.visible is None:
-            from .offsets import visible_size
-
             self.visible = visible_size(self.scene)
         return self.visible
 
@@ -168,8 +167,6 @@ class SceneRenders:
     def images(self) -> dict[str, np.ndarray]:
         """The reference's pixels from its linear colour, and its gamma variant: from the passes held, or from a
         render folded as it comes (all it keeps are these)."""
-        from tracer.image import quantize
-
         if "images" not in self.made:
             if self.whole or "all" in self.made:
                 colour = self.passes()["colour"]
@@ -183,8 +180,6 @@ class SceneRenders:
 
     def folded(self, fold: Fold | None) -> None:
         """A render of the whole image's passes, each chunk to ``fold`` and to the reference's images."""
-        from tracer.image import quantize
-
         self.out.check()
         mine = "images" not in self.made
         reference, gamma = (np.empty((self.total, 3), dtype=np.uint8) for _ in range(2))

@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from tracer import RenderCancelled
+
 if TYPE_CHECKING:
     from tracer.render import Fold
     from tracer.variants import Options
@@ -52,8 +54,6 @@ class Renders:
         or its client gone): polled between the stages that render nothing (grading, the fit)."""
         cancel = self.cancel if self.polled is None else self.polled()
         if cancel is not None and cancel():
-            from tracer import RenderCancelled
-
             raise RenderCancelled("diagnosis cancelled")
 
     #: the current thread's cancel (set by ``cancel_in_thread``), else ``cancel``
