@@ -196,7 +196,17 @@ def _submissions(scene, reference):
     return out
 
 
-def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
+def _blindly(reference, submitted, verdict, scene, monkeypatch):  # noqa: ANN001, ANN202
+    """The diagnosis with every variant, the far end and the passes rendered whole, every variant scored and
+    no first look at a few rows (each variant graded on its whole image)."""
+    from service.diagnosis import looks
+
+    with monkeypatch.context() as patched:
+        patched.setattr(looks, "_looks", lambda *args, **kwargs: [])
+        return diagnose(reference, submitted, verdict, WholeImages(renders_of(scene)))
+
+
+def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders(monkeypatch):
     from service.diagnosis import looks
 
     scene = schemas.validate_scene(EVERYTHING)
@@ -212,11 +222,8 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         render_bound = looked.bound
         looked.bound = lambda v, f=render_bound, far=far: far.append(v) or f(v)
         # blind: every variant, the far end and the passes rendered whole, and every variant scored
-        blind = WholeImages(renders_of(scene))
-        assert (
-            diagnose(reference, submitted, verdict, looked).as_dict()
-            == diagnose(reference, submitted, verdict, blind).as_dict()
-        ), name
+        blind = _blindly(reference, submitted, verdict, scene, monkeypatch)
+        assert diagnose(reference, submitted, verdict, looked).as_dict() == blind.as_dict(), name
         spared += len(VARIANTS) - len(whole) + 1 - len(far)
         # and the first look at the far end's rows is a lower bound of what the whole of it counts
         least = looks.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
@@ -352,7 +359,7 @@ def _boundary_case():
     return scene, Renderer(scene).pixels(), submitted
 
 
-def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named():
+def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named(monkeypatch):
     scene, reference, submitted = _boundary_case()
     verdict = grade(reference, submitted, "", 2.0, 0.009)
     assert (
@@ -360,8 +367,7 @@ def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named():
         and grade(Renderer(scene, VARIANTS["no-shadows"][0]).pixels(), submitted, "", 2.0, 0.009).passed
     )
     found = diagnose(reference, submitted, verdict, renders_of(scene))
-    blind = WholeImages(renders_of(scene))
-    assert found.as_dict() == diagnose(reference, submitted, verdict, blind).as_dict()
+    assert found.as_dict() == _blindly(reference, submitted, verdict, scene, monkeypatch).as_dict()
     assert found.causes[0].variant == "no-shadows" and found.causes[0].passes
 
 
