@@ -160,10 +160,7 @@ def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key:
     """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
     held = CACHE if run.cache is None else run.cache
     renders = held.get(key, make, scene.image.width * scene.image.height)
-    if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
-        renders.cancel_in_thread(run.cancel)
-    else:
-        renders.cancel = run.cancel
+    renders.cancel_in_thread(run.cancel)  # (the cached renders may be another diagnosis's at the same time)
     try:
         return diagnose(failing.reference, failing.submitted, failing.failed, renders)
     finally:

@@ -1,7 +1,6 @@
 """Diagnosis (service/diagnosis/): a failing submission's likely mistake, terms out of scale, and where."""
 
 import copy
-from dataclasses import replace as dataclasses_replace
 
 import numpy as np
 import pytest
@@ -9,7 +8,7 @@ import student
 from test_variants import EVERYTHING
 
 import schemas
-from service.diagnosis import diagnose, renders_of
+from service.diagnosis import WholeImages, diagnose, renders_of
 from service.diagnosis.fit import nnls
 from service.diagnosis.where import where as diagnosis_where
 from service.grading import grade
@@ -197,9 +196,17 @@ def _submissions(scene, reference):
     return out
 
 
-def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
-    import dataclasses
+def _blindly(reference, submitted, verdict, scene, monkeypatch):  # noqa: ANN001, ANN202
+    """The diagnosis with every variant, the far end and the passes rendered whole, every variant scored and
+    no first look at a few rows (each variant graded on its whole image)."""
+    from service.diagnosis import looks
 
+    with monkeypatch.context() as patched:
+        patched.setattr(looks, "_looks", lambda *args, **kwargs: [])
+        return diagnose(reference, submitted, verdict, WholeImages(renders_of(scene)))
+
+
+def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders(monkeypatch):
     from service.diagnosis import looks
 
     scene = schemas.validate_scene(EVERYTHING)
@@ -215,11 +222,8 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         render_bound = looked.bound
         looked.bound = lambda v, f=render_bound, far=far: far.append(v) or f(v)
         # blind: every variant, the far end and the passes rendered whole, and every variant scored
-        blind = dataclasses.replace(renders_of(scene), rows=None, bound_rows=None, at=None, unchanged=None)
-        assert (
-            diagnose(reference, submitted, verdict, looked).as_dict()
-            == diagnose(reference, submitted, verdict, blind).as_dict()
-        ), name
+        blind = _blindly(reference, submitted, verdict, scene, monkeypatch)
+        assert diagnose(reference, submitted, verdict, looked).as_dict() == blind.as_dict(), name
         spared += len(VARIANTS) - len(whole) + 1 - len(far)
         # and the first look at the far end's rows is a lower bound of what the whole of it counts
         least = looks.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
@@ -276,7 +280,8 @@ def test_a_first_look_where_the_submission_is_off_rules_out_a_variant_that_leave
         return off / pixels > verdict.max_fraction
 
     # a variant that leaves the rows as the reference has them: off there as often as the reference, in one look
-    unchanged = dataclasses_replace(renders_of(scene), rows=lambda name, rows: reference[rows])
+    unchanged = renders_of(scene)
+    unchanged.rows = lambda name, rows: reference[rows]
     assert off_at_least("no-ambient", submitted, verdict, unchanged, cannot_pass, first) == counts[first].sum()
     # and for real variants, the look is still a lower bound of what the whole grade counts
     for v in ("no-shadows", "blinn-phong", "no-ambient"):
@@ -295,7 +300,7 @@ def test_where_renders_the_failing_pixels_alone_as_the_whole_pass_render_has_the
     at = renders.at
     renders.at = lambda pixels, fold: rendered.append(len(pixels)) or at(pixels, fold)
     found = diagnosis_where(reference, student, verdict, renders)
-    whole = diagnosis_where(reference, student, verdict, dataclasses_replace(renders, at=None))
+    whole = diagnosis_where(reference, student, verdict, WholeImages(renders))
     failing = np.abs(reference.astype(int) - student.astype(int)).max(axis=2) > verdict.tolerance
     assert found == whole and found[0] and rendered == [int(failing.sum())] and 0 < rendered[0] <= 4 * 40
 
@@ -354,9 +359,7 @@ def _boundary_case():
     return scene, Renderer(scene).pixels(), submitted
 
 
-def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named():
-    import dataclasses
-
+def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named(monkeypatch):
     scene, reference, submitted = _boundary_case()
     verdict = grade(reference, submitted, "", 2.0, 0.009)
     assert (
@@ -364,8 +367,7 @@ def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named():
         and grade(Renderer(scene, VARIANTS["no-shadows"][0]).pixels(), submitted, "", 2.0, 0.009).passed
     )
     found = diagnose(reference, submitted, verdict, renders_of(scene))
-    blind = dataclasses.replace(renders_of(scene), rows=None, bound_rows=None, at=None, unchanged=None)
-    assert found.as_dict() == diagnose(reference, submitted, verdict, blind).as_dict()
+    assert found.as_dict() == _blindly(reference, submitted, verdict, scene, monkeypatch).as_dict()
     assert found.causes[0].variant == "no-shadows" and found.causes[0].passes
 
 

@@ -20,7 +20,7 @@ Three kinds of evidence, each from renders of the reference scene:
   lights whose light falls on them.
 
 Everything here is pure: the renders come in through a :class:`Renders`.  The modules, one concept each:
-:mod:`.records` (what a diagnosis says, and its words), :mod:`.renders` (what it needs rendered),
+:mod:`.records` (what a diagnosis says, and its words), :mod:`.renders` (what it needs rendered, as a protocol),
 :mod:`.causes` (the variants scored, :func:`diagnose`), :mod:`.looks` (variants ruled out from a few rows),
 :mod:`.fit` (the terms out of scale), :mod:`.where` (the objects and lights), :mod:`.rendered` (the renders
 of a scene, made when first asked for), :mod:`.cache` (those of the last few scenes, kept) and
@@ -34,7 +34,7 @@ from .causes import diagnose
 from .looks import sampled_rows
 from .records import Cause, Diagnosis, Share, Term, headline, term_words, unavailable
 from .rendered import renders_needed, renders_of
-from .renders import Renders
+from .renders import Renders, WholeImages
 
 __all__ = [
     "CACHE",
@@ -44,6 +44,7 @@ __all__ = [
     "Renders",
     "Share",
     "Term",
+    "WholeImages",
     "diagnose",
     "headline",
     "renders_needed",

@@ -46,7 +46,7 @@ class Cached:
         """The bytes the scenes held hold."""
         with self._lock:
             held = list(self.held.values())
-        return sum(r.nbytes() for r in held if r.nbytes is not None)
+        return sum(r.nbytes() for r in held)
 
     def trim(self) -> None:
         """Let go of the oldest scenes until what is held fits in ``room()`` (after a diagnosis, whose renders
@@ -55,7 +55,7 @@ class Cached:
             return
         while True:
             with self._lock:
-                sizes = [(key, r.nbytes() if r.nbytes is not None else 0) for key, r in self.held.items()]
+                sizes = [(key, r.nbytes()) for key, r in self.held.items()]
                 if not sizes or sum(size for _, size in sizes) <= max(self.room(), 0):
                     return
                 self.held.pop(sizes[0][0], None)

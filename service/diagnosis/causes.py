@@ -47,8 +47,7 @@ def diagnose(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, rende
     try:
         return _diagnosed(reference, submitted, verdict, renders)
     finally:  # (cancelled or not)
-        if renders.done is not None:
-            renders.done()
+        renders.done()
 
 
 def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Diagnosis:
@@ -62,7 +61,7 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
         _named(out, reference, submitted, verdict, renders)
     renders.check()
     out.objects, out.lights = where(reference, submitted, verdict, renders)
-    return out if renders.names is None else out.worded(renders.names)
+    return out.worded(renders.names)
 
 
 def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> None:
@@ -107,7 +106,7 @@ class _Scoring:
         return self.cannot_pass(off) and off / self.pixels > CLOSEST_SHARE * self.verdict.fraction_off_nearby
 
     def shown(self, name: str) -> bool:  # a mistake the scene cannot show is no evidence of anything: not rendered
-        return self.renders.unchanged is None or not self.renders.unchanged(name)
+        return not self.renders.unchanged(name)
 
     def score(self, name: str, beyond: Callable[[int], bool]) -> bool:
         """Scores variant ``name``, unless its render shows on the way a count of off pixels ``beyond`` says
@@ -142,23 +141,19 @@ class _Scoring:
         renders, later = self.renders, []
         for name in filter(self.shown, VARIANTS):
             renders.check()
-            if name in BOUNDS and renders.bound is not None:
+            if name in BOUNDS:
                 continue  # (a speckled mistake is scored against its far end below, not by its own render)
-            if name == too_large.NAME and renders.size is not None:  # (against its ladder, by its own looks)
+            if name == too_large.NAME:  # (against its ladder, by its own looks)
                 if not too_large.score(self, self.cannot_pass):
                     later.append(name)
                 continue
             # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot
             # pass is scored only if none passes, and then only if it may come closest
-            least = (
-                None
-                if name in BOUNDS
-                else off_at_least(name, self.submitted, self.verdict, renders, self.cannot_pass, self.first)
-            )
+            least = off_at_least(name, self.submitted, self.verdict, renders, self.cannot_pass, self.first)
             if (least is not None and self.cannot_pass(least)) or not self.score(name, self.cannot_pass):
                 later.append(name)
         later_bounds = []
-        for name in filter(self.shown, BOUNDS) if renders.bound is not None else ():
+        for name in filter(self.shown, BOUNDS):
             renders.check()
             least = outside_at_least(
                 name, self.reference, self.submitted, self.verdict, renders, self.cannot_pass, self.first
@@ -172,7 +167,7 @@ class _Scoring:
         renders, closest = self.renders, self.cannot_come_closest
         for name in later:
             renders.check()
-            if name == too_large.NAME and renders.size is not None:
+            if name == too_large.NAME:
                 too_large.score(self, closest)
                 continue
             least = off_at_least(name, self.submitted, self.verdict, renders, closest, self.first)  # (every row)

@@ -53,16 +53,7 @@ def fit_terms(submitted: np.ndarray, renders: Renders) -> list[Term]:
         submitted.reshape(-1, 3).astype(np.float64) / 255.0,
         renders.check,
     )
-    if renders.blocks is not None:
-        renders.blocks(fit.fold)
-    else:  # (renders without blocks: the whole passes, as one block)
-        base = renders.passes(list(BASE_TERMS), None)
-        whole = {name: base[name].reshape(-1, 3) for name in BASE_TERMS}
-        for k, kind in enumerate(renders.lights):
-            if kind != "ambient":
-                own = renders.passes(["diffuse", "specular"], k)
-                whole |= {f"{t}:{k}": own[t].reshape(-1, 3) for t in ("diffuse", "specular")}
-        fit.fold(0, whole)
+    renders.blocks(fit.fold)
     free, coef = fit.solve()
     terms = [
         Term(columns[i][0], columns[i][1], float(c), fit.share(i, float(c)))

@@ -85,7 +85,7 @@ def off_at_least(
     first: np.ndarray | None = None,
 ) -> int | None:
     """A lower bound of how many pixels of ``submitted`` are off even nearby against variant ``name``, from a
-    look at a few of its rows (None when :class:`Renders` has no rows to give); once ``beyond`` says the count
+    look at a few of its rows (None for an image too short to have middle rows); once ``beyond`` says the count
     is too many, no more rows are looked at.
 
     Exact, not a sample's estimate: a pixel is off nearby when every variant pixel in its 3×3 neighbourhood
@@ -97,8 +97,6 @@ def off_at_least(
     settled by it.  ``first``, when given (:func:`telling_middles`), is the first look instead, and the rest
     of the sampled rows the second.  With several names, the bound is against the range of their renders
     (:func:`service.grading.range_counts`)."""
-    if renders.rows is None:
-        return None
     h, w, _ = submitted.shape
     looks = _looks(h, first)
     if not looks:
@@ -142,7 +140,7 @@ def whole_unless_off(
     shows early; a variant that may pass is rendered whole, each row once (:class:`Renders` keeps the rows of
     the first looks too); with ``counts`` (:func:`off_rows`), the bands with the most pixels off against the
     reference come first, where a variant that cannot pass shows it soonest."""
-    if renders.rows is None or beyond is None:
+    if beyond is None:
         return renders.variant(name)
     h = submitted.shape[0]
     image = np.empty_like(submitted)
@@ -207,8 +205,7 @@ def bound_unless_outside(
     count so far is a lower bound of :func:`speckled`'s, decided on as it decides (the share of the pixels):
     once too many, the mistake cannot pass (or come closest), and the rest of its far end is not rendered.
     ``counts``: the bands in the order :func:`whole_unless_off` takes them."""
-    assert renders.bound is not None
-    if renders.bound_rows is None or beyond is None:
+    if beyond is None:
         return renders.bound(name)
     image = np.empty_like(submitted)
     off = 0
@@ -261,7 +258,7 @@ def outside_at_least(
 ) -> int | None:
     """For a speckled mistake ``name`` of :data:`tracer.variants.BOUNDS`: a lower bound of how many pixels of
     ``submitted`` lie outside the reference and the mistake's far end (:func:`speckled`'s share, as a count),
-    from a look at the sampled middle rows of the far end (None when :class:`Renders` has no rows to give);
+    from a look at the sampled middle rows of the far end (None for an image too short to have middle rows);
     once ``beyond`` says the count is too many, no more rows are looked at.
 
     Exact, as :func:`off_at_least` is: whether a pixel lies outside depends on that pixel alone, so the
@@ -269,8 +266,6 @@ def outside_at_least(
     the whole image's.  A mistake whose bound exceeds what passing allows cannot pass, and one whose bound
     exceeds the closest's share cannot be named closest: its far end is rendered whole only when it can.
     ``first``: the first look's rows, as :func:`off_at_least` takes them."""
-    if renders.bound_rows is None:
-        return None
     looks = _looks(submitted.shape[0], first)
     if not looks:
         return None

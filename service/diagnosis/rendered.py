@@ -1,5 +1,5 @@
 """The renders of one scene its diagnoses ask for, made when first asked for and kept as they come
-(:func:`renders_of`, a :class:`SceneRenders` behind a :class:`Renders`)."""
+(:func:`renders_of`, a :class:`SceneRenders`: the :class:`.renders.Renders` of a scene)."""
 
 from __future__ import annotations
 
@@ -10,14 +10,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from tracer import Renderer
+from tracer import RenderCancelled, Renderer
 from tracer.image import quantize
 from tracer.passes import ADDITIVE, LIGHT_TERMS
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
 
 from .fit import FIT_BLOCK_PIXELS
 from .offsets import visible_size
-from .renders import Renders
 from .words import names_of
 
 if TYPE_CHECKING:
@@ -34,9 +33,9 @@ WHOLE_PASSES_BYTES = 64 << 20
 
 def renders_of(
     scene: Any, threads: int | None = None, base: Options = REFERENCE, open_pixels: np.ndarray | None = None
-) -> Renders:
-    """:class:`Renders` of a validated scene, rendered here when first asked for; its ``cancel()`` true stops a
-    render with :class:`tracer.RenderCancelled`.
+) -> SceneRenders:
+    """The :class:`.renders.Renders` of a validated scene, rendered here when first asked for; its ``cancel()``
+    true stops a render with :class:`tracer.RenderCancelled`.
 
     One render gives every pass, every light's terms and the image's linear colour
     (:meth:`tracer.Renderer.diagnosis_passes`); from that colour come, exactly as their own renders would make
@@ -52,28 +51,7 @@ def renders_of(
     With ``base`` (an honest student's offset, :mod:`.nuisance`), every render is made with its offset: the
     reference is the reference as that student renders it, and each mistake is that mistake made by them; the
     pixels of ``open_pixels`` (True) are not counted against a submission."""
-    made = SceneRenders(scene, threads, base)
-    made.out = Renders(
-        made.variant,
-        made.of,
-        [light.type for light in scene.lights],
-        [obj.type for obj in scene.objects],
-        made.bound,
-        rows=made.rows,
-        bound_rows=made.bound_rows,
-        at=made.at,
-        unchanged=made.unchanged,
-        done=made.done,
-        cancel_in_thread=made.cancel_in_thread,
-        blocks=made.blocks,
-        nbytes=made.nbytes,
-        polled=made.polled,
-        render=made.render,
-        names=names_of(scene),
-        size=made.size,
-        open=open_pixels,
-    )
-    return made.out
+    return SceneRenders(scene, threads, base, open_pixels)
 
 
 def options_of(name: str, size: Callable[[], float] | None = None) -> Options:
@@ -95,13 +73,15 @@ def on_base(options: Options, base: Options) -> Options:
 
 class SceneRenders:
     """What :func:`renders_of` renders of one scene, and keeps: the variants and far ends whole, the rows of
-    those not yet whole, and the reference's passes and images (``made``).  Its methods are the callables of
-    the :class:`Renders` it stands behind (``out``), whose ``cancel`` and ``check`` it polls."""
+    those not yet whole, and the reference's passes and images (``made``).  The :class:`.renders.Renders` of
+    the scene: its methods are those the protocol describes."""
 
-    out: Renders
-
-    def __init__(self, scene: Any, threads: int | None, base: Options = REFERENCE):
-        self.scene, self.threads, self.base = scene, threads, base
+    def __init__(self, scene: Any, threads: int | None, base: Options = REFERENCE, open: np.ndarray | None = None):
+        self.scene, self.threads, self.base, self.open = scene, threads, base, open
+        self.cancel: Callable[[], bool] | None = None
+        self.lights = [light.type for light in scene.lights]
+        self.objects = [obj.type for obj in scene.objects]
+        self.names = names_of(scene)
         self.visible: float | None = None
         self.variants: dict[str, np.ndarray] = {}
         self.bounds: dict[str, np.ndarray] = {}
@@ -123,8 +103,14 @@ class SceneRenders:
     # -- the diagnosis this thread runs ------------------------------------------------------------------------
 
     def polled(self) -> Callable[[], bool] | None:
+        """The current thread's cancel (set by :meth:`cancel_in_thread`), else ``cancel``."""
         mine: Callable[[], bool] | None = getattr(self.asked, "cancel", None)
-        return mine if mine is not None else self.out.cancel
+        return mine if mine is not None else self.cancel
+
+    def check(self) -> None:
+        cancel = self.polled()
+        if cancel is not None and cancel():
+            raise RenderCancelled("diagnosis cancelled")
 
     def cancel_in_thread(self, cancel: Callable[[], bool] | None) -> None:
         self.asked.cancel = cancel
@@ -157,10 +143,10 @@ class SceneRenders:
 
     # -- the reference's passes and images ---------------------------------------------------------------------
 
-    def passes(self) -> dict[str, np.ndarray]:
+    def whole_passes(self) -> dict[str, np.ndarray]:
         """The whole image's passes, held (a scene small enough, or no blocks)."""
         if "all" not in self.made:
-            self.out.check()
+            self.check()
             self.made["all"] = self.prepared(REFERENCE).diagnosis_passes(threads=self.threads, cancel=self.polled())
         return self.made["all"]
 
@@ -169,7 +155,7 @@ class SceneRenders:
         render folded as it comes (all it keeps are these)."""
         if "images" not in self.made:
             if self.whole or "all" in self.made:
-                colour = self.passes()["colour"]
+                colour = self.whole_passes()["colour"]
                 self.made["images"] = {
                     "reference": quantize(colour),
                     "gamma": quantize(np.clip(colour, 0.0, None) ** (1.0 / 2.2)),
@@ -180,7 +166,7 @@ class SceneRenders:
 
     def folded(self, fold: Fold | None) -> None:
         """A render of the whole image's passes, each chunk to ``fold`` and to the reference's images."""
-        self.out.check()
+        self.check()
         mine = "images" not in self.made
         reference, gamma = (np.empty((self.total, 3), dtype=np.uint8) for _ in range(2))
 
@@ -202,7 +188,7 @@ class SceneRenders:
         if not self.whole:
             self.folded(fold)
             return
-        every, total = self.passes(), self.total
+        every, total = self.whole_passes(), self.total
         for first in range(0, total, FIT_BLOCK_PIXELS):
             fold(
                 first,
@@ -222,7 +208,7 @@ class SceneRenders:
         pixels); past that, the whole image once, and kept, when it is small enough to keep."""
         if "all" in self.made or (self.whole and self.spent + len(pixels) > self.total):
             rows, cols = np.divmod(pixels, self.width)
-            there = {name: plane[rows, cols] for name, plane in self.passes().items() if name != "colour"}
+            there = {name: plane[rows, cols] for name, plane in self.whole_passes().items() if name != "colour"}
             fold(0, there)
             return there["object"]
         self.spent += len(pixels)
@@ -237,13 +223,17 @@ class SceneRenders:
         )
         return found
 
-    def of(self, names: list[str], light: int | None) -> dict[str, np.ndarray]:
-        every = self.passes()
+    def passes(self, names: list[str], light: int | None) -> dict[str, np.ndarray]:
+        every = self.whole_passes()
         return {name: every[name if light is None or name not in LIGHT_TERMS else f"{name}:{light}"] for name in names}
 
     # -- the variants and the far ends -------------------------------------------------------------------------
 
     def variant(self, name: str) -> np.ndarray:
+        return self._variant(name)
+
+    def _variant(self, name: str) -> np.ndarray:
+        """Variant ``name`` whole (what :meth:`variant` gives, and :meth:`rows` once it is whole)."""
         variants = self.variants
         if name not in variants:
             if name == "gamma" and self.made_whole():  # as Renderer.pixels stores a gamma variant's chunk colour
@@ -288,7 +278,7 @@ class SceneRenders:
     def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
         """Rows of a classic mistake's render (:data:`VARIANTS`), or of a new one's (:data:`MORE_VARIANTS`), kept."""
         if name in self.variants or (name in DERIVED and self.made_whole()) or self.unchanged(name):
-            return self.variant(name)[numbers]
+            return self._variant(name)[numbers]
         return self.kept_rows(name, name, options_of(name, self.size), self.variants, numbers)
 
     def render(self, options: Options) -> np.ndarray:
@@ -297,6 +287,10 @@ class SceneRenders:
         return self.prepared(options).pixels(threads=self.threads, cancel=self.polled())
 
     def bound(self, name: str) -> np.ndarray:
+        return self._bound(name)
+
+    def _bound(self, name: str) -> np.ndarray:
+        """The far end ``name`` whole (what :meth:`bound` gives, and :meth:`bound_rows` once it is whole)."""
         if name not in self.bounds:
             if self.unchanged(name):
                 self.bounds[name] = self.images()["reference"]
@@ -308,7 +302,7 @@ class SceneRenders:
 
     def bound_rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
         if name in self.bounds or self.unchanged(name):
-            return self.bound(name)[numbers]
+            return self._bound(name)[numbers]
         return self.kept_rows("bound:" + name, name, BOUNDS[name], self.bounds, numbers)
 
     def nbytes(self) -> int:

@@ -1,14 +1,13 @@
-"""What a diagnosis needs rendered from the reference scene, as callables: :class:`Renders`."""
+"""What a diagnosis needs rendered from the reference scene: the :class:`Renders` protocol, which the scene's own
+renders (:class:`.rendered.SceneRenders`) implement, and :class:`WholeImages`, the same renders seen as whole
+images only (rows, far ends' rows and failing pixels taken from them: the slow path a shortcut is checked by)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
-
-from tracer import RenderCancelled
 
 if TYPE_CHECKING:
     from tracer.render import Fold
@@ -17,55 +16,115 @@ if TYPE_CHECKING:
     from .words import Names
 
 
-@dataclass
-class Renders:
+class Renders(Protocol):
     """What a diagnosis needs rendered from the reference scene: each call may come from a cache."""
 
-    variant: Callable[[str], np.ndarray]  # name → (H, W, 3) uint8 pixels of the reference with that mistake
-    passes: Callable[[list[str], int | None], dict[str, np.ndarray]]  # names, light → tracer passes
-    lights: list[str]  # the scene's light types, in order
-    objects: list[str]  # the scene's object types, in order
-    bound: Callable[[str], np.ndarray] | None = None  # name of BOUNDS → pixels of the mistake's far end
-    cancel: Callable[[], bool] | None = None  # the current diagnosis's: true stops its renders
-    #: name, row numbers → those rows of the variant's pixels, rendered alone (a first look, :func:`off_at_least`,
-    #: or a band of its whole image, :func:`whole_unless_off`)
-    rows: Callable[[str, np.ndarray], np.ndarray] | None = None
-    #: name of BOUNDS, row numbers → those rows of the mistake's far end, rendered alone (:func:`outside_at_least`)
-    bound_rows: Callable[[str, np.ndarray], np.ndarray] | None = None
-    #: pixel numbers, fold → the first hits' ``object`` at those pixels alone; their ``diffuse:K`` and
-    #: ``specular:K`` go to the fold, a block at a time (:data:`tracer.render.Fold`)
-    at: Callable[[np.ndarray, Fold], np.ndarray] | None = None
-    #: name → whether the scene cannot show that mistake (its render is the reference's, bit for bit)
-    unchanged: Callable[[str], bool] | None = None
-    #: called when a diagnosis is over, in its thread: lets go of what was prepared only for its renders
-    done: Callable[[], None] | None = None
-    #: sets the cancel of the diagnosis this thread runs (``cancel`` is every thread's): two diagnoses of one
-    #: cached scene, in two threads, each stop on their own
-    cancel_in_thread: Callable[[Callable[[], bool] | None], None] | None = None
-    #: hands the columns of the term fit (``background``, ``ambient``, ``reflection``, ``refraction``,
-    #: ``diffuse:K``, ``specular:K``, each ``(pixels, 3)``) to a fold, a block of pixels at a time, in order
-    #: (:data:`tracer.render.Fold`): the whole image's passes are never needed at once
-    blocks: Callable[[Fold], None] | None = None
-    #: the bytes of the arrays these renders hold (what a cache of them counts)
-    nbytes: Callable[[], int] | None = None
+    #: the current diagnosis's: true stops its renders (every thread's; see :meth:`cancel_in_thread`)
+    cancel: Callable[[], bool] | None
+
+    @property
+    def lights(self) -> list[str]:
+        """The scene's light types, in order."""
+
+    @property
+    def objects(self) -> list[str]:
+        """The scene's object types, in order."""
+
+    @property
+    def names(self) -> Names:
+        """How a student is told of the scene's objects and lights (:mod:`.words`)."""
+
+    @property
+    def open(self) -> np.ndarray | None:
+        """``(H, W)`` bool, True where a pixel is not counted against a submission: the format leaves it open, or
+        an honest student's offset, fitted as a nuisance (:mod:`.nuisance`), may move it; None: every pixel
+        counts."""
+
+    def variant(self, name: str) -> np.ndarray:
+        """``(H, W, 3)`` uint8 pixels of the reference with mistake ``name``."""
+
+    def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        """Rows ``numbers`` of variant ``name``'s pixels (a first look, :func:`.looks.off_at_least`, or a band
+        of its whole image, :func:`.looks.whole_unless_off`): the rows of its whole image, exactly."""
+
+    def bound(self, name: str) -> np.ndarray:
+        """Pixels of the far end of a mistake of :data:`tracer.variants.BOUNDS`."""
+
+    def bound_rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        """Rows ``numbers`` of that far end (:func:`.looks.outside_at_least`)."""
+
+    def passes(self, names: list[str], light: int | None) -> dict[str, np.ndarray]:
+        """The reference's tracer passes ``names``, of light ``light`` for a light's terms."""
+
+    def at(self, pixels: np.ndarray, fold: Fold) -> np.ndarray:
+        """The first hits' ``object`` at pixel numbers ``pixels``; their ``diffuse:K`` and ``specular:K`` go to
+        ``fold``, a block at a time (:data:`tracer.render.Fold`)."""
+
+    def blocks(self, fold: Fold) -> None:
+        """Hands the columns of the term fit (``background``, ``ambient``, ``reflection``, ``refraction``,
+        ``diffuse:K``, ``specular:K``, each ``(pixels, 3)``) to ``fold``, a block of pixels at a time, in order:
+        the whole image's passes are never needed at once."""
+
+    def render(self, options: Options) -> np.ndarray:
+        """The whole image rendered with ``options`` (mistakes made together, :mod:`.compose`)."""
+
+    def unchanged(self, name: str) -> bool:
+        """Whether the scene cannot show mistake ``name`` (its render is the reference's, bit for bit)."""
+
+    def size(self) -> float:
+        """The scene's visible size (:mod:`tracer.visible`): an offset too large is rendered at a ladder of
+        amounts (``offset-too-large@0.05``, in the scene's units)."""
 
     def check(self) -> None:
         """Raises :class:`tracer.RenderCancelled` once the current diagnosis's cancel says to stop (its deadline,
         or its client gone): polled between the stages that render nothing (grading, the fit)."""
-        cancel = self.cancel if self.polled is None else self.polled()
-        if cancel is not None and cancel():
-            raise RenderCancelled("diagnosis cancelled")
 
-    #: the current thread's cancel (set by ``cancel_in_thread``), else ``cancel``
-    polled: Callable[[], Callable[[], bool] | None] | None = None
-    #: options → the whole image rendered with them (mistakes made together, :mod:`.compose`); None: no
-    #: combination is tried
-    render: Callable[[Options], np.ndarray] | None = None
-    #: how a student is told of the scene's objects and lights (:mod:`.words`); None: by index
-    names: Names | None = None
-    #: the scene's visible size (:mod:`tracer.visible`): an offset too large is rendered at a ladder of amounts
-    #: (``offset-too-large@0.05``, in the scene's units) only when it is given; None: at its variant's alone
-    size: Callable[[], float] | None = None
-    #: ``(H, W)`` bool, True where a pixel is not counted against a submission: the format leaves it open, or an
-    #: honest student's offset, fitted as a nuisance (:mod:`.nuisance`), may move it; None: every pixel counts
-    open: np.ndarray | None = None
+    def cancel_in_thread(self, cancel: Callable[[], bool] | None) -> None:
+        """Sets the cancel of the diagnosis this thread runs (``cancel`` is every thread's): two diagnoses of one
+        cached scene, in two threads, each stop on their own."""
+
+    def done(self) -> None:
+        """Called when a diagnosis is over, in its thread: lets go of what was prepared only for its renders."""
+
+    def nbytes(self) -> int:
+        """The bytes of the arrays these renders hold (what a cache of them counts)."""
+
+
+class WholeImages:
+    """``renders`` seen as whole images only: a variant's rows and a far end's rows are the rows of its whole
+    image, the failing pixels' passes those of the whole image's passes, and every mistake is scored (none is
+    known unchanged).  The same answers, exactly, by the slow path: what the shortcuts are checked against."""
+
+    def __init__(self, renders: Renders):
+        self.inner = renders
+        self.lights, self.objects, self.names, self.open = renders.lights, renders.objects, renders.names, renders.open
+        self.variant, self.bound, self.passes = renders.variant, renders.bound, renders.passes
+        self.blocks, self.render, self.size, self.check = renders.blocks, renders.render, renders.size, renders.check
+        self.cancel_in_thread, self.done, self.nbytes = renders.cancel_in_thread, renders.done, renders.nbytes
+
+    @property
+    def cancel(self) -> Callable[[], bool] | None:
+        return self.inner.cancel
+
+    @cancel.setter
+    def cancel(self, cancel: Callable[[], bool] | None) -> None:
+        self.inner.cancel = cancel
+
+    def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        return self.variant(name)[numbers]
+
+    def bound_rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
+        return self.bound(name)[numbers]
+
+    def at(self, pixels: np.ndarray, fold: Fold) -> np.ndarray:
+        found: np.ndarray = self.passes(["object"], None)["object"].reshape(-1)[pixels]
+        there: dict[str, np.ndarray] = {}
+        for k, kind in enumerate(self.lights):
+            if kind != "ambient":
+                own = self.passes(["diffuse", "specular"], k)
+                there |= {f"{term}:{k}": own[term].reshape(-1, 3)[pixels] for term in ("diffuse", "specular")}
+        fold(0, there)
+        return found
+
+    def unchanged(self, name: str) -> bool:
+        return False

@@ -27,16 +27,10 @@ CLOSEST_SHARE = 0.25
 NEAREST = 5
 
 
-def looks_of(renders: Renders) -> Looks | None:
-    """The :class:`Looks` of a diagnosis's renders (rows of whole variants when they render no rows alone: the
-    same pixels); None when they cannot render a combination."""
-    if renders.render is None:
-        return None
-    unchanged, variant = renders.unchanged, renders.variant
-    rows = renders.rows if renders.rows is not None else lambda name, numbers: variant(name)[numbers]
-    return Looks(
-        rows, renders.render, lambda name: unchanged is None or not unchanged(name), tuple(renders.lights), renders.open
-    )
+def looks_of(renders: Renders) -> Looks:
+    """The :class:`Looks` of a diagnosis's renders."""
+    unchanged = renders.unchanged
+    return Looks(renders.rows, renders.render, lambda name: not unchanged(name), tuple(renders.lights), renders.open)
 
 
 def fitted(terms: list[Term]) -> list[Term]:
@@ -47,12 +41,9 @@ def combined(
     reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders, terms: list[Term]
 ) -> Combination | None:
     """The mistakes made together the submission matches or comes nearest (:func:`.compose.compose`); None
-    when no mistake helps, the one found is a classic one alone, or the renders cannot make a combination."""
-    looks = looks_of(renders)
-    if looks is None:
-        return None
+    when no mistake helps, or the one found is a classic one alone."""
     renders.check()
-    return compose(reference, submitted, verdict, looks, fitted(terms))
+    return compose(reference, submitted, verdict, looks_of(renders), fitted(terms))
 
 
 def together_causes(combination: Combination) -> list[Cause]:
@@ -99,14 +90,10 @@ def nearest_causes(
 ) -> list[Cause]:
     """The nearest explanations as causes, none passed against, most of the difference first: a mistake by its
     id, a term as ``term:NAME`` or ``term:NAME:LIGHT``, each with its share of the difference and its words."""
-    looks = looks_of(renders)
     shared = [(f, t.share) for f, t in zip(fitted(terms), terms) if t.share]
-    if looks is None:
-        ranked = sorted((Explanation(share, term=f) for f, share in shared), key=lambda e: -e.share)
-    else:
-        renders.check()
-        ranked = nearest(reference, submitted, looks, shared, verdict.tolerance)
-    names = renders.names or Names((), ())
+    renders.check()
+    ranked = nearest(reference, submitted, looks_of(renders), shared, verdict.tolerance)
+    names = renders.names
     out = []
     for e in ranked[:NEAREST]:
         if e.term is not None:

@@ -70,7 +70,6 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     off by a count ``beyond`` says is too many; else adds the cause, its words the amount of the range the
     submission comes closer to."""
     renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
-    assert renders.size is not None
     size = renders.size()
     ladder = amounts(size)
     sampled = _Sampled(scoring)
@@ -111,8 +110,7 @@ class _Sampled:
 
     def bands(self, amount: float) -> np.ndarray:
         name, renders = rung_name(amount), self.renders
-        rows = renders.rows(name, self.rows) if renders.rows is not None else renders.variant(name)[self.rows]
-        return rows.reshape(len(self.middles), 3, self.w, 3)
+        return renders.rows(name, self.rows).reshape(len(self.middles), 3, self.w, 3)
 
     def off(self, amounts: tuple[float, ...]) -> tuple[int, int]:
         """The pixels off on the sampled rows against the range of the renders of ``amounts``, and the sum of

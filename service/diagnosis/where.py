@@ -29,15 +29,7 @@ def where(
         for k in shining:
             lit_by[k] += int(np.count_nonzero((part[f"diffuse:{k}"] + part[f"specular:{k}"]).max(axis=1) > 1.0 / 255))
 
-    if renders.at is not None:  # the passes of the failing pixels alone
-        found = renders.at(np.flatnonzero(diff), fold)
-    else:
-        found = renders.passes(["object"], None)["object"][diff]
-        there: dict[str, np.ndarray] = {}
-        for k in shining:
-            own = renders.passes(["diffuse", "specular"], k)
-            there |= {f"diffuse:{k}": own["diffuse"][diff], f"specular:{k}": own["specular"][diff]}
-        fold(0, there)
+    found = renders.at(np.flatnonzero(diff), fold)  # (the passes of the failing pixels alone)
     objects = [
         Share(int(k), renders.objects[int(k)] if k >= 0 else "background", float(np.mean(found == k)))
         for k in np.unique(found)

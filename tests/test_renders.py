@@ -1,0 +1,49 @@
+"""What a diagnosis renders (service/diagnosis/renders.py): the scene's own renders and the same renders seen as
+whole images only give the same rows, far ends and failing pixels' passes."""
+
+import numpy as np
+import pytest
+
+import schemas
+from bench.scenes import example
+from service.diagnosis import WholeImages, renders_of
+from service.diagnosis.rendered import options_of
+from tracer import RenderCancelled, Renderer
+from tracer.variants import BOUNDS, VARIANTS
+
+
+def _folded(renders, pixels):
+    parts = []
+    found = renders.at(pixels, lambda first, part: parts.append((first, part)))
+    return found, parts
+
+
+def test_whole_images_give_the_rows_far_ends_and_pixels_the_scene_renders_alone():
+    scene = schemas.validate_scene(example("01_three_spheres", 24, 16))
+    alone, whole = renders_of(scene, threads=1), WholeImages(renders_of(scene, threads=1))
+    rows = np.array([0, 5, 6, 15])
+    for name in ("no-shadows", "gamma", "offset-too-large@0.05"):
+        assert np.array_equal(whole.rows(name, rows), alone.rows(name, rows)), name
+        own = Renderer(scene, options_of(name, alone.size)).pixels()
+        assert np.array_equal(whole.rows(name, rows), own[rows]), name
+    assert np.array_equal(whole.bound_rows("shadow-acne", rows), Renderer(scene, BOUNDS["shadow-acne"]).pixels()[rows])
+    assert not any(whole.unchanged(name) for name in VARIANTS)  # (every mistake scored, shown or not)
+    pixels = np.array([3, 40, 41, 200, 24 * 16 - 1])
+    (found_alone, parts_alone), (found_whole, parts_whole) = _folded(alone, pixels), _folded(whole, pixels)
+    assert np.array_equal(found_alone, found_whole)
+    lights = [k for k, light in enumerate(scene.lights) if light.type != "ambient"]
+    assert lights and len(parts_whole) == 1 and parts_whole[0][0] == 0
+    for k in lights:
+        for term in ("diffuse", "specular"):
+            got = np.concatenate([part[f"{term}:{k}"] for _, part in parts_alone])
+            assert np.array_equal(parts_whole[0][1][f"{term}:{k}"], got), (term, k)
+
+
+def test_a_cancel_set_on_whole_images_stops_the_renders_they_stand_for():
+    scene = schemas.validate_scene(example("01_three_spheres", 8, 6))
+    inner = renders_of(scene, threads=1)
+    whole = WholeImages(inner)
+    whole.cancel = lambda: True
+    assert inner.cancel is whole.cancel
+    with pytest.raises(RenderCancelled):
+        whole.check()
