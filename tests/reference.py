@@ -189,8 +189,13 @@ def _coplanar(surfaces: list[Surface]) -> None:
             i = label[i]
         return i
 
+    # a surface is paired only with those of later objects: two of one object (faces of a mesh) are never joined
+    # nor made unsure, and surfaces come in object order, so the later objects' are those past its object's last
+    after = np.searchsorted(obj, obj, side="right")
     for i in range(len(f) - 1):
-        j = np.arange(i + 1, len(f))
+        j = np.arange(after[i], len(f))
+        if not len(j):
+            continue
         sine = _norm(np.cross(normal[i], normal[j]))
         scale = mag[i] + mag[j]
         big_i = (extent[i] > extent[j]) | (extent[i] == extent[j])  # the larger holds the smaller's corners
