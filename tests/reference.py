@@ -66,7 +66,10 @@ def _v(a) -> np.ndarray:  # noqa: ANN001
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.sum(a * b, axis=-1)
+    """``np.sum(a * b, axis=-1)`` to the bit, several times faster on many short vectors: the same products, added
+    in the order the sum adds them (from +0.0, first to last: the trailing + 0.0 is that first +0.0, which only
+    changes a sum of three -0.0)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2] + 0.0
 
 
 def _norm(a: np.ndarray) -> np.ndarray:
