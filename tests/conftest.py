@@ -57,6 +57,7 @@ SANDBOXED = {
     "test_guard.py",
     "test_seccomp.py",
     "test_runtime.py",
+    "test_usage.py",
 }
 
 

@@ -56,8 +56,8 @@ def test_root_makes_the_parent_and_enables_its_controllers(tmp_path, monkeypatch
     monkeypatch.setattr(Cgroups, "check", check)
     found = find(mount, root=True)
     assert found.parent == parent == made[0]
-    assert (mount / "cgroup.subtree_control").read_text() == "+memory +pids"
-    assert (parent / "cgroup.subtree_control").read_text() == "+memory +pids"
+    assert (mount / "cgroup.subtree_control").read_text() == "+memory +pids +cpu"  # (the root offers cpu)
+    assert (parent / "cgroup.subtree_control").read_text() == "+memory +pids"  # (this one does not)
 
 
 def test_a_dead_graders_groups_are_removed(tmp_path):
@@ -91,3 +91,15 @@ def test_a_parent_without_the_controllers_is_refused(tmp_path):
     (parent / "cgroup.subtree_control").write_text("")
     with pytest.raises(CgroupError, match="does not offer the memory and pids controllers"):
         find(tmp_path, str(parent), root=False)
+
+
+def test_a_runs_group_says_its_cpu_time_and_its_wait_for_one(tmp_path, monkeypatch):
+    monkeypatch.setattr(cgroup, "REMOVE_SECONDS", 0.0)
+    run = RunGroup(tmp_path / "run-1", 512 << 20, 32)
+    (run.path / "cpu.stat").write_text("usage_usec 1500000\nuser_usec 1400000\nsystem_usec 100000\n")
+    (run.path / "cpu.pressure").write_text(
+        "some avg10=80.00 avg60=20.00 avg300=5.00 total=6200000\nfull avg10=0.00 avg60=0.00 avg300=0.00 total=0\n"
+    )
+    assert run.stop() is None
+    assert (run.cpu_seconds, run.waited_seconds) == (1.5, 6.2)
+    run.close()

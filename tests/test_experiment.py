@@ -147,3 +147,59 @@ def test_an_honest_program_answers_every_probe_right(tmp_path, task):
     found = asked(tmp_path, "", task)
     assert [a.verdict for a in found.answers] == ["right"] * len(found.answers)
     assert found.sentences == []
+
+
+def counted(outcome: RunOutcome) -> tuple[Callable[[bytes], RunOutcome], list[bytes]]:
+    """A program (no sandbox) that answers every probe with ``outcome``, and the scenes it was asked."""
+    scenes: list[bytes] = []
+
+    def run(scene: bytes) -> RunOutcome:
+        scenes.append(scene)
+        return outcome
+
+    return run, scenes
+
+
+def test_a_probe_that_times_out_ends_the_experiment():
+    """A program that fails its task and then waits on each probe would cost the class (1 + probes) wall-time
+    limits a task: the first probe that times out is the last asked."""
+    scene = (HERE / "spot.json").read_bytes()
+    run, scenes = counted(RunOutcome(Reason.TIMEOUT, "still running at the wall-time limit of 3 s", wall_seconds=3.0))
+    found = experiment(scene, None, run, Thresholds(2.0, 0.001))
+    assert len(scenes) == 1 and [a.verdict for a in found.answers] == ["timeout"]
+    assert found.sentences[-1].endswith("the program's run timed out")
+
+
+def test_a_students_probes_stop_once_its_allowance_of_time_is_spent():
+    """Each probe answered just within its limit: the student's allowance (its tasks' together) ends them."""
+    from service.programs.experiment import Allowance
+
+    scene = (HERE / "spot.json").read_bytes()
+    slow = RunOutcome(Reason.OK, "ok", render_png(json.loads(scene), ("no-shadows",)), wall_seconds=10.0)
+    allowance = Allowance(25.0)
+    run, scenes = counted(slow)
+    experiment(scene, slow.image, run, Thresholds(2.0, 0.001), allowance=allowance)
+    assert len(scenes) == 3 and allowance.seconds <= 0
+    run, scenes = counted(slow)
+    experiment(scene, slow.image, run, Thresholds(2.0, 0.001), allowance=allowance)  # (the next task's)
+    assert scenes == []
+
+
+def test_a_program_sleeping_on_its_probes_is_asked_one(tmp_path):
+    """In the sandbox: the task rendered wrong at once, every probe slept on."""
+    check_sandbox()
+    folder = student(tmp_path, "no-shadows")
+    (folder / "sleeper.py").write_text(
+        "import json, runpy, sys, time\n"
+        "if len(json.load(open(sys.argv[1]))['lights']) < 3:  # (a light alone: a probe)\n"
+        "    time.sleep(3600)\n"
+        "runpy.run_path('tracer.py', run_name='__main__')\n"
+    )
+    quick = Limits(wall_seconds=3.0, cpu_seconds=30, memory_bytes=1 << 30, output_bytes=1 << 20, folder_bytes=1 << 20)
+    run = _runner(folder, Program("python3 sleeper.py {scene} {output}", limits=quick), "spot.json")
+    scene = (HERE / "spot.json").read_bytes()
+    first = run(scene)
+    assert first.ok, first.detail
+    found = experiment(scene, first.image, run, Thresholds(2.0, 0.001))
+    assert [a.verdict for a in found.answers][-1] == "timeout"
+    assert sum(a.verdict == "timeout" for a in found.answers) == 1

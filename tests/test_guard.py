@@ -7,6 +7,7 @@ tests that are about a shared user make every run of theirs one user when they a
 user drawn for the test), so that they test what a teaching assistant's account would meet."""
 
 import os
+import re
 import signal
 import subprocess
 import textwrap
@@ -18,6 +19,7 @@ from test_programs import PRELUDE, make_course, nothing_left  # noqa: F401  (aft
 
 from service.programs import Limits, ProgramRun, Reason, run_program
 from service.programs.guard import enforcement
+from service.programs.outcome import busy
 from service.programs.sandbox import sandbox_uid
 from service.programs.watchdog import Watchdog, family
 
@@ -165,3 +167,24 @@ def test_the_watchdog_counts_processes_where_the_kernel_does_not(tmp_path):
     finally:
         os.killpg(family_of_nine.pid, signal.SIGKILL)
         family_of_nine.wait()
+
+
+def test_a_run_killed_at_its_wall_time_says_whether_it_waited_for_a_cpu(course):
+    """Three processes that spin on one CPU wait, ready, for it twice as long as they run: a run timed out that way
+    was not given the CPU it asked for, and the TA is told so (as a busy grading machine would make it)."""
+    body = """\
+        os.sched_setaffinity(0, {0})
+        for _ in range(2):
+            if os.fork() == 0:
+                break
+        while True:
+            pass
+        """
+    outcome = run(course, body, Limits(wall_seconds=3.0, cpu_seconds=60))
+    assert outcome.reason is Reason.TIMEOUT, (outcome.reason, outcome.detail)
+    assert outcome.waited_seconds > outcome.cpu_seconds >= 0.5, (outcome.waited_seconds, outcome.cpu_seconds)
+    said = busy(outcome) or ""
+    ran, waited = (float(w) for w in re.findall(r"having run ([\d.]+) s and waited ([\d.]+) s for a CPU", said)[0])
+    assert (ran, waited) == (round(outcome.cpu_seconds, 1), round(outcome.waited_seconds, 1))
+    assert "the grading machine was busy" in said
+    assert outcome.detail == "still running at the wall-time limit of 3 s; killed"  # (the same however busy)

@@ -123,3 +123,26 @@ def test_a_job_sent_with_its_pack_runs_the_packed_folder_wherever_it_is(tmp_path
     too_large = pack_folder(student, 100)
     for row in grade_program(ProgramJob(elsewhere, program, tasks, too_large)).values():
         assert row["reason"] == "the build failed: folder-too-large: the student's folder is larger than the limit"
+
+
+#: runs the honest tracer, then puts a private chunk of 900 kB (no decoder shows it) into the PNG it wrote
+BLOATER = """\
+import runpy, struct, sys, zlib
+runpy.run_path("tracer.py", run_name="__main__")
+data = open(sys.argv[2], "rb").read()
+blob = b"\\0" * 900_000
+chunk = struct.pack(">I", len(blob)) + b"prVt" + blob + struct.pack(">I", zlib.crc32(b"prVt" + blob))
+open(sys.argv[2], "wb").write(data[:33] + chunk + data[33:])  # (after the signature and IHDR)
+"""
+
+
+def test_what_is_kept_of_a_programs_image_is_the_png_of_its_pixels(tmp_path, tasks):
+    """A PNG may carry megabytes of a chunk no decoder shows; the report keeps the PNG of the pixels graded."""
+    from tracer import decode_png
+
+    student = folder(tmp_path)
+    (student / "bloat.py").write_text(BLOATER)
+    graded = grade_program(ProgramJob(student, Program("python3 bloat.py {scene} {output}", limits=LIMITS), tasks[:1]))
+    kept = graded["spot"]["image"]
+    assert graded["spot"]["status"] == "pass" and b"prVt" not in kept and len(kept) < 100_000
+    assert (decode_png(kept) == decode_png(tasks[0].grading.reference)).all()

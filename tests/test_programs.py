@@ -271,7 +271,10 @@ def test_a_daemon_left_running_is_gone_after_the_run(course):
         course,
         """\
         if os.fork() == 0:
-            os.setsid()
+            try:
+                os.setsid()  # (refused in the sandbox: the double fork still makes a daemon)
+            except OSError:
+                pass
             if os.fork() == 0:
                 os.execvp("sleep", ["sleep", "987.654"])
             os._exit(0)
@@ -386,6 +389,24 @@ def test_a_program_cannot_pass_for_a_sandbox_that_did_not_start(course):
     assert outcome.reason is Reason.CRASHED and outcome.detail == "crashed (exit 1)"
 
 
+def test_a_program_cannot_forge_bubblewraps_failure_past_the_cpu_time_report(course):
+    """A program that exits 1 and leaves a child writing bubblewrap's words until the sandbox is torn down pushes
+    the shell's report out of the end of standard error: bubblewrap's own status still says it ran."""
+    outcome = run(
+        course,
+        """\
+        line = b"bwrap: Creating new namespace failed: Resource temporarily unavailable"
+        record = line + b" " * (4095 - len(line)) + b"\\n"
+        if os.fork() == 0:
+            while True:
+                os.write(2, record)
+        sys.exit(1)
+        """,
+    )
+    assert outcome.reason is Reason.CRASHED and outcome.detail == "crashed (exit 1)"
+    assert outcome.stderr_tail.startswith("bwrap: Creating new namespace failed")
+
+
 @pytest.mark.parametrize(
     ("command", "error"),
     [
@@ -403,3 +424,67 @@ def test_a_command_template_that_cannot_run_is_refused_before_any_run(course, co
 def test_a_build_command_that_cannot_run_is_refused(course, command, error):
     with pytest.raises(ValueError, match=error):
         BuildStep(course / "subs" / "ann", command)
+
+
+#: a build that writes into every pipe its parents hold (the stream its folder once came back in) and leaves a
+#: daemon writing into them, and into the output file, until the sandbox ends
+STREAM_WRITER = """\
+import os, sys, time
+def spoil():
+    mine = os.readlink("/proc/self/fd/2")
+    for pid in (os.getppid(), 1):
+        try:
+            fds = os.listdir(f"/proc/{pid}/fd")
+        except OSError:
+            continue
+        for fd in fds:
+            try:
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+                if target.startswith("pipe:") and target != mine:
+                    with open(f"/proc/{pid}/fd/{fd}", "wb") as stream:
+                        stream.write(b"not a tar stream " * 64)
+                    print("SPOILED", pid, fd, file=sys.stderr)
+            except OSError as exc:
+                print("CANNOT", pid, fd, exc.strerror, file=sys.stderr)
+spoil()
+if os.fork() == 0:
+    os.setpgid(0, 0)
+    if os.fork() == 0:
+        while True:
+            spoil()
+            try:
+                with open("/out/output.png", "wb") as f:
+                    f.write(b"garbage " * 1000)
+            except OSError:
+                pass
+            time.sleep(0.01)
+    os._exit(0)
+time.sleep(0.3)
+"""
+
+
+def test_a_build_cannot_spoil_the_folder_it_leaves(course, tmp_path):
+    """Its result comes back once every other process of the build is gone, in a file none of them could still
+    write; the stream of the shell's standard output is the null device."""
+    ann = course / "subs" / "ann"
+    (ann / "build.py").write_text(STREAM_WRITER)
+    (ann / "render.py").write_text(PRELUDE + "write_png(output)\n")
+    built = build_program(BuildStep(ann, "python3 build.py", QUICK), tmp_path / "built")
+    assert built.outcome.reason is Reason.OK and built.folder is not None, built.outcome
+    assert sorted(os.listdir(built.folder)) == ["build.py", "render.py"]
+    outcome = run_program(
+        ProgramRun(built.folder, "python3 render.py {scene} {output}", course / "scenes" / "spheres.json", QUICK)
+    )
+    assert outcome.reason is Reason.OK
+
+
+def test_a_built_folder_that_cannot_be_read_back_is_the_builds_failure(course, tmp_path, monkeypatch):
+    """Should a build's result come back as anything but a tar stream, the build failed: never the class."""
+    from service.programs import runner
+
+    spoiled = runner.BUILD.replace("exit $s", "echo not a tar stream; echo not a tar stream > /out/output.png; exit $s")
+    monkeypatch.setattr(runner, "BUILD", spoiled)
+    (course / "subs" / "ann" / "render.py").write_text(PRELUDE + "write_png(output)\n")
+    built = build_program(BuildStep(course / "subs" / "ann", "true", QUICK), tmp_path / "built")
+    assert built.folder is None and built.outcome.reason is Reason.CRASHED, built.outcome
+    assert built.outcome.detail.startswith("its built folder could not be read back")

@@ -93,3 +93,32 @@ def test_a_builds_result_is_unpacked_without_links_or_escapes(tmp_path):
     assert not (tmp_path / "escaped").exists()
     with pytest.raises(FolderTooLarge):
         unpack(_tar([(_member("big"), b"\0" * 4096)]), tmp_path / "small", 1024)
+
+
+def test_a_folder_deeper_than_the_machines_longest_path_is_copied_to_its_limit(tmp_path):
+    """Folders of 250-byte names, 20 deep: each name is legal, the whole path 5,000 bytes, longer than the
+    machine's PATH_MAX. The copy (and the pack made of it) keeps what is within MAX_PATH, as it keeps what is
+    within MAX_DEPTH, and leaves the rest out."""
+    from service.programs.folder import MAX_PATH
+    from service.programs.pack import pack_folder, unpacked
+
+    student, copy = tmp_path / "ann", tmp_path / "copy"
+    student.mkdir()
+    copy.mkdir()
+    (student / "render.py").write_text("print('hello')\n")
+    fd = os.open(student, os.O_RDONLY | os.O_DIRECTORY)
+    for _ in range(20):
+        os.mkdir("d" * 250, dir_fd=fd)
+        deeper = os.open("d" * 250, os.O_RDONLY | os.O_DIRECTORY, dir_fd=fd)
+        os.close(fd)
+        fd = deeper
+    with open(os.open("deepest.txt", os.O_WRONLY | os.O_CREAT, 0o600, dir_fd=fd), "w") as f:
+        f.write("beyond every limit")
+    os.close(fd)
+    copy_folder(student, copy, 1 << 20)
+    kept = sorted(str(p.relative_to(copy)) for p in copy.rglob("*"))
+    assert max(kept, key=len) == "/".join(["d" * 250] * (MAX_PATH // 251)) and "render.py" in kept
+    pack = pack_folder(student, 1 << 20)
+    assert pack.too_large is None
+    with unpacked(pack, 1 << 20) as folder:
+        assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) == kept

@@ -136,3 +136,34 @@ def test_the_bundle_carries_the_runtime_setup_sh_installs(tmp_path, capsys):
     assert main([*args, "--runtime", "/opt/env", "-o", str(tmp_path / "b.zip")]) == 2
     assert "does not reach Gradescope" in capsys.readouterr().err
     assert os.path.exists(out)
+
+
+def test_a_runtime_holding_the_course_is_refused_before_any_student(tmp_path, capsys):
+    """--runtime naming the course folder (scenes, students, report, with the environment inside): every
+    program would read the hidden scenes and the other students' code there."""
+    (tmp_path / "env" / "bin").mkdir(parents=True)
+    (tmp_path / "bin").mkdir()  # (a prefix: it is what it holds that refuses it)
+    code, _ = grade(tmp_path, "--runtime", str(tmp_path))
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert f"--runtime {tmp_path}: it holds " in err and "which every program would see" in err
+
+
+def test_a_runtime_holding_the_machines_temporary_folder_is_refused(tmp_path, capsys):
+    """Every run's private copy of a student's folder is in the temporary folder while it runs."""
+    code, _ = grade(tmp_path, "--runtime", tempfile.gettempdir())
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "it holds the machine's temporary folder" in err and len(err.splitlines()) == 1
+
+
+def test_a_runtime_inside_the_students_folders_or_without_bin_is_refused(tmp_path, capsys):
+    inside = tmp_path / "subs" / "bob" / "env"
+    (inside / "bin").mkdir(parents=True)
+    code, _ = grade(tmp_path, "--runtime", str(inside))
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "it is inside the students' folders" in err and len(err.splitlines()) == 1
+    bare = Path(tempfile.mkdtemp(prefix="runtime-"))
+    (tmp_path / "again").mkdir()
+    code, _ = grade(tmp_path / "again", "--runtime", str(bare))
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "it has no bin/ folder" in err and len(err.splitlines()) == 1

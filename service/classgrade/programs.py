@@ -7,12 +7,12 @@ in a pool here or on a Dask worker alike, the student's folder sent with the tas
 (:mod:`service.programs.pack`), so that a worker needs no shared file system.  What it returns is kept pair by
 pair as an image's grade is (:func:`~service.classgrade.run.keep_grade`: the heat-map, the copy of the image,
 the journal), so the report, resuming and Gradescope's results are those of images.  A kept grade stands for
-the program's files and commands (:func:`service.programs.job.digest`): a student who changed nothing is not
+the program's files and commands (:func:`service.programs.digest.digest`): a student who changed nothing is not
 run again.
 
 The TA's mistakes stop the batch before any student is run (:func:`check_programs`): a command that cannot
-run, bubblewrap missing or unable to start (unless ``--no-sandbox``), a runtime that is not installed or does
-not start in the sandbox, ``--server`` (which grades images).
+run, bubblewrap missing or unable to start (unless ``--no-sandbox``), a runtime that is not installed, does
+not start in the sandbox or would show programs what they may not see, ``--server`` (which grades images).
 """
 
 from __future__ import annotations
@@ -44,7 +44,13 @@ def check_programs(run: ClassRun) -> None:
 
     program = run.program
     assert program is not None
-    problem = check_runtime(program.runtime, program.packages)
+    private = {
+        "the task scenes": run.scenes,
+        "the students' folders": run.submissions,
+        "the report": run.report,
+        "the students' own scenes": run.student_scenes,
+    }
+    problem = check_runtime(program.runtime, program.packages, private)
     if problem is not None:
         raise ClassError(problem)
     try:
@@ -94,7 +100,8 @@ def program_jobs(
 ) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
     """Per student with a task left to grade, the job and its pairs with their stamps; a pair an earlier run
     kept for the same program, scene and thresholds is taken as it was (``resumed``)."""
-    from ..programs.job import ProgramJob, digest
+    from ..programs.digest import digest
+    from ..programs.job import ProgramJob
 
     assert run.program is not None
     jobs: dict[str, tuple[ProgramJob, list[Stamped]]] = {}
@@ -123,9 +130,10 @@ def program_jobs(
 
 
 def warn(pair: Pair, result: dict[str, Any]) -> None:
-    """A run without a sandbox says so, every time."""
-    if result.get("run_warning"):
-        print(f"{pair.student}/{pair.task}: {result['run_warning']}", file=sys.stderr)
+    """A run without a sandbox says so, every time; so does a run timed out on a busy machine."""
+    for said in (result.get("run_warning"), result.pop("run_busy", None)):
+        if said:
+            print(f"{pair.student}/{pair.task}: {said}", file=sys.stderr)
 
 
 #: bytes of students' folders (their packs) sent to the backend at once: a batch of students is sent when the

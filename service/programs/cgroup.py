@@ -8,7 +8,9 @@ run gets ``<parent>/run-<pid>-<random>`` with ``memory.max`` (no swap) and ``pid
 itself in before it starts the sandbox, so that every process of the run is counted from the first.  Past
 its memory the kernel kills the whole group (``memory.oom.group``) and the run ends as ``memory``; past its
 processes a ``fork`` fails, as under ``RLIMIT_NPROC``.  The group counts what the run's tmpfs folders hold
-too.  It is removed when the run ends (a group left by a grader that died is removed by the next).
+too.  Where the machine offers the cpu controller, each run's group has one share of the CPU (the default
+``cpu.weight``), and says how long its processes waited for one (``cpu.pressure``).  It is removed when the
+run ends (a group left by a grader that died is removed by the next).
 
 Where no such group can be made (a cgroup v1 machine, a container whose cgroup holds its processes, a user
 with no delegated subtree) :func:`find` says why, and :mod:`service.programs.watchdog` holds the limits.
@@ -25,8 +27,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 MOUNT = Path("/sys/fs/cgroup")
-#: the controllers a run's group needs
-CONTROLLERS = ("memory", "pids")
+#: the controllers a run's group needs, and the one it has where the machine offers it (its CPU: each run's group
+#: has the same weight, so each run gets one share of the CPU however many processes or sessions it makes)
+CONTROLLERS, OPTIONAL = ("memory", "pids"), ("cpu",)
 #: processes outside the sandbox the group also holds (bubblewrap's own)
 OUTER = 2
 #: how long a run's group is given to empty once the run has ended, before it is left for the next grader
@@ -47,11 +50,22 @@ def _write(path: Path, text: str) -> None:
 
 
 def _enable(group: Path) -> None:
-    """The memory and pids controllers enabled for the children of ``group`` (once there, nothing written)."""
-    if not set(CONTROLLERS) <= set((group / "cgroup.controllers").read_text().split()):
+    """The memory and pids controllers enabled for the children of ``group``, and the cpu controller where it
+    offers it (once there, nothing written)."""
+    offered = set((group / "cgroup.controllers").read_text().split())
+    if not set(CONTROLLERS) <= offered:
         raise CgroupError(f"{group} does not offer the memory and pids controllers")
-    if not set(CONTROLLERS) <= set((group / "cgroup.subtree_control").read_text().split()):
-        _write(group / "cgroup.subtree_control", " ".join(f"+{c}" for c in CONTROLLERS))
+    wanted = [*CONTROLLERS, *(c for c in OPTIONAL if c in offered)]
+    if not set(wanted) <= set((group / "cgroup.subtree_control").read_text().split()):
+        _write(group / "cgroup.subtree_control", " ".join(f"+{c}" for c in wanted))
+
+
+def _pairs(path: Path) -> dict[str, str]:
+    """A cgroup file of ``name value`` lines (``memory.events``, ``cpu.stat``); empty where it cannot be read."""
+    try:
+        return dict(line.split()[:2] for line in path.read_text().splitlines() if len(line.split()) >= 2)
+    except OSError:
+        return {}
 
 
 class RunGroup:
@@ -62,6 +76,7 @@ class RunGroup:
 
     def __init__(self, path: Path, memory_bytes: int, processes: int):
         self.path = path
+        self.cpu_seconds = self.waited_seconds = 0.0
         path.mkdir()
         try:
             _write(path / "memory.max", str(memory_bytes))
@@ -74,13 +89,15 @@ class RunGroup:
             raise
         self.prefix = ["/bin/sh", "-c", MOVE_IN, str(path)]
 
-    def start(self, pid: int, kill: Callable[[], None]) -> None:
+    def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None:
         """Nothing to do: the kernel holds the limits."""
 
     def stop(self) -> str | None:
-        events = {}
-        with contextlib.suppress(OSError):
-            events = dict(line.split() for line in (self.path / "memory.events").read_text().splitlines())
+        events = _pairs(self.path / "memory.events")
+        self.cpu_seconds = int(_pairs(self.path / "cpu.stat").get("usage_usec", 0)) / 1e6
+        with contextlib.suppress(OSError, ValueError, IndexError):  # (cpu.pressure: where the kernel keeps it)
+            some = (self.path / "cpu.pressure").read_text().splitlines()[0]
+            self.waited_seconds = int(some.rpartition("total=")[2]) / 1e6
         return "memory" if int(events.get("oom_kill", 0)) + int(events.get("oom_group_kill", 0)) else None
 
     def close(self) -> None:

@@ -23,8 +23,11 @@ The probes are asked in stages, so that a part found wrong is not blamed on the 
 
 A probe's answer is read as an uploaded image is (:func:`service.grading.read_submission`: a PNG of the
 probe's size, checked on its header before anything is decompressed); one that cannot be read is that
-probe's "no answer", as a run that failed is, and the experiment goes on.  The sentences name what the probes
-show, never the scene's file or numbers, nor a run's exit status: a hidden scene stays hidden.
+probe's "no answer", as a run that failed is, and the experiment goes on; but a probe whose run timed out (or
+used its CPU time) ends the experiment, as every later probe would take as long, and so does the student's
+allowance of time for probes (:class:`Allowance`: all its tasks' experiments together) once spent.  The
+sentences name what the probes show, never the scene's file or numbers, nor a run's exit status: a hidden
+scene stays hidden.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .findings import sentences, unseen
-from .outcome import RunOutcome
+from .outcome import Reason, RunOutcome
 from .probes import LEFT_OUT, MAX_PROBES, Probe, Scene, aside_probe, camera_probe, light_probes, term_probes
 
 if TYPE_CHECKING:
@@ -184,14 +187,35 @@ def judge(probe: Probe, pixels: np.ndarray, limits: Thresholds) -> Answer:
     return Answer(probe, "wrong", in_ramp, pixels=pixels, reference=reference)
 
 
-class _Asking:
-    """The probes asked of one program, at most :data:`MAX_PROBES` runs in all."""
+@dataclass
+class Allowance:
+    """The seconds a student's probes may still take, all its tasks' experiments together."""
 
-    def __init__(self, run: Callable[[bytes], RunOutcome], limits: Thresholds):
-        self.run, self.limits, self.answers = run, limits, []  # type: ignore[var-annotated]
+    seconds: float
+
+
+#: a probe's run that ended so stops the experiment: every later probe would wait as long
+STOPS = (Reason.TIMEOUT, Reason.CPU_TIME)
+
+
+class _Asking:
+    """The probes asked of one program, at most :data:`MAX_PROBES` runs in all; none after one that timed out,
+    nor once the student's ``allowance`` is spent."""
+
+    def __init__(self, run: Callable[[bytes], RunOutcome], limits: Thresholds, allowance: Allowance | None = None):
+        self.limits, self.answers = limits, []  # type: ignore[var-annotated]
+        self.allowance, self.stopped, self.plain = allowance, False, run
+
+    def run(self, scene: bytes) -> RunOutcome:
+        outcome = self.plain(scene)
+        if self.allowance is not None:
+            self.allowance.seconds -= outcome.wall_seconds
+        self.stopped = outcome.reason in STOPS or (self.allowance is not None and self.allowance.seconds <= 0)
+        return outcome
 
     def left(self) -> int:
-        return MAX_PROBES - len(self.answers)
+        stopped = self.stopped or (self.allowance is not None and self.allowance.seconds <= 0)
+        return 0 if stopped else MAX_PROBES - len(self.answers)
 
     def rejudge(self, mistakes: tuple[str, ...]) -> None:
         """Judge every answer so far again with ``mistakes`` (found since they were asked) in its reference."""
@@ -201,9 +225,13 @@ class _Asking:
         ]
 
     def all(self, probes: list[Probe], keep: int = 0) -> list[Answer]:
-        """Ask ``probes`` in order, as many as leave ``keep`` runs for what follows."""
-        asked = [ask(p, self.run, self.limits) for p in probes[: max(0, self.left() - keep)]]
-        self.answers += asked
+        """Ask ``probes`` in order, as many as leave ``keep`` runs for what follows (none once stopped)."""
+        asked = []
+        for probe in probes:
+            if self.left() - keep <= 0:
+                break
+            asked.append(ask(probe, self.run, self.limits))
+            self.answers.append(asked[-1])
         return asked
 
 
@@ -269,13 +297,19 @@ Run = Callable[[bytes], RunOutcome]
 
 
 def experiment(
-    scene: bytes, image: bytes | None, run: Run, limits: Thresholds, known: tuple[str, ...] = ()
+    scene: bytes,
+    image: bytes | None,
+    run: Run,
+    limits: Thresholds,
+    known: tuple[str, ...] = (),
+    allowance: Allowance | None = None,
 ) -> Experiment:
     """Ask a failing pair's program the probes of its task's ``scene`` (its text), ``image`` being what it
     rendered of the task (None when the run failed), ``known`` the classic mistakes the task's own diagnosis
-    found (its exact matches), and say what the answers show (see the module's docstring for the stages)."""
+    found (its exact matches), within the student's ``allowance`` of time, and say what the answers show (see
+    the module's docstring for the stages)."""
     parsed = json.loads(scene)
-    asking = _Asking(run, limits)
+    asking = _Asking(run, limits, allowance)
     terms = {a.probe.name: a for a in asking.all(term_probes(parsed, known), keep=1)}
     states = {}
     if "no glass" in terms or "no mirrors" in terms:

@@ -1,7 +1,8 @@
 """The private copy of a student's folder a program runs in, made without trusting anything in it.
 
 The copy holds the student's regular files and folders only: a link is skipped, never followed (it could name
-the TA's files, or another student's), and so is a FIFO, a socket or a device.  A folder that holds more
+the TA's files, or another student's), and so is a FIFO, a socket or a device, and whatever is deeper or has a
+longer path than the copy keeps (:data:`MAX_DEPTH`, :data:`MAX_PATH`).  A folder that holds more
 than a limit of bytes, or more than :data:`MAX_ENTRIES` files and folders, is :class:`FolderTooLarge`, so a
 student cannot fill the disk of the machine that grades, nor make each run spend its time (outside every
 limit of the run) copying and removing a folder of a hundred thousand empty files: the folder is measured,
@@ -20,8 +21,10 @@ from pathlib import Path, PurePosixPath
 from ..classgrade.folders import Folder
 from ..classgrade.untrusted import UntrustedFileError
 
-#: how deep a student's folders are followed (deeper ones are skipped, as links are)
-MAX_DEPTH = 32
+#: how deep a student's folders are followed, and the longest path (in bytes, below the student's folder) a
+#: file or folder may have: deeper and longer ones are left out, as links are (each name may be 255 bytes, so a
+#: folder can hold paths longer than the machine's PATH_MAX, 4096, which no file of the copy could then have)
+MAX_DEPTH, MAX_PATH = 32, 1024
 #: bytes each file or folder counts for besides its content (a tar header's size), so that a folder of a
 #: million empty files is over the limit too
 ENTRY_BYTES = 512
@@ -64,13 +67,18 @@ def _mode(source: Folder, name: str) -> int:
     return 0o700 if executable else 0o600
 
 
+def _left_out(source: Folder, name: str) -> bool:
+    """A file or folder whose path below the student's folder is longer than :data:`MAX_PATH`."""
+    return len(os.fsencode(source.rel + name)) > MAX_PATH
+
+
 def _copy(source: Folder, target: Path, budget: _Budget, depth: int) -> None:
     try:
         entries = source.entries()
     except OSError:  # (a folder that cannot be listed is copied empty)
         return
     for entry in entries:
-        if entry.link:
+        if entry.link or _left_out(source, entry.name):
             continue
         if entry.folder:
             if depth < MAX_DEPTH:
@@ -108,6 +116,8 @@ def _measure(source: Folder, budget: _Budget, depth: int) -> None:
         return
     with listing:
         for entry in listing:
+            if _left_out(source, entry.name):
+                continue
             try:
                 info = entry.stat(follow_symlinks=False)
             except OSError:
@@ -134,11 +144,14 @@ def copy_folder(student: Path, target: Path, limit: int) -> None:
 
 
 def _safe_name(name: str) -> PurePosixPath | None:
+    """A name of a build's tar stream as a path in the folder; None for one that leaves it, is deeper than
+    :data:`MAX_DEPTH` or longer than :data:`MAX_PATH` (left out, as the copy of a student's folder leaves them)."""
     path = PurePosixPath(name)
     parts = [p for p in path.parts if p not in ("", ".")]
-    if path.is_absolute() or ".." in parts or not parts:
+    if path.is_absolute() or ".." in parts or not parts or len(parts) > MAX_DEPTH + 1:
         return None
-    return PurePosixPath(*parts)
+    kept = PurePosixPath(*parts)
+    return kept if len(os.fsencode(str(kept))) <= MAX_PATH else None
 
 
 def unpack(stream: bytes, target: Path, limit: int) -> None:

@@ -26,8 +26,13 @@ class Guard(Protocol):
     """What :func:`service.programs.process.run_command` asks of a run's guard."""
 
     name: str
+    cpu_seconds: float  # the run's CPU time (once stopped)
 
-    def start(self, pid: int, kill: Callable[[], None]) -> None: ...
+    @property
+    def waited_seconds(self) -> float:
+        """How long the run's processes waited, ready, for a CPU (once stopped)."""
+
+    def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None: ...
 
     def stop(self) -> str | None: ...
 

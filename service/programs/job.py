@@ -16,10 +16,6 @@ system and no path of the grading machine's.  Nothing of a run is left on that m
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
-import os
-import stat
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -30,9 +26,9 @@ from typing import Any
 from ..classgrade.errors import ClassError
 from ..classgrade.records import GradeJob
 from .copied import flags
-from .experiment import Thresholds, experiment
-from .folder import MAX_ENTRIES
-from .outcome import Reason, RunOutcome
+from .digest import digest as digest  # (what a kept grade stands for: its own module)
+from .experiment import Allowance, Thresholds, experiment
+from .outcome import Reason, RunOutcome, busy
 from .pack import DamagedPack, Pack, unpacked
 from .program import Program
 from .runner import BuildStep, ProgramRun, build_program, run_program
@@ -64,6 +60,11 @@ class ProgramJob:
     pack: Pack | None = None
 
 
+#: the wall-time limits a student's probes may take, per task it has, all its experiments together: an honest
+#: program answers each of a task's probes about as fast as the task, far within its limit, while one that
+#: fails its task and then waits on every probe would cost (1 + probes) limits a task
+PROBE_WALLS = 2
+
 #: how much of the end of a run's output (its standard error) a grade keeps for the TA
 OUTPUT_KEPT = 2000
 
@@ -71,12 +72,14 @@ OUTPUT_KEPT = 2000
 def run_info(outcome: RunOutcome) -> dict[str, Any]:
     """A run's end as a grade keeps it, plain values only: ``run`` (its reason's word: ``ok``, ``timeout``,
     ...), ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold
-    what the program read of a hidden scene), ``run_seconds`` and ``run_warning`` (a run without a sandbox)."""
+    what the program read of a hidden scene), ``run_seconds``, ``run_warning`` (a run without a sandbox) and
+    ``run_busy`` (a run timed out on a busy machine: :func:`~.outcome.busy`), both said to the TA."""
     return {
         "run": str(outcome.reason),
         "run_output": outcome.stderr_tail[-OUTPUT_KEPT:],
         "run_seconds": round(outcome.wall_seconds, 3),
         "run_warning": outcome.warning,
+        "run_busy": busy(outcome),
     }
 
 
@@ -110,11 +113,13 @@ def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunO
     return run
 
 
-def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, Any]:
-    """One task: the run, its image graded (with ``image``, the bytes graded, and how the run went:
-    :func:`run_info`), and a failing image diagnosed by experiment (``experiment``: its sentences, the
-    likeliest first, joined by "; "; a run that failed is not asked more).  An image that cannot be read as
-    a PNG is an invalid pair, as an uploaded one is."""
+def grade_run(
+    task: TaskScene, run: Callable[[bytes], RunOutcome], allowance: Allowance | None = None
+) -> dict[str, Any]:
+    """One task: the run, its image graded (with ``image``, the bytes graded, which :func:`grade_program` keeps
+    as the PNG of their pixels, and how the run went: :func:`run_info`), and a failing image diagnosed by
+    experiment (``experiment``: its sentences, the likeliest first, joined by "; "; a run that failed is not
+    asked more).  An image that cannot be read as a PNG is an invalid pair, as an uploaded one is."""
     outcome = run(task.grading.scene)
     if not outcome.ok or outcome.image is None:
         return failed_run(outcome)
@@ -123,7 +128,7 @@ def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome]) -> dict[str, 
         from ..classgrade.gradebook import matched
 
         known = tuple(matched(result.get("diagnosis"))[:1])  # (the task's likeliest exact match, kept out)
-        said = experiment(task.grading.scene, outcome.image, run, task.thresholds, known).sentences
+        said = experiment(task.grading.scene, outcome.image, run, task.thresholds, known, allowance).sentences
         result["experiment"] = "; ".join(said) or None
     return result
 
@@ -166,7 +171,22 @@ def _graded(job: ProgramJob, folder: Path | None) -> dict[str, dict[str, Any]]:
             assert failed is not None
             return {task.task: failed_run(failed, "the build") for task in job.tasks}
         runs = {task.task: _runner(runs_in, job.program, f"{task.task}.json") for task in job.tasks}
-        return {task.task: grade_run(task, runs[task.task]) for task in job.tasks}
+        allowance = Allowance(PROBE_WALLS * len(job.tasks) * job.program.limits.wall_seconds)
+        return {task.task: grade_run(task, runs[task.task], allowance) for task in job.tasks}
+
+
+def _kept_image(image: bytes, reference: bytes) -> bytes | None:
+    """What a grade keeps of a program's image (the report's copy): the PNG of its pixels as they were graded,
+    never the program's own bytes, which can carry megabytes of chunks no decoder shows; None where it cannot
+    be read (an invalid pair keeps no copy)."""
+    from tracer.image import encode_png
+
+    from ..grading import ImageError, declared_size, read_submission
+
+    try:
+        return encode_png(read_submission(image, declared_size(reference)))
+    except (ImageError, ValueError):
+        return None
 
 
 def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
@@ -180,40 +200,9 @@ def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
             if folder is not None:
                 references = {task.task: task.grading.reference for task in job.tasks}
                 flags(folder, results, references, job.program.limits)
+            for task in job.tasks:  # (once flagged: the flag is on the very bytes the program wrote)
+                if results[task.task].get("image") is not None:
+                    results[task.task]["image"] = _kept_image(results[task.task]["image"], task.grading.reference)
             return results
     except (SandboxUnavailable, DamagedPack) as exc:
         raise ClassError(f"{job.folder.name}'s program: {exc}") from None
-
-
-def digest(folder: Path, program: Program) -> str:
-    """What a kept grade of the program stands for: the student's regular files (paths and bytes, read without
-    following a link, as the sandbox's copy leaves links out, and no more than the folder limit's worth or
-    :data:`~.folder.MAX_ENTRIES` entries: a larger folder is not run) and how it is built, run and limited."""
-    sha = hashlib.sha256(repr((program.run, program.build, program.limits, program.sandbox)).encode())
-    left, entries = program.limits.folder_bytes, MAX_ENTRIES
-    for root, dirs, files in os.walk(folder, followlinks=False):
-        dirs.sort()
-        entries -= len(dirs) + len(files)
-        if entries < 0:  # (a folder of too many files is not run either)
-            break
-        for name in sorted(files):
-            path = Path(root, name)
-            with contextlib.suppress(OSError):
-                left = _hash_file(path, path.relative_to(folder), sha, left)
-            if left < 0:
-                return sha.hexdigest()
-    return sha.hexdigest()
-
-
-def _hash_file(path: Path, name: Path, sha: Any, left: int) -> int:
-    """Add a regular file's name and bytes to ``sha`` (not a link's, a FIFO's or a device's), at most
-    ``left`` + 1 bytes; what is left of the budget (negative: over it)."""
-    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-    with os.fdopen(fd, "rb") as f:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            return left
-        sha.update(f"{name}\0".encode("utf-8", "surrogateescape"))
-        while left >= 0 and (chunk := f.read(1 << 20)):
-            sha.update(chunk)
-            left -= len(chunk)
-    return left

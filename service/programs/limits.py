@@ -12,6 +12,10 @@ from dataclasses import dataclass
 
 GIB = 1 << 30
 MB = 1000 * 1000
+#: the files each process of a run may hold open (``RLIMIT_NOFILE``, soft and hard): what each open file can
+#: hold in the kernel is counted to its memory (:mod:`service.programs.usage`), and this bounds the count's cost
+#: and the sockets a process can have in flight, held by no process (the kernel allows a user as many as this)
+OPEN_FILES = 256
 
 
 @dataclass(frozen=True)
@@ -45,18 +49,22 @@ class Limits:
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, not {getattr(self, name)!r}")
 
-    def prlimit_argv(self, address_space: bool = True, processes: bool = False) -> list[str]:
+    def prlimit_argv(
+        self, address_space: bool = True, processes: bool = False, file_bytes: int | None = None
+    ) -> list[str]:
         """``prlimit`` (util-linux) setting these limits, soft and hard, on the command that follows it: the CPU
-        time, file size and no core file; with ``address_space``, each process's address space at most the
-        memory limit; with ``processes``, ``RLIMIT_NPROC`` (which counts the processes of a user, in a user
-        namespace).  The CPU limit's hard value is one second above the soft one, so a program first gets
-        ``SIGXCPU`` (which :mod:`service.programs.outcome` names) and is killed a second later if it ignores it."""
+        time, file size (``file_bytes`` in place of the output limit: a build's result), :data:`OPEN_FILES` and
+        no core file; with ``address_space``, each process's address space at most the memory limit; with
+        ``processes``, ``RLIMIT_NPROC`` (which counts the processes of a user, in a user namespace).  The CPU
+        limit's hard value is one second above the soft one, so a program first gets ``SIGXCPU`` (which
+        :mod:`service.programs.outcome` names) and is killed a second later if it ignores it."""
         return [
             "prlimit",
             *([f"--as={self.memory_bytes}"] if address_space else []),
             *([f"--nproc={self.processes}"] if processes else []),
             f"--cpu={self.cpu_seconds}:{self.cpu_seconds + 1}",
-            f"--fsize={self.output_bytes}",
+            f"--fsize={file_bytes or self.output_bytes}",
+            f"--nofile={OPEN_FILES}",
             "--core=0",
             "--",
         ]

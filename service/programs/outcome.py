@@ -65,6 +65,7 @@ class RunOutcome:
     wall_seconds: float = 0.0
     cpu_seconds: float = 0.0
     warning: str | None = None
+    waited_seconds: float = 0.0  # how long it waited, ready, for a CPU (:func:`busy`)
 
     @property
     def ok(self) -> bool:
@@ -112,6 +113,26 @@ def _guarded(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     if finished.exceeded == "processes":
         return Reason.PROCESSES, f"ran more than {limits.processes} processes and threads at once; killed"
     return None
+
+
+#: a run killed at its wall time that waited, ready, for a CPU longer than it ran and for at least this part of
+#: its wall time was on a busy machine: it was not given the CPU it asked for
+BUSY = 0.5
+
+
+def busy(outcome: RunOutcome) -> str | None:
+    """For a run killed at its wall time that waited, ready, for a CPU longer than it ran and for most of that
+    time, a line for the TA naming the busy machine (the run's CPU time and its wait: its guard's measure);
+    else None.  Kept out of the run's reason, which stays the same however busy the machine."""
+    if outcome.reason is not Reason.TIMEOUT:
+        return None
+    cpu, waited = outcome.cpu_seconds, outcome.waited_seconds
+    if waited <= cpu or waited < BUSY * outcome.wall_seconds:
+        return None
+    return (
+        f"timed out having run {cpu:.1f} s and waited {waited:.1f} s for a CPU: the grading machine was busy "
+        f"(grade it again with fewer --jobs, or a longer --run-timeout)"
+    )
 
 
 def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:

@@ -14,6 +14,7 @@ import os
 import shlex
 import shutil
 import stat
+import tarfile
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -22,7 +23,7 @@ from pathlib import Path
 
 from ..classgrade.untrusted import UntrustedFileError, read_untrusted
 from .cgroup import CgroupError
-from .folder import FolderTooLarge, chown_tree, copy_folder, unpack
+from .folder import MAX_ENTRIES, FolderTooLarge, chown_tree, copy_folder, unpack
 from .guard import Guard, guard
 from .limits import Limits
 from .outcome import Reason, RunOutcome, failure
@@ -166,7 +167,8 @@ def _command(session: _Session, words: list[str], body: str) -> Command:
     (whose own user namespace counts its processes), the shell that runs the student's command."""
     limits = session.limits
     own_user = os.geteuid() == 0
-    outer = limits.prlimit_argv(isinstance(session.guard, Watchdog), not session.sandbox and own_user)
+    written = built_bytes(limits) if body == BUILD else None  # (a build writes its result as one file)
+    outer = limits.prlimit_argv(isinstance(session.guard, Watchdog), not session.sandbox and own_user, written)
     prefix = [*session.guarded, *outer, *as_user(session.uid)]
     shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
     if not session.sandbox:
@@ -176,22 +178,24 @@ def _command(session: _Session, words: list[str], body: str) -> Command:
     bwrap = bwrap_argv(find_bwrap(), session.mounts, limits)
     seccomp = filter_fd()
     filtered = [] if seccomp is None else ["--seccomp", str(seccomp)]
-    info = os.pipe()
+    status = os.pipe()
     inner = ["prlimit", f"--nproc={limits.processes}", "--"]
     return Command(
-        [*prefix, *bwrap, *filtered, "--info-fd", str(info[1]), *inner, *shell],
+        [*prefix, *bwrap, *filtered, "--json-status-fd", str(status[1]), *inner, *shell],
         "/",
         {"PATH": os.environ.get("PATH", "/usr/bin:/bin")},
         *_kept(limits),
-        info,
+        status,
         () if seccomp is None else (seccomp,),
         session.guard,
     )
 
 
 def _kept(limits: Limits) -> tuple[float, int, int]:
-    """A command's wall time, and how much of its standard output and error is kept."""
-    return limits.wall_seconds, limits.workdir_bytes, limits.stderr_bytes
+    """A command's wall time, and how much of its standard output and error is kept: none of its standard
+    output, which is the null device (a run's and a build's programs write to standard error, a printed image
+    goes to its file, and a build's result to the output file)."""
+    return limits.wall_seconds, 0, limits.stderr_bytes
 
 
 def _execute(session: _Session, words: list[str], body: str) -> Finished:
@@ -208,7 +212,7 @@ def _outcome(
     if finished is None:
         return RunOutcome(reason, detail, warning=warning)
     tail, cpu = split_times(finished.stderr_tail, finished.cpu_seconds)
-    return RunOutcome(reason, detail, image, tail, finished.wall_seconds, cpu, warning)
+    return RunOutcome(reason, detail, image, tail, finished.wall_seconds, cpu, warning, finished.waited_seconds)
 
 
 def _read_output(path: Path, limits: Limits) -> tuple[Reason, str, bytes | None]:
@@ -276,17 +280,35 @@ def build_program(step: BuildStep, into: Path) -> Built:
         with _session(step.folder, None, step.limits, step.sandbox, step.runtime) as session:
             finished = _execute(session, command_argv(step.command), BUILD if step.sandbox else BUILD_IN_PLACE)
             failed = failure(finished, step.limits)
-            if finished.stdout_overflow:
+            if failed is not None and failed[0] is Reason.OUTPUT_TOO_LARGE:  # (what a build writes is its folder)
                 failed = Reason.FOLDER_TOO_LARGE, "the built folder is larger than the limit"
+            if failed is None and step.sandbox:
+                failed = _unpack_built(session.mounts.output, into, step.limits)
+            elif failed is None:
+                copy_folder(session.mounts.submission, into, step.limits.workdir_bytes)
             if failed is not None:
                 return Built(_outcome(*failed, finished, warning), None)
-            if step.sandbox:
-                unpack(finished.stdout, into, step.limits.workdir_bytes)
-            else:
-                copy_folder(session.mounts.submission, into, step.limits.workdir_bytes)
             return Built(_outcome(Reason.OK, "built", finished, warning), into)
     except FolderTooLarge as exc:
         return Built(_outcome(Reason.FOLDER_TOO_LARGE, str(exc), None, warning), None)
+
+
+def built_bytes(limits: Limits) -> int:
+    """The most a build's result may take as a tar stream: its working folder, and a header for each entry."""
+    return limits.workdir_bytes + MAX_ENTRIES * 1024
+
+
+def _unpack_built(stream: Path, into: Path, limits: Limits) -> tuple[Reason, str] | None:
+    """The build's result, the tar stream its sandbox wrote to the output file (once every other process of the
+    build was killed: nothing of the student's could still write it), unpacked into ``into``; why not, when it
+    cannot be read (:class:`FolderTooLarge` past the limits): the build's failure, never the class's."""
+    try:
+        unpack(read_untrusted(stream, built_bytes(limits)), into, limits.workdir_bytes)
+    except UntrustedFileError as exc:
+        return Reason.CRASHED, f"its built folder could not be read back ({exc})"
+    except (tarfile.TarError, EOFError, ValueError) as exc:
+        return Reason.CRASHED, f"its built folder could not be read back (not a tar stream: {exc})"
+    return None
 
 
 def check_sandbox(command: str = "true {output}", runtime: str | None = None) -> RunOutcome:

@@ -5,7 +5,9 @@ The sandbox shows a program the system's ``/usr``, so Debian's packages are ther
 installed here, and the autograder's ``setup.sh`` installs them.  A runtime folder (``--runtime DIR``: a
 Python virtual environment made with the system's ``python3``, with NumPy and Pillow in it; or any prefix)
 is bound read-only at its own path in the sandbox, its ``bin`` first on the programs' ``PATH``, so that
-``python3`` is its Python.  For Gradescope, the autograder builds one from a requirements file
+``python3`` is its Python; one that holds the machine's temporary folder, the TA's scenes, the students'
+folders or the report, or lies inside one of them, or has no ``bin/``, is refused (:func:`exposes`).  For
+Gradescope, the autograder builds one from a requirements file
 (``--runtime-requirements``) at :data:`BUNDLED`, with the image's ``python3``.
 """
 
@@ -15,6 +17,7 @@ import os
 import re
 import shlex
 import subprocess
+import tempfile
 from pathlib import Path
 
 #: where the autograder's setup.sh builds the runtime of a requirements file
@@ -47,14 +50,45 @@ def missing_packages(packages: tuple[str, ...]) -> list[str]:
     return missing
 
 
-def check_runtime(runtime: str | None, packages: tuple[str, ...]) -> str | None:
+def check_runtime(
+    runtime: str | None, packages: tuple[str, ...], private: dict[str, Path | None] | None = None
+) -> str | None:
     """What is wrong with the TA's runtime on this machine (one line), or None: a package not installed, a
-    folder that is not one."""
+    folder that is not one, or one that would show a program what it may not see (:func:`exposes`)."""
     missing = missing_packages(packages)
     if missing:
         return f"--runtime-packages: not installed here: {', '.join(missing)} (apt-get install {' '.join(missing)})"
     if runtime is not None and not Path(runtime).is_dir():
         return f"--runtime {runtime}: no such folder"
+    return None if runtime is None else exposes(runtime, private or {})
+
+
+def _holds(outer: str, inner: str) -> bool:
+    return inner == outer or inner.startswith(outer.rstrip("/") + "/")
+
+
+def exposes(runtime: str, private: dict[str, Path | None]) -> str | None:
+    """Why the runtime folder cannot be shown to every program (one line), or None.  It is shown whole, read-only:
+    it may not hold the machine's temporary folder (where every run's private copy of a student's folder is,
+    while it runs), nor hold or be inside a folder of ``private`` (the TA's scenes, the students' folders, the
+    report: by what they are), and it is a Python environment or a prefix, with a ``bin/`` folder.  Paths are
+    compared once every link in them is resolved."""
+    real = os.path.realpath(runtime)
+    temporary = "the machine's temporary folder, where every run's private folders are"
+    places: dict[str, str] = {temporary: tempfile.gettempdir()}
+    places.update({what: str(path) for what, path in private.items() if path is not None})
+    for what, path in places.items():
+        other = os.path.realpath(path)
+        if _holds(real, other):
+            seen = "which every program would see: name the environment itself"
+            return f"--runtime {runtime}: it holds {what} ({path}), {seen}"
+        if what != temporary and _holds(other, real):
+            return f"--runtime {runtime}: it is inside {what} ({path}), which no program may see"
+    if not os.path.isdir(os.path.join(real, "bin")):
+        return (
+            f"--runtime {runtime}: it has no bin/ folder: name a Python environment (/usr/bin/python3 -m venv DIR) "
+            f"or a prefix holding bin/"
+        )
     return None
 
 

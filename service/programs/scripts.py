@@ -15,7 +15,7 @@ from __future__ import annotations
 import re
 
 from .process import Finished
-from .sandbox import SUBMISSION, SandboxUnavailable
+from .sandbox import OUTPUT, SUBMISSION, SandboxUnavailable
 from .unavailable import explain
 
 MARK = "--- phongray: CPU time of the program ---"
@@ -27,12 +27,13 @@ RUN = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
 #: a run whose program prints its image: its standard output written to the output file (``$1``), within the
 #: same limits as a file it writes itself (RLIMIT_FSIZE), then its CPU time
 RUN_PRINTED = f'o=$1; shift; "$@" >"$o"; s=$?; {_REPORT}; exit $s'
-#: a build: the command with its output on standard error, its CPU time, then (built) the folder as a tar stream
-BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || tar -cf - . || s=125; exit $s'
+#: a build: the command with its output on standard error, its CPU time, then (built) every other process of the
+#: sandbox killed (``kill -1`` spares the shell and the sandbox's first process, bubblewrap's) and the folder
+#: written as a tar stream to the output file, which no process of the student's can then write
+_KEEP = f"{{ kill -9 -1 2>/dev/null; tar -cf {OUTPUT} . || s=125; }}"
+BUILD = f'"$@" >&2; s=$?; {_REPORT}; [ $s -ne 0 ] || {_KEEP}; exit $s'
 #: a build without a sandbox, in the run's folder on the machine (copied from there)
 BUILD_IN_PLACE = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
-#: how the commands before the student's own fail, in their own words, when the sandbox cannot start
-SETUP_FAILURES = ("bwrap:", "prlimit:", "setpriv:")
 _TIME = re.compile(r"(\d+)m([\d.]+)s")
 
 
@@ -41,14 +42,15 @@ def script(body: str, sandboxed: bool) -> str:
 
 
 def not_started(finished: Finished) -> None:
-    """:class:`SandboxUnavailable` when the sandbox never started the student's command: bubblewrap (or the
-    commands before it) exited with an error of its own (1, or 126/127 for a command it could not run), and
-    the shell never reported.  A program cannot make its run look like that: the shell reports unless it is
-    killed, and then the run ends with a status above 128 or by a signal."""
-    text = finished.stderr_tail.decode("utf-8", "replace").strip()
-    code = finished.exit_code
-    if code is not None and 0 < code <= 128 and MARK not in text and text.startswith(SETUP_FAILURES):
-        raise SandboxUnavailable(f"the sandbox cannot start here: {explain(text.splitlines()[-1])}")
+    """:class:`SandboxUnavailable` when the sandbox never started the student's command, as bubblewrap itself
+    says (:class:`~service.programs.process.Finished`'s ``started``: its status, which no program can write),
+    with the last line bubblewrap (or a command before it) wrote: no program of the student's ran, so that
+    line is theirs.  A run the parent killed (at its wall time, or its guard's limit) is not asked."""
+    if finished.started is not False or finished.timed_out or finished.exceeded or finished.stdout_overflow:
+        return
+    lines = finished.stderr_tail.decode("utf-8", "replace").strip().splitlines()
+    said = lines[-1] if lines else f"bubblewrap ended with status {finished.exit_code} and said nothing"
+    raise SandboxUnavailable(f"the sandbox cannot start here: {explain(said)}")
 
 
 def split_times(stderr: bytes, seen: float) -> tuple[str, float]:

@@ -3,85 +3,39 @@ looking, where no cgroup of its own can be made for it (:mod:`service.programs.c
 
 Ten times a second it finds the run's processes (every descendant of the command phongray started: in the
 sandbox, its PID namespace, whose orphans are adopted by its first process, so a daemon stays among them),
-and adds up their memory; past the limit it kills the run, which then ends as ``memory``.  The memory of a
-process is its private pages and its share of the pages it shares (anonymous and shared memory, not the
-files it maps, which the kernel can drop): a child forked from a large process, which shares its pages
-until it writes them, counts its share only.  That share (the kernel's ``Pss``) costs a walk of the
-process's page tables, so it is asked only when the cheap upper bound, the resident pages of each process
-counted in full (``RssAnon`` + ``RssShmem``), is over the limit.  Between two looks a run can go over the
-limit for a tenth of a second; each process is also held to its address space (``RLIMIT_AS``), so no one
-process goes past it.  The files a run writes in its tmpfs folders are held by their own sizes.
+and adds up what they hold (:mod:`service.programs.usage`): their pages (private, and their share of those
+they share: a child forked from a large process, which shares its pages until it writes them, counts its
+share only) and page tables, what their open files can hold in the kernel (a socket's or a pipe's buffers,
+:data:`~service.programs.usage.FILE_BYTES` each), and what the sandbox's tmpfs folders hold (their bytes and
+files).  Past the limit it kills the run, which then ends as ``memory``.  Between two looks a run can go over
+the limit for a tenth of a second (where its processes share pages, until the next walk of their page tables:
+:class:`~service.programs.usage.Shares`); each process is also held to its address space (``RLIMIT_AS``), so
+no one process goes past it.  However many processes and mappings a run makes, the watchdog spends at most
+:data:`~service.programs.usage.FRACTION` of one CPU walking their page tables; every other look costs the
+grader a read of a few small files per process and thread.
 
 Where it counts processes too (a run without the sandbox, by a grading user that is not root: the
 kernel's count, ``RLIMIT_NPROC``, would then count all of that user's processes), it kills a run that has
-more processes and threads at once than its limit, which then ends as ``processes``.
+more processes and threads at once than its limit, which then ends as ``processes``.  It also keeps the
+run's CPU time and how long its threads waited for a CPU (:attr:`Watchdog.cpu_seconds`,
+:attr:`Watchdog.waited_seconds`), which say of a run killed at its wall time whether the machine was busy.
 """
 
 from __future__ import annotations
 
-import os
 import threading
 from collections.abc import Callable
 
-#: seconds between two looks at a run
-INTERVAL = 0.1
-KIB = 1024
-#: the kernel's fields (in kB) of a process's resident memory that count, cheap and precise
-CHEAP = ("RssAnon", "RssShmem")
-PRECISE = ("Pss_Anon", "Pss_Shmem")
+from .usage import FILE_BYTES, Shares, folders, open_files
+from .usage import family as _family
 
-
-def _read(path: str) -> str:
-    try:
-        with open(path) as f:
-            return f.read()
-    except OSError:  # (the process has ended)
-        return ""
-
-
-def _fields(text: str, names: tuple[str, ...]) -> int:
-    """The sum of the named fields (kB) of a /proc file, in bytes."""
-    total = 0
-    for line in text.splitlines():
-        name, _, rest = line.partition(":")
-        if name in names:
-            total += int(rest.split()[0]) * KIB
-    return total
+#: seconds between two looks at a run, and every how many looks it also reads the run's CPU time
+INTERVAL, USAGE_EVERY = 0.1, 5
 
 
 def family(root: int) -> dict[int, int]:
-    """``root`` and every process descended from it, each with its number of threads (read from each
-    thread's ``children``: a process a thread started is that thread's child)."""
-    found: dict[int, int] = {}
-    todo = [root]
-    while todo:
-        pid = todo.pop()
-        if pid in found:
-            continue
-        try:
-            threads = os.listdir(f"/proc/{pid}/task")
-        except OSError:
-            continue
-        found[pid] = len(threads)
-        for tid in threads:
-            todo.extend(int(child) for child in _read(f"/proc/{pid}/task/{tid}/children").split())
-    return found
-
-
-def memory(pids: list[int], limit: int) -> int:
-    """The memory of these processes together (see the module); the cheap bound when it is within
-    ``limit``, else the precise sum."""
-    cheap = sum(_fields(_read(f"/proc/{pid}/status"), CHEAP) for pid in pids)
-    if cheap <= limit:
-        return cheap
-    total = 0
-    for pid in pids:
-        rollup = _read(f"/proc/{pid}/smaps_rollup")
-        if "Pss_Anon:" in rollup:
-            total += _fields(rollup, PRECISE)
-        else:  # (a kernel before 5.8 has no Pss_Anon; one that would not show it, the bound)
-            total += _fields(rollup, ("Pss",)) if rollup else _fields(_read(f"/proc/{pid}/status"), CHEAP)
-    return total
+    """``root`` and every process descended from it, each with its number of threads."""
+    return _family(root).threads
 
 
 class Watchdog:
@@ -94,10 +48,23 @@ class Watchdog:
         self.memory_bytes, self.processes, self.interval = memory_bytes, processes, interval
         self.exceeded: str | None = None
         self.peak = 0
+        self.cpu_seconds = 0.0
+        self.waits: dict[int, float] = {}
+        self.inside: int | None = None
+        self.shares = Shares()
+        self.looks = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def start(self, pid: int, kill: Callable[[], None]) -> None:
+    @property
+    def waited_seconds(self) -> float:
+        """How long the run's threads waited, ready, for a CPU (those seen, each at its last look)."""
+        return sum(self.waits.values())
+
+    def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None:
+        """Look at the run whose command is ``pid`` (``inside``: its sandbox's first process) until it ends."""
+        self.inside = inside
+
         def watch() -> None:
             while not self._stop.wait(self.interval):
                 self.exceeded = self.look(pid)
@@ -110,12 +77,18 @@ class Watchdog:
 
     def look(self, pid: int) -> str | None:
         """One look at the run whose command is ``pid``: the limit it is over, or None."""
-        processes = family(pid)
-        if self.processes is not None and sum(processes.values()) > self.processes:
+        self.looks += 1
+        found = _family(pid, usage=self.looks % USAGE_EVERY == 1)
+        self.cpu_seconds = max(self.cpu_seconds, found.cpu_seconds)
+        self.waits.update(found.waits or {})
+        pids = list(found.threads)
+        if self.processes is not None and sum(found.threads.values()) > self.processes:
             return "processes"
-        used = memory(list(processes), self.memory_bytes)
-        self.peak = max(self.peak, used)
-        return "memory" if used > self.memory_bytes else None
+        held = open_files(pids) * FILE_BYTES + folders(self.inside)
+        pages, exact = self.shares.pages(pids, self.memory_bytes - held)
+        self.peak = max(self.peak, held + pages)
+        over = held > self.memory_bytes or (exact and held + pages > self.memory_bytes)
+        return "memory" if over else None
 
     def stop(self) -> str | None:
         self._stop.set()
