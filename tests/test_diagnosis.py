@@ -204,8 +204,14 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
 
     scene = schemas.validate_scene(EVERYTHING)
     reference = Renderer(scene).pixels()
+    submissions = _submissions(scene, reference)
+    # blind: every variant, the far end and the passes rendered whole, and every variant scored; one for every
+    # submission, as the service keeps one scene's renders for all (each rendered once, the same pixels)
+    blind = dataclasses.replace(renders_of(scene), rows=None, bound_rows=None, at=None, unchanged=None)
+    whole_far = Renderer(scene, BOUNDS["shadow-acne"]).pixels().astype(int)
+    graded_by = {v: Renderer(scene, VARIANTS[v][0]).pixels() for v in ("no-shadows", "blinn-phong", "no-ambient")}
     spared = 0
-    for name, submitted in _submissions(scene, reference).items():
+    for name, submitted in submissions.items():
         verdict = grade(reference, submitted, "")
         looked = renders_of(scene)
         whole = []
@@ -214,8 +220,6 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         far = []
         render_bound = looked.bound
         looked.bound = lambda v, f=render_bound, far=far: far.append(v) or f(v)
-        # blind: every variant, the far end and the passes rendered whole, and every variant scored
-        blind = dataclasses.replace(renders_of(scene), rows=None, bound_rows=None, at=None, unchanged=None)
         assert (
             diagnose(reference, submitted, verdict, looked).as_dict()
             == diagnose(reference, submitted, verdict, blind).as_dict()
@@ -224,7 +228,6 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         # and the first look at the far end's rows is a lower bound of what the whole of it counts
         least = looks.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
         outside = looks.speckled(reference, looked.bound("shadow-acne"), submitted, verdict.tolerance)
-        whole_far = Renderer(scene, BOUNDS["shadow-acne"]).pixels().astype(int)
         ref, sub, tol = reference.astype(int), submitted.astype(int), verdict.tolerance
         count = int(
             np.any((sub < np.minimum(ref, whole_far) - tol) | (sub > np.maximum(ref, whole_far) + tol), axis=2).sum()
@@ -232,11 +235,11 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders():
         assert least is not None and least <= count
         assert outside is None or outside == count / (ref.shape[0] * ref.shape[1])
         # and what the first look gives is a lower bound of what the whole grade counts
-        for v in ("no-shadows", "blinn-phong", "no-ambient"):
+        for v, variant in graded_by.items():
             least = looks.off_at_least(v, submitted, verdict, looked)
-            g = grade(Renderer(scene, VARIANTS[v][0]).pixels(), submitted, "", verdict.tolerance)
+            g = grade(variant, submitted, "", verdict.tolerance)
             assert least is not None and least <= round(g.fraction_off_nearby * reference.shape[0] * reference.shape[1])
-    assert spared > 2 * len(_submissions(scene, reference))
+    assert spared > 2 * len(submissions)
 
 
 def test_a_first_look_counts_off_pixels_as_the_grade_does():
