@@ -120,8 +120,29 @@ SANDBOXED = {
 
 
 def pytest_collection_modifyitems(config, items) -> None:  # noqa: ANN001
+    _one_id_each(items)
     _longest_first(items)
     _without_bubblewrap(items)
+
+
+def _one_id_each(items) -> None:  # noqa: ANN001
+    """schemathesis makes an item of each API operation of a test (tests/test_fuzz_api.py), named after it
+    (``test_api_conforms_to_its_openapi[POST /render]``) but all under the test's own node id.  pytest-xdist
+    hands tests out by node id: of items that share one, only the first would run (the other operations never
+    fuzzed, and nothing said).  Each gets its own name as its id."""
+    from collections import Counter
+
+    count = Counter(item.nodeid for item in items)
+    for item in items:
+        if count[item.nodeid] > 1:
+            own = f"{item.nodeid.rpartition('::')[0]}::{item.name}"
+            if hasattr(item, "_id"):  # (pytest 9's structured id)
+                from _pytest.nodes import NodeId
+
+                item._id = NodeId.parse(own)
+            else:
+                item._nodeid = own
+    assert len({item.nodeid for item in items}) == len(items), "tests that share a node id: xdist runs only one"
 
 
 def _without_bubblewrap(items) -> None:  # noqa: ANN001
