@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
+from typing import TypedDict
 
 #: deeper values are not located (a scene is never nested more than a few levels)
 MAX_DEPTH = 64
@@ -88,7 +90,16 @@ _SYNTAX_LINE = re.compile(r"^invalid JSON: .* at line (\d+) column \d+$")
 MAX_SCANNED = 1_000_000
 
 
-def located(problems: list[tuple[str, str]], text: bytes | str) -> list[dict[str, object]]:
+class Located(TypedDict):
+    """A problem of a scene as the service answers it (and the command line prints it): where, what, and the
+    line of the JSON text (None where unknown)."""
+
+    path: str
+    message: str
+    line: int | None
+
+
+def located(problems: list[tuple[str, str]], text: bytes | str) -> list[Located]:
     """Every problem with its path, message and the line of the JSON text it concerns (None where unknown):
     the line of the value for a path, the line the parser names for a syntax error."""
     lines: dict[str, int] = {}
@@ -97,7 +108,7 @@ def located(problems: list[tuple[str, str]], text: bytes | str) -> list[dict[str
             lines = value_lines(text.decode("utf-8", "replace") if isinstance(text, bytes) else text)
         except Exception:  # positions are a courtesy; a scanner failure must not hide the errors
             lines = {}
-    out: list[dict[str, object]] = []
+    out: list[Located] = []
     for path, message in problems:
         syntax = None if path else _SYNTAX_LINE.match(message)
         line = line_for(lines, path) if path else int(syntax.group(1)) if syntax else None
@@ -110,12 +121,12 @@ def as_lines(name: str, problems: list[tuple[str, str]], text: bytes | str) -> l
     return format_located(name, located(problems, text))
 
 
-def _line_order(error: dict[str, object]) -> float:
+def _line_order(error: Located) -> float:
     line = error.get("line")
     return float(line) if isinstance(line, int) else float("inf")
 
 
-def format_located(name: str, errors: list[dict[str, object]]) -> list[str]:
+def format_located(name: str, errors: Sequence[Located]) -> list[str]:
     """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as :func:`located`
     and the service's answers give them), in the order of their lines (those of no line, such as a missing
     top-level key, last)."""

@@ -16,6 +16,11 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
+from schemas import load_scene
+from tracer import RenderCancelled
+from tracer.budget import UNLIMITED
+from tracer.render import Renderer
+
 if TYPE_CHECKING:
     from tracer.budget import Budget
 
@@ -39,6 +44,10 @@ def _distributed() -> Any:
     return distributed
 
 
+#: the size of a task's graph past which Dask warns: above any student's folder a TA may allow
+LARGE_GRAPH = "4GB"
+
+
 def client(address: str, timeout: float = 10.0) -> Any:
     """A Dask client of the scheduler at ``address`` (``tcp://HOST:PORT``)."""
     distributed = _distributed()
@@ -50,6 +59,11 @@ def client(address: str, timeout: float = 10.0) -> Any:
         raise ClusterError(
             f"--cluster {address}: not a Dask scheduler address ({exc}); expected tcp://HOST:PORT"
         ) from None
+    # a student's folder goes to the worker inside its task, as bytes (:mod:`service.programs.pack`, at most
+    # the folder limit): by design, so Dask's warning of a large graph (past 10 MB) would only alarm the TA
+    import dask
+
+    dask.config.set({"distributed.admin.large-graph-warning-threshold": LARGE_GRAPH})
     try:
         return distributed.Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
@@ -100,10 +114,6 @@ def connect(address: str, timeout: float = 10.0, wait: float | None = None) -> I
 def band_task(scene: bytes, top: int, bottom: int, budget: Budget | None = None) -> np.ndarray:
     """Rows ``top..bottom`` of a scene's image, ``(bottom − top, W, 3) uint8``, within ``budget`` when given (the
     whole render's: a band alone over it is a render over it; :class:`tracer.OverBudget` otherwise)."""
-    from schemas import load_scene
-    from tracer.budget import UNLIMITED
-    from tracer.render import Renderer
-
     return Renderer(load_scene(scene)).pixels(threads=1, rows=(top, bottom), budget=budget or UNLIMITED)
 
 
@@ -125,8 +135,6 @@ def render(
     once true, the bands still to come are cancelled and :class:`tracer.RenderCancelled` is raised.  Each band is
     held to ``budget`` when given; one that outgrows it raises :class:`tracer.OverBudget` here (not retried), the
     others cancelled."""
-    from tracer import RenderCancelled
-
     data = client.scatter(scene, broadcast=False, hash=False)
     parts = [
         client.submit(band_task, data, top, bottom, budget, pure=False, retries=2 if budget is None else 0)
@@ -149,8 +157,6 @@ def run(
     """``task(*args)`` as one task on the cluster; ``cancelled()`` is polled while waiting and, once true, the
     task is cancelled and :class:`tracer.RenderCancelled` is raised (a task already running on a worker stops
     at the deadline it was given).  An exception of the task is raised here."""
-    from tracer import RenderCancelled
-
     future = client.submit(task, *args, pure=False)
     try:
         while not future.done():

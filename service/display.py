@@ -41,6 +41,7 @@ def describe(result: dict[str, Any]) -> list[str]:
         f"  off even nearby: {percent(result['fraction_off_nearby'])} of the pixels "
         f"(at most {percent(result['max_fraction'])} may be)",
         f"  off: {percent(result['fraction_off'])} of the pixels (by more than {result['tolerance']:g} levels)",
+        *_gross(result),
         f"  mean absolute error: {result['mean_abs_error']:.3f} levels; RMSE {result['rmse']:.3f}; PSNR {psnr}",
         f"  largest error: {result['max_error']} levels",
         f"  size: {result['width']}×{result['height']}; reference sha256 {result['reference_sha256']}",
@@ -48,8 +49,19 @@ def describe(result: dict[str, Any]) -> list[str]:
     return lines + explained(result.get("diagnosis"))
 
 
+def _gross(result: dict[str, Any]) -> list[str]:
+    """A line for the pixels grossly off and the pixels not counted, where there are any."""
+    from .grading import GROSS_ALLOWED
+
+    gross, left = result.get("grossly_off") or 0, result.get("open_pixels") or 0
+    lines = (
+        [f"  grossly off: {gross} pixel{'s' if gross != 1 else ''} (at most {GROSS_ALLOWED} may be)"] if gross else []
+    )
+    return lines + ([f"  not counted: {left} pixels the scene format leaves open"] if left else [])
+
+
 def _pass(result: dict[str, Any]) -> str:
-    """PASS, and the accepted variant it passed as ("PASS, as rendered with a 1e-3 ray offset")."""
+    """PASS, and the accepted variant it passed as ("PASS, as rendered with a ray offset of 0.003 along the normal")."""
     accepted = result.get("accepted")
     return f"PASS, as rendered with {accepted}" if accepted else "PASS"
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from schemas import Image, Mesh, Plane, Scene, Sphere, Triangle
+from tracer.camera import CameraRays
 
 #: camera rays per side of the grid that estimates what the camera sees
 GRID = 24
@@ -142,8 +143,6 @@ def _grid(image: Image) -> Image:
 
 def _camera(scene: Scene, found: list[Body]) -> tuple[np.ndarray, float]:
     """The share of camera rays that first meet each body, and the share that meet any."""
-    from tracer.camera import CameraRays
-
     grid = _grid(scene.image)
     with np.errstate(all="ignore"):
         origins, dirs = CameraRays(scene.camera, grid, np.zeros(3)).rays(0, grid.width * grid.height)

@@ -1,11 +1,16 @@
 """Comparing a submitted image with the reference render: the numbers and the verdict.
 
 Differences are in 8-bit levels (0–255).  A pixel is *off* when its largest
-channel difference exceeds the tolerance; it is *off even nearby* when no
-reference pixel in its 3×3 neighbourhood is within the tolerance, which
-forgives anti-aliasing and one-pixel edge shifts.  A submission passes when
-the fraction of pixels off even nearby is at most ``max_fraction``.  Pixels the
-format leaves open (``open_pixels``) are not counted off even nearby.
+channel difference exceeds the tolerance; it is *off even nearby* when, one
+way or the other, nothing in its 3×3 neighbourhood matches within the
+tolerance: the submitted pixel matches no reference pixel around it, or the
+reference pixel is matched by no submitted pixel around it (:mod:`.nearby`).
+That forgives anti-aliasing and one-pixel edge shifts, and not a thin
+highlight that vanished.  A submission passes when the fraction of pixels off
+even nearby is at most ``max_fraction`` and at most :data:`GROSS_ALLOWED` of
+them are *grossly off*: more than :data:`GROSS_LEVELS` levels from anything
+around them, as a colour that wrapped around instead of clamping is.  Pixels
+the format leaves open (``open_pixels``) are not counted.
 """
 
 from __future__ import annotations
@@ -20,12 +25,18 @@ from tracer.image import RGBX_MODES, decode_rgbx, open_png
 
 from . import ppm
 from .display import percent
+from .nearby import BAND, distance, planes
 
 if TYPE_CHECKING:
     from PIL import Image, ImageFile
 
 DEFAULT_TOLERANCE = 2.0
 DEFAULT_MAX_FRACTION = 0.001
+#: a pixel off even nearby by more than this many levels is *grossly off*: no honest tracer's rounding, edge
+#: or offset puts a pixel this far from everything around it (calibrated by tests/grade_matrix.py)
+GROSS_LEVELS = 128
+#: at most this many pixels may be grossly off, whatever the fraction allows
+GROSS_ALLOWED = 0
 
 
 class ImageError(ValueError):
@@ -46,6 +57,8 @@ class Grade:
     width: int
     height: int
     reference_sha256: str
+    grossly_off: int = 0  # pixels off even nearby by more than GROSS_LEVELS
+    open_pixels: int = 0  # pixels the format leaves open, not counted
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -55,10 +68,15 @@ class Grade:
         """Why it failed, in words (empty when it passed)."""
         if self.passed:
             return ""
+        if self.fraction_off_nearby <= self.max_fraction:
+            which = "1 pixel is" if self.grossly_off == 1 else f"{self.grossly_off} pixels are"
+            return (
+                f"{which} grossly off: more than {GROSS_LEVELS} levels from everything around them (a dot or "
+                f"speckle of the wrong colour); at most {GROSS_ALLOWED} may be"
+            )
         return (
-            f"{percent(self.fraction_off_nearby)} of the pixels are off even nearby (more than "
-            f"{self.tolerance:g} levels from every reference pixel around them); at most "
-            f"{percent(self.max_fraction)} may be"
+            f"{percent(self.fraction_off_nearby)} of the pixels are off even nearby (nothing around them within "
+            f"{self.tolerance:g} levels, one way or the other); at most {percent(self.max_fraction)} may be"
         )
 
 
@@ -228,15 +246,6 @@ def _opaque(alpha: np.ndarray) -> None:
         )
 
 
-#: rows compared at once, so that the temporaries of a 4096×4096 comparison stay a few tens of MiB
-BAND = 256
-
-
-def planes(img: np.ndarray) -> np.ndarray:
-    """(h, w, 3) → (3, h, w), each channel contiguous: the comparisons run over whole rows of bytes."""
-    return np.ascontiguousarray(np.moveaxis(img, 2, 0))
-
-
 def _absdiff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.maximum(a, b) - np.minimum(a, b)  # |a − b| in uint8, without widening
 
@@ -246,22 +255,54 @@ def _largest(ref: np.ndarray, sub: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(_absdiff(ref[0], sub[0]), _absdiff(ref[1], sub[1])), _absdiff(ref[2], sub[2]))
 
 
-def _difference(reference: np.ndarray, submitted: np.ndarray) -> np.ndarray:
-    return _largest(planes(reference), planes(submitted))
+def nearby_difference(reference: np.ndarray, submitted: np.ndarray, top: int, bottom: int) -> np.ndarray:
+    """For rows ``top:bottom``, per pixel the nearby distance both ways (:func:`service.nearby.distance`) of two
+    whole ``(H, W, 3) uint8`` images."""
+    return distance(reference, reference, submitted, top, bottom)
 
 
-def nearby_difference(reference: np.ndarray, sub: np.ndarray, top: int, bottom: int) -> np.ndarray:
-    """For rows ``top:bottom`` (``sub`` is their submitted planes), per pixel the smallest largest-channel
-    difference to any reference pixel in its 3×3 neighbourhood (edges repeat)."""
-    h, w, _ = reference.shape
-    rows = np.clip(np.arange(top - 1, bottom + 1), 0, h - 1)
-    padded = planes(np.pad(reference[rows], ((0, 0), (1, 1), (0, 0)), mode="edge"))
-    n = bottom - top
-    best = np.full((n, w), 255, dtype=np.uint8)
-    for dy in range(3):
-        for dx in range(3):
-            np.minimum(best, _largest(padded[:, dy : dy + n, dx : dx + w], sub), out=best)
-    return best
+@dataclass(frozen=True)
+class Counts:
+    """What a comparison counts of the pixels: off even nearby, and grossly off (neither where left open)."""
+
+    off_nearby: int
+    grossly_off: int
+
+
+def count_off(near: np.ndarray, tolerance: float, open_rows: np.ndarray | None) -> Counts:
+    """The pixels of nearby distances ``near`` off even nearby and grossly off, ``open_rows`` (the same shape,
+    True: left open by the format) not counted."""
+    if open_rows is not None:
+        near = np.where(open_rows, 0, near)
+    return Counts(int(np.count_nonzero(near > tolerance)), int(np.count_nonzero(near > GROSS_LEVELS)))
+
+
+def range_counts(
+    renders: list[np.ndarray], submitted: np.ndarray, tolerance: float, open_pixels: np.ndarray | None = None
+) -> Counts:
+    """The pixels of ``submitted`` off even nearby, and grossly off, against the range of ``renders`` (each
+    ``(H, W, 3) uint8``): per pixel, the range from their lowest to their highest value, compared both ways over
+    3×3 neighbourhoods (:mod:`service.nearby`).  With one render this is :func:`grade`'s own count; with renders of
+    one variant at several amounts it forgives any amount between them, as far as a pixel's value moves between
+    theirs (an offset shifts a glass ball's rim a little with each amount).  Rows are compared :data:`BAND` at a
+    time; ``open_pixels`` are not counted."""
+    h = submitted.shape[0]
+    low, high = np.min(renders, axis=0), np.max(renders, axis=0)
+    off, gross = 0, 0
+    for top in range(0, h, BAND):
+        bottom = min(top + BAND, h)
+        counts = count_off(
+            distance(low, high, submitted, top, bottom),
+            tolerance,
+            None if open_pixels is None else open_pixels[top:bottom],
+        )
+        off, gross = off + counts.off_nearby, gross + counts.grossly_off
+    return Counts(off, gross)
+
+
+def passes(counts: Counts, pixels: int, max_fraction: float) -> bool:
+    """Whether counts of a comparison of ``pixels`` pixels pass: few enough off even nearby, and grossly off."""
+    return counts.off_nearby / pixels <= max_fraction and counts.grossly_off <= GROSS_ALLOWED
 
 
 def grade(
@@ -273,12 +314,12 @@ def grade(
     open_pixels: np.ndarray | None = None,
 ) -> Grade:
     """The grade of ``submitted`` against ``reference`` (each ``(H, W, 3) uint8``); ``open_pixels``, a boolean
-    ``(H, W)`` mask, marks the pixels whose value the format leaves open (two coplanar surfaces overlap there,
-    :class:`tracer.Picture`): they are not counted against the submission."""
+    ``(H, W)`` mask, marks the pixels whose value the format leaves open (two coplanar surfaces overlap there):
+    they are not counted against the submission, off or grossly off."""
     h, w, _ = reference.shape
     levels = np.arange(256, dtype=np.int64)
     histogram = np.zeros(256, dtype=np.int64)  # of every channel difference: exact sums from it
-    max_error, off, off_nearby = 0, 0, 0
+    max_error, off, off_nearby, gross = 0, 0, 0, 0
     for top in range(0, h, BAND):
         bottom = min(top + BAND, h)
         ref, sub = planes(reference[top:bottom]), planes(submitted[top:bottom])
@@ -287,20 +328,20 @@ def grade(
             histogram += np.bincount(c.ravel(), minlength=256)
         diff = np.maximum(np.maximum(channels[0], channels[1]), channels[2])
         band_off = int(np.count_nonzero(diff > tolerance))
-        if band_off:  # only then can a pixel be off even nearby (its own reference pixel is one of the nine)
+        max_error = max(max_error, int(diff.max()))
+        if band_off:  # only then can a pixel be off even nearby (it is its own neighbour, both ways)
             off += band_off
-            max_error = max(max_error, int(diff.max()))
-            near = nearby_difference(reference, sub, top, bottom) > tolerance
-            if open_pixels is not None:
-                near &= ~open_pixels[top:bottom]
-            off_nearby += int(np.count_nonzero(near))
-        else:
-            max_error = max(max_error, int(diff.max()))
+            counts = count_off(
+                nearby_difference(reference, submitted, top, bottom),
+                tolerance,
+                None if open_pixels is None else open_pixels[top:bottom],
+            )
+            off_nearby, gross = off_nearby + counts.off_nearby, gross + counts.grossly_off
     values, pixels = 3 * h * w, h * w
     mse = int(histogram @ (levels * levels)) / values
     nearby = off_nearby / pixels
     return Grade(
-        passed=nearby <= max_fraction,
+        passed=passes(Counts(off_nearby, gross), pixels, max_fraction),
         tolerance=tolerance,
         max_fraction=max_fraction,
         mean_abs_error=int(histogram @ levels) / values,
@@ -312,4 +353,6 @@ def grade(
         width=w,
         height=h,
         reference_sha256=reference_sha256,
+        grossly_off=gross,
+        open_pixels=0 if open_pixels is None else int(np.count_nonzero(open_pixels)),
     )

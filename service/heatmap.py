@@ -3,8 +3,8 @@
 The *verdict* heat-map shows what decided the grade.  On the reference, dimmed
 to grey, it marks every pixel that is *off even nearby* (the pixels the verdict
 counts) in orange where the submission is brighter and in blue where it is
-darker, and the pixels that are off but forgiven (a reference pixel in their
-3×3 neighbourhood matches) in light grey.  A passing one-pixel shift is then a
+darker, and the pixels that are off but forgiven (a pixel in their 3×3
+neighbourhood matches, both ways) in light grey.  A passing one-pixel shift is then a
 few grey edges, not a wall of colour.  The *raw* heat-map is the per-pixel
 difference itself, black where equal, through red and yellow to white at 64+
 levels.  Both are the image's own size; :func:`with_legend` adds a band
@@ -52,7 +52,7 @@ def verdict_pixels(reference: np.ndarray, submitted: np.ndarray, tolerance: floa
         band = np.repeat(grey[:, :, None], 3, axis=2)
         off = _largest(ref, sub) > tolerance
         if off.any():
-            decisive = nearby_difference(reference, sub, top, bottom) > tolerance
+            decisive = nearby_difference(reference, submitted, top, bottom) > tolerance
             sign = sub.astype(np.int16).sum(axis=0) - ref.astype(np.int16).sum(axis=0)
             band[off & ~decisive] = FORGIVEN
             band[decisive & (sign >= 0)] = BRIGHTER

@@ -27,17 +27,19 @@ linear value, before it is clamped.
 from __future__ import annotations
 
 import io
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from schemas import Scene
+from schemas import Scene, load_scene
 from tracer import Renderer, encode_png
 from tracer.budget import UNLIMITED, Budget
 from tracer.image import quantize
 from tracer.passes import ADDITIVE, LIGHT_TERMS, NAMES
+from tracer.render import CHUNK_RAYS
 
 Format = Literal["png", "npy"]
 #: the darkest grey of a depth pass (the farthest hit); black is kept for nothing hit
@@ -78,8 +80,6 @@ def price(scene: Scene, name: str, fmt: Format) -> int:
     """The most bytes making pass ``name`` of ``scene`` as ``fmt`` holds at once: its values, the object pass a
     normal or a depth pass is rendered with, for a PNG its pixels and (at worst) the file, and a few chunks'
     tallies (:data:`tracer.render.CHUNK_RAYS` sub-samples on each core, about a kilobyte each)."""
-    from tracer.render import CHUNK_RAYS
-
     pixels = scene.image.width * scene.image.height
     held = pixels * VALUE_BYTES.get(name, 24)
     if name in ("normal", "depth"):
@@ -207,9 +207,5 @@ def as_file(name: str, data: np.ndarray, fmt: Format) -> PassFile:
 def pass_task(scene: bytes, name: str, light: int | None, fmt: Format, seconds: float) -> bytes:
     """A pass file made on a Dask worker (:meth:`service.http.jobs.RenderService.pass_file`), stopped ``seconds``
     after its start there (:class:`tracer.RenderCancelled`, as the service's own render stops)."""
-    import time
-
-    from schemas import load_scene
-
     deadline = time.monotonic() + seconds
     return encoded(name, values(load_scene(scene), name, light, 1, lambda: time.monotonic() > deadline), fmt)

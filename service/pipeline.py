@@ -8,35 +8,39 @@ the rendering (here, a cluster, a service), these steps and their words are the 
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
 
 from schemas import Image, Scene, SceneError, parse_json, validate_scene
 from schemas.errors import problems_from_validation
-from schemas.locate import as_lines, format_located
+from schemas.locate import Located, as_lines, format_located
 from tracer import decode_png, open_pixels
 
 from . import grading
+from .diagnosis import CACHE, Cached, Diagnosis, Renders, accepting, diagnose, renders_of
+from .diagnosis.accepting import Failing
+from .diagnosis.nuisance import behind_offset
 from .heatmap import Kind, heatmap_png
+from .scenekey import scene_key
 
-if TYPE_CHECKING:
-    from .diagnosis import Cached, Diagnosis
+#: values of a scene's ``image`` given beside it (``--width``, ``?samples=2``), by name; None keeps the scene's
+Overrides = Mapping[str, int | None]
 
 
 class BadInput(ValueError):
     """Input that cannot be used, as the one line to show (files named, problems joined by ``; ``)."""
 
 
-def scene_lines(name: str, errors: list[dict[str, Any]]) -> list[str]:
+def scene_lines(name: str, errors: Sequence[Located]) -> list[str]:
     """``NAME:LINE: path: message`` per located problem (``{"path", "message", "line"}``, as /validate gives)."""
     return format_located(name, errors)
 
 
-def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
+def with_overrides(scene: Scene, overrides: Overrides | None) -> Scene:
     """The scene with values of its ``image`` replaced (``--width``, ``?samples=2``; None keeps the scene's).
     Overrides apply to a valid scene: they neither complete nor mend one, so that a scene is accepted exactly
     when its JSON Schema says so.  Raises :class:`SceneError` for an override out of range."""
@@ -50,7 +54,7 @@ def with_overrides(scene: Scene, overrides: dict[str, Any] | None) -> Scene:
     return scene.model_copy(update={"image": image})
 
 
-def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, shared: bool = False) -> Scene:
+def load_scene(name: str, text: bytes, overrides: Overrides | None = None, shared: bool = False) -> Scene:
     """The validated scene of a file's text, ``overrides`` applied to its ``image``; :class:`SceneError`
     (with ``.lines``) names every problem by file and line."""
     try:
@@ -60,7 +64,7 @@ def load_scene(name: str, text: bytes, overrides: dict[str, Any] | None = None, 
         raise
 
 
-def scene_or_bad_input(name: str, text: bytes, overrides: dict[str, Any] | None = None) -> Scene:
+def scene_or_bad_input(name: str, text: bytes, overrides: Overrides | None = None) -> Scene:
     """:func:`load_scene`, its problems as one :class:`BadInput` line."""
     try:
         return load_scene(name, text, overrides)
@@ -73,7 +77,8 @@ class Graded:
     grade: grading.Grade
     heatmap: bytes | None  # PNG, when one was asked for
     diagnosis: Diagnosis | None = None  # of a failing grade, when one was asked for
-    accepted: str | None = None  # the accepted variant it passed as ("a 1e-3 ray offset"), None: the reference
+    #: the accepted variant it passed as ("a ray offset of 0.003 along the normal"), None: the reference
+    accepted: str | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The grade's numbers, its ``reason`` (why it failed; empty when it passed), its ``diagnosis``
@@ -97,7 +102,7 @@ class Checks:
 
 
 @dataclass(frozen=True)
-class Run:
+class Checking:
     """How the checks of a failing grade run: on how many threads (None: every core), what stops them (true:
     :class:`tracer.RenderCancelled`), and the cache of diagnosis renders (None: this process's,
     :data:`service.diagnosis.CACHE`)."""
@@ -114,7 +119,7 @@ class Explaining:
 
     scene: Callable[[], Scene]
     checks: Checks = Checks()
-    run: Run = Run()
+    run: Checking = Checking()
 
 
 def explain(
@@ -123,7 +128,7 @@ def explain(
     reference: np.ndarray,
     submitted: np.ndarray,
     checks: Checks = Checks(),
-    run: Run = Run(),
+    run: Checking = Checking(),
 ) -> Graded:
     """``graded`` passed against an accepted variant (:mod:`service.diagnosis.accepting`), or else with the
     diagnosis of a failing grade (:mod:`service.diagnosis`): the reference scene rendered with each classic
@@ -132,38 +137,60 @@ def explain(
     where the scene has any (:func:`without_open`)."""
     if graded.grade.passed:
         return graded
-    graded = without_open(scene, graded, reference, submitted, run)
-    if graded.grade.passed:
-        return graded
-    from .diagnosis.accepting import Failing, accept
-
-    found_variant = accept(scene, Failing(reference, submitted, graded.grade), checks.accepted, run.threads, run.cancel)
+    opened = left_open(scene, run)
+    if opened is not None:
+        graded = _without(graded, reference, submitted, opened)
+        if graded.grade.passed:
+            return graded
+    failing = Failing(reference, submitted, graded.grade, opened)  # (the open pixels are not counted by any check)
+    found_variant = accepting.accept(scene, failing, checks.accepted, run.threads, run.cancel)
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
         return graded
-    from .diagnosis import CACHE, diagnose, renders_of
-    from .scenekey import scene_key
+    found = _diagnosed(
+        scene, failing, lambda: renders_of(scene, run.threads, open_pixels=opened), scene_key(scene), run
+    )
+    if not any(c.passes for c in found.causes) and found.unavailable is None:
+        found = _behind_offset(scene, failing, checks, run, found) or found
+    return Graded(graded.grade, graded.heatmap, found)
 
+
+def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Checking) -> Diagnosis:
+    """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
     held = CACHE if run.cache is None else run.cache
-    renders = held.get(scene_key(scene), lambda: renders_of(scene, run.threads), scene.image.width * scene.image.height)
+    renders = held.get(key, make, scene.image.width * scene.image.height)
     if renders.cancel_in_thread is not None:  # (the cached renders may be another diagnosis's at the same time)
         renders.cancel_in_thread(run.cancel)
     else:
         renders.cancel = run.cancel
     try:
-        found = diagnose(reference, submitted, graded.grade, renders)
+        return diagnose(failing.reference, failing.submitted, failing.failed, renders)
     finally:
         held.trim()  # (what it rendered counted, cancelled or not)
-    return Graded(graded.grade, graded.heatmap, found)
 
 
-def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Run) -> Graded:
-    """``graded`` graded again without the pixels of ``scene`` the format leaves open: which of two overlapping
-    coplanar surfaces shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces)."""
+def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Checking, found: Diagnosis) -> Diagnosis | None:
+    """``found`` with a mistake the submission matches at the honest offset it shows besides it (fitted as a
+    nuisance, :mod:`service.diagnosis.nuisance`); None when there is none."""
+    return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
+
+
+def left_open(scene: Scene, run: Checking) -> np.ndarray | None:
+    """The pixels of ``scene`` the format leaves open, ``(H, W)`` bool: which of two overlapping coplanar surfaces
+    shows (:func:`tracer.open_pixels`, a render made only for a scene that has such surfaces); None where none is."""
     opened = open_pixels(scene, run.threads, run.cancel)
-    if opened is None or not opened.any():
-        return graded
+    return None if opened is None or not opened.any() else opened
+
+
+def without_open(scene: Scene, graded: Graded, reference: np.ndarray, submitted: np.ndarray, run: Checking) -> Graded:
+    """``graded`` graded again without the pixels of ``scene`` the format leaves open (:func:`left_open`)."""
+    opened = left_open(scene, run)
+    return graded if opened is None else _without(graded, reference, submitted, opened)
+
+
+def _without(graded: Graded, reference: np.ndarray, submitted: np.ndarray, opened: np.ndarray) -> Graded:
+    """``graded`` graded again with the pixels ``opened`` not counted."""
     g = graded.grade
     return replace(
         graded, grade=grading.grade(reference, submitted, g.reference_sha256, g.tolerance, g.max_fraction, opened)

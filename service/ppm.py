@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tracer.image import encode_png
+
 #: the magic numbers of the PPMs read: text values, byte values
 MAGICS = (b"P3", b"P6")
 #: the most bytes a header may take (a real one takes a few dozen; GIMP's comment a few dozen more)
@@ -207,6 +209,5 @@ def viewable(data: bytes) -> bytes:
     the copy a class report shows beside the reference)."""
     if not is_ppm(data):
         return data
-    from tracer.image import encode_png
 
     return encode_png(pixels(data, header(data)))

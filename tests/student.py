@@ -48,45 +48,30 @@ MISTAKES = (
 
 @dataclass(frozen=True)
 class Offset:
-    """How the student starts shadow and secondary rays off the surface, ``amount`` × the scene's size: along
-    the normal, to the side the ray leaves by (``along="normal"``), or by a t_min, ignoring hits nearer than it
-    (``along="ray"``: for a ray that starts on the surface, the same as starting ``amount`` along itself).  The
-    student's rays then carry no identity of the surface they leave: the offset is all that keeps them off it."""
+    """How the student starts shadow and secondary rays off the surface, ``amount`` in the scene's units, as the
+    student wrote it (``1e-3``): along the normal, to the side the ray leaves by (``along="normal"``), or by a
+    t_min, ignoring hits nearer than it (``along="ray"``: for a ray that starts on the surface, the same as
+    starting ``amount`` along itself).  The student's rays then carry no identity of the surface they leave: the
+    offset is all that keeps them off it."""
 
     amount: float
     along: str = "normal"
 
 
-#: the three offset styles of honest tracers the grade accepts
+#: the three offset styles of honest tracers the grade accepts, as a textbook writes them
 STYLES = {"offset 1e-3": Offset(1e-3), "t_min 1e-3": Offset(1e-3, "ray"), "offset 1e-4": Offset(1e-4)}
-#: the mistake of an offset far too large
-TOO_LARGE = Offset(2e-2)
-
-
-def size_of(scene) -> float:  # noqa: ANN001
-    """The largest side of the box around the spheres and triangles (planes not counted; 1 with none)."""
-    points = []
-    for obj in scene.objects:
-        if obj.type == "sphere":
-            points += [np.array(obj.center) - obj.radius, np.array(obj.center) + obj.radius]
-        elif obj.type == "triangle":
-            points += [np.array(v) for v in obj.vertices]
-        elif obj.type == "mesh":
-            points += [np.array(v) for v in obj.vertices]
-    if not points:
-        return 1.0
-    box = np.array(points, dtype=np.float64)
-    return float(np.max(box.max(axis=0) - box.min(axis=0))) or 1.0
+#: the mistake of an offset far too large: a tenth of a unit, in scenes a few units across
+TOO_LARGE = Offset(0.1)
 
 
 def spawn(
-    p: np.ndarray, to: np.ndarray, n: np.ndarray, start: np.ndarray, off: Offset | None, size: float
+    p: np.ndarray, to: np.ndarray, n: np.ndarray, start: np.ndarray, off: Offset | None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Where rays from points p along ``to`` start, and the surface each leaves (−1: none), in the student's
     offset style (None: on the surface, leaving it by identity)."""
     if off is None:
         return p, start
-    step = off.amount * size
+    step = off.amount
     if off.along == "ray":
         return p + step * to, np.full(len(p), -1)
     side = np.where(_dot(to, n) < 0, -step, step)
@@ -201,7 +186,6 @@ def render(
     assert wrong <= set(MISTAKES), wrong - set(MISTAKES)
     if "offset-too-large" in wrong:
         style = TOO_LARGE
-    size = size_of(scene)
     img = scene.image
     surfaces = ref.surfaces_of(scene)
     see_through = [scene.materials[s.material].transmittance > 0 for s in surfaces]
@@ -251,7 +235,7 @@ def render(
             gets = (strength > 0) & ((nl > 0) | ("specular-behind" in wrong))
             if "no-shadows" not in wrong and gets.any():
                 rows = np.flatnonzero(gets)
-                origin, leaving = spawn(p[rows], to[rows], n[rows], which[rows], style, size)
+                origin, leaving = spawn(p[rows], to[rows], n[rows], which[rows], style)
                 if "shadow-acne" in wrong:  # the ray starts where the hit was computed, and may hit its surface
                     speck = (np.floor(np.abs(origin).sum(axis=1) * 977.0) % 2 == 1)[:, None]
                     origin = origin - np.where(speck, 1e-7, 0.0) * n[rows]
@@ -290,7 +274,6 @@ def render(
             np.concatenate([n[r], n[t]]),
             np.concatenate([which[r], which[t]]),
             style,
-            size,
         )
         weight = np.concatenate([weight[r] * kr[r], weight[t] * kt[t]])
         pixel = np.concatenate([pixel[r], pixel[t]])

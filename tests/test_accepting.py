@@ -2,7 +2,7 @@
 
 The students are tests/student.py's tracer, written from the scene format, in
 the three common offset styles and with each classic mistake; the key cells of
-the calibration (every example and the Cornell-box homework) are checked here.
+the calibration (tests/offset_matrix.py) are checked here and in tests/test_rule.py.
 """
 
 from __future__ import annotations
@@ -81,8 +81,8 @@ def test_an_honest_normal_offset_fails_the_reference_and_passes_as_its_variant(w
     honest = _student(whitted, style=student.STYLES["offset 1e-3"])
     assert not grade(whitted_reference, honest, "").passed  # the reference alone fails it (0.37 % off)
     graded = _graded(whitted, honest)
-    assert graded.grade.passed and graded.accepted == "a 1e-3 ray offset"
-    assert graded.as_dict()["accepted"] == "a 1e-3 ray offset" and graded.diagnosis is None
+    assert graded.grade.passed and graded.accepted == "a ray offset of 0.001 along the normal"  # as written
+    assert graded.as_dict()["accepted"] == "a ray offset of 0.001 along the normal" and graded.diagnosis is None
 
 
 @pytest.mark.parametrize("style", sorted(student.STYLES))
@@ -90,13 +90,16 @@ def test_each_honest_style_passes_the_whitted_example(whitted, style):
     assert _graded(whitted, _student(whitted, style=student.STYLES[style])).grade.passed
 
 
-@pytest.mark.parametrize("amount", [1.5e-4, 3e-4, 7e-4])
+@pytest.mark.parametrize("amount", [1.5e-3, 4e-3, 7e-3, 0.013, 0.024])
 def test_any_offset_up_to_the_largest_passes_as_the_amount_it_comes_closest_to(whitted, whitted_reference, amount):
-    """The variant is rendered at 1e-3 and its halves; an amount between them passes against their range."""
+    """The variant is rendered at a ladder of round amounts (0.001, 0.002, 0.003, 0.005, 0.01, 0.02 and its
+    largest, 0.03 here); an amount between two rungs passes against their range, as the nearer one."""
     honest = _student(whitted, style=student.Offset(amount))
     assert not grade(whitted_reference, honest, "").passed
     graded = _graded(whitted, honest, pipeline.Checks(diagnose=False))
-    assert graded.grade.passed and graded.accepted is not None and graded.accepted.endswith(" ray offset")
+    assert graded.grade.passed and graded.accepted is not None and graded.accepted.endswith(" along the normal")
+    said = float(graded.accepted.split()[4])
+    assert amount / 2 <= said <= amount * 2
 
 
 def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_reference):
@@ -104,6 +107,8 @@ def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_refe
     verdict = grade(whitted_reference, honest, "")
     pixels = honest.shape[0] * honest.shape[1]
     assert accepting.envelope_off([whitted_reference], honest, 2.0) == round(verdict.fraction_off_nearby * pixels)
+    counts = accepting.envelope_counts([whitted_reference], honest, 2.0)
+    assert counts.grossly_off == verdict.grossly_off
 
 
 @pytest.mark.parametrize(
@@ -112,17 +117,19 @@ def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_refe
         {"style": student.STYLES["offset 1e-3"]},
         {"mistakes": ["no-shadows"]},
         {"mistakes": ["offset-too-large"]},
-        {"style": student.Offset(7e-4)},
+        {"style": student.Offset(7e-3)},
     ],
 )
 def test_a_first_look_at_a_few_rows_bounds_the_whole_count(whitted, whitted_reference, made):
-    from tracer.variants import ACCEPTED_DEFAULT, accepted_options
-
     image = _student(whitted, **made)
     pair = accepting.Failing(whitted_reference, image, grade(whitted_reference, image, ""))
-    for rungs in accepted_options(ACCEPTED_DEFAULT):
-        whole = accepting.envelope_off([whitted_reference] + [_rendered(whitted, o) for _, o in rungs], image, 2.0)
-        assert accepting.first_look(whitted, rungs, pair, accepting.Look("", None, None)) <= whole
+    for rungs in accepting.accepted_ladders(whitted, None):
+        for low, high in accepting.brackets(rungs)[:3]:
+            parts = [r for r in (low, high) if r is not None]
+            ranged = ([whitted_reference] if low is None else []) + [_rendered(whitted, r.options) for r in parts]
+            whole = accepting.envelope_off(ranged, image, 2.0)
+            bound = accepting.first_look(whitted, parts, pair, accepting.Look("", None, None), low is None)
+            assert bound <= whole
 
 
 def test_a_clearly_wrong_image_renders_no_whole_variant(whitted, whitted_reference, monkeypatch):
@@ -133,11 +140,12 @@ def test_a_clearly_wrong_image_renders_no_whole_variant(whitted, whitted_referen
     assert accepting.accept(whitted, accepting.Failing(whitted_reference, wrong, failed)) is None
 
 
-def test_an_offset_far_too_large_fails_and_is_named(whitted):
-    wrong = _student(whitted, ["offset-too-large"])
+def test_an_offset_far_too_large_fails_and_is_named_with_its_size_in_the_scenes_units(whitted):
+    wrong = _student(whitted, ["offset-too-large"])  # (0.1, where at most 0.03 is accepted)
     graded = _graded(whitted, wrong)
     assert not graded.grade.passed and graded.accepted is None
     assert graded.diagnosis is not None and graded.diagnosis.causes[0].variant == "offset-too-large"
+    assert graded.diagnosis.causes[0].passes and "about 0.1 in the scene's units" in graded.diagnosis.sentence()
 
 
 @pytest.mark.parametrize("mistake", student.MISTAKES)
@@ -152,18 +160,18 @@ def test_no_classic_mistake_is_turned_into_a_pass(whitted, whitted_reference, mi
 def test_the_cornell_homework_passes_an_honest_offset_and_fails_a_large_one():
     scene = _scene(CORNELL)
     honest = _graded(scene, _student(scene, style=student.STYLES["offset 1e-3"]))
-    assert honest.grade.passed and honest.accepted == "a 1e-3 ray offset"
+    assert honest.grade.passed and honest.accepted in (None, "a ray offset of 0.001 along the normal")
     assert not _graded(scene, _student(scene, ["offset-too-large"]), pipeline.Checks(diagnose=False)).grade.passed
 
 
 def test_a_task_narrows_and_widens_its_accepted_variants(whitted):
     honest = _student(whitted, style=student.STYLES["offset 1e-3"])
     assert not _graded(whitted, honest, pipeline.Checks(accepted={}, diagnose=False)).grade.passed
-    wider = _student(whitted, style=student.Offset(4e-3))
+    wider = _student(whitted, style=student.Offset(0.05))  # (8e-3 of the visible size, 6.06)
     assert not _graded(whitted, wider, pipeline.Checks(diagnose=False)).grade.passed
-    widened = _graded(whitted, wider, pipeline.Checks(accepted={"normal-offset": 4e-3}, diagnose=False))
-    assert widened.grade.passed and widened.accepted == "a 4e-3 ray offset"
-    only_t_min = _graded(whitted, honest, pipeline.Checks(accepted={"t-min": 1e-3}, diagnose=False))
+    widened = _graded(whitted, wider, pipeline.Checks(accepted={"normal-offset": 1e-2}, diagnose=False))
+    assert widened.grade.passed and widened.accepted == "a ray offset of 0.05 along the normal"
+    only_t_min = _graded(whitted, honest, pipeline.Checks(accepted={"t-min": 1e-2}, diagnose=False))
     assert not only_t_min.grade.passed
 
 
@@ -176,11 +184,14 @@ def test_a_passing_image_renders_no_variant(whitted, whitted_reference, monkeypa
 
 
 def test_the_variant_is_the_reference_with_its_rays_moved_off_the_surface(whitted, whitted_reference):
-    """An offset of 0 is the reference itself; the t_min variant moves rays by exactly its amount."""
+    """An offset of 0 is the reference itself; the variants move rays by exactly their amount × the visible size,
+    the size of what the camera sees (not the box around the scene, 4.3 here)."""
     assert np.array_equal(Renderer(whitted, Options(offset=0.0)).pixels(), whitted_reference)
     assert scene_size(whitted) == pytest.approx(4.3)  # the two balls' box: z from −2.7 to 1.6, its widest side
+    size = Renderer(whitted).visible_size()
+    assert size == pytest.approx(6.06, abs=0.01)  # the view's height at the median depth of what it shows
     for style, along in (("offset 1e-3", "normal"), ("t_min 1e-3", "ray")):
-        variant = Renderer(whitted, Options(offset=1e-3, offset_along=along)).pixels()
+        variant = Renderer(whitted, Options(offset=1e-3 / size, offset_along=along)).pixels()
         assert grade(variant, _student(whitted, style=student.STYLES[style]), "").fraction_off_nearby == 0
 
 
@@ -202,7 +213,9 @@ def test_grade_says_which_variant_it_passed_as_even_without_a_diagnosis(whitted,
     honest.write_bytes(encode_png(_student(whitted, style=student.STYLES["offset 1e-3"])))
     for extra in ([], ["--no-diagnosis"]):
         assert main(["grade", str(WHITTED), str(honest), *extra]) == 0
-        assert capsys.readouterr().out.splitlines()[0] == "PASS, as rendered with a 1e-3 ray offset"
+        assert (
+            capsys.readouterr().out.splitlines()[0] == "PASS, as rendered with a ray offset of 0.001 along the normal"
+        )
 
 
 def test_post_grade_gives_the_accepted_variant(whitted):
@@ -219,7 +232,8 @@ def test_post_grade_gives_the_accepted_variant(whitted):
         "/grade",
         files={"scene": ("s.json", WHITTED.read_bytes(), "application/json"), "image": ("i.png", honest, "image/png")},
     ).json()
-    assert body["passed"] is True and body["accepted"] == "a 1e-3 ray offset" and body["diagnosis"] is None
+    assert body["passed"] is True and body["accepted"] == "a ray offset of 0.001 along the normal"
+    assert body["diagnosis"] is None
 
 
 def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, tmp_path):
@@ -241,5 +255,6 @@ def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, t
         run = ClassRun(tmp_path / "scenes", tmp_path / "subs", tmp_path / name, jobs=1, tasks_file=tasks)
         (row,) = grade_class(run).rows
         rows[name] = row
-    assert (rows["defaults"]["status"], rows["defaults"]["reason"]) == ("pass", "as rendered with a 1e-3 ray offset")
+    expected = ("pass", "as rendered with a ray offset of 0.001 along the normal")
+    assert (rows["defaults"]["status"], rows["defaults"]["reason"]) == expected
     assert rows["none"]["status"] == "fail"

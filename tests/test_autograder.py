@@ -114,7 +114,7 @@ def test_an_honest_tracers_ray_offset_passes_in_the_autograder_and_says_so(tmp_p
     done, results = run_autograder(out, tmp_path / "root", {"Whitted.png": honest})
     (test,) = results["tests"]
     assert (test["score"], test["status"]) == (1.0, "passed"), test["output"]
-    assert test["output"].startswith("passed, as rendered with a 1e-3 ray offset: ")
+    assert test["output"].startswith("passed, as rendered with a ray offset of 0.001 along the normal: ")
 
 
 def test_a_broken_bundle_writes_results_that_say_so_and_exits_2(tmp_path: Path, bundle: Path):
@@ -162,8 +162,10 @@ def test_which_file_is_a_tasks(names: list[str], expected: dict[str, str]):
 def test_the_bundles_accepted_variants_are_rendered_beforehand(tmp_path: Path):
     """A submission that fails the reference is graded against the bundle's own renders of the variants, not
     renders made in Gradescope's container: with the bundle's renders replaced by a wrong image (no shadow
-    rays), that image passes "as rendered with a 1e-3 ray offset", which no real render of it would give."""
+    rays), that image passes "as rendered with a ray offset of 0.001 along the normal", which no real render of it
+    would give."""
     from schemas import load_scene
+    from service.diagnosis.accepting import accepted_ladders, file_name
     from tracer import Renderer, encode_png
     from tracer.variants import VARIANTS
 
@@ -174,7 +176,9 @@ def test_the_bundles_accepted_variants_are_rendered_beforehand(tmp_path: Path):
     assert main(["autograder", str(tmp_path / "scenes"), "-o", str(out)]) == 0
     with zipfile.ZipFile(out) as archive:
         stored = sorted(n.rsplit("/", 1)[1] for n in archive.namelist() if n.startswith("course/variants/"))
-    assert len(stored) == 8 and "normal-0.001.png" in stored and "ray-0.000125.png" in stored
+    ladders = accepted_ladders(load_scene(whitted.read_bytes()), None)
+    assert stored == sorted(file_name(rung.options) for rungs in ladders for rung in rungs)
+    assert [len(rungs) for rungs in ladders] == [7, 4]  # (0.001 … 0.02 and 0.03 along the normal; t_min 0.003 …)
     wrong = tmp_path / "wrong.png"
     wrong.write_bytes(encode_png(Renderer(load_scene(whitted.read_bytes()), VARIANTS["no-shadows"][0]).pixels()))
     done, results = run_autograder(out, tmp_path / "honest", {"whitted.png": wrong})
@@ -190,4 +194,4 @@ def test_the_bundles_accepted_variants_are_rendered_beforehand(tmp_path: Path):
     env = {**os.environ, "PHONGRAY_AUTOGRADER_ROOT": str(root), "PHONGRAY_AUTOGRADER_PYTHON": sys.executable}
     subprocess.run(["bash", str(root / "source" / "run_autograder")], env=env, capture_output=True, timeout=600)
     (test,) = json.loads((root / "results" / "results.json").read_text())["tests"]
-    assert test["output"].startswith("passed, as rendered with a 1e-3 ray offset: ")
+    assert test["output"].startswith("passed, as rendered with a ray offset of 0.001 along the normal: ")

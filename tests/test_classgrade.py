@@ -594,9 +594,9 @@ def test_the_summary_counts_one_pair_and_one_reference_in_the_singular():
 def test_a_grade_record_has_the_reports_columns_in_their_order():
     from dataclasses import fields
 
-    from service.classgrade.records import Grade
+    from service.classgrade.records import Row
 
-    assert [f.name for f in fields(Grade)] == report_module.COLUMNS
+    assert [f.name for f in fields(Row)] == report_module.COLUMNS
 
 
 def test_a_programs_failed_run_is_named_in_the_report_not_left_undiagnosed():

@@ -465,7 +465,7 @@ def test_grades_print_in_words_and_as_json(files, capsys):
     assert main(["grade", str(files / "good.json"), str(files / "dark.png")]) == 1
     first = capsys.readouterr().out.splitlines()[0]
     assert first.startswith("FAIL: ") and first.endswith(
-        "% of the pixels are off even nearby (more than 2 levels from every reference pixel around them); at most "
+        "% of the pixels are off even nearby (nothing around them within 2 levels, one way or the other); at most "
         "0.10 % may be"
     )
     assert main(["grade", str(files / "good.json"), str(files / "dark.png"), "--json"]) == 1

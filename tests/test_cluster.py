@@ -194,6 +194,14 @@ def test_the_service_on_the_cluster_gives_the_same_bytes(dask, tmp_path):
             assert res.read() == local
 
 
+def test_a_students_folder_sent_in_its_task_raises_no_warning_for_the_ta(dask):
+    """A program's task carries its student's folder as bytes (up to the folder limit, 100 MB by default):
+    sent without Dask's warning of a large graph (the test suite makes every warning an error)."""
+    with cluster.client(dask[0]) as held:
+        folder = b"\0" * (24 << 20)
+        assert held.get_executor().submit(len, folder).result() == 24 << 20
+
+
 def test_without_dask_the_cli_says_what_to_install(monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if it were not installed
     code = main(["render", str(SCENES / "01_three_spheres.json"), "-o", "-", "--cluster", "tcp://127.0.0.1:1"])

@@ -7,7 +7,6 @@ import student
 import schemas
 from service.diagnosis.compose import (
     ALL,
-    Fitted,
     Looks,
     Rows,
     chosen,
@@ -18,6 +17,7 @@ from service.diagnosis.compose import (
     pointed,
     telling_rows,
 )
+from service.diagnosis.records import Term
 from service.grading import grade
 from tracer import Renderer
 from tracer.variants import REFERENCE, Options, unchanged
@@ -66,10 +66,10 @@ def test_options_merge_the_changed_fields_of_each_mistake():
 
 def test_the_fit_points_to_the_new_mistakes_it_can_see():
     lights = ("ambient", "spot", "point")
-    found = pointed([Fitted("diffuse", 1, 2.0), Fitted("refraction", None, 0.5)], lights)
+    found = pointed([Term("diffuse", 1, 2.0), Term("refraction", None, 0.5)], lights)
     assert "spot-exponent-ignored" in found and "exit-normal-not-flipped" in found
     assert "clamped-per-term" not in found  # (nothing too weak)
-    assert "clamped-per-term" in pointed([Fitted("specular", 2, 0.5)], lights)
+    assert "clamped-per-term" in pointed([Term("specular", 2, 0.5)], lights)
 
 
 def test_telling_rows_span_the_image_and_find_a_departure():
@@ -140,7 +140,7 @@ def test_nearest_explanations_are_ranked_by_their_share_of_the_difference():
     scene = small("01_three_spheres")
     reference = Renderer(scene).pixels()
     submitted = np.clip(Renderer(scene, merged(("no-shadows",))).pixels().astype(int) + 9, 0, 255).astype(np.uint8)
-    ranked = nearest(reference, submitted, Counted(scene).looks(), [(Fitted("ambient", None, 3.0), 0.2)])
+    ranked = nearest(reference, submitted, Counted(scene).looks(), [(Term("ambient", None, 3.0), 0.2)])
     assert ranked and ranked[0].variant == "no-shadows"
     assert [e.share for e in ranked] == sorted((e.share for e in ranked), reverse=True)
     assert any(e.term is not None and e.term.name == "ambient" for e in ranked)

@@ -218,7 +218,7 @@ def test_a_grade_does_not_count_the_open_pixels_against_a_submission():
     assert not grading.grade(ref.pixels, student, "", 2.0, 0.001).passed
     assert grading.grade(ref.pixels, student, "", 2.0, 0.001, ref.open).passed
     png = encode_png(ref.pixels)
-    explaining = pipeline.Explaining(lambda: scene, pipeline.Checks({}, diagnose=False), pipeline.Run(threads=1))
+    explaining = pipeline.Explaining(lambda: scene, pipeline.Checks({}, diagnose=False), pipeline.Checking(threads=1))
     assert pipeline.grade_png(png, encode_png(student), 2.0, 0.001, explaining=explaining).grade.passed
     # a mistake outside them still fails: the box's shadow on the floor around it lit
     shadow = np.all(ref.pixels < 60, axis=2) & ~ref.open

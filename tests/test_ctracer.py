@@ -131,3 +131,15 @@ def test_a_ppm_holds_the_pixels_of_the_png(ctracer: Path, scenes: dict[str, Path
     header = b"P6\n160 120\n255\n"
     assert ppm.startswith(header)
     assert np.array_equal(np.frombuffer(ppm[len(header) :], dtype=np.uint8).reshape(png.shape), png)
+
+
+@pytest.mark.parametrize("example", ["01_three_spheres", "06_orthographic", "05_mesh"])
+def test_real_shadow_acne_is_named(
+    ctracer: Path, grader: matrix.Grader, scenes: dict[str, Path], example: str, tmp_path: Path
+) -> None:
+    """A tracer that starts its rays on the surface (t > 0, no offset) speckles in its own pattern, sparse on a
+    large lit surface: it lies between the reference and acne's far end, and is named for it."""
+    image = matrix.render(ctracer, scenes[example], tmp_path / "out.png", matrix.switches("shadow-acne", {}))
+    result = grader.grade(scenes[example], image, diagnose=True)
+    assert not result["passed"]
+    assert matrix.cell(result) == "FAIL(shadow-acne)", result["diagnosis"]

@@ -42,7 +42,8 @@ def asked(tmp_path: Path, mistake: str, task: str):
     first = run(scene)
     assert first.ok, first.detail
     graded = grade_task(render_png(json.loads(scene)), first.image, 2.0, 0.001, scene)
-    known = tuple(matched(graded.get("diagnosis"))[:1])
+    found = None if graded.graded is None or graded.graded.diagnosis is None else graded.graded.diagnosis.as_dict()
+    known = tuple(matched(found)[:1])
     return experiment(scene, first.image, run, Thresholds(2.0, 0.001), known)
 
 

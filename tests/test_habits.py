@@ -1,5 +1,6 @@
 """The habits that keep the code easy to pick up, checked on the source itself (issue: a codebase a newcomer can
-carry on): modules under 400 lines, functions under 80, few parameters.  The few exceptions are named here, each
+carry on): modules under 400 lines, functions under 80, few parameters; and the shape of its data: one name for
+each class, few untyped dicts and few imports inside functions in the service.  The few exceptions are named here, each
 with its reason; a new one fails this test until it is split or named."""
 
 from __future__ import annotations
@@ -11,6 +12,11 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("schemas", "tracer", "service")
 
 MODULE_LINES, FUNCTION_LINES, PARAMETERS = 400, 80, 7
+#: the service's ``dict[str, Any]`` (a record or a TypedDict says what a dict holds; an untyped one is for JSON
+#: and CSV as they are read and written) and its import statements inside functions (an import belongs at the
+#: top of its module, where it shows what the module depends on; one inside a function is for an import cycle
+#: or an optional dependency): at most these many
+UNTYPED_DICTS, LOCAL_IMPORTS = 40, 75
 #: functions allowed past FUNCTION_LINES or PARAMETERS, each until it is split (a name added here must say why
 #: it cannot be yet)
 LONG_FUNCTIONS = frozenset(
@@ -49,6 +55,26 @@ def _parameters(node: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
     return count - (1 if given and given[0].arg in ("self", "cls") else 0)
 
 
+def _trees(package: str) -> list[tuple[Path, ast.Module]]:
+    return [(p, ast.parse(p.read_text(), str(p))) for p in sorted((ROOT / package).rglob("*.py"))]
+
+
+def _local_imports(tree: ast.Module) -> list[ast.Import | ast.ImportFrom]:
+    """The import statements inside a function (one inside a nested function counted once)."""
+    found: dict[int, ast.Import | ast.ImportFrom] = {}
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            found.update({id(n): n for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom))})
+    return list(found.values())
+
+
+def _untyped_dicts(tree: ast.Module) -> int:
+    return sum(
+        isinstance(node, ast.Subscript) and ast.unparse(node).replace(" ", "") == "dict[str,Any]"
+        for node in ast.walk(tree)
+    )
+
+
 def test_the_gates_see_the_code():
     assert len(_modules()) > 50 and any(_functions(p) for p in _modules())
 
@@ -78,3 +104,31 @@ def test_no_function_takes_too_many_parameters():
         if (n := _parameters(node)) > PARAMETERS and name not in MANY_PARAMETERS
     ]
     assert not many, f"functions with more than {PARAMETERS} parameters (take a named record): {many}"
+
+
+def test_no_class_name_is_defined_twice():
+    where: dict[str, list[str]] = {}
+    for package in PACKAGES:
+        for path, tree in _trees(package):
+            for node in ast.walk(tree):
+                if isinstance(node, ast.ClassDef):
+                    where.setdefault(node.name, []).append(path.relative_to(ROOT).as_posix())
+    assert len(where) > 100
+    twice = {name: paths for name, paths in where.items() if len(paths) > 1}
+    assert not twice, f"classes of one name defined more than once (one name, one concept): {twice}"
+
+
+def test_the_service_has_few_untyped_dicts():
+    counted = {p.relative_to(ROOT).as_posix(): n for p, tree in _trees("service") if (n := _untyped_dicts(tree))}
+    assert counted, "the count sees the service's dicts"
+    total = sum(counted.values())
+    most = sorted(counted.items(), key=lambda item: -item[1])[:5]
+    assert total <= UNTYPED_DICTS, f"dict[str, Any] {total} times in service/ (at most {UNTYPED_DICTS}): {most}"
+
+
+def test_the_service_imports_at_the_top():
+    counted = {p.relative_to(ROOT).as_posix(): n for p, tree in _trees("service") if (n := len(_local_imports(tree)))}
+    assert counted, "the count sees the service's imports inside functions"
+    total = sum(counted.values())
+    most = sorted(counted.items(), key=lambda item: -item[1])[:5]
+    assert total <= LOCAL_IMPORTS, f"{total} imports inside functions in service/ (at most {LOCAL_IMPORTS}): {most}"

@@ -17,7 +17,7 @@ import schemas
 from service import classgrade
 from service.classgrade import ClassRun, journal, writing
 from service.classgrade import report as report_module
-from service.classgrade import run as run_module
+from service.classgrade import rows as rows_module
 from service.classgrade.gradebook import MISTAKES, partial, score
 from service.classgrade.taskfile import TaskSettings
 from service.cli import main
@@ -187,7 +187,7 @@ def test_a_row_that_cannot_be_made_is_that_pairs_row(graded, course: Path, tmp_p
             raise ValueError("a fault of the score")
         return score(row, task)
 
-    monkeypatch.setattr(run_module, "score", faulty)
+    monkeypatch.setattr(rows_module, "score", faulty)
     outcome = _graded(course, report)
     mine = {r["student"]: r for r in outcome.rows}
     assert mine["ann"] == rows["ann"] and mine["bo"] == rows["bo"]

@@ -39,28 +39,28 @@ def folder(tmp_path: Path, mistakes: str = "", extra: str = "") -> Path:
 
 def test_an_honest_program_passes_every_task_and_its_image_is_kept(tmp_path, tasks):
     graded = grade_program(ProgramJob(folder(tmp_path), Program(RUN, limits=LIMITS), tasks))
-    assert {task: row["status"] for task, row in graded.items()} == {"spot": "pass", "glass": "pass"}
-    assert graded["spot"]["image"].startswith(b"\x89PNG") and graded["spot"]["run"] == "ok"
-    assert graded["spot"]["run_warning"] is None
-    assert "experiment" not in graded["spot"]
+    assert {task: row.status for task, row in graded.items()} == {"spot": "pass", "glass": "pass"}
+    assert graded["spot"].image.startswith(b"\x89PNG") and graded["spot"].run.run == "ok"
+    assert graded["spot"].run.run_warning is None
+    assert graded["spot"].experiment is None
 
 
 def test_a_buggy_program_fails_with_its_mistake_found_by_experiment(tmp_path, tasks):
     graded = grade_program(ProgramJob(folder(tmp_path, "no-refraction"), Program(RUN, limits=LIMITS), tasks))
-    assert graded["spot"]["status"] == "pass"
-    assert graded["glass"]["status"] == "fail"
-    assert graded["glass"]["experiment"] == "reflection right, refraction missing"
+    assert graded["spot"].status == "pass"
+    assert graded["glass"].status == "fail"
+    assert graded["glass"].experiment == "reflection right, refraction missing"
 
 
 def test_a_run_that_fails_is_a_failing_pair_with_its_reason(tmp_path, tasks):
     hang = 'import sys\nwhile "glass" in sys.argv[1]:\n    pass\n'
     quick = Limits(wall_seconds=3.0, cpu_seconds=20, memory_bytes=1 << 30, output_bytes=1 << 20, folder_bytes=1 << 20)
     graded = grade_program(ProgramJob(folder(tmp_path, extra=hang), Program(RUN, limits=quick), tasks))
-    assert graded["spot"]["status"] == "pass"  # the job went on
+    assert graded["spot"].status == "pass"  # the job went on
     glass = graded["glass"]
-    assert glass["status"] == "fail" and glass["passed"] is False and glass["run"] == "timeout"
-    assert glass["reason"].startswith("the run failed: timeout: still running at the wall-time limit of 3 s")
-    assert "experiment" not in glass  # a run that failed is not asked more
+    assert glass.status == "fail" and glass.graded is None and glass.run.run == "timeout"
+    assert glass.reason.startswith("the run failed: timeout: still running at the wall-time limit of 3 s")
+    assert glass.experiment is None  # a run that failed is not asked more
 
 
 def test_a_failed_build_fails_every_task_and_runs_none(tmp_path, tasks):
@@ -68,15 +68,15 @@ def test_a_failed_build_fails_every_task_and_runs_none(tmp_path, tasks):
     (student / "build.sh").write_text("echo 'tracer.c:3: error: expected ;' >&2\nexit 1\n")
     graded = grade_program(ProgramJob(student, Program(RUN, build="sh build.sh", limits=LIMITS), tasks))
     for row in graded.values():
-        assert row["status"] == "fail" and row["reason"].startswith("the build failed: crashed: crashed (exit 1)")
-        assert "expected ;" in row["run_output"]
+        assert row.status == "fail" and row.reason.startswith("the build failed: crashed: crashed (exit 1)")
+        assert "expected ;" in row.run.run_output
 
 
 def test_a_build_runs_once_and_its_result_is_what_runs(tmp_path, tasks):
     student = folder(tmp_path, "no-refraction")
     (student / "build.sh").write_text(": > mistakes.txt\necho built >> builds.txt\n")
     graded = grade_program(ProgramJob(student, Program(RUN, build="sh build.sh", limits=LIMITS), tasks))
-    assert {row["status"] for row in graded.values()} == {"pass"}
+    assert {row.status for row in graded.values()} == {"pass"}
     assert not (student / "builds.txt").exists()  # built in its sandbox, never in the student's folder
 
 
@@ -106,7 +106,7 @@ def test_the_digest_follows_the_files_and_the_commands_not_the_links(tmp_path):
 def test_an_output_that_is_not_a_png_is_invalid_as_an_upload_would_be(tmp_path, tasks):
     garbage = 'import sys\nopen(sys.argv[2], "wb").write(b"GIF89a not a png")\nsys.exit(0)\n'
     graded = grade_program(ProgramJob(folder(tmp_path, extra=garbage), Program(RUN, limits=LIMITS), tasks[:1]))
-    assert graded["spot"]["status"] == "invalid" and "experiment" not in graded["spot"]
+    assert graded["spot"].status == "invalid" and graded["spot"].experiment is None
 
 
 def test_a_job_sent_with_its_pack_runs_the_packed_folder_wherever_it_is(tmp_path, tasks):
@@ -118,11 +118,11 @@ def test_a_job_sent_with_its_pack_runs_the_packed_folder_wherever_it_is(tmp_path
     pack = pack_folder(student, LIMITS.folder_bytes)
     elsewhere = tmp_path / "not-here" / "student"
     graded = grade_program(ProgramJob(elsewhere, program, tasks, pack))
-    assert graded["spot"]["status"] == "pass"
-    assert graded["glass"]["experiment"] == "reflection right, refraction missing"
+    assert graded["spot"].status == "pass"
+    assert graded["glass"].experiment == "reflection right, refraction missing"
     too_large = pack_folder(student, 100)
     for row in grade_program(ProgramJob(elsewhere, program, tasks, too_large)).values():
-        assert row["reason"] == "the build failed: folder-too-large: the student's folder is larger than the limit"
+        assert row.reason == "the build failed: folder-too-large: the student's folder is larger than the limit"
 
 
 #: runs the honest tracer, then puts a private chunk of 900 kB (no decoder shows it) into the PNG it wrote
@@ -143,6 +143,6 @@ def test_what_is_kept_of_a_programs_image_is_the_png_of_its_pixels(tmp_path, tas
     student = folder(tmp_path)
     (student / "bloat.py").write_text(BLOATER)
     graded = grade_program(ProgramJob(student, Program("python3 bloat.py {scene} {output}", limits=LIMITS), tasks[:1]))
-    kept = graded["spot"]["image"]
-    assert graded["spot"]["status"] == "pass" and b"prVt" not in kept and len(kept) < 100_000
+    kept = graded["spot"].image
+    assert graded["spot"].status == "pass" and b"prVt" not in kept and len(kept) < 100_000
     assert (decode_png(kept) == decode_png(tasks[0].grading.reference)).all()

@@ -10,6 +10,7 @@ import socket
 import tempfile
 import textwrap
 import threading
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -310,6 +311,26 @@ def test_a_crash_is_named_by_its_exit_status_or_signal(course):
 def test_a_folder_larger_than_the_limit_is_not_run(course):
     (course / "subs" / "ann" / "data.bin").write_bytes(b"\0" * (QUICK.folder_bytes + 1))
     assert run(course, "write_png(output)\n").reason is Reason.FOLDER_TOO_LARGE
+
+
+def test_a_file_larger_than_the_output_limit_in_the_folder_is_copied_and_read(course):
+    """A student's file within the folder limit but larger than the output limit (a library, a mesh) is
+    copied into the run and read; what the program writes is then held to the output limit, soft and hard."""
+    limits = replace(QUICK, output_bytes=1 << 20, folder_bytes=4 << 20)
+    (course / "subs" / "ann" / "mesh.bin").write_bytes(b"\1" * (3 << 20))
+    outcome = run(
+        course,
+        """\
+        import resource
+        print("read", len(open("mesh.bin", "rb").read()), resource.getrlimit(resource.RLIMIT_FSIZE), file=sys.stderr)
+        write_png(output)
+        """,
+        limits,
+    )
+    assert outcome.reason is Reason.OK, outcome.stderr_tail
+    assert f"read {3 << 20} ({1 << 20}, {1 << 20})" in outcome.stderr_tail
+    written = run(course, 'open("copy.bin", "wb").write(b"x" * (2 << 20))\nwrite_png(output)\n', limits)
+    assert written.reason is Reason.OUTPUT_TOO_LARGE
 
 
 def test_without_bubblewrap_only_an_unsandboxed_run_goes_on(course, monkeypatch):

@@ -75,7 +75,7 @@ def test_the_honest_students_image_still_passes(spotlights):
 
 
 def _readings(*names: str, fraction: float = 0.0) -> Diagnosis:
-    return Diagnosis([Cause(n, VARIANTS[n][1], fraction, True) for n in names])
+    return Diagnosis(causes=[Cause(n, VARIANTS[n][1], fraction, True) for n in names])
 
 
 def test_readings_are_the_single_mistakes_passed_against_when_there_are_several():
@@ -87,9 +87,13 @@ def test_readings_are_the_single_mistakes_passed_against_when_there_are_several(
         "applied to the output — the image cannot tell them apart: the submission matches the reference rendered "
         "with any of them (0.04 % of pixels off)"
     )
-    together = Diagnosis([Cause("no-shadows", "no shadow rays", 0.0, True, ["gamma"]), Cause("gamma", "g", 0.0, True)])
+    together = Diagnosis(
+        causes=[Cause("no-shadows", "no shadow rays", 0.0, True, ["gamma"]), Cause("gamma", "g", 0.0, True)]
+    )
     assert together.readings == []  # mistakes made together are one reading, not two
-    closest = Diagnosis([Cause("no-shadows", "no shadow rays", 0.01, False), Cause("gamma", "g", 0.02, False)], True)
+    closest = Diagnosis(
+        causes=[Cause("no-shadows", "no shadow rays", 0.01, False), Cause("gamma", "g", 0.02, False)], closest=True
+    )
     assert closest.readings == []
 
 

@@ -20,7 +20,7 @@ from bench import bodies
 from service import client, grading
 from service.grading import LEVELS, _to_8bit, read_submission
 from service.http.app import create_app
-from service.http.middleware import Budget
+from service.http.middleware import BodyBudget
 from service.settings import Settings
 from tracer.image import PNG_SIGNATURE, png_chunk
 
@@ -296,7 +296,7 @@ def test_a_body_that_finds_no_room_in_the_budget_gets_503_with_retry_after(serve
 
 def test_the_budget_serves_in_arrival_order_and_gives_up_after_its_wait():
     async def main() -> list[str]:
-        budget, order = Budget(10), []
+        budget, order = BodyBudget(10), []
         assert await budget.take(6, 0.0)
 
         async def wants(name: str, size: int, wait: float) -> None:

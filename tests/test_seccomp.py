@@ -1,17 +1,21 @@
 """The sandbox's seccomp filter (service.programs.seccomp): a program makes sockets of AF_UNIX, and datagram
 sockets of AF_INET and AF_INET6, only; every other family is refused as unknown, and io_uring (which makes
 sockets without the call) is not there.  What would hold memory outside every process (System V shared
-memory, memfds, bigger socket and pipe buffers) is refused, and so is a session of its own (the CPU's share)."""
+memory, memfds, bigger socket and pipe buffers, inotify and fanotify queues, pages pinned in pipes, record
+locks) is refused, on the 32-bit ABI too, and so is a session of its own (the CPU's share)."""
 
 import errno
 import platform
 import socket
+import subprocess
 
+import numpy as np
 import pytest
-from test_programs import make_course, nothing_left, run  # noqa: F401  (after every test: nothing of a run left)
+from test_programs import QUICK, make_course, nothing_left, run  # noqa: F401  (after every test: nothing left)
 
-from service.programs import Reason
+from service.programs import ProgramRun, Reason, run_program
 from service.programs.seccomp import ALLOWED, filter_program
+from tracer.image import encode_png
 
 #: families a renderer has no use for, each reaching some code of the kernel's (Linux's numbers: not every
 #: Python names them all)
@@ -207,3 +211,119 @@ def test_every_thread_shares_its_processes_open_files(course):
     lines = outcome.stderr_tail.splitlines()
     assert f"CLONE -1 {errno.EINVAL}" in lines and f"UNSHARE -1 {errno.EPERM}" in lines
     assert f"CLONE3 -1 {errno.ENOSYS}" in lines and "THREAD [1]" in lines
+
+
+def test_calls_that_queue_pin_or_split_kernel_memory_are_refused(course):
+    """Events queued for inotify and fanotify, pages a pipe pins (vmsplice, splice, tee) and record locks (one
+    range split into a lock a byte) are the kernel's memory, in no process's pages and with no bound of the
+    run's: each call fails with ENOSYS; F_GETLK still answers, and a program still copies files and uses pipes."""
+    outcome = run(
+        course,
+        """\
+        import ctypes, fcntl, shutil
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.fanotify_mark.argtypes = [ctypes.c_int, ctypes.c_uint, ctypes.c_uint64, ctypes.c_int, ctypes.c_char_p]
+        libc.splice.argtypes = [ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_size_t,
+                                ctypes.c_uint]
+        def call(name, *args):
+            made = getattr(libc, name)(*args)
+            print(name.upper(), made, ctypes.get_errno() if made == -1 else 0, file=sys.stderr)
+        r, w = os.pipe()
+        r2, w2 = os.pipe()
+        page = ctypes.create_string_buffer(4096)
+        iov = (ctypes.c_void_p * 2)(ctypes.addressof(page), 4096)
+        call("inotify_init1", 0)
+        call("inotify_add_watch", -1, b"/tmp", 0xFFF)
+        call("fanotify_init", 0x00000C00, os.O_RDONLY)  # (FAN_REPORT_DFID_NAME: allowed to anyone)
+        call("fanotify_mark", -1, 1, 0x100, -100, b"/tmp")
+        call("vmsplice", w, iov, 1, 0)
+        os.write(w, b"x" * 100)
+        call("tee", r, w2, 100, 0)
+        call("splice", r, None, w2, None, 100, 0)
+        fd = os.open("/tmp/locked", os.O_CREAT | os.O_RDWR)
+        for name, command in (("SETLK", 6), ("SETLKW", 7), ("OFD_SETLK", 37), ("OFD_SETLKW", 38), ("GETLK", 5),
+                              ("OFD_GETLK", 36)):
+            try:
+                fcntl.fcntl(fd, command, bytes(32))  # (a read lock of the whole file)
+                print("LOCK", name, 0, file=sys.stderr)
+            except OSError as exc:
+                print("LOCK", name, exc.errno, file=sys.stderr)
+        for name, lock in (("FLOCK", fcntl.flock), ("LOCKF", fcntl.lockf)):
+            try:
+                lock(fd, fcntl.LOCK_EX)
+                print(name, 0, file=sys.stderr)
+            except OSError as exc:
+                print(name, exc.errno, file=sys.stderr)
+        shutil.copyfile("render.py", "/tmp/copy.py")
+        print("COPIED", open("/tmp/copy.py").read() == open("render.py").read(), file=sys.stderr)
+        print("PIPE", os.read(r, 200), file=sys.stderr)
+        write_png(output)
+        """,
+    )
+    assert outcome.reason is Reason.OK, outcome.stderr_tail
+    lines = outcome.stderr_tail.splitlines()
+    refused = ("INOTIFY_INIT1", "INOTIFY_ADD_WATCH", "FANOTIFY_INIT", "FANOTIFY_MARK", "VMSPLICE", "TEE", "SPLICE")
+    for name in refused:
+        assert f"{name} -1 {errno.ENOSYS}" in lines, (name, lines)
+    for name in ("SETLK", "SETLKW", "OFD_SETLK", "OFD_SETLKW"):
+        assert f"LOCK {name} {errno.ENOSYS}" in lines, (name, lines)
+    assert f"FLOCK {errno.ENOSYS}" in lines and f"LOCKF {errno.ENOSYS}" in lines
+    assert "LOCK GETLK 0" in lines and "LOCK OFD_GETLK 0" in lines
+    assert "COPIED True" in lines and f"PIPE {b'x' * 100!r}" in lines
+
+
+#: a C program's calls through the 32-bit ABI (``int $0x80`` from a 64-bit process: the kernel sees i386's
+#: calls and numbers), each call's result (a negative errno) on a line; the lock's record is in static memory,
+#: below 4 GiB in a program linked without PIE
+I386_PROBE = r"""
+#include <fcntl.h>
+#include <stdio.h>
+#include <unistd.h>
+static char record[32];
+static long i386(long n, long a, long b, long c) {
+    long r;
+    __asm__ volatile ("int $0x80" : "=a"(r) : "a"(n), "b"(a), "c"(b), "d"(c) : "memory");
+    return r;
+}
+int main(int argc, char **argv) {
+    int fd = open("/tmp/locked", O_CREAT | O_RDWR, 0600), p[2];
+    long at = (long)record;
+    char image[4096];
+    if (pipe(p) != 0) return 1;
+    fprintf(stderr, "FCNTL64_SETLK64 %ld\n", i386(221, fd, 13, at));
+    fprintf(stderr, "FCNTL64_SETLKW64 %ld\n", i386(221, fd, 14, at));
+    fprintf(stderr, "FCNTL64_SETLK %ld\n", i386(221, fd, 6, at));
+    fprintf(stderr, "FCNTL_SETLKW %ld\n", i386(55, fd, 7, at));
+    fprintf(stderr, "FCNTL64_OFD_SETLK %ld\n", i386(221, fd, 37, at));
+    fprintf(stderr, "FCNTL64_GETLK64 %ld\n", i386(221, fd, 12, at));
+    fprintf(stderr, "FCNTL_SETPIPE_SZ %ld\n", i386(55, p[1], 1031, 1 << 20));
+    fprintf(stderr, "FLOCK %ld\n", i386(143, fd, 2, 0));
+    fprintf(stderr, "INOTIFY_INIT1 %ld\n", i386(332, 0, 0, 0));
+    fprintf(stderr, "FANOTIFY_INIT %ld\n", i386(338, 0xC00, 0, 0));
+    fprintf(stderr, "VMSPLICE %ld\n", i386(316, -1, 0, 0));
+    FILE *in = fopen("image.png", "rb"), *out = fopen(argv[2], "wb");
+    size_t n = fread(image, 1, sizeof image, in);
+    fwrite(image, 1, n, out);
+    fclose(out);
+    return 0;
+}
+"""
+
+
+def test_the_32_bit_abi_is_refused_the_same_calls(course, tmp_path):
+    """A 64-bit program may make i386's calls (``int $0x80``), whose numbers and fcntl commands are i386's
+    (fcntl64, F_SETLK64): the filter checks them as that ABI's; F_GETLK64 still answers."""
+    assert platform.machine() == "x86_64", "the 32-bit probe is written for x86-64"
+    folder = course / "subs" / "ann"
+    source = tmp_path / "probe.c"
+    source.write_text(I386_PROBE)
+    subprocess.run(["gcc", "-O1", "-no-pie", "-o", folder / "probe", source], check=True)
+    (folder / "image.png").write_bytes(encode_png(np.zeros((3, 4, 3), np.uint8)))
+    outcome = run_program(ProgramRun(folder, "./probe {scene} {output}", course / "scenes" / "spheres.json", QUICK))
+    assert outcome.reason is Reason.OK, outcome.stderr_tail
+    lines = outcome.stderr_tail.splitlines()
+    refused = ("SETLK64", "SETLKW64", "SETLK", "OFD_SETLK")
+    for name in [f"FCNTL64_{name}" for name in refused] + ["FCNTL_SETLKW", "FLOCK", "INOTIFY_INIT1"]:
+        assert f"{name} {-errno.ENOSYS}" in lines, (name, lines)
+    assert f"FANOTIFY_INIT {-errno.ENOSYS}" in lines and f"VMSPLICE {-errno.ENOSYS}" in lines
+    assert "FCNTL64_GETLK64 0" in lines and f"FCNTL_SETPIPE_SZ {-errno.EPERM}" in lines

@@ -40,7 +40,7 @@ def test_a_ray_starts_at_the_exact_hit_point_and_leaves_its_surface():
     world = mirror_world()
     hit = sphere_hits(3)
     dirs = np.tile([0.0, 0.0, 1.0], (2, 1))
-    rays = Spawner(world, REFERENCE, None).spawn(hit, np.array([5.0, 6.0, 7.0]), np.array([2, 0]), dirs)
+    rays = Spawner(world, REFERENCE, None).spawn(hit, np.array([5.0, 6.0, 7.0]), np.array([2, 0]), dirs, hit.normal)
     assert np.array_equal(rays.origins, hit.point[[2, 0]])
     assert rays.from_kind.tolist() == [SPHERE, SPHERE] and rays.from_index.tolist() == [0, 0]
     assert rays.mag.tolist() == [7.0, 5.0]
@@ -49,9 +49,20 @@ def test_a_ray_starts_at_the_exact_hit_point_and_leaves_its_surface():
 def test_a_students_offset_moves_the_ray_off_the_surface_by_its_amount():
     hit = sphere_hits(1)
     dirs = np.array([[0.0, 0.0, -1.0]])  # into the sphere: moved to the inside
-    rays = Spawner(mirror_world(), REFERENCE, Spawn(0.01, "normal")).spawn(hit, np.ones(1), None, dirs)
+    rays = Spawner(mirror_world(), REFERENCE, Spawn(0.01, "normal")).spawn(hit, np.ones(1), None, dirs, hit.normal)
     np.testing.assert_allclose(rays.origins, [[0.0, 0.0, 0.99]])
     assert rays.from_index.tolist() == [-1]
+
+
+def test_a_students_offset_goes_along_the_shading_normal_it_has():
+    """On a mesh with normals the shading normal leans away from the face's: a student's ``p + ε·N`` moves along
+    the one their tracer has, the interpolated one (to the side the ray leaves by)."""
+    hit = sphere_hits(1)
+    leaning = np.array([[0.6, 0.0, 0.8]])
+    for direction, side in (([0.0, 0.0, 1.0], 1.0), ([0.0, 0.0, -1.0], -1.0)):
+        spawner = Spawner(mirror_world(), REFERENCE, Spawn(0.01, "normal"))
+        rays = spawner.spawn(hit, np.ones(1), None, np.array([direction]), leaning)
+        np.testing.assert_allclose(rays.origins, hit.point + side * 0.01 * leaning)
 
 
 def test_a_bounce_spawns_the_mirror_and_the_refracted_ray_with_their_weights():

@@ -1,6 +1,6 @@
 """What a run holds beyond its processes' pages, counted to its memory (service.programs.usage): the buffers of
-its sockets, what its tmpfs folders hold (bytes and files), each process's open files bounded; and the cost of
-the watchdog's walks of page tables bounded, however the run is made."""
+its sockets, what its tmpfs folders hold (bytes and files), its mappings, each process's open files bounded;
+and the cost of the watchdog's walks of page tables bounded, however the run is made."""
 
 import os
 import subprocess
@@ -111,6 +111,53 @@ def test_each_process_holds_at_most_its_open_files(course):
     assert f"LIMIT {OPEN_FILES} {OPEN_FILES}" in outcome.stderr_tail and "CANNOT raise it" in outcome.stderr_tail
 
 
+#: a process of 20,000 mappings (alternate pages of one made read-only: no page touched), and three children
+#: forked from it, each a copy of all of them
+MAPPERS = """\
+    import ctypes
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.mmap.restype = ctypes.c_void_p
+    libc.mmap.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_long]
+    base = libc.mmap(None, 20_000 * 4096, 3, 0x22, -1, 0)
+    for i in range(0, 20_000, 2):
+        libc.mprotect(ctypes.c_void_p(base + i * 4096), 4096, 1)
+    kids = []
+    for _ in range(3):
+        pid = os.fork()
+        if pid == 0:
+            time.sleep(10)
+            os._exit(0)
+        kids.append(pid)
+    print("MAPPED", sum(1 for _ in open("/proc/self/maps")), file=sys.stderr, flush=True)
+    time.sleep(5)
+    write_png(output)
+    for pid in kids:
+        os.kill(pid, 9)
+        os.waitpid(pid, 0)
+    """
+
+
+def test_mappings_count_to_the_runs_memory(course):
+    """Each mapping is the kernel's memory in no page of the process's: four processes of 20,000 mappings each
+    (their pages a few MiB) are over a 128 MiB limit with what the kernel holds for their mappings."""
+    outcome = run(course, MAPPERS, Limits(memory_bytes=128 * MIB, wall_seconds=30.0))
+    assert outcome.reason is Reason.MEMORY, (outcome.reason, outcome.detail, outcome.stderr_tail[-500:])
+
+
+def test_a_walk_counts_each_processes_mappings(monkeypatch):
+    """A process whose address space could hold more mappings than the limit allows is counted by its own: under
+    the limit with 1,000 (its pages and each mapping's cost), over it with 100,000."""
+    mappings = {1: 1_000}
+    monkeypatch.setattr(usage, "_cheap", lambda pid: (10 * MIB, MIB, (1 << 30) // usage.PAGE))
+    monkeypatch.setattr(usage, "_share", lambda pid, resident: resident)
+    monkeypatch.setattr(usage, "_mappings", lambda pid: mappings[pid])
+    cost = usage.mapping_bytes(64)
+    assert Shares(mapping=cost).pages([1], 64 * MIB) == (11 * MIB + 1_000 * cost, True)
+    mappings[1] = 100_000
+    pages, exact = Shares(mapping=cost).pages([1], 64 * MIB)
+    assert exact and pages == 11 * MIB + 100_000 * cost > 64 * MIB
+
+
 class _Clock:
     """A clock that a walk of page tables moves on (by ``walk`` seconds a process), and the watchdog's looks."""
 
@@ -133,8 +180,9 @@ def test_walks_of_page_tables_take_at_most_their_fraction_of_the_time(monkeypatc
         clock.walked += clock.walk
         return resident // 10  # (each process's share of the pages the ten of them share)
 
-    monkeypatch.setattr(usage, "_cheap", lambda pid: (100 * MIB, 0))
+    monkeypatch.setattr(usage, "_cheap", lambda pid: (100 * MIB, 0, 0))
     monkeypatch.setattr(usage, "_share", share)
+    monkeypatch.setattr(usage, "_mappings", lambda pid: 0)
     shares = Shares(clock)
     exact = []
     for _ in range(200):  # (20 s of looks, every tenth of a second)
@@ -183,5 +231,6 @@ def test_a_process_that_ends_during_a_walk_counts_nothing(monkeypatch):
         return "" if pid == 3 else "Pss_Anon:\t102400 kB\nPss_Shmem:\t0 kB\n"
 
     monkeypatch.setattr(usage, "read", read)
+    monkeypatch.setattr(usage, "_mappings", lambda pid: 0)
     pages, exact = Shares().pages([1, 2, 3], 512 * MIB)
     assert exact and pages == 200 * MIB

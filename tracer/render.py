@@ -87,6 +87,11 @@ class Renderer:
         self.spawner, self.plan, self.shadows = self.stages.spawner, self.stages.plan, self.stages.shadows
         self.shading = self.stages.shading
 
+    def visible_size(self) -> float:
+        """The size of what the camera sees (:func:`tracer.visible.visible_size`): what an offset is measured
+        against."""
+        return self.stages.visible_size()
+
     @property
     def spent(self) -> int:
         """What the budget counted of the last render (:class:`tracer.budget.RayCount`)."""

@@ -66,8 +66,14 @@ class ShadowRays:
             return np.zeros(n, dtype=bool)
         pick = picker(rows)
         rays = self.spawner.shadow(at.hit, at.mag, rows, np.ascontiguousarray(pick(reach.to_light)), at.normal)
+        spawn = self.spawner.offset
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
+        elif spawn is not None and spawn.along == "normal":
+            # a student's offset along the normal: as long as from the hit point to the light, from where the ray
+            # starts (as the students' own do: the distance to the light is the hit point's), so that its far end
+            # passes the light by as much as the offset moved it; no surface is exempt at the light
+            shadows = Shadows(rays, pick(reach.dist), None, None)
         else:  # one light for every ray
             shadows = Shadows(rays, pick(reach.dist), em.position[None], self.world.magnitude(em.position[None]))
         if self.opaque is not None:  # (no proof: the plan's bounds are every surface's)

@@ -32,19 +32,21 @@ def picker(rows: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
     return lambda a: rows_of(a, rows)
 
 
-def offset(spawn: Spawn, rays: Rays, geometric: np.ndarray) -> Rays:
-    """``rays`` (from hit points, leaving surfaces of normals ``geometric``, (N, 3)) moved off them by a student's
-    offset ``spawn``.  As a student's rays do, the moved rays carry no identity of the surface they leave: the
-    offset alone keeps them off it, and they are traced as rays from anywhere are (a camera inside the scene's).
+def offset(spawn: Spawn, rays: Rays, normals: np.ndarray) -> Rays:
+    """``rays`` (from hit points, leaving surfaces of shading normals ``normals``, (N, 3)) moved off them by a
+    student's offset ``spawn``.  As a student's rays do, the moved rays carry no identity of the surface they
+    leave: the offset alone keeps them off it, and they are traced as rays from anywhere are (a camera inside the
+    scene's).
 
-    Guarantee: each origin moves by exactly ``spawn.amount`` and never to the other side of the surface it
-    leaves than the one its direction points to (the normal's sign is taken from the direction)."""
+    Guarantee: each origin moves by exactly ``spawn.amount``, along the shading normal to the side its direction
+    points to (the normal's sign is taken from the direction), as a student's ``p ± ε·N`` does: on a mesh with
+    normals, where the shading normal leans away from the face's, that is where a student's ray starts too."""
     points, dirs = rays.origins, rays.dirs
     if spawn.along == "ray":
         moved = points + spawn.amount * dirs
     else:
-        side = np.where(np.einsum("ij,ij->i", dirs, geometric) < 0, -spawn.amount, spawn.amount)
-        moved = points + side[:, None] * geometric
+        side = np.where(np.einsum("ij,ij->i", dirs, normals) < 0, -spawn.amount, spawn.amount)
+        moved = points + side[:, None] * normals
     return Rays.leaving(moved, dirs, 0.0, mag=rays.mag)
 
 
@@ -56,20 +58,22 @@ class Spawner:
         #: where rays start, off the surface in a variant of a student's offset (None: at the hit point)
         self.offset = offset
 
-    def spawn(self, hit: Hits, mag: np.ndarray, rows: np.ndarray | None, dirs: np.ndarray) -> Rays:
+    def spawn(self, hit: Hits, mag: np.ndarray, rows: np.ndarray | None, dirs: np.ndarray, shading: np.ndarray) -> Rays:
         """Rays along ``dirs (len(rows), 3)`` from the hit points ``rows`` of ``hit`` (None: all, in order),
-        leaving their surfaces by identity; ``mag (N,)`` the world magnitudes of all of ``hit``'s points."""
+        leaving their surfaces by identity; ``mag (N,)`` the world magnitudes of all of ``hit``'s points.  A
+        student's offset moves them along the shading normals ``shading (N, 3)`` (on a mesh with normals, the
+        one a student's tracer has at hand, interpolated)."""
         pick = picker(rows)
         rays = Rays(pick(hit.point), dirs, pick(hit.kind), pick(hit.index), pick(mag))
         if self.offset is not None:  # a student's offset: off the surface
-            rays = offset(self.offset, rays, pick(hit.normal))
+            rays = offset(self.offset, rays, pick(shading))
         return rays
 
     def shadow(self, hit: Hits, mag: np.ndarray, rows: np.ndarray | None, dirs: np.ndarray, normal: np.ndarray) -> Rays:
         """Shadow rays along ``dirs`` from the hit points ``rows`` (as :meth:`spawn`); in the acne variant, a
         student's shadow rays: their surface not left, and half the points (every point, with
         ``acne_everywhere``) a hair (2^-30 of their magnitude) below it, against the facing ``normal (N, 3)``."""
-        rays = self.spawn(hit, mag, rows, dirs)
+        rays = self.spawn(hit, mag, rows, dirs, normal)
         if not self.options.acne:
             return rays
         pick, n = picker(rows), len(dirs)
@@ -100,7 +104,7 @@ class Spawner:
             ]
         )
         both = np.concatenate([r, t])
-        rays = self.spawn(hit, self.magnitudes(hit), both, out)
+        rays = self.spawn(hit, self.magnitudes(hit), both, out, normal)
         branch = None
         if work.branch is not None:  # the passes follow each branch of the tree from the first hit on
             branch = (

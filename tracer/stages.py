@@ -30,8 +30,9 @@ from .rays import Among, Rays, Work
 from .shading import resolve_material, shading_normal
 from .shadows import Meter, ShadowRays
 from .spawn import Spawner
-from .variants import Options
+from .variants import Options, scene_size
 from .vec import scaled
+from .visible import visible_size
 from .world import World, build_world
 
 
@@ -56,7 +57,7 @@ class Stages:
                 self.camera.right = -self.camera.right
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
             #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
-            self.spawner = Spawner(self.world, options, options.spawn(scene))
+            self.spawner = Spawner(self.world, options, options.spawn(self.visible_size))
             #: which proofs spare which rays (:mod:`tracer.planner`)
             self.plan = plan_proofs(self.world, options, self.spawner.offset)
             #: the shadow rays every light's terms ask, and the direct-light stage
@@ -72,6 +73,11 @@ class Stages:
         }
         self.intersector.check = calls.stop
         self.intersector.tested = calls.tested
+
+    def visible_size(self) -> float:
+        """The size of what the camera sees (:func:`tracer.visible.visible_size`): what an offset is measured
+        against."""
+        return visible_size(self.scene, self.world, self.intersector, scene_size(self.scene))
 
     def film(
         self,

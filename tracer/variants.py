@@ -36,7 +36,7 @@ class Options:
     spot_degrees: bool = True  # a spot's cutoff read in degrees (False: radians, as a mix-up does)
     depth_offset: int = 0  # max_depth read as max_depth + this
     ior_inverted: bool = False  # η = ior entering and 1/ior leaving
-    offset: float = 0.0  # shadow and secondary rays start this far off the hit point, × the scene's size
+    offset: float = 0.0  # shadow and secondary rays start this far off the hit point, × the visible size
     offset_along: str = "normal"  # "normal": along the surface's normal; "ray": along the ray (a t_min)
     # -- the mistakes of MORE_VARIANTS (none of them in VARIANTS yet) --
     blend_reflection: bool = False  # local colour × (1 − k_r) before the mirror ray's k_r·colour is added
@@ -60,9 +60,10 @@ class Options:
     def reference(self) -> bool:
         return self == REFERENCE
 
-    def spawn(self, scene: Any) -> Spawn | None:
-        """Where this render's shadow and secondary rays start (None: at the hit point, as the format says)."""
-        return Spawn(self.offset * scene_size(scene), self.offset_along) if self.offset else None
+    def spawn(self, size: Callable[[], float]) -> Spawn | None:
+        """Where this render's shadow and secondary rays start (None: at the hit point, as the format says): its
+        offset × ``size()``, the scene's visible size (:mod:`tracer.visible`), asked for only with an offset."""
+        return Spawn(self.offset * size(), self.offset_along) if self.offset else None
 
     def read(self, scene: Any) -> Any:
         """``scene`` as this render's student reads it: one sample per pixel, spots without their exponent,
@@ -113,7 +114,8 @@ REFERENCE = Options()
 
 def scene_size(scene: Any) -> float:
     """The largest side of the box around the scene's spheres and triangles (planes are unbounded and not
-    counted); 1 for a scene of planes alone.  A ray offset of a student's tracer is measured against it."""
+    counted); 1 for a scene of planes alone.  A ray offset is measured against the visible size
+    (:mod:`tracer.visible`), and against this only when the camera sees no surface."""
     lows, highs = [], []
     for obj in scene.objects:
         if obj.type == "sphere":
@@ -134,7 +136,7 @@ def scene_size(scene: Any) -> float:
 @dataclass(frozen=True)
 class Spawn:
     """A student's way of starting shadow and secondary rays off the surface: ``amount`` (local units) along the
-    geometric normal, to the side the ray leaves by (``along="normal"``), or along the ray itself
+    shading normal, to the side the ray leaves by (``along="normal"``), or along the ray itself
     (``along="ray"``: the same as ignoring hits nearer than ``amount``, a t_min, since the ray starts on the
     surface).  The rays are moved by :func:`tracer.spawn.offset`."""
 
@@ -161,10 +163,8 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "depth-plus-one": (Options(depth_offset=1), "max_depth off by one (one bounce too many)"),
     "depth-minus-one": (Options(depth_offset=-1), "max_depth off by one (one bounce too few)"),
     "ior-inverted": (Options(ior_inverted=True), "the index of refraction inverted"),
-    "offset-too-large": (
-        Options(offset=2e-2),
-        "shadow and secondary rays offset too far from the surface (2e-2 of the scene's size)",
-    ),
+    # (rendered at 2e-2 of the visible size; the diagnosis scores it against a ladder of amounts, and says which)
+    "offset-too-large": (Options(offset=2e-2), "shadow and secondary rays offset too far from the surface"),
     "reflect-sign": (Options(reflect_flipped=True), "the reflected vector R with the wrong sign (L − 2(N·L)N)"),
     "checker-ignored": (Options(checker_read=False), "the checkerboard ignored"),
     "colours-not-clamped": (
@@ -238,34 +238,14 @@ def add_clamped(
         )
 
 
-#: the ways of honest tracers a grade accepts besides the reference, by default: name → how far (× the scene's
-#: size) at most.  A task may narrow or widen them (``accepted`` in a class's tasks file).
-ACCEPTED_DEFAULT: dict[str, float] = {"normal-offset": 1e-3, "t-min": 1e-3}
+#: the ways of honest tracers a grade accepts besides the reference, by default: name → how far at most, × the
+#: scene's visible size (:mod:`tracer.visible`).  A task may narrow or widen them (``accepted`` in a class's
+#: tasks file).  An offset along the normal moves a refracted ray sideways, and shows sooner than a t_min, which
+#: only skips what lies nearer than it along the ray.
+ACCEPTED_DEFAULT: dict[str, float] = {"normal-offset": 5e-3, "t-min": 1e-2}
 
 #: accepted variant → (the option that sets its amount, what it is in words)
 ACCEPTED_KINDS: dict[str, tuple[str, str]] = {"normal-offset": ("normal", "ray offset"), "t-min": ("ray", "t_min")}
-
-
-def _short(x: float) -> str:
-    """``1e-3`` for 0.001, ``2.5e-3`` for 0.0025: an amount as a course writes it."""
-    mantissa, exponent = f"{x:.2e}".split("e")
-    return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
-
-
-#: each accepted variant is rendered at its largest amount and at each half of it down to this many rungs
-RUNGS = 4
-
-
-def accepted_options(accepted: dict[str, float]) -> list[list[tuple[str, Options]]]:
-    """Per accepted variant of ``accepted`` (name → largest amount), the renders it makes, each with its words
-    ("a 1e-3 ray offset"): its largest amount and halves of it, :data:`RUNGS` in all, largest first; an amount of
-    0 is the reference alone and makes none."""
-    out = []
-    for name, amount in sorted(accepted.items()):
-        along, words = ACCEPTED_KINDS[name]
-        rungs = [amount / 2**k for k in range(RUNGS)] if amount > 0 else []
-        out.append([(f"a {_short(a)} {words}", Options(offset=a, offset_along=along)) for a in rungs])
-    return [rungs for rungs in out if rungs]
 
 
 #: mistakes whose effect varies from point to point (a student's acne speckles in its own pattern): name →

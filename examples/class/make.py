@@ -77,13 +77,17 @@ def main() -> None:
     buf = io.BytesIO()
     Image.fromarray(right["mirror"]).save(buf, format="JPEG", quality=95)
     (sub / "frank" / "mirror.jpg").write_bytes(buf.getvalue())
-    for student, mistakes in (("gus", {"spheres": "no-shadows", "lights": "blinn-phong", "mirror": None}),
-                              ("hana", {"spheres": "no-shadows", "lights": "no-attenuation",
-                                        "mirror": "ior-inverted"})):
+    for student, mistakes in (
+        ("gus", {"spheres": "no-shadows", "lights": "blinn-phong", "mirror": None}),
+        ("hana", {"spheres": "no-shadows", "lights": "no-attenuation", "mirror": "ior-inverted"}),
+    ):
         for task, mistake in mistakes.items():
             save(sub / student / f"{task}.png", render(scenes[task], mistake))
-    points = {"spheres": {"points": 2, "deductions": {"no-shadows": 1}}, "lights": {"points": 3},
-              "mirror": {"points": 5, "tolerance": 3}}
+    points = {
+        "spheres": {"points": 2, "deductions": {"no-shadows": 1}},
+        "lights": {"points": 3},
+        "mirror": {"points": 5, "tolerance": 3},
+    }
     (HERE / "tasks.json").write_text(json.dumps(points, indent=2) + "\n")
 
 

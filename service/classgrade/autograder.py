@@ -26,11 +26,23 @@ import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+import service
+from schemas import SceneError
+from tracer import ImageTooLarge, Renderer, encode_png, render
+from tracer.variants import unchanged
+
+from ..diagnosis.accepting import accepted_ladders, file_name
+from ..pipeline import load_scene
+from ..scenekey import scene_key
 from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
 from .errors import ClassError
 from .feedback import printed
+from .forms import Results
+from .records import ClassRun
+from .run import grade_class
+from .submissions import discover
 from .taskfile import TaskSettings, load_tasks
 from .uploads import LaidOut, as_uploaded, lay_out
 
@@ -50,7 +62,7 @@ STORED = "PHONGRAY_ACCEPTED_RENDERS"
 
 
 @dataclass(frozen=True)
-class Built:
+class Bundled:
     """What went into a bundle."""
 
     tasks: list[str]
@@ -68,12 +80,10 @@ def build(
     student_scenes: Path | None = None,
     program: Program | None = None,
     requirements: Path | None = None,
-) -> Built:
+) -> Bundled:
     """Write the autograder zip ``out`` for the task scenes in ``scenes`` (with a ``program``, for students'
     programs: :mod:`.bundled`, and the ``requirements`` of their runtime); :class:`ClassError` for a fault of
     the TA's (an invalid scene or tasks file, a scene that does not render), before anything is written."""
-    from .submissions import discover
-
     with tempfile.TemporaryDirectory() as empty:  # (the TA's folders checked as a class of one empty folder)
         (Path(empty) / "nobody").mkdir()
         batch = discover(scenes, Path(empty), student_scenes)
@@ -100,7 +110,7 @@ def build(
         out.write_bytes(data)
     except OSError as exc:
         raise ClassError(f"{out}: cannot write: {exc.strerror or exc}") from None
-    return Built(sorted(batch.tasks), len(references), len(data))
+    return Bundled(sorted(batch.tasks), len(references), len(data))
 
 
 def _own_scenes(student_scenes: Path | None) -> list[str]:
@@ -117,12 +127,6 @@ def _read(path: Path) -> bytes:
 def _references(scenes: dict[str, bytes]) -> dict[str, bytes]:
     """Each distinct scene's reference PNG by canonical scene key; the TA's invalid scene or one that cannot be
     rendered stops the build, every problem named."""
-    from schemas import SceneError
-    from tracer import ImageTooLarge, encode_png, render
-
-    from ..pipeline import load_scene
-    from ..scenekey import scene_key
-
     out: dict[str, bytes] = {}
     problems: list[str] = []
     for name, text in scenes.items():
@@ -144,33 +148,24 @@ def _variants(scenes: dict[str, bytes], tasks: dict[str, TaskSettings]) -> dict[
     """The whole renders of each scene's accepted variants (its task's, or the defaults), rendered now so that
     a submission that fails the reference is graded against them without rendering them again in Gradescope's
     container: ``course/variants/<scene key>/<file name>`` (:data:`service.diagnosis.accepting.STORED`)."""
-    from tracer import Renderer, encode_png
-    from tracer.variants import ACCEPTED_DEFAULT, accepted_options, unchanged
-
-    from ..diagnosis.accepting import file_name
-    from ..pipeline import load_scene
-    from ..scenekey import scene_key
-
     out: dict[str, bytes] = {}
     for name, text in scenes.items():
         scene = load_scene(name, text)
         given = tasks[name.rsplit("/", 1)[1][:-5]].accepted
         if unchanged("offset-too-large", scene):
             continue
-        accepted = ACCEPTED_DEFAULT if given is None else {str(k): v for k, v in given.items()}
-        for rungs in accepted_options(accepted):
-            for _, options in rungs:
-                path = f"{COURSE}/variants/{scene_key(scene)}/{file_name(options)}"
+        accepted = None if given is None else {str(k): v for k, v in given.items()}
+        for rungs in accepted_ladders(scene, accepted):
+            for rung in rungs:
+                path = f"{COURSE}/variants/{scene_key(scene)}/{file_name(rung.options)}"
                 if path not in out:
-                    out[path] = encode_png(Renderer(scene, options).pixels())
+                    out[path] = encode_png(Renderer(scene, rung.options).pixels())
     return out
 
 
 def _source_tree() -> dict[str, bytes]:
     """phongray's packages as they are installed here, with a ``pyproject.toml`` from its metadata: what
     ``setup.sh`` installs with pip."""
-    import service
-
     home = Path(service.__file__).resolve().parent.parent
     files: dict[str, bytes] = {}
     for package in PACKAGES:
@@ -268,11 +263,8 @@ def run(root: Path) -> int:
     return 0
 
 
-def _grade(root: Path) -> dict[str, Any]:
+def _grade(root: Path) -> Results:
     """The submission graded as a class of one: its results.json, as grade-class writes it."""
-    from .records import ClassRun
-    from .run import grade_class
-
     course = root / "source" / COURSE
     scenes = course / "scenes"
     if not scenes.is_dir():
@@ -325,7 +317,7 @@ def _own_folder(folder: Path, names: list[str]) -> str | None:
     return next((p.name for p in sorted(folder.iterdir()) if p.name.casefold() in folded), None)
 
 
-def _write(path: Path, results: dict[str, Any]) -> None:
+def _write(path: Path, results: Results) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(results, indent=1, ensure_ascii=False) + "\n")
 

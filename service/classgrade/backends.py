@@ -19,10 +19,12 @@ from concurrent.futures.process import BrokenProcessPool
 from functools import partial
 from typing import Any
 
+from ..client import ServerError, check
+from ..cluster import client, connect_timeout, wait_for_workers
 from ..settings import Settings
 from . import faults, tasks
 from .errors import ClassError
-from .records import ClassRun, GradeJob
+from .records import ClassRun, GradeJob, Marked
 from .remote import server_grade, server_render
 
 
@@ -62,8 +64,8 @@ class Backend:
         """The render task: a scene's text → its reference PNG, or None and why not."""
         raise NotImplementedError
 
-    def grade(self) -> Callable[[GradeJob], dict[str, Any]]:
-        """The grade task: a pair's job → its grade's row (with ``heatmap_png``), or an invalid row."""
+    def grade(self) -> Callable[[GradeJob], Marked]:
+        """The grade task: a pair's job → its grade (:class:`~.records.Marked`)."""
         return tasks.local_grade
 
     def reset(self) -> None:
@@ -94,7 +96,7 @@ class LocalBackend(Backend):
     def render(self) -> Callable[[bytes], tuple[bytes | None, str]]:
         return partial(tasks.render_task, limits=self.limits)
 
-    def grade(self) -> Callable[[GradeJob], dict[str, Any]]:
+    def grade(self) -> Callable[[GradeJob], Marked]:
         return tasks.local_grade  # (looked up now: a test may put another in its place)
 
     def _pool(self) -> None:
@@ -129,8 +131,6 @@ class DaskBackend(Backend):
 
     def _connect(self, timeout: float = 10.0) -> None:
         """A client of the scheduler (a new one when the old has lost it) with a worker, and its executor."""
-        from ..cluster import client, connect_timeout, wait_for_workers
-
         started = time.monotonic()
         if self.client is None or getattr(self.client, "status", "running") != "running":
             self._close_client()
@@ -160,8 +160,6 @@ class ServerBackend(Backend):
     requests are sent by ``jobs`` threads (4 by default)."""
 
     def __init__(self, url: str, api_key: str | None, jobs: int | None) -> None:
-        from ..client import ServerError, check
-
         super().__init__()
         try:
             check(url, api_key)
@@ -174,7 +172,7 @@ class ServerBackend(Backend):
     def render(self) -> Callable[[bytes], tuple[bytes | None, str]]:
         return partial(server_render, self.url, self.api_key)
 
-    def grade(self) -> Callable[[GradeJob], dict[str, Any]]:
+    def grade(self) -> Callable[[GradeJob], Marked]:
         return partial(server_grade, self.url, self.api_key)
 
 

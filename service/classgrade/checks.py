@@ -4,24 +4,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from schemas import SceneError
+
+from ..limits import LimitError, check_body, check_scene
+from ..pipeline import load_scene
+from ..scenekey import scene_key
 from ..settings import Settings
 from . import journal
 from .errors import ClassError
-from .records import Batch
+from .records import Coursework
 from .report import write_atomic
 
 
-def scene_keys(batch: Batch, settings: Settings | None) -> tuple[dict[str, Path], dict[Path, bytes]]:
+def scene_keys(batch: Coursework, settings: Settings | None) -> tuple[dict[str, Path], dict[Path, bytes]]:
     """Validate every scene of the TA's once (the tasks' and the students' own), and price it with the service's
     limits ``settings`` when given (``--limits``): key → scene file, and each file's text.  An invalid scene, or
     one the service would refuse up front, stops the run before anything renders, every problem named by file
     (and line)."""
-    from schemas import SceneError
-
-    from ..limits import LimitError, check_body, check_scene
-    from ..pipeline import load_scene
-    from ..scenekey import scene_key
-
     keys: dict[Path, str] = {}
     texts: dict[Path, bytes] = {}
     problems: list[str] = []

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
+from ..cluster import ClusterError
 from .errors import ClassError
 
 #: a fault of the pool, the cluster or the server (a lost connection) is retried this many times ...
@@ -25,7 +26,6 @@ def one_line(exc: BaseException) -> str:
         return "a pool process died (killed, or out of memory)"
     if isinstance(exc, futures.CancelledError):
         return f"the work was cancelled ({text or 'the scheduler was lost'})"
-    from ..cluster import ClusterError
 
     if isinstance(exc, ClusterError) and text:
         return text
@@ -54,8 +54,6 @@ def run_tasks(  # noqa: C901 (every fault of a task, retried in one loop)
     :data:`RETRIES` times with backoff on a new one, with only the unfinished tasks; then the run stops with
     :class:`ClassError` (one line, saying what ``kept()`` kept).  Any other error stops it once every task
     already running has finished and been kept."""
-    from ..cluster import ClusterError
-
     pending = dict(tasks)
     attempt = 0
     while pending:

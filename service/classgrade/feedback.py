@@ -14,9 +14,8 @@ not show; a student reads of it only the zero it costs, where the task says so.
 
 from __future__ import annotations
 
-from typing import Any
-
 from ..display import percent
+from .forms import ReportRow, Results
 from .gradebook import late_note, partial
 from .taskfile import TaskSettings
 
@@ -36,7 +35,7 @@ WITHHELD = {
 ZEROED = "Scored 0: your program holds phongray's own code, which this course does not accept as your work."
 
 
-def run_failed(row: dict[str, Any]) -> str:
+def run_failed(row: ReportRow) -> str:
     """A program's failed run (or build) as a student is told it: ``the run failed: crashed``."""
     from ..programs.outcome import Reason, told
 
@@ -47,7 +46,7 @@ def run_failed(row: dict[str, Any]) -> str:
         return f"the {what} failed"
 
 
-def test_output(row: dict[str, Any], show: str = "images") -> str:
+def test_output(row: ReportRow, show: str = "images") -> str:
     """What a student reads of one task, as its ``show`` (tasks.json) allows: the verdict alone
     (``verdict-only``); with its reason or numbers (``verdict``); and the likely mistake, what a program's
     probes found and the partial credit (``diagnosis``, ``images``).  Never a program's output, nor how its
@@ -70,7 +69,7 @@ def test_output(row: dict[str, Any], show: str = "images") -> str:
     return f"{row['status']}: {reason}{likely}{probes}{credit}"
 
 
-def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> dict[str, Any]:
+def gradescope(rows: list[ReportRow], tasks: dict[str, TaskSettings]) -> Results:
     """One student's results in Gradescope's autograder format (``results.json``): the total ``score`` and a
     test per task with its ``name``, ``score``, ``max_score``, ``status``, ``output`` and ``visibility`` (and
     :data:`WITHHELD` after them, for a hidden task worth points)."""
@@ -96,7 +95,7 @@ def gradescope(rows: list[dict[str, Any]], tasks: dict[str, TaskSettings]) -> di
     return {"score": total, "visibility": "visible", "tests": tests}
 
 
-def printed(test: dict[str, Any]) -> str:
+def printed(test: Results) -> str:
     """A test's line in what ``run_autograder`` prints (the instructors' to read): its score, its output's first
     line, and its flag for the TA."""
     flag = (test.get("extra_data") or {}).get("flag_reason")

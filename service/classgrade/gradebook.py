@@ -18,6 +18,7 @@ from typing import Any
 from tracer.variants import VARIANTS
 
 from ..diagnosis.words import listed
+from .forms import ReportRow
 from .taskfile import TaskSettings
 
 #: the ids a deduction may name: the diagnosis's classic mistakes (tracer.variants), with what each is
@@ -42,7 +43,7 @@ class Score:
     deducted: str | None = None  # the mistake whose deduction was taken: a partial credit
 
 
-def score(row: dict[str, Any], task: TaskSettings) -> Score:
+def score(row: ReportRow, task: TaskSettings) -> Score:
     """What a pair scores of its task's points (nothing for a program holding phongray's code, where the task
     says ``"phongray_code": "zero"``)."""
     if row.get("flag") == "phongray-code" and task.phongray_code == "zero":
@@ -73,7 +74,7 @@ def late_policy(earned: float, task: TaskSettings) -> float:
     return min(earned, task.late_penalty * task.points)
 
 
-def late_note(row: dict[str, Any]) -> str:
+def late_note(row: ReportRow) -> str:
     """What a student reads of a late pair: ``Late: handed in late (the late policy took 1 of its points)``."""
     if not row.get("late"):
         return ""
@@ -81,7 +82,7 @@ def late_note(row: dict[str, Any]) -> str:
     return f"Late: handed in late ({took})"
 
 
-def partial(row: dict[str, Any]) -> str:
+def partial(row: ReportRow) -> str:
     """``Partial credit: 1 of 2 points (no shadow rays: -1)`` for a row scored by a deduction, else empty; for an
     image several mistakes explain alike, each of them: ``(no specular term, or the reflected vector R with the
     wrong sign: -1)`` (the deduction is for what the image shows); for mistakes made together
@@ -105,7 +106,7 @@ class Total:
     late: list[str]  # the tasks the LMS marked late
 
 
-def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
+def totals(rows: list[ReportRow], students: list[str]) -> list[Total]:
     """Each student's scores and total, in the students' order."""
     out = []
     for student in students:
@@ -123,7 +124,7 @@ def totals(rows: list[dict[str, Any]], students: list[str]) -> list[Total]:
     return out
 
 
-def gradebook_csv(rows: list[dict[str, Any]], students: list[str], tasks: list[str], cell: Any = lambda v: v) -> str:
+def gradebook_csv(rows: list[ReportRow], students: list[str], tasks: list[str], cell: Any = lambda v: v) -> str:
     """``gradebook.csv``: a row per student (their name and, from a Canvas or Moodle export, the LMS's id, to
     match on import), a column per task (its score), the total and the tasks handed in late; ``cell`` makes a
     text cell safe to open (:func:`service.classgrade.report.safe_cell`)."""

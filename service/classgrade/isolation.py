@@ -15,9 +15,10 @@ from collections.abc import Callable
 from typing import Any
 
 from .faults import one_line
+from .forms import ReportRow
 
 #: a report file's writer, given rows (a pair's alone, or the class's): it raises for a row it cannot write
-Writer = Callable[[list[dict[str, Any]]], object]
+Writer = Callable[[list[ReportRow]], object]
 #: the columns an unwritable row keeps, when they hold text: who and what
 WHO = ("student", "lms_id", "lms", "task", "scene", "file")
 #: ... and when they hold finite numbers: the thresholds and the comparison's numbers
@@ -28,14 +29,14 @@ STATUSES = ("pass", "fail", "missing", "invalid")
 
 
 def isolated(
-    rows: list[dict[str, Any]], writers: dict[str, Writer], columns: list[str]
-) -> tuple[list[dict[str, Any]], list[str]]:
+    rows: list[ReportRow], writers: dict[str, Writer], columns: list[str]
+) -> tuple[list[ReportRow], list[str]]:
     """The rows every writer can write, tried a student at a time (each writer as it writes the class, with
     that student's rows alone): of a student whose rows one cannot write, each row at fault (the one it cannot
     write beside the others' :func:`unwritable` rows) replaced by its unwritable row, or, should the writers
     still refuse them, all of the student's by rows of who and what alone.  And a line per row replaced
     (``student/task: file: error``), for the teaching assistant."""
-    out: list[dict[str, Any]] = []
+    out: list[ReportRow] = []
     faults: list[str] = []
     for student in dict.fromkeys(r["student"] for r in rows):
         out += _mended([r for r in rows if r["student"] == student], writers, columns, faults)
@@ -43,8 +44,8 @@ def isolated(
 
 
 def _mended(
-    mine: list[dict[str, Any]], writers: dict[str, Writer], columns: list[str], faults: list[str]
-) -> list[dict[str, Any]]:
+    mine: list[ReportRow], writers: dict[str, Writer], columns: list[str], faults: list[str]
+) -> list[ReportRow]:
     """One student's rows as :func:`isolated` writes them."""
     fault = _first_fault(mine, writers)
     if fault is None:
@@ -71,7 +72,7 @@ def noted(headline: str, faults: list[str]) -> str:
     return f"{headline}; {count} could not be written whole (see {whose} reason)"
 
 
-def _first_fault(rows: list[dict[str, Any]], writers: dict[str, Writer]) -> tuple[str, Exception] | None:
+def _first_fault(rows: list[ReportRow], writers: dict[str, Writer]) -> tuple[str, Exception] | None:
     for name, write in writers.items():
         try:
             write(rows)
@@ -80,12 +81,12 @@ def _first_fault(rows: list[dict[str, Any]], writers: dict[str, Writer]) -> tupl
     return None
 
 
-def unwritable(row: dict[str, Any], columns: list[str], where: str, exc: BaseException) -> dict[str, Any]:
+def unwritable(row: ReportRow, columns: list[str], where: str, exc: BaseException) -> ReportRow:
     """A row of plain values in place of one the report could not write (or make) in ``where``: who and
     what, the verdict and score as decided, the thresholds and numbers, the reason it had and what went
     wrong; every other column empty.  A row whose verdict or score is not one (or a pass without its numbers)
     is not scored: invalid, 0."""
-    safe: dict[str, Any] = {c: None for c in columns}
+    safe: ReportRow = {c: None for c in columns}
     safe.update({k: row[k] if isinstance(row.get(k), str) else "" for k in WHO if k in safe})
     safe.update({k: row[k] for k in NUMBERS if k in safe and _number(row.get(k)) is not None})
     status, points, score = row.get("status"), _number(row.get("points")), _number(row.get("score"))

@@ -14,11 +14,14 @@ from __future__ import annotations
 import json
 import math
 from functools import cache
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as of
 from pathlib import Path
 from typing import Any
 
 from tracer.variants import VARIANTS
 
+from .forms import ReportRow, Stamp
 from .report import write_atomic
 from .untrusted import UntrustedFileError, read_untrusted
 
@@ -40,16 +43,13 @@ GRADED = {"status", "passed", "psnr", "mistakes", *FLOATS, *INTS, *TEXTS}
 @cache
 def version() -> str:
     """This phongray's version (a journal of another is graded again)."""
-    from importlib.metadata import PackageNotFoundError
-    from importlib.metadata import version as of
-
     try:
         return of("phongray")
     except PackageNotFoundError:
         return "unknown"
 
 
-def stamp(reference: str, image_sha256: str, tolerance: float, max_fraction: float) -> dict[str, Any]:
+def stamp(reference: str, image_sha256: str, tolerance: float, max_fraction: float) -> Stamp:
     """What a kept grade is the grade of: the reference's key, the submitted bytes' hash and the thresholds,
     with the version and format that kept it."""
     return {
@@ -66,11 +66,11 @@ def path(report: Path, student: str, task: str) -> Path:
     return report / RESUME / student / f"{task}.json"
 
 
-def keep(file: Path, mark: dict[str, Any], row: dict[str, Any]) -> None:
+def keep(file: Path, mark: Stamp, row: ReportRow) -> None:
     write_atomic(file, (json.dumps({"stamp": mark, "row": row}) + "\n").encode())
 
 
-def kept(file: Path, mark: dict[str, Any]) -> dict[str, Any] | None:
+def kept(file: Path, mark: Stamp) -> ReportRow | None:
     """The row kept in ``file`` for the grade ``mark`` stamps, or None (none, another's, or not one this
     version writes)."""
     try:

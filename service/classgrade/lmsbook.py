@@ -34,6 +34,7 @@ from collections.abc import Callable
 from datetime import datetime
 from typing import Any
 
+from .forms import ReportRow
 from .taskfile import TaskSettings
 
 #: the files written (when the class holds such students, or a Canvas assignment is named)
@@ -64,7 +65,7 @@ Cell = Callable[[Any], Any]
 
 
 def lms_books(
-    rows: list[dict[str, Any]], students: list[str], tasks: dict[str, TaskSettings], cell: Cell
+    rows: list[ReportRow], students: list[str], tasks: dict[str, TaskSettings], cell: Cell
 ) -> dict[str, str | None]:
     """Each LMS's file and its text, None where the class needs none (an earlier run's is then removed):
     Canvas's when a student came from a Canvas export or a task names a Canvas assignment, Moodle's when a
@@ -84,9 +85,9 @@ def _writerow(buf: io.StringIO, cells: list[Any]) -> None:
     csv.writer(buf, lineterminator="\n", quoting=csv.QUOTE_ALL if every else csv.QUOTE_MINIMAL).writerow(cells)
 
 
-def _students(rows: list[dict[str, Any]], students: list[str]) -> list[list[dict[str, Any]]]:
+def _students(rows: list[ReportRow], students: list[str]) -> list[list[ReportRow]]:
     """Each student's rows, in the students' order."""
-    by: dict[str, list[dict[str, Any]]] = {s: [] for s in students}
+    by: dict[str, list[ReportRow]] = {s: [] for s in students}
     for r in rows:
         by[r["student"]].append(r)
     return [by[s] for s in students if by[s]]
@@ -97,7 +98,7 @@ def _canvas_number(x: float) -> str:
     return f"{x:.2f}".rstrip("0").rstrip(".")
 
 
-def canvas_csv(rows: list[dict[str, Any]], students: list[str], tasks: dict[str, TaskSettings], cell: Cell) -> str:
+def canvas_csv(rows: list[ReportRow], students: list[str], tasks: dict[str, TaskSettings], cell: Cell) -> str:
     """``canvas-gradebook.csv``: the students' scores in Canvas's gradebook import format."""
     columns: dict[str, list[str]] = {}  # assignment column → its tasks
     for task, settings in tasks.items():
@@ -124,7 +125,7 @@ def moodle_time(when: datetime) -> str:
     )
 
 
-def _feedback(mine: list[dict[str, Any]]) -> str:
+def _feedback(mine: list[ReportRow]) -> str:
     """A student's feedback comment: each task's score and status, and what lateness cost (no more of a task
     than the least a task's ``show`` lets a student read: passed or failed, and the score)."""
     parts = [f"{r['task']}: {r['score']:g} of {r['points']:g} ({r['status']})" for r in mine]
@@ -135,7 +136,7 @@ def _feedback(mine: list[dict[str, Any]]) -> str:
     return "; ".join(parts)
 
 
-def moodle_csv(rows: list[dict[str, Any]], students: list[str], cell: Cell, now: datetime | None = None) -> str:
+def moodle_csv(rows: list[ReportRow], students: list[str], cell: Cell, now: datetime | None = None) -> str:
     """``moodle-grading-worksheet.csv``: the Moodle students' totals as Moodle's grading worksheet; ``now`` the
     time of the grades (Moodle skips a grade changed in Moodle after it)."""
     stamp = moodle_time(now or datetime.now())

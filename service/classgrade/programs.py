@@ -26,7 +26,8 @@ from typing import TYPE_CHECKING, Any
 from . import journal
 from .errors import ClassError
 from .folders import hidden, own_scenes, sorted_entries, task_scenes
-from .records import Batch, ClassRun, Pair
+from .forms import ReportRow, Stamp
+from .records import ClassRun, Coursework, Marked, Pair
 
 if TYPE_CHECKING:  # (service.programs reads files through this package's modules: imported when used)
     from ..programs.job import ProgramJob, TaskScene
@@ -63,7 +64,7 @@ def check_programs(run: ClassRun) -> None:
         raise ClassError(problem)
 
 
-def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Batch:
+def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | None = None) -> Coursework:
     """Every (student, task) pair of a class of programs: a student is a folder of ``submissions`` (not a link,
     not a hidden one), its pairs left to grade; anything else there is ignored.  A student with an own scene
     (``--student-scenes``) but no folder has each pair missing."""
@@ -86,17 +87,17 @@ def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | No
             if student not in students:
                 pair.row = {"status": "missing", "reason": f"no folder {student}/ holding a program"}
             pairs.append(pair)
-    return Batch(tasks, sorted({*students, *own}), pairs, ignored)
+    return Coursework(tasks, sorted({*students, *own}), pairs, ignored)
 
 
-Stamped = tuple[Pair, dict[str, Any]]
+Stamped = tuple[Pair, Stamp]
 
 
 def program_jobs(
     run: ClassRun,
     todo: list[Pair],
     task_of: Callable[[Pair], TaskScene],
-    resumed: Callable[[Pair, dict[str, Any]], dict[str, Any] | None],
+    resumed: Callable[[Pair, Stamp], ReportRow | None],
 ) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
     """Per student with a task left to grade, the job and its pairs with their stamps; a pair an earlier run
     kept for the same program, scene and thresholds is taken as it was (``resumed``)."""
@@ -129,9 +130,9 @@ def program_jobs(
     return jobs
 
 
-def warn(pair: Pair, result: dict[str, Any]) -> None:
+def warn(pair: Pair, result: Marked) -> None:
     """A run without a sandbox says so, every time; so does a run timed out on a busy machine."""
-    for said in (result.get("run_warning"), result.pop("run_busy", None)):
+    for said in () if result.run is None else (result.run.run_warning, result.run.run_busy):
         if said:
             print(f"{pair.student}/{pair.task}: {said}", file=sys.stderr)
 

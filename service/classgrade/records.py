@@ -1,11 +1,15 @@
 """The records of class grading: the run's options, a pair of a student and a task, the job a backend grades,
-the batch of pairs found in the class's folders, and a pair's grade as the report writes it."""
+what a backend returns for it, the pairs found in the class's folders, and a pair's grade as the report writes
+it."""
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Literal
+
+from ..pipeline import Graded
+from .forms import ReportRow
 
 if TYPE_CHECKING:
     from ..programs.program import Program
@@ -48,7 +52,7 @@ class Pair:
     own: bool
     key: str | None = None  # the canonical scene hash
     file: str | None = None  # the submitted file, relative to the student's folder (spheres.png, hw3/Spheres.PNG)
-    row: dict[str, Any] = field(default_factory=dict)
+    row: ReportRow = field(default_factory=dict)
     data: bytes | None = None  # the submitted bytes, read once, when the class was found
     lms_id: str = ""  # the student's id in the learning-management system's export (Canvas's, Moodle's), if any
     lms: str = ""  # which LMS's export it is ("canvas", "moodle"; "" for a folder per student)
@@ -73,8 +77,55 @@ class GradeJob:
     diagnose: bool = True
 
 
+@dataclass(frozen=True)
+class RunInfo:
+    """A program's run as its grade keeps it: ``run`` (its reason's word: ``ok``, ``timeout``, ...),
+    ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold what the
+    program read of a hidden scene), ``run_seconds``, ``run_warning`` (a run without a sandbox) and ``run_busy``
+    (a run timed out on a busy machine), both said to the TA, never kept in the report."""
+
+    run: str
+    run_output: str
+    run_seconds: float
+    run_warning: str | None = None
+    run_busy: str | None = None
+
+
+#: what became of a graded pair
+Status = Literal["pass", "fail", "invalid"]
+
+
+@dataclass(frozen=True)
+class Marked:
+    """A pair's grade as every backend returns it (a pool process, a Dask worker, a running service), the one
+    form between the grading and the report (:func:`service.classgrade.rows.kept_row`): picklable, no dicts.
+
+    ``graded`` is the image's grade (with its heat-map, diagnosis and accepted variant); None when the image
+    is ``invalid`` (``reason`` says why, lacking the file's name) or a program's run (or build) failed
+    (``reason`` says how).  A program's pair has its ``run``, the ``image`` it wrote (the PNG of its pixels
+    once kept), what ``experiment`` found of a failing one, and a ``flag`` for the TA."""
+
+    status: Status
+    graded: Graded | None = None
+    reason: str = ""
+    run: RunInfo | None = None
+    image: bytes | None = None
+    experiment: str | None = None
+    flag: str | None = None
+    flag_reason: str | None = None
+
+    @classmethod
+    def of(cls, graded: Graded) -> Marked:
+        """A graded image's: it passed or failed."""
+        return cls("pass" if graded.grade.passed else "fail", graded)
+
+    @classmethod
+    def invalid(cls, reason: str) -> Marked:
+        return cls("invalid", reason=reason)
+
+
 @dataclass
-class Batch:
+class Coursework:
     """The class as found in its folders: the tasks' scenes, the students, every pair, and what was ignored."""
 
     tasks: dict[str, Path]
@@ -84,7 +135,7 @@ class Batch:
 
 
 @dataclass
-class Grade:
+class Row:
     """A pair's grade as the report writes it: who and what, the verdict and why, the likely mistakes, the
     points, the thresholds, the comparison's numbers and the files beside the report.  Its fields are the
     report's columns in their order (:data:`~service.classgrade.report.COLUMNS`); :meth:`row` is the dict
@@ -127,6 +178,6 @@ class Grade:
     flag: str | None = None  # a program's: phongray-code or identical (service.programs.copied), for the TA
     flag_reason: str | None = None
 
-    def row(self) -> dict[str, Any]:
+    def row(self) -> ReportRow:
         """The grade as the report's row: its columns, in order."""
         return asdict(self)

@@ -6,17 +6,20 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
+from dataclasses import fields
 from typing import Any
 
+from ..client import ServerError, post_form, post_json
+from ..diagnosis import Diagnosis
+from ..grading import Grade
+from ..pipeline import Graded
 from . import faults
-from .records import GradeJob
+from .records import GradeJob, Marked
 
 
 def server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes | None, str]:
     """:func:`~service.classgrade.tasks.render_task` by a running service (which has its own
     ``render_timeout``); a refusal of the scene (its limits, its time) is the reason."""
-    from ..client import ServerError, post_json
-
     try:
         return patient(post_json, server, "/render", scene, api_key=api_key), ""
     except ServerError as exc:
@@ -27,12 +30,10 @@ def server_render(server: str, api_key: str | None, scene: bytes) -> tuple[bytes
         return None, f"the server refuses it: {exc.detail}"
 
 
-def server_grade(server: str, api_key: str | None, job: GradeJob) -> dict[str, Any]:
+def server_grade(server: str, api_key: str | None, job: GradeJob) -> Marked:
     """:func:`~service.classgrade.tasks.grade_task` of a pair's job by a running service (which renders the same
     reference, from its cache, and accepts its own default variants: a task's ``accepted`` is for local
     grading)."""
-
-    from ..client import ServerError, post_form
 
     fields = {
         "scene": job.scene,
@@ -47,9 +48,21 @@ def server_grade(server: str, api_key: str | None, job: GradeJob) -> dict[str, A
         heat = patient(post_form, server, "/grade", fields, files, query, api_key=api_key)
     except ServerError as exc:
         if exc.status in (413, 422) and exc.part == "image":
-            return {"status": "invalid", "reason": exc.detail.removeprefix("image: ")}
+            return Marked.invalid(exc.detail.removeprefix("image: "))
         raise
-    return {**result, "status": "pass" if result["passed"] else "fail", "heatmap_png": heat}
+    return Marked.of(answered(result, heat))
+
+
+def answered(answer: dict[str, Any], heatmap: bytes) -> Graded:
+    """The grade of the service's JSON answer to /grade (:meth:`~service.pipeline.Graded.as_dict`), read back,
+    with its ``heatmap``."""
+    found = answer.get("diagnosis")
+    return Graded(
+        Grade(**{f.name: answer[f.name] for f in fields(Grade) if f.name in answer}),
+        heatmap,
+        None if found is None else Diagnosis.from_dict(found),
+        answer.get("accepted"),
+    )
 
 
 #: the longest a request waits out a busy service's 503s (Retry-After), in seconds
@@ -66,8 +79,6 @@ def patient(func: Callable[..., bytes], server: str, *args: Any, **kw: Any) -> b
     seconds) and retries a lost connection (a worker restarting: reset, refused, closed)
     :data:`~service.classgrade.faults.RETRIES` times with backoff.  Every request of class grading is a pure
     function of its body, so sending it again is safe."""
-    from ..client import ServerError
-
     deadline = time.monotonic() + BUSY_WAIT
     lost = 0
     while True:

@@ -23,6 +23,7 @@ from urllib.parse import quote
 from ..display import counted
 from ..heatmap import LEGEND
 from .feedback import gradescope, test_output  # noqa: F401  (test_output: what a student reads, here too)
+from .forms import ReportRow
 from .gradebook import late_note, partial, totals
 
 #: the numbers of a graded pair, in report.csv's order
@@ -118,7 +119,7 @@ def neutral_cell(value: Any) -> Any:
     return value
 
 
-def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
+def summary(rows: list[ReportRow], renders: int, seconds: float) -> str:
     """The run in a line: its pairs by status, those flagged for the TA (a program holding phongray's code, or
     rendering the references byte for byte), the references rendered and the time."""
     counts = {s: sum(r["status"] == s for r in rows) for s in STATUSES}
@@ -131,7 +132,7 @@ def summary(rows: list[dict[str, Any]], renders: int, seconds: float) -> str:
     )
 
 
-def report_csv(rows: list[dict[str, Any]]) -> str:
+def report_csv(rows: list[ReportRow]) -> str:
     """``report.csv``: a row per pair, its cells made safe to open (:func:`safe_cell`)."""
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
@@ -144,7 +145,7 @@ def report_csv(rows: list[dict[str, Any]]) -> str:
     return buf.getvalue()
 
 
-def likely_by_task(rows: list[dict[str, Any]], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
+def likely_by_task(rows: list[ReportRow], tasks: list[str]) -> dict[str, list[tuple[str, int, int]]]:
     """Per task, its failing pairs' likely mistakes, most common first: (mistake, pairs, failing pairs)."""
     out: dict[str, list[tuple[str, int, int]]] = {}
     for task in tasks:
@@ -174,12 +175,12 @@ def esc(text: str) -> str:
 SHOWN_MISTAKES = 3
 
 
-def _run_failed(r: dict[str, Any]) -> str:
+def _run_failed(r: ReportRow) -> str:
     """How a program's run ended when it made no image to grade (``run: timeout``), else ''."""
     return f"run: {r['run']}" if r.get("run") not in (None, "ok") else ""
 
 
-def _cell(r: dict[str, Any], anchor: str) -> str:
+def _cell(r: ReportRow, anchor: str) -> str:
     """A pair's cell of the table: the status and, without the file it names, the reason (or the error), whole:
     a long text wraps within the cell's width (``overflow-wrap``), never cut."""
     if r["status"] == "pass":
@@ -198,7 +199,7 @@ def _cell(r: dict[str, Any], anchor: str) -> str:
     return f'<td class="{kind}"><a href="#{anchor}">{status}{own}{late}<small>{note}</small></a></td>'
 
 
-def _detail(r: dict[str, Any], anchor: str) -> str:
+def _detail(r: ReportRow, anchor: str) -> str:
     """A pair's detail: the reason, the likely mistake (and a program's probes' findings), the score's
     deduction, the end of a program's output, the three images, the numbers."""
     images = "".join(
@@ -224,7 +225,7 @@ def _detail(r: dict[str, Any], anchor: str) -> str:
     )
 
 
-def _mistakes(rows: list[dict[str, Any]], tasks: list[str]) -> tuple[str, str]:
+def _mistakes(rows: list[ReportRow], tasks: list[str]) -> tuple[str, str]:
     """The table's row of each task's likely mistakes (the first :data:`SHOWN_MISTAKES`, then "… and N more"
     linking to the full list), and the full lists."""
     cells, lists = [], []
@@ -241,7 +242,7 @@ def _mistakes(rows: list[dict[str, Any]], tasks: list[str]) -> tuple[str, str]:
 
 
 def render_html(
-    rows: list[dict[str, Any]], ignored: list[tuple[str, str]], students: list[str], tasks: list[str], headline: str
+    rows: list[ReportRow], ignored: list[tuple[str, str]], students: list[str], tasks: list[str], headline: str
 ) -> str:
     by = {(r["student"], r["task"]): r for r in rows}
     head = "".join(f"<th>{esc(t)}</th>" for t in tasks) + "<th>total</th>"

@@ -6,11 +6,13 @@ import contextlib
 import hashlib
 import time
 from collections.abc import Callable
-from dataclasses import astuple, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from ..diagnosis import Diagnosis, headline
+from tracer import decode_png
+
+from ..client import ServerError
 from ..ppm import viewable
 from ..settings import Settings
 from . import journal
@@ -18,11 +20,12 @@ from .backends import Backend, open_backend
 from .checks import outside, scene_keys, writable
 from .errors import ClassError
 from .faults import one_line, run_tasks
-from .gradebook import late_policy, matched, score
+from .forms import ReportRow, Stamp
 from .isolation import unwritable
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
-from .records import Batch, ClassRun, Grade, GradeJob, Pair
+from .records import ClassRun, Coursework, GradeJob, Marked, Pair
 from .report import COLUMNS, summary, write_atomic
+from .rows import files, has_image, kept_row, report_row
 from .submissions import discover
 from .taskfile import TaskSettings, load_tasks
 from .writing import write_report
@@ -33,7 +36,7 @@ class Outcome:
     """A graded class: every pair's row (as the report has it), what was ignored, the references this run
     rendered (the others were already in the report) and its time."""
 
-    rows: list[dict[str, Any]]
+    rows: list[ReportRow]
     ignored: list[tuple[str, str]]
     renders: int
     seconds: float
@@ -51,7 +54,7 @@ class Checked:
     """The class once the TA's input has been checked: the batch, the tasks' settings, the scene file of each
     scene key and each file's text, the service's settings, and when the run started."""
 
-    batch: Batch
+    batch: Coursework
     tasks: dict[str, TaskSettings]
     scene_of_key: dict[str, Path]
     texts: dict[Path, bytes]
@@ -102,7 +105,6 @@ def _run(run: ClassRun, checked: Checked, progress: Progress | None) -> Outcome:
             progress(sum(bool(p.row) for p in batch.pairs), total)
 
     tick()
-    from ..client import ServerError
 
     backend = open_backend(run, len(todo) + len(needed), checked.settings if run.limits else None)
     try:
@@ -141,8 +143,6 @@ def _drop_stale_references(report: Path, refs: dict[str, Path]) -> None:
 def _usable(reference: Path) -> bool:
     """A reference an earlier run kept that decodes (one cut short, or a Git LFS pointer where a course's bundle
     was copied from, is rendered again rather than failing every pair of its scene)."""
-    from tracer import decode_png
-
     try:
         decode_png(reference.read_bytes())
     except Exception:  # (Pillow raises many kinds for a broken file; a missing one is OSError)
@@ -188,18 +188,13 @@ def _render_all(
     return done
 
 
-def _resumed(pair: Pair, report: Path, stamp: dict[str, Any]) -> dict[str, Any] | None:
+def _resumed(pair: Pair, report: Path, stamp: Stamp) -> ReportRow | None:
     """The row of a grade an earlier run finished for the same reference, the same bytes and the same
     thresholds (with its heat-map and copy in place), or None (:mod:`service.classgrade.journal` checks the rest)."""
     row = journal.kept(journal.path(report, pair.student, pair.task), stamp)
-    if row is not None and _has_image(row) and not all(p.exists() for p in _paths(pair, report)):
+    if row is not None and has_image(row) and not all(p.exists() for p in files(pair, report)):
         return None
     return row
-
-
-def _has_image(row: dict[str, Any]) -> bool:
-    """A graded image's row (with its heat-map and copy), not an invalid one or a program's failed run."""
-    return row["status"] in ("pass", "fail") and row.get("run") in (None, "ok")
 
 
 def _grade_all(
@@ -217,7 +212,7 @@ def _grade_all(
         _grade_programs(backend, run, checked, todo, refs, tick)
         return
     pending: dict[int, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
-    about: dict[int, tuple[Pair, bytes, dict[str, Any]]] = {}
+    about: dict[int, tuple[Pair, bytes, Stamp]] = {}
     grade = backend.grade()
     for n, pair in enumerate(todo):
         assert pair.key is not None and pair.data is not None
@@ -237,7 +232,7 @@ def _grade_all(
         about[n] = (pair, job.image, stamp)
     tick()
 
-    def keep(n: int, result: dict[str, Any]) -> None:
+    def keep(n: int, result: Marked) -> None:
         pair, image, stamp = about[n]
         _graded(pair, result, image, run.report, stamp)
         tick()
@@ -258,11 +253,11 @@ def _grade_programs(
     jobs = program_jobs(run, todo, task_of, lambda pair, stamp: _resumed(pair, run.report, stamp))
     tick()
 
-    def keep(student: str, results: dict[str, dict[str, Any]]) -> None:
+    def keep(student: str, results: dict[str, Marked]) -> None:
         for pair, stamp in jobs[student][1]:
-            result = dict(results[pair.task])
+            result = results[pair.task]
             warn(pair, result)
-            _graded(pair, result, result.pop("image", None) or b"", run.report, stamp)
+            _graded(pair, result, result.image or b"", run.report, stamp)
         tick()
 
     for tasks in program_tasks(jobs):
@@ -285,68 +280,27 @@ def _job(run: ClassRun, checked: Checked, pair: Pair, reference: bytes) -> Grade
     )
 
 
-def _graded(pair: Pair, result: dict[str, Any], image: bytes, report: Path, stamp: dict[str, Any]) -> None:
-    """Keep a grade task's row; write its heat-map and the copy of the submission (the very bytes graded), then
-    the grade itself, for a run that resumes (a PPM's copy is the PNG of its pixels)."""
-    if result["status"] == "invalid":
-        pair.row = {"status": "invalid", "reason": f"{pair.image}: {result['reason']}"}
-    else:
-        result = dict(result)  # a cluster gives identical tasks (the same image graded twice) one shared result
-        diagnosis = result.pop("diagnosis", None)
-        result["likely"] = headline(Diagnosis.from_dict(diagnosis) if diagnosis else None)
-        result["mistakes"] = matched(diagnosis)
-        if not result["mistakes"] and result.get("experiment"):  # a program's mistake its probes found instead
-            result["likely"] = result["experiment"].split("; ")[0]
-        accepted = result.pop("accepted", None)
-        if accepted:  # passed as an honest tracer's variant: the reason says which
-            result["reason"] = f"as rendered with {accepted}"
-        if _has_image(result):
-            heat, copy = _paths(pair, report)
-            write_atomic(heat, result.pop("heatmap_png"))
-            write_atomic(copy, viewable(image))  # (a PPM's copy: the PNG of its pixels, which a browser shows)
-        pair.row = result
+def _graded(pair: Pair, marked: Marked, image: bytes, report: Path, stamp: Stamp) -> None:
+    """Keep a backend's grade of a pair: write its heat-map and the copy of the submission (the very bytes
+    graded), then its row (:func:`~.rows.kept_row`), for the report and for a run that resumes (a PPM's copy
+    is the PNG of its pixels)."""
+    pair.row = kept_row(marked, pair.image)
+    if has_image(pair.row) and marked.graded is not None and marked.graded.heatmap is not None:
+        heat, copy = files(pair, report)
+        write_atomic(heat, marked.graded.heatmap)
+        write_atomic(copy, viewable(image))  # (a PPM's copy: the PNG of its pixels, which a browser shows)
     journal.keep(journal.path(report, pair.student, pair.task), stamp, pair.row)
-
-
-def _paths(pair: Pair, report: Path) -> tuple[Path, Path]:
-    return (
-        report / "heatmaps" / pair.student / f"{pair.task}.png",
-        report / "submissions" / pair.student / f"{pair.task}.png",
-    )
 
 
 def _row_of(
     pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings], faults: list[str]
-) -> dict[str, Any]:
-    """A pair's row (:func:`_row`); one that cannot be made is the pair's :func:`unwritable` row (and a line
-    in ``faults``), never the class's lost report."""
+) -> ReportRow:
+    """A pair's row (:func:`~.rows.report_row`); one that cannot be made is the pair's :func:`unwritable` row
+    (and a line in ``faults``), never the class's lost report."""
     try:
-        return _row(pair, refs, report, tasks).row()
+        return report_row(pair, refs.get(pair.key or ""), report, tasks[pair.task]).row()
     except Exception as exc:
         faults.append(f"{pair.student}/{pair.task}: its row: {one_line(exc)}")
         known = {**pair.row, "student": pair.student, "task": pair.task, "lms_id": pair.lms_id, "lms": pair.lms}
         known.update(file=pair.file, scene="own" if pair.own else "shared", points=tasks[pair.task].points)
         return unwritable(known, COLUMNS, "its row", exc)
-
-
-def _row(pair: Pair, refs: dict[str, Path], report: Path, tasks: dict[str, TaskSettings]) -> Grade:
-    """A pair's grade as the report writes it: its row, kept or just graded, with who, what, the points and
-    the report's files."""
-    row: dict[str, Any] = {c: None for c in COLUMNS}
-    row.update({k: v for k, v in pair.row.items() if k in row})
-    row.update(student=pair.student, task=pair.task, scene="own" if pair.own else "shared")
-    row["reason"] = row["reason"] or ""
-    row["points"] = tasks[pair.task].points
-    row["mistakes"] = row["mistakes"] or []
-    row["score"], row["deducted"] = astuple(score(row, tasks[pair.task]))
-    row["file"], row["lms_id"], row["lms"], row["late"] = pair.file, pair.lms_id, pair.lms, pair.late
-    if pair.late:  # the late policy, on what the pair earned
-        row["late_deducted"] = late_policy(row["score"], tasks[pair.task])
-        row["score"] -= row["late_deducted"]
-    ref = refs.get(pair.key or "")
-    if ref is not None and ref.exists():
-        row["reference"] = str(ref.relative_to(report))
-    if _has_image(row):
-        heat, copy = _paths(pair, report)
-        row["heatmap"], row["submission"] = str(heat.relative_to(report)), str(copy.relative_to(report))
-    return Grade(**row)

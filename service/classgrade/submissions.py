@@ -19,12 +19,12 @@ import re
 from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from .errors import ClassError
 from .folders import NOT_STUDENTS, Entry, Folder, own_scenes, task_scenes
+from .forms import ReportRow
 from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
-from .records import Batch, Pair
+from .records import Coursework, Pair
 from .untrusted import UntrustedFileError
 
 #: the extensions of the image formats graded (service.grading: PNG, and the PPM students' tracers print)
@@ -38,7 +38,9 @@ SCENE_IGNORED = (
 )
 
 
-def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None, limit: int = DEFAULT_LIMIT) -> Batch:
+def discover(
+    scenes: Path, submissions: Path, student_scenes: Path | None = None, limit: int = DEFAULT_LIMIT
+) -> Coursework:
     """Every (student, task) pair of the class, each submission read (at most ``limit`` bytes) through the
     folders it was found in, held open meanwhile; :class:`ClassError` for a folder of the TA's that is
     unusable, a submissions folder in which no student is found (or whose one folder holds the class), or a
@@ -64,7 +66,7 @@ def discover(scenes: Path, submissions: Path, student_scenes: Path | None = None
             pair = Pair(student, task, None, scene or shared, scene is not None, lms_id=source.id, lms=source.lms)
             mine.get(task, Submitted(row={"status": "missing", "reason": f"no {task}.png"})).fill(pair)
             pairs.append(pair)
-    return Batch(tasks, students, pairs, ignored)
+    return Coursework(tasks, students, pairs, ignored)
 
 
 @dataclass
@@ -151,7 +153,7 @@ class Submitted:
     image: Path | None = None
     file: str | None = None
     data: bytes | None = None
-    row: dict[str, Any] = field(default_factory=dict)
+    row: ReportRow = field(default_factory=dict)
     late: bool = False  # the LMS marked the file late
 
     def fill(self, pair: Pair) -> None:

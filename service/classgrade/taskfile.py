@@ -71,7 +71,7 @@ class TaskSettings(BaseModel):
     #: what a pair of a program holding phongray's own code scores (service.programs.copied): its grade, flagged
     #: for the TA (review), or nothing (zero)
     phongray_code: Literal["review", "zero"] = "review"
-    #: the accepted variants of honest tracers, name → largest amount × the scene's size (None: the defaults,
+    #: the accepted variants of honest tracers, name → largest amount × the visible size (None: the defaults,
     #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
     accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None
     #: the Canvas assignment the task's score goes to, as Canvas's gradebook names its column (None: the task's name)

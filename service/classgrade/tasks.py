@@ -3,22 +3,21 @@
 from __future__ import annotations
 
 import time
-from typing import Any
 
+from schemas import load_scene
+from tracer import ImageTooLarge, OverBudget, RenderCancelled, encode_png, render
+from tracer.budget import UNLIMITED
+
+from .. import grading, pipeline
+from ..limits import budget, outgrown
 from ..settings import Settings
-from .records import GradeJob
+from .records import GradeJob, Marked
 
 
 def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | None, str]:
     """The reference PNG of a scene's text, or (None, the reason it cannot be rendered).  With the service's
     ``limits`` (``grade-class --limits``), a render still going after their ``render_timeout`` or outgrowing
     their budget (:func:`service.limits.budget`) is stopped; without, the TA's scene is trusted."""
-    from schemas import load_scene
-    from tracer import ImageTooLarge, OverBudget, RenderCancelled, encode_png, render
-    from tracer.budget import UNLIMITED
-
-    from ..limits import budget, outgrown
-
     deadline = None if limits is None else time.monotonic() + limits.render_timeout
     loaded = load_scene(scene)
     try:
@@ -50,15 +49,11 @@ def grade_task(
     scene: bytes | None = None,
     accepted: dict[str, float] | None = None,
     diagnose: bool = True,
-) -> dict[str, Any]:
-    """The grade of a submission against a reference PNG, with its heat-map PNG under ``"heatmap_png"`` and,
-    given the reference's ``scene`` text, a failing one graded again against the task's ``accepted`` variants
-    (None: the defaults) and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid row
-    whose reason lacks only the file's name."""
-    from schemas import load_scene
-
-    from .. import grading, pipeline
-
+) -> Marked:
+    """The grade of a submission against a reference PNG, with its heat-map and, given the reference's
+    ``scene`` text, a failing one graded again against the task's ``accepted`` variants (None: the defaults)
+    and, to ``diagnose``, the likely mistake of one that fails them too; or an invalid one whose reason lacks
+    only the file's name."""
     try:
         graded = pipeline.grade_png(
             reference,
@@ -69,15 +64,15 @@ def grade_task(
             explaining=None
             if scene is None
             else pipeline.Explaining(
-                lambda: load_scene(scene), pipeline.Checks(accepted, diagnose), pipeline.Run(threads=1)
+                lambda: load_scene(scene), pipeline.Checks(accepted, diagnose), pipeline.Checking(threads=1)
             ),
         )
     except grading.ImageError as exc:
-        return {"status": "invalid", "reason": str(exc)}
-    return {**graded.as_dict(), "status": "pass" if graded.grade.passed else "fail", "heatmap_png": graded.heatmap}
+        return Marked.invalid(str(exc))
+    return Marked.of(graded)
 
 
-def local_grade(job: GradeJob) -> dict[str, Any]:
+def local_grade(job: GradeJob) -> Marked:
     """:func:`grade_task` of a pair's job (the reference is already rendered: the scene is for the accepted
     variants and, unless not to ``diagnose``, the diagnosis of a failing pair)."""
     return grade_task(job.reference, job.image, job.tolerance, job.max_fraction, job.scene, job.accepted, job.diagnose)

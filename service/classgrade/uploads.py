@@ -20,9 +20,9 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from .folders import hidden
+from .forms import Results
 from .lms import TaskNames
 from .submissions import GRADED, OTHER_IMAGES
 from .untrusted import UntrustedFileError, read_untrusted
@@ -144,7 +144,7 @@ def _copy(submission: Path, name: str, target: Path, out: LaidOut) -> bool:
     return True
 
 
-def as_uploaded(results: dict[str, Any], student: Path, shown: dict[Path, str]) -> dict[str, Any]:
+def as_uploaded(results: Results, student: Path, shown: dict[Path, str]) -> Results:
     """A student's results with every file named as the student named it: a laid-out file by its uploaded name,
     anything else in the student's folder by its path below it; never the temporary folder's path."""
     names = sorted(((str(path), name) for path, name in shown.items()), key=lambda p: -len(p[0]))

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from .feedback import gradescope
+from .forms import ReportRow
 from .gradebook import gradebook_csv
 from .isolation import isolated, noted
 from .lmsbook import lms_books
@@ -25,12 +26,12 @@ from .taskfile import TaskSettings
 
 def write_report(
     report: Path,
-    rows: list[dict[str, Any]],
+    rows: list[ReportRow],
     ignored: list[tuple[str, str]],
     students: list[str],
     tasks: dict[str, TaskSettings],
     headline: str,
-) -> tuple[list[dict[str, Any]], list[str]]:
+) -> tuple[list[ReportRow], list[str]]:
     """Write the report's files; a pair's row that one of them cannot write is written as its
     :func:`~service.classgrade.isolation.unwritable` row, the rest of the class as it is.  The rows as
     written, and a line per row replaced."""
@@ -53,11 +54,11 @@ def write_report(
     return rows, faults
 
 
-def _writers(tasks: dict[str, TaskSettings]) -> dict[str, Callable[[list[dict[str, Any]]], object]]:
+def _writers(tasks: dict[str, TaskSettings]) -> dict[str, Callable[[list[ReportRow]], object]]:
     """Each file's writer, for one student's rows (:func:`isolated` tries each student's), as it writes the
     class's."""
 
-    def who(rows: list[dict[str, Any]]) -> list[str]:
+    def who(rows: list[ReportRow]) -> list[str]:
         return list(dict.fromkeys(r["student"] for r in rows))
 
     return {

@@ -9,6 +9,7 @@ Each group of subcommands is a module of this package, with its options (``add``
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 from collections.abc import Sequence
@@ -76,8 +77,6 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
 def _quiet_dask() -> None:
     """Dask's own log lines (a lost scheduler's reconnection tracebacks) off the terminal: phongray says what
     happened to the cluster in one line of its own."""
-    import logging
-
     try:
         import distributed  # noqa: F401  (its import sets its loggers' levels: set them after it)
     except ImportError:

@@ -6,11 +6,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import stat
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from service.pipeline import Overrides
     from tracer.budget import OverBudget
 
 EXIT_BAD_INPUT = 2
@@ -34,8 +36,6 @@ def read(path: str) -> bytes:
 def read_image(path: str) -> bytes:
     """An image file, read no further than the limit ``max_image_bytes`` (an image is a student's file: a file
     without end, such as /dev/zero, must not be read whole), the same with and without ``--server``."""
-    import stat
-
     from service.classgrade.untrusted import file_kind
     from service.settings import Settings
 
@@ -72,8 +72,6 @@ def replace(path: Path, data: bytes) -> None:
     """Write a file whole or not at all: a temporary file in its folder, then one rename, so that a failure (a
     full disk, an interruption) never leaves a truncated image where an old one was.  The file keeps its mode;
     a symbolic link is written through; a device or a FIFO (``/dev/null``) is written to as it is."""
-    import stat
-
     target = path.resolve() if path.is_symlink() else path
     try:
         mode: int | None = os.stat(target).st_mode
@@ -94,7 +92,7 @@ def replace(path: Path, data: bytes) -> None:
         raise
 
 
-def load(path: str, text: bytes, overrides: dict[str, Any] | None = None) -> Any:
+def load(path: str, text: bytes, overrides: Overrides | None = None) -> Any:
     from service.pipeline import BadInput, scene_or_bad_input
 
     try:
@@ -106,8 +104,6 @@ def load(path: str, text: bytes, overrides: dict[str, Any] | None = None) -> Any
 def remote(scene: str, image: str | None = None) -> Any:
     """A context that turns the service's error answers into the words (and exit codes) of local work: the
     scene's problems as ``SCENE:LINE: path: message``, the image's as ``IMAGE: ...``."""
-    import contextlib
-
     from service.client import ServerError
     from service.pipeline import scene_lines
 

@@ -4,14 +4,13 @@ to be usable."""
 from __future__ import annotations
 
 import argparse
+import socket
 
 from service.cli.common import CliError
 from service.cli.options import Commands, command, port, positive_int
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    import socket
-
     from service.settings import Settings
 
     Settings.from_env()  # a PHONGRAY_* setting of the wrong type is told as itself, before the port is taken

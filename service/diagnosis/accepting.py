@@ -2,13 +2,17 @@
 
 A grade that fails against the reference is taken again against the
 reference rendered as honest tracers render it (:data:`tracer.variants.
-ACCEPTED_DEFAULT`: shadow and secondary rays started up to 10⁻³ of the
-scene's size off the surface, along its normal or by a t_min), each at its
-largest amount and halves of it: an image within the range of those renders
-and the reference passes, "PASS, as rendered with a 1e-3 ray offset".  A
-passing image costs nothing more: these renders are made only for an image
-that fails the reference, and kept for the last few scenes, so a class's
-failing pairs of one task share them.
+ACCEPTED_DEFAULT`): shadow and secondary rays started off the surface along
+its normal, up to 5·10⁻³ of the scene's visible size, or by a t_min up to
+10⁻² of it.  Each is rendered at a ladder of round amounts in the scene's units
+(:mod:`.offsets`): the image passes as the first two neighbouring rungs (the
+first from the reference), smallest first, whose range holds it and explains
+its failure, and the verdict names the rung of them it comes closer to, the
+amount that decided it: "PASS, as rendered with a ray offset of 0.003 along
+the normal".  A passing
+image costs nothing more: these renders are made only for an image that
+fails the reference, and kept for the last few scenes, so a class's failing
+pairs of one task share them.
 """
 
 from __future__ import annotations
@@ -24,10 +28,13 @@ import numpy as np
 
 from schemas import Scene
 from tracer import Renderer, decode_png
-from tracer.variants import ACCEPTED_DEFAULT, Options, accepted_options, unchanged
+from tracer.variants import ACCEPTED_DEFAULT, Options, unchanged
 
-from ..grading import BAND, Grade, grade
-from .looks import sampled_rows
+from ..grading import GROSS_ALLOWED, Grade, grade, range_counts
+from ..nearby import rows_distance
+from ..scenekey import scene_key
+from .looks import off_rows, sampled_rows, telling_middles
+from .offsets import Rung, ladder, narrowed, rung, visible_size
 
 #: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
@@ -41,10 +48,12 @@ KEPT_PIXELS = 640 * 480
 
 @dataclass(frozen=True)
 class Acceptance:
-    """A failing image that passes against an accepted variant: which (in words), and that grade."""
+    """A failing image that passes against an accepted variant: which (in words), that grade, and the rung that
+    decided it."""
 
-    words: str  # "a 0.001 ray offset"
+    words: str  # "a ray offset of 0.001 along the normal"
     grade: Grade
+    rung: Rung
 
 
 class _Kept:
@@ -52,7 +61,29 @@ class _Kept:
 
     def __init__(self) -> None:
         self.held: dict[tuple[object, ...], np.ndarray] = {}
+        #: the rows of renders looked at so far, by scene key and options: row number → its pixels
+        self.rows: dict[tuple[object, ...], dict[int, np.ndarray]] = {}
         self.lock = threading.Lock()
+
+    def rows_of(
+        self, key: tuple[object, ...], numbers: np.ndarray, make: Callable[[np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """Rows ``numbers`` of the render ``key``: those not kept made by ``make`` (row numbers → their pixels),
+        and kept (for the last :data:`KEPT` renders, each of at most :data:`KEPT_PIXELS`)."""
+        with self.lock:
+            have = dict(self.rows.get(key, {}))
+        todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
+        if len(todo):
+            fresh = make(todo)
+            have.update(zip(todo.tolist(), fresh))
+            with self.lock:
+                mine = self.rows.setdefault(key, {})
+                mine.update(zip(todo.tolist(), fresh))
+                if sum(row.shape[0] for row in mine.values()) > KEPT_PIXELS:
+                    self.rows.pop(key)
+                while len(self.rows) > KEPT:
+                    self.rows.pop(next(iter(self.rows)))
+        return np.stack([have[r] for r in numbers.tolist()])
 
     def has(self, key: tuple[object, ...]) -> bool:
         with self.lock:
@@ -79,7 +110,8 @@ STORED = "PHONGRAY_ACCEPTED_RENDERS"
 
 
 def file_name(options: Options) -> str:
-    """The name of a whole render of an accepted variant in a folder of them: ``normal-0.001.png``."""
+    """The name of a whole render of an accepted variant in a folder of them: ``normal-0.0006.png`` (its offset
+    relative to the visible size)."""
     return f"{options.offset_along}-{options.offset!r}.png"
 
 
@@ -95,11 +127,26 @@ def stored(key: tuple[object, ...]) -> Path | None:
 
 @dataclass(frozen=True)
 class Failing:
-    """A submission that failed the reference: both images (``(H, W, 3) uint8``) and the grade."""
+    """A submission that failed the reference: both images (``(H, W, 3) uint8``), the grade, and the pixels the
+    format leaves open (not counted; None: none)."""
 
     reference: np.ndarray
     submitted: np.ndarray
     failed: Grade
+    open_pixels: np.ndarray | None = None
+
+
+def accepted_ladders(scene: Scene, accepted: dict[str, float] | None, key: str | None = None) -> list[list[Rung]]:
+    """Per accepted variant (``accepted``: name → largest amount × the visible size; None: the defaults), its
+    ladder of rungs, ascending (:func:`service.diagnosis.offsets.ladder`)."""
+    size = visible_size(scene, key)
+    given = ACCEPTED_DEFAULT if accepted is None else accepted
+    return [rungs for kind in sorted(given) if (rungs := ladder(kind, given[kind] * size, size))]
+
+
+def brackets(rungs: list[Rung]) -> list[tuple[Rung | None, Rung]]:
+    """The neighbouring rungs of a ladder, ascending, the first from the reference (None) to the lowest rung."""
+    return list(zip([None, *rungs[:-1]], rungs))
 
 
 def accept(
@@ -109,119 +156,192 @@ def accept(
     threads: int | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> Acceptance | None:
-    """The first accepted variant (``accepted``: name → largest amount; None: the defaults) whose range of
-    amounts, from the reference to its largest, the submitted pixels pass against (:func:`envelope_off`, with
-    the failed grade's thresholds), and which explains the failure (at most :data:`EXPLAINED` of the pixels off
-    the reference are off the range); None when none does.  Its words are those of the amount it comes
-    closest to.
+    """The first accepted variant and bracket of its ladder (``accepted``: name → largest amount × the visible
+    size; None: the defaults), smallest first, whose range (the renders of its two rungs, or of the reference and
+    the lowest rung) the submitted pixels pass against (:func:`envelope_counts`, with the failed grade's
+    thresholds), and which explains the failure (at most :data:`EXPLAINED` of the pixels off the reference are
+    off the range); None when none does.  Its words name the rung of the range the image comes closer to (the
+    higher, from the reference): the amount that decided it.
 
     A scene with no light but ambient and no mirror or glass renders every offset as the reference (no shadow or
     secondary ray is cast): it renders none of them."""
-    from ..scenekey import scene_key
-
     if unchanged("offset-too-large", scene):
         return None
     key = scene_key(scene)
-    pixels = scene.image.width * scene.image.height
-    submitted, failed = pair.submitted, pair.failed
-    allowed = min(failed.max_fraction, EXPLAINED * failed.fraction_off_nearby) * pixels
-    for rungs in accepted_options(ACCEPTED_DEFAULT if accepted is None else accepted):
-        kept = all(KEPT_RENDERS.has((key, options)) for _, options in rungs)
-        if not kept and first_look(scene, rungs, pair, Look(key, threads, cancel)) > allowed:
-            continue  # (its rows alone leave too many pixels off: it cannot pass, whole)
-        images = [
-            KEPT_RENDERS.get((key, options), partial(_render, scene, options, threads, cancel), pixels)
-            for _, options in rungs
-        ]
-        off = envelope_off([pair.reference, *images], submitted, failed.tolerance)
-        if off > allowed:
-            continue
-        grades = [
-            grade(image, submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction) for image in images
-        ]
-        best = min(range(len(rungs)), key=lambda k: grades[k].fraction_off_nearby)
-        return Acceptance(rungs[best][0], replace(grades[best], passed=True, fraction_off_nearby=off / pixels))
+    tolerance, shut = pair.failed.tolerance, pair.open_pixels
+    look = Look(
+        key, threads, cancel, telling_middles(off_rows(pair.reference, pair.submitted, tolerance, shut), np.inf)
+    )
+    allowed = min(pair.failed.max_fraction, EXPLAINED * pair.failed.fraction_off_nearby) * pair.submitted[..., 0].size
+    for rungs in accepted_ladders(scene, accepted, key):
+        found = _found(scene, pair, rungs, look, allowed)
+        if found is not None:
+            return _quoted(scene, pair, rungs, look, found)
     return None
+
+
+def _found(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:
+    """The image accepted as a range of one ladder's amounts: two neighbouring rungs, smallest first, else a
+    narrower range (:func:`_narrowed`); None when none holds it."""
+    for k, (low, high) in enumerate(brackets(rungs)):
+        after = rungs[k + 1] if k + 1 < len(rungs) else None
+        parts = [r for r in (low, high) if r is not None]
+        found = _bracket(scene, pair, parts, look, (allowed, low is None), after)
+        if found is not None:
+            return found
+    return _narrowed(scene, pair, rungs, look, allowed)
+
+
+def _quoted(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, found: Acceptance) -> Acceptance:
+    """``found``, said as the rung of its ladder whose render the image comes closest to, when that is not the one
+    it was found as (an image within the range of two small amounts, where larger ones change little, made with a
+    larger one): every rung looked at on a few rows first, and the nearest rendered whole."""
+
+    def alone(r: Rung) -> tuple[int, int]:
+        return sampled_off(scene, [r], pair, look, reference=False)
+
+    best = min(rungs, key=alone)
+    if alone(best) >= alone(found.rung):
+        return found
+    pixels, failed = pair.submitted[..., 0].size, pair.failed
+    own = [
+        grade(
+            KEPT_RENDERS.get(
+                (look.key, r.options), partial(_render, scene, r.options, look.threads, look.cancel), pixels
+            ),
+            pair.submitted,
+            failed.reference_sha256,
+            failed.tolerance,
+            failed.max_fraction,
+            pair.open_pixels,
+        ).fraction_off_nearby
+        for r in (found.rung, best)
+    ]
+    return replace(found, words=best.words, rung=best) if own[1] < own[0] else found
+
+
+def _narrowed(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:
+    """The image accepted as a narrower range of amounts, when no range of two rungs holds it: the range of two
+    rungs that leaves the fewest of its pixels off on a few rows, halved there (:func:`.offsets.narrowed`), and
+    rendered whole only if its rows may pass."""
+    size, kind = visible_size(scene, look.key), rungs[0].kind
+
+    def parts(amounts: tuple[float, ...]) -> list[Rung]:
+        return [rung(kind, a, size) for a in amounts if a > 0]
+
+    def off(amounts: tuple[float, ...]) -> tuple[int, int]:
+        return sampled_off(scene, parts(amounts), pair, look, amounts[0] == 0)
+
+    def alone(amount: float) -> tuple[int, int]:
+        return off((amount,)) if amount > 0 else sampled_off(scene, [], pair, look)
+
+    amounts = [0.0, *(r.amount for r in rungs)]
+    chosen = tuple(narrowed(alone, *min(zip(amounts, amounts[1:]), key=off)))
+    if off(chosen)[0] > allowed:
+        return None  # (its rows alone cannot pass)
+    return _bracket(scene, pair, parts(chosen), look, (allowed, chosen[0] == 0))
+
+
+def _bracket(
+    scene: Scene, pair: Failing, rungs: list[Rung], look: Look, how: tuple[float, bool], after: Rung | None = None
+) -> Acceptance | None:
+    """The image accepted as the range of ``rungs`` (and the reference, when ``how`` says so: (the pixels off
+    allowed, whether from the reference)), or None: first from a few rows, then whole.  Its words are those of
+    the rung it comes closest to, of these or the next one up (``after``, looked at unless the image is one of
+    these exactly): a student's 0.001 lies within the range of the reference and 0.0005 where the two differ
+    little, and is said as 0.001 all the same."""
+    failed, pixels = pair.failed, pair.submitted[..., 0].size
+    allowed, from_reference = how
+    kept = all(KEPT_RENDERS.has((look.key, r.options)) for r in rungs)
+    if not kept and first_look(scene, rungs, pair, look, from_reference) > allowed:
+        return None  # (its rows alone leave too many pixels off: it cannot pass, whole)
+    images = [
+        KEPT_RENDERS.get((look.key, r.options), partial(_render, scene, r.options, look.threads, look.cancel), pixels)
+        for r in rungs
+    ]
+    ranged = [pair.reference, *images] if from_reference else images
+    counts = envelope_counts(ranged, pair.submitted, failed.tolerance, pair.open_pixels)
+    if counts.off_nearby > allowed or counts.grossly_off > GROSS_ALLOWED:
+        return None
+    own = [
+        grade(image, pair.submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction, pair.open_pixels)
+        for image in images
+    ]
+    nearer = min(range(len(rungs)), key=lambda k: (own[k].fraction_off_nearby, -k))
+    if after is not None and own[nearer].fraction_off_nearby > 0:
+        image = KEPT_RENDERS.get(
+            (look.key, after.options), partial(_render, scene, after.options, look.threads, look.cancel), pixels
+        )
+        graded = grade(
+            image, pair.submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction, pair.open_pixels
+        )
+        if graded.fraction_off_nearby < own[nearer].fraction_off_nearby:
+            rungs, own, nearer = [*rungs, after], [*own, graded], len(rungs)
+    passed = replace(own[nearer], passed=True, fraction_off_nearby=counts.off_nearby / pixels)
+    return Acceptance(rungs[nearer].words, replace(passed, grossly_off=counts.grossly_off), rungs[nearer])
 
 
 @dataclass(frozen=True)
 class Look:
-    """How a first look renders: the scene's key (its rows are kept under it), its threads and what cancels it."""
+    """How a first look renders: the scene's key (its rows are kept under it), its threads and what cancels it,
+    and the middle rows it looks at (None: :func:`service.diagnosis.looks.sampled_rows`)."""
 
     key: str
     threads: int | None
     cancel: Callable[[], bool] | None
+    middles: np.ndarray | None = None
 
     def rows(self, scene: Scene, options: Options, rows: np.ndarray) -> np.ndarray:
-        """Rows ``rows`` of the scene rendered with ``options``, kept for the next failing image."""
-        return KEPT_RENDERS.get(
-            (self.key, options, "rows"),
-            partial(_render_rows, scene, options, rows, self),
-            scene.image.width * len(rows),
-        )
+        """Rows ``rows`` of the scene rendered with ``options``, each kept for the next failing image."""
+        return KEPT_RENDERS.rows_of((self.key, options), rows, partial(_render_rows, scene, options, how=self))
+
+    def looked(self, height: int) -> tuple[np.ndarray, np.ndarray]:
+        """The middle rows a look takes in an image ``height`` tall, and every row it renders for them (each
+        middle row with the rows either side)."""
+        if self.middles is None or not len(self.middles):
+            return sampled_rows(height)
+        return self.middles, (self.middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
 
 
-def first_look(scene: Scene, rungs: list[tuple[str, Options]], pair: Failing, how: Look) -> int:
-    """A lower bound of :func:`envelope_off` for the range of ``rungs`` and the reference, from their renders of
-    a few rows alone (:func:`service.diagnosis.looks.sampled_rows`: every 16th row with the rows either side).
+def first_look(scene: Scene, rungs: list[Rung], pair: Failing, how: Look, reference: bool = True) -> int:
+    """A lower bound of :func:`envelope_counts`'s pixels off for the range of ``rungs`` (and the reference, with
+    ``reference``), from their renders of a few rows alone (:meth:`Look.looked`: the rows where the submission is
+    most off against the reference, as many as every 16th row would be, each with the rows either side).
 
-    Exact, not an estimate: a pixel's count depends on its 3×3 neighbourhood alone, so each sampled middle row,
-    rendered with the rows above and below, gives its off pixels exactly as the whole count does, and their
-    count bounds the whole image's (0 for an image too short to have middle rows)."""
-    middles, rows = sampled_rows(pair.submitted.shape[0])
+    Exact, not an estimate: a pixel's count depends on its 3×3 neighbourhood alone (both ways), so each sampled
+    middle row, rendered with the rows above and below, gives its off pixels exactly as the whole count does,
+    and their count bounds the whole image's (0 for an image too short to have middle rows)."""
+    return sampled_off(scene, rungs, pair, how, reference)[0]
+
+
+def sampled_off(scene: Scene, rungs: list[Rung], pair: Failing, how: Look, reference: bool = True) -> tuple[int, int]:
+    """:func:`first_look`'s count, and the sum of the sampled pixels' nearby distances (which tells two ranges
+    that leave as many pixels off apart)."""
+    middles, rows = how.looked(pair.submitted.shape[0])
     if not len(middles):
-        return 0
-    images = [pair.reference[rows]] + [how.rows(scene, options, rows) for _, options in rungs]
-    return sum(
-        _middle_off([image[3 * k : 3 * k + 3] for image in images], pair.submitted[m], pair.failed.tolerance)
-        for k, m in enumerate(middles)
-    )
+        return 0, 0
+    w = pair.submitted.shape[1]
+    images = ([pair.reference[rows]] if reference else []) + [how.rows(scene, r.options, rows) for r in rungs]
+    low = np.min(images, axis=0).reshape(len(middles), 3, w, 3)
+    high = np.max(images, axis=0).reshape(len(middles), 3, w, 3)
+    near = rows_distance(low, high, pair.submitted[rows].reshape(len(middles), 3, w, 3))
+    if pair.open_pixels is not None:
+        near = np.where(pair.open_pixels[middles], 0, near)
+    return int(np.count_nonzero(near > pair.failed.tolerance)), int(near.sum(dtype=np.int64))
 
 
-def _middle_off(triplets: list[np.ndarray], row: np.ndarray, tolerance: float) -> int:
-    """The pixels of one submitted ``row`` (W, 3) off even nearby the range of renders of it and the rows either
-    side (each (3, W, 3))."""
-    low = np.min(triplets, axis=0).astype(np.int16)
-    high = np.max(triplets, axis=0).astype(np.int16)
-    lo = np.pad(low, ((0, 0), (1, 1), (0, 0)), mode="edge") - tolerance
-    hi = np.pad(high, ((0, 0), (1, 1), (0, 0)), mode="edge") + tolerance
-    sub, w = row.astype(np.int16), row.shape[0]
-    near = np.zeros(w, dtype=bool)
-    for dy in range(3):
-        for dx in range(3):
-            near |= np.all((sub >= lo[dy, dx : dx + w]) & (sub <= hi[dy, dx : dx + w]), axis=1)
-    return int(np.count_nonzero(~near))
+#: the pixels off even nearby, and grossly off, against the range of renders (:func:`service.grading.range_counts`)
+envelope_counts = range_counts
 
 
 def envelope_off(renders: list[np.ndarray], submitted: np.ndarray, tolerance: float) -> int:
-    """The pixels of ``submitted`` off even nearby the range of ``renders`` (each ``(H, W, 3) uint8``): those
-    with a channel outside [lowest − tolerance, highest + tolerance] of the renders at every pixel of their 3×3
-    neighbourhood (edges repeat).  With one render this is the grade's own count of pixels off even nearby; with
-    renders of one variant at several amounts it forgives any amount between them, as far as a pixel's value
-    moves between theirs (an offset shifts a glass ball's rim a little with each amount).  Rows are compared
-    :data:`BAND` at a time."""
-    h = submitted.shape[0]
-    low, high = np.min(renders, axis=0).astype(np.int16), np.max(renders, axis=0).astype(np.int16)
-    off = 0
-    for top in range(0, h, BAND):
-        bottom = min(top + BAND, h)
-        rows = np.clip(np.arange(top - 1, bottom + 1), 0, h - 1)
-        lo = np.pad(low[rows], ((0, 0), (1, 1), (0, 0)), mode="edge") - tolerance
-        hi = np.pad(high[rows], ((0, 0), (1, 1), (0, 0)), mode="edge") + tolerance
-        sub = submitted[top:bottom].astype(np.int16)
-        n, w = bottom - top, submitted.shape[1]
-        near = np.zeros((n, w), dtype=bool)
-        for dy in range(3):
-            for dx in range(3):
-                window = (slice(dy, dy + n), slice(dx, dx + w))
-                near |= np.all((sub >= lo[window]) & (sub <= hi[window]), axis=2)
-        off += int(np.count_nonzero(~near))
-    return off
+    """The pixels of ``submitted`` off even nearby the range of ``renders`` (:func:`envelope_counts`)."""
+    return envelope_counts(renders, submitted, tolerance).off_nearby
 
 
 def _render(scene: Scene, options: Options, threads: int | None, cancel: Callable[[], bool] | None) -> np.ndarray:
     return Renderer(scene, options).pixels(threads=threads, cancel=cancel)
 
 
-def _render_rows(scene: Scene, options: Options, rows: np.ndarray, how: Look) -> np.ndarray:
+def _render_rows(scene: Scene, options: Options, rows: np.ndarray, *, how: Look) -> np.ndarray:
     return Renderer(scene, options).pixels_of_rows(rows, how.threads, cancel=how.cancel)

@@ -16,6 +16,7 @@ import numpy as np
 from tracer.variants import BOUNDS, VARIANTS
 
 from ..grading import Grade, grade
+from . import too_large
 from .compose import stored_only
 from .fit import fit_terms
 from .looks import (
@@ -54,7 +55,7 @@ def _diagnosed(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, ren
     out = Diagnosis()
     if verdict.passed:
         return out
-    stored = stored_only(reference, submitted, verdict)  # (grey, mirrored, BGR: found with no render)
+    stored = stored_only(reference, submitted, verdict, renders.open)  # (grey, mirrored, BGR: found with no render)
     if stored is not None:
         out.causes = together_causes(stored)
     else:
@@ -94,7 +95,7 @@ class _Scoring:
         self.scored: list[Cause] = []
         # where the submission is off against the reference, per row: the rows and bands looked at first (the
         # order of the looks only: every bound stays exact, every whole render the same image)
-        self.counts = off_rows(reference, submitted, verdict.tolerance)
+        self.counts = off_rows(reference, submitted, verdict.tolerance, renders.open)
         self.first = telling_middles(self.counts, TELLING * verdict.max_fraction * self.pixels)
 
     # whether a variant with at least ``off`` pixels off (even nearby) cannot pass, or cannot be named the
@@ -116,7 +117,7 @@ class _Scoring:
             return False
         if np.array_equal(image, self.reference):  # the mistake changes nothing in this scene: no evidence
             return True
-        g = grade(image, self.submitted, "", self.verdict.tolerance, self.verdict.max_fraction)
+        g = grade(image, self.submitted, "", self.verdict.tolerance, self.verdict.max_fraction, self.renders.open)
         self.scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
         return True
 
@@ -143,6 +144,10 @@ class _Scoring:
             renders.check()
             if name in BOUNDS and renders.bound is not None:
                 continue  # (a speckled mistake is scored against its far end below, not by its own render)
+            if name == too_large.NAME and renders.size is not None:  # (against its ladder, by its own looks)
+                if not too_large.score(self, self.cannot_pass):
+                    later.append(name)
+                continue
             # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot
             # pass is scored only if none passes, and then only if it may come closest
             least = (
@@ -167,6 +172,9 @@ class _Scoring:
         renders, closest = self.renders, self.cannot_come_closest
         for name in later:
             renders.check()
+            if name == too_large.NAME and renders.size is not None:
+                too_large.score(self, closest)
+                continue
             least = off_at_least(name, self.submitted, self.verdict, renders, closest, self.first)  # (every row)
             if least is None or not closest(least):
                 self.score(name, closest)

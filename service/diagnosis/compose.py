@@ -31,6 +31,8 @@ import numpy as np
 
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
+from ..grading import grade
+from .records import Term
 from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
 
 if TYPE_CHECKING:
@@ -59,15 +61,7 @@ class Looks:
     render: Callable[[Options], np.ndarray]  # options → the whole image (H, W, 3) uint8
     shown: Callable[[str], bool]  # name → whether the scene can show the mistake (else it renders the reference)
     lights: tuple[str, ...]  # the scene's light types, in order
-
-
-@dataclass(frozen=True)
-class Fitted:
-    """A term of the fit out of scale (as :func:`service.diagnosis.fit_terms` finds them)."""
-
-    name: str  # "ambient", "diffuse", "specular", "reflection", "refraction", "background"
-    light: int | None  # index in scene.lights, or None
-    scale: float  # the fitted coefficient: 1 is right
+    open: np.ndarray | None = None  # (H, W) bool: the pixels not counted against a submission (Renders.open)
 
 
 @dataclass(frozen=True)
@@ -123,7 +117,7 @@ def compatible(names: tuple[str, ...]) -> bool:
 SLACK = 0.15
 
 
-def pointed(terms: list[Fitted], lights: tuple[str, ...]) -> dict[str, str]:
+def pointed(terms: list[Term], lights: tuple[str, ...]) -> dict[str, str]:
     """The new render-level mistakes (:data:`tracer.variants.MORE_VARIANTS`) the fitted terms point to, each with
     the term that points to it, in words: a spot's term too strong (its exponent ignored), a light's term out of
     scale (its colour ignored), a light's term too weak (clamped per term; reflections blended, which darken
@@ -146,7 +140,7 @@ def pointed(terms: list[Fitted], lights: tuple[str, ...]) -> dict[str, str]:
     return out
 
 
-def candidates(looks: Looks, terms: list[Fitted]) -> dict[str, str]:
+def candidates(looks: Looks, terms: list[Term]) -> dict[str, str]:
     """The render-level mistakes to try, each with why: every classic one the scene can show (the single-mistake
     diagnosis has looked at them already), the new ones the fit points to (:func:`pointed`), or every new one
     the scene can show when the fit has no term out of scale (the difference is in no term's scale: the fit
@@ -267,15 +261,13 @@ def compose(
     submitted: np.ndarray,
     verdict: Grade,
     looks: Looks,
-    terms: list[Fitted],
+    terms: list[Term],
     numbers: np.ndarray | None = None,
 ) -> Combination | None:
     """The mistakes made together that explain a failing ``submitted`` (graded ``verdict``), chosen on rows
     ``numbers`` (None: :func:`telling_rows`) and confirmed by one render of them all (none when they are
     image-level mistakes alone: the reference's pixels stored with them); None when no mistake helps, or when
     the one mistake found is a classic one alone (the single-mistake diagnosis has graded it already)."""
-    from ..grading import grade
-
     found = image_level(reference, submitted)
     rows = _rows(reference, submitted, looks, candidates(looks, terms), (found, verdict.tolerance, numbers))
     inner = chosen(rows)
@@ -286,7 +278,7 @@ def compose(
         image = outer(reference, names)  # (exact for all but the mirror, which is within a level)
     else:
         image = looks.render(merged(names))
-    g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction)
+    g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
     inner_shares = shares(rows, inner)
     tried = candidates(looks, terms)
     members = [Member(n, ALL[n][1], inner_shares[n], _why(tried[n], inner_shares[n])) for n in inner]
@@ -295,17 +287,17 @@ def compose(
     return Combination(tuple(members), g.fraction_off_nearby, g.passed)
 
 
-def stored_only(reference: np.ndarray, submitted: np.ndarray, verdict: Grade) -> Combination | None:
+def stored_only(
+    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, open_pixels: np.ndarray | None = None
+) -> Combination | None:
     """The image-level mistakes alone, when the submission passes against the reference's pixels stored with
     them: found with no render at all, before any mistake is rendered (None also for the classic flip alone,
     which the single-mistake diagnosis names as it always has)."""
-    from ..grading import grade
-
     found = image_level(reference, submitted)
     names = tuple(n for n in OUTER if n in found)
     if not names or names == ("image-flipped",):
         return None
-    g = grade(outer(reference, names), submitted, "", verdict.tolerance, verdict.max_fraction)
+    g = grade(outer(reference, names), submitted, "", verdict.tolerance, verdict.max_fraction, open_pixels)
     if not g.passed:
         return None
     members = [Member(n, ALL[n][1], found[n], f"the image is the reference's {SHOWN[n]}") for n in names]
@@ -350,14 +342,14 @@ class Explanation:
 
     share: float
     variant: str | None = None
-    term: Fitted | None = None
+    term: Term | None = None
 
 
 def nearest(
     reference: np.ndarray,
     submitted: np.ndarray,
     looks: Looks,
-    terms: list[tuple[Fitted, float]],
+    terms: list[tuple[Term, float]],
     tolerance: float = 2.0,
 ) -> list[Explanation]:
     """When nothing fits: every mistake tried and every term out of scale (with the share of the difference the

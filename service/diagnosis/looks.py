@@ -8,6 +8,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..grading import Grade
+from ..nearby import rows_distance
 from .renders import Renders
 
 #: how much, on average, a speckled mistake's reach towards its far end changes from a pixel to the next
@@ -39,15 +40,24 @@ def _looks(height: int, first: np.ndarray | None = None) -> list[np.ndarray]:
     return [look for look in (first, np.setdiff1d(middles, first)) if len(look)]
 
 
-def off_rows(reference: np.ndarray, submitted: np.ndarray, tolerance: float) -> np.ndarray:
+def off_rows(
+    reference: np.ndarray, submitted: np.ndarray, tolerance: float, open_pixels: np.ndarray | None = None
+) -> np.ndarray:
     """Per row of ``submitted``, how many of its pixels are off even nearby against ``reference`` (as
     :func:`_off_nearby` counts them); 0 on the image's first and last rows, which no look takes as a middle."""
     h = submitted.shape[0]
     counts = np.zeros(h, dtype=np.int64)
     if h >= 3:
-        bands = np.stack([reference[:-2], reference[1:-1], reference[2:]], axis=1)
-        counts[1:-1] = _off_per_row(bands, submitted[1:-1], tolerance)
+        middles = np.arange(1, h - 1)
+        shut = None if open_pixels is None else open_pixels[middles]
+        counts[1:-1] = _off_per_row(_threes(reference, middles), _threes(submitted, middles), tolerance, shut)
     return counts
+
+
+def _threes(image: np.ndarray, middles: np.ndarray) -> np.ndarray:
+    """Each row ``middles`` of an (H, W, 3) image with the rows above and below (the edges repeated): (k, 3, W, 3)."""
+    h = image.shape[0]
+    return image[np.clip(middles[:, None] + np.arange(-1, 2)[None, :], 0, h - 1)]
 
 
 def telling_middles(counts: np.ndarray, enough: float) -> np.ndarray:
@@ -67,7 +77,7 @@ def telling_middles(counts: np.ndarray, enough: float) -> np.ndarray:
 
 
 def off_at_least(
-    name: str,
+    name: str | tuple[str, ...],
     submitted: np.ndarray,
     verdict: Grade,
     renders: Renders,
@@ -85,18 +95,25 @@ def off_at_least(
     share cannot be named closest (:func:`diagnose`).  The rows are looked at in two goes, one in
     :data:`FIRST_LOOK` of them first: a bound from some of the rows is a bound too, and most variants are
     settled by it.  ``first``, when given (:func:`telling_middles`), is the first look instead, and the rest
-    of the sampled rows the second."""
+    of the sampled rows the second.  With several names, the bound is against the range of their renders
+    (:func:`service.grading.range_counts`)."""
     if renders.rows is None:
         return None
     h, w, _ = submitted.shape
     looks = _looks(h, first)
     if not looks:
         return None
+    names = (name,) if isinstance(name, str) else name
     off = 0
     for look in looks:
         rows = (look[:, None] + np.arange(-1, 2)[None, :]).ravel()
-        bands = renders.rows(name, rows).reshape(len(look), 3, w, 3)
-        off += _off_nearby(bands, submitted[look], verdict.tolerance)
+        bands = [renders.rows(n, rows).reshape(len(look), 3, w, 3) for n in names]
+        low = bands[0] if len(bands) == 1 else np.min(bands, axis=0)
+        high = low if len(bands) == 1 else np.max(bands, axis=0)
+        near = rows_distance(low, high, _threes(submitted, look))
+        if renders.open is not None:
+            near = np.where(renders.open[look], 0, near)
+        off += int(np.count_nonzero(near > verdict.tolerance))
         if beyond is not None and beyond(off):
             break
     return off
@@ -141,7 +158,8 @@ def whole_unless_off(
             continue
         counted[ready] = True
         bands = np.stack([image[above[ready]], image[ready], image[below[ready]]], axis=1)
-        off += _off_nearby(bands, submitted[ready], verdict.tolerance)
+        shut = None if renders.open is None else renders.open[ready]
+        off += _off_nearby(bands, _threes(submitted, ready), verdict.tolerance, shut)
         if beyond(off):
             return None
     return image
@@ -213,28 +231,23 @@ def _outside(reference: np.ndarray, far: np.ndarray, submitted: np.ndarray, tole
     )
 
 
-def _off_nearby(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> int:
-    """How many pixels of the submitted rows ``middles`` are off even nearby against the variant's ``bands``
+def _off_nearby(bands: np.ndarray, submitted: np.ndarray, tolerance: float, shut: np.ndarray | None = None) -> int:
+    """How many pixels of the submitted middle rows are off even nearby against the variant's ``bands``
     (:func:`_off_per_row`, summed)."""
-    return int(_off_per_row(bands, middles, tolerance).sum())
+    return int(_off_per_row(bands, submitted, tolerance, shut).sum())
 
 
-def _off_per_row(bands: np.ndarray, middles: np.ndarray, tolerance: float) -> np.ndarray:
-    """How many pixels of the submitted rows ``middles (k, W, 3)`` are off even nearby against the variant's
-    ``bands (k, 3, W, 3)`` (each middle row with the rows above and below), per row: every variant pixel in
-    the 3×3 neighbourhood (the row's ends repeated) differs from it by more than ``tolerance`` in some
-    channel, as :func:`service.grading.grade` counts them."""
-    k, _, w, _ = bands.shape
-    # channel planes, as the grade compares them: (3, k, 3, W + 2) and (3, k, W), differences in uint8
-    padded = np.ascontiguousarray(np.moveaxis(np.pad(bands, ((0, 0), (0, 0), (1, 1), (0, 0)), mode="edge"), 3, 0))
-    sub = np.ascontiguousarray(np.moveaxis(middles, 2, 0))
-    best = np.full((k, w), 255, dtype=np.uint8)
-    for dy in range(3):
-        for dx in range(3):
-            near = padded[:, :, dy, dx : dx + w]
-            diff = [np.maximum(near[c], sub[c]) - np.minimum(near[c], sub[c]) for c in range(3)]
-            np.minimum(best, np.maximum(np.maximum(diff[0], diff[1]), diff[2]), out=best)
-    return np.count_nonzero(best > tolerance, axis=1)
+def _off_per_row(
+    bands: np.ndarray, submitted: np.ndarray, tolerance: float, shut: np.ndarray | None = None
+) -> np.ndarray:
+    """How many pixels of each middle row are off even nearby, per row, as :func:`service.grading.grade` counts
+    them (both ways, :mod:`service.nearby`): ``bands`` the variant's and ``submitted`` the submission's
+    ``(k, 3, W, 3)`` rows, each middle row with the rows above and below (the image's edges repeated); the
+    pixels ``shut`` (``(k, W)``, True: not counted) are not counted."""
+    near = rows_distance(bands, bands, submitted)
+    if shut is not None:
+        near = np.where(shut, 0, near)
+    return np.count_nonzero(near > tolerance, axis=1)
 
 
 def outside_at_least(
@@ -275,8 +288,10 @@ def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, to
     departs from the reference towards it in speckles; None when it does not.
 
     Speckles: where the submission departs, how far it goes towards the bound (0 at the reference, 1 at the
-    bound) changes from one pixel to the next by at least :data:`SPECKLE` on average.  A smooth departure
-    (a light missing, a term too weak) changes slowly, and is not this mistake."""
+    bound) changes from one pixel to the next by at least :data:`SPECKLE` on average, over the pairs of
+    neighbouring pixels one of which departs (sparse speckles on a large lit surface are speckles as much as
+    dense ones: the pairs where neither departs say nothing of how it departs).  A smooth departure (a light
+    missing, a term too weak) changes slowly inside the region it darkens, and is not this mistake."""
     ref, low, sub = (a.astype(np.int16) for a in (reference, bound, submitted))
     outside = np.any((sub < np.minimum(ref, low) - tolerance) | (sub > np.maximum(ref, low) + tolerance), axis=2)
     gap = (low - ref).astype(np.float64)
@@ -288,7 +303,7 @@ def speckled(reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, to
     if departs.sum() < 16:
         return None
     share = np.where(can, moved / np.where(can, span, 1.0), 0.0)
-    pairs = can[:, 1:] & can[:, :-1]
+    pairs = can[:, 1:] & can[:, :-1] & (departs[:, 1:] | departs[:, :-1])
     if not pairs.any() or float(np.abs(np.diff(share, axis=1))[pairs].mean()) < SPECKLE:
         return None
     return float(outside.mean())

@@ -4,25 +4,78 @@ are, and the words for it (a sentence for a person, a headline for a report's ce
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
+
+from pydantic import Field
+from pydantic.fields import FieldInfo
 
 from tracer.variants import SENTENCES
 
 from ..display import percent
 from .words import Names, nearest_sentence, readings_sentence, term_sentence, together_sentence
 
+#: the key of a record's field metadata that says how the service's answer documents the field
+ANSWERED = "answered"
+
+
+def answered(doc: Any, as_type: object = None) -> dict[str, tuple[object, FieldInfo]]:
+    """A field's metadata for the service's answer (:func:`service.http.models.answer_model`): its OpenAPI
+    documentation and, where the answer's JSON has another type than the record (a field left out when empty is
+    optional there), that type."""
+    return {ANSWERED: (as_type, doc)}
+
 
 @dataclass(frozen=True)
 class Cause:
     #: a name of tracer.variants.VARIANTS or MORE_VARIANTS; for a nearest explanation that is a term,
     #: ``term:NAME`` or ``term:NAME:LIGHT`` (``term:specular:1``)
-    variant: str
-    mistake: str  # what the student did, in words (a nearest explanation: what the difference is)
-    fraction_off_nearby: float  # the submission against the reference rendered with the mistake (or mistakes)
-    passes: bool  # the submission passes against that render
-    together: list[str] = field(default_factory=list)  # the other mistakes it was rendered with (a combination)
-    share: float | None = None  # of the submission's difference from the reference, what this accounts for
-    evidence: str = ""  # why it is named, in words
+    variant: str = field(
+        metadata=answered(
+            Field(
+                examples=["no-shadows"],
+                description="a mistake's id; for a nearest explanation that is a term, term:NAME or term:NAME:LIGHT",
+            )
+        )
+    )
+    #: what the student did, in words (a nearest explanation: what the difference is)
+    mistake: str = field(metadata=answered(Field(examples=["no shadow rays"])))
+    #: the submission against the reference rendered with the mistake (or mistakes)
+    fraction_off_nearby: float = field(
+        metadata=answered(
+            Field(
+                description="the submission graded against the reference rendered with "
+                "the mistake (with the others of a combination)"
+            )
+        )
+    )
+    passes: bool = field(metadata=answered(Field(description="the submission passes against that render")))
+    #: the other mistakes it was rendered with (a combination); left out of the answer when empty
+    together: list[str] = field(
+        default_factory=list,
+        metadata=answered(
+            Field(
+                None,
+                description="the other mistakes it was rendered with (mistakes made together); absent for a single "
+                "mistake",
+            ),
+            list[str] | None,
+        ),
+    )
+    #: of the submission's difference from the reference, what this accounts for
+    share: float | None = field(
+        default=None,
+        metadata=answered(
+            Field(
+                None,
+                description="of the submission's difference from the reference, what this "
+                "accounts for (a combination's or a nearest explanation's)",
+            )
+        ),
+    )
+    #: why it is named, in words; left out of the answer when empty
+    evidence: str = field(
+        default="", metadata=answered(Field(None, description="why it is named, in words"), str | None)
+    )
 
     def as_dict(self) -> dict[str, Any]:
         """As JSON: the four first fields always, the others only when set (a single mistake's are as before)."""
@@ -33,31 +86,85 @@ class Cause:
         return out
 
 
+#: the terms a fit names (the answer's ``name`` takes only these)
+TermName = Literal["background", "ambient", "diffuse", "specular", "reflection", "refraction"]
+
+
 @dataclass(frozen=True)
 class Term:
-    name: str  # "ambient", "diffuse", "specular", ... ; light-specific ones name their light
-    light: int | None  # index in scene.lights, or None
-    scale: float  # the fitted coefficient: 1 is right
-    share: float | None = None  # of the submission's difference from the reference, what this term accounts for
-    words: str = ""  # for a student: "the specular of light 'key' is missing"
+    #: "ambient", "diffuse", "specular", ... ; light-specific ones name their light
+    name: str = field(metadata=answered(Field(), TermName))
+    light: int | None = field(  # index in scene.lights, or None
+        metadata=answered(Field(description="the index in lights of a light's own term"))
+    )
+    scale: float = field(  # the fitted coefficient: 1 is right
+        metadata=answered(Field(description="the fitted coefficient against the reference's term: 1 is right"))
+    )
+    share: float | None = field(
+        default=None,
+        metadata=answered(
+            Field(None, description="of the submission's difference from the reference, what this term accounts for")
+        ),
+    )
+    words: str = field(  # for a student: "the specular of light 'key' is missing"
+        default="",
+        metadata=answered(Field("", examples=["the specular of light 'key' is missing"], description="for a student")),
+    )
 
 
 @dataclass(frozen=True)
 class Share:
-    index: int  # index in scene.objects (or scene.lights)
-    kind: str  # the object's or light's type
-    share: float  # of the failing pixels
-    words: str = ""  # for a student: "sphere 'ball'", "the third light (area)"
+    index: int = field(  # index in scene.objects (or scene.lights)
+        metadata=answered(Field(description="the index in objects (or lights); -1 for the background"))
+    )
+    kind: str = field(metadata=answered(Field()))  # the object's or light's type
+    share: float = field(metadata=answered(Field(description="of the failing pixels")))
+    words: str = field(  # for a student: "sphere 'ball'", "the third light (area)"
+        default="",
+        metadata=answered(
+            Field(
+                "",
+                examples=["sphere 'ball'", "the third light (area)"],
+                description="for a student: its name in quotes, else its place and kind",
+            )
+        ),
+    )
 
 
 @dataclass
 class Diagnosis:
-    causes: list[Cause] = field(default_factory=list)  # best first; empty when nothing fits
-    closest: bool = False  # the first cause is only the closest, not passed against
-    terms: list[Term] = field(default_factory=list)  # the terms out of scale
-    objects: list[Share] = field(default_factory=list)
-    lights: list[Share] = field(default_factory=list)
-    unavailable: str | None = None  # why no diagnosis could be made (:func:`unavailable`); None: it was made
+    #: the first cause is only the closest, not passed against
+    closest: bool = field(
+        default=False, metadata=answered(Field(description="the first cause is only the closest, not passed against"))
+    )
+    causes: list[Cause] = field(  # best first; empty when nothing fits
+        default_factory=list,
+        metadata=answered(Field(description="the mistakes whose render the submission matches, best first")),
+    )
+    terms: list[Term] = field(  # the terms out of scale
+        default_factory=list, metadata=answered(Field(description="the additive terms out of scale, most first"))
+    )
+    objects: list[Share] = field(
+        default_factory=list, metadata=answered(Field(description="what the failing pixels show"))
+    )
+    lights: list[Share] = field(
+        default_factory=list, metadata=answered(Field(description="the lights that fall on the failing pixels"))
+    )
+    #: why no diagnosis could be made (:func:`unavailable`); None: it was made (the answer says it in its sentence)
+    unavailable: str | None = None
+    #: the honest offset it was made at, in words ("a ray offset of 0.003 along the normal", :mod:`.nuisance`);
+    #: None: against the reference itself
+    offset: str | None = field(
+        default=None,
+        metadata=answered(
+            Field(
+                None,
+                examples=["a ray offset of 0.003 along the normal"],
+                description="the honest ray offset the submission's mistakes were named at (its own offset, "
+                "fitted); null when they were named against the reference itself",
+            )
+        ),
+    )
 
     @property
     def together(self) -> bool:
@@ -83,9 +190,10 @@ class Diagnosis:
             return f"No diagnosis: {self.unavailable}"
         if self.nearest:
             return nearest_sentence(self.causes[0].mistake, self.causes[0].share or 0.0)
+        also = "" if self.offset is None else f" and {self.offset}"
         if self.together:
             first = self.causes[0]
-            return together_sentence([c.mistake for c in self.causes], first.fraction_off_nearby, first.passes)
+            return together_sentence([c.mistake for c in self.causes], first.fraction_off_nearby, first.passes, also)
         if self.readings:
             readings = self.readings
             return readings_sentence(
@@ -96,7 +204,7 @@ class Diagnosis:
             how = "matches" if not self.closest else "comes closest to"
             advice = f". {SENTENCES[c.variant]}" if c.variant in SENTENCES else ""  # (a new mistake's advice)
             return (
-                f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake "
+                f"Likely: {c.mistake} — the submission {how} the reference rendered with that mistake{also} "
                 f"({percent(c.fraction_off_nearby)} of pixels off){advice}"
             )
         if self.terms:
@@ -125,8 +233,9 @@ class Diagnosis:
         return self
 
     def as_dict(self) -> dict[str, Any]:
-        """As the service and the command line give it (JSON): the sentence, then the evidence."""
-        return {
+        """As the service and the command line give it (JSON): the sentence, then the evidence, and the offset it
+        was made at when it was made at one."""
+        out = {
             "sentence": self.sentence(),
             "closest": self.closest,
             "causes": [c.as_dict() for c in self.causes],
@@ -134,6 +243,7 @@ class Diagnosis:
             "objects": [asdict(s) for s in self.objects],
             "lights": [asdict(s) for s in self.lights],
         }
+        return out if self.offset is None else {**out, "offset": self.offset}
 
     @classmethod
     def from_dict(cls, found: dict[str, Any]) -> Diagnosis:
@@ -141,12 +251,13 @@ class Diagnosis:
         sentence: str = found["sentence"]
         why = sentence.removeprefix("No diagnosis: ") if sentence.startswith("No diagnosis: ") else None
         return cls(
-            [Cause(**c) for c in found["causes"]],
-            found["closest"],
-            [Term(**t) for t in found["terms"]],
-            [Share(**s) for s in found["objects"]],
-            [Share(**s) for s in found["lights"]],
-            why,
+            closest=found["closest"],
+            causes=[Cause(**c) for c in found["causes"]],
+            terms=[Term(**t) for t in found["terms"]],
+            objects=[Share(**s) for s in found["objects"]],
+            lights=[Share(**s) for s in found["lights"]],
+            unavailable=why,
+            offset=found.get("offset"),
         )
 
 

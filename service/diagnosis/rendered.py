@@ -5,14 +5,18 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from tracer import Renderer
+from tracer.image import quantize
 from tracer.passes import ADDITIVE, LIGHT_TERMS
 from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
 
 from .fit import FIT_BLOCK_PIXELS
+from .offsets import visible_size
 from .renders import Renders
 from .words import names_of
 
@@ -28,7 +32,9 @@ DERIVED = ("gamma", "image-flipped")
 WHOLE_PASSES_BYTES = 64 << 20
 
 
-def renders_of(scene: Any, threads: int | None = None) -> Renders:
+def renders_of(
+    scene: Any, threads: int | None = None, base: Options = REFERENCE, open_pixels: np.ndarray | None = None
+) -> Renders:
     """:class:`Renders` of a validated scene, rendered here when first asked for; its ``cancel()`` true stops a
     render with :class:`tracer.RenderCancelled`.
 
@@ -41,8 +47,12 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
     That render is made only when something needs the whole image's passes (a fit of the terms, a variant
     made from the colour).  Until then the passes of the failing pixels come alone (``at``), at most the
     image's worth of them in all, and the gamma and flipped variants are rendered, first a few rows of
-    them, like any other: the same pixels either way."""
-    made = SceneRenders(scene, threads)
+    them, like any other: the same pixels either way.
+
+    With ``base`` (an honest student's offset, :mod:`.nuisance`), every render is made with its offset: the
+    reference is the reference as that student renders it, and each mistake is that mistake made by them; the
+    pixels of ``open_pixels`` (True) are not counted against a submission."""
+    made = SceneRenders(scene, threads, base)
     made.out = Renders(
         made.variant,
         made.of,
@@ -60,13 +70,27 @@ def renders_of(scene: Any, threads: int | None = None) -> Renders:
         polled=made.polled,
         render=made.render,
         names=names_of(scene),
+        size=made.size,
+        open=open_pixels,
     )
     return made.out
 
 
-def options_of(name: str) -> Options:
-    """The options of a classic mistake (:data:`VARIANTS`) or a new one (:data:`MORE_VARIANTS`)."""
+def options_of(name: str, size: Callable[[], float] | None = None) -> Options:
+    """The options of a classic mistake (:data:`VARIANTS`) or a new one (:data:`MORE_VARIANTS`), or of a rung of an
+    offset too large (``offset-too-large@0.05``: that amount in the scene's units, ``size()`` its visible size)."""
+    if "@" in name:
+        amount = float(name.split("@", 1)[1])
+        return Options(offset=amount / (size() if size is not None else 1.0))
     return VARIANTS[name][0] if name in VARIANTS else MORE_VARIANTS[name][0]
+
+
+def on_base(options: Options, base: Options) -> Options:
+    """``options`` made by a student whose rays leave surfaces as ``base`` says (its offset), unless they set an
+    offset of their own (an offset too large)."""
+    if base.offset == 0 or options.offset != 0:
+        return options
+    return replace(options, offset=base.offset, offset_along=base.offset_along)
 
 
 class SceneRenders:
@@ -76,8 +100,9 @@ class SceneRenders:
 
     out: Renders
 
-    def __init__(self, scene: Any, threads: int | None):
-        self.scene, self.threads = scene, threads
+    def __init__(self, scene: Any, threads: int | None, base: Options = REFERENCE):
+        self.scene, self.threads, self.base = scene, threads, base
+        self.visible: float | None = None
         self.variants: dict[str, np.ndarray] = {}
         self.bounds: dict[str, np.ndarray] = {}
         #: the reference's passes (``all``) and images (``images``: ``reference``, ``gamma``), once made
@@ -113,8 +138,7 @@ class SceneRenders:
         after another: one preparation of the scene (its world, its Embree scene) serves them all.  One per
         thread, and only the last: threads share no renderer; and none is held once a diagnosis is over,
         cancelled or not (:meth:`done`)."""
-        from tracer import Renderer
-
+        options = on_base(options, self.base)
         if getattr(self.last, "options", None) != options:
             self.last.__dict__.clear()  # (the last one let go of before the next is built)
             self.last.renderer = Renderer(self.scene, options)
@@ -123,7 +147,13 @@ class SceneRenders:
         return renderer
 
     def unchanged(self, name: str) -> bool:
-        return unchanged(name, self.scene)
+        return unchanged(name.split("@", 1)[0], self.scene)
+
+    def size(self) -> float:
+        """The scene's visible size (:mod:`tracer.visible`), what an offset is measured against."""
+        if self.visible is None:
+            self.visible = visible_size(self.scene)
+        return self.visible
 
     # -- the reference's passes and images ---------------------------------------------------------------------
 
@@ -137,8 +167,6 @@ class SceneRenders:
     def images(self) -> dict[str, np.ndarray]:
         """The reference's pixels from its linear colour, and its gamma variant: from the passes held, or from a
         render folded as it comes (all it keeps are these)."""
-        from tracer.image import quantize
-
         if "images" not in self.made:
             if self.whole or "all" in self.made:
                 colour = self.passes()["colour"]
@@ -152,8 +180,6 @@ class SceneRenders:
 
     def folded(self, fold: Fold | None) -> None:
         """A render of the whole image's passes, each chunk to ``fold`` and to the reference's images."""
-        from tracer.image import quantize
-
         self.out.check()
         mine = "images" not in self.made
         reference, gamma = (np.empty((self.total, 3), dtype=np.uint8) for _ in range(2))
@@ -231,7 +257,9 @@ class SceneRenders:
             elif name in self.kept:  # the rows not yet rendered
                 self.rows(name, np.arange(self.height))
             else:
-                variants[name] = self.prepared(options_of(name)).pixels(threads=self.threads, cancel=self.polled())
+                variants[name] = self.prepared(options_of(name, self.size)).pixels(
+                    threads=self.threads, cancel=self.polled()
+                )
         return variants[name]
 
     def kept_rows(
@@ -261,7 +289,7 @@ class SceneRenders:
         """Rows of a classic mistake's render (:data:`VARIANTS`), or of a new one's (:data:`MORE_VARIANTS`), kept."""
         if name in self.variants or (name in DERIVED and self.made_whole()) or self.unchanged(name):
             return self.variant(name)[numbers]
-        return self.kept_rows(name, name, options_of(name), self.variants, numbers)
+        return self.kept_rows(name, name, options_of(name, self.size), self.variants, numbers)
 
     def render(self, options: Options) -> np.ndarray:
         """The whole image with ``options`` (mistakes made together): rendered each time it is asked for (a

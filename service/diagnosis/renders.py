@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from tracer import RenderCancelled
+
 if TYPE_CHECKING:
     from tracer.render import Fold
     from tracer.variants import Options
@@ -52,8 +54,6 @@ class Renders:
         or its client gone): polled between the stages that render nothing (grading, the fit)."""
         cancel = self.cancel if self.polled is None else self.polled()
         if cancel is not None and cancel():
-            from tracer import RenderCancelled
-
             raise RenderCancelled("diagnosis cancelled")
 
     #: the current thread's cancel (set by ``cancel_in_thread``), else ``cancel``
@@ -63,3 +63,9 @@ class Renders:
     render: Callable[[Options], np.ndarray] | None = None
     #: how a student is told of the scene's objects and lights (:mod:`.words`); None: by index
     names: Names | None = None
+    #: the scene's visible size (:mod:`tracer.visible`): an offset too large is rendered at a ladder of amounts
+    #: (``offset-too-large@0.05``, in the scene's units) only when it is given; None: at its variant's alone
+    size: Callable[[], float] | None = None
+    #: ``(H, W)`` bool, True where a pixel is not counted against a submission: the format leaves it open, or an
+    #: honest student's offset, fitted as a nuisance (:mod:`.nuisance`), may move it; None: every pixel counts
+    open: np.ndarray | None = None

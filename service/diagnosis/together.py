@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .compose import ALL, Combination, Explanation, Fitted, Looks, compose, nearest
+from .compose import ALL, Combination, Explanation, Looks, compose, nearest
 from .records import Cause, Term
 from .renders import Renders
 from .words import Names, term_sentence
@@ -34,11 +34,13 @@ def looks_of(renders: Renders) -> Looks | None:
         return None
     unchanged, variant = renders.unchanged, renders.variant
     rows = renders.rows if renders.rows is not None else lambda name, numbers: variant(name)[numbers]
-    return Looks(rows, renders.render, lambda name: unchanged is None or not unchanged(name), tuple(renders.lights))
+    return Looks(
+        rows, renders.render, lambda name: unchanged is None or not unchanged(name), tuple(renders.lights), renders.open
+    )
 
 
-def fitted(terms: list[Term]) -> list[Fitted]:
-    return [Fitted(t.name, t.light, t.scale) for t in terms]
+def fitted(terms: list[Term]) -> list[Term]:
+    return [Term(t.name, t.light, t.scale) for t in terms]
 
 
 def combined(

@@ -16,6 +16,8 @@ def where(
     terms at the failing pixels come a block at a time and are counted as they come, never held for all the
     lights at once."""
     diff = np.max(np.abs(reference.astype(np.int16) - submitted.astype(np.int16)), axis=2) > verdict.tolerance
+    if renders.open is not None:
+        diff &= ~renders.open
     count = int(diff.sum())
     if count == 0:
         return [], []

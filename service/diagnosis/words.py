@@ -109,9 +109,10 @@ def lights_line(shares: list[tuple[int, float]], names: Names) -> str:
     return ", ".join(f"{names.light(k)} {round(100 * s)} %" for k, s in shares)
 
 
-def together_sentence(mistakes: list[str], fraction: float, passes: bool) -> str:
+def together_sentence(mistakes: list[str], fraction: float, passes: bool, also: str = "") -> str:
     """ "Likely two mistakes together: no shadow rays, and gamma 1/2.2 applied to the output — the submission
-    matches the reference rendered with both (0.02 % of pixels off)"."""
+    matches the reference rendered with both (0.02 % of pixels off)"; ``also`` follows "both" (" and a ray
+    offset of 0.003 along the normal")."""
     from ..display import percent
 
     count = {2: "two", 3: "three"}.get(len(mistakes), str(len(mistakes)))
@@ -119,7 +120,7 @@ def together_sentence(mistakes: list[str], fraction: float, passes: bool) -> str
     every = "both" if len(mistakes) == 2 else "all of them"
     return (
         f"Likely {count} mistakes together: {listed(mistakes)} — the submission {how} the reference rendered with "
-        f"{every} ({percent(fraction)} of pixels off)"
+        f"{every}{also} ({percent(fraction)} of pixels off)"
     )
 
 

@@ -15,13 +15,15 @@ from typing import Any
 import anyio
 import numpy as np
 
-from schemas import Scene, parse_json, validate_scene
+from schemas import Scene, load_scene, parse_json, validate_scene
+from service import passes
+from service.cluster import ClusterError, client, run, workers
 from service.diagnosis import Cached, unavailable
 from service.http.cache import RenderCache
 from service.http.slots import Busy, Slots
 from service.limits import LimitError, budget, check_body, check_raw, check_scene, outgrown
 from service.passes import Format, PassFile
-from service.pipeline import Checks, Graded, Run, explain, with_overrides
+from service.pipeline import Checking, Checks, Graded, explain, with_overrides
 from service.rendering import render_pixels
 from service.scenekey import scene_key
 from service.settings import Settings
@@ -175,8 +177,6 @@ class RenderService:
         AnswersFull when it does not now.  Raises Busy, TooSlow, ClusterDown, RenderCancelled once ``gone()``
         (its client left), LimitError when it outgrows its render budget (:func:`service.limits.budget`), or
         ValueError for a light the scene does not have."""
-        from service import passes
-
         media = "application/x-npy" if fmt == "npy" else "image/png"
         key = f"{job.key}/pass={name}/light={light}.{fmt}"
         what = f"pass: {name} of {job.scene.image.width}×{job.scene.image.height} pixels as {fmt}"
@@ -189,8 +189,6 @@ class RenderService:
                 stop = lambda: late() or gone()  # noqa: E731
                 try:
                     if self.settings.cluster:
-                        from service.cluster import run
-
                         data = run(
                             self._client(),
                             passes.pass_task,
@@ -247,8 +245,6 @@ class RenderService:
             stop = lambda: late() or gone()  # noqa: E731
             try:
                 if self.settings.cluster:
-                    from service.cluster import run
-
                     return run(
                         self._client(),
                         explain_task,
@@ -259,7 +255,7 @@ class RenderService:
                         self.settings.render_timeout,
                         cancelled=stop,
                     )
-                here = Run(self.threads, cancel=stop, cache=self.diagnoses)
+                here = Checking(self.threads, cancel=stop, cache=self.diagnoses)
                 return explained(job.scene, graded, (reference, submitted), here, gone, self.settings.render_timeout)
             except RenderCancelled:
                 if gone():
@@ -271,8 +267,6 @@ class RenderService:
     def _client(self) -> Any:
         """The one Dask client of this process, made on first use (``settings.cluster``); ClusterDown when the
         scheduler cannot be reached or has no workers (the render would wait for one forever)."""
-        from service.cluster import ClusterError, client, workers
-
         try:
             with self._client_lock:
                 if self._dask is None:
@@ -299,7 +293,7 @@ def explained(
     scene: Scene,
     graded: Graded,
     images: tuple[np.ndarray, np.ndarray],
-    run: Run,
+    run: Checking,
     gone: Callable[[], bool],
     seconds: float,
 ) -> Graded:
@@ -326,8 +320,6 @@ def explained(
 def explain_task(scene: bytes, graded: Graded, reference: np.ndarray, submitted: np.ndarray, seconds: float) -> Graded:
     """A failing grade explained on a Dask worker (:func:`explained`), within ``seconds`` of its start there:
     RenderCancelled when the accepted variants could not be checked in them."""
-    from schemas import load_scene
-
     deadline = time.monotonic() + seconds
-    run = Run(1, cancel=lambda: time.monotonic() > deadline)
+    run = Checking(1, cancel=lambda: time.monotonic() > deadline)
     return explained(load_scene(scene), graded, (reference, submitted), run, lambda: False, seconds)

@@ -67,7 +67,7 @@ class Framing:
         await self.app(scope, receive, send)
 
 
-class Budget:
+class BodyBudget:
     """The bytes of request bodies one worker holds at once, at most ``total``: each body takes its size before
     it is read and gives it back when its answer has gone out.  Bodies that do not fit wait in arrival order
     (first come, first served, so a large body is not starved by small ones) for at most ``wait`` seconds."""
@@ -122,7 +122,7 @@ class BodyLimit:
     * A declared Content-Length over ``limit(path)`` bytes gets 413 at once; otherwise the body is read up to the
       limit (413 beyond it) and then replayed to the app.
     * Before anything of it is read, a body takes its declared length (a chunked body: the limit, the most it
-      may be) from the worker's :class:`Budget` of ``budget`` bytes, and holds it until its answer is sent; a
+      may be) from the worker's :class:`BodyBudget` of ``budget`` bytes, and holds it until its answer is sent; a
       body that finds no room within ``wait`` seconds gets 503 with ``Retry-After`` (:data:`DRAINS` of them at
       a time are read and dropped first).  So the request bodies one
       worker holds are bounded whatever the number of connections (those waiting are not read: TCP holds
@@ -147,7 +147,7 @@ class BodyLimit:
         self.limit = limit
         self.grace = grace
         self.min_rate = min_rate
-        self.budget = Budget(budget)
+        self.budget = BodyBudget(budget)
         self.wait = wait
         self.retry_after = retry_after
         self.draining = 0

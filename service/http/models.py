@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Literal
+import dataclasses
+from typing import Any, Literal, get_args, get_origin, get_type_hints
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, create_model
+
+from service.diagnosis import records
+from service.diagnosis.records import ANSWERED
 
 
 class Problem(BaseModel):
@@ -42,72 +46,62 @@ class GradeAnswer(BaseModel):
     width: int
     height: int
     reference_sha256: str
+    grossly_off: int = Field(
+        0,
+        description="pixels off even nearby by more than 128 levels (a dot or speckle of the wrong colour): "
+        "none may be, whatever the fraction",
+    )
+    open_pixels: int = Field(0, description="pixels the scene format leaves open, not counted")
     reason: str = Field(description="why it failed, in words; empty when it passed")
-    diagnosis: Diagnosis | None = Field(
+    #: (Diagnosis: a model made by answer_model, below)
+    diagnosis: Diagnosis | None = Field(  # type: ignore[valid-type]
         description="what the student most likely got wrong; null when it passed or diagnose=false"
     )
     accepted: str | None = Field(
         None,
-        examples=["a 1e-3 ray offset"],
+        examples=["a ray offset of 0.003 along the normal"],
         description="the accepted variant of the reference it passed against (an "
         "honest tracer's ray offset); null when it passed against the "
         "reference itself, or failed",
     )
 
 
-class Cause(BaseModel):
-    variant: str = Field(
-        examples=["no-shadows"],
-        description="a mistake's id; for a nearest explanation that is a term, term:NAME or term:NAME:LIGHT",
-    )
-    mistake: str = Field(examples=["no shadow rays"])
-    fraction_off_nearby: float = Field(
-        description="the submission graded against the reference rendered with "
-        "the mistake (with the others of a combination)"
-    )
-    passes: bool = Field(description="the submission passes against that render")
-    together: list[str] | None = Field(
-        None,
-        description="the other mistakes it was rendered with (mistakes made together); absent for a single mistake",
-    )
-    share: float | None = Field(
-        None,
-        description="of the submission's difference from the reference, what this "
-        "accounts for (a combination's or a nearest explanation's)",
-    )
-    evidence: str | None = Field(None, description="why it is named, in words")
+def answer_model(
+    record: type, first: dict[str, tuple[object, Any]] | None = None, nested: dict[type, type] | None = None
+) -> Any:
+    """The pydantic model of a record of :mod:`service.diagnosis.records` as the service answers it: the record's
+    fields in its order, each typed and documented as its metadata says (:func:`~service.diagnosis.records.answered`;
+    a field without that metadata is not in the answer), after the answer's ``first`` fields; records nested in
+    it are their ``nested`` models."""
+    hints = get_type_hints(record)
+    fields: dict[str, Any] = dict(first or {})  # (name → (type, its Field), as create_model takes them)
+    for f in dataclasses.fields(record):
+        if ANSWERED not in f.metadata:
+            continue
+        as_type, doc = f.metadata[ANSWERED]
+        kind = hints[f.name] if as_type is None else as_type
+        if get_origin(kind) is list and get_args(kind)[0] in (nested or {}):
+            kind = list[(nested or {})[get_args(kind)[0]]]  # type: ignore[misc]
+        fields[f.name] = (kind, doc)
+    return create_model(record.__name__, **fields)
 
 
-class Term(BaseModel):
-    name: Literal["background", "ambient", "diffuse", "specular", "reflection", "refraction"]
-    light: int | None = Field(description="the index in lights of a light's own term")
-    scale: float = Field(description="the fitted coefficient against the reference's term: 1 is right")
-    share: float | None = Field(
-        None, description="of the submission's difference from the reference, what this term accounts for"
-    )
-    words: str = Field("", examples=["the specular of light 'key' is missing"], description="for a student")
-
-
-class Share(BaseModel):
-    index: int = Field(description="the index in objects (or lights); -1 for the background")
-    kind: str
-    share: float = Field(description="of the failing pixels")
-    words: str = Field(
-        "",
-        examples=["sphere 'ball'", "the third light (area)"],
-        description="for a student: its name in quotes, else its place and kind",
-    )
-
-
-class Diagnosis(BaseModel):
-    sentence: str = Field(
-        examples=[
-            "Likely: no shadow rays — the submission matches the reference rendered "
-            "with that mistake (0.02 % of pixels off)"
-        ]
-    )
-    closest: bool = Field(description="the first cause is only the closest, not passed against")
-    causes: list[Cause] = Field(description="the mistakes whose render the submission matches, best first")
-    terms: list[Term] = Field(description="the additive terms out of scale, most first")
-    objects: list[Share] = Field(description="what the failing pixels show")
-    lights: list[Share] = Field(description="the lights that fall on the failing pixels")
+Cause = answer_model(records.Cause)
+Term = answer_model(records.Term)
+Share = answer_model(records.Share)
+Diagnosis = answer_model(
+    records.Diagnosis,
+    first={
+        "sentence": (
+            str,
+            Field(
+                examples=[
+                    "Likely: no shadow rays — the submission matches the reference rendered "
+                    "with that mistake (0.02 % of pixels off)"
+                ]
+            ),
+        )
+    },
+    nested={records.Cause: Cause, records.Term: Term, records.Share: Share},
+)
+GradeAnswer.model_rebuild()

@@ -11,7 +11,7 @@ from fastapi import Request
 from fastapi.responses import JSONResponse
 
 from schemas import SceneError
-from schemas.locate import located
+from schemas.locate import Located, located
 from service.http.jobs import AnswersFull, Busy, Job, OutOfMemory, RenderService, TooSlow, prepare
 from service.http.models import ErrorAnswer
 from service.limits import LimitError
@@ -33,7 +33,7 @@ class HTTPProblem(Exception):
         self,
         status: int,
         detail: str,
-        errors: list[dict[str, Any]] | None = None,
+        errors: list[Located] | None = None,
         headers: dict[str, str] | None = None,
         part: str | None = None,
     ):
@@ -63,7 +63,7 @@ def problem_response(exc: HTTPProblem) -> JSONResponse:
     return SafeJSONResponse(body, status_code=exc.status, headers=headers)
 
 
-def scene_errors(exc: SceneError, text: bytes | str) -> list[dict[str, Any]]:
+def scene_errors(exc: SceneError, text: bytes | str) -> list[Located]:
     """Every problem with its path, message and (where found) the line of the JSON text."""
     return located(exc.problems, text)
 

@@ -21,10 +21,16 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import importlib
 import os
 import stat
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+from .folder import MAX_ENTRIES
+
+if TYPE_CHECKING:
+    from ..classgrade.records import Marked
 
 #: a line of phongray's source counts when it is at least this long (stripped): shorter ones are commonplace
 LENGTH = 40
@@ -37,8 +43,6 @@ FILE_BYTES = 4 << 20
 @functools.cache
 def fingerprint() -> frozenset[bytes]:
     """The distinct lines of phongray's own Python source (this installation's), as :func:`_lines` makes them."""
-    import importlib
-
     roots = [Path(importlib.import_module(name).__file__ or ".").parent for name in ("tracer", "schemas", "service")]
     files = [p for root in roots for p in root.rglob("*.py")]
     found: set[bytes] = set()
@@ -91,18 +95,15 @@ def phongray_code(folder: Path, budget: int, entries: int) -> tuple[int, str]:
     return len(held), best
 
 
-def flags(folder: Path, results: dict[str, dict[str, Any]], references: dict[str, bytes], limits: Any) -> None:
-    """Flag every task's result of a student's program (``flag``, ``flag_reason``: the TA's) when its folder
-    holds phongray's code, or when every task's image is its reference (``references``, by task) byte for
-    byte."""
-    from .folder import MAX_ENTRIES
-
+def flags(
+    folder: Path, results: dict[str, Marked], references: dict[str, bytes], limits: Any
+) -> tuple[str, str] | None:
+    """The flag of every task's result of a student's program (``flag``, ``flag_reason``: the TA's) when its
+    folder holds phongray's code, or when every task's image is its reference (``references``, by task) byte
+    for byte; else None."""
     count, where = phongray_code(folder, limits.folder_bytes, MAX_ENTRIES)
     if count >= LINES:
-        flag = "phongray-code", f"the program holds {count} lines of phongray's own code (most in {where})"
-    elif results and all(r.get("image") is not None and r["image"] == references[t] for t, r in results.items()):
-        flag = "identical", "every image is the reference, byte for byte (for review: an exact tracer can make it)"
-    else:
-        return
-    for result in results.values():
-        result["flag"], result["flag_reason"] = flag
+        return "phongray-code", f"the program holds {count} lines of phongray's own code (most in {where})"
+    if results and all(r.image is not None and r.image == references[t] for t, r in results.items()):
+        return "identical", "every image is the reference, byte for byte (for review: an exact tracer can make it)"
+    return None

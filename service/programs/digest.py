@@ -37,7 +37,7 @@ def _record(sha: Any, kind: bytes, *parts: bytes) -> None:
         sha.update(len(part).to_bytes(8, "big") + part)
 
 
-class _Walk:
+class _Digesting:
     """The budget of one digest: bytes and entries left."""
 
     def __init__(self, sha: Any, limit: int):
@@ -87,5 +87,5 @@ def digest(folder: Path, program: Program) -> str:
     with contextlib.suppress(OSError):
         opened = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
         with Folder(opened, folder) as root:
-            _Walk(sha, program.limits.folder_bytes).folder(root, 0)
+            _Digesting(sha, program.limits.folder_bytes).folder(root, 0)
     return sha.hexdigest()

@@ -39,6 +39,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from schemas import load_scene
+from service.diagnosis.rendered import options_of
+from tracer import decode_png, encode_png
+from tracer.render import Renderer
+from tracer.variants import REFERENCE
+
+from .. import pipeline
+from ..classgrade.gradebook import matched
+from ..grading import ImageError, grade, read_submission
 from .findings import sentences, unseen
 from .outcome import Reason, RunOutcome
 from .probes import LEFT_OUT, MAX_PROBES, Probe, Scene, aside_probe, camera_probe, light_probes, term_probes
@@ -89,9 +98,6 @@ def text(scene: Scene) -> bytes:
 
 def options(mistakes: tuple[str, ...]) -> Options:
     """The render options of the classic mistakes ``mistakes`` made together (``a+b`` ids split)."""
-    from service.diagnosis.rendered import options_of
-    from tracer.variants import REFERENCE
-
     merged = REFERENCE
     for name in (part for mistake in mistakes for part in mistake.split("+")):
         one = options_of(name)
@@ -102,25 +108,17 @@ def options(mistakes: tuple[str, ...]) -> Options:
 
 def render_png(scene: Scene, mistakes: tuple[str, ...] = ()) -> bytes:
     """phongray's render of a probe (the TA's scene, changed: trusted as the task's is), with ``mistakes``."""
-    from schemas import load_scene
-    from tracer import encode_png
-    from tracer.render import Renderer
-
     return encode_png(Renderer(load_scene(text(scene)), options(mistakes)).pixels(threads=1))
 
 
 def read_answer(image: bytes, reference: np.ndarray) -> np.ndarray:
     """A program's image as an uploaded one is read (its size checked on the header first, against the
     probe's): :class:`service.grading.ImageError` when it is not one."""
-    from ..grading import read_submission
-
     return read_submission(image, (reference.shape[1], reference.shape[0]))
 
 
 def same(reference: np.ndarray, pixels: np.ndarray, limits: Thresholds) -> bool:
     """``pixels`` pass against ``reference`` under the task's thresholds (the reference alone)."""
-    from ..grading import grade
-
     return grade(reference, pixels, "", limits.tolerance, limits.max_fraction).passed
 
 
@@ -128,18 +126,13 @@ def matches(reference_png: bytes, pixels: np.ndarray, probe: Probe, limits: Thre
     """The program's pixels pass against the probe's reference as the task's image would: with its accepted
     variants, for a probe whose reference is phongray's own (one rendered with mistakes is graded alone: the
     accepted variants are renders of the reference)."""
-    from schemas import load_scene
-    from tracer import decode_png
-
-    from .. import pipeline
-
     reference = decode_png(reference_png)
     graded = pipeline.compare(reference_png, pixels, limits.tolerance, limits.max_fraction, reference=reference)
     if graded.grade.passed or probe.mistakes:
         return graded.grade.passed
     checks = pipeline.Checks(limits.accepted, diagnose=False)
     scene = load_scene(text(probe.scene))
-    return pipeline.explain(scene, graded, reference, pixels, checks, pipeline.Run(threads=1)).grade.passed
+    return pipeline.explain(scene, graded, reference, pixels, checks, pipeline.Checking(threads=1)).grade.passed
 
 
 def _in_ramp(reference: np.ndarray, pixels: np.ndarray, hard: np.ndarray, limits: Thresholds) -> bool:
@@ -157,10 +150,6 @@ def _in_ramp(reference: np.ndarray, pixels: np.ndarray, hard: np.ndarray, limits
 
 def ask(probe: Probe, run: Callable[[bytes], RunOutcome], limits: Thresholds) -> Answer:
     """The program's answer to one probe."""
-    from tracer import decode_png
-
-    from ..grading import ImageError
-
     outcome = run(text(probe.scene))
     if not outcome.ok or outcome.image is None:
         return Answer(probe, str(outcome.reason), detail=outcome.detail)
@@ -175,8 +164,6 @@ def ask(probe: Probe, run: Callable[[bytes], RunOutcome], limits: Thresholds) ->
 def judge(probe: Probe, pixels: np.ndarray, limits: Thresholds) -> Answer:
     """The program's image of a probe, right or wrong against phongray's render of it (with the probe's
     mistakes): so an answer is judged again, with no run, once a mistake is found behind it."""
-    from tracer import decode_png
-
     png = render_png(probe.scene, probe.mistakes)
     reference = decode_png(png)
     if matches(png, pixels, probe, limits):
@@ -264,8 +251,6 @@ def _missing(without: Answer, task: _Task, limits: Thresholds) -> bool:
     """The task's image is the scene without the term: phongray's render of it, or the program's own image of
     it; and the term shows (phongray's renders of the scene with and without it differ, without any mistake:
     a mistake the task's diagnosis read into the image may be another reading of this very one)."""
-    from tracer import decode_png
-
     if task.image is None or without.reference is None:
         return False
     plain = without.reference if not without.probe.mistakes else decode_png(render_png(without.probe.scene))
@@ -277,16 +262,10 @@ def _missing(without: Answer, task: _Task, limits: Thresholds) -> bool:
 
 def _diagnosed(answer: Answer, limits: Thresholds) -> tuple[str, ...]:
     """The classic mistakes a wrong answer shows, diagnosed as an uploaded image is (exact matches only)."""
-    from schemas import load_scene
-
-    from .. import pipeline
-    from ..classgrade.gradebook import matched
-    from ..grading import grade
-
     assert answer.pixels is not None and answer.reference is not None
     graded = pipeline.Graded(grade(answer.reference, answer.pixels, "", limits.tolerance, limits.max_fraction), None)
     scene = load_scene(text(answer.probe.scene))
-    checks, run = pipeline.Checks(limits.accepted), pipeline.Run(threads=1)
+    checks, run = pipeline.Checks(limits.accepted), pipeline.Checking(threads=1)
     found = pipeline.explain(scene, graded, answer.reference, answer.pixels, checks, run)
     if found.grade.passed or found.diagnosis is None:
         return ()
@@ -352,10 +331,6 @@ def _behind(asking: _Asking, answer: Answer | None, known: tuple[str, ...]) -> t
 
 def _task(image: bytes | None, scene: Scene, known: tuple[str, ...], limits: Thresholds) -> _Task:
     """The task's image, read as its grade read it, its reference, and whether ``known`` explains it."""
-    from tracer import decode_png
-
-    from ..grading import ImageError
-
     reference = decode_png(render_png(scene))
     try:
         pixels = None if image is None else read_answer(image, reference)

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from tracer.variants import MORE_VARIANTS, VARIANTS
+
 from .outcome import Reason, told
 from .probes import Kind, light_label
 
@@ -29,7 +31,6 @@ def unseen(found: tuple[str, ...], seen: str) -> str | None:
     probe that showed them."""
     if not found:
         return None
-    from tracer.variants import MORE_VARIANTS, VARIANTS
 
     words = {name: said for name, (_, said) in {**VARIANTS, **MORE_VARIANTS}.items()}
     named = " and ".join(words.get(part, part) for mistake in found for part in mistake.split("+"))

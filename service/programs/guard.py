@@ -73,4 +73,4 @@ def guard(limits: Limits, sandbox: bool) -> tuple[Guard, list[str]]:
         group = cgroups.group(limits.memory_bytes, limits.processes)
         return group, group.prefix
     counts = None if sandbox or os.geteuid() == 0 else limits.processes
-    return Watchdog(limits.memory_bytes, counts), []
+    return Watchdog(limits.memory_bytes, counts, most=limits.processes), []

@@ -19,12 +19,14 @@ holds phongray is covered too), and costs two sandboxed runs of each Python, a f
 
 from __future__ import annotations
 
+import importlib
 import json
 import shlex
 import tempfile
 import threading
 from pathlib import Path
 
+from .limits import Limits
 from .sandbox import SandboxUnavailable
 
 #: phongray's top-level modules: a package or module of one of these names whose files are phongray's is hidden
@@ -125,8 +127,6 @@ echo '[]' >> "$out"
 def _marks() -> dict[str, list[str]]:
     """Each of phongray's packages by the names of its files (this phongray's: a copy of another version shares
     most of them)."""
-    import importlib
-
     marks = {}
     for name in PACKAGES:
         folder = Path(importlib.import_module(name).__file__ or ".").parent
@@ -137,7 +137,6 @@ def _marks() -> dict[str, list[str]]:
 def _look(runtime: str | None) -> list[str]:
     """What of phongray the sandbox's Pythons can import, as the sandbox is now (its current covers), with the
     TA's ``runtime`` shown (its ``bin`` first on the ``PATH``)."""
-    from .limits import Limits
     from .runner import ProgramRun, run_program
 
     with tempfile.TemporaryDirectory(prefix="phongray-hidden-") as place:

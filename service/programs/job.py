@@ -21,10 +21,14 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+
+from tracer.image import encode_png
 
 from ..classgrade.errors import ClassError
-from ..classgrade.records import GradeJob
+from ..classgrade.gradebook import matched
+from ..classgrade.records import GradeJob, Marked, RunInfo
+from ..classgrade.tasks import local_grade
+from ..grading import ImageError, declared_size, read_submission
 from .copied import flags
 from .digest import digest as digest  # (what a kept grade stands for: its own module)
 from .experiment import Allowance, Thresholds, experiment
@@ -69,34 +73,24 @@ PROBE_WALLS = 2
 OUTPUT_KEPT = 2000
 
 
-def run_info(outcome: RunOutcome) -> dict[str, Any]:
-    """A run's end as a grade keeps it, plain values only: ``run`` (its reason's word: ``ok``, ``timeout``,
-    ...), ``run_output`` (the end of its output: the TA's to read, never shown to a student, as it may hold
-    what the program read of a hidden scene), ``run_seconds``, ``run_warning`` (a run without a sandbox) and
-    ``run_busy`` (a run timed out on a busy machine: :func:`~.outcome.busy`), both said to the TA."""
-    return {
-        "run": str(outcome.reason),
-        "run_output": outcome.stderr_tail[-OUTPUT_KEPT:],
-        "run_seconds": round(outcome.wall_seconds, 3),
-        "run_warning": outcome.warning,
-        "run_busy": busy(outcome),
-    }
+def run_info(outcome: RunOutcome) -> RunInfo:
+    """A run's end as a grade keeps it (:class:`~service.classgrade.records.RunInfo`): the end of its output,
+    at most :data:`OUTPUT_KEPT` characters, and a run timed out on a busy machine said (:func:`~.outcome.busy`)."""
+    return RunInfo(
+        str(outcome.reason),
+        outcome.stderr_tail[-OUTPUT_KEPT:],
+        round(outcome.wall_seconds, 3),
+        outcome.warning,
+        busy(outcome),
+    )
 
 
-def failed_run(outcome: RunOutcome, what: str = "the run") -> dict[str, Any]:
+def failed_run(outcome: RunOutcome, what: str = "the run") -> Marked:
     """The grade of a pair whose run (or build) failed: a failing pair, its reason in words."""
-    return {
-        "status": "fail",
-        "passed": False,
-        "reason": f"{what} failed: {outcome.reason}: {outcome.detail}",
-        "diagnosis": None,
-        **run_info(outcome),
-    }
+    return Marked("fail", reason=f"{what} failed: {outcome.reason}: {outcome.detail}", run=run_info(outcome))
 
 
-def _grade_image(task: TaskScene, image: bytes) -> dict[str, Any]:
-    from ..classgrade.tasks import local_grade
-
+def _grade_image(task: TaskScene, image: bytes) -> Marked:
     return local_grade(replace(task.grading, image=image))
 
 
@@ -113,9 +107,7 @@ def _runner(folder: Path, program: Program, name: str) -> Callable[[bytes], RunO
     return run
 
 
-def grade_run(
-    task: TaskScene, run: Callable[[bytes], RunOutcome], allowance: Allowance | None = None
-) -> dict[str, Any]:
+def grade_run(task: TaskScene, run: Callable[[bytes], RunOutcome], allowance: Allowance | None = None) -> Marked:
     """One task: the run, its image graded (with ``image``, the bytes graded, which :func:`grade_program` keeps
     as the PNG of their pixels, and how the run went: :func:`run_info`), and a failing image diagnosed by
     experiment (``experiment``: its sentences, the likeliest first, joined by "; "; a run that failed is not
@@ -123,13 +115,13 @@ def grade_run(
     outcome = run(task.grading.scene)
     if not outcome.ok or outcome.image is None:
         return failed_run(outcome)
-    result = {**_grade_image(task, outcome.image), "image": outcome.image, **run_info(outcome)}
-    if task.grading.diagnose and result["status"] == "fail":
-        from ..classgrade.gradebook import matched
-
-        known = tuple(matched(result.get("diagnosis"))[:1])  # (the task's likeliest exact match, kept out)
+    result = replace(_grade_image(task, outcome.image), image=outcome.image, run=run_info(outcome))
+    if task.grading.diagnose and result.status == "fail":
+        found = None if result.graded is None else result.graded.diagnosis
+        # (the task's likeliest exact match, kept out)
+        known = tuple(matched(None if found is None else found.as_dict())[:1])
         said = experiment(task.grading.scene, outcome.image, run, task.thresholds, known, allowance).sentences
-        result["experiment"] = "; ".join(said) or None
+        result = replace(result, experiment="; ".join(said) or None)
     return result
 
 
@@ -160,7 +152,7 @@ def _built(job: ProgramJob, folder: Path) -> Iterator[tuple[Path | None, RunOutc
         yield built.folder, None if built.folder is not None else built.outcome
 
 
-def _graded(job: ProgramJob, folder: Path | None) -> dict[str, dict[str, Any]]:
+def _graded(job: ProgramJob, folder: Path | None) -> dict[str, Marked]:
     what = "the build" if job.program.build is not None else "the run"
     if folder is None:
         assert job.pack is not None and job.pack.too_large is not None
@@ -179,17 +171,17 @@ def _kept_image(image: bytes, reference: bytes) -> bytes | None:
     """What a grade keeps of a program's image (the report's copy): the PNG of its pixels as they were graded,
     never the program's own bytes, which can carry megabytes of chunks no decoder shows; None where it cannot
     be read (an invalid pair keeps no copy)."""
-    from tracer.image import encode_png
-
-    from ..grading import ImageError, declared_size, read_submission
-
     try:
         return encode_png(read_submission(image, declared_size(reference)))
     except (ImageError, ValueError):
         return None
 
 
-def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
+def _with_kept_image(result: Marked, reference: bytes) -> Marked:
+    return result if result.image is None else replace(result, image=_kept_image(result.image, reference))
+
+
+def grade_program(job: ProgramJob) -> dict[str, Marked]:
     """Every task's grade of one student's program, by task name (see the module's docstring), flagged for the
     TA when the program holds phongray's code or its images are the references (:mod:`.copied`).
     :class:`ClassError` (the TA's, in one line, naming the student whose run found it) when a sandbox cannot
@@ -199,10 +191,11 @@ def grade_program(job: ProgramJob) -> dict[str, dict[str, Any]]:
             results = _graded(job, folder)
             if folder is not None:
                 references = {task.task: task.grading.reference for task in job.tasks}
-                flags(folder, results, references, job.program.limits)
-            for task in job.tasks:  # (once flagged: the flag is on the very bytes the program wrote)
-                if results[task.task].get("image") is not None:
-                    results[task.task]["image"] = _kept_image(results[task.task]["image"], task.grading.reference)
-            return results
+                flag = flags(folder, results, references, job.program.limits)
+                if flag is not None:
+                    results = {t: replace(r, flag=flag[0], flag_reason=flag[1]) for t, r in results.items()}
+            return {  # (once flagged: the flag is on the very bytes the program wrote)
+                task.task: _with_kept_image(results[task.task], task.grading.reference) for task in job.tasks
+            }
     except (SandboxUnavailable, DamagedPack) as exc:
         raise ClassError(f"{job.folder.name}'s program: {exc}") from None

@@ -17,6 +17,8 @@ from enum import StrEnum
 
 import numpy as np
 
+from tracer.image import decode_png
+
 from .limits import Limits
 from .process import Finished
 from .scripts import split_times
@@ -73,8 +75,6 @@ class RunOutcome:
 
     def pixels(self) -> np.ndarray:
         """The image's pixels, decoded as an uploaded image's are (:func:`tracer.image.decode_png`)."""
-        from tracer.image import decode_png
-
         if self.image is None:
             raise ValueError(f"the run wrote no image ({self.detail})")
         return decode_png(self.image)

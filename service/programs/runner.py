@@ -161,16 +161,29 @@ class _Session:
     guarded: list[str]
 
 
+def _file_limits(session: _Session, body: str) -> tuple[int | None, int | None]:
+    """The limit on one file written (``RLIMIT_FSIZE``) the command starts with, and the one the sandbox's shell
+    lowers it to once the student's folder is copied in (None: no change).  A build writes its result as one
+    file (:func:`built_bytes`, which holds the copy too); a sandboxed run starts with room for the copy of its
+    largest file (at most the folder limit) and then has the output limit; a run in place copies nothing."""
+    limits = session.limits
+    if body == BUILD:
+        return built_bytes(limits), None
+    if session.sandbox and limits.folder_bytes > limits.output_bytes:
+        return limits.folder_bytes, limits.output_bytes
+    return None, None
+
+
 def _command(session: _Session, words: list[str], body: str) -> Command:
     """The command line: under the guard, the limits (the address space where the watchdog holds memory;
     the processes outside the sandbox only for a user of the run's own), as the run's user, in the sandbox
     (whose own user namespace counts its processes), the shell that runs the student's command."""
     limits = session.limits
     own_user = os.geteuid() == 0
-    written = built_bytes(limits) if body == BUILD else None  # (a build writes its result as one file)
+    written, lowered = _file_limits(session, body)
     outer = limits.prlimit_argv(isinstance(session.guard, Watchdog), not session.sandbox and own_user, written)
     prefix = [*session.guarded, *outer, *as_user(session.uid)]
-    shell = ["/bin/sh", "-c", script(body, session.sandbox), "sh", *words]
+    shell = ["/bin/sh", "-c", script(body, session.sandbox, lowered), "sh", *words]
     if not session.sandbox:
         env = {**ENVIRONMENT, "HOME": str(session.mounts.submission), "PATH": search_path(session.mounts.runtime)}
         place = str(session.mounts.submission)

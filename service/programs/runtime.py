@@ -20,6 +20,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from .runner import check_sandbox
+
 #: where the autograder's setup.sh builds the runtime of a requirements file
 BUNDLED = "/opt/phongray-runtime"
 #: a Debian package's name (policy §5.6.1)
@@ -99,8 +101,6 @@ PYTHON_STARTS = "{python} -c \"import sys; open(sys.argv[1], 'w').write('ok')\" 
 def runtime_starts(runtime: str, sandbox: bool) -> str | None:
     """What stops the runtime's Python in a program's sandbox (one line), or None: a virtual environment made
     from a Python the sandbox does not show (not the system's ``/usr/bin/python3``) does not start there."""
-    from .runner import check_sandbox
-
     python = Path(runtime) / "bin" / "python3"
     if not os.path.lexists(python):  # (a link to a Python the sandbox does not show is one)
         return None

@@ -20,8 +20,12 @@ from .unavailable import explain
 
 MARK = "--- phongray: CPU time of the program ---"
 _REPORT = f'{{ echo; echo "{MARK}"; times; }} >&2'
-#: fill the working folder (sandboxed runs only)
+#: fill the working folder (sandboxed runs only); the copy is bounded by the folder limit (checked before it),
+#: not by the limit on a file written: a student's file larger than the output limit (a library, a mesh) is
+#: copied, and only then is the limit on a file lowered to ``$blocks`` (512-byte blocks, soft and hard: no
+#: process of the student's can raise it again)
 FILL = f"cp -R {SUBMISSION}/. . || exit 125; "
+LOWER = "ulimit -f {blocks} || exit 125; "
 #: a run: the command (its standard output joined to its standard error), then its CPU time
 RUN = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
 #: a run whose program prints its image: its standard output written to the output file (``$1``), within the
@@ -37,8 +41,11 @@ BUILD_IN_PLACE = f'"$@" >&2; s=$?; {_REPORT}; exit $s'
 _TIME = re.compile(r"(\d+)m([\d.]+)s")
 
 
-def script(body: str, sandboxed: bool) -> str:
-    return (FILL if sandboxed else "") + body
+def script(body: str, sandboxed: bool, file_bytes: int | None = None) -> str:
+    """The shell's script: (sandboxed) the folder's copy, then (``file_bytes``) the limit on a file lowered to
+    that many bytes (rounded up to a block: what is read back is checked to the byte), then ``body``."""
+    lower = "" if file_bytes is None else LOWER.format(blocks=-(-file_bytes // 512))
+    return (FILL + lower if sandboxed else "") + body
 
 
 def not_started(finished: Finished) -> None:

@@ -25,7 +25,17 @@ built without them answers; a socket's buffer stays the kernel's default (``sets
 file holds at most a known amount (:data:`service.programs.usage.FILE_BYTES`); and every thread shares its
 process's open files (a ``clone`` of a thread without ``CLONE_FILES`` fails with ``EINVAL``,
 ``unshare(CLONE_FILES)`` with ``EPERM``, ``clone3``, whose flags a filter cannot read, with ``ENOSYS``, after
-which the C library uses ``clone``), so that the open files counted by process are all of them.  ``setsid`` fails with
+which the C library uses ``clone``), so that the open files counted by process are all of them.  Three more kinds
+of the kernel's memory grow within one open file past what it counts, and a renderer needs none of them: the
+events queued for an inotify or fanotify instance (16,384 of up to ~500 bytes each, ~8 MiB an instance:
+``inotify_init``, ``inotify_init1``, ``inotify_add_watch``, ``fanotify_init``, ``fanotify_mark``); the pages a
+pipe pins (``vmsplice`` puts a page of the program's in each of a pipe's 16 buffers, and the whole of a 2 MiB
+huge page stays with it, 32 MiB a pipe no process maps; ``splice`` and ``tee`` would move or copy such buffers
+between pipes); and record locks, which one range unlocked byte by byte splits into a lock a byte, with no
+bound (``fcntl``'s ``F_SETLK``, ``F_SETLKW``, their 64-bit forms and ``F_OFD_SETLK``, ``F_OFD_SETLKW``; and
+``flock``).  Each fails with ``ENOSYS``, as on a kernel or a file system without them, on which a program that
+tries them goes on without (copying with ``read`` and ``write``, working unlocked: a run is one program, and
+its processes' files are their own); ``F_GETLK`` still answers (nothing is locked).  ``setsid`` fails with
 ``EPERM``: the kernel shares the CPU between sessions (autogroups), and each sandbox is one session
 (bubblewrap's ``--new-session``), so a program cannot take another run's share by making more.
 
@@ -54,6 +64,9 @@ INET_TYPE, INET_PROTOCOLS = int(socket.SOCK_DGRAM), (0, int(socket.IPPROTO_UDP))
 #: setsockopt's level and names that would grow a socket's buffers (Linux's numbers, on every architecture)
 SOL_SOCKET, BUFFERS = 1, (7, 8)  # SO_SNDBUF, SO_RCVBUF
 F_SETPIPE_SZ = 1031
+#: fcntl's commands that take a record lock (F_SETLK, F_SETLKW, their 64-bit forms of 32-bit ABIs, F_OFD_SETLK,
+#: F_OFD_SETLKW: the same numbers on every architecture here); F_GETLK and F_OFD_GETLK only ask, and stay
+LOCKS = (6, 7, 13, 14, 37, 38)
 
 # classic BPF (linux/filter.h, linux/seccomp.h)
 _LD_W_ABS, _JEQ_K, _JSET_K, _AND_K, _RET_K = 0x20, 0x15, 0x45, 0x54, 0x06
@@ -90,11 +103,46 @@ class _Abi:
     x32: bool = False
 
 
-# refused: io_uring and clone3; shmget, msgget, semget (and i386's ipc); memfd_create, memfd_secret; bpf
-_X86_64 = _Abi(0xC000003E, (41, 53), (*_REFUSED, 29, 68, 64, 319, 321), 112, 54, (72,), (56, 272), x32=True)
-_I386 = _Abi(0x40000003, (359, 360), (102, 117, *_REFUSED, 395, 399, 393, 356, 357), 66, 366, (55, 221), (120, 310))
-_AARCH64 = _Abi(0xC00000B7, (198, 199), (*_REFUSED, 194, 186, 190, 279, 280), 157, 208, (25,), (220, 97))
-_ARM = _Abi(0x40000028, (281, 288), (*_REFUSED, 307, 303, 299, 385, 386), 66, 294, (55, 221), (120, 337))
+# refused: io_uring and clone3; shmget, msgget, semget (and i386's ipc); memfd_create, memfd_secret; bpf; then
+# inotify_init, inotify_init1, inotify_add_watch, fanotify_init, fanotify_mark (aarch64 has no inotify_init);
+# splice, tee, vmsplice; flock
+_X86_64 = _Abi(
+    0xC000003E,
+    (41, 53),
+    (*_REFUSED, 29, 68, 64, 319, 321, 253, 294, 254, 300, 301, 275, 276, 278, 73),
+    112,
+    54,
+    (72,),
+    (56, 272),
+    x32=True,
+)
+_I386 = _Abi(
+    0x40000003,
+    (359, 360),
+    (102, 117, *_REFUSED, 395, 399, 393, 356, 357, 291, 332, 292, 338, 339, 313, 315, 316, 143),
+    66,
+    366,
+    (55, 221),
+    (120, 310),
+)
+_AARCH64 = _Abi(
+    0xC00000B7,
+    (198, 199),
+    (*_REFUSED, 194, 186, 190, 279, 280, 26, 27, 262, 263, 76, 77, 75, 32),
+    157,
+    208,
+    (25,),
+    (220, 97),
+)
+_ARM = _Abi(
+    0x40000028,
+    (281, 288),
+    (*_REFUSED, 307, 303, 299, 385, 386, 316, 360, 317, 367, 368, 340, 342, 343, 143),
+    66,
+    294,
+    (55, 221),
+    (120, 337),
+)
 ABIS = {"x86_64": (_X86_64, _I386), "amd64": (_X86_64, _I386), "aarch64": (_AARCH64, _ARM), "arm64": (_AARCH64, _ARM)}
 
 
@@ -174,6 +222,8 @@ def _buffers(asm: _Assembler) -> None:
     asm.op(_RET_K, _ERRNO | 0)  # (the call returns 0, having done nothing)
     asm.label("fcntl")
     asm.op(_LD_W_ABS, _arg(1))
+    for command in LOCKS:
+        asm.op(_JEQ_K, command, "enosys")
     asm.op(_JEQ_K, F_SETPIPE_SZ, "eperm", "allow")
 
 

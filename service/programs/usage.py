@@ -7,6 +7,16 @@ memory of their pages, what their open files and its tmpfs folders hold in the k
   pages counted in full (``RssAnon`` + ``RssShmem``), is used while it is within the limit; past it
   :class:`Shares` walks the processes, spending at most :data:`FRACTION` of one CPU on it however many
   processes and mappings the run makes.
+* **Mappings.** Each mapping (VMA) of a process is the kernel's memory, in none of its pages: a process may
+  make 65,530 (``vm.max_map_count``) of a page each, and a fork copies them all, so a run of 40 processes
+  held 557 MiB of the kernel's (measured: ~220 bytes a mapping, ~330 with pages written, and ~36 bytes more a
+  mapping for each fork between it and its first process, whose pages it links).  Each mapping counts
+  :func:`mapping_bytes` (``MAPPING_BYTES`` and ``FORK_BYTES`` for each process the run may have, the deepest
+  chain of forks it can make: 4.6 KiB at the default 64, 0.7 MiB for a Python with NumPy's ~150).  The cheap
+  bound is a mapping a page of the process's address space (``VmSize``, one more for the page the kernel
+  shows and is not in it); past the limit a walk also counts them (the lines of ``/proc/<pid>/maps``: ~45 ms
+  for 60,000 mappings, within the walks' :data:`FRACTION`).  ``RLIMIT_AS`` bounds none of this: a mapping
+  of a page, none of it touched, costs the kernel its ~220 bytes for 4 KiB of address space.
 * **Open files.** The buffers of a socket or a pipe are the kernel's, in no process's pages; each open file of
   the run counts :data:`FILE_BYTES`, the most one holds in the sandbox (where a socket keeps the kernel's
   default buffers and a pipe its 64 KiB: :mod:`service.programs.seccomp`), whatever it is.
@@ -30,6 +40,10 @@ KIB = 1024
 CHEAP = ("RssAnon", "RssShmem")
 PRECISE = ("Pss_Anon", "Pss_Shmem")
 TABLES = ("VmPTE",)
+#: what a mapping costs the kernel at most, and more for each fork between it and its first process (see the
+#: module: measured ~330 and ~36 bytes); a mapping is at least a page, and the kernel shows one that is not in
+#: a process's ``VmSize`` (x86-64's ``[vsyscall]``)
+MAPPING_BYTES, FORK_BYTES, PAGE, UNSIZED = 512, 64, 4 * KIB, 1
 #: the sandbox's tmpfs folders, where a program writes (:mod:`service.programs.sandbox`)
 FOLDERS = ("/tmp", "/dev/shm", "/home/student")
 #: what each file or folder of a tmpfs costs besides its bytes (an inode and a name: ~1 KiB measured, a long
@@ -150,10 +164,29 @@ def folders(inside: int | None) -> int:
     return total
 
 
-def _cheap(pid: int) -> tuple[int, int]:
-    """A process's resident pages (the cheap bound) and its page tables, in bytes."""
+def mapping_bytes(processes: int) -> int:
+    """What a mapping counts in a run of at most ``processes`` processes (see the module)."""
+    return MAPPING_BYTES + FORK_BYTES * processes
+
+
+def _cheap(pid: int) -> tuple[int, int, int]:
+    """A process's resident pages (the cheap bound), its page tables, both in bytes, and the most mappings it
+    can have (a page of its address space each); all 0 for a process that has ended."""
     status = read(f"/proc/{pid}/status")
-    return fields(status, CHEAP), fields(status, TABLES)
+    size = fields(status, ("VmSize",))
+    return fields(status, CHEAP), fields(status, TABLES), size // PAGE + UNSIZED if status else 0
+
+
+def _mappings(pid: int) -> int:
+    """How many mappings a process has (the lines of its ``maps``, read a MiB at a time); 0 once it has ended."""
+    lines = 0
+    try:
+        with open(f"/proc/{pid}/maps", "rb") as f:
+            while chunk := f.read(1 << 20):
+                lines += chunk.count(b"\n")
+    except OSError:
+        pass
+    return lines
 
 
 def _share(pid: int, resident: int) -> int:
@@ -168,41 +201,51 @@ def _share(pid: int, resident: int) -> int:
     return min(resident, _cheap(pid)[0])
 
 
-class Shares:
-    """The pages of a run's processes, each look: the cheap bound while it is within the limit.  Past it, the
-    processes' shares, walked all in one look (so the sum is of one moment: a process's share falls when it
-    forks, and a sum of shares walked at different moments could count a page twice), at most a
-    :data:`FRACTION` of the time (of one CPU): a walk is made when the estimate is over the limit or the last
-    walk is :data:`REFRESH` seconds old, and the time walked is paid back before the next.  Between walks the
-    estimate is the last walk's shares plus what each process's resident pages grew since (a new process's in
-    full); only a walk's sum is ``exact``, what a run is killed on."""
+def _walk(pid: int, resident: int) -> tuple[int, int]:
+    """A process's share of its pages (:func:`_share`) and how many mappings it has, at one walk."""
+    return _share(pid, resident), _mappings(pid)
 
-    def __init__(self, clock: Callable[[], float] = time.monotonic):
-        self.clock = clock
-        self.walked: dict[int, tuple[int, int]] = {}  # pid: (share, resident pages when walked)
+
+class Shares:
+    """The pages (and mappings) of a run's processes, each look: the cheap bound while it is within the limit.
+    Past it, the processes' shares and mappings, walked all in one look (so the sum is of one moment: a
+    process's share falls when it forks, and a sum of shares walked at different moments could count a page
+    twice), at most a :data:`FRACTION` of the time (of one CPU): a walk is made when the estimate is over the
+    limit or the last walk is :data:`REFRESH` seconds old, and the time walked is paid back before the next.
+    Between walks the estimate is the last walk's shares and mappings plus what each process's resident pages
+    grew since (a new process's cheap bound in full); only a walk's sum is ``exact``, what a run is killed on.
+    ``mapping`` is what each mapping counts (:func:`mapping_bytes`)."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic, mapping: int = mapping_bytes(64)):
+        self.clock, self.mapping = clock, mapping
+        self.walked: dict[int, tuple[int, int, int]] = {}  # pid: (share, mappings, resident pages when walked)
         self.owed = 0.0  # seconds to wait before the next walk
         self.then = clock()
         self.last = -REFRESH
 
     def pages(self, pids: list[int], limit: int) -> tuple[int, bool]:
-        """The pages (and page tables) of ``pids`` together, in bytes, and whether the sum is exact (a walk's,
-        or the cheap bound within ``limit``) rather than the estimate between walks."""
+        """The pages (and page tables and mappings) of ``pids`` together, in bytes, and whether the sum is exact
+        (a walk's, or the cheap bound within ``limit``) rather than the estimate between walks."""
         seen = {pid: _cheap(pid) for pid in pids}
-        tables = sum(t for _, t in seen.values())
-        resident = sum(r for r, _ in seen.values())
-        if resident + tables <= limit:
-            return resident + tables, True
+        tables = sum(t for _, t, _ in seen.values())
+        cheap = tables + sum(r + self.mapping * most for r, _, most in seen.values())
+        if cheap <= limit:
+            return cheap, True
         now = self.clock()
         self.owed = max(0.0, self.owed - (now - self.then))
         self.then = now
-        estimate = tables + sum(
-            self.walked[pid][0] + max(0, r - self.walked[pid][1]) if pid in self.walked else r
-            for pid, (r, _) in seen.items()
-        )
+        estimate = tables + sum(self._estimate(pid, r, most) for pid, (r, _, most) in seen.items())
         if self.owed > 0 or (estimate <= limit and now - self.last < REFRESH):
             return estimate, False
-        self.walked = {pid: (_share(pid, r), r) for pid, (r, _) in seen.items()}
+        self.walked = {pid: (*_walk(pid, r), r) for pid, (r, _, _) in seen.items()}
         self.then = self.clock()
         self.last, spent = now, self.then - now
         self.owed += spent / FRACTION - spent  # (the time to wait before the next walk)
-        return tables + sum(share for share, _ in self.walked.values()), True
+        return tables + sum(share + self.mapping * maps for share, maps, _ in self.walked.values()), True
+
+    def _estimate(self, pid: int, resident: int, most: int) -> int:
+        """A process's pages and mappings since the last walk: what it then had, and its pages' growth."""
+        if pid not in self.walked:
+            return resident + self.mapping * most
+        share, maps, then = self.walked[pid]
+        return share + max(0, resident - then) + self.mapping * maps

@@ -5,13 +5,14 @@ Ten times a second it finds the run's processes (every descendant of the command
 sandbox, its PID namespace, whose orphans are adopted by its first process, so a daemon stays among them),
 and adds up what they hold (:mod:`service.programs.usage`): their pages (private, and their share of those
 they share: a child forked from a large process, which shares its pages until it writes them, counts its
-share only) and page tables, what their open files can hold in the kernel (a socket's or a pipe's buffers,
-:data:`~service.programs.usage.FILE_BYTES` each), and what the sandbox's tmpfs folders hold (their bytes and
-files).  Past the limit it kills the run, which then ends as ``memory``.  Between two looks a run can go over
-the limit for a tenth of a second (where its processes share pages, until the next walk of their page tables:
+share only), page tables and mappings (what each mapping costs the kernel), what their open files can hold
+in the kernel (a socket's or a pipe's buffers, :data:`~service.programs.usage.FILE_BYTES` each), and what
+the sandbox's tmpfs folders hold (their bytes and files).  Past the limit it kills the run, which then ends
+as ``memory``.  Between two looks a run can go over the limit for a tenth of a second (where its processes
+share pages or make many mappings, until the next walk of their page tables and mappings:
 :class:`~service.programs.usage.Shares`); each process is also held to its address space (``RLIMIT_AS``), so
 no one process goes past it.  However many processes and mappings a run makes, the watchdog spends at most
-:data:`~service.programs.usage.FRACTION` of one CPU walking their page tables; every other look costs the
+:data:`~service.programs.usage.FRACTION` of one CPU walking their page tables and mappings; every other look costs the
 grader a read of a few small files per process and thread.
 
 Where it counts processes too (a run without the sandbox, by a grading user that is not root: the
@@ -26,7 +27,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 
-from .usage import FILE_BYTES, Shares, folders, open_files
+from .usage import FILE_BYTES, Shares, folders, mapping_bytes, open_files
 from .usage import family as _family
 
 #: seconds between two looks at a run, and every how many looks it also reads the run's CPU time
@@ -44,14 +45,17 @@ class Watchdog:
 
     name = "the watchdog"
 
-    def __init__(self, memory_bytes: int, processes: int | None, interval: float = INTERVAL):
+    def __init__(self, memory_bytes: int, processes: int | None, interval: float = INTERVAL, most: int = 64):
+        """``processes``: the run's processes and threads, where the watchdog counts them; ``most``: the most
+        processes the run may have however they are counted (the deepest its forks go: what each of its
+        mappings costs the kernel, :func:`~service.programs.usage.mapping_bytes`)."""
         self.memory_bytes, self.processes, self.interval = memory_bytes, processes, interval
         self.exceeded: str | None = None
         self.peak = 0
         self.cpu_seconds = 0.0
         self.waits: dict[int, float] = {}
         self.inside: int | None = None
-        self.shares = Shares()
+        self.shares = Shares(mapping=mapping_bytes(most))
         self.looks = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

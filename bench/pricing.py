@@ -1,0 +1,119 @@
+"""What fairness and explanation cost a class: the per-student Cornell-box homework graded three times, with
+exact images, with honest images whose tracer offsets its rays, and with images that each make one classic
+mistake, and each time against the exact class (ratios in one run, so a busy machine moves all three alike).
+
+    python -m bench.pricing [--students 9] [--size 200] [--profile FILE.txt]
+
+Each student has a scene of their own (the glass ball moved a little), 2×2 samples, depth 5, as the homework
+sets it.  The honest images are tests/student.py's tracer starting shadow and secondary rays 1e-3 along the
+normal (a textbook's value, in a box 4 units across); the mistaken ones cycle through no-shadows, blinn-phong,
+no-attenuation and gamma.  Every honest image must pass and every mistake be named: the bench checks both, so
+that a speed-up that changes an answer is not reported as one.  ``--profile`` writes where the offset class's
+time went (cProfile, cumulative, the top 40 functions).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import cProfile
+import io
+import json
+import pstats
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import schemas
+import tracer
+from service.classgrade import ClassRun, grade_class
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+import student  # noqa: E402
+
+HOMEWORK = Path(__file__).resolve().parent.parent / "examples" / "09_cornell_homework.json"
+MISTAKES = ("no-shadows", "blinn-phong", "no-attenuation", "gamma")
+KINDS = ("exact", "offset", "mistake")
+
+
+def own_scene(k: int, size: int) -> dict:
+    """Student ``k``'s homework scene: the glass ball moved ``0.02·k`` to the right."""
+    data = json.loads(HOMEWORK.read_text())
+    data["image"].update(width=size, height=size, samples=2, max_depth=5)
+    glass = next(o for o in data["objects"] if o["type"] == "sphere" and o["material"] == "glass")
+    glass["center"][0] += 0.02 * k
+    return data
+
+
+def image(kind: str, k: int, data: dict) -> bytes:
+    scene = schemas.validate_scene(copy.deepcopy(data))
+    if kind == "exact":
+        return tracer.encode_png(tracer.render(scene))
+    if kind == "offset":
+        return tracer.encode_png(student.render(scene, (), student.Offset(1e-3)))
+    return tracer.encode_png(student.render(scene, (MISTAKES[k % len(MISTAKES)],)))
+
+
+def build(root: Path, kind: str, students: int, size: int) -> ClassRun:
+    """A class on disk of ``students`` students, each with their own scene and an image of ``kind``."""
+    scenes, subs, own = root / "scenes", root / "subs", root / "own"
+    scenes.mkdir(parents=True)
+    (scenes / "cornell.json").write_text(json.dumps(own_scene(0, size)))
+    for k in range(students):
+        name = f"student{k:02d}"
+        data = own_scene(k + 1, size)
+        (own / name).mkdir(parents=True)
+        (own / name / "cornell.json").write_text(json.dumps(data))
+        (subs / name).mkdir(parents=True)
+        (subs / name / "cornell.png").write_bytes(image(kind, k, data))
+    return ClassRun(scenes, subs, root / "report", student_scenes=own)
+
+
+def checked(kind: str, rows: list[dict]) -> None:
+    """Every exact or honest image passes; every mistaken one fails with its mistake named."""
+    for row in rows:
+        if kind == "mistake":
+            k = int(row["student"].removeprefix("student"))
+            assert row["status"] == "fail" and MISTAKES[k % len(MISTAKES)] in (row.get("mistakes") or []), row
+        else:
+            assert row["status"] == "pass", row
+
+
+def timed(run: ClassRun, kind: str, profile: cProfile.Profile | None) -> float:
+    started = time.perf_counter()
+    if profile is not None:
+        profile.enable()
+    try:
+        outcome = grade_class(run)
+    finally:
+        if profile is not None:
+            profile.disable()
+    seconds = time.perf_counter() - started
+    checked(kind, outcome.rows)
+    return seconds
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--students", type=int, default=9)
+    ap.add_argument("--size", type=int, default=200)
+    ap.add_argument("--profile", type=Path, help="where the offset class's time went (cProfile text)")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="phongray-pricing-") as place:
+        runs = {kind: build(Path(place, kind), kind, args.students, args.size) for kind in KINDS}
+        profile = cProfile.Profile() if args.profile else None
+        seconds = {kind: timed(run, kind, profile if kind == "offset" else None) for kind, run in runs.items()}
+    print(f"per-student Cornell homework, {args.students} students at {args.size}², 2×2 samples, depth 5")
+    print("| class | seconds | × exact |")
+    print("|---|---|---|")
+    for kind in KINDS:
+        print(f"| {kind} | {seconds[kind]:.1f} | {seconds[kind] / seconds['exact']:.2f} |")
+    if profile is not None:
+        out = io.StringIO()
+        pstats.Stats(profile, stream=out).sort_stats("cumulative").print_stats(40)
+        args.profile.write_text(out.getvalue())
+
+
+if __name__ == "__main__":
+    main()

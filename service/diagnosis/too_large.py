@@ -1,0 +1,130 @@
+"""An offset too large, and how large: ``offset-too-large`` scored against a ladder of amounts beyond those
+accepted, with its size estimated in the scene's units.
+
+A student whose shadow and secondary rays start too far off the surface detaches shadows from what casts them
+and shifts what glass shows.  Their amount is their own (0.05, 0.1...), so one render of one amount matches
+few of them.  The reference is rendered instead at a ladder of amounts (:mod:`.offsets`), from the largest
+offset accepted (:data:`tracer.variants.ACCEPTED_DEFAULT`) up to :data:`TOP` of the visible size, and the
+submission is graded against the range of each two neighbouring rungs: any amount between them lies in their
+range.  The best such range names the mistake, with the rung of it the submission comes closer to as its
+size: "shadow and secondary rays offset too far from the surface: about 0.1 in the scene's units".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+
+from tracer.variants import ACCEPTED_DEFAULT
+
+from ..grading import Grade, grade, passes, range_counts
+from ..nearby import rows_distance
+from .looks import sampled_rows, telling_middles
+from .offsets import amount_words, narrowed, round_amounts
+from .records import Cause
+from .renders import Renders
+
+NAME = "offset-too-large"
+#: the ladder of offsets too large goes up to this × the visible size (an offset that large hides most shadows,
+#: and reads as no shadows at all)
+TOP = 5e-2
+
+
+def amounts(size: float) -> list[float]:
+    """The ladder's amounts in a scene of visible size ``size``, ascending: the largest accepted offset along the
+    normal, the round amounts above it (none within a tenth of the top), and :data:`TOP` × ``size``."""
+    low, high = ACCEPTED_DEFAULT["normal-offset"] * size, TOP * size
+    return [low, *(a for a in round_amounts(low, high) if low < a < high / 1.1), high]
+
+
+def rung_name(amount: float) -> str:
+    """The name a rung renders under (:func:`service.diagnosis.rendered.options_of`): ``offset-too-large@0.05``."""
+    return f"{NAME}@{amount!r}"
+
+
+def words(amount: float, size: float) -> str:
+    return (
+        f"shadow and secondary rays offset too far from the surface: about {amount_words(amount)} in the scene's "
+        f"units (at most {amount_words(ACCEPTED_DEFAULT['normal-offset'] * size)} is accepted)"
+    )
+
+
+class Scoring(Protocol):
+    """What scoring the ladder needs of a diagnosis's scoring (:class:`service.diagnosis.causes._Scoring`)."""
+
+    submitted: np.ndarray
+    verdict: Grade
+    renders: Renders
+    pixels: int
+    counts: np.ndarray  # per row, the submission's pixels off even nearby against the reference
+    scored: list[Cause]
+
+
+def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
+    """Scores ``offset-too-large`` against the range of two amounts of the ladder: the neighbouring rungs whose
+    range leaves the fewest of the submission's pixels off on the sampled rows, narrowed (:func:`.offsets.narrowed`)
+    to the half that leaves fewer, then rendered whole.  False, as :meth:`_Scoring.score` says, when the rows
+    alone (an exact lower bound, as :func:`service.diagnosis.looks.off_at_least` counts) or the whole count are
+    off by a count ``beyond`` says is too many; else adds the cause, its words the amount of the range the
+    submission comes closer to."""
+    renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
+    assert renders.size is not None
+    size = renders.size()
+    ladder = amounts(size)
+    sampled = _Sampled(scoring)
+    chosen = narrowed(lambda a: sampled.off((a,)), *min(zip(ladder, ladder[1:]), key=sampled.off))
+    if beyond(sampled.off(tuple(chosen))[0]):
+        return False
+    images = [renders.variant(rung_name(a)) for a in chosen]
+    counts = range_counts(images, submitted, verdict.tolerance, renders.open)
+    if beyond(counts.off_nearby):
+        return False
+    alone = [
+        grade(image, submitted, "", verdict.tolerance, open_pixels=renders.open).fraction_off_nearby for image in images
+    ]
+    amount = chosen[int(np.argmin(alone))]
+    fraction = counts.off_nearby / scoring.pixels
+    scoring.scored.append(
+        Cause(NAME, words(amount, size), fraction, passes(counts, scoring.pixels, verdict.max_fraction))
+    )
+    return True
+
+
+class _Sampled:
+    """The submission's pixels off even nearby against the range of renders of a few amounts, on a few rows (those
+    most off against the reference, as many as :func:`service.diagnosis.looks.sampled_rows` takes, each with the
+    rows either side): an exact lower bound of the whole count."""
+
+    def __init__(self, scoring: Scoring):
+        self.renders = scoring.renders
+        self.tolerance = scoring.verdict.tolerance
+        h, self.w, _ = scoring.submitted.shape
+        self.middles = telling_middles(scoring.counts, np.inf)
+        if not len(self.middles):
+            self.middles = sampled_rows(h)[0]
+        self.rows = (self.middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
+        self.submitted = scoring.submitted[self.rows].reshape(len(self.middles), 3, self.w, 3)
+        self.shut = None if scoring.renders.open is None else scoring.renders.open[self.middles]
+        self.counted: dict[tuple[float, ...], tuple[int, int]] = {}
+
+    def bands(self, amount: float) -> np.ndarray:
+        name, renders = rung_name(amount), self.renders
+        rows = renders.rows(name, self.rows) if renders.rows is not None else renders.variant(name)[self.rows]
+        return rows.reshape(len(self.middles), 3, self.w, 3)
+
+    def off(self, amounts: tuple[float, ...]) -> tuple[int, int]:
+        """The pixels off on the sampled rows against the range of the renders of ``amounts``, and the sum of
+        their nearby distances."""
+        if amounts not in self.counted:
+            if not len(self.middles):
+                self.counted[amounts] = (0, 0)
+                return self.counted[amounts]
+            self.renders.check()
+            bands = [self.bands(a) for a in amounts]
+            near = rows_distance(np.min(bands, axis=0), np.max(bands, axis=0), self.submitted)
+            if self.shut is not None:
+                near = np.where(self.shut, 0, near)
+            self.counted[amounts] = (int(np.count_nonzero(near > self.tolerance)), int(near.sum(dtype=np.int64)))
+        return self.counted[amounts]
