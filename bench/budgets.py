@@ -103,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         file = Path(tmp) / "measurements.jsonl"
         file.touch()
-        command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *TESTS]
+        # (in one process, -n 0: the tests' times are the budgets' only with no other test running beside them)
+        command = [sys.executable, "-m", "pytest", "-q", "-n", "0", "-p", "no:cacheprovider", *TESTS]
         if args.select:
             command += ["-k", args.select]
         tests = subprocess.run(command, cwd=ROOT, env={**os.environ, "PHONGRAY_MEASUREMENTS": str(file)})

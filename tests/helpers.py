@@ -130,7 +130,7 @@ def run_autograder(bundle: Path, root: Path, files: dict[str, Path]) -> tuple[su
 
 @dataclass(frozen=True)
 class Process:
-    """A live process of this test session's: its id, its parent's, the user it runs as and its command line."""
+    """A live process that this process's tests started: its id, its parent's, the user it runs as and its args."""
 
     pid: int
     parent: int
@@ -139,9 +139,10 @@ class Process:
 
 
 def own_processes() -> list[Process]:
-    """This test session's live descendants, zombies left out: every process it started, directly or through
-    others (tests/conftest.py makes the session the reaper of its orphans, so a daemon that double-forked is
-    still among them), and nothing that other programs on the machine run."""
+    """This process's live descendants, zombies left out: every process its tests started, directly or through
+    others (tests/conftest.py makes it the reaper of its orphans, so a daemon that double-forked is still among
+    them), and nothing that other programs on the machine run, nor the tests of pytest-xdist's other processes
+    (each its own process, a sibling of this one, not a descendant)."""
     live: dict[int, Process] = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit():
@@ -169,7 +170,7 @@ def _descendants(live: dict[int, Process], root: int) -> set[int]:
 
 
 def left_in_sandboxes(word: str | None = None) -> list[str]:
-    """This session's processes that a student's run left: bubblewrap and everything under it, whatever user
+    """This process's descendants that a student's run left: bubblewrap and everything under it, whatever user
     it runs as, and any process whose command line holds ``word`` (a hostile program's marker)."""
     own = own_processes()
     sandboxes = {p.pid for p in own if Path(p.args.split(" ", 1)[0]).name == "bwrap"}

@@ -66,7 +66,10 @@ def _v(a) -> np.ndarray:  # noqa: ANN001
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.sum(a * b, axis=-1)
+    """``np.sum(a * b, axis=-1)`` to the bit, several times faster on many short vectors: the same products, added
+    in the order the sum adds them (from +0.0, first to last: the trailing + 0.0 is that first +0.0, which only
+    changes a sum of three -0.0)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2] + 0.0
 
 
 def _norm(a: np.ndarray) -> np.ndarray:
@@ -189,8 +192,13 @@ def _coplanar(surfaces: list[Surface]) -> None:
             i = label[i]
         return i
 
+    # a surface is paired only with those of later objects: two of one object (faces of a mesh) are never joined
+    # nor made unsure, and surfaces come in object order, so the later objects' are those past its object's last
+    after = np.searchsorted(obj, obj, side="right")
     for i in range(len(f) - 1):
-        j = np.arange(i + 1, len(f))
+        j = np.arange(after[i], len(f))
+        if not len(j):
+            continue
         sine = _norm(np.cross(normal[i], normal[j]))
         scale = mag[i] + mag[j]
         big_i = (extent[i] > extent[j]) | (extent[i] == extent[j])  # the larger holds the smaller's corners

@@ -7,6 +7,7 @@ the calibration (tests/offset_matrix.py) are checked here and in tests/test_rule
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,7 @@ from service.classgrade.taskfile import load_tasks
 from service.diagnosis import accepting
 from service.grading import grade
 from tracer import Renderer, encode_png
-from tracer.variants import Options, scene_size
+from tracer.variants import REFERENCE, Options, scene_size
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 WHITTED = EXAMPLES / "04_whitted.json"
@@ -31,8 +32,32 @@ def _scene(path: Path):  # noqa: ANN202
     return load_scene(path.read_bytes())
 
 
+#: the images the tests share (a reference, a variant, a student's), each made once, read-only so that no test
+#: changes another's: by the scene's JSON and how it was made
+_MADE: dict[tuple[object, ...], np.ndarray] = {}
+
+
+def _made(key: tuple[object, ...], make: Callable[[], np.ndarray]) -> np.ndarray:
+    if key not in _MADE:
+        image = make()
+        image.setflags(write=False)
+        _MADE[key] = image
+    return _MADE[key]
+
+
+def _rendered(scene, options: Options = REFERENCE) -> np.ndarray:  # noqa: ANN001
+    """phongray's image of the scene, the reference or a variant."""
+    return _made((scene.model_dump_json(), options), lambda: Renderer(scene, options).pixels())
+
+
+def _student(scene, mistakes: tuple[str, ...] | list[str] = (), style: student.Offset | None = None) -> np.ndarray:  # noqa: ANN001
+    """tests/student.py's image of the scene (:func:`student.render`)."""
+    key = (scene.model_dump_json(), "student", tuple(mistakes), style)
+    return _made(key, lambda: student.render(scene, mistakes, style))
+
+
 def _graded(scene, image: np.ndarray, checks: pipeline.Checks | None = None) -> pipeline.Graded:  # noqa: ANN001
-    reference = encode_png(Renderer(scene).pixels())
+    reference = encode_png(_rendered(scene))
     return pipeline.grade_png(
         reference,
         encode_png(image),
@@ -49,11 +74,11 @@ def whitted():  # noqa: ANN201
 
 @pytest.fixture(scope="module")
 def whitted_reference(whitted) -> np.ndarray:  # noqa: ANN001
-    return Renderer(whitted).pixels()
+    return _rendered(whitted)
 
 
 def test_an_honest_normal_offset_fails_the_reference_and_passes_as_its_variant(whitted, whitted_reference):
-    honest = student.render(whitted, style=student.STYLES["offset 1e-3"])
+    honest = _student(whitted, style=student.STYLES["offset 1e-3"])
     assert not grade(whitted_reference, honest, "").passed  # the reference alone fails it (0.37 % off)
     graded = _graded(whitted, honest)
     assert graded.grade.passed and graded.accepted == "a ray offset of 0.001 along the normal"  # as written
@@ -62,14 +87,14 @@ def test_an_honest_normal_offset_fails_the_reference_and_passes_as_its_variant(w
 
 @pytest.mark.parametrize("style", sorted(student.STYLES))
 def test_each_honest_style_passes_the_whitted_example(whitted, style):
-    assert _graded(whitted, student.render(whitted, style=student.STYLES[style])).grade.passed
+    assert _graded(whitted, _student(whitted, style=student.STYLES[style])).grade.passed
 
 
 @pytest.mark.parametrize("amount", [1.5e-3, 4e-3, 7e-3, 0.013, 0.024])
 def test_any_offset_up_to_the_largest_passes_as_the_amount_it_comes_closest_to(whitted, whitted_reference, amount):
     """The variant is rendered at a ladder of round amounts (0.001, 0.002, 0.003, 0.005, 0.01, 0.02 and its
     largest, 0.03 here); an amount between two rungs passes against their range, as the nearer one."""
-    honest = student.render(whitted, style=student.Offset(amount))
+    honest = _student(whitted, style=student.Offset(amount))
     assert not grade(whitted_reference, honest, "").passed
     graded = _graded(whitted, honest, pipeline.Checks(diagnose=False))
     assert graded.grade.passed and graded.accepted is not None and graded.accepted.endswith(" along the normal")
@@ -78,7 +103,7 @@ def test_any_offset_up_to_the_largest_passes_as_the_amount_it_comes_closest_to(w
 
 
 def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_reference):
-    honest = student.render(whitted, style=student.STYLES["offset 1e-3"])
+    honest = _student(whitted, style=student.STYLES["offset 1e-3"])
     verdict = grade(whitted_reference, honest, "")
     pixels = honest.shape[0] * honest.shape[1]
     assert accepting.envelope_off([whitted_reference], honest, 2.0) == round(verdict.fraction_off_nearby * pixels)
@@ -96,21 +121,19 @@ def test_the_range_of_one_render_is_the_grades_own_measure(whitted, whitted_refe
     ],
 )
 def test_a_first_look_at_a_few_rows_bounds_the_whole_count(whitted, whitted_reference, made):
-    image = student.render(whitted, **made)
+    image = _student(whitted, **made)
     pair = accepting.Failing(whitted_reference, image, grade(whitted_reference, image, ""))
     for rungs in accepting.accepted_ladders(whitted, None):
         for low, high in accepting.brackets(rungs)[:3]:
             parts = [r for r in (low, high) if r is not None]
-            ranged = ([whitted_reference] if low is None else []) + [
-                Renderer(whitted, r.options).pixels() for r in parts
-            ]
+            ranged = ([whitted_reference] if low is None else []) + [_rendered(whitted, r.options) for r in parts]
             whole = accepting.envelope_off(ranged, image, 2.0)
             bound = accepting.first_look(whitted, parts, pair, accepting.Look("", None, None), low is None)
             assert bound <= whole
 
 
 def test_a_clearly_wrong_image_renders_no_whole_variant(whitted, whitted_reference, monkeypatch):
-    wrong = student.render(whitted, ["no-shadows"])
+    wrong = _student(whitted, ["no-shadows"])
     monkeypatch.setattr(accepting, "KEPT_RENDERS", accepting._Kept())  # (none kept from the tests before)
     monkeypatch.setattr(accepting, "_render", lambda *a: pytest.fail("a whole variant was rendered"))
     failed = grade(whitted_reference, wrong, "")
@@ -118,7 +141,7 @@ def test_a_clearly_wrong_image_renders_no_whole_variant(whitted, whitted_referen
 
 
 def test_an_offset_far_too_large_fails_and_is_named_with_its_size_in_the_scenes_units(whitted):
-    wrong = student.render(whitted, ["offset-too-large"])  # (0.1, where at most 0.03 is accepted)
+    wrong = _student(whitted, ["offset-too-large"])  # (0.1, where at most 0.03 is accepted)
     graded = _graded(whitted, wrong)
     assert not graded.grade.passed and graded.accepted is None
     assert graded.diagnosis is not None and graded.diagnosis.causes[0].variant == "offset-too-large"
@@ -129,22 +152,22 @@ def test_an_offset_far_too_large_fails_and_is_named_with_its_size_in_the_scenes_
 def test_no_classic_mistake_is_turned_into_a_pass(whitted, whitted_reference, mistake):
     """The verdict with the accepted variants is the reference's: a mistake the scene shows fails, one it cannot
     show (no spot: a spot's cutoff in radians) passed already."""
-    wrong = student.render(whitted, [mistake])
+    wrong = _student(whitted, [mistake])
     alone = grade(whitted_reference, wrong, "").passed
     assert _graded(whitted, wrong, pipeline.Checks(diagnose=False)).grade.passed == alone
 
 
 def test_the_cornell_homework_passes_an_honest_offset_and_fails_a_large_one():
     scene = _scene(CORNELL)
-    honest = _graded(scene, student.render(scene, style=student.STYLES["offset 1e-3"]))
+    honest = _graded(scene, _student(scene, style=student.STYLES["offset 1e-3"]))
     assert honest.grade.passed and honest.accepted in (None, "a ray offset of 0.001 along the normal")
-    assert not _graded(scene, student.render(scene, ["offset-too-large"]), pipeline.Checks(diagnose=False)).grade.passed
+    assert not _graded(scene, _student(scene, ["offset-too-large"]), pipeline.Checks(diagnose=False)).grade.passed
 
 
 def test_a_task_narrows_and_widens_its_accepted_variants(whitted):
-    honest = student.render(whitted, style=student.STYLES["offset 1e-3"])
+    honest = _student(whitted, style=student.STYLES["offset 1e-3"])
     assert not _graded(whitted, honest, pipeline.Checks(accepted={}, diagnose=False)).grade.passed
-    wider = student.render(whitted, style=student.Offset(0.05))  # (8e-3 of the visible size, 6.06)
+    wider = _student(whitted, style=student.Offset(0.05))  # (8e-3 of the visible size, 6.06)
     assert not _graded(whitted, wider, pipeline.Checks(diagnose=False)).grade.passed
     widened = _graded(whitted, wider, pipeline.Checks(accepted={"normal-offset": 1e-2}, diagnose=False))
     assert widened.grade.passed and widened.accepted == "a ray offset of 0.05 along the normal"
@@ -169,7 +192,7 @@ def test_the_variant_is_the_reference_with_its_rays_moved_off_the_surface(whitte
     assert size == pytest.approx(6.06, abs=0.01)  # the view's height at the median depth of what it shows
     for style, along in (("offset 1e-3", "normal"), ("t_min 1e-3", "ray")):
         variant = Renderer(whitted, Options(offset=1e-3 / size, offset_along=along)).pixels()
-        assert grade(variant, student.render(whitted, style=student.STYLES[style]), "").fraction_off_nearby == 0
+        assert grade(variant, _student(whitted, style=student.STYLES[style]), "").fraction_off_nearby == 0
 
 
 def test_a_tasks_file_names_the_accepted_variants_it_knows(tmp_path):
@@ -187,7 +210,7 @@ def test_grade_says_which_variant_it_passed_as_even_without_a_diagnosis(whitted,
     from service.cli import main
 
     honest = tmp_path / "honest.png"
-    honest.write_bytes(encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"])))
+    honest.write_bytes(encode_png(_student(whitted, style=student.STYLES["offset 1e-3"])))
     for extra in ([], ["--no-diagnosis"]):
         assert main(["grade", str(WHITTED), str(honest), *extra]) == 0
         assert (
@@ -201,7 +224,7 @@ def test_post_grade_gives_the_accepted_variant(whitted):
     from service.http.app import create_app
     from service.settings import Settings
 
-    honest = encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"]))
+    honest = encode_png(_student(whitted, style=student.STYLES["offset 1e-3"]))
     api = TestClient(create_app(Settings()))
     spec = api.get("/openapi.json").json()
     assert "accepted" in spec["components"]["schemas"]["GradeAnswer"]["properties"]
@@ -223,7 +246,7 @@ def test_a_class_task_takes_its_accepted_variants_from_the_tasks_file(whitted, t
     shutil.copyfile(WHITTED, tmp_path / "scenes" / "whitted.json")
     (tmp_path / "subs" / "ada").mkdir(parents=True)
     (tmp_path / "subs" / "ada" / "whitted.png").write_bytes(
-        encode_png(student.render(whitted, style=student.STYLES["offset 1e-3"]))
+        encode_png(_student(whitted, style=student.STYLES["offset 1e-3"]))
     )
     rows = {}
     for name, accepted in (("defaults", None), ("none", {})):

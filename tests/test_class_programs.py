@@ -87,7 +87,7 @@ def left_running() -> list[str]:
 
 
 def scratch() -> set[str]:
-    """The temporary folders of runs, builds and scenes of this test session (tests/conftest.py gives it a
+    """The temporary folders of runs, builds and scenes of this process's tests (tests/conftest.py gives it a
     temporary folder of its own)."""
     return {p.name for p in Path(tempfile.gettempdir()).glob("phongray-*")}
 

@@ -196,14 +196,14 @@ def _submissions(scene, reference):
     return out
 
 
-def _blindly(reference, submitted, verdict, scene, monkeypatch):  # noqa: ANN001, ANN202
-    """The diagnosis with every variant, the far end and the passes rendered whole, every variant scored and
-    no first look at a few rows (each variant graded on its whole image)."""
+def _blindly(reference, submitted, verdict, blind, monkeypatch):  # noqa: ANN001, ANN202
+    """The diagnosis with ``blind`` (:class:`WholeImages`: every variant, the far end and the passes rendered
+    whole, every variant scored) and no first look at a few rows (each variant graded on its whole image)."""
     from service.diagnosis import looks
 
     with monkeypatch.context() as patched:
         patched.setattr(looks, "_looks", lambda *args, **kwargs: [])
-        return diagnose(reference, submitted, verdict, WholeImages(renders_of(scene)))
+        return diagnose(reference, submitted, verdict, blind)
 
 
 def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders(monkeypatch):
@@ -211,8 +211,14 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders(monk
 
     scene = schemas.validate_scene(EVERYTHING)
     reference = Renderer(scene).pixels()
+    submissions = _submissions(scene, reference)
+    # blind: every variant, the far end and the passes rendered whole, and every variant scored; one for every
+    # submission, as the service keeps one scene's renders for all (each rendered once, the same pixels)
+    blind = WholeImages(renders_of(scene))
+    whole_far = Renderer(scene, BOUNDS["shadow-acne"]).pixels().astype(int)
+    graded_by = {v: Renderer(scene, VARIANTS[v][0]).pixels() for v in ("no-shadows", "blinn-phong", "no-ambient")}
     spared = 0
-    for name, submitted in _submissions(scene, reference).items():
+    for name, submitted in submissions.items():
         verdict = grade(reference, submitted, "")
         looked = renders_of(scene)
         whole = []
@@ -221,14 +227,14 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders(monk
         far = []
         render_bound = looked.bound
         looked.bound = lambda v, f=render_bound, far=far: far.append(v) or f(v)
-        # blind: every variant, the far end and the passes rendered whole, and every variant scored
-        blind = _blindly(reference, submitted, verdict, scene, monkeypatch)
-        assert diagnose(reference, submitted, verdict, looked).as_dict() == blind.as_dict(), name
+        assert (
+            diagnose(reference, submitted, verdict, looked).as_dict()
+            == _blindly(reference, submitted, verdict, blind, monkeypatch).as_dict()
+        ), name
         spared += len(VARIANTS) - len(whole) + 1 - len(far)
         # and the first look at the far end's rows is a lower bound of what the whole of it counts
         least = looks.outside_at_least("shadow-acne", reference, submitted, verdict, looked)
         outside = looks.speckled(reference, looked.bound("shadow-acne"), submitted, verdict.tolerance)
-        whole_far = Renderer(scene, BOUNDS["shadow-acne"]).pixels().astype(int)
         ref, sub, tol = reference.astype(int), submitted.astype(int), verdict.tolerance
         count = int(
             np.any((sub < np.minimum(ref, whole_far) - tol) | (sub > np.maximum(ref, whole_far) + tol), axis=2).sum()
@@ -236,11 +242,11 @@ def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders(monk
         assert least is not None and least <= count
         assert outside is None or outside == count / (ref.shape[0] * ref.shape[1])
         # and what the first look gives is a lower bound of what the whole grade counts
-        for v in ("no-shadows", "blinn-phong", "no-ambient"):
+        for v, variant in graded_by.items():
             least = looks.off_at_least(v, submitted, verdict, looked)
-            g = grade(Renderer(scene, VARIANTS[v][0]).pixels(), submitted, "", verdict.tolerance)
+            g = grade(variant, submitted, "", verdict.tolerance)
             assert least is not None and least <= round(g.fraction_off_nearby * reference.shape[0] * reference.shape[1])
-    assert spared > 2 * len(_submissions(scene, reference))
+    assert spared > 2 * len(submissions)
 
 
 def test_a_first_look_counts_off_pixels_as_the_grade_does():
@@ -367,7 +373,10 @@ def test_a_variant_passed_against_at_exactly_the_allowed_share_is_named(monkeypa
         and grade(Renderer(scene, VARIANTS["no-shadows"][0]).pixels(), submitted, "", 2.0, 0.009).passed
     )
     found = diagnose(reference, submitted, verdict, renders_of(scene))
-    assert found.as_dict() == _blindly(reference, submitted, verdict, scene, monkeypatch).as_dict()
+    assert (
+        found.as_dict()
+        == _blindly(reference, submitted, verdict, WholeImages(renders_of(scene)), monkeypatch).as_dict()
+    )
     assert found.causes[0].variant == "no-shadows" and found.causes[0].passes
 
 
