@@ -137,10 +137,14 @@ def test_retry_after_reflects_the_queue_by_the_slots_holding_times():
 # -- a grade in a busy worker -----------------------------------------------------------------------------------
 
 
+#: what the honest image passes as: its offset in the scene's units, as a student would write it
+ACCEPTED = "a ray offset of 0.005 along the normal"
+
+
 @pytest.fixture(scope="module")
 def offset():
-    """The scene, and an honest tracer's image of it (a 1e-3 ray offset: it fails the reference, and passes
-    as the accepted variant)."""
+    """The scene, and an honest tracer's image of it (a ray offset of 1e-3 of the visible size, 0.005 in the
+    scene's units: it fails the reference, and passes as the accepted variant)."""
     data = scene_dict("04_whitted")
     data["image"].update(width=80, height=60)
     scene = schemas.validate_scene(data)
@@ -166,7 +170,7 @@ def test_a_grade_waits_its_turn_for_a_slot_and_passes_as_its_accepted_variant(of
     (res,) = answers
     assert res.status_code == 200, res.text
     answer = res.json()
-    assert answer["passed"] is True and answer["accepted"] == "a 1e-3 ray offset", answer
+    assert answer["passed"] is True and answer["accepted"] == ACCEPTED, answer
 
 
 def test_a_grade_that_gets_no_slot_in_time_is_503_with_retry_after_never_a_fail(offset):
@@ -181,4 +185,4 @@ def test_a_grade_that_gets_no_slot_in_time_is_503_with_retry_after_never_a_fail(
         slots.give(held)
     assert res.status_code == 503, res.text
     assert "every render slot is busy" in res.json()["detail"] and int(res.headers["retry-after"]) >= 1
-    assert _grade(api, scene, image).json()["accepted"] == "a 1e-3 ray offset"  # (once a slot is free)
+    assert _grade(api, scene, image).json()["accepted"] == ACCEPTED  # (once a slot is free)
