@@ -7,9 +7,10 @@ mistake, and each time against the exact class (ratios in one run, so a busy mac
 Each student has a scene of their own (the glass ball moved a little), 2×2 samples, depth 5, as the homework
 sets it.  The honest images are tests/student.py's tracer starting shadow and secondary rays 1e-3 along the
 normal (a textbook's value, in a box 4 units across); the mistaken ones cycle through no-shadows, blinn-phong,
-no-attenuation and gamma.  Every honest image must pass and every mistake be named: the bench checks both, so
-that a speed-up that changes an answer is not reported as one.  ``--profile`` writes where the offset class's
-time went (cProfile, cumulative, the top 40 functions).
+gamma and no-ambient (each of which the homework shows).  Every honest image must pass and every mistake be
+named: the bench checks both, so that a speed-up that changes an answer is not reported as one.
+``--profile`` writes where a mistaken image's grade spends its time (cProfile, cumulative, the top 40
+functions), graded here in this process as a pool's process grades it, for one student of each mistake.
 """
 
 from __future__ import annotations
@@ -27,13 +28,14 @@ from pathlib import Path
 
 import schemas
 import tracer
+from service import pipeline
 from service.classgrade import ClassRun, grade_class
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import student  # noqa: E402
 
 HOMEWORK = Path(__file__).resolve().parent.parent / "examples" / "09_cornell_homework.json"
-MISTAKES = ("no-shadows", "blinn-phong", "no-attenuation", "gamma")
+MISTAKES = ("no-shadows", "blinn-phong", "gamma", "no-ambient")
 KINDS = ("exact", "offset", "mistake")
 
 
@@ -80,39 +82,47 @@ def checked(kind: str, rows: list[dict]) -> None:
             assert row["status"] == "pass", row
 
 
-def timed(run: ClassRun, kind: str, profile: cProfile.Profile | None) -> float:
+def timed(run: ClassRun, kind: str) -> float:
     started = time.perf_counter()
-    if profile is not None:
-        profile.enable()
-    try:
-        outcome = grade_class(run)
-    finally:
-        if profile is not None:
-            profile.disable()
+    outcome = grade_class(run)
     seconds = time.perf_counter() - started
     checked(kind, outcome.rows)
     return seconds
+
+
+def profiled(size: int, out: Path) -> None:
+    """Where a mistaken image's grade spends its time: one student of each mistake, graded in this process
+    (the reference rendered first, outside the profile), as ``phongray grade`` grades it."""
+    profile = cProfile.Profile()
+    for k in range(len(MISTAKES)):
+        data = own_scene(k + 1, size)
+        scene = schemas.validate_scene(copy.deepcopy(data))
+        reference, submitted = tracer.encode_png(tracer.render(scene)), image("mistake", k, data)
+        explaining = pipeline.Explaining(lambda scene=scene: scene, pipeline.Checks(diagnose=True))
+        profile.enable()
+        pipeline.grade_png(reference, submitted, 2.0, 0.001, explaining=explaining)
+        profile.disable()
+    text = io.StringIO()
+    pstats.Stats(profile, stream=text).sort_stats("cumulative").print_stats(40)
+    out.write_text(text.getvalue())
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--students", type=int, default=9)
     ap.add_argument("--size", type=int, default=200)
-    ap.add_argument("--profile", type=Path, help="where the offset class's time went (cProfile text)")
+    ap.add_argument("--profile", type=Path, help="where a mistaken image's grade spends its time (cProfile text)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="phongray-pricing-") as place:
         runs = {kind: build(Path(place, kind), kind, args.students, args.size) for kind in KINDS}
-        profile = cProfile.Profile() if args.profile else None
-        seconds = {kind: timed(run, kind, profile if kind == "offset" else None) for kind, run in runs.items()}
+        seconds = {kind: timed(run, kind) for kind, run in runs.items()}
     print(f"per-student Cornell homework, {args.students} students at {args.size}², 2×2 samples, depth 5")
     print("| class | seconds | × exact |")
     print("|---|---|---|")
     for kind in KINDS:
         print(f"| {kind} | {seconds[kind]:.1f} | {seconds[kind] / seconds['exact']:.2f} |")
-    if profile is not None:
-        out = io.StringIO()
-        pstats.Stats(profile, stream=out).sort_stats("cumulative").print_stats(40)
-        args.profile.write_text(out.getvalue())
+    if args.profile:
+        profiled(args.size, args.profile)
 
 
 if __name__ == "__main__":
