@@ -320,16 +320,8 @@ class Renderer:
         slice_rays: int = CHUNK_RAYS,
     ) -> np.ndarray:
         """Linear colour of pixels ``start..stop`` (mean of their sub-samples), or of the pixels ``pixels`` (then
-        ``stop − start`` of them). Shape (stop − start, 3).
-
-        The ray tree is traced depth-first in slices of at most ``slice_rays``
-        rays, so memory depends on the slice size and the depth, never on
-        2^depth.  Every contribution goes to the chunk's :class:`tracer.film.Film`
-        as a fixed-point integer, so the sums, and the bytes of the image, do not
-        depend on the order in which slices, chunks or threads deliver them.  With
-        a ``tally``, the passes it asks for are added up too (each ray then carries
-        the branch of the ray tree it belongs to).  With ``depth``, the tree stops
-        there (0: the camera rays' hits alone), if not before.
+        ``stop − start`` of them). Shape (stop − start, 3): the colour of :meth:`tracer.stages.Stages.film`'s
+        film, which says how the ray tree is traced and why the bytes do not depend on the order of the work.
         """
         return self.stages.film(start, stop, tally, pixels, depth, slice_rays).colour()
 
