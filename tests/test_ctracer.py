@@ -143,3 +143,31 @@ def test_real_shadow_acne_is_named(
     result = grader.grade(scenes[example], image, diagnose=True)
     assert not result["passed"]
     assert matrix.cell(result) == "FAIL(shadow-acne)", result["diagnosis"]
+
+
+#: mistakes the diagnosis names as ctracer makes them, each on scenes that show it: (mistake, scene, the cell)
+NAMED = [
+    ("no-reflection", "04_whitted", "FAIL(no-reflection)"),
+    ("no-reflection", "02_all_lights", "FAIL(no-reflection)"),
+    ("no-reflection", "09_cornell_homework", "FAIL(no-reflection)"),
+    # (light never leaves a glass ball either way: the image cannot tell them apart, and says both)
+    ("no-refraction", "04_whitted", "FAIL(no-refraction, exit-normal-not-flipped)"),
+    ("no-refraction", "09_cornell_homework", "FAIL(no-refraction, exit-normal-not-flipped)"),
+]
+
+
+@pytest.mark.parametrize(("mistake", "example", "expected"), NAMED)
+def test_a_mistake_is_named_as_ctracer_makes_it(
+    ctracer: Path,
+    grader: matrix.Grader,
+    scenes: dict[str, Path],
+    mistake: str,
+    example: str,
+    expected: str,
+    tmp_path: Path,
+) -> None:
+    scene = scenes[example]
+    image = matrix.render(ctracer, scene, tmp_path / "out.png", matrix.switches(mistake, json.loads(scene.read_text())))
+    result = grader.grade(scene, image, diagnose=True)
+    assert matrix.cell(result) == expected, result["diagnosis"]["sentence"]
+
