@@ -153,6 +153,8 @@ NAMED = [
     # (light never leaves a glass ball either way: the image cannot tell them apart, and says both)
     ("no-refraction", "04_whitted", "FAIL(no-refraction, exit-normal-not-flipped)"),
     ("no-refraction", "09_cornell_homework", "FAIL(no-refraction, exit-normal-not-flipped)"),
+    ("offset-too-large", "04_whitted", "FAIL(offset-too-large)"),
+    ("offset-too-large", "09_cornell_homework", "FAIL(offset-too-large)"),
 ]
 
 
@@ -171,3 +173,15 @@ def test_a_mistake_is_named_as_ctracer_makes_it(
     result = grader.grade(scene, image, diagnose=True)
     assert matrix.cell(result) == expected, result["diagnosis"]["sentence"]
 
+
+@pytest.mark.parametrize("example", ["04_whitted", "09_cornell_homework"])
+def test_an_offset_too_large_is_said_at_about_the_students_amount(
+    ctracer: Path, grader: matrix.Grader, scenes: dict[str, Path], example: str, tmp_path: Path
+) -> None:
+    """ctracer's offset is its own (2e-2 of its scene's box: 0.086 on 04_whitted, between two of the ladder's
+    rungs); the diagnosis says it in the scene's units, within a quarter of it."""
+    scene = json.loads(scenes[example].read_text())
+    image = matrix.render(ctracer, scenes[example], tmp_path / "out.png", matrix.switches("offset-too-large", scene))
+    sentence = grader.grade(scenes[example], image, diagnose=True)["diagnosis"]["sentence"]
+    said = float(sentence.split("about ", 1)[1].split(" ", 1)[0])
+    assert abs(said / (2e-2 * matrix.scene_size(scene)) - 1) < 0.25, sentence
