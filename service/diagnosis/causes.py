@@ -30,6 +30,7 @@ from .looks import (
 )
 from .records import Cause, Diagnosis
 from .renders import Renders
+from .speckled_with import speckled_with
 from .together import closer, combined, nearest_causes, together_causes
 from .where import where
 
@@ -78,6 +79,10 @@ def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict
     together = combined(reference, submitted, verdict, renders, out.terms)
     if together is not None and together.passes:  # (mistakes that explain the image leave no term to fit)
         out.causes, out.terms = together_causes(together), []
+        return
+    acne = speckled_with(reference, submitted, verdict, renders)  # (acne is never one of a fitted combination)
+    if acne is not None:
+        out.causes, out.terms = together_causes(acne), []
         return
     scoring.closest_round(later, later_bounds)  # the closest is named: score what may come closest
     out.causes, out.closest = closer(together, *scoring.named(), verdict)

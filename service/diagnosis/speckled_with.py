@@ -1,0 +1,116 @@
+"""A speckled mistake made with another: shadow acne and a second mistake in one image.
+
+Shadow acne is never one of a combination fitted by :mod:`.compose` (its speckles are the student's own pattern,
+no render has them).  It is scored against its far end instead (:func:`.looks.speckled`): an image with acne lies,
+pixel by pixel, between the reference and the reference with every shadow ray blocked, departing in speckles.
+With a second mistake ``X`` made too, the image lies between the reference rendered with ``X`` and that render's
+far end (``X`` made, every shadow ray blocked): the same test, with ``X``'s render in place of the reference.
+
+Which ``X`` to try is chosen on the rows where the submission is most off (:func:`.compose.telling_rows`), with
+no new render: each mistake's rows (kept from the first round) against an envelope of acne's own far end moved
+as ``X`` moves the reference (``X``'s rows plus the far end's difference; flipped or brightened as ``X`` stores
+the image).  The :data:`TRIED` best are confirmed on the whole image by one render each of their far end, and
+the first whose image passes the speckled test (at most the grade's share of pixels outside, in speckles) is
+named with acne: "shadow acne and the Blinn–Phong highlight", each with its deduction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields, replace
+
+import numpy as np
+
+from tracer.variants import BOUNDS, REFERENCE, VARIANTS, Options
+
+from ..grading import Grade
+from .compose import ALL, Combination, Member, _beyond, merged, telling_rows
+from .looks import speckled
+from .renders import Renders
+from .stored import GAMMA, outer
+
+#: at most this many second mistakes are confirmed by a render of their far end
+TRIED = 2
+#: mistakes never tried with acne: no shadows hides it (no shadow ray, no acne: the image is no shadows'), the
+#: other speckled ones are not made twice, and an offset too large is rendered on its own ladder
+NEVER = ("no-shadows", "offset-too-large", *BOUNDS)
+
+
+def speckled_with(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Combination | None:
+    """Shadow acne (each speckled mistake of :data:`tracer.variants.BOUNDS`) made with one other classic mistake,
+    when the submission passes the speckled test against that mistake's render and its far end; None when the
+    scene cannot show acne or no second mistake makes it pass."""
+    for name in BOUNDS:
+        if renders.unchanged(name):
+            continue
+        for other in _ranked(name, reference, submitted, verdict.tolerance, renders)[:TRIED]:
+            renders.check()
+            found = _confirmed(name, other, reference, submitted, verdict, renders)
+            if found is not None:
+                return found
+    return None
+
+
+def _ranked(name: str, reference: np.ndarray, submitted: np.ndarray, tolerance: float, renders: Renders) -> list[str]:
+    """The second mistakes worth a render, fewest of the telling rows' pixels outside their envelope first: only
+    those that leave fewer outside than acne alone does."""
+    h = reference.shape[0]
+    numbers = telling_rows(reference, submitted, tolerance)
+    ref = reference[numbers].astype(np.float64)
+    sub = submitted[numbers].astype(np.int16)
+    far = renders.bound_rows(name, numbers)
+
+    def outside(low: np.ndarray, high: np.ndarray) -> int:
+        out = (sub < low - tolerance) | (sub > high + tolerance)
+        return int(np.count_nonzero(np.any(out, axis=2)))
+
+    def envelope(*images: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        stack = np.stack([np.clip(i, 0, 255).astype(np.int16) for i in images])
+        return stack.min(axis=0), stack.max(axis=0)
+
+    alone = outside(*envelope(ref, far))
+    counts = []
+    for other in VARIANTS:
+        if other in NEVER or renders.unchanged(other):
+            continue
+        rows = renders.rows(other, numbers)
+        if other == "image-flipped":
+            moved = renders.bound_rows(name, h - 1 - numbers)
+        elif other == GAMMA:
+            moved = outer(far, (GAMMA,))
+        else:
+            moved = rows.astype(np.float64) + far - ref
+        counts.append((outside(*envelope(rows, far, moved)), other))
+    return [other for count, other in sorted(counts) if count < alone]
+
+
+def _confirmed(
+    name: str, other: str, reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders
+) -> Combination | None:
+    """``name`` and ``other`` made together, when the submission lies between ``other``'s render and its far end
+    in speckles, with at most the grade's share of its pixels outside; else None."""
+    image = renders.variant(other)
+    far = renders.render(_far(name, other))
+    share = speckled(image, far, submitted, verdict.tolerance)
+    if share is None or share > verdict.max_fraction:
+        return None
+    base = _beyond(reference, submitted, verdict.tolerance)
+    left = _beyond(image, submitted, verdict.tolerance) / base if base > 0 else 0.0
+    members = (
+        Member(
+            other,
+            ALL[other][1],
+            max(0.0, 1.0 - left),
+            "the image lies between this mistake's render and its far end with every shadow ray blocked",
+        ),
+        Member(name, ALL[name][1], min(1.0, left), "the rest of the difference is speckles towards that far end"),
+    )
+    return Combination(tuple(sorted(members, key=lambda m: -m.share)), share, True)
+
+
+def _far(name: str, other: str) -> Options:
+    """The far end of speckled mistake ``name`` with ``other`` made too: every field either changes, the far
+    end's (acne everywhere) over the mistake's own."""
+    bound = BOUNDS[name]
+    update = {f.name: getattr(bound, f.name) for f in fields(Options)}
+    update = {k: v for k, v in update.items() if v != getattr(REFERENCE, k)}
+    return replace(merged((other,)), **update)
