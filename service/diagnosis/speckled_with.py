@@ -51,8 +51,9 @@ def speckled_with(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, 
 
 
 def _ranked(name: str, reference: np.ndarray, submitted: np.ndarray, tolerance: float, renders: Renders) -> list[str]:
-    """The second mistakes worth a render, fewest of the telling rows' pixels outside their envelope first: only
-    those that leave fewer outside than acne alone does."""
+    """The second mistakes worth a render, fewest of the telling rows' pixels outside their envelope first (of as
+    many, the one whose render is nearest the submission): only those that leave no more outside than acne alone
+    does."""
     h = reference.shape[0]
     numbers = telling_rows(reference, submitted, tolerance)
     ref = reference[numbers].astype(np.float64)
@@ -79,8 +80,8 @@ def _ranked(name: str, reference: np.ndarray, submitted: np.ndarray, tolerance: 
             moved = outer(far, (GAMMA,))
         else:
             moved = rows.astype(np.float64) + far - ref
-        counts.append((outside(*envelope(rows, far, moved)), other))
-    return [other for count, other in sorted(counts) if count < alone]
+        counts.append((outside(*envelope(rows, far, moved)), _beyond(rows, sub, tolerance), other))
+    return [other for count, _, other in sorted(counts) if count <= alone]
 
 
 def _confirmed(
@@ -89,6 +90,8 @@ def _confirmed(
     """``name`` and ``other`` made together, when the submission lies between ``other``'s render and its far end
     in speckles, with at most the grade's share of its pixels outside; else None."""
     image = renders.variant(other)
+    if not shows(reference, image, submitted, verdict.tolerance):
+        return None
     far = renders.render(_far(name, other))
     share = speckled(image, far, submitted, verdict.tolerance)
     if share is None or share > verdict.max_fraction:
@@ -105,6 +108,18 @@ def _confirmed(
         Member(name, ALL[name][1], min(1.0, left), "the rest of the difference is speckles towards that far end"),
     )
     return Combination(tuple(sorted(members, key=lambda m: -m.share)), share, True)
+
+
+def shows(reference: np.ndarray, image: np.ndarray, submitted: np.ndarray, tolerance: float) -> bool:
+    """Whether the submission shows the second mistake where acne cannot explain it: of the pixels where its
+    render ``image`` departs from the reference (beyond ``tolerance``), more match the render than match the
+    reference, each within the tolerance.  Acne alone leaves a pixel as the reference has it or darkens it
+    towards its far end: it never draws another mistake's change, unspeckled, across the pixels it spares."""
+    ref, own, sub = (a.astype(np.int16) for a in (reference, image, submitted))
+    differs = np.abs(own - ref).max(axis=2) > tolerance
+    like_own = differs & (np.abs(sub - own).max(axis=2) <= tolerance)
+    like_ref = differs & (np.abs(sub - ref).max(axis=2) <= tolerance)
+    return int(np.count_nonzero(like_own)) > int(np.count_nonzero(like_ref))
 
 
 def _far(name: str, other: str) -> Options:
