@@ -218,7 +218,8 @@ def telling_rows(reference: np.ndarray, submitted: np.ndarray, tolerance: float)
 def chosen(rows: Rows) -> tuple[str, ...]:
     """The render-level mistakes, at most :data:`MAX_TOGETHER`, whose differences added explain the rows: the
     best one, then the best pair if it leaves at most :data:`ADD_AT_MOST` of what the one leaves, then a third
-    likewise; each at least :data:`ADD_LEVELS` better.  Empty when no mistake helps."""
+    likewise; each at least :data:`ADD_LEVELS` better.  A pair is of two mistakes that each help alone, or of the
+    best one and any other.  Empty when no mistake helps."""
     names = sorted(rows.deltas)
     best: tuple[str, ...] = ()
     error = rows.error(())
@@ -230,9 +231,15 @@ def chosen(rows: Rows) -> tuple[str, ...]:
     singles = sorted((rows.error((n,)), (n,)) for n in names)
     if singles and better(error, singles[0][1]) is not None:
         best, error = singles[0][1], singles[0][0]
-    # (a mistake whose difference alone takes the rows further from the submission is no part of it)
+    # (a mistake whose difference alone takes the rows further from the submission is no part of it, unless
+    # made with the best one: a darker image's mistake, made with gamma's brightening, is no help alone)
+    every = names
     names = sorted(n for e, (n,) in singles if e < rows.error(()))
-    pairs = sorted((rows.error(p), p) for p in combinations(names, 2) if compatible(p))
+    tried = set(combinations(names, 2))
+    if singles:
+        first = singles[0][1][0]
+        tried |= {(min(first, n), max(first, n)) for n in every if n != first}
+    pairs = sorted((rows.error(p), p) for p in tried if compatible(p))
     if pairs and better(error, pairs[0][1]) is not None:
         best, error = pairs[0][1], pairs[0][0]
     while 2 <= len(best) < MAX_TOGETHER:
