@@ -16,8 +16,7 @@ the mistakes would cost a render per pair; instead the failing image itself says
 * **One render** of the merged options (:func:`merged`) confirms the combination with the grade's own
   measure, or leaves it the closest.
 
-When nothing fits, :func:`nearest` ranks the explanations by how much of the difference each accounts for.
-Pure: the renders come in through a :class:`Looks`.
+When nothing fits, :func:`nearest` ranks the explanations by their share of the difference.  Pure (:class:`Looks`).
 """
 
 from __future__ import annotations
@@ -279,15 +278,46 @@ def compose(
     rows = _rows(reference, submitted, looks, candidates(looks, terms), (found, verdict.tolerance, numbers))
     inner = chosen(rows)
     names = (*inner, *found)
-    if not names or (len(names) == 1 and names[0] in VARIANTS):
+    if not names:
         return None
+    if len(names) == 1 and names[0] in VARIANTS:
+        return _partnered(reference, submitted, verdict, looks, (rows, terms))
     if all(n in STORED or n in OUTER for n in names) and GAMMA not in names:
         image = outer(reference, names)  # (exact for all but the mirror, which is within a level)
     else:
         image = looks.render(merged(names))
     g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
+    return _combination(rows, inner, found, g, candidates(looks, terms))
+
+
+def _partnered(
+    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, looks: Looks, chosen_on: tuple[Rows, list[Term]]
+) -> Combination | None:
+    """The classic mistake the rows chose alone (not passed against) with its partner nearest on the rows, when
+    one render of the two passes: where one saturates the image, the other's difference does not add."""
+    rows, terms = chosen_on
+    first = chosen(rows)[0]
+    alone = rows.reference + rows.deltas[first]
+    kept = alone >= 255.0  # (a channel the first mistake saturates stays saturated: the partner adds nothing there)
+
+    def error(n: str) -> float:
+        model = np.where(kept, alone, alone + rows.deltas[n])
+        return _beyond(np.floor(np.clip(model, 0.0, 255.0) + 0.5).astype(np.uint8), rows.submitted, rows.tolerance)
+
+    partners = [n for n in rows.deltas if n != first and n not in STORED and compatible((first, n))]
+    ranked = sorted((min(error(n), rows.error((first, n))), n) for n in partners)
+    for n in [n for e, n in ranked[:2] if e < rows.error((first,)) - ADD_LEVELS]:  # (one render each)
+        g = grade(looks.render(merged((first, n))), submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
+        if g.passed:
+            return _combination(rows, (first, n), {}, g, candidates(looks, terms))
+    return None
+
+
+def _combination(
+    rows: Rows, inner: tuple[str, ...], found: dict[str, float], g: Grade, tried: dict[str, str]
+) -> Combination:
+    """The render-level mistakes ``inner`` and image-level ``found``, graded ``g``, with their shares."""
     inner_shares = shares(rows, inner)
-    tried = candidates(looks, terms)
     members = [Member(n, ALL[n][1], inner_shares[n], _why(tried[n], inner_shares[n])) for n in inner]
     members += [Member(n, ALL[n][1], found[n], f"the image is the reference's {SHOWN[n]}") for n in found]
     members.sort(key=lambda m: -m.share)
@@ -335,12 +365,8 @@ def _rows(
 
 
 def _why(pointer: str, share: float) -> str:
-    accounts = f"accounts for {round(100 * share)} % of the difference"
-    return (
-        f"{pointer} out of scale; the mistake {accounts}"
-        if pointer.startswith("the fit")
-        else f"the mistake {accounts}"
-    )
+    accounts = f"the mistake accounts for {round(100 * share)} % of the difference"
+    return f"{pointer} out of scale; {accounts}" if pointer.startswith("the fit") else accounts
 
 
 @dataclass(frozen=True)
