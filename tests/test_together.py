@@ -3,6 +3,7 @@ explanations when nothing fits; how a report and the command line show them."""
 
 import numpy as np
 import pytest
+import student
 from test_compose import small
 
 from service.classgrade.gradebook import matched
@@ -92,3 +93,27 @@ def test_mistakes_made_together_lose_each_ones_deduction():
     assert score({"status": "fail", "mistakes": ["no-shadows+gamma"]}, task).deducted == "no-shadows+gamma"
     # one of the two without a deduction: the image scores nothing, as a fault the task does not forgive
     assert score({"status": "fail", "mistakes": ["no-shadows+blinn-phong"]}, task).score == 0
+
+
+@pytest.fixture(scope="module")
+def all_lights():
+    scene = small("02_all_lights", 64, 48)
+    return scene, Renderer(scene).pixels()
+
+
+@pytest.mark.parametrize(
+    ("mistakes", "named"),
+    [
+        # no ambient darkens: alone it helps nothing against gamma's (or a wider highlight's) brighter image
+        (["gamma", "no-ambient"], "gamma+no-ambient"),
+        (["blinn-phong", "no-ambient"], "no-ambient+blinn-phong"),
+        # an area light not divided saturates: the other's difference does not add on the rows, a render tells
+        (["no-ambient", "area-not-divided"], "area-not-divided+no-ambient"),
+    ],
+)
+def test_a_pair_of_a_student_tracer_is_named_both(all_lights, mistakes, named):
+    scene, reference = all_lights
+    made = student.render(scene, mistakes)
+    verdict = grade(reference, made, "")
+    assert not verdict.passed
+    assert matched(diagnose(reference, made, verdict, renders_of(scene, 1)).as_dict()) == [named]
