@@ -26,7 +26,7 @@ def _ids(scene, reference, mistakes):  # noqa: ANN001, ANN202
     return matched(diagnose(reference, made, verdict, renders_of(scene, 1)).as_dict())
 
 
-@pytest.mark.parametrize("other", ["blinn-phong", "no-ambient", "gamma"])
+@pytest.mark.parametrize("other", ["blinn-phong", "no-ambient", "gamma", "image-flipped"])
 def test_acne_with_another_mistake_names_both(lights, other):
     scene, reference = lights
     assert _ids(scene, reference, ["shadow-acne", other]) == [f"shadow-acne+{other}"]

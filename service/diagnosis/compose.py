@@ -280,8 +280,8 @@ def compose(
     names = (*inner, *found)
     if not names:
         return None
-    if len(names) == 1 and names[0] in VARIANTS:
-        return _partnered(reference, submitted, verdict, looks, (rows, terms))
+    if len(names) == 1 and names[0] in VARIANTS:  # (an image-level one alone is named as it always was)
+        return _partnered(submitted, verdict, looks, (rows, terms), inner[0]) if inner else None
     if all(n in STORED or n in OUTER for n in names) and GAMMA not in names:
         image = outer(reference, names)  # (exact for all but the mirror, which is within a level)
     else:
@@ -291,12 +291,11 @@ def compose(
 
 
 def _partnered(
-    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, looks: Looks, chosen_on: tuple[Rows, list[Term]]
+    submitted: np.ndarray, verdict: Grade, looks: Looks, chosen_on: tuple[Rows, list[Term]], first: str
 ) -> Combination | None:
     """The classic mistake the rows chose alone (not passed against) with its partner nearest on the rows, when
     one render of the two passes: where one saturates the image, the other's difference does not add."""
     rows, terms = chosen_on
-    first = chosen(rows)[0]
     alone = rows.reference + rows.deltas[first]
     kept = alone >= 255.0  # (a channel the first mistake saturates stays saturated: the partner adds nothing there)
 
