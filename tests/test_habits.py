@@ -21,15 +21,15 @@ UNTYPED_DICTS, LOCAL_IMPORTS = 40, 75
 #: it cannot be yet)
 LONG_FUNCTIONS = frozenset(
     {
-        "tracer/sightlines.py:plain_triangles",  # the sightlines' test, its steps share many arrays
+        "tracer/proofs/sightlines.py:plain_triangles",  # the sightlines' test, its steps share many arrays
     }
 )
 MANY_PARAMETERS = frozenset(
     {  # the exact tests of rays against one kind of shape, each ray batch's columns apart
-        "tracer/shapes.py:triangle_t",
-        "tracer/shapes.py:sphere_t",
-        "tracer/shapes.py:plane_t",
-        "tracer/proxies.py:build_proxies",
+        "tracer/scene/shapes.py:triangle_t",
+        "tracer/scene/shapes.py:sphere_t",
+        "tracer/scene/shapes.py:plane_t",
+        "tracer/exact/proxies.py:build_proxies",
     }
 )
 

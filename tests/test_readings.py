@@ -10,9 +10,9 @@ import schemas
 from service.classgrade.gradebook import matched, partial, score
 from service.classgrade.taskfile import TaskSettings
 from service.diagnosis import Cause, Diagnosis, diagnose, renders_of
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
 from helpers import scene_dict
 

@@ -9,7 +9,7 @@ from bench.scenes import example
 from service.diagnosis import WholeImages, renders_of
 from service.diagnosis.rendered import options_of
 from tracer import RenderCancelled, Renderer
-from tracer.variants import BOUNDS, VARIANTS
+from tracer.scene.variants import BOUNDS, VARIANTS
 
 
 def _folded(renders, pixels):

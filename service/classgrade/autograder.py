@@ -31,13 +31,13 @@ from typing import TYPE_CHECKING
 import service
 from schemas import SceneError
 from tracer import ImageTooLarge, Renderer, encode_png, render
-from tracer.variants import unchanged
+from tracer.scene.variants import unchanged
 
+from ..course.errors import ClassError
 from ..diagnosis.accepting import accepted_ladders, file_name
-from ..pipeline import load_scene
-from ..scenekey import scene_key
+from ..render.scenekey import scene_key
+from ..work.pipeline import load_scene
 from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
-from .errors import ClassError
 from .feedback import printed
 from .forms import Results
 from .records import ClassRun

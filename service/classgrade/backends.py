@@ -20,10 +20,10 @@ from functools import partial
 from typing import Any
 
 from ..client import ServerError, check
-from ..cluster import client, connect_timeout, wait_for_workers
+from ..course.errors import ClassError
+from ..render.cluster import client, connect_timeout, wait_for_workers
 from ..settings import Settings
 from . import faults, tasks
-from .errors import ClassError
 from .records import ClassRun, GradeJob, Marked
 from .remote import server_grade, server_render
 

@@ -17,7 +17,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .errors import ClassError
+from ..course.errors import ClassError
 
 if TYPE_CHECKING:
     from ..programs.program import Program

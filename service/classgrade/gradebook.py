@@ -15,13 +15,13 @@ import io
 from dataclasses import dataclass
 from typing import Any
 
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
 from ..diagnosis.words import listed
 from .forms import ReportRow
 from .taskfile import TaskSettings
 
-#: the ids a deduction may name: the diagnosis's classic mistakes (tracer.variants), with what each is
+#: the ids a deduction may name: the diagnosis's classic mistakes (tracer.scene.variants), with what each is
 MISTAKES = {name: words for name, (_, words) in VARIANTS.items()}
 
 

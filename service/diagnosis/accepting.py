@@ -1,7 +1,7 @@
 """Accepted variants: the ways an honest student's tracer may differ from the reference and still pass.
 
 A grade that fails against the reference is taken again against the
-reference rendered as honest tracers render it (:data:`tracer.variants.
+reference rendered as honest tracers render it (:data:`tracer.scene.variants.
 ACCEPTED_DEFAULT`): shadow and secondary rays started off the surface along
 its normal, up to 5·10⁻³ of the scene's visible size, or by a t_min up to
 10⁻² of it.  Each is rendered at a ladder of round amounts in the scene's units
@@ -28,11 +28,11 @@ import numpy as np
 
 from schemas import Scene
 from tracer import Renderer, decode_png
-from tracer.variants import ACCEPTED_DEFAULT, Options, unchanged
+from tracer.scene.variants import ACCEPTED_DEFAULT, Options, unchanged
 
-from ..grading import GROSS_ALLOWED, Grade, grade, range_counts
-from ..nearby import rows_distance
-from ..scenekey import scene_key
+from ..images.grading import GROSS_ALLOWED, Grade, grade, range_counts
+from ..images.nearby import rows_distance
+from ..render.scenekey import scene_key
 from .looks import off_rows, sampled_rows, telling_middles
 from .offsets import Rung, ladder, narrowed, rung, visible_size
 
@@ -330,7 +330,8 @@ def sampled_off(scene: Scene, rungs: list[Rung], pair: Failing, how: Look, refer
     return int(np.count_nonzero(near > pair.failed.tolerance)), int(near.sum(dtype=np.int64))
 
 
-#: the pixels off even nearby, and grossly off, against the range of renders (:func:`service.grading.range_counts`)
+#: the pixels off even nearby, and grossly off, against the range of renders
+#: (:func:`service.images.grading.range_counts`)
 envelope_counts = range_counts
 
 

@@ -9,9 +9,9 @@ from typing import Any, Literal
 from pydantic import Field
 from pydantic.fields import FieldInfo
 
-from tracer.variants import SENTENCES
+from tracer.scene.variants import SENTENCES
 
-from ..display import percent
+from ..cli.display import percent
 from .words import Names, nearest_sentence, readings_sentence, term_sentence, together_sentence
 
 #: the key of a record's field metadata that says how the service's answer documents the field
@@ -27,7 +27,7 @@ def answered(doc: Any, as_type: object = None) -> dict[str, tuple[object, FieldI
 
 @dataclass(frozen=True)
 class Cause:
-    #: a name of tracer.variants.VARIANTS or MORE_VARIANTS; for a nearest explanation that is a term,
+    #: a name of tracer.scene.variants.VARIANTS or MORE_VARIANTS; for a nearest explanation that is a term,
     #: ``term:NAME`` or ``term:NAME:LIGHT`` (``term:specular:1``)
     variant: str = field(
         metadata=answered(

@@ -12,8 +12,8 @@ import numpy as np
 
 from tracer import RenderCancelled, Renderer
 from tracer.image import quantize
-from tracer.passes import ADDITIVE, LIGHT_TERMS
-from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
+from tracer.scene.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
+from tracer.shade.passes import ADDITIVE, LIGHT_TERMS
 
 from .fit import FIT_BLOCK_PIXELS
 from .offsets import visible_size
@@ -40,7 +40,7 @@ def renders_of(
     One render gives every pass, every light's terms and the image's linear colour
     (:meth:`tracer.Renderer.diagnosis_passes`); from that colour come, exactly as their own renders would make
     them, the gamma variant (each pixel's colour to the power 1/2.2, then stored) and the flipped image, and
-    the reference itself stands for every variant the scene cannot show (:func:`tracer.variants.unchanged`).
+    the reference itself stands for every variant the scene cannot show (:func:`tracer.scene.variants.unchanged`).
     Only the other variants are rendered, each once.
 
     That render is made only when something needs the whole image's passes (a fit of the terms, a variant
@@ -136,7 +136,7 @@ class SceneRenders:
         return unchanged(name.split("@", 1)[0], self.scene)
 
     def size(self) -> float:
-        """The scene's visible size (:mod:`tracer.visible`), what an offset is measured against."""
+        """The scene's visible size (:mod:`tracer.exact.visible`), what an offset is measured against."""
         if self.visible is None:
             self.visible = visible_size(self.scene)
         return self.visible

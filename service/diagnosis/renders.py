@@ -11,7 +11,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from tracer.render import Fold
-    from tracer.variants import Options
+    from tracer.scene.variants import Options
 
     from .words import Names
 
@@ -48,7 +48,7 @@ class Renders(Protocol):
         of its whole image, :func:`.looks.whole_unless_off`): the rows of its whole image, exactly."""
 
     def bound(self, name: str) -> np.ndarray:
-        """Pixels of the far end of a mistake of :data:`tracer.variants.BOUNDS`."""
+        """Pixels of the far end of a mistake of :data:`tracer.scene.variants.BOUNDS`."""
 
     def bound_rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
         """Rows ``numbers`` of that far end (:func:`.looks.outside_at_least`)."""
@@ -72,7 +72,7 @@ class Renders(Protocol):
         """Whether the scene cannot show mistake ``name`` (its render is the reference's, bit for bit)."""
 
     def size(self) -> float:
-        """The scene's visible size (:mod:`tracer.visible`): an offset too large is rendered at a ladder of
+        """The scene's visible size (:mod:`tracer.exact.visible`): an offset too large is rendered at a ladder of
         amounts (``offset-too-large@0.05``, in the scene's units)."""
 
     def check(self) -> None:

@@ -4,7 +4,7 @@ accepted, with its size estimated in the scene's units.
 A student whose shadow and secondary rays start too far off the surface detaches shadows from what casts them
 and shifts what glass shows.  Their amount is their own (0.05, 0.1...), so one render of one amount matches
 few of them.  The reference is rendered instead at a ladder of amounts (:mod:`.offsets`), from the largest
-offset accepted (:data:`tracer.variants.ACCEPTED_DEFAULT`) up to :data:`TOP` of the visible size, and the
+offset accepted (:data:`tracer.scene.variants.ACCEPTED_DEFAULT`) up to :data:`TOP` of the visible size, and the
 submission is graded against the range of each two neighbouring rungs: any amount between them lies in their
 range.  The best such range names the mistake, with the rung of it the submission comes closer to as its
 size: "shadow and secondary rays offset too far from the surface: about 0.1 in the scene's units".
@@ -17,10 +17,10 @@ from typing import Protocol
 
 import numpy as np
 
-from tracer.variants import ACCEPTED_DEFAULT
+from tracer.scene.variants import ACCEPTED_DEFAULT
 
-from ..grading import Grade, grade, passes, range_counts
-from ..nearby import rows_distance
+from ..images.grading import Grade, grade, passes, range_counts
+from ..images.nearby import rows_distance
 from .looks import sampled_rows, telling_middles
 from .offsets import amount_words, narrowed, round_amounts
 from .records import Cause
