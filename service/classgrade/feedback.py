@@ -14,7 +14,8 @@ not show; a student reads of it only the zero it costs, where the task says so.
 
 from __future__ import annotations
 
-from ..cli.display import percent
+from ..images.figures import percent
+from ..programs.outcome import Reason, told
 from .forms import ReportRow, Results
 from .gradebook import late_note, partial
 from .taskfile import TaskSettings
@@ -37,8 +38,6 @@ ZEROED = "Scored 0: your program holds phongray's own code, which this course do
 
 def run_failed(row: ReportRow) -> str:
     """A program's failed run (or build) as a student is told it: ``the run failed: crashed``."""
-    from ..programs.outcome import Reason, told
-
     what = "build" if row["reason"].startswith("the build failed") else "run"
     try:
         return f"the {what} failed: {told(Reason(row['run']))}"

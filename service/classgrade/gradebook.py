@@ -25,18 +25,6 @@ from .taskfile import TaskSettings
 MISTAKES = {name: words for name, (_, words) in VARIANTS.items()}
 
 
-def matched(diagnosis: dict[str, Any] | None) -> list[str]:
-    """The ids of the mistakes a failing image matches (passes against the reference rendered with each), best
-    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it; mistakes made together are
-    one id, ``no-shadows+gamma`` (two faults: each one's deduction is taken, see :func:`score`)."""
-    if not diagnosis:
-        return []
-    causes = [c for c in diagnosis.get("causes", []) if c.get("passes")]
-    if causes and causes[0].get("together"):  # mistakes made together: one id for them all
-        return ["+".join(c["variant"] for c in causes)]
-    return [c["variant"] for c in causes]
-
-
 @dataclass(frozen=True)
 class Score:
     score: float

@@ -25,6 +25,7 @@ from pathlib import Path
 from tracer.image import encode_png
 
 from ..course.errors import ClassError
+from ..diagnosis.records import matched
 from ..images.grading import ImageError, declared_size, read_submission
 from ..programs.digest import digest as digest  # (what a kept grade stands for: its own module)
 from ..programs.experiment import Allowance, Thresholds, experiment
@@ -34,7 +35,6 @@ from ..programs.program import Program
 from ..programs.runner import BuildStep, ProgramRun, build_program, run_program
 from ..programs.sandbox import SandboxUnavailable
 from .copied import flags
-from .gradebook import matched
 from .records import GradeJob, Marked, RunInfo
 from .tasks import local_grade
 

@@ -6,13 +6,11 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
+from ..programs.program import Program
 from ..work.pipeline import Graded
 from .forms import ReportRow
-
-if TYPE_CHECKING:
-    from ..programs.program import Program
 
 
 @dataclass(frozen=True)

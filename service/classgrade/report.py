@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from ..cli.display import counted
+from ..images.figures import counted
 from ..images.heatmap import LEGEND
 from .feedback import gradescope, test_output  # noqa: F401  (test_output: what a student reads, here too)
 from .forms import ReportRow

@@ -22,6 +22,7 @@ from .checks import outside, scene_keys, writable
 from .faults import one_line, run_tasks
 from .forms import ReportRow, Stamp
 from .isolation import unwritable
+from .job import TaskScene
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
 from .records import ClassRun, Coursework, GradeJob, Marked, Pair
 from .report import COLUMNS, summary, write_atomic
@@ -245,7 +246,6 @@ def _grade_programs(
 ) -> None:
     """Grade every student's program on the backend, one task per student (:mod:`.programs`); each pair's
     grade is kept as an image's is."""
-    from .job import TaskScene
 
     def task_of(pair: Pair) -> TaskScene:
         return TaskScene(pair.task, _job(run, checked, pair, refs[pair.key or ""].read_bytes()))

@@ -9,11 +9,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from service.cli.common import CliError, thresholds
-from service.cli.display import ProgressBar, counted, printable
+from service.cli.display import ProgressBar, printable
 from service.cli.options import Commands, command, limits, no_diagnosis, positive_int
 from service.cli.options import remote as remote_options
 from service.cli.options import thresholds as threshold_options
 from service.cli.programs import add_arguments as program_options
+from service.images.figures import counted
 
 if TYPE_CHECKING:
     from service.programs.program import Program

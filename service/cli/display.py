@@ -7,6 +7,9 @@ import sys
 import time
 from typing import Any
 
+from ..images.figures import percent
+from ..images.grading import GROSS_ALLOWED
+
 #: what a terminal acts on rather than shows: C0 and C1 controls and DEL (escape sequences, carriage returns,
 #: new lines), the bidirectional overrides and isolates that reorder a line, and lone surrogates (the stray
 #: bytes of a name that is not UTF-8)
@@ -23,14 +26,6 @@ def _escape(match: re.Match[str]) -> str:
 def printable(text: str) -> str:
     """A name for the terminal, on one line, its control characters escaped (``\\x1b[2J`` is shown, not run)."""
     return _UNSAFE.sub(_escape, text)
-
-
-def percent(fraction: float) -> str:
-    """``0.0123`` → ``1.23 %`` (small fractions keep two significant digits: ``0.0012 %``)."""
-    value = 100 * fraction
-    if value == 0 or value >= 0.01:
-        return f"{value:.2f} %"
-    return f"{value:.2g} %"
 
 
 def describe(result: dict[str, Any]) -> list[str]:
@@ -51,8 +46,6 @@ def describe(result: dict[str, Any]) -> list[str]:
 
 def _gross(result: dict[str, Any]) -> list[str]:
     """A line for the pixels grossly off and the pixels not counted, where there are any."""
-    from ..images.grading import GROSS_ALLOWED
-
     gross, left = result.get("grossly_off") or 0, result.get("open_pixels") or 0
     lines = (
         [f"  grossly off: {gross} pixel{'s' if gross != 1 else ''} (at most {GROSS_ALLOWED} may be)"] if gross else []
@@ -162,8 +155,3 @@ class ProgressBar:
         if self.shown and ProgressBar.active is self:
             sys.stderr.write("\n")
         ProgressBar.active = None
-
-
-def counted(n: int, noun: str) -> str:
-    """``n`` and the noun, plural but for one: "1 pair", "3 pairs", "0 references"."""
-    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"

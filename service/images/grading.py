@@ -23,8 +23,8 @@ import numpy as np
 
 from tracer.image import RGBX_MODES, decode_rgbx, open_png
 
-from ..cli.display import percent
 from . import ppm
+from .figures import percent
 from .nearby import BAND, distance, planes
 
 if TYPE_CHECKING:

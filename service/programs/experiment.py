@@ -45,7 +45,7 @@ from tracer import decode_png, encode_png
 from tracer.render import Renderer
 from tracer.scene.variants import REFERENCE
 
-from ..classgrade.gradebook import matched
+from ..diagnosis.records import matched
 from ..images.grading import ImageError, grade, read_submission
 from ..work import pipeline
 from .findings import sentences, unseen

@@ -3,9 +3,13 @@ the service and class grading alike."""
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import os
+import signal
 import sys
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -14,6 +18,28 @@ import numpy as np
 from schemas import Scene
 from tracer import Renderer, render
 from tracer.budget import UNLIMITED, Budget
+
+from .cluster import render as render_on
+
+
+def die_with_parent(parent: int, prctl: bool) -> None:
+    """Initializer of a pool process: it ends when grade-class does, however grade-class ends (SIGKILL, the
+    OOM killer), never left running.  On Linux the kernel kills it (PR_SET_PDEATHSIG; only when the pool was
+    made by the main thread, as the signal comes when the creating thread ends); everywhere, a watchdog thread
+    sees the parent gone."""
+    if prctl and sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
+    if os.getppid() != parent:  # the parent died before the signal was asked for
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.25)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="phongray-parent-watch", daemon=True).start()
+
 
 #: the fewest primary rays (pixels × sub-samples) a render of the command line spreads over processes: below,
 #: starting them costs more than the threads lose to the GIL
@@ -42,8 +68,6 @@ def render_pixels(
     raises :class:`tracer.ImageTooLarge`; a render that outgrows its ``budget`` raises :class:`tracer.OverBudget`
     (on a cluster, each band is held to the whole budget; a budgeted render is not forked)."""
     if client is not None:
-        from .cluster import render as render_on
-
         return render_on(
             client,
             scene.model_dump_json().encode(),
@@ -96,8 +120,6 @@ def render_forked(scene: Scene, workers: int, progress: Callable[[int, int], Non
     from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures.process import BrokenProcessPool
     from multiprocessing import get_context
-
-    from ..classgrade.backends import die_with_parent
 
     img = scene.image
     count = min(img.height, workers * BANDS_PER_PROCESS)
