@@ -3,9 +3,9 @@ for the TA (:func:`flags`).
 
 A student can hand in phongray itself: its code (``tracer/``, ``schemas/``, ``service/``), with NumPy, pydantic
 and embreex beside it, fits the folder limit and renders every hidden scene as the reference does.  The sandbox
-hides every phongray installed on the machine (:mod:`.hidden`), not one a student brings.  So the student's
-folder is read for phongray's code: the distinct lines of phongray's own source (:func:`fingerprint`: stripped,
-at least :data:`LENGTH` characters, imports left out) that its files hold.  A folder that holds
+hides every phongray installed on the machine (:mod:`service.programs.hidden`), not one a student brings.  So the
+student's folder is read for phongray's code: the distinct lines of phongray's own source (:func:`fingerprint`:
+stripped, at least :data:`LENGTH` characters, imports left out) that its files hold.  A folder that holds
 :data:`LINES` of them or more is flagged ``phongray-code``, with the count and the file that holds most: a
 vendored phongray holds thousands, a tracer written from the scene format none, and NumPy, pydantic, Pillow or
 Python's own library fewer than ten (the lines they share with phongray are the commonplace ones).

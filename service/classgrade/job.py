@@ -75,7 +75,8 @@ OUTPUT_KEPT = 2000
 
 def run_info(outcome: RunOutcome) -> RunInfo:
     """A run's end as a grade keeps it (:class:`~service.classgrade.records.RunInfo`): the end of its output,
-    at most :data:`OUTPUT_KEPT` characters, and a run timed out on a busy machine said (:func:`~.outcome.busy`)."""
+    at most :data:`OUTPUT_KEPT` characters, and a run timed out on a busy machine said
+    (:func:`~service.programs.outcome.busy`)."""
     return RunInfo(
         str(outcome.reason),
         outcome.stderr_tail[-OUTPUT_KEPT:],
