@@ -42,8 +42,8 @@ import student_f32  # noqa: E402
 import student_oop  # noqa: E402
 
 from schemas import load_scene  # noqa: E402
-from service.classgrade.gradebook import matched  # noqa: E402
 from service.diagnosis.offsets import visible_size  # noqa: E402
+from service.diagnosis.records import matched  # noqa: E402
 from service.work import pipeline  # noqa: E402
 from tracer import Renderer, encode_png  # noqa: E402
 

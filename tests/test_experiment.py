@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from service.classgrade.gradebook import matched
 from service.classgrade.job import Program, _runner
 from service.classgrade.tasks import grade_task
+from service.diagnosis.records import matched
 from service.programs import Limits, check_sandbox
 from service.programs.experiment import Thresholds, experiment, render_png
 from service.programs.outcome import Reason, RunOutcome

@@ -5,11 +5,10 @@ import numpy as np
 import pytest
 from test_compose import small
 
-from service.classgrade.gradebook import matched
 from service.cli.display import explained
 from service.diagnosis import diagnose, renders_of
 from service.diagnosis.compose import Combination, Member, merged
-from service.diagnosis.records import Cause
+from service.diagnosis.records import Cause, matched
 from service.diagnosis.together import closer, together_causes
 from service.images.grading import grade
 from tracer import Renderer

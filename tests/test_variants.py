@@ -6,7 +6,7 @@ import pytest
 import schemas
 from tracer import Renderer
 from tracer.image import quantize
-from tracer.scene.variants import REFERENCE, VARIANTS, Options
+from tracer.scene.variants import MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
 from helpers import scene_dict
 
@@ -195,7 +195,7 @@ def _combined(*names):
     return replace(REFERENCE, **changes)
 
 
-@pytest.mark.parametrize("name", sorted(__import__("tracer.scene.variants").scene.variants.MORE_VARIANTS))
+@pytest.mark.parametrize("name", sorted(MORE_VARIANTS))
 def test_a_new_variant_is_the_image_of_a_student_who_makes_the_mistake(bright, name):
     import student_oop
 
