@@ -35,6 +35,7 @@ from ..nearby import rows_distance
 from ..scenekey import scene_key
 from .looks import off_rows, sampled_rows, telling_middles
 from .offsets import Rung, ladder, narrowed, rung, visible_size
+from .settled import FIRST_ROWS, settled
 
 #: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
@@ -163,21 +164,44 @@ def accept(
     off the range); None when none does.  Its words name the rung of the range the image comes closer to (the
     higher, from the reference): the amount that decided it.
 
+    A ladder is first looked at on the rows where the submission is most off, its rungs alone: when no range of
+    them nor any narrower range between two can hold the image there (:mod:`.settled`, the same verdict as the
+    whole ladder), it is given up, unnarrowed; a mistake costs a few rows of each rung.
+
     A scene with no light but ambient and no mirror or glass renders every offset as the reference (no shadow or
     secondary ray is cast): it renders none of them."""
     if unchanged("offset-too-large", scene):
         return None
     key = scene_key(scene)
-    tolerance, shut = pair.failed.tolerance, pair.open_pixels
-    look = Look(
-        key, threads, cancel, telling_middles(off_rows(pair.reference, pair.submitted, tolerance, shut), np.inf)
-    )
+    counts = off_rows(pair.reference, pair.submitted, pair.failed.tolerance, pair.open_pixels)
+    look = Look(key, threads, cancel, telling_middles(counts, np.inf))
     allowed = min(pair.failed.max_fraction, EXPLAINED * pair.failed.fraction_off_nearby) * pair.submitted[..., 0].size
+    first = replace(look, middles=telling_middles(counts, FIRST_ROWS * allowed))
     for rungs in accepted_ladders(scene, accepted, key):
+        if _settled(scene, pair, rungs, first, allowed) or _settled(scene, pair, rungs, look, allowed):
+            continue  # (no range of its rungs, nor any narrower one, can hold the image: the same None, sooner)
         found = _found(scene, pair, rungs, look, allowed)
         if found is not None:
             return _quoted(scene, pair, rungs, look, found)
     return None
+
+
+def _settled(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> bool:
+    """Whether, on the rows ``look`` takes, no range of two neighbouring rungs of the ladder (the first from the
+    reference) nor any narrower range between two of them can leave at most ``allowed`` pixels off
+    (:func:`.settled.settled`): then :func:`_found` finds nothing, and is not asked."""
+    middles, rows = look.looked(pair.submitted.shape[0])
+    if not len(middles):
+        return False
+    w = pair.submitted.shape[1]
+
+    def bands(k: int) -> np.ndarray:
+        image = pair.reference[rows] if k == 0 else look.rows(scene, rungs[k - 1].options, rows)
+        return image.reshape(len(middles), 3, w, 3)
+
+    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
+    shut = None if pair.open_pixels is None else pair.open_pixels[middles]
+    return settled(bands, len(rungs) + 1, submitted, pair.failed.tolerance, shut, lambda off: off > allowed)
 
 
 def _found(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:

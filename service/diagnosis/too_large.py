@@ -25,6 +25,7 @@ from .looks import sampled_rows, telling_middles
 from .offsets import amount_words, narrowed, round_amounts
 from .records import Cause
 from .renders import Renders
+from .settled import FIRST_ROWS, settled
 
 NAME = "offset-too-large"
 #: the ladder of offsets too large goes up to this × the visible size (an offset that large hides most shadows,
@@ -68,11 +69,15 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     to the half that leaves fewer, then rendered whole.  False, as :meth:`_Scoring.score` says, when the rows
     alone (an exact lower bound, as :func:`service.diagnosis.looks.off_at_least` counts) or the whole count are
     off by a count ``beyond`` says is too many; else adds the cause, its words the amount of the range the
-    submission comes closer to."""
+    submission comes closer to.  The ladder is given up before any of that when its rungs' rows alone show that no
+    range of them, nor a narrower one, can come under ``beyond`` (:mod:`.settled`: the same False, sooner)."""
     renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
     size = renders.size()
     ladder = amounts(size)
+    first = _Sampled(scoring, FIRST_ROWS * verdict.max_fraction * scoring.pixels)
     sampled = _Sampled(scoring)
+    if first.settled(ladder, beyond) or sampled.settled(ladder, beyond):
+        return False  # (no range of its rungs, nor any narrower one, can leave few enough off: as narrowing finds)
     chosen = narrowed(lambda a: sampled.off((a,)), *min(zip(ladder, ladder[1:]), key=sampled.off))
     if beyond(sampled.off(tuple(chosen))[0]):
         return False
@@ -96,11 +101,11 @@ class _Sampled:
     most off against the reference, as many as :func:`service.diagnosis.looks.sampled_rows` takes, each with the
     rows either side): an exact lower bound of the whole count."""
 
-    def __init__(self, scoring: Scoring):
+    def __init__(self, scoring: Scoring, enough: float = np.inf):
         self.renders = scoring.renders
         self.tolerance = scoring.verdict.tolerance
         h, self.w, _ = scoring.submitted.shape
-        self.middles = telling_middles(scoring.counts, np.inf)
+        self.middles = telling_middles(scoring.counts, enough)
         if not len(self.middles):
             self.middles = sampled_rows(h)[0]
         self.rows = (self.middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
@@ -126,3 +131,11 @@ class _Sampled:
                 near = np.where(self.shut, 0, near)
             self.counted[amounts] = (int(np.count_nonzero(near > self.tolerance)), int(near.sum(dtype=np.int64)))
         return self.counted[amounts]
+
+    def settled(self, ladder: list[float], beyond: Callable[[int], bool]) -> bool:
+        """Whether, on these rows, no range of two neighbouring amounts of ``ladder`` nor any narrower range
+        between two of them can leave a count of pixels off that ``beyond`` lets by (:func:`.settled.settled`)."""
+        if not len(self.middles):
+            return False
+        self.renders.check()
+        return settled(lambda k: self.bands(ladder[k]), len(ladder), self.submitted, self.tolerance, self.shut, beyond)
