@@ -45,12 +45,17 @@ from typing import Any
 
 import numpy as np
 
+from .settings import Settings
+
 #: the environment variable that names the board's file, for the workers uvicorn spawns
 BOARD_ENV = "PHONGRAY_BALANCE_BOARD"
 #: slots on a board: more than any worker count a 2-core machine (or most others) runs
 SLOTS = 64
-#: the longest a worker stands aside for a connection that no other worker takes, in seconds
+#: the longest a worker stands aside for a connection that no other worker takes, in seconds (the default of
+#: the ``balance_patience`` setting)
 PATIENCE = 0.02
+#: how often a worker standing aside looks again whether the connection is still waiting, in seconds
+LOOK_AGAIN = 0.005
 
 
 class Board:
@@ -169,6 +174,8 @@ class BalancedLoop(asyncio.SelectorEventLoop):
     and uncounted by :class:`service.http.server.Protocol` when it is lost."""
 
     _aside_since: float | None = None
+    #: how long this worker stands aside (the ``balance_patience`` setting; set by :func:`balanced_loop`)
+    patience: float = PATIENCE
 
     def _accept_connection(
         self,
@@ -187,11 +194,11 @@ class BalancedLoop(asyncio.SelectorEventLoop):
             now = time.monotonic()
             if self._aside_since is None:
                 self._aside_since = now
-            if now - self._aside_since < PATIENCE:  # stand aside: stop watching the socket for a moment
+            if now - self._aside_since < self.patience:  # stand aside: stop watching the socket for a moment
                 fd = sock.fileno()
                 self._remove_reader(fd)  # type: ignore[attr-defined]
                 self.call_later(
-                    PATIENCE / 4, self._watch_again, fd, protocol_factory, sock, sslcontext, server, backlog, *args
+                    LOOK_AGAIN, self._watch_again, fd, protocol_factory, sock, sslcontext, server, backlog, *args
                 )
                 return
         self._aside_since = None
@@ -228,4 +235,6 @@ class BalancedLoop(asyncio.SelectorEventLoop):
 def balanced_loop() -> asyncio.AbstractEventLoop:
     """The loop factory of a worker that spreads connections (uvicorn's ``loop``)."""
     join()
-    return BalancedLoop()
+    loop = BalancedLoop()
+    loop.patience = Settings.from_env().balance_patience
+    return loop

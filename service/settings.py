@@ -46,6 +46,7 @@ class Settings(BaseSettings):
     body_timeout: float = 10.0  # seconds of grace for a request body ...
     body_min_rate: int = 65_536  # ... which must then keep arriving at this many bytes per second (else 408)
     keep_alive: float = 5.0  # seconds an idle kept-alive connection stays open
+    balance_patience: float = 0.02  # seconds a worker of serve --workers N stands aside for the one whose turn it is
     max_connections: int = 1_000  # open connections per worker process; beyond it, 503
     max_buffered_bytes: int = 96 * 1024 * 1024  # request bodies one worker process holds at once ...
     buffer_wait: float = 30.0  # ... beyond which a body waits this many seconds for room, then gets 503

@@ -43,6 +43,8 @@ MISTAKES = (
     "ambient-from-diffuse",
     "spot-ramp-angle",
     "transparent-no-shadows",
+    "no-reflection",
+    "no-refraction",
 )
 
 
@@ -259,6 +261,10 @@ def render(
         if depth == depth_limit:
             break
         r, t = np.flatnonzero(weight * kr > 0), np.flatnonzero(weight * kt > 0)
+        if "no-reflection" in wrong:  # (the mirror ray forgotten, at every depth)
+            r = r[:0]
+        if "no-refraction" in wrong:  # (the refracted ray forgotten, at every depth)
+            t = t[:0]
         mirror = _unit(d[r] - 2 * _dot(d[r], n[r])[:, None] * n[r])
         into = _dot(d[t], outward[t]) < 0
         eta = np.where(into != ("ior-inverted" in wrong), 1 / ior[t], ior[t])

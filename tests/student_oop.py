@@ -70,6 +70,8 @@ CLASSIC = (
     "ambient-from-diffuse",
     "spot-ramp-angle",
     "transparent-no-shadows",
+    "no-reflection",
+    "no-refraction",
 )
 NEW = (
     "reflection-blended",
@@ -214,12 +216,12 @@ class Tracer:
         if "reflection-blended" in self.wrong:
             colour = mul(colour, 1 - m.reflectance)
         if depth < self.max_depth:
-            if m.reflectance > 0:
+            if m.reflectance > 0 and "no-reflection" not in self.wrong:
                 r = normalize(sub(d, mul(n, 2 * dot(d, n))))
                 colour = add(
                     colour, mul(self.trace(Ray(self.off(p, hit.normal, r, self.eps), r), depth + 1), m.reflectance)
                 )
-            if m.transmittance > 0:
+            if m.transmittance > 0 and "no-refraction" not in self.wrong:
                 t = self.refract(d, hit.normal, m.ior)
                 colour = add(
                     colour, mul(self.trace(Ray(self.off(p, hit.normal, t, self.eps), t), depth + 1), m.transmittance)

@@ -143,3 +143,45 @@ def test_real_shadow_acne_is_named(
     result = grader.grade(scenes[example], image, diagnose=True)
     assert not result["passed"]
     assert matrix.cell(result) == "FAIL(shadow-acne)", result["diagnosis"]
+
+
+#: mistakes the diagnosis names as ctracer makes them, each on scenes that show it: (mistake, scene, the cell)
+NAMED = [
+    ("no-reflection", "04_whitted", "FAIL(no-reflection)"),
+    ("no-reflection", "02_all_lights", "FAIL(no-reflection)"),
+    ("no-reflection", "09_cornell_homework", "FAIL(no-reflection)"),
+    # (light never leaves a glass ball either way: the image cannot tell them apart, and says both)
+    ("no-refraction", "04_whitted", "FAIL(no-refraction, exit-normal-not-flipped)"),
+    ("no-refraction", "09_cornell_homework", "FAIL(no-refraction, exit-normal-not-flipped)"),
+    ("offset-too-large", "04_whitted", "FAIL(offset-too-large)"),
+    ("offset-too-large", "09_cornell_homework", "FAIL(offset-too-large)"),
+]
+
+
+@pytest.mark.parametrize(("mistake", "example", "expected"), NAMED)
+def test_a_mistake_is_named_as_ctracer_makes_it(
+    ctracer: Path,
+    grader: matrix.Grader,
+    scenes: dict[str, Path],
+    mistake: str,
+    example: str,
+    expected: str,
+    tmp_path: Path,
+) -> None:
+    scene = scenes[example]
+    image = matrix.render(ctracer, scene, tmp_path / "out.png", matrix.switches(mistake, json.loads(scene.read_text())))
+    result = grader.grade(scene, image, diagnose=True)
+    assert matrix.cell(result) == expected, result["diagnosis"]["sentence"]
+
+
+@pytest.mark.parametrize("example", ["04_whitted", "09_cornell_homework"])
+def test_an_offset_too_large_is_said_at_about_the_students_amount(
+    ctracer: Path, grader: matrix.Grader, scenes: dict[str, Path], example: str, tmp_path: Path
+) -> None:
+    """ctracer's offset is its own (2e-2 of its scene's box: 0.086 on 04_whitted, between two of the ladder's
+    rungs); the diagnosis says it in the scene's units, within a quarter of it."""
+    scene = json.loads(scenes[example].read_text())
+    image = matrix.render(ctracer, scenes[example], tmp_path / "out.png", matrix.switches("offset-too-large", scene))
+    sentence = grader.grade(scenes[example], image, diagnose=True)["diagnosis"]["sentence"]
+    said = float(sentence.split("about ", 1)[1].split(" ", 1)[0])
+    assert abs(said / (2e-2 * matrix.scene_size(scene)) - 1) < 0.25, sentence

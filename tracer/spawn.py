@@ -95,6 +95,10 @@ class Spawner:
         dirs, weight = work.rays.dirs, work.weight
         r = np.flatnonzero(weight * kr > 0)  # a weight that underflowed to 0 would only add 0·∞ = NaN
         t = np.flatnonzero(weight * kt > 0)
+        if not self.options.reflections:  # (a variant's: mirror rays never traced)
+            r = r[:0]
+        if not self.options.refractions:  # (a variant's: refracted rays never traced)
+            t = t[:0]
         out = np.concatenate(
             [
                 mirror(dirs[r], normal[r]),

@@ -55,6 +55,8 @@ class Options:
     ambient_from_diffuse: bool = False  # the ambient term k_d ⊙ Σ ambient instead of k_a ⊙ Σ ambient
     spot_ramp_angle: bool = False  # a spot's ramp from inner_cutoff to cutoff linear in the angle, not its cosine
     transparent_shadows: bool = True  # objects with k_t > 0 block shadow rays (False: shadow rays pass them)
+    reflections: bool = True  # mirror rays traced where k_r > 0 (False: never, at any depth)
+    refractions: bool = True  # refracted rays traced where k_t > 0 (False: never, at any depth)
 
     @property
     def reference(self) -> bool:
@@ -180,6 +182,8 @@ VARIANTS: dict[str, tuple[Options, str]] = {
         Options(transparent_shadows=False),
         "transparent objects cast no shadows (shadow rays pass through objects with k_t > 0)",
     ),
+    "no-reflection": (Options(reflections=False), "no reflection: mirror rays never traced"),
+    "no-refraction": (Options(refractions=False), "no refraction: refracted rays never traced"),
 }
 
 #: more mistakes a student's tracer written from the format makes (issue 47): name → (options, what a student
@@ -208,6 +212,12 @@ MORE_VARIANTS: dict[str, tuple[Options, str]] = {
         "refraction leaving an object with the outward normal instead of the flipped one",
     ),
 }
+
+#: a classic mistake → the new ones (:data:`MORE_VARIANTS`) that may render the same image: light that never
+#: leaves a glass object (a refracted ray leaving by the outward normal is turned back inside, every time) shows
+#: as glass with no refracted ray at all.  Where a submission passes against the classic one, the diagnosis
+#: scores these too, so that every reading of the image is given.
+ALIKE: dict[str, tuple[str, ...]] = {"no-refraction": ("exit-normal-not-flipped",)}
 
 #: per mistake of :data:`MORE_VARIANTS`, a sentence for the student who made it: what the image shows, what to fix
 SENTENCES: dict[str, str] = {
@@ -344,6 +354,9 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     "transparent-no-shadows": lambda scene: (
         not _lit(scene) or not any(scene.materials[o.material].transmittance > 0 for o in scene.objects)
     ),
+    # a mirror or refracted ray is spawned only below max_depth, at a material with k_r (k_t) > 0
+    "no-reflection": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.reflectance > 0),
+    "no-refraction": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0),
 }
 
 

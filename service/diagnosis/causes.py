@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from tracer.variants import BOUNDS, VARIANTS
+from tracer.variants import ALIKE, BOUNDS, MORE_VARIANTS, VARIANTS
 
 from ..grading import Grade, grade
 from . import too_large
@@ -70,6 +70,7 @@ def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict
     scoring = _Scoring(reference, submitted, verdict, renders)
     later, later_bounds = scoring.first_round()
     if any(c.passes for c in scoring.scored):
+        scoring.alike_round()
         out.causes, out.closest = scoring.named()
         return
     renders.check()
@@ -117,7 +118,7 @@ class _Scoring:
         if np.array_equal(image, self.reference):  # the mistake changes nothing in this scene: no evidence
             return True
         g = grade(image, self.submitted, "", self.verdict.tolerance, self.verdict.max_fraction, self.renders.open)
-        self.scored.append(Cause(name, VARIANTS[name][1], g.fraction_off_nearby, g.passed))
+        self.scored.append(Cause(name, _words(name), g.fraction_off_nearby, g.passed))
         return True
 
     def score_speckled(self, name: str, beyond: Callable[[int], bool]) -> bool:
@@ -162,6 +163,15 @@ class _Scoring:
                 later_bounds.append(name)
         return later, later_bounds
 
+    def alike_round(self) -> None:
+        """Scores the new mistakes that may render the image of a classic one passed against (:data:`ALIKE`), so
+        that where the image cannot tell them apart, both readings are given."""
+        passing = [c.variant for c in self.scored if c.passes]
+        for name in [twin for variant in passing for twin in ALIKE.get(variant, ())]:
+            self.renders.check()
+            if self.shown(name) and all(c.variant != name for c in self.scored):
+                self.score(name, self.cannot_pass)
+
     def closest_round(self, later: list[str], later_bounds: list[str]) -> None:
         """Scores those of the mistakes put off by :meth:`first_round` that may come closest."""
         renders, closest = self.renders, self.cannot_come_closest
@@ -182,10 +192,16 @@ class _Scoring:
     def named(self) -> tuple[list[Cause], bool]:
         """The causes named, best first, and whether the first is only the closest: those passed against, or
         else the one that comes far closer than the reference does, or none."""
-        self.scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant))
+        # (of two alike, the classic mistake first: the new one is a further reading of the same image)
+        self.scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant not in VARIANTS, c.variant))
         passing = [c for c in self.scored if c.passes]
         if passing:
             return passing, False
         if self.scored and self.scored[0].fraction_off_nearby <= CLOSEST_SHARE * self.verdict.fraction_off_nearby:
             return self.scored[:1], True
         return [], False
+
+
+def _words(name: str) -> str:
+    """What a student did, in words: a classic mistake's or a new one's."""
+    return VARIANTS[name][1] if name in VARIANTS else MORE_VARIANTS[name][1]

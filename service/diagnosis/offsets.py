@@ -99,7 +99,7 @@ POINTS = 6
 ROUNDS = 2
 
 
-def narrowed(off: Callable[[float], tuple[int, int]], low: float, high: float) -> list[float]:
+def narrowed(off: Callable[[float], tuple[int, ...]], low: float, high: float) -> list[float]:
     """Within the range ``(low, high)`` of amounts (``low`` 0: the reference), the amount of :data:`POINTS`, evenly
     spaced (in the logarithm, or from the reference in the amount), whose render leaves the fewest pixels off on
     a few rows, and among equals the nearest (``off``: the count, and the sum of the pixels' nearby distances),

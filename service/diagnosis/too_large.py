@@ -4,10 +4,12 @@ accepted, with its size estimated in the scene's units.
 A student whose shadow and secondary rays start too far off the surface detaches shadows from what casts them
 and shifts what glass shows.  Their amount is their own (0.05, 0.1...), so one render of one amount matches
 few of them.  The reference is rendered instead at a ladder of amounts (:mod:`.offsets`), from the largest
-offset accepted (:data:`tracer.variants.ACCEPTED_DEFAULT`) up to :data:`TOP` of the visible size, and the
-submission is graded against the range of each two neighbouring rungs: any amount between them lies in their
-range.  The best such range names the mistake, with the rung of it the submission comes closer to as its
-size: "shadow and secondary rays offset too far from the surface: about 0.1 in the scene's units".
+offset accepted (:data:`tracer.variants.ACCEPTED_DEFAULT`) up to :data:`TOP` of the visible size; the rung
+nearest the submission and its two neighbours bracket the student's amount, which is looked for on either
+side of it (:func:`.offsets.narrowed`), and the submission is graded against the range of the amounts found: any
+amount between them lies in their range.  That range names the mistake, with the amount of it the submission comes
+closest to as its size: "shadow and secondary rays offset too far from the surface: about 0.1 in the scene's
+units".
 """
 
 from __future__ import annotations
@@ -64,21 +66,27 @@ class Scoring(Protocol):
 
 
 def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
-    """Scores ``offset-too-large`` against the range of two amounts of the ladder: the neighbouring rungs whose
-    range leaves the fewest of the submission's pixels off on the sampled rows, narrowed (:func:`.offsets.narrowed`)
-    to the half that leaves fewer, then rendered whole.  False, as :meth:`_Scoring.score` says, when the rows
-    alone (an exact lower bound, as :func:`service.diagnosis.looks.off_at_least` counts) or the whole count are
-    off by a count ``beyond`` says is too many; else adds the cause, its words the amount of the range the
-    submission comes closer to.  The ladder is given up before any of that when its rungs' rows alone show that no
-    range of them, nor a narrower one, can come under ``beyond`` (:mod:`.settled`: the same False, sooner)."""
+    """Scores ``offset-too-large`` against the range of a few amounts: on either side of the rung that leaves
+    the fewest of the submission's pixels off on the sampled rows, each side narrowed (:func:`.offsets.narrowed`)
+    to the amounts that leave fewer, the side whose range leaves fewer kept, then rendered whole.  False, as
+    :meth:`_Scoring.score` says, when the rows alone (an exact lower bound, as
+    :func:`service.diagnosis.looks.off_at_least` counts) or the whole count are off by a count ``beyond`` says is
+    too many; else adds the cause, its words the amount of the range the submission comes closer to.  The ladder is
+    given up before any of that when its rungs' rows alone show that no range of them, nor a narrower one, can
+    come under ``beyond`` (:mod:`.settled`: the same False, sooner)."""
     renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
     size = renders.size()
     ladder = amounts(size)
-    first = _Sampled(scoring, FIRST_ROWS * verdict.max_fraction * scoring.pixels)
-    sampled = _Sampled(scoring)
-    if first.settled(ladder, beyond) or sampled.settled(ladder, beyond):
+    sampled = _Told(scoring)
+    first = _Sampled(scoring, telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels))
+    if first.settled(ladder, beyond) or sampled.first.settled(ladder, beyond):
         return False  # (no range of its rungs, nor any narrower one, can leave few enough off: as narrowing finds)
-    chosen = narrowed(lambda a: sampled.off((a,)), *min(zip(ladder, ladder[1:]), key=sampled.off))
+    # (on either side of the rung nearest the submission: a range of two rungs may leave a pixel fewer off than
+    # the range that holds the student's amount, where a larger offset hides what a smaller one shows)
+    best = min(range(len(ladder)), key=lambda k: sampled.off((ladder[k],)))
+    sides = [pair for pair in zip(ladder, ladder[1:]) if ladder[best] in pair]
+    found = [narrowed(lambda a: sampled.off((a,)), low, high) for low, high in sides]
+    chosen = min(found, key=lambda amounts: sampled.off(tuple(amounts)))
     if beyond(sampled.off(tuple(chosen))[0]):
         return False
     images = [renders.variant(rung_name(a)) for a in chosen]
@@ -101,11 +109,11 @@ class _Sampled:
     most off against the reference, as many as :func:`service.diagnosis.looks.sampled_rows` takes, each with the
     rows either side): an exact lower bound of the whole count."""
 
-    def __init__(self, scoring: Scoring, enough: float = np.inf):
+    def __init__(self, scoring: Scoring, middles: np.ndarray | None = None):
         self.renders = scoring.renders
         self.tolerance = scoring.verdict.tolerance
         h, self.w, _ = scoring.submitted.shape
-        self.middles = telling_middles(scoring.counts, enough)
+        self.middles = telling_middles(scoring.counts, np.inf) if middles is None else middles
         if not len(self.middles):
             self.middles = sampled_rows(h)[0]
         self.rows = (self.middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
@@ -139,3 +147,24 @@ class _Sampled:
             return False
         self.renders.check()
         return settled(lambda k: self.bands(ladder[k]), len(ladder), self.submitted, self.tolerance, self.shut, beyond)
+
+
+class _Told:
+    """The pixels off on the rows most off against the reference (:class:`_Sampled`), and where those leave none
+    off, then on every row :func:`service.diagnosis.looks.sampled_rows` takes besides: the rows most off may
+    tell only that an offset is larger than some amount (a light just below a ceiling that every larger offset
+    puts out of reach), and all larger amounts alike; the other rows tell them apart.  Rendered only for the
+    amounts that leave the first rows as the submission has them."""
+
+    def __init__(self, scoring: Scoring):
+        self.first = _Sampled(scoring)
+        spread = np.setdiff1d(sampled_rows(scoring.submitted.shape[0])[0], self.first.middles)
+        self.spread = _Sampled(scoring, spread) if len(spread) else None
+
+    def off(self, amounts: tuple[float, ...]) -> tuple[int, ...]:
+        """:meth:`_Sampled.off` on the first rows, followed where it is nothing by that on the other rows (the
+        first count is an exact lower bound of the whole image's, as :meth:`_Sampled.off` says)."""
+        told = self.first.off(amounts)
+        if told != (0, 0) or self.spread is None:
+            return told
+        return told + self.spread.off(amounts)

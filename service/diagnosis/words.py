@@ -131,6 +131,8 @@ SHOWS = {
     "reflect-sign": "no specular highlight",
     "no-shadows": "no shadows",
     "transparent-no-shadows": "no shadows",
+    "no-refraction": "glass that lets no light through",
+    "exit-normal-not-flipped": "glass that lets no light through",
 }
 
 
