@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -143,23 +144,27 @@ def explain(
         if graded.grade.passed:
             return graded
     failing = Failing(reference, submitted, graded.grade, opened)  # (the open pixels are not counted by any check)
-    found_variant = accepting.accept(scene, failing, checks.accepted, run.threads, run.cancel)
+    held = CACHE if run.cache is None else run.cache
+    make = partial(renders_of, scene, run.threads, open_pixels=opened)
+    renders = held.get(scene_key(scene), make, scene.image.width * scene.image.height)
+    renders.cancel_in_thread(run.cancel)  # (the cached renders may be another grade's at the same time)
+    try:  # (the rungs of the offsets' ladders kept with the diagnosis's renders: one budget, each rendered once)
+        found_variant = accepting.accept(scene, failing, checks.accepted, run.threads, run.cancel, renders)
+    finally:
+        renders.done()
+        held.trim()
     if found_variant is not None:
         return Graded(found_variant.grade, graded.heatmap, None, found_variant.words)
     if not checks.diagnose:
         return graded
-    found = _diagnosed(
-        scene, failing, lambda: renders_of(scene, run.threads, open_pixels=opened), scene_key(scene), run
-    )
+    found = _diagnosed(failing, renders, held, run)
     if not any(c.passes for c in found.causes) and found.unavailable is None:
         found = _behind_offset(scene, failing, checks, run, found) or found
     return Graded(graded.grade, graded.heatmap, found)
 
 
-def _diagnosed(scene: Scene, failing: Failing, make: Callable[[], Renders], key: str, run: Checking) -> Diagnosis:
-    """The diagnosis of a failing pair with the renders held under ``key`` (made by ``make``) in the run's cache."""
-    held = CACHE if run.cache is None else run.cache
-    renders = held.get(key, make, scene.image.width * scene.image.height)
+def _diagnosed(failing: Failing, renders: Renders, held: Cached, run: Checking) -> Diagnosis:
+    """The diagnosis of a failing pair with the scene's renders (held in the run's cache, ``held``)."""
     renders.cancel_in_thread(run.cancel)  # (the cached renders may be another diagnosis's at the same time)
     try:
         return diagnose(failing.reference, failing.submitted, failing.failed, renders)
