@@ -6,8 +6,10 @@ import pytest
 
 import schemas
 from bench.scenes import example
-from service.diagnosis import WholeImages, renders_of
+from service.diagnosis import Cached, WholeImages, accepting, renders_of, too_large
 from service.diagnosis.rendered import options_of
+from service.images.grading import grade
+from service.work import pipeline
 from tracer import RenderCancelled, Renderer
 from tracer.scene.variants import BOUNDS, VARIANTS
 
@@ -53,10 +55,6 @@ def test_a_grade_renders_each_rung_of_the_offsets_ladders_once_in_the_one_cache(
     """A mistaken image is graded against the accepted offsets' ladder, then diagnosed against the ladder of offsets
     too large, which starts at the accepted ladder's top: that rung's rows, like every other's, are rendered once,
     and kept with the scene's renders for diagnosis (counted in the cache's one budget)."""
-    from service import pipeline
-    from service.diagnosis import Cached, accepting, too_large
-    from service.grading import grade
-
     scene = schemas.validate_scene(example("04_whitted", 80, 60))
     reference = Renderer(scene).pixels()
     wrong = Renderer(scene, VARIANTS["no-shadows"][0]).pixels()

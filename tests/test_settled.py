@@ -13,9 +13,9 @@ import student
 from schemas import validate_scene
 from service.diagnosis import accepting, diagnose, renders_of, settled, too_large
 from service.diagnosis.offsets import POINTS, rung, visible_size
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
-from tracer.variants import REFERENCE
+from tracer.scene.variants import REFERENCE
 
 WHITTED = Path(__file__).resolve().parent.parent / "examples" / "04_whitted.json"
 

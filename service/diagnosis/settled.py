@@ -9,7 +9,7 @@ either is taken:
 
 * **the rungs' ranges**: a range of two rungs leaves at least as many pixels off, on any rows, as on the rows
   looked at here, and as on any of its pixels: exact (a pixel's count depends on its 3×3 neighbourhood alone,
-  :mod:`service.nearby`), and
+  :mod:`service.images.nearby`), and
 * **the narrowing**: a range of amounts between two neighbouring rungs leaves off at least the pixels that the two
   rungs leave off where they render the pixel's whole neighbourhood alike (:func:`kept_off`): an amount between
   two others changes a ray's start between theirs, and a pixel whose every ray two amounts trace alike is traced
@@ -33,7 +33,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..nearby import rows_distance
+from ..images.nearby import rows_distance
 
 #: a pixel counts against a narrower range only when both rungs render every pixel this far from it alike (along
 #: its row; the rows above and below as well)
