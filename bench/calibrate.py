@@ -7,7 +7,7 @@ import time
 from typing import Any
 
 import schemas
-from service.limits import estimated_cost, per_ray_factor
+from service.admission.limits import estimated_cost, per_ray_factor
 from tracer.render import Renderer
 
 from .scenes import example, sphere_field

@@ -106,8 +106,8 @@ def cluster_rows(work: Path, local_class: dict[str, Any] | None) -> dict[str, An
     and the cost per task they imply, for the estimate of larger classes."""
     from distributed import LocalCluster
 
-    from service.cluster import connect
-    from service.cluster import render as render_on
+    from service.render.cluster import connect
+    from service.render.cluster import render as render_on
 
     scenes, subs = work / "class", work / "class" / "subs"
     if not (scenes / "scenes").exists():
@@ -238,7 +238,7 @@ def failing(student: int, task: int, share: float) -> bool:
 def _render_wrong(scene_path: str, out: str, mistake: str) -> None:
     """A failing student's image: the task's scene rendered with a classic mistake."""
     import tracer
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     scene = schemas.validate_scene(json.loads(Path(scene_path).read_text()))
     Path(out).write_bytes(tracer.encode_png(tracer.Renderer(scene, VARIANTS[mistake][0]).pixels(threads=1)))

@@ -3,7 +3,7 @@ failing submissions and writes what each diagnosis says; ``python -m bench.diagn
 again and names every one that now says something else.
 
 The set: the eight examples at ``--size`` (160×120 by default), each with a submission per classic mistake
-(:data:`tracer.variants.VARIANTS`, rendered with it) and five that are none of them (the reference 1.25× and
+(:data:`tracer.scene.variants.VARIANTS`, rendered with it) and five that are none of them (the reference 1.25× and
 0.7× as bright, shifted three pixels, noise, black).  The submissions that pass get no diagnosis and are
 skipped.  One :func:`service.diagnosis.renders_of` serves every submission of a scene, as a class's cache does
 (so the later ones find some renders made).  ``--calls`` prints instead where one cold diagnosis of each of the
@@ -27,9 +27,9 @@ import numpy as np
 import schemas
 from service.diagnosis import diagnose, renders_of
 from service.diagnosis.compose import merged
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
 from .scenes import example
 

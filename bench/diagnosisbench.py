@@ -13,10 +13,10 @@ from typing import Any
 
 import schemas
 from service.diagnosis import CACHE, renders_needed
-from service.grading import grade
-from service.pipeline import Graded, explain
+from service.images.grading import grade
+from service.work.pipeline import Graded, explain
 from tracer import Renderer
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
 from .scenes import example
 

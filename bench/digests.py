@@ -5,7 +5,7 @@ pixels moved and by how many levels.
 
 The corpus: the examples at their own size and at the per-student class's 320×240; each of the per-student
 class's ten tasks for four students (their own cameras and spheres, :mod:`bench.classbench`); the speed rows at a
-quarter of their size; every variant of the diagnosis (:mod:`tracer.variants`) on four examples; the diagnosis
+quarter of their size; every variant of the diagnosis (:mod:`tracer.scene.variants`) on four examples; the diagnosis
 passes' linear colour of the examples; and ``--generated N`` scenes of the fuzzer's generator (hard cases:
 rooms round the camera, glass with cores, lights on surfaces, huge beside tiny, far from the origin).  Images
 render on ``--threads`` threads (two by default, as the bench's do; one, as a class's are, renders in smaller
@@ -28,7 +28,7 @@ import numpy as np
 
 import schemas
 from tracer import Renderer
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
 from .classbench import PER_STUDENT_TASKS, _jittered
 from .scenes import EXAMPLES, example, speed_scenes

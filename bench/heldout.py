@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 import schemas
-from service.grading import grade
-from service.pipeline import Graded, explain
+from service.images.grading import grade
+from service.work.pipeline import Graded, explain
 from tracer import Renderer
 
 from .scenes import example
@@ -120,7 +120,7 @@ def case(
 
 def cases(name: str, size: tuple[int, int], cache: Path | None) -> list[Case]:
     """Every case of one example: honest, each mistake it can show alone, and the pairs of :data:`PAIRS`."""
-    from tracer.variants import unchanged
+    from tracer.scene.variants import unchanged
 
     oop = student()
     scene = schemas.validate_scene(example(name, *size))

@@ -28,8 +28,8 @@ from pathlib import Path
 
 import schemas
 import tracer
-from service import pipeline
 from service.classgrade import ClassRun, grade_class
+from service.work import pipeline
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import student  # noqa: E402

@@ -7,7 +7,7 @@ honest ones pass and the mistaken ones fail.
                          [--size WxH] [--same-scene] [--seed 1] [--set NAME=VALUE ...]
 
 The class: 70 % exact images, 15 % an honest tracer's 1e-3 ray offset along the normal (an accepted variant,
-:mod:`tracer.variants`), 15 % no shadow rays, in a shuffled order.  Each student's copy differs from the others
+:mod:`tracer.scene.variants`), 15 % no shadow rays, in a shuffled order.  Each student's copy differs from the others
 by a background a millionth brighter per student (a distinct scene to the server, as a class's copies are),
 unless ``--same-scene``; each image is rendered from the student's own copy.  ``--set queue_wait=5`` passes
 ``PHONGRAY_QUEUE_WAIT=5`` to the server.  Prints each kind's outcomes (right verdicts, wrong, never answered,
@@ -91,7 +91,7 @@ def image_of(scene: bytes, kind: str) -> bytes:
     """A student's PNG of their scene: exact, with an honest 1e-3 ray offset, or without shadow rays."""
     from schemas import load_scene
     from tracer import Renderer, encode_png
-    from tracer.variants import VARIANTS, Options
+    from tracer.scene.variants import VARIANTS, Options
 
     options = {"exact": Options(), "offset 1e-3": Options(offset=1e-3), "no shadows": VARIANTS["no-shadows"][0]}
     return encode_png(Renderer(load_scene(scene), options[kind]).pixels())

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from service import pipeline
+from service.work import pipeline
 from tracer import decode_png, encode_png
 from tracer.image import PNG_SIGNATURE, png_chunk
 from tracer.memory import release, tune_allocator

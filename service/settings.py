@@ -12,7 +12,7 @@ from __future__ import annotations
 from pydantic import ValidationError
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-from .cluster import CLUSTER_WAIT
+from .render.cluster import CLUSTER_WAIT
 
 
 class SettingsError(ValueError):
@@ -33,7 +33,9 @@ class Settings(BaseSettings):
     max_materials: int = 1_000
     max_lights: int = 1_024  # entries of "lights", ambient ones included
     max_light_samples: int = 1_024  # directional + point + spot lights + all area-light samples
-    max_cost: float = 1e8  # ray work a render may do, counted as it runs (service/limits.py, docs/cost-model.md)
+    max_cost: float = (
+        1e8  # ray work a render may do, counted as it runs (service/admission/limits.py, docs/cost-model.md)
+    )
     max_ray_bytes: int = 1024 * 1024 * 1024  # memory a render's rays in flight may hold
     max_concurrent_renders: int = 2  # renders at once per worker process; more wait their turn ...
     queue_wait: float = 60.0  # ... at most this many seconds, then get 503 with a Retry-After of the queue

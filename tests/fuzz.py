@@ -36,15 +36,15 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 import schemas  # noqa: E402
 from tracer import Renderer  # noqa: E402
-from tracer.bounds import SurfacePoints, bounds_of  # noqa: E402
-from tracer.cones import along_direction, on_lines, through_point  # noqa: E402
-from tracer.culling import MIXED, SEEN, classify  # noqa: E402
-from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
-from tracer.lights import illuminate  # noqa: E402
-from tracer.penumbra import Penumbra  # noqa: E402
-from tracer.rays import Rays, Shadows  # noqa: E402
-from tracer.shading import shading_normal  # noqa: E402
-from tracer.tiles import TILE, lit_tiles  # noqa: E402
+from tracer.exact.intersect import MISS, PLANE, SPHERE, TRIANGLE  # noqa: E402
+from tracer.proofs.bounds import SurfacePoints, bounds_of  # noqa: E402
+from tracer.proofs.cones import along_direction, on_lines, through_point  # noqa: E402
+from tracer.proofs.culling import MIXED, SEEN, classify  # noqa: E402
+from tracer.proofs.penumbra import Penumbra  # noqa: E402
+from tracer.proofs.tiles import TILE, lit_tiles  # noqa: E402
+from tracer.scene.lights import illuminate  # noqa: E402
+from tracer.scene.rays import Rays, Shadows  # noqa: E402
+from tracer.shade.shading import shading_normal  # noqa: E402
 
 import generator  # noqa: E402
 import reference  # noqa: E402
@@ -238,7 +238,7 @@ def _mirrors(
 ) -> None:
     """Mirror rays from the brute force's own clear hits, leaving their surfaces: phongray's walk (whatever the
     scene's materials, which may send none) against the brute force, and the pairs of rays of their own
-    directions (tracer.cones.on_lines) against the walk, bit for bit."""
+    directions (tracer.proofs.cones.on_lines) against the walk, bit for bit."""
     mirror = d - 2.0 * np.sum(d * shading, axis=1)[:, None] * shading
     mirror /= np.linalg.norm(mirror, axis=1)[:, None]
     ref = reference.closest(surfaces, p, mirror, which)
@@ -280,7 +280,7 @@ def _mirrors(
 
 
 def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> None:
-    """Every shadow ray the proofs of tracer.culling spare (tiles of points a point or directional light
+    """Every shadow ray the proofs of tracer.proofs.culling spare (tiles of points a point or directional light
     reaches whole, points that see every sample of an area light), cast all the same from phongray's own hits
     that face the light: none is blocked."""
     world, isect = renderer.world, renderer.intersector
@@ -334,8 +334,8 @@ def _proofs(out: Outcome, renderer: Renderer, camera_rays: Any, hits: Any) -> No
 def _penumbra(
     out: Outcome, renderer: Renderer, h: Any, normal: np.ndarray, mag: np.ndarray, culled: Any, group: Any
 ) -> None:
-    """An area light's mixed points' rays that tracer.penumbra.Penumbra decides without casting them, cast all the
-    same: each proven blocked is blocked, each left uncast and not blocked is clear."""
+    """An area light's mixed points' rays that tracer.proofs.penumbra.Penumbra decides without casting them, cast all
+    the same: each proven blocked is blocked, each left uncast and not blocked is clear."""
     world, isect = renderer.world, renderer.intersector
     mixed = np.flatnonzero(culled.state == MIXED)
     if len(mixed) == 0:
@@ -371,7 +371,7 @@ def _penumbra(
 
 
 def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach: np.ndarray | None = None) -> Any:
-    """The pairs :mod:`tracer.cones` proves for camera rays (from the eye, or along one direction) or for shadow
+    """The pairs :mod:`tracer.proofs.cones` proves for camera rays (from the eye, or along one direction) or for shadow
     rays towards ``light`` (or along one direction, for a directional light): None where no proof applies."""
     bounds, tris = bounds_of(renderer.world), renderer.world.triangles
     if bounds is None or len(rays) == 0:
@@ -386,7 +386,7 @@ def _cones(renderer: Renderer, rays: Any, light: np.ndarray | None = None, reach
 
 
 def _same_by_cones(out: Outcome, kind: str, walked: Any, by_cones: Any) -> None:
-    """The hits found with :mod:`tracer.cones`' pairs are the walk's, bit for bit."""
+    """The hits found with :mod:`tracer.proofs.cones`' pairs are the walk's, bit for bit."""
     same = (
         (walked.kind == by_cones.kind)
         & (walked.index == by_cones.index)

@@ -8,7 +8,7 @@ one ray at a time) on the eight examples, the Cornell-box homework and the hard 
 (a glass box resting on a floor, a scene sized by a radius-1000 ground sphere, one with a far tiny sphere out
 of view), and prints a Markdown table per section and the confusion matrix:
 
-* ``honest``: offsets along the normal of 1e-4, 1e-3 and 3e-3 of the visible size (:mod:`tracer.visible`), t_min
+* ``honest``: offsets along the normal of 1e-4, 1e-3 and 3e-3 of the visible size (:mod:`tracer.exact.visible`), t_min
   of 1e-4 to 1e-2 of it, float32 and float64 tracers, 2×2 samples (on the scenes sampled once per pixel): each
   must pass (``pass``, or ``pass*`` as an accepted variant);
 * ``alone``: each mistake of tests/student.py alone: ``—`` where the image is the reference's (the scene cannot
@@ -42,9 +42,9 @@ import student_f32  # noqa: E402
 import student_oop  # noqa: E402
 
 from schemas import load_scene  # noqa: E402
-from service import pipeline  # noqa: E402
-from service.classgrade.gradebook import matched  # noqa: E402
 from service.diagnosis.offsets import visible_size  # noqa: E402
+from service.diagnosis.records import matched  # noqa: E402
+from service.work import pipeline  # noqa: E402
 from tracer import Renderer, encode_png  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -4,7 +4,7 @@ It is what a course's student writes: a camera, the lights, the Phong model,
 shadow rays and the ray tree, in float64, one depth at a time.  Finding what
 a ray hits is taken from the brute force (:mod:`reference`), so that the
 student's image differs from the reference only where a mistake is switched
-on.  The switches are named as :data:`tracer.variants.VARIANTS` names them,
+on.  The switches are named as :data:`tracer.scene.variants.VARIANTS` names them,
 but nothing here comes from ``tracer/``: the mistakes are made the way a
 student makes them, not the way the tracer's variants imitate them.
 """

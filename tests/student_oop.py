@@ -8,8 +8,8 @@ NumPy with the brute force's hits): two students, two styles.  Rays leave a
 surface by a small offset along the normal (:data:`EPS`), as most students'
 do.  It is slow (pure Python per ray) and meant for small images, 64×48 or so.
 
-The switches are the classic mistakes (named as :data:`tracer.variants.VARIANTS`
-names them) and those of :data:`tracer.variants.MORE_VARIANTS`; any of them
+The switches are the classic mistakes (named as :data:`tracer.scene.variants.VARIANTS`
+names them) and those of :data:`tracer.scene.variants.MORE_VARIANTS`; any of them
 compose (a student with two bugs).  A mistake is made as a student makes it,
 not as the tracer's variants imitate it: the ray offset far too large is this
 student's own amount (:data:`TOO_LARGE`, not the variant's), shadow acne is a

@@ -15,13 +15,13 @@ import pytest
 import student
 
 from schemas import load_scene
-from service import pipeline
-from service.classgrade.errors import ClassError
 from service.classgrade.taskfile import load_tasks
+from service.course.errors import ClassError
 from service.diagnosis import accepting
-from service.grading import grade
+from service.images.grading import grade
+from service.work import pipeline
 from tracer import Renderer, encode_png
-from tracer.variants import REFERENCE, Options, scene_size
+from tracer.scene.variants import REFERENCE, Options, scene_size
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 WHITTED = EXAMPLES / "04_whitted.json"

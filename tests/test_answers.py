@@ -15,11 +15,11 @@ from fastapi.testclient import TestClient
 from PIL import Image
 
 import schemas
-from service import passes
 from service.http.app import create_app
-from service.http.jobs import OutOfMemory, RenderService, prepare
-from service.pipeline import compare
+from service.render import passes
 from service.settings import Settings
+from service.work.jobs import OutOfMemory, RenderService, prepare
+from service.work.pipeline import compare
 from tracer import Renderer
 
 from helpers import SCENES, scene_dict
@@ -288,10 +288,10 @@ def test_a_pass_or_a_diagnosis_out_of_memory_is_a_503_not_a_500(monkeypatch):
     png = service.png(job)
     reference = Renderer(job.scene).pixels()
     wrong = Renderer(job.scene.model_copy(update={"lights": job.scene.lights[:1]})).pixels()
-    monkeypatch.setattr("service.http.jobs.explain", starved)
+    monkeypatch.setattr("service.work.jobs.explain", starved)
     with pytest.raises(OutOfMemory):  # (the accepted variants unchecked: no verdict now, a 503, never a FAIL)
         service.explain(job, compare(png, wrong, 2, 0.001), reference, wrong)
-    from service.pipeline import explain
+    from service.work.pipeline import explain
 
     def diagnosis_starved(*args, **kwargs):  # the verdict decided, its diagnosis out of memory
         checks = kwargs.get("checks", args[4] if len(args) > 4 else None)
@@ -299,7 +299,7 @@ def test_a_pass_or_a_diagnosis_out_of_memory_is_a_503_not_a_500(monkeypatch):
             raise MemoryError("Unable to allocate 384. MiB")
         return explain(*args, **kwargs)
 
-    monkeypatch.setattr("service.http.jobs.explain", diagnosis_starved)
+    monkeypatch.setattr("service.work.jobs.explain", diagnosis_starved)
     explained = service.explain(job, compare(png, wrong, 2, 0.001), reference, wrong)
     assert explained.diagnosis is not None and "ran out of memory" in explained.diagnosis.sentence()
     assert explained.grade.passed is False

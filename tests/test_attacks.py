@@ -46,7 +46,7 @@ def rss_mib(pids: list[int]) -> float:
 
 class Probe:
     """Asks /healthz every 20 ms on a fresh connection, as a health checker would, and keeps the slowest: the
-    server gives each new connection to the worker holding the fewest (service/balance.py), so this is how
+    server gives each new connection to the worker holding the fewest (service/http/balance.py), so this is how
     long the server takes to answer one while it is attacked."""
 
     def __init__(self, url: str):

@@ -167,7 +167,7 @@ def test_the_bundles_accepted_variants_are_rendered_beforehand(tmp_path: Path):
     from schemas import load_scene
     from service.diagnosis.accepting import accepted_ladders, file_name
     from tracer import Renderer, encode_png
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     whitted = CLASS.parent / "04_whitted.json"
     (tmp_path / "scenes").mkdir()

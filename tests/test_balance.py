@@ -1,4 +1,5 @@
-"""Connections spread over a server's workers (service/balance.py): the worker holding the fewest takes the next."""
+"""Connections spread over a server's workers (service/http/balance.py): the worker holding the fewest takes the
+next."""
 
 import http.client
 import json
@@ -10,7 +11,7 @@ import time
 
 import pytest
 
-from service.balance import PATIENCE, Board, balanced_loop
+from service.http.balance import PATIENCE, Board, balanced_loop
 from service.settings import Settings
 
 from server import running_server
@@ -27,7 +28,7 @@ def test_a_board_counts_each_workers_connections_and_names_whose_turn_it_is():
                 sys.executable,
                 "-c",
                 (
-                    "import sys, time; from service.balance import Board; b = Board(sys.argv[1]); b.claim(); "
+                    "import sys, time; from service.http.balance import Board; b = Board(sys.argv[1]); b.claim(); "
                     "b.opened(); print(b.slot, flush=True); time.sleep(30)"
                 ),
                 board.path,

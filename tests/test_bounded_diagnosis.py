@@ -10,7 +10,7 @@ import pytest
 import schemas
 from bench.answers import many_lights as bench_scene
 from service.diagnosis import Cached, diagnose, fit, rendered, renders_of
-from service.grading import grade
+from service.images.grading import grade
 from tracer import RenderCancelled, Renderer
 
 

@@ -1,8 +1,8 @@
-"""What the proofs share (tracer/bounds.py): the plane rule and a sphere seen from inside."""
+"""What the proofs share (tracer/proofs/bounds.py): the plane rule and a sphere seen from inside."""
 
 import numpy as np
 
-from tracer.bounds import centre_side, plane_clear
+from tracer.proofs.bounds import centre_side, plane_clear
 
 
 def test_the_plane_rule_clears_points_on_the_far_points_side_beyond_the_margin():

@@ -191,7 +191,7 @@ def test_an_image_of_one_row_or_column_holds_no_table_of_its_size(size):
 
 @pytest.mark.parametrize("name", ["08_antialiased", "06_orthographic"])
 def test_the_camera_rays_are_the_same_made_per_batch(name, monkeypatch):
-    from tracer import camera
+    from tracer.scene import camera
 
     scene = schemas.validate_scene(scene_dict(name))
     tabled = Renderer(scene).pixels(threads=2, chunk_rays=5000)

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from service.classgrade.bundled import load_program, program_json
-from service.classgrade.errors import ClassError
 from service.cli import main
+from service.course.errors import ClassError
 from service.programs import Limits, check_sandbox
 from service.programs.program import Program
 

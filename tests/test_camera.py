@@ -5,7 +5,7 @@ import math
 import numpy as np
 
 import schemas
-from tracer.camera import CameraRays
+from tracer.scene.camera import CameraRays
 
 
 def camera(**cam):

@@ -1,4 +1,4 @@
-"""The walk's grid of cells (tracer/cells.py): what each part of a cell holds, whatever the boxes' sizes.
+"""The walk's grid of cells (tracer/exact/cells.py): what each part of a cell holds, whatever the boxes' sizes.
 
 The walk's guarantee rests on one property: every box is registered in every
 part of a cell it comes within the reach of.  The scenes here walk among
@@ -15,7 +15,7 @@ from test_sightlines import BALL, sphere_mesh
 
 import schemas
 from tracer import render
-from tracer.cells import SUB, build_cells, stable_order
+from tracer.exact.cells import SUB, build_cells, stable_order
 
 
 def random_boxes(n, seed=3, size=0.1):
@@ -198,7 +198,7 @@ def test_walking_by_cells_agrees_with_the_brute_force(name):
 
 def test_a_scene_over_the_cells_budget_walks_coarser_cells_to_the_same_pixels():
     data = CASES["mesh ball among small spheres"]
-    with mock.patch("tracer.cells.BUDGET_PER", -(10**9)):
+    with mock.patch("tracer.exact.cells.BUDGET_PER", -(10**9)):
         pixels = render(schemas.validate_scene(data))
     assert np.array_equal(pixels, render(schemas.validate_scene(data)))
 

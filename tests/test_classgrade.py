@@ -400,7 +400,7 @@ def test_gradescope_results_of_every_student(klass, tmp_path):
 
 
 def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_path):
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     scenes, subs = tmp_path / "scenes", tmp_path / "subs"
     scenes.mkdir()
@@ -486,7 +486,7 @@ MISTAKEN = {
 @pytest.fixture(scope="module")
 def mistaken(tmp_path_factory):
     """One task (lamps, 4 points) and a student per classic mistake, graded with deductions: (report, rows)."""
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     root = tmp_path_factory.mktemp("mistaken")
     scenes, subs = root / "scenes", root / "subs"
@@ -568,7 +568,7 @@ def test_the_mistake_ids_are_documented_and_in_grade_json(mistaken, tmp_path, ca
     import re
     from pathlib import Path
 
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     docs = (Path(__file__).parent.parent / "docs" / "grading.md").read_text()
     section = docs[docs.index("\n### The mistake ids\n") :]

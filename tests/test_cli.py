@@ -39,11 +39,11 @@ def test_a_render_starts_without_the_settings_or_pillow(tmp_path):
 
 
 def test_a_large_render_on_forked_processes_is_the_same_bytes(tmp_path):
-    """`phongray render` spreads a large render over forked processes (service.rendering.render_forked): the
+    """`phongray render` spreads a large render over forked processes (service.render.rendering.render_forked): the
     PNG is the same bytes as a render on threads."""
     import schemas
     import tracer
-    from service.rendering import FORKED_RAYS
+    from service.render.rendering import FORKED_RAYS
 
     data = json.loads((SCENES / "02_all_lights.json").read_text())
     data["image"].update(width=640, height=480)
@@ -58,7 +58,7 @@ def test_a_large_render_on_forked_processes_is_the_same_bytes(tmp_path):
 def test_bands_on_forked_processes_are_the_rows_of_the_render():
     import schemas
     import tracer
-    from service.rendering import render_forked
+    from service.render.rendering import render_forked
 
     data = json.loads((SCENES / "08_antialiased.json").read_text())
     data["image"].update(width=48, height=37)
@@ -403,7 +403,7 @@ def tracer_render(data):
 def variant_render(data, name):
     import schemas
     import tracer
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     return tracer.encode_png(tracer.Renderer(schemas.validate_scene(data), VARIANTS[name][0]).pixels())
 

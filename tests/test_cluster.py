@@ -16,9 +16,10 @@ import pytest
 
 import schemas
 import tracer
-from service import classgrade, cluster
+from service import classgrade
 from service.classgrade import ClassRun
 from service.cli import main
+from service.render import cluster
 
 from helpers import SCENES, measured, scene_dict
 from server import free_port, running_server
@@ -369,9 +370,9 @@ def test_a_pass_and_a_diagnosis_on_the_cluster_are_the_local_ones(dask, tmp_path
 
     from PIL import Image
 
-    from service import passes
     from service.diagnosis import diagnose, renders_of
-    from service.grading import grade
+    from service.images.grading import grade
+    from service.render import passes
 
     address, _ = dask
     body = (SCENES / "02_all_lights.json").read_bytes()

@@ -18,9 +18,9 @@ from service.diagnosis.compose import (
     telling_rows,
 )
 from service.diagnosis.records import Term
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
-from tracer.variants import REFERENCE, Options, unchanged
+from tracer.scene.variants import REFERENCE, Options, unchanged
 
 from helpers import scene_dict
 

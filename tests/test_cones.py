@@ -1,8 +1,8 @@
-"""Rays through a point or along a direction (tracer/cones.py): every surface an exact test finds hit is paired.
+"""Rays through a point or along a direction (tracer/proofs/cones.py): every surface an exact test finds hit is paired.
 
 Each test builds a scene of spheres and triangles (slivers, specks, a planet, a triangle edge-on to the apex,
 an apex inside a sphere), casts rays aimed at the surfaces, their rims and their edges, tests every ray
-against every surface with the exact tests of tracer/shapes.py, and asks that each hit be among the pairs
+against every surface with the exact tests of tracer/scene/shapes.py, and asks that each hit be among the pairs
 the cones give; and that the pairs are far fewer than every ray against every surface.
 """
 
@@ -11,10 +11,10 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.bounds import bounds_of
-from tracer.cones import along_direction, through_point
-from tracer.shapes import SPHERE, TRIANGLE, sphere_t, triangle_t
-from tracer.surfaces import unit
+from tracer.proofs.bounds import bounds_of
+from tracer.proofs.cones import along_direction, through_point
+from tracer.scene.shapes import SPHERE, TRIANGLE, sphere_t, triangle_t
+from tracer.scene.surfaces import unit
 
 
 def scene_of(rng, scale=1.0, shift=0.0):
@@ -177,8 +177,8 @@ def test_a_triangles_edge_planes_keep_their_direction_far_from_the_apex(ratio):
     # cross product of the apex-to-corner vector and the edge itself, within NORMAL_ERROR of the exact one
     from fractions import Fraction
 
-    from tracer.cones import _edge_plane
-    from tracer.margins import NORMAL_ERROR
+    from tracer.proofs.cones import _edge_plane
+    from tracer.proofs.margins import NORMAL_ERROR
 
     rng = np.random.default_rng(int(-np.log10(ratio)))
     apex = rng.normal(size=3) * 1e3

@@ -1,11 +1,11 @@
-"""phongray in a student's program (service.programs.copied): its own code in the folder is counted by the
+"""phongray in a student's program (service.classgrade.copied): its own code in the folder is counted by the
 lines it shares with phongray's source, far more than any program written apart from it shares."""
 
 import shutil
 import site
 from pathlib import Path
 
-from service.programs.copied import LINES, fingerprint, phongray_code
+from service.classgrade.copied import LINES, fingerprint, phongray_code
 
 ROOT = Path(__file__).parent.parent
 HERE = Path(__file__).parent / "programs"

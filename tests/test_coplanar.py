@@ -1,5 +1,5 @@
 """Overlapping surfaces in one plane: the same choice across the whole overlap, at every scale, by the stated order
-(tracer.ties, tracer.coplanar), and the pixels the format leaves open (tracer.render.Picture)."""
+(tracer.exact.ties, tracer.scene.coplanar), and the pixels the format leaves open (tracer.render.Picture)."""
 
 import copy
 import itertools
@@ -9,10 +9,10 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.best import Best
-from tracer.coplanar import coplanar_groups
-from tracer.intersect import TRIANGLE, Intersector
-from tracer.world import build_world
+from tracer.exact.best import Best
+from tracer.exact.intersect import TRIANGLE, Intersector
+from tracer.scene.coplanar import coplanar_groups
+from tracer.scene.world import build_world
 
 from helpers import scaled, translated
 
@@ -207,7 +207,8 @@ def test_a_tile_within_rounding_of_a_floor_is_in_it(lift):
 def test_a_grade_does_not_count_the_open_pixels_against_a_submission():
     # a student whose tracer breaks the tie the other way shows the background through the glass box's bottom:
     # every open pixel differs, and nothing else does
-    from service import grading, pipeline
+    from service.images import grading
+    from service.work import pipeline
     from tracer import encode_png
 
     data = box_scene(size=(80, 60))
@@ -233,8 +234,8 @@ def test_a_variant_world_of_the_opaque_surfaces_alone_keeps_its_own_groups():
     # coplanar groups are those of the surfaces it keeps, numbered as it numbers them (the glass box's bottom
     # gone, an opaque box resting on the floor is grouped with it), and the glass box on the floor renders as the
     # box without its bottom renders
-    from tracer.seethrough import Opaque
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
+    from tracer.shade.seethrough import Opaque
 
     data = box_scene("mesh", floor_first=False)
     cube = copy.deepcopy(glass_box())

@@ -1,4 +1,4 @@
-"""Area lights by proof (tracer/culling.py): points proven to see every sample, or none, against every sample."""
+"""Area lights by proof (tracer/proofs/culling.py): points proven to see every sample, or none, against every sample."""
 
 from dataclasses import replace
 from fractions import Fraction
@@ -8,10 +8,10 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.bounds import Bounds, SurfacePoints, bounds_of
-from tracer.culling import HIDDEN, MIXED, SEEN, _faces, classify
-from tracer.margins import NORMAL_ERROR
-from tracer.shapes import PLANE, SPHERE
+from tracer.proofs.bounds import Bounds, SurfacePoints, bounds_of
+from tracer.proofs.culling import HIDDEN, MIXED, SEEN, _faces, classify
+from tracer.proofs.margins import NORMAL_ERROR
+from tracer.scene.shapes import PLANE, SPHERE
 
 import generator
 import reference
@@ -106,10 +106,10 @@ def test_proofs_hold_against_every_sample_of_the_brute_force():
 
 def test_tiles_of_neighbouring_points_proven_seen_see_every_sample():
     """Points in the order a render makes them (rows of neighbours), so that whole tiles are proven SEEN
-    (tracer.culling._seen_tiles): every SEEN point is blocked by no sample of the brute force, and the tiles
+    (tracer.proofs.culling._seen_tiles): every SEEN point is blocked by no sample of the brute force, and the tiles
     spare the per-point proofs most points."""
-    from tracer.culling import _classify, _seen_tiles
-    from tracer.tiles import TILE
+    from tracer.proofs.culling import _classify, _seen_tiles
+    from tracer.proofs.tiles import TILE
 
     rng = np.random.default_rng(8)
     objects = [

@@ -11,11 +11,11 @@ import schemas
 from service.diagnosis import WholeImages, diagnose, renders_of
 from service.diagnosis.fit import nnls
 from service.diagnosis.where import where as diagnosis_where
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
 from tracer.image import quantize
-from tracer.passes import ADDITIVE
-from tracer.variants import BOUNDS, VARIANTS
+from tracer.scene.variants import BOUNDS, VARIANTS
+from tracer.shade.passes import ADDITIVE
 
 
 @pytest.fixture(scope="module")
@@ -253,7 +253,7 @@ def test_a_first_look_counts_off_pixels_as_the_grade_does():
     """Both ways: the submitted rows above and below a middle row count too (a reference pixel nothing around it
     matches is off), as the grade counts them."""
     from service.diagnosis.looks import _off_nearby
-    from service.grading import nearby_difference
+    from service.images.grading import nearby_difference
 
     rng = np.random.default_rng(3)
     for _ in range(20):
@@ -392,7 +392,7 @@ def test_a_mistake_the_scene_cannot_show_is_never_named_even_against_a_foreign_r
     verdict = grade(foreign, ours, "")
     assert not verdict.passed
     found = diagnose(foreign, ours, verdict, renders_of(scene))
-    from tracer.variants import unchanged
+    from tracer.scene.variants import unchanged
 
     assert not any(unchanged(c.variant, scene) for c in found.causes)
 
@@ -445,7 +445,7 @@ def test_two_diagnoses_of_one_cached_scene_stop_each_on_its_own_cancel():
 
     from bench.scenes import example
     from service.diagnosis import CACHE
-    from service.pipeline import Checking, Graded, explain
+    from service.work.pipeline import Checking, Graded, explain
     from tracer import RenderCancelled
 
     scene = schemas.validate_scene(example("01_three_spheres", 40, 30))

@@ -299,7 +299,7 @@ def test_playground_lists_errors_in_line_order_and_clears_them_as_the_scene_is_e
 def variant_png(text: bytes, name: str) -> bytes:
     import schemas
     import tracer
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     return tracer.encode_png(tracer.Renderer(schemas.load_scene(text), VARIANTS[name][0]).pixels())
 

@@ -1,11 +1,11 @@
-"""The Embree BVH (tracer/embree.py): its frame, and that the fast copy of a mesh gives Embree the same mesh."""
+"""The Embree BVH (tracer/exact/embree.py): its frame, and that the fast copy of a mesh gives Embree the same mesh."""
 
 from unittest import mock
 
 import numpy as np
 
-from tracer import embree
-from tracer.embree import Bvh, frame
+from tracer.exact import embree
+from tracer.exact.embree import Bvh, frame
 
 
 def random_mesh(n_vertices=3000, n_faces=6000, seed=2):

@@ -10,11 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from service.classgrade.gradebook import matched
+from service.classgrade.job import Program, _runner
 from service.classgrade.tasks import grade_task
+from service.diagnosis.records import matched
 from service.programs import Limits, check_sandbox
 from service.programs.experiment import Thresholds, experiment, render_png
-from service.programs.job import Program, _runner
 from service.programs.outcome import Reason, RunOutcome
 from service.programs.probes import Kind
 from tracer.image import PNG_SIGNATURE, png_chunk

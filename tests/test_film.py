@@ -3,7 +3,7 @@
 import numpy as np
 
 from tracer.film import Film, stored
-from tracer.variants import REFERENCE, VARIANTS
+from tracer.scene.variants import REFERENCE, VARIANTS
 
 
 def test_sums_do_not_depend_on_the_order_contributions_come_in():

@@ -1,4 +1,4 @@
-"""`phongray render` of a large image forks a process per core (service.rendering.render_forked): the processes
+"""`phongray render` of a large image forks a process per core (service.render.rendering.render_forked): the processes
 die with the parent, whatever signal reaches it alone, and a process killed mid-render is one line, exit 1."""
 
 import json

@@ -3,8 +3,8 @@
 A few hundred scenes of :mod:`generator` at tiny sizes, each compared ray by
 ray and pixel by pixel (:mod:`fuzz`), on every core: camera rays, mirror rays
 leaving the hit surfaces (the walk from a surface) and shadow rays; the camera,
-mirror and shadow rays also by :mod:`tracer.cones`' pairs, against the walk,
-bit for bit; and every shadow ray the lights' proofs (:mod:`tracer.culling`)
+mirror and shadow rays also by :mod:`tracer.proofs.cones`' pairs, against the walk,
+bit for bit; and every shadow ray the lights' proofs (:mod:`tracer.proofs.culling`)
 decide without casting, cast.  A soak of thousands is ``python -m tests.fuzz
 --scenes 10000``.
 """

@@ -8,9 +8,9 @@ from fastapi.testclient import TestClient
 
 import schemas
 import tracer
-from service import grading, heatmap
 from service.cli import main
 from service.http.app import create_app
+from service.images import grading, heatmap
 from service.settings import Settings
 
 from helpers import SCENES, scene_dict

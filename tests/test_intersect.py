@@ -8,22 +8,22 @@ import numpy as np
 import pytest
 
 import schemas
-import tracer.intersect
-import tracer.walk
-from tracer.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector
-from tracer.rays import Shadows
-from tracer.shapes import plane_t, sphere_t, triangle_t
-from tracer.surfaces import max_abs
-from tracer.walk import Best
-from tracer.world import build_world
+import tracer.exact.intersect
+import tracer.exact.walk
+from tracer.exact.intersect import MISS, PLANE, SPHERE, TRIANGLE, Intersector
+from tracer.exact.walk import Best
+from tracer.scene.rays import Shadows
+from tracer.scene.shapes import plane_t, sphere_t, triangle_t
+from tracer.scene.surfaces import max_abs
+from tracer.scene.world import build_world
 
 
 @pytest.fixture(autouse=True)
 def cell_walk(request, monkeypatch):
     """Every BVH walks its cells, unless a test is marked ``as_rendered`` (the settings rendering uses)."""
     if "as_rendered" not in request.keywords:
-        monkeypatch.setattr(tracer.walk, "FEW", 0)
-        monkeypatch.setattr(tracer.intersect, "DIRECT_MAX", 2)
+        monkeypatch.setattr(tracer.exact.walk, "FEW", 0)
+        monkeypatch.setattr(tracer.exact.intersect, "DIRECT_MAX", 2)
 
 
 def scene_with(objects, camera=None):
@@ -61,7 +61,7 @@ def random_field(rng, count, big=False):
 def brute_force(world, o, d, fk, fi, reach=None, ends=None):
     """Every surface tested against every ray: best t, kind and index (the least key on a tie).  A member of a
     coplanar group is left by a ray that leaves any member, and its closest hits are timed on the group's plane
-    (tracer.coplanar)."""
+    (tracer.scene.coplanar)."""
     n = len(o)
     isect = Intersector(world)
     best = Best(np.full(n, np.inf) if reach is None else reach, isect.ties)
@@ -326,7 +326,7 @@ def test_a_few_primitives_agree_with_brute_force_as_rendering_tests_them(spheres
     isect = Intersector(world)
     few = spheres + 2 * triangles
     assert (isect.walker is None) == (spheres + triangles <= 3)
-    assert isect.walker is None or isect.walker.few == (few <= tracer.walk.FEW)
+    assert isect.walker is None or isect.walker.few == (few <= tracer.exact.walk.FEW)
     origins = rng.uniform(-3, 3, (3000, 3)) - world.origin
     dirs = rng.normal(size=(3000, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
@@ -342,7 +342,7 @@ def test_precision_does_not_depend_on_where_look_at_is():
 
 
 def test_slab_enters_and_leaves_a_box_along_every_axis_and_never_when_beside_it():
-    from tracer.walk import slab
+    from tracer.exact.walk import slab
 
     o = np.array([[0.5, 2.0, 0.5], [0.5, 0.5, 0.5], [-1, 0.5, 0.5], [0.5, 0.5, -3], [2, 2, 2]])
     d = np.array([[1.0, 0, 0], [0, 0, 1.0], [1, 0, 0], [0, 0, -1.0], [-1, -1, -1]])

@@ -1,4 +1,4 @@
-"""A student's program graded as one job (service.programs.job): built once, run on each task, each image
+"""A student's program graded as one job (service.classgrade.job): built once, run on each task, each image
 graded as an upload's; a failed run or build is a failing grade with its reason, and the job goes on."""
 
 import os
@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 
 from schemas import load_scene
+from service.classgrade.job import Program, ProgramJob, TaskScene, digest, grade_program
 from service.classgrade.records import GradeJob
 from service.programs import Limits, check_sandbox
-from service.programs.job import Program, ProgramJob, TaskScene, digest, grade_program
 from service.programs.pack import pack_folder
 from tracer import encode_png, render
 

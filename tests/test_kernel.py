@@ -5,11 +5,11 @@ import numpy as np
 
 import schemas
 from tracer import Renderer
-from tracer.intersect import PLANE
-from tracer.kernel import Kernel, Points
-from tracer.lights import build_emitters
-from tracer.rays import Hits
-from tracer.variants import REFERENCE, VARIANTS
+from tracer.exact.intersect import PLANE
+from tracer.scene.lights import build_emitters
+from tracer.scene.rays import Hits
+from tracer.scene.variants import REFERENCE, VARIANTS
+from tracer.shade.kernel import Kernel, Points
 
 
 def floor_points(xs, shininess, dirs=None):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import schemas
-from tracer.lights import build_emitters, illuminate
+from tracer.scene.lights import build_emitters, illuminate
 
 ORIGIN = np.zeros(3)
 

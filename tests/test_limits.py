@@ -1,5 +1,6 @@
 """A render is priced by the work it does: refused up front only for what is certain, estimated from what the
-scene can really spawn, and held to a budget counted while it runs (service/limits.py, service/estimate.py)."""
+scene can really spawn, and held to a budget counted while it runs (service/admission/limits.py,
+service/admission/estimate.py)."""
 
 import json
 import subprocess
@@ -11,9 +12,9 @@ from fastapi.testclient import TestClient
 from test_render import nested_glass_and_mirror
 
 import schemas
+from service.admission.limits import LimitError, beyond_limits, check_scene, estimated_cost, per_ray_factor
 from service.cli import main
 from service.http.app import create_app
-from service.limits import LimitError, beyond_limits, check_scene, estimated_cost, per_ray_factor
 from service.settings import Settings
 from tracer import Renderer
 
@@ -233,7 +234,7 @@ def test_rays_that_each_meet_thousands_of_surfaces_are_stopped_naming_the_settin
 
 @pytest.mark.parametrize("name", ["04_whitted", "01_three_spheres", "05_mesh", "08_antialiased"])
 def test_honest_scenes_make_few_exact_tests_per_unit_of_cost(name):
-    from service.limits import TESTS_PER_COST
+    from service.admission.limits import TESTS_PER_COST
 
     scene = schemas.validate_scene(scene_dict(name))
     renderer = Renderer(scene)
@@ -242,7 +243,7 @@ def test_honest_scenes_make_few_exact_tests_per_unit_of_cost(name):
 
 
 def test_the_homework_and_nested_glass_make_few_exact_tests_per_unit_of_cost():
-    from service.limits import TESTS_PER_COST
+    from service.admission.limits import TESTS_PER_COST
 
     for data in (homework(160, 120), nested_glass_and_mirror(7, 64)):
         scene = schemas.validate_scene(data)

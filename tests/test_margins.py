@@ -1,10 +1,10 @@
-"""The proofs' margins (tracer/margins.py): the relations between them that their docstrings state, and the
+"""The proofs' margins (tracer/proofs/margins.py): the relations between them that their docstrings state, and the
 float32 error one of them bounds, measured."""
 
 import numpy as np
 
-from tracer import margins
-from tracer.shapes import UV_TOL
+from tracer.proofs import margins
+from tracer.scene.shapes import UV_TOL
 
 ULP = 2.0**-53  # the relative rounding of float64
 

@@ -1,4 +1,4 @@
-"""Render passes as files (service/passes.py): PNGs to look at and .npy values, from the CLI and /render."""
+"""Render passes as files (service/render/passes.py): PNGs to look at and .npy values, from the CLI and /render."""
 
 import io
 import json
@@ -8,14 +8,14 @@ import pytest
 from fastapi.testclient import TestClient
 
 import schemas
-from service import passes
 from service.cli import PASS_NAMES, main
 from service.http.app import create_app
 from service.http.routers.render import PassName
+from service.render import passes
 from service.settings import Settings
 from tracer import Renderer, decode_png
 from tracer.image import quantize
-from tracer.passes import ADDITIVE, NAMES
+from tracer.shade.passes import ADDITIVE, NAMES
 
 from helpers import SCENES
 

@@ -1,11 +1,11 @@
-"""Render passes (tracer/passes.py): the image taken apart term by term, and the debugging passes."""
+"""Render passes (tracer/shade/passes.py): the image taken apart term by term, and the debugging passes."""
 
 import numpy as np
 import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.passes import ADDITIVE, NAMES
+from tracer.shade.passes import ADDITIVE, NAMES
 
 from helpers import scene_dict
 

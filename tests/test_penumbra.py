@@ -1,4 +1,4 @@
-"""An area light's mixed points (tracer/penumbra.py): each shadow ray proven blocked or clear from its direction
+"""An area light's mixed points (tracer/proofs/penumbra.py): each shadow ray proven blocked or clear from its direction
 and length decides as the brute force's ray does."""
 
 import numpy as np
@@ -6,10 +6,10 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.bounds import SurfacePoints, bounds_of
-from tracer.culling import MIXED, classify
-from tracer.kinds import PLANE
-from tracer.penumbra import Penumbra
+from tracer.proofs.bounds import SurfacePoints, bounds_of
+from tracer.proofs.culling import MIXED, classify
+from tracer.proofs.penumbra import Penumbra
+from tracer.scene.kinds import PLANE
 
 import reference
 

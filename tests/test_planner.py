@@ -1,4 +1,5 @@
-"""Which proof spares which rays (tracer/planner.py): each condition decided once, from the scene and the options."""
+"""Which proof spares which rays (tracer/proofs/planner.py): each condition decided once, from the scene and the
+options."""
 
 from dataclasses import replace
 
@@ -6,8 +7,8 @@ import numpy as np
 
 import schemas
 from tracer import Renderer
-from tracer.planner import CONE_MAX, PROVEN_LIT, plan_proofs
-from tracer.variants import Options
+from tracer.proofs.planner import CONE_MAX, PROVEN_LIT, plan_proofs
+from tracer.scene.variants import Options
 
 
 def world_of(spheres: int):
@@ -33,7 +34,7 @@ def test_the_format_gets_every_proof_in_a_scene_of_few_surfaces():
 def test_too_many_surfaces_for_the_cones_leave_every_ray_unpaired():
     plan = plan_proofs(world_of(CONE_MAX + 1), Options(), None)
     assert plan.cone_bounds is None
-    assert plan.light_bounds is not None  # (the lights' proofs allow more: tracer.bounds.MAX_BOUNDS)
+    assert plan.light_bounds is not None  # (the lights' proofs allow more: tracer.proofs.bounds.MAX_BOUNDS)
 
 
 def test_a_variants_shadow_rays_get_no_proof_of_the_formats():
@@ -52,7 +53,7 @@ def test_points_lit_from_behind_get_no_tile_proof():
 def test_shadow_pairs_need_rays_from_the_exact_point():
     world = world_of(3)
     em = world.emitters[0]
-    from tracer.rays import Rays
+    from tracer.scene.rays import Rays
 
     origins = np.zeros((2, 3))
     dirs = np.tile([0.0, 1.0, 0.0], (2, 1))

@@ -1,4 +1,4 @@
-"""PPM submissions (service/ppm.py): P3 and P6 graded as their PNG is, everywhere a PNG is; hostile headers
+"""PPM submissions (service/images/ppm.py): P3 and P6 graded as their PNG is, everywhere a PNG is; hostile headers
 refused before a pixel is read."""
 
 import json
@@ -10,10 +10,11 @@ from fastapi.testclient import TestClient
 
 import schemas
 import tracer
-from service import grading, pipeline
 from service.http.app import create_app
-from service.ppm import HEADER_LIMIT, header
+from service.images import grading
+from service.images.ppm import HEADER_LIMIT, header
 from service.settings import Settings
+from service.work import pipeline
 
 from helpers import SCENES, scene_dict
 
@@ -152,14 +153,14 @@ def test_a_class_of_ppm_submissions_is_graded_as_its_pngs(tmp_path, rendered):
 
 
 def test_a_p3_is_read_a_block_at_a_time_with_no_value_cut_in_two(monkeypatch):
-    import service.ppm
+    import service.images.ppm
 
     px = np.random.default_rng(9).integers(0, 256, (7, 11, 3), dtype=np.uint8)
     data = p3(px)
     for block in (1, 2, 3, 5, 64):  # (a block of 1 to 3 bytes may hold no white space: it ends where it must)
-        monkeypatch.setattr(service.ppm, "BLOCK", block)
+        monkeypatch.setattr(service.images.ppm, "BLOCK", block)
         assert np.array_equal(grading.read_submission(data, (11, 7)), px), block
-    monkeypatch.setattr(service.ppm, "BLOCK", 4)
+    monkeypatch.setattr(service.images.ppm, "BLOCK", 4)
     with pytest.raises(grading.ImageError, match="a value of 4 digits"):
         grading.read_submission(b"P3 1 1 255\n1 2 0003\n", (1, 1))
 

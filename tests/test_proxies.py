@@ -1,10 +1,11 @@
-"""Proxies (tracer/proxies.py): each closed stand-in holds its surface grown by the margin, as the walk assumes."""
+"""Proxies (tracer/exact/proxies.py): each closed stand-in holds its surface grown by the margin, as the walk
+assumes."""
 
 import numpy as np
 import pytest
 
-from tracer.proxies import MARGIN, build_proxies
-from tracer.vec import cross
+from tracer.exact.proxies import MARGIN, build_proxies
+from tracer.scene.vec import cross
 
 
 def inside_convex(point, vertices, faces):
@@ -64,8 +65,8 @@ def test_the_margins_cover_float32_rounding_of_any_walk_query():
     # (|x| <= ~1 per axis) and runs at most its diagonal (2·sqrt(3)).  Rounding the origin to float32 moves it by
     # 2^-24 per axis, the direction by 2^-24 per axis over that length, and Embree's float32 crossing errs by a
     # few ulps: the float32 ray strays from the float64 one by at most DRIFT anywhere in the box.
-    from tracer.margins import CROSSING_SLACK
-    from tracer.proxies import REACH, STEP, TRIANGLE_MARGIN
+    from tracer.exact.proxies import REACH, STEP, TRIANGLE_MARGIN
+    from tracer.proofs.margins import CROSSING_SLACK
 
     ulp = 2.0**-24
     drift = np.sqrt(3) * ulp * 1.01 + 2 * np.sqrt(3) * np.sqrt(3) * ulp + 4 * ulp

@@ -7,12 +7,13 @@ import student
 from test_variants import _glass_over_floor
 
 import schemas
-from service.classgrade.gradebook import matched, partial, score
+from service.classgrade.gradebook import partial, score
 from service.classgrade.taskfile import TaskSettings
 from service.diagnosis import Cause, Diagnosis, diagnose, renders_of
-from service.grading import grade
+from service.diagnosis.records import matched
+from service.images.grading import grade
 from tracer import Renderer
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
 from helpers import scene_dict
 

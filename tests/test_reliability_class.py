@@ -29,8 +29,8 @@ from service.classgrade import report as report_module
 from service.classgrade.records import GradeJob
 from service.classgrade.report import neutral_cell, write_atomic
 from service.cli import main
-from service.display import printable
-from service.scenekey import scene_key
+from service.cli.display import printable
+from service.render.scenekey import scene_key
 
 from helpers import measured, scene_dict
 from server import running_server

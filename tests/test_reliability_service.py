@@ -17,10 +17,11 @@ from PIL import Image
 from starlette.testclient import TestClient
 
 from bench import bodies
-from service import client, grading
-from service.grading import LEVELS, _to_8bit, read_submission
+from service import client
 from service.http.app import create_app
 from service.http.middleware import BodyBudget
+from service.images import grading
+from service.images.grading import LEVELS, _to_8bit, read_submission
 from service.settings import Settings
 from tracer.image import PNG_SIGNATURE, png_chunk
 

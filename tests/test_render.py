@@ -272,7 +272,7 @@ def test_a_dropped_renderer_is_freed_at_once(name):
 
 
 def test_rows_rendered_alone_are_those_rows_of_the_image():
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     for name, options in (("04_whitted", None), ("08_antialiased", None), ("04_whitted", "image-flipped")):
         data = scene_dict(name)

@@ -15,13 +15,13 @@ import student
 import student_f32
 
 from schemas import load_scene
-from service import pipeline
 from service.classgrade.gradebook import score
 from service.classgrade.taskfile import TaskSettings
-from service.grading import GROSS_LEVELS, grade
-from service.nearby import gap, planes
+from service.images.grading import GROSS_LEVELS, grade
+from service.images.nearby import gap, planes
+from service.work import pipeline
 from tracer import Renderer, encode_png
-from tracer.variants import scene_size
+from tracer.scene.variants import scene_size
 
 ROOT = Path(__file__).resolve().parent.parent
 HARD = Path(__file__).resolve().parent / "hard_scenes"

@@ -549,7 +549,7 @@ def test_a_bad_name_is_an_error_at_its_place(name, said):
 
 
 def test_a_name_changes_no_image_and_unnamed_scenes_keep_their_key():
-    from service.scenekey import scene_key
+    from service.render.scenekey import scene_key
     from tracer import Renderer
 
     plain, named = (schemas.validate_scene(d) for d in (_named([None], [None]), _named(["ball"], ["key"])))

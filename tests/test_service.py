@@ -13,8 +13,8 @@ from PIL import Image
 
 import schemas
 import tracer
-from service import grading
 from service.http.app import create_app
+from service.images import grading
 from service.settings import Settings
 from tracer.image import png_chunk
 
@@ -195,7 +195,7 @@ def test_grading_an_image_with_a_light_removed_fails(api):
 
 
 def test_a_failing_grade_comes_with_its_diagnosis_and_a_pass_without(api, reference_png):
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     spec = api.get("/openapi.json").json()
     scene = schemas.load_scene(SCENE)
@@ -210,8 +210,8 @@ def test_a_failing_grade_comes_with_its_diagnosis_and_a_pass_without(api, refere
 
 
 def test_a_diagnosis_past_the_render_timeout_says_so():
-    from service.scenekey import scene_key
-    from tracer.variants import VARIANTS
+    from service.render.scenekey import scene_key
+    from tracer.scene.variants import VARIANTS
 
     api = client(render_timeout=0.0)
     text = SCENE.replace(b'"background": [0.05, 0.07, 0.12]', b'"background": [0.05, 0.07, 0.13]')
@@ -224,7 +224,7 @@ def test_a_diagnosis_past_the_render_timeout_says_so():
     assert late.status_code == 503 and "render_timeout" in late.json()["detail"] and "retry-after" in late.headers
     # once they are (kept from an earlier grade), only the diagnosis runs past the time, and says so
     from service.diagnosis.accepting import Failing, accept
-    from service.grading import grade as graded
+    from service.images.grading import grade as graded
 
     reference, submitted = tracer.render(scene), tracer.decode_png(gamma)
     assert accept(scene, Failing(reference, submitted, graded(reference, submitted, ""))) is None

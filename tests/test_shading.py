@@ -11,7 +11,7 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.shading import refract
+from tracer.shade.shading import refract
 
 MAT = {"ambient": 0.1, "diffuse": 0.5, "specular": 0.8, "shininess": 2}
 
@@ -137,8 +137,8 @@ def test_total_internal_reflection_mirrors():
 def test_an_emitter_no_plane_holds_leaves_every_n_dot_l_as_it_is():
     """planes_holding decides per surface what light_in_plane decides per hit: where it says no flat surface
     holds an emitter, light_in_plane changes no N·L of any hit; and it finds the lights that do lie in one."""
-    from tracer.shading import light_in_plane, planes_holding
-    from tracer.vec import dot
+    from tracer.scene.vec import dot
+    from tracer.shade.shading import light_in_plane, planes_holding
 
     import generator
 
@@ -161,7 +161,7 @@ def test_an_emitter_no_plane_holds_leaves_every_n_dot_l_as_it_is():
 
 
 def test_odd_cells_are_those_np_mod_finds_odd():
-    from tracer.shading import odd_cells
+    from tracer.shade.shading import odd_cells
 
     cells = np.array(
         [

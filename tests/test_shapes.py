@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from tracer.shapes import on_tolerance, plane_t, sphere_t, triangle_t
-from tracer.surfaces import unit
-from tracer.vec import along, dot, minus
+from tracer.scene.shapes import on_tolerance, plane_t, sphere_t, triangle_t
+from tracer.scene.surfaces import unit
+from tracer.scene.vec import along, dot, minus
 
 UP = np.array([0, 1.0, 0])
 TRI = (np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]))
@@ -125,7 +125,7 @@ def test_ray_leaving_a_triangle_or_lying_in_its_plane_misses_it():
 
 
 def test_a_plane_separates_a_segment_exactly_when_its_ends_lie_on_opposite_sides():
-    from tracer.shapes import Segments, plane_separates
+    from tracer.scene.shapes import Segments, plane_separates
 
     point, normal = np.zeros(3), np.array([0.0, 1.0, 0.0])
     origins = np.array([[0.0, 1e-3, 0.0], [0.0, 1e-3, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 0.0], [5.0, -1.0, 0.0]])
@@ -153,7 +153,7 @@ def test_a_plane_separates_a_segment_exactly_when_its_ends_lie_on_opposite_sides
 def test_sphere_roots_of_the_rays_that_may_hit_are_those_of_every_ray(light):
     """sphere_t finds the roots only for rays whose line meets the sphere or that start or end on it; the
     others are inf either way, and the rest carry the same bits as roots found for every ray."""
-    from tracer.shapes import _roots
+    from tracer.scene.shapes import _roots
 
     rng = np.random.default_rng(5)
     shadow = light is not None

@@ -1,4 +1,5 @@
-"""Plain triangles (tracer/sightlines.py): which go to Embree as themselves, and that nothing changes when they do.
+"""Plain triangles (tracer/proofs/sightlines.py): which go to Embree as themselves, and that nothing changes when they
+do.
 
 Every scene here is rendered twice: as the renderer does it (plain triangles
 where the scene's rays allow) and with every triangle behind a closed proxy.
@@ -15,11 +16,11 @@ from test_exactness import agrees_with_brute_force, scene
 
 import schemas
 from tracer import Renderer, render
-from tracer.camera import CameraRays
-from tracer.planner import scene_sightlines
-from tracer.shapes import triangle_t
-from tracer.sightlines import Sightlines, plain_triangles
-from tracer.world import build_world
+from tracer.proofs.planner import scene_sightlines
+from tracer.proofs.sightlines import Sightlines, plain_triangles
+from tracer.scene.camera import CameraRays
+from tracer.scene.shapes import triangle_t
+from tracer.scene.world import build_world
 
 
 def sphere_mesh(center, radius, level=3, material="m"):

@@ -1,4 +1,4 @@
-"""A worker's render slots (service/http/slots.py): taken in turn, waited for at most queue_wait, left by a
+"""A worker's render slots (service/work/slots.py): taken in turn, waited for at most queue_wait, left by a
 client that goes, and a Retry-After that reflects the queue; a grade whose accepted variants wait for a slot
 is decided, never failed for the load."""
 
@@ -14,10 +14,10 @@ from fastapi.testclient import TestClient
 import schemas
 import tracer
 from service.http.app import create_app
-from service.http.slots import Busy, Slots
 from service.settings import Settings
+from service.work.slots import Busy, Slots
 from tracer import RenderCancelled, Renderer
-from tracer.variants import Options
+from tracer.scene.variants import Options
 
 from helpers import scene_dict
 

@@ -19,8 +19,8 @@ from test_answers import _connect, _form, _noise_png, _request
 import schemas
 import tracer
 from service.http.app import create_app
-from service.pipeline import compare
 from service.settings import Settings
+from service.work.pipeline import compare
 
 from helpers import SCENES
 from server import running_server

@@ -5,10 +5,10 @@ import numpy as np
 
 import schemas
 from tracer import Renderer
-from tracer.intersect import SPHERE
-from tracer.rays import Hits, Rays, Work
-from tracer.spawn import Spawner
-from tracer.variants import REFERENCE, Spawn
+from tracer.exact.intersect import SPHERE
+from tracer.scene.rays import Hits, Rays, Work
+from tracer.scene.variants import REFERENCE, Spawn
+from tracer.shade.spawn import Spawner
 
 
 def mirror_world():

@@ -6,7 +6,7 @@ from test_compose import small
 
 from service.diagnosis.stored import image_level, outer, undone
 from tracer import Renderer
-from tracer.variants import Options
+from tracer.scene.variants import Options
 
 
 def test_undone_inverts_the_stored_images_flips_and_channel_swap():

@@ -9,9 +9,9 @@ import student_oop
 from test_variants import BRIGHT
 
 import schemas
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
-from tracer.variants import MORE_VARIANTS, VARIANTS
+from tracer.scene.variants import MORE_VARIANTS, VARIANTS
 
 from helpers import scene_dict
 

@@ -14,9 +14,9 @@ import schemas
 import tracer
 from service import classgrade
 from service.classgrade import ClassRun
-from service.classgrade.errors import ClassError
 from service.classgrade.submissions import discover
-from service.classgrade.untrusted import UntrustedFileError, read_untrusted
+from service.course.errors import ClassError
+from service.course.untrusted import UntrustedFileError, read_untrusted
 
 from helpers import scene_dict
 
@@ -313,7 +313,7 @@ def test_a_student_folder_swapped_for_a_link_while_the_references_render_is_not_
 
 
 def test_a_tasks_own_name_comes_before_a_resubmissions_suffix():
-    from service.classgrade.lms import TaskNames
+    from service.course.lms import TaskNames
 
     names = TaskNames(["Cornell", "cornell-2", "box"])
     assert [
@@ -510,7 +510,7 @@ def test_a_file_name_spelt_decomposed_is_the_tasks():
     """A Mac's archive spells café.png decomposed (NFD); the TA's scene café.json is composed (NFC)."""
     import unicodedata
 
-    from service.classgrade.lms import TaskNames
+    from service.course.lms import TaskNames
 
     nfc, nfd = (unicodedata.normalize(form, "café") for form in ("NFC", "NFD"))
     names = TaskNames([nfc, "box"])
@@ -540,7 +540,7 @@ def test_two_students_whose_names_differ_only_in_case_are_told_apart_by_their_id
 
 def test_a_resubmitted_copy_of_a_download_is_its_tasks():
     """A browser saved 'Spheres (1).png' and Canvas added its '-1' on a resubmission: 'Spheres (1)-1.png'."""
-    from service.classgrade.lms import TaskNames
+    from service.course.lms import TaskNames
 
     names = TaskNames(["spheres", "cornell-3", "cornell"])
     assert [

@@ -1,4 +1,4 @@
-"""Tiles of neighbouring hit points (tracer/tiles.py): a tile proven lit by a point or directional light is lit
+"""Tiles of neighbouring hit points (tracer/proofs/tiles.py): a tile proven lit by a point or directional light is lit
 from every point of it, against the brute force's shadow rays."""
 
 import numpy as np
@@ -6,9 +6,9 @@ import pytest
 
 import schemas
 from tracer import Renderer
-from tracer.bounds import SurfacePoints, bounds_of
-from tracer.kinds import PLANE
-from tracer.tiles import TILE, lit_tiles, tiles_of
+from tracer.proofs.bounds import SurfacePoints, bounds_of
+from tracer.proofs.tiles import TILE, lit_tiles, tiles_of
+from tracer.scene.kinds import PLANE
 
 import reference
 

@@ -6,13 +6,12 @@ import pytest
 import student
 from test_compose import small
 
-from service.classgrade.gradebook import matched
+from service.cli.display import explained
 from service.diagnosis import diagnose, renders_of
 from service.diagnosis.compose import Combination, Member, merged
-from service.diagnosis.records import Cause
+from service.diagnosis.records import Cause, matched
 from service.diagnosis.together import closer, together_causes
-from service.display import explained
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
 
 BOTH = Combination(

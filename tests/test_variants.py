@@ -1,4 +1,4 @@
-"""Variants (tracer/variants.py): a student's classic mistakes, as named options of a render."""
+"""Variants (tracer/scene/variants.py): a student's classic mistakes, as named options of a render."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,7 @@ import pytest
 import schemas
 from tracer import Renderer
 from tracer.image import quantize
-from tracer.variants import REFERENCE, VARIANTS, Options
+from tracer.scene.variants import MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
 from helpers import scene_dict
 
@@ -97,14 +97,14 @@ def test_variants_that_only_add_or_only_take_light():
 
 
 def test_the_far_end_of_acne_is_darker_than_acne_wherever_acne_shows():
-    from tracer.variants import BOUNDS
+    from tracer.scene.variants import BOUNDS
 
     ref, acne, far = (pixels(o).astype(int) for o in (REFERENCE, VARIANTS["shadow-acne"][0], BOUNDS["shadow-acne"]))
     assert np.all(far <= acne) and np.all(acne <= ref)
     assert np.mean(np.any(far < acne, axis=2)) > 0.05  # the far end shadows what acne leaves lit
 
 
-# -- variants a scene cannot show (tracer.variants.unchanged): the reference, bit for bit ------------------------
+# -- variants a scene cannot show (tracer.scene.variants.unchanged): the reference, bit for bit ------------------------
 
 
 def _plain():
@@ -155,7 +155,7 @@ PLAIN = _plain()
 
 @pytest.mark.parametrize("case", sorted(PLAIN))
 def test_a_variant_the_scene_cannot_show_renders_as_the_reference(case):
-    from tracer.variants import BOUNDS, MORE_VARIANTS, unchanged
+    from tracer.scene.variants import BOUNDS, MORE_VARIANTS, unchanged
 
     scene = schemas.validate_scene(PLAIN[case])
     reference = Renderer(scene).pixels()
@@ -168,7 +168,7 @@ def test_a_variant_the_scene_cannot_show_renders_as_the_reference(case):
 
 
 def test_every_rule_holds_somewhere_and_every_variant_the_rules_allow_shows_in_everything():
-    from tracer.variants import UNCHANGED, unchanged
+    from tracer.scene.variants import UNCHANGED, unchanged
 
     held = {name for data in PLAIN.values() for name in UNCHANGED if unchanged(name, schemas.validate_scene(data))}
     assert held == set(UNCHANGED)
@@ -188,19 +188,19 @@ def bright():
 def _combined(*names):
     from dataclasses import replace
 
-    from tracer.variants import MORE_VARIANTS
+    from tracer.scene.variants import MORE_VARIANTS
 
     every = VARIANTS | MORE_VARIANTS
     changes = {field: getattr(every[name][0], field) for name in names for field in every[name][0].changes()}
     return replace(REFERENCE, **changes)
 
 
-@pytest.mark.parametrize("name", sorted(__import__("tracer.variants").variants.MORE_VARIANTS))
+@pytest.mark.parametrize("name", sorted(MORE_VARIANTS))
 def test_a_new_variant_is_the_image_of_a_student_who_makes_the_mistake(bright, name):
     import student_oop
 
-    from service.grading import grade
-    from tracer.variants import MORE_VARIANTS, SENTENCES
+    from service.images.grading import grade
+    from tracer.scene.variants import MORE_VARIANTS, SENTENCES
 
     scene, reference = bright
     variant = Renderer(scene, MORE_VARIANTS[name][0]).pixels()
@@ -224,7 +224,7 @@ def test_a_new_variant_is_the_image_of_a_student_who_makes_the_mistake(bright, n
 def test_two_mistakes_together_are_the_variants_options_together(bright, pair):
     import student_oop
 
-    from service.grading import grade
+    from service.images.grading import grade
 
     scene, reference = bright
     made = student_oop.render(scene, list(pair))
@@ -244,7 +244,7 @@ def test_the_stored_variants_are_pillows_grey_and_bgr():
 
 
 def test_the_mirrored_camera_is_the_image_mirrored(bright):
-    from tracer.variants import MORE_VARIANTS
+    from tracer.scene.variants import MORE_VARIANTS
 
     scene, reference = bright
     mirrored = Renderer(scene, MORE_VARIANTS["camera-left-handed"][0]).pixels()
@@ -279,7 +279,7 @@ def test_a_variant_is_the_image_of_either_student_who_makes_the_mistake(bright, 
     import student
     import student_oop
 
-    from service.grading import grade
+    from service.images.grading import grade
 
     scene, reference = bright
     variant = Renderer(scene, VARIANTS[name][0]).pixels()
@@ -302,7 +302,7 @@ def test_colours_not_clamped_are_kept_modulo_256():
 
 
 def test_a_spot_ramped_in_the_angle_is_half_way_at_the_middle_angle():
-    from tracer.lights import Emitter, spot_factor
+    from tracer.scene.lights import Emitter, spot_factor
 
     outer, inner = np.radians(30.0), np.radians(10.0)
     spot = Emitter(

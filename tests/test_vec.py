@@ -1,8 +1,8 @@
-"""Column-wise vector arithmetic (tracer/vec.py) against plain NumPy broadcasting."""
+"""Column-wise vector arithmetic (tracer/scene/vec.py) against plain NumPy broadcasting."""
 
 import numpy as np
 
-from tracer.vec import along, cross, divided, dot, minus, plus, rows_of, scaled
+from tracer.scene.vec import along, cross, divided, dot, minus, plus, rows_of, scaled
 
 
 def test_each_operation_matches_numpy_broadcasting_bit_for_bit():

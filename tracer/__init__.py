@@ -36,7 +36,7 @@ def open_pixels(
 ) -> np.ndarray | None:
     """The pixels of ``scene``'s image that the format leaves open (:class:`Picture`), ``(H, W)`` bool; None,
     with no render, for a scene with no surfaces of different objects in one plane, where none is."""
-    from .world import build_world
+    from .scene.world import build_world
 
     with np.errstate(all="ignore"):
         if build_world(scene).coplanar is None:

@@ -67,7 +67,7 @@ class OverBudget(Exception):
 class RayCount:
     """The rays cast so far, by kind (primary, shadow, secondary), counted from every thread; their ``total``,
     what a budget counts: camera, mirror and refracted rays, and a shadow ray per hit and light sample (cast,
-    or proven clear by :mod:`tracer.culling`, which costs work too); and the rays the work stacks hold now.
+    or proven clear by :mod:`tracer.proofs.culling`, which costs work too); and the rays the work stacks hold now.
     Apart from the renderer, so that the stages that count hold no reference back to it."""
 
     def __init__(self, counts: dict[str, int] | None = None, counts_lock: threading.Lock | None = None) -> None:

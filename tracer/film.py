@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from .image import quantize, wrapped
-from .variants import Options
+from .scene.variants import Options
 
 #: the most rays a slice of a chunk's ray tree holds for which the fixed-point unit is the same whatever the slice
 #: (the renderer's chunks on several threads: :data:`tracer.render.CHUNK_RAYS`): larger slices leave more room
@@ -42,7 +42,7 @@ class Film:
         # of up to UNIT_RAYS, one unit whatever the slice: the same sums, and bytes, for every size)
         room = math.ceil(math.log2(max(slice_rays, UNIT_RAYS)))
         self.fixed = 2.0 ** (48 - math.ceil(math.log2(self.ceiling)) - max(0, room - 14))
-        #: the sub-samples whose ray tree met a tie the format leaves open (:mod:`tracer.ties`); None: none yet
+        #: the sub-samples whose ray tree met a tie the format leaves open (:mod:`tracer.exact.ties`); None: none yet
         self.open: np.ndarray | None = None
 
     def opened(self, index: np.ndarray) -> None:
@@ -90,7 +90,7 @@ class Film:
 def stored(colour: np.ndarray, options: Options) -> np.ndarray:
     """Linear colours as the image stores them: 8-bit values (:func:`tracer.image.quantize`, or wrapped around
     in the variant that does not clamp them, :func:`tracer.image.wrapped`), after gamma 1/2.2 in the variant
-    that applies it, and as a variant's student stores them (:meth:`tracer.variants.Options.stored`).
+    that applies it, and as a variant's student stores them (:meth:`tracer.scene.variants.Options.stored`).
     Same shape, uint8."""
     linear = colour if not options.gamma else np.clip(colour, 0.0, None) ** (1.0 / 2.2)
     return options.stored(quantize(linear) if options.clamp_colour else wrapped(linear))

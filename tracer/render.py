@@ -23,10 +23,10 @@ from .budget import UNLIMITED, Budget, Calls, OverBudget, RenderCancelled
 from .chunks import CHUNK_RAYS, ONE_THREAD_CHUNK_RAYS, Pixels, Run, chunking, ordered, parts_of
 from .film import stored
 from .memory import tune_once
-from .passes import ADDITIVE, LIGHT_TERMS, Tally, check_passes
+from .scene.variants import REFERENCE, Options
+from .shade.passes import ADDITIVE, LIGHT_TERMS, Tally, check_passes
 from .sizes import ImageTooLarge, check_size
 from .stages import Stages
-from .variants import REFERENCE, Options
 
 Progress = Callable[[int, int], None]
 
@@ -54,7 +54,7 @@ R = TypeVar("R")
 @dataclass(frozen=True)
 class Picture:
     """A render's stored pixels, and which of them the format leaves open: their ray tree met, at some depth, a
-    tie between overlapping coplanar surfaces of two objects (:mod:`tracer.ties`), which a grade does not count
+    tie between overlapping coplanar surfaces of two objects (:mod:`tracer.exact.ties`), which a grade does not count
     against a submission.  Found as the render goes, at no cost but in scenes with such surfaces."""
 
     pixels: np.ndarray  # (H, W, 3) uint8
@@ -78,7 +78,7 @@ class Renderer:
         #: the render calls under way, each with its own count and stop (one renderer may serve several at once)
         self._calls = Calls()
         self.counts = self._calls.counts
-        #: how this render departs from the format (a variant, :mod:`tracer.variants`); the reference by default
+        #: how this render departs from the format (a variant, :mod:`tracer.scene.variants`); the reference by default
         self.options = options
         #: the scene's stages, in the order they are built and run (:mod:`tracer.stages`)
         self.stages = Stages(scene, options, self._calls)
@@ -88,7 +88,7 @@ class Renderer:
         self.shading = self.stages.shading
 
     def visible_size(self) -> float:
-        """The size of what the camera sees (:func:`tracer.visible.visible_size`): what an offset is measured
+        """The size of what the camera sees (:func:`tracer.exact.visible.visible_size`): what an offset is measured
         against."""
         return self.stages.visible_size()
 
@@ -196,7 +196,7 @@ class Renderer:
         cancel: Callable[[], bool] | None = None,
         budget: Budget = UNLIMITED,
     ) -> dict[str, np.ndarray]:
-        """Render passes (:mod:`tracer.passes`) by name: ``(H, W, 3)`` float64 for the additive ones and the
+        """Render passes (:mod:`tracer.shade.passes`) by name: ``(H, W, 3)`` float64 for the additive ones and the
         normal, ``(H, W)`` for shadow and depth, ``(H, W)`` int64 for object.  ``cancel`` is polled, and the
         ``budget`` held, as :meth:`pixels` polls and holds them."""
         check_passes(names, light, len(self.scene.lights))

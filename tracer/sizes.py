@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from schemas import Scene
 
-from .lights import emitter_count
+from .scene.lights import emitter_count
 
 #: the largest image the renderer will make (16384 × 16384): its pixels alone take 768 MiB
 MAX_PIXELS = 1 << 28

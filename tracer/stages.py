@@ -16,24 +16,24 @@ import numpy as np
 
 from schemas import Scene
 
-from .best import NO_HIT
 from .budget import Calls, Growth
-from .camera import CameraRays
 from .chunks import CHUNK_RAYS, Pixels, pixel_numbers
-from .direct import DirectLight
+from .exact.best import NO_HIT
+from .exact.intersect import PLANE, SPHERE, TRIANGLE, Intersector
+from .exact.visible import visible_size
 from .film import Film
-from .intersect import PLANE, SPHERE, TRIANGLE, Intersector
-from .lights import LIGHT_TYPES, light_groups
-from .passes import UNOBSERVED, PassObserver, Tally
-from .planner import plan_proofs, scene_sightlines
-from .rays import Among, Rays, Work
-from .shading import resolve_material, shading_normal
-from .shadows import Meter, ShadowRays
-from .spawn import Spawner
-from .variants import Options, scene_size
-from .vec import scaled
-from .visible import visible_size
-from .world import World, build_world
+from .proofs.planner import plan_proofs, scene_sightlines
+from .scene.camera import CameraRays
+from .scene.lights import LIGHT_TYPES, light_groups
+from .scene.rays import Among, Rays, Work
+from .scene.variants import Options, scene_size
+from .scene.vec import scaled
+from .scene.world import World, build_world
+from .shade.direct import DirectLight
+from .shade.passes import UNOBSERVED, PassObserver, Tally
+from .shade.shading import resolve_material, shading_normal
+from .shade.shadows import Meter, ShadowRays
+from .shade.spawn import Spawner
 
 
 class Stages:
@@ -58,7 +58,7 @@ class Stages:
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
             #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
             self.spawner = Spawner(self.world, options, options.spawn(self.visible_size))
-            #: which proofs spare which rays (:mod:`tracer.planner`)
+            #: which proofs spare which rays (:mod:`tracer.proofs.planner`)
             self.plan = plan_proofs(self.world, options, self.spawner.offset)
             #: the shadow rays every light's terms ask, and the direct-light stage
             self.shadows = ShadowRays(
@@ -75,7 +75,7 @@ class Stages:
         self.intersector.tested = calls.tested
 
     def visible_size(self) -> float:
-        """The size of what the camera sees (:func:`tracer.visible.visible_size`): what an offset is measured
+        """The size of what the camera sees (:func:`tracer.exact.visible.visible_size`): what an offset is measured
         against."""
         return visible_size(self.scene, self.world, self.intersector, scene_size(self.scene))
 
@@ -148,7 +148,7 @@ class Stages:
             work.rays, self._camera_among(work.rays) if work.depth == 0 else self._mirror_among(work.rays)
         )
         missed = best.key == NO_HIT
-        if best.open is not None:  # a tie the format leaves open (tracer.ties): its sample's pixel is open
+        if best.open is not None:  # a tie the format leaves open (tracer.exact.ties): its sample's pixel is open
             film.opened(work.sample[best.open])
         once = work.depth == 0  # a primary ray is its sample's only ray of its depth; later, two may share
         film.add(work.sample[missed], scaled(background, work.weight[missed]), once)
@@ -172,11 +172,11 @@ class Stages:
         return self.spawner.bounce(hit, mat, normal, done)
 
     def _mirror_among(self, rays: Rays) -> Among | None:
-        """The surfaces each mirror or refracted ray may meet (:func:`tracer.cones.on_lines`), when the scene has
+        """The surfaces each mirror or refracted ray may meet (:func:`tracer.proofs.cones.on_lines`), when the scene has
         few enough and walks them (with no walk, every surface is tested against every ray already)."""
         return self.plan.mirror_pairs(rays, self.intersector.walker is not None)
 
     def _camera_among(self, rays: Rays) -> Among | None:
-        """The surfaces each camera ray may meet (:mod:`tracer.cones`), when the scene has few enough: from the
+        """The surfaces each camera ray may meet (:mod:`tracer.proofs.cones`), when the scene has few enough: from the
         eye (every perspective ray starts there, exactly), or along the view (orthographic)."""
         return self.plan.camera_pairs(self.camera, rays)

@@ -29,7 +29,7 @@ TASKS = {"spheres": "01_three_spheres", "lights": "02_all_lights", "mirror": "04
 
 
 def render(data: dict, mistake: str | None = None) -> np.ndarray:
-    from tracer.variants import VARIANTS
+    from tracer.scene.variants import VARIANTS
 
     scene = schemas.validate_scene(copy.deepcopy(data))
     return tracer.Renderer(scene, VARIANTS[mistake][0]).pixels() if mistake else tracer.render(scene)

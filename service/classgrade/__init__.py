@@ -8,7 +8,7 @@ each submission graded.  References are kept in ``REPORT/references/<scene key>.
 canonical scene hash), so a re-run renders only what it does not have.  Renders and comparisons are tasks
 (bytes in, bytes out) run in a pool of processes (every core), on a Dask cluster with ``cluster``, or as
 requests to a running service with ``server``: the same tasks, the same pipeline
-(:mod:`service.pipeline`), the same report.
+(:mod:`service.work.pipeline`), the same report.
 
 The TA's scenes are trusted: with ``limits`` (``--limits``) every scene is priced with the service's limits
 before anything renders, and a render has its ``render_timeout`` and budget.  A fault of where the work runs
@@ -17,7 +17,7 @@ with backoff; every reference and every grade is kept as it finishes (``REPORT/r
 for a grade), so a run stopped by a fault that persists resumes where it stopped.
 """
 
-from .errors import ClassError
+from ..course.errors import ClassError
 from .records import ClassRun
 from .run import Outcome, grade_class
 

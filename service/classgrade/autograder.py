@@ -26,18 +26,18 @@ import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import service
 from schemas import SceneError
 from tracer import ImageTooLarge, Renderer, encode_png, render
-from tracer.variants import unchanged
+from tracer.scene.variants import unchanged
 
+from ..course.errors import ClassError
 from ..diagnosis.accepting import accepted_ladders, file_name
-from ..pipeline import load_scene
-from ..scenekey import scene_key
+from ..programs.program import Program
+from ..render.scenekey import scene_key
+from ..work.pipeline import load_scene
 from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
-from .errors import ClassError
 from .feedback import printed
 from .forms import Results
 from .records import ClassRun
@@ -45,9 +45,6 @@ from .run import grade_class
 from .submissions import discover
 from .taskfile import TaskSettings, load_tasks
 from .uploads import LaidOut, as_uploaded, lay_out
-
-if TYPE_CHECKING:
-    from ..programs.program import Program
 
 #: where Gradescope lays the autograder out, unless PHONGRAY_AUTOGRADER_ROOT says otherwise
 ROOT = "/autograder"

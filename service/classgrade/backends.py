@@ -7,11 +7,8 @@ from __future__ import annotations
 
 import concurrent.futures as futures
 import contextlib
-import ctypes
 import multiprocessing
 import os
-import signal
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -20,31 +17,13 @@ from functools import partial
 from typing import Any
 
 from ..client import ServerError, check
-from ..cluster import client, connect_timeout, wait_for_workers
+from ..course.errors import ClassError
+from ..render.cluster import client, connect_timeout, wait_for_workers
+from ..render.rendering import die_with_parent
 from ..settings import Settings
 from . import faults, tasks
-from .errors import ClassError
 from .records import ClassRun, GradeJob, Marked
 from .remote import server_grade, server_render
-
-
-def die_with_parent(parent: int, prctl: bool) -> None:
-    """Initializer of a pool process: it ends when grade-class does, however grade-class ends (SIGKILL, the
-    OOM killer), never left running.  On Linux the kernel kills it (PR_SET_PDEATHSIG; only when the pool was
-    made by the main thread, as the signal comes when the creating thread ends); everywhere, a watchdog thread
-    sees the parent gone."""
-    if prctl and sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
-    if os.getppid() != parent:  # the parent died before the signal was asked for
-        os._exit(1)
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(0.25)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="phongray-parent-watch", daemon=True).start()
 
 
 class Backend:

@@ -15,12 +15,11 @@ import json
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from .errors import ClassError
-
-if TYPE_CHECKING:
-    from ..programs.program import Program
+from ..course.errors import ClassError
+from ..programs import Limits
+from ..programs.folder import FolderTooLarge, copy_folder
+from ..programs.program import Program
 
 #: the program's commands and limits, in the bundle's course folder
 PROGRAM_FILE = "program.json"
@@ -60,9 +59,6 @@ def program_files(
 def load_program(course: Path) -> Program | None:
     """The bundle's program options (None: an image assignment); :class:`ClassError` for a file that is not
     one this phongray writes."""
-    from ..programs import Limits
-    from ..programs.program import Program
-
     path = course / PROGRAM_FILE
     if not path.exists():
         return None
@@ -77,8 +73,6 @@ def load_program(course: Path) -> Program | None:
 def lay_out_program(submission: Path, student: Path, program: Program) -> list[str]:
     """Copy the uploaded folder into ``student`` as its program (regular files and folders only, as a run's
     copy is); lines that say what stopped the copy."""
-    from ..programs.folder import FolderTooLarge, copy_folder
-
     try:
         copy_folder(submission, student, program.limits.folder_bytes)
     except FolderTooLarge as exc:

@@ -6,12 +6,12 @@ from pathlib import Path
 
 from schemas import SceneError
 
-from ..limits import LimitError, check_body, check_scene
-from ..pipeline import load_scene
-from ..scenekey import scene_key
+from ..admission.limits import LimitError, check_body, check_scene
+from ..course.errors import ClassError
+from ..render.scenekey import scene_key
 from ..settings import Settings
+from ..work.pipeline import load_scene
 from . import journal
-from .errors import ClassError
 from .records import Coursework
 from .report import write_atomic
 

@@ -9,8 +9,8 @@ from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
-from ..cluster import ClusterError
-from .errors import ClassError
+from ..course.errors import ClassError
+from ..render.cluster import ClusterError
 
 #: a fault of the pool, the cluster or the server (a lost connection) is retried this many times ...
 RETRIES = 4

@@ -8,13 +8,14 @@ never with its exit status, its signal or its output (the TA's report keeps them
 not yet shown (a ``hidden`` test does not count: Gradescope means it for tests worth no points), so the results
 of a student with a hidden task worth points carry one more test, worth nothing, shown once the grades are
 published: until then the student sees no total, and so nothing of the hidden task.  A pair flagged for the TA
-(:mod:`service.programs.copied`) carries its flag in the test's ``extra_data``, which Gradescope keeps and does
+(:mod:`service.classgrade.copied`) carries its flag in the test's ``extra_data``, which Gradescope keeps and does
 not show; a student reads of it only the zero it costs, where the task says so.
 """
 
 from __future__ import annotations
 
-from ..display import percent
+from ..images.figures import percent
+from ..programs.outcome import Reason, told
 from .forms import ReportRow, Results
 from .gradebook import late_note, partial
 from .taskfile import TaskSettings
@@ -37,8 +38,6 @@ ZEROED = "Scored 0: your program holds phongray's own code, which this course do
 
 def run_failed(row: ReportRow) -> str:
     """A program's failed run (or build) as a student is told it: ``the run failed: crashed``."""
-    from ..programs.outcome import Reason, told
-
     what = "build" if row["reason"].startswith("the build failed") else "run"
     try:
         return f"the {what} failed: {told(Reason(row['run']))}"

@@ -15,26 +15,14 @@ import io
 from dataclasses import dataclass
 from typing import Any
 
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
 from ..diagnosis.words import listed
 from .forms import ReportRow
 from .taskfile import TaskSettings
 
-#: the ids a deduction may name: the diagnosis's classic mistakes (tracer.variants), with what each is
+#: the ids a deduction may name: the diagnosis's classic mistakes (tracer.scene.variants), with what each is
 MISTAKES = {name: words for name, (_, words) in VARIANTS.items()}
-
-
-def matched(diagnosis: dict[str, Any] | None) -> list[str]:
-    """The ids of the mistakes a failing image matches (passes against the reference rendered with each), best
-    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it; mistakes made together are
-    one id, ``no-shadows+gamma`` (two faults: each one's deduction is taken, see :func:`score`)."""
-    if not diagnosis:
-        return []
-    causes = [c for c in diagnosis.get("causes", []) if c.get("passes")]
-    if causes and causes[0].get("together"):  # mistakes made together: one id for them all
-        return ["+".join(c["variant"] for c in causes)]
-    return [c["variant"] for c in causes]
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 that a run stopped by a fault resumes where it stopped.
 
 A journal is the file of an earlier run, which anyone who could write to the report folder may have changed:
-it is read as an untrusted file (:func:`~service.classgrade.untrusted.read_untrusted`: never through a link, a FIFO
+it is read as an untrusted file (:func:`~service.course.untrusted.read_untrusted`: never through a link, a FIFO
 never opened, at most :data:`LIMIT` bytes), and its row is taken only when its stamp is this run's (the same
 reference, submitted bytes and thresholds, written by this version of phongray in this format) and the row
 is one this version writes (:func:`valid_row`: the keys, their types, a status of the known set).  Anything
@@ -19,11 +19,11 @@ from importlib.metadata import version as of
 from pathlib import Path
 from typing import Any
 
-from tracer.variants import VARIANTS
+from tracer.scene.variants import VARIANTS
 
+from ..course.untrusted import UntrustedFileError, read_untrusted
 from .forms import ReportRow, Stamp
 from .report import write_atomic
-from .untrusted import UntrustedFileError, read_untrusted
 
 #: the folder of a report where each finished grade is kept
 RESUME = "resume"

@@ -1,7 +1,7 @@
 """A class of students' programs (``grade-class --run``): a folder per student, one job per student.
 
 ``SUBMISSIONS/<student>/`` holds a student's program (:func:`discover_programs`).  Each student with a task
-left to grade is one task of the backend, :func:`service.programs.job.grade_program`: the program built once,
+left to grade is one task of the backend, :func:`service.classgrade.job.grade_program`: the program built once,
 then run on each of its task scenes, each run in a sandbox of its own, each image graded as an uploaded one;
 in a pool here or on a Dask worker alike, the student's folder sent with the task as bytes
 (:mod:`service.programs.pack`), so that a worker needs no shared file system.  What it returns is kept pair by
@@ -21,16 +21,18 @@ import sys
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from ..course.errors import ClassError
+from ..course.folders import hidden, own_scenes, sorted_entries, task_scenes
+from ..programs import SandboxUnavailable, check_sandbox
+from ..programs.digest import digest
+from ..programs.pack import pack_folder
+from ..programs.runtime import check_runtime, runtime_starts
 from . import journal
-from .errors import ClassError
-from .folders import hidden, own_scenes, sorted_entries, task_scenes
 from .forms import ReportRow, Stamp
+from .job import ProgramJob, TaskScene, grade_program
 from .records import ClassRun, Coursework, Marked, Pair
-
-if TYPE_CHECKING:  # (service.programs reads files through this package's modules: imported when used)
-    from ..programs.job import ProgramJob, TaskScene
 
 
 def check_programs(run: ClassRun) -> None:
@@ -40,9 +42,6 @@ def check_programs(run: ClassRun) -> None:
             f"--server {run.server}: a service grades images; run students' programs here or on a "
             f"Dask cluster (--cluster)"
         )
-    from ..programs import SandboxUnavailable, check_sandbox
-    from ..programs.runtime import check_runtime, runtime_starts
-
     program = run.program
     assert program is not None
     private = {
@@ -101,9 +100,6 @@ def program_jobs(
 ) -> dict[str, tuple[ProgramJob, list[Stamped]]]:
     """Per student with a task left to grade, the job and its pairs with their stamps; a pair an earlier run
     kept for the same program, scene and thresholds is taken as it was (``resumed``)."""
-    from ..programs.digest import digest
-    from ..programs.job import ProgramJob
-
     assert run.program is not None
     jobs: dict[str, tuple[ProgramJob, list[Stamped]]] = {}
     for student in sorted({p.student for p in todo}):
@@ -147,9 +143,6 @@ def program_tasks(
 ) -> Iterator[dict[str, tuple[Callable[..., Any], tuple[Any, ...]]]]:
     """The backend's tasks, one :func:`grade_program` per student, its folder sent with it as bytes (its
     :class:`~service.programs.pack.Pack`, made here), in batches of at most :data:`PACKS_AT_ONCE` bytes."""
-    from ..programs.job import grade_program
-    from ..programs.pack import pack_folder
-
     batch: dict[str, tuple[Callable[..., Any], tuple[Any, ...]]] = {}
     size = 0
     for student, (job, _) in jobs.items():

@@ -6,13 +6,11 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
-from ..pipeline import Graded
+from ..programs.program import Program
+from ..work.pipeline import Graded
 from .forms import ReportRow
-
-if TYPE_CHECKING:
-    from ..programs.program import Program
 
 
 @dataclass(frozen=True)
@@ -175,7 +173,7 @@ class Row:
     run: str | None = None  # a program's: how its run ended, in a word (ok, timeout, memory, ...)
     run_seconds: float | None = None
     run_output: str | None = None  # the end of the run's output: the TA's, never shown to a student
-    flag: str | None = None  # a program's: phongray-code or identical (service.programs.copied), for the TA
+    flag: str | None = None  # a program's: phongray-code or identical (service.classgrade.copied), for the TA
     flag_reason: str | None = None
 
     def row(self) -> ReportRow:

@@ -11,8 +11,8 @@ from typing import Any
 
 from ..client import ServerError, post_form, post_json
 from ..diagnosis import Diagnosis
-from ..grading import Grade
-from ..pipeline import Graded
+from ..images.grading import Grade
+from ..work.pipeline import Graded
 from . import faults
 from .records import GradeJob, Marked
 
@@ -54,7 +54,7 @@ def server_grade(server: str, api_key: str | None, job: GradeJob) -> Marked:
 
 
 def answered(answer: dict[str, Any], heatmap: bytes) -> Graded:
-    """The grade of the service's JSON answer to /grade (:meth:`~service.pipeline.Graded.as_dict`), read back,
+    """The grade of the service's JSON answer to /grade (:meth:`~service.work.pipeline.Graded.as_dict`), read back,
     with its ``heatmap``."""
     found = answer.get("diagnosis")
     return Graded(

@@ -20,8 +20,8 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from ..display import counted
-from ..heatmap import LEGEND
+from ..images.figures import counted
+from ..images.heatmap import LEGEND
 from .feedback import gradescope, test_output  # noqa: F401  (test_output: what a student reads, here too)
 from .forms import ReportRow
 from .gradebook import late_note, partial, totals

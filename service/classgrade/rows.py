@@ -8,8 +8,9 @@ from dataclasses import asdict, astuple
 from pathlib import Path
 
 from ..diagnosis import headline
+from ..diagnosis.records import matched
 from .forms import ReportRow
-from .gradebook import late_policy, matched, score
+from .gradebook import late_policy, score
 from .records import Marked, Pair, Row
 from .report import COLUMNS
 from .taskfile import TaskSettings

@@ -13,15 +13,16 @@ from typing import Any
 from tracer import decode_png
 
 from ..client import ServerError
-from ..ppm import viewable
+from ..course.errors import ClassError
+from ..images.ppm import viewable
 from ..settings import Settings
 from . import journal
 from .backends import Backend, open_backend
 from .checks import outside, scene_keys, writable
-from .errors import ClassError
 from .faults import one_line, run_tasks
 from .forms import ReportRow, Stamp
 from .isolation import unwritable
+from .job import TaskScene
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
 from .records import ClassRun, Coursework, GradeJob, Marked, Pair
 from .report import COLUMNS, summary, write_atomic
@@ -68,7 +69,7 @@ Progress = Callable[[int, int], None]
 def grade_class(run: ClassRun, progress: Progress | None = None) -> Outcome:
     """Grade the class; ``progress(done, total)`` is told of the pairs graded as they are.  The TA's scenes
     are trusted: held to the service's limits (``PHONGRAY_*``) only with ``run.limits``.  Raises
-    :class:`ClassError` (or :class:`service.cluster.ClusterError`) for a fault of the TA's, or for a fault of
+    :class:`ClassError` (or :class:`service.render.cluster.ClusterError`) for a fault of the TA's, or for a fault of
     the pool, the cluster or the server that retries did not mend (what was finished is kept)."""
     started = time.perf_counter()
     settings = Settings.from_env()
@@ -245,7 +246,6 @@ def _grade_programs(
 ) -> None:
     """Grade every student's program on the backend, one task per student (:mod:`.programs`); each pair's
     grade is kept as an image's is."""
-    from ..programs.job import TaskScene
 
     def task_of(pair: Pair) -> TaskScene:
         return TaskScene(pair.task, _job(run, checked, pair, refs[pair.key or ""].read_bytes()))

@@ -2,7 +2,7 @@
 
 ``SCENES/<task>.json`` are the tasks and ``STUDENT_SCENES/<student>/<task>.json`` (optional) a student's own
 scene for a task: both folders are the TA's.  ``SUBMISSIONS`` holds the students' files as a
-learning-management system downloads them (:mod:`service.classgrade.lms`): a folder per student (Moodle's
+learning-management system downloads them (:mod:`service.course.lms`): a folder per student (Moodle's
 ``<name>_<id>_assignsubmission_file_`` too) where the image of a task is ``<task>.png`` or one folder deeper
 (``frank/hw3/spheres.png``), or Canvas's flat ``<login>_<id>_<id>_<task>.png``; a name is matched regardless of
 case and of a resubmission's suffix.  A submitted file that is no PNG (``spheres.jpg``) is graded, and so
@@ -20,14 +20,14 @@ from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import ClassError
-from .folders import NOT_STUDENTS, Entry, Folder, own_scenes, task_scenes
+from ..course.errors import ClassError
+from ..course.folders import NOT_STUDENTS, Entry, Folder, own_scenes, task_scenes
+from ..course.lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
+from ..course.untrusted import UntrustedFileError
 from .forms import ReportRow
-from .lms import LAYOUTS, Owner, TaskNames, file_owner, folder_owner, student_names
 from .records import Coursework, Pair
-from .untrusted import UntrustedFileError
 
-#: the extensions of the image formats graded (service.grading: PNG, and the PPM students' tracers print)
+#: the extensions of the image formats graded (service.images.grading: PNG, and the PPM students' tracers print)
 GRADED = ("png", "ppm")
 #: extensions of images other than those graded: such a file named after a task is that task's (wrong) submission
 OTHER_IMAGES = {"jpg", "jpeg", "gif", "bmp", "tif", "tiff", "webp", "heic", "heif", "avif"}

@@ -5,7 +5,7 @@
  "glass": {"accepted": {"normal-offset": 0.002}}}
 ```
 
-A deduction names a mistake by its id (:data:`tracer.variants.VARIANTS` and ``MORE_VARIANTS``): an image whose
+A deduction names a mistake by its id (:data:`tracer.scene.variants.VARIANTS` and ``MORE_VARIANTS``): an image whose
 one fault is that mistake scores the task's points less the deduction (:mod:`service.classgrade.gradebook`).
 
 ``show`` is what a student reads of the task in Gradescope's output (:func:`~.feedback.test_output`):
@@ -14,7 +14,7 @@ one fault is that mistake scores the task's points less the deduction (:mod:`ser
 task), the TA's choice of how much of it the feedback gives away.
 
 ``phongray_code`` is what a program's pair scores when its folder holds phongray's own code
-(:mod:`service.programs.copied`): ``review`` (the default) keeps its grade and flags it in the TA's report,
+(:mod:`service.classgrade.copied`): ``review`` (the default) keeps its grade and flags it in the TA's report,
 ``zero`` scores it nothing and tells the student why.
 
 ``canvas`` is the Canvas assignment a task's score goes to in the Canvas gradebook (:mod:`.lmsbook`), as
@@ -25,7 +25,7 @@ percentage of the points, too).  The key ``"*"`` gives every task's settings, wh
 to one assignment (its column holds the total) with a tenth of the points off for late work.
 
 A task the file does not name is worth 1 point and graded with the command's thresholds.  The file is the
-teaching assistant's: a mistake in it stops the run (:class:`~service.classgrade.errors.ClassError`).
+teaching assistant's: a mistake in it stops the run (:class:`~service.course.errors.ClassError`).
 """
 
 from __future__ import annotations
@@ -40,10 +40,10 @@ from pydantic_core import PydanticCustomError
 from schemas import SceneError, parse_json
 from schemas.errors import problems_from_validation, suggestion
 from schemas.locate import as_lines
-from tracer.variants import MORE_VARIANTS, VARIANTS
+from tracer.scene.variants import MORE_VARIANTS, VARIANTS
 
-from .errors import ClassError
-from .lms import did_you_mean
+from ..course.errors import ClassError
+from ..course.lms import did_you_mean
 
 #: a number of the TA's: a JSON number, finite (a string "5", true or 1e400 is a mistake, not 5, 1 or infinity)
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
@@ -68,11 +68,11 @@ class TaskSettings(BaseModel):
     #: what a student reads of the task (Gradescope's output): a hidden scene's TA may show less
     show: Literal["images", "diagnosis", "verdict", "verdict-only"] = "images"
     deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
-    #: what a pair of a program holding phongray's own code scores (service.programs.copied): its grade, flagged
+    #: what a pair of a program holding phongray's own code scores (service.classgrade.copied): its grade, flagged
     #: for the TA (review), or nothing (zero)
     phongray_code: Literal["review", "zero"] = "review"
     #: the accepted variants of honest tracers, name → largest amount × the visible size (None: the defaults,
-    #: tracer.variants.ACCEPTED_DEFAULT; {}: the reference alone)
+    #: tracer.scene.variants.ACCEPTED_DEFAULT; {}: the reference alone)
     accepted: dict[Literal["normal-offset", "t-min"], Annotated[Number, Field(ge=0, le=0.1)]] | None = None
     #: the Canvas assignment the task's score goes to, as Canvas's gradebook names its column (None: the task's name)
     canvas: str | None = None

@@ -8,16 +8,17 @@ from schemas import load_scene
 from tracer import ImageTooLarge, OverBudget, RenderCancelled, encode_png, render
 from tracer.budget import UNLIMITED
 
-from .. import grading, pipeline
-from ..limits import budget, outgrown
+from ..admission.limits import budget, outgrown
+from ..images import grading
 from ..settings import Settings
+from ..work import pipeline
 from .records import GradeJob, Marked
 
 
 def render_task(scene: bytes, limits: Settings | None = None) -> tuple[bytes | None, str]:
     """The reference PNG of a scene's text, or (None, the reason it cannot be rendered).  With the service's
     ``limits`` (``grade-class --limits``), a render still going after their ``render_timeout`` or outgrowing
-    their budget (:func:`service.limits.budget`) is stopped; without, the TA's scene is trusted."""
+    their budget (:func:`service.admission.limits.budget`) is stopped; without, the TA's scene is trusted."""
     deadline = None if limits is None else time.monotonic() + limits.render_timeout
     loaded = load_scene(scene)
     try:

@@ -21,11 +21,11 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .folders import hidden
+from ..course.folders import hidden
+from ..course.lms import TaskNames
+from ..course.untrusted import UntrustedFileError, read_untrusted
 from .forms import Results
-from .lms import TaskNames
 from .submissions import GRADED, OTHER_IMAGES
-from .untrusted import UntrustedFileError, read_untrusted
 
 #: the largest submitted file read (as the service's max_image_bytes)
 MAX_BYTES = 16 * 1024 * 1024

@@ -2,7 +2,7 @@
 
 Every failure a user can cause ends in a one-line message on stderr and a
 non-zero exit, never a traceback; ``--server`` gives the same exit codes and
-the same messages as local work (both go through :mod:`service.pipeline`).
+the same messages as local work (both go through :mod:`service.work.pipeline`).
 Each group of subcommands is a module of this package, with its options (``add``).
 """
 
@@ -17,9 +17,9 @@ from typing import NoReturn
 
 from service.cli import course, grade, render, serve, validate
 from service.cli.common import EXIT_BAD_INPUT, CliError
+from service.cli.display import ProgressBar
 from service.cli.options import Help, Version
 from service.cli.render import PASS_NAMES
-from service.display import ProgressBar
 
 __all__ = ["PASS_NAMES", "CliError", "ProgressBar", "build_parser", "main", "parse"]
 
@@ -58,7 +58,9 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
     args = build_parser().parse_args(argv)
     if hasattr(args, "cluster_wait"):
         if args.cluster is None and not any(name.upper().startswith("PHONGRAY_") for name in os.environ):
-            from service.cluster import CLUSTER_WAIT  # no PHONGRAY_* variable: the settings are their defaults, and
+            from service.render.cluster import (
+                CLUSTER_WAIT,  # no PHONGRAY_* variable: the settings are their defaults, and
+            )
 
             # a render's start-up need not import pydantic-settings to learn them
             if args.cluster_wait is None:

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from service.pipeline import Overrides
+    from service.work.pipeline import Overrides
     from tracer.budget import OverBudget
 
 EXIT_BAD_INPUT = 2
@@ -36,7 +36,7 @@ def read(path: str) -> bytes:
 def read_image(path: str) -> bytes:
     """An image file, read no further than the limit ``max_image_bytes`` (an image is a student's file: a file
     without end, such as /dev/zero, must not be read whole), the same with and without ``--server``."""
-    from service.classgrade.untrusted import file_kind
+    from service.course.untrusted import file_kind
     from service.settings import Settings
 
     limit = Settings.from_env().max_image_bytes
@@ -93,7 +93,7 @@ def replace(path: Path, data: bytes) -> None:
 
 
 def load(path: str, text: bytes, overrides: Overrides | None = None) -> Any:
-    from service.pipeline import BadInput, scene_or_bad_input
+    from service.work.pipeline import BadInput, scene_or_bad_input
 
     try:
         return scene_or_bad_input(path, text, overrides)
@@ -105,7 +105,7 @@ def remote(scene: str, image: str | None = None) -> Any:
     """A context that turns the service's error answers into the words (and exit codes) of local work: the
     scene's problems as ``SCENE:LINE: path: message``, the image's as ``IMAGE: ...``."""
     from service.client import ServerError
-    from service.pipeline import scene_lines
+    from service.work.pipeline import scene_lines
 
     @contextlib.contextmanager
     def translating() -> Any:
@@ -124,7 +124,7 @@ def remote(scene: str, image: str | None = None) -> Any:
 
 
 def cluster_client(args: argparse.Namespace) -> Any:
-    from service.cluster import connect
+    from service.render.cluster import connect
 
     return connect(args.cluster, wait=args.cluster_wait)
 
@@ -136,7 +136,7 @@ def budget_of(args: argparse.Namespace, scene: Any) -> Any:
 
     if not args.limits:
         return UNLIMITED
-    from service.limits import LimitError, budget, check_scene
+    from service.admission.limits import LimitError, budget, check_scene
     from service.settings import Settings
 
     settings = Settings.from_env()
@@ -149,7 +149,7 @@ def budget_of(args: argparse.Namespace, scene: Any) -> Any:
 
 def outgrown_error(args: argparse.Namespace, exc: OverBudget) -> CliError:
     """A render stopped by its ``--limits`` budget, in the service's words (exit 2)."""
-    from service.limits import outgrown
+    from service.admission.limits import outgrown
     from service.settings import Settings
 
     return CliError(f"{args.scene}: {outgrown(exc, Settings.from_env())}")

@@ -9,11 +9,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from service.cli.common import CliError, thresholds
+from service.cli.display import ProgressBar, printable
 from service.cli.options import Commands, command, limits, no_diagnosis, positive_int
 from service.cli.options import remote as remote_options
 from service.cli.options import thresholds as threshold_options
 from service.cli.programs import add_arguments as program_options
-from service.display import ProgressBar, counted, printable
+from service.images.figures import counted
 
 if TYPE_CHECKING:
     from service.programs.program import Program
@@ -22,8 +23,8 @@ if TYPE_CHECKING:
 def cmd_grade_class(args: argparse.Namespace) -> int:
     """Exit 0 when the batch ran (whatever the verdicts), 2 when the TA's input or set-up is unusable."""
     from service.classgrade import ClassRun, grade_class
-    from service.classgrade.errors import ClassError
-    from service.cluster import ClusterError
+    from service.course.errors import ClassError
+    from service.render.cluster import ClusterError
 
     thresholds(args)
     if args.server and args.cluster:
@@ -83,7 +84,7 @@ def students_program(args: argparse.Namespace) -> Program | None:
 def cmd_autograder(args: argparse.Namespace) -> int:
     """Exit 0 when the bundle is written, 2 when the TA's input is unusable (nothing is written then)."""
     from service.classgrade.autograder import build
-    from service.classgrade.errors import ClassError
+    from service.course.errors import ClassError
 
     if not args.output.endswith(".zip"):
         raise CliError(f"{args.output}: Gradescope takes the autograder as a zip; name the output *.zip")

@@ -19,12 +19,12 @@ from service.cli.common import (
     thresholds,
     write,
 )
+from service.cli.display import describe
 from service.cli.options import Commands, command, limits, no_diagnosis, verdict
 from service.cli.options import remote as remote_options
-from service.display import describe
 
 if TYPE_CHECKING:
-    from service.heatmap import Kind
+    from service.images.heatmap import Kind
 
 
 def _verdict(args: argparse.Namespace, result: dict[str, Any]) -> int:
@@ -38,7 +38,8 @@ def _verdict(args: argparse.Namespace, result: dict[str, Any]) -> int:
 
 def cmd_grade(args: argparse.Namespace) -> int:
     """Exit 0 when the submission passes, 1 when it fails, 2 for bad input."""
-    from service import grading, pipeline
+    from service.images import grading
+    from service.work import pipeline
 
     thresholds(args)
     png_name(args.heatmap)
@@ -62,7 +63,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
                     args.server, "/grade", fields, files, {"format": "png", "heatmap": kind}, api_key=args.api_key
                 )
     else:
-        from service.rendering import render_pixels
+        from service.render.rendering import render_pixels
         from tracer import ImageTooLarge, OverBudget, encode_png
 
         scene = load(args.scene, text)
@@ -92,7 +93,8 @@ def cmd_grade(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     """Two images graded without a scene: exit 0 pass, 1 fail, 2 bad input."""
-    from service import grading, pipeline
+    from service.images import grading
+    from service.work import pipeline
 
     thresholds(args)
     png_name(args.heatmap)

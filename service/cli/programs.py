@@ -1,5 +1,5 @@
 """The command line's options for students' programs (``grade-class`` and ``autograder`` take the same):
-``--run``, ``--build``, the limits and ``--no-sandbox``, made into a :class:`~service.programs.job.Program`.
+``--run``, ``--build``, the limits and ``--no-sandbox``, made into a :class:`~service.classgrade.job.Program`.
 Nothing of :mod:`service.programs` is imported until a program is made (a render's start-up does not pay for
 it); an option not given takes :class:`~service.programs.limits.Limits`'s default.
 

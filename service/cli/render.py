@@ -7,11 +7,11 @@ import sys
 import time
 
 from service.cli.common import CliError, budget_of, cluster_client, load, outgrown_error, png_name, read, remote, write
+from service.cli.display import ProgressBar
 from service.cli.options import Commands, command, index, limits, positive_int
 from service.cli.options import remote as remote_options
-from service.display import ProgressBar
 
-#: tracer.passes.NAMES, here so that the parser needs no tracer import (a test keeps them equal)
+#: tracer.shade.passes.NAMES, here so that the parser needs no tracer import (a test keeps them equal)
 PASS_NAMES = (
     "background",
     "ambient",
@@ -27,8 +27,8 @@ PASS_NAMES = (
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from service.cluster import ClusterError
-    from service.rendering import BandLost, render_pixels
+    from service.render.cluster import ClusterError
+    from service.render.rendering import BandLost, render_pixels
     from tracer import ImageTooLarge, OverBudget, encode_png
 
     if args.server and args.cluster:
@@ -76,7 +76,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def _render_pass(args: argparse.Namespace) -> int:
     """``render --pass NAME [--light K]``: one pass as a PNG, or its values as ``.npy`` (by the output's name)."""
-    from service import passes
+    from service.render import passes
 
     if args.pass_ is None:
         raise CliError("--light: only with --pass (the light whose diffuse, specular or shadow is shown)")

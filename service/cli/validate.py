@@ -15,7 +15,7 @@ from service.cli.options import remote as remote_options
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from schemas import SceneError
-    from service.pipeline import load_scene, scene_lines
+    from service.work.pipeline import load_scene, scene_lines
 
     text = read(args.scene)
     if args.server:
@@ -47,7 +47,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 def _warn_of_limits(name: str, scene: Any) -> None:
     """A warning on stderr for each limit of the service's (its ``PHONGRAY_*`` settings) that the scene exceeds,
     or most likely will as it renders: it is valid, and renders here, but a service would refuse it."""
-    from service.limits import beyond_limits
+    from service.admission.limits import beyond_limits
     from service.settings import Settings
 
     for warning in beyond_limits(scene, Settings.from_env()):

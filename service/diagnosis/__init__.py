@@ -3,7 +3,7 @@
 Three kinds of evidence, each from renders of the reference scene:
 
 * **Variants.** The reference rendered with each classic mistake
-  (:data:`tracer.variants.VARIANTS`, and where the terms point, those of
+  (:data:`tracer.scene.variants.VARIANTS`, and where the terms point, those of
   ``MORE_VARIANTS``), graded against the submission with the same measure as
   the grade itself.  A variant the submission passes against is a likely
   cause; two or three made together are found by fitting the sum of their

@@ -1,7 +1,7 @@
 """Accepted variants: the ways an honest student's tracer may differ from the reference and still pass.
 
 A grade that fails against the reference is taken again against the
-reference rendered as honest tracers render it (:data:`tracer.variants.
+reference rendered as honest tracers render it (:data:`tracer.scene.variants.
 ACCEPTED_DEFAULT`): shadow and secondary rays started off the surface along
 its normal, up to 5·10⁻³ of the scene's visible size, or by a t_min up to
 10⁻² of it.  Each is rendered at a ladder of round amounts in the scene's units
@@ -28,13 +28,15 @@ import numpy as np
 
 from schemas import Scene
 from tracer import Renderer, decode_png
-from tracer.variants import ACCEPTED_DEFAULT, Options, unchanged
+from tracer.scene.variants import ACCEPTED_DEFAULT, Options, unchanged
 
-from ..grading import GROSS_ALLOWED, Grade, grade, range_counts
-from ..nearby import rows_distance
-from ..scenekey import scene_key
+from ..images.grading import GROSS_ALLOWED, Grade, grade, range_counts
+from ..images.nearby import rows_distance
+from ..render.scenekey import scene_key
 from .looks import off_rows, sampled_rows, telling_middles
 from .offsets import Rung, ladder, narrowed, rung, visible_size
+from .renders import Renders
+from .settled import FIRST_ROWS, settled
 
 #: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
@@ -155,6 +157,7 @@ def accept(
     accepted: dict[str, float] | None = None,
     threads: int | None = None,
     cancel: Callable[[], bool] | None = None,
+    renders: Renders | None = None,
 ) -> Acceptance | None:
     """The first accepted variant and bracket of its ladder (``accepted``: name → largest amount × the visible
     size; None: the defaults), smallest first, whose range (the renders of its two rungs, or of the reference and
@@ -163,21 +166,46 @@ def accept(
     off the range); None when none does.  Its words name the rung of the range the image comes closer to (the
     higher, from the reference): the amount that decided it.
 
+    A ladder is first looked at on the rows where the submission is most off, its rungs alone: when no range of
+    them nor any narrower range between two can hold the image there (:mod:`.settled`, the same verdict as the
+    whole ladder), it is given up, unnarrowed; a mistake costs a few rows of each rung.  With ``renders`` (the
+    scene's renders for diagnosis, :class:`.renders.Renders`) its rungs are kept with them: the diagnosis's
+    ladder of offsets too large starts where this one ends, and renders that rung no more.
+
     A scene with no light but ambient and no mirror or glass renders every offset as the reference (no shadow or
     secondary ray is cast): it renders none of them."""
     if unchanged("offset-too-large", scene):
         return None
     key = scene_key(scene)
-    tolerance, shut = pair.failed.tolerance, pair.open_pixels
-    look = Look(
-        key, threads, cancel, telling_middles(off_rows(pair.reference, pair.submitted, tolerance, shut), np.inf)
-    )
+    counts = off_rows(pair.reference, pair.submitted, pair.failed.tolerance, pair.open_pixels)
+    look = Look(key, threads, cancel, telling_middles(counts, np.inf), renders)
     allowed = min(pair.failed.max_fraction, EXPLAINED * pair.failed.fraction_off_nearby) * pair.submitted[..., 0].size
+    first = replace(look, middles=telling_middles(counts, FIRST_ROWS * allowed))
     for rungs in accepted_ladders(scene, accepted, key):
+        if _settled(scene, pair, rungs, first, allowed) or _settled(scene, pair, rungs, look, allowed):
+            continue  # (no range of its rungs, nor any narrower one, can hold the image: the same None, sooner)
         found = _found(scene, pair, rungs, look, allowed)
         if found is not None:
             return _quoted(scene, pair, rungs, look, found)
     return None
+
+
+def _settled(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> bool:
+    """Whether, on the rows ``look`` takes, no range of two neighbouring rungs of the ladder (the first from the
+    reference) nor any narrower range between two of them can leave at most ``allowed`` pixels off
+    (:func:`.settled.settled`): then :func:`_found` finds nothing, and is not asked."""
+    middles, rows = look.looked(pair.submitted.shape[0])
+    if not len(middles):
+        return False
+    w = pair.submitted.shape[1]
+
+    def bands(k: int) -> np.ndarray:
+        image = pair.reference[rows] if k == 0 else look.rows(scene, rungs[k - 1].options, rows)
+        return image.reshape(len(middles), 3, w, 3)
+
+    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
+    shut = None if pair.open_pixels is None else pair.open_pixels[middles]
+    return settled(bands, len(rungs) + 1, submitted, pair.failed.tolerance, shut, lambda off: off > allowed)
 
 
 def _found(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:
@@ -206,9 +234,7 @@ def _quoted(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, found: A
     pixels, failed = pair.submitted[..., 0].size, pair.failed
     own = [
         grade(
-            KEPT_RENDERS.get(
-                (look.key, r.options), partial(_render, scene, r.options, look.threads, look.cancel), pixels
-            ),
+            look.whole(scene, r.options, pixels),
             pair.submitted,
             failed.reference_sha256,
             failed.tolerance,
@@ -252,13 +278,10 @@ def _bracket(
     little, and is said as 0.001 all the same."""
     failed, pixels = pair.failed, pair.submitted[..., 0].size
     allowed, from_reference = how
-    kept = all(KEPT_RENDERS.has((look.key, r.options)) for r in rungs)
+    kept = all(look.has(r.options) for r in rungs)
     if not kept and first_look(scene, rungs, pair, look, from_reference) > allowed:
         return None  # (its rows alone leave too many pixels off: it cannot pass, whole)
-    images = [
-        KEPT_RENDERS.get((look.key, r.options), partial(_render, scene, r.options, look.threads, look.cancel), pixels)
-        for r in rungs
-    ]
+    images = [look.whole(scene, r.options, pixels) for r in rungs]
     ranged = [pair.reference, *images] if from_reference else images
     counts = envelope_counts(ranged, pair.submitted, failed.tolerance, pair.open_pixels)
     if counts.off_nearby > allowed or counts.grossly_off > GROSS_ALLOWED:
@@ -269,9 +292,7 @@ def _bracket(
     ]
     nearer = min(range(len(rungs)), key=lambda k: (own[k].fraction_off_nearby, -k))
     if after is not None and own[nearer].fraction_off_nearby > 0:
-        image = KEPT_RENDERS.get(
-            (look.key, after.options), partial(_render, scene, after.options, look.threads, look.cancel), pixels
-        )
+        image = look.whole(scene, after.options, pixels)
         graded = grade(
             image, pair.submitted, failed.reference_sha256, failed.tolerance, failed.max_fraction, pair.open_pixels
         )
@@ -284,16 +305,35 @@ def _bracket(
 @dataclass(frozen=True)
 class Look:
     """How a first look renders: the scene's key (its rows are kept under it), its threads and what cancels it,
-    and the middle rows it looks at (None: :func:`service.diagnosis.looks.sampled_rows`)."""
+    the middle rows it looks at (None: :func:`service.diagnosis.looks.sampled_rows`), and the scene's renders
+    for diagnosis (:class:`.renders.Renders`, in the cache of them and its budget) where they are at hand
+    (else what it renders is kept in :data:`KEPT_RENDERS`): a rung an offset too large's ladder shares is
+    rendered once for both."""
 
     key: str
     threads: int | None
     cancel: Callable[[], bool] | None
     middles: np.ndarray | None = None
+    renders: Renders | None = None
 
     def rows(self, scene: Scene, options: Options, rows: np.ndarray) -> np.ndarray:
         """Rows ``rows`` of the scene rendered with ``options``, each kept for the next failing image."""
+        if self.renders is not None:
+            return self.renders.with_rows(options, rows)
         return KEPT_RENDERS.rows_of((self.key, options), rows, partial(_render_rows, scene, options, how=self))
+
+    def whole(self, scene: Scene, options: Options, pixels: int) -> np.ndarray:
+        """The whole image with ``options``: from the folder of those rendered beforehand (:data:`STORED`), else
+        rendered once and kept."""
+        key = (self.key, options)
+        if self.renders is None or stored(key) is not None:
+            return KEPT_RENDERS.get(key, partial(_render, scene, options, self.threads, self.cancel), pixels)
+        return self.renders.with_options(options)
+
+    def has(self, options: Options) -> bool:
+        """Whether the whole image with ``options`` is at hand, without a render."""
+        key = (self.key, options)
+        return KEPT_RENDERS.has(key) or (self.renders is not None and self.renders.holds(options))
 
     def looked(self, height: int) -> tuple[np.ndarray, np.ndarray]:
         """The middle rows a look takes in an image ``height`` tall, and every row it renders for them (each
@@ -330,7 +370,8 @@ def sampled_off(scene: Scene, rungs: list[Rung], pair: Failing, how: Look, refer
     return int(np.count_nonzero(near > pair.failed.tolerance)), int(near.sum(dtype=np.int64))
 
 
-#: the pixels off even nearby, and grossly off, against the range of renders (:func:`service.grading.range_counts`)
+#: the pixels off even nearby, and grossly off, against the range of renders
+#: (:func:`service.images.grading.range_counts`)
 envelope_counts = range_counts
 
 

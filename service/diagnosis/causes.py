@@ -13,9 +13,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from tracer.variants import ALIKE, BOUNDS, MORE_VARIANTS, VARIANTS
+from tracer.scene.variants import ALIKE, BOUNDS, MORE_VARIANTS, VARIANTS
 
-from ..grading import Grade, grade
+from ..images.grading import Grade, grade
 from . import too_large
 from .compose import stored_only
 from .fit import fit_terms

@@ -11,7 +11,7 @@ the mistakes would cost a render per pair; instead the failing image itself says
   that the single-mistake diagnosis already looked at (:attr:`Looks.rows`).  The differences of mistakes
   made together add up, all but exactly (each mistake changes one term of a sum of terms): the submission
   less the reference is fitted with the sum of the differences of one, two or three mistakes, on those rows.
-  The new mistakes of :data:`tracer.variants.MORE_VARIANTS` are looked at only where the term fit points to
+  The new mistakes of :data:`tracer.scene.variants.MORE_VARIANTS` are looked at only where the term fit points to
   them (:func:`pointed`): the fit says which to try.
 * **One render** of the merged options (:func:`merged`) confirms the combination with the grade's own
   measure, or leaves it the closest.
@@ -28,14 +28,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
+from tracer.scene.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
-from ..grading import grade
+from ..images.grading import grade
 from .records import Term
 from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
 
 if TYPE_CHECKING:
-    from ..grading import Grade
+    from ..images.grading import Grade
 
 #: every mistake that may be named: name → (options, what the student did)
 ALL: dict[str, tuple[Options, str]] = {**VARIANTS, **MORE_VARIANTS}
@@ -117,7 +117,7 @@ SLACK = 0.15
 
 
 def pointed(terms: list[Term], lights: tuple[str, ...]) -> dict[str, str]:
-    """The new render-level mistakes (:data:`tracer.variants.MORE_VARIANTS`) the fitted terms point to, each with
+    """The new render-level mistakes (:data:`tracer.scene.variants.MORE_VARIANTS`) the fitted terms point to, each with
     the term that points to it, in words: a spot's term too strong (its exponent ignored), a light's term out of
     scale (its colour ignored), a light's term too weak (clamped per term; reflections blended, which darken
     the local colour of a mirror), the refractions out of scale (the normal leaving glass)."""

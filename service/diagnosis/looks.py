@@ -7,8 +7,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..grading import Grade
-from ..nearby import rows_distance
+from ..images.grading import Grade
+from ..images.nearby import rows_distance
 from .renders import Renders
 
 #: how much, on average, a speckled mistake's reach towards its far end changes from a pixel to the next
@@ -96,7 +96,7 @@ def off_at_least(
     :data:`FIRST_LOOK` of them first: a bound from some of the rows is a bound too, and most variants are
     settled by it.  ``first``, when given (:func:`telling_middles`), is the first look instead, and the rest
     of the sampled rows the second.  With several names, the bound is against the range of their renders
-    (:func:`service.grading.range_counts`)."""
+    (:func:`service.images.grading.range_counts`)."""
     h, w, _ = submitted.shape
     looks = _looks(h, first)
     if not looks:
@@ -237,8 +237,8 @@ def _off_nearby(bands: np.ndarray, submitted: np.ndarray, tolerance: float, shut
 def _off_per_row(
     bands: np.ndarray, submitted: np.ndarray, tolerance: float, shut: np.ndarray | None = None
 ) -> np.ndarray:
-    """How many pixels of each middle row are off even nearby, per row, as :func:`service.grading.grade` counts
-    them (both ways, :mod:`service.nearby`): ``bands`` the variant's and ``submitted`` the submission's
+    """How many pixels of each middle row are off even nearby, per row, as :func:`service.images.grading.grade` counts
+    them (both ways, :mod:`service.images.nearby`): ``bands`` the variant's and ``submitted`` the submission's
     ``(k, 3, W, 3)`` rows, each middle row with the rows above and below (the image's edges repeated); the
     pixels ``shut`` (``(k, W)``, True: not counted) are not counted."""
     near = rows_distance(bands, bands, submitted)
@@ -256,7 +256,7 @@ def outside_at_least(
     beyond: Callable[[int], bool] | None = None,
     first: np.ndarray | None = None,
 ) -> int | None:
-    """For a speckled mistake ``name`` of :data:`tracer.variants.BOUNDS`: a lower bound of how many pixels of
+    """For a speckled mistake ``name`` of :data:`tracer.scene.variants.BOUNDS`: a lower bound of how many pixels of
     ``submitted`` lie outside the reference and the mistake's far end (:func:`speckled`'s share, as a count),
     from a look at the sampled middle rows of the far end (None for an image too short to have middle rows);
     once ``beyond`` says the count is too many, no more rows are looked at.

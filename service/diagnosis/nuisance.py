@@ -20,11 +20,11 @@ from functools import partial
 import numpy as np
 
 from schemas import Scene
-from tracer.variants import MORE_VARIANTS, VARIANTS, Options
+from tracer.scene.variants import MORE_VARIANTS, VARIANTS, Options
 
-from ..grading import Grade, grade
-from ..nearby import rows_distance
-from ..scenekey import scene_key
+from ..images.grading import Grade, grade
+from ..images.nearby import rows_distance
+from ..render.scenekey import scene_key
 from .accepting import KEPT_RENDERS, Failing, Look, _render, accepted_ladders
 from .compose import ALL, compatible, merged
 from .looks import sampled_rows

@@ -2,7 +2,7 @@
 
 A student's tracer starts its shadow and secondary rays a little off the surface: along the normal (``p +
 0.001·n``) or by a t_min (hits nearer than 0.001 ignored).  Which amounts leave an image as the format's is
-measured against the scene's *visible size* (:mod:`tracer.visible`: the view's height where the picture's
+measured against the scene's *visible size* (:mod:`tracer.exact.visible`: the view's height where the picture's
 surfaces lie), never its bounding box, which a ground sphere of radius 1000 or a far sphere out of view makes
 thousands of times too large.
 
@@ -21,9 +21,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from tracer import Renderer
-from tracer.variants import ACCEPTED_KINDS, Options
+from tracer.scene.variants import ACCEPTED_KINDS, Options
 
-from ..scenekey import scene_key
+from ..render.scenekey import scene_key
 
 #: the leading digits of the round amounts a ladder holds, by kind: a t_min changes an image far less than an
 #: offset along the normal does (it only skips what lies nearer than it), so its ladder's rungs are further apart
@@ -60,7 +60,7 @@ def amount_words(amount: float) -> str:
 class Rung:
     """One offset rendered: its amount in the scene's units, how it is applied, and the render's options."""
 
-    kind: str  # a name of tracer.variants.ACCEPTED_KINDS: "normal-offset" or "t-min"
+    kind: str  # a name of tracer.scene.variants.ACCEPTED_KINDS: "normal-offset" or "t-min"
     amount: float  # in the scene's units
     options: Options  # the render's (its offset relative to the visible size)
 

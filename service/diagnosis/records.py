@@ -9,9 +9,9 @@ from typing import Any, Literal
 from pydantic import Field
 from pydantic.fields import FieldInfo
 
-from tracer.variants import SENTENCES
+from tracer.scene.variants import SENTENCES
 
-from ..display import percent
+from ..images.figures import percent
 from .words import Names, nearest_sentence, readings_sentence, term_sentence, together_sentence
 
 #: the key of a record's field metadata that says how the service's answer documents the field
@@ -27,7 +27,7 @@ def answered(doc: Any, as_type: object = None) -> dict[str, tuple[object, FieldI
 
 @dataclass(frozen=True)
 class Cause:
-    #: a name of tracer.variants.VARIANTS or MORE_VARIANTS; for a nearest explanation that is a term,
+    #: a name of tracer.scene.variants.VARIANTS or MORE_VARIANTS; for a nearest explanation that is a term,
     #: ``term:NAME`` or ``term:NAME:LIGHT`` (``term:specular:1``)
     variant: str = field(
         metadata=answered(
@@ -277,3 +277,15 @@ def headline(found: Diagnosis | None) -> str:
 def unavailable(why: str) -> Diagnosis:
     """A diagnosis that could not be made, and why."""
     return Diagnosis(unavailable=why)
+
+
+def matched(diagnosis: dict[str, Any] | None) -> list[str]:
+    """The ids of the mistakes a failing image matches (passes against the reference rendered with each), best
+    first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it; mistakes made together are
+    one id, ``no-shadows+gamma`` (two faults: each one's deduction is taken: the gradebook's score)."""
+    if not diagnosis:
+        return []
+    causes = [c for c in diagnosis.get("causes", []) if c.get("passes")]
+    if causes and causes[0].get("together"):  # mistakes made together: one id for them all
+        return ["+".join(c["variant"] for c in causes)]
+    return [c["variant"] for c in causes]

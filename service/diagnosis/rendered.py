@@ -12,8 +12,8 @@ import numpy as np
 
 from tracer import RenderCancelled, Renderer
 from tracer.image import quantize
-from tracer.passes import ADDITIVE, LIGHT_TERMS
-from tracer.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
+from tracer.scene.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
+from tracer.shade.passes import ADDITIVE, LIGHT_TERMS
 
 from .fit import FIT_BLOCK_PIXELS
 from .offsets import visible_size
@@ -40,7 +40,7 @@ def renders_of(
     One render gives every pass, every light's terms and the image's linear colour
     (:meth:`tracer.Renderer.diagnosis_passes`); from that colour come, exactly as their own renders would make
     them, the gamma variant (each pixel's colour to the power 1/2.2, then stored) and the flipped image, and
-    the reference itself stands for every variant the scene cannot show (:func:`tracer.variants.unchanged`).
+    the reference itself stands for every variant the scene cannot show (:func:`tracer.scene.variants.unchanged`).
     Only the other variants are rendered, each once.
 
     That render is made only when something needs the whole image's passes (a fit of the terms, a variant
@@ -61,6 +61,11 @@ def options_of(name: str, size: Callable[[], float] | None = None) -> Options:
         amount = float(name.split("@", 1)[1])
         return Options(offset=amount / (size() if size is not None else 1.0))
     return VARIANTS[name][0] if name in VARIANTS else MORE_VARIANTS[name][0]
+
+
+def by_options(options: Options) -> str:
+    """The name a render made with ``options`` is kept under (:meth:`SceneRenders.with_rows`)."""
+    return f"options:{options!r}"
 
 
 def on_base(options: Options, base: Options) -> Options:
@@ -136,7 +141,7 @@ class SceneRenders:
         return unchanged(name.split("@", 1)[0], self.scene)
 
     def size(self) -> float:
-        """The scene's visible size (:mod:`tracer.visible`), what an offset is measured against."""
+        """The scene's visible size (:mod:`tracer.exact.visible`), what an offset is measured against."""
         if self.visible is None:
             self.visible = visible_size(self.scene)
         return self.visible
@@ -244,6 +249,8 @@ class SceneRenders:
                 self.kept.pop(name, None)
             elif self.unchanged(name):
                 variants[name] = self.images()["reference"]
+            elif "@" in name:  # (a rung of an offset too large, under its options)
+                variants[name] = self.with_options(options_of(name, self.size))
             elif name in self.kept:  # the rows not yet rendered
                 self.rows(name, np.arange(self.height))
             else:
@@ -276,10 +283,40 @@ class SceneRenders:
         return np.stack([have[r] for r in numbers.tolist()])
 
     def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
-        """Rows of a classic mistake's render (:data:`VARIANTS`), or of a new one's (:data:`MORE_VARIANTS`), kept."""
+        """Rows of a classic mistake's render (:data:`VARIANTS`), or of a new one's (:data:`MORE_VARIANTS`), kept; a
+        rung of an offset too large's under its options (:meth:`with_rows`)."""
         if name in self.variants or (name in DERIVED and self.made_whole()) or self.unchanged(name):
             return self._variant(name)[numbers]
+        if "@" in name:
+            return self.with_rows(options_of(name, self.size), numbers)
         return self.kept_rows(name, name, options_of(name, self.size), self.variants, numbers)
+
+    # -- renders by their options: the rungs of the ladders of offsets --------------------------------------------
+
+    def with_rows(self, options: Options, numbers: np.ndarray) -> np.ndarray:
+        """Rows ``numbers`` of the scene rendered with ``options`` (a rung of an accepted offset's ladder, or of an
+        offset too large's: :mod:`.accepting` and :mod:`.too_large` ask for the same rung under its options, and it
+        is rendered once), kept with the scene's other renders, in its budget."""
+        key = by_options(options)
+        with self.guard:
+            if key in self.variants:
+                return self.variants[key][numbers]
+        return self.kept_rows(key, key, options, self.variants, numbers)
+
+    def with_options(self, options: Options) -> np.ndarray:
+        """The whole image rendered with ``options``, kept as :meth:`with_rows` keeps its rows (those rendered
+        already are not rendered again)."""
+        key = by_options(options)
+        if key not in self.variants:
+            if key in self.kept:
+                self.with_rows(options, np.arange(self.height))
+            else:
+                self.variants[key] = self.prepared(options).pixels(threads=self.threads, cancel=self.polled())
+        return self.variants[key]
+
+    def holds(self, options: Options) -> bool:
+        """Whether the whole image with ``options`` is at hand, without a render."""
+        return by_options(options) in self.variants
 
     def render(self, options: Options) -> np.ndarray:
         """The whole image with ``options`` (mistakes made together): rendered each time it is asked for (a

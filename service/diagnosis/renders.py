@@ -11,7 +11,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from tracer.render import Fold
-    from tracer.variants import Options
+    from tracer.scene.variants import Options
 
     from .words import Names
 
@@ -48,7 +48,7 @@ class Renders(Protocol):
         of its whole image, :func:`.looks.whole_unless_off`): the rows of its whole image, exactly."""
 
     def bound(self, name: str) -> np.ndarray:
-        """Pixels of the far end of a mistake of :data:`tracer.variants.BOUNDS`."""
+        """Pixels of the far end of a mistake of :data:`tracer.scene.variants.BOUNDS`."""
 
     def bound_rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
         """Rows ``numbers`` of that far end (:func:`.looks.outside_at_least`)."""
@@ -68,11 +68,21 @@ class Renders(Protocol):
     def render(self, options: Options) -> np.ndarray:
         """The whole image rendered with ``options`` (mistakes made together, :mod:`.compose`)."""
 
+    def with_rows(self, options: Options, numbers: np.ndarray) -> np.ndarray:
+        """Rows ``numbers`` of the image rendered with ``options`` (a rung of a ladder of offsets), kept under the
+        options: the accepted offsets' ladder and an offset too large's render a rung they share once."""
+
+    def with_options(self, options: Options) -> np.ndarray:
+        """The whole image rendered with ``options``, kept as :meth:`with_rows` keeps its rows."""
+
+    def holds(self, options: Options) -> bool:
+        """Whether the whole image with ``options`` is at hand, without a render."""
+
     def unchanged(self, name: str) -> bool:
         """Whether the scene cannot show mistake ``name`` (its render is the reference's, bit for bit)."""
 
     def size(self) -> float:
-        """The scene's visible size (:mod:`tracer.visible`): an offset too large is rendered at a ladder of
+        """The scene's visible size (:mod:`tracer.exact.visible`): an offset too large is rendered at a ladder of
         amounts (``offset-too-large@0.05``, in the scene's units)."""
 
     def check(self) -> None:
@@ -101,6 +111,7 @@ class WholeImages:
         self.variant, self.bound, self.passes = renders.variant, renders.bound, renders.passes
         self.blocks, self.render, self.size, self.check = renders.blocks, renders.render, renders.size, renders.check
         self.cancel_in_thread, self.done, self.nbytes = renders.cancel_in_thread, renders.done, renders.nbytes
+        self.with_options, self.holds = renders.with_options, renders.holds
 
     @property
     def cancel(self) -> Callable[[], bool] | None:
@@ -115,6 +126,9 @@ class WholeImages:
 
     def bound_rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
         return self.bound(name)[numbers]
+
+    def with_rows(self, options: Options, numbers: np.ndarray) -> np.ndarray:
+        return self.with_options(options)[numbers]
 
     def at(self, pixels: np.ndarray, fold: Fold) -> np.ndarray:
         found: np.ndarray = self.passes(["object"], None)["object"].reshape(-1)[pixels]

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracer.variants import Options
+from tracer.scene.variants import Options
 
 #: the mistakes of the stored image tried on the reference's pixels, in the order a tracer makes them (the rows,
 #: then the channels): each a change of the 8-bit image alone, tried with no render

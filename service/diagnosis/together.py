@@ -18,7 +18,7 @@ from .renders import Renders
 from .words import Names, term_sentence
 
 if TYPE_CHECKING:
-    from ..grading import Grade
+    from ..images.grading import Grade
 
 #: a combination not passed against is still named the closest when it leaves at most this share of the
 #: reference's failing pixels (as a single mistake is, :data:`.causes.CLOSEST_SHARE`)

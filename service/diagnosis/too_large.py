@@ -4,7 +4,7 @@ accepted, with its size estimated in the scene's units.
 A student whose shadow and secondary rays start too far off the surface detaches shadows from what casts them
 and shifts what glass shows.  Their amount is their own (0.05, 0.1...), so one render of one amount matches
 few of them.  The reference is rendered instead at a ladder of amounts (:mod:`.offsets`), from the largest
-offset accepted (:data:`tracer.variants.ACCEPTED_DEFAULT`) up to :data:`TOP` of the visible size; the rung
+offset accepted (:data:`tracer.scene.variants.ACCEPTED_DEFAULT`) up to :data:`TOP` of the visible size; the rung
 nearest the submission and its two neighbours bracket the student's amount, which is looked for on either
 side of it (:func:`.offsets.narrowed`), and the submission is graded against the range of the amounts found: any
 amount between them lies in their range.  That range names the mistake, with the amount of it the submission comes
@@ -19,14 +19,15 @@ from typing import Protocol
 
 import numpy as np
 
-from tracer.variants import ACCEPTED_DEFAULT
+from tracer.scene.variants import ACCEPTED_DEFAULT
 
-from ..grading import Grade, grade, passes, range_counts
-from ..nearby import rows_distance
+from ..images.grading import Grade, grade, passes, range_counts
+from ..images.nearby import rows_distance
 from .looks import sampled_rows, telling_middles
 from .offsets import amount_words, narrowed, round_amounts
 from .records import Cause
 from .renders import Renders
+from .settled import FIRST_ROWS, settled
 
 NAME = "offset-too-large"
 #: the ladder of offsets too large goes up to this × the visible size (an offset that large hides most shadows,
@@ -70,11 +71,16 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     to the amounts that leave fewer, the side whose range leaves fewer kept, then rendered whole.  False, as
     :meth:`_Scoring.score` says, when the rows alone (an exact lower bound, as
     :func:`service.diagnosis.looks.off_at_least` counts) or the whole count are off by a count ``beyond`` says is
-    too many; else adds the cause, its words the amount of the range the submission comes closer to."""
+    too many; else adds the cause, its words the amount of the range the submission comes closer to.  The ladder is
+    given up before any of that when its rungs' rows alone show that no range of them, nor a narrower one, can
+    come under ``beyond`` (:mod:`.settled`: the same False, sooner)."""
     renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
     size = renders.size()
     ladder = amounts(size)
     sampled = _Told(scoring)
+    first = _Sampled(scoring, telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels))
+    if first.settled(ladder, beyond) or sampled.first.settled(ladder, beyond):
+        return False  # (no range of its rungs, nor any narrower one, can leave few enough off: as narrowing finds)
     # (on either side of the rung nearest the submission: a range of two rungs may leave a pixel fewer off than
     # the range that holds the student's amount, where a larger offset hides what a smaller one shows)
     best = min(range(len(ladder)), key=lambda k: sampled.off((ladder[k],)))
@@ -133,6 +139,14 @@ class _Sampled:
                 near = np.where(self.shut, 0, near)
             self.counted[amounts] = (int(np.count_nonzero(near > self.tolerance)), int(near.sum(dtype=np.int64)))
         return self.counted[amounts]
+
+    def settled(self, ladder: list[float], beyond: Callable[[int], bool]) -> bool:
+        """Whether, on these rows, no range of two neighbouring amounts of ``ladder`` nor any narrower range
+        between two of them can leave a count of pixels off that ``beyond`` lets by (:func:`.settled.settled`)."""
+        if not len(self.middles):
+            return False
+        self.renders.check()
+        return settled(lambda k: self.bands(ladder[k]), len(ladder), self.submitted, self.tolerance, self.shut, beyond)
 
 
 class _Told:

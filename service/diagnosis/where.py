@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..grading import Grade
+from ..images.grading import Grade
 from .records import Share
 from .renders import Renders
 

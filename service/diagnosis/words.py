@@ -12,6 +12,8 @@ from typing import Any
 
 from schemas.names import light_words, object_words
 
+from ..images.figures import percent
+
 #: a term fitted below this is missing, not just too weak (the diagnosis's own threshold)
 MISSING = 0.05
 #: plain words for a ratio near a simple fraction or multiple: (ratio, words); a ratio within
@@ -113,8 +115,6 @@ def together_sentence(mistakes: list[str], fraction: float, passes: bool, also: 
     """ "Likely two mistakes together: no shadow rays, and gamma 1/2.2 applied to the output — the submission
     matches the reference rendered with both (0.02 % of pixels off)"; ``also`` follows "both" (" and a ray
     offset of 0.003 along the normal")."""
-    from ..display import percent
-
     count = {2: "two", 3: "three"}.get(len(mistakes), str(len(mistakes)))
     how = "matches" if passes else "comes closest to"
     every = "both" if len(mistakes) == 2 else "all of them"
@@ -149,8 +149,6 @@ def readings_sentence(variants: list[str], mistakes: list[str], fraction: float)
     """ "Likely: no specular term, or the reflected vector R with the wrong sign — the image cannot tell them apart
     (it shows no specular highlight): the submission matches the reference rendered with either (0.00 % of
     pixels off)", for the mistakes (``variants``, in words ``mistakes``) an image passes against each alone."""
-    from ..display import percent
-
     shows = {SHOWS.get(v) for v in variants}
     what = f" (it shows {shows.pop()})" if len(shows) == 1 and None not in shows else ""
     every = "either" if len(mistakes) == 2 else "any of them"

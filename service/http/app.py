@@ -10,12 +10,12 @@ from fastapi.responses import JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from schemas import Scene
-from service.http.jobs import RenderService
 from service.http.middleware import ApiKey, BodyLimit, Framing
 from service.http.problems import HTTPProblem, SafeJSONResponse, problem_response
 from service.http.routers import grade, render, status
 from service.http.routers.playground import DOCS_ASSETS, playground_router
 from service.settings import Settings
+from service.work.jobs import RenderService
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:

@@ -12,9 +12,9 @@ from fastapi.responses import JSONResponse
 
 from schemas import SceneError
 from schemas.locate import Located, located
-from service.http.jobs import AnswersFull, Busy, Job, OutOfMemory, RenderService, TooSlow, prepare
+from service.admission.limits import LimitError
 from service.http.models import ErrorAnswer
-from service.limits import LimitError
+from service.work.jobs import AnswersFull, Busy, Job, OutOfMemory, RenderService, TooSlow, prepare
 
 T = TypeVar("T")
 
@@ -90,7 +90,7 @@ def prepared(body: bytes | str, overrides: dict[str, int | None], service: Rende
 
 def unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
     """503 with Retry-After for a render that cannot be had now: the slots busy (Retry-After: when the work
-    waiting for them is likely done, :meth:`service.http.slots.Slots.retry_after`), past its time, no cluster."""
+    waiting for them is likely done, :meth:`service.work.slots.Slots.retry_after`), past its time, no cluster."""
     settings = service.settings
     retry = settings.retry_after
     if isinstance(exc, AnswersFull):

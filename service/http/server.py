@@ -11,7 +11,7 @@
   by uvicorn after ``keep_alive``; ``max_connections`` is uvicorn's
   ``limit_concurrency``.)
 * With several workers, each connection goes to the worker holding the
-  fewest (:mod:`service.balance`), so that two kept-alive clients do not
+  fewest (:mod:`service.http.balance`), so that two kept-alive clients do not
   share one worker's interpreter lock while another idles.
 * The objects a worker holds once started (about 60k: FastAPI, Pydantic,
   NumPy and phongray's own) are frozen out of the garbage collector's rounds:
@@ -33,7 +33,7 @@ import h11
 import uvicorn
 from uvicorn.protocols.http.h11_impl import H11Protocol
 
-from service import balance
+from service.http import balance
 from service.http.app import create_app
 from service.settings import Settings
 
@@ -110,7 +110,7 @@ def worker_app() -> Any:
 
 def serve(host: str, port: int, workers: int) -> None:
     """uvicorn with ``workers`` processes; with more than one, each connection goes to the worker that holds
-    the fewest (:mod:`service.balance`)."""
+    the fewest (:mod:`service.http.balance`)."""
     settings = Settings.from_env()
     with balance.board_for(workers) as board:
         uvicorn.run(
@@ -123,5 +123,5 @@ def serve(host: str, port: int, workers: int) -> None:
             log_level="info",
             timeout_keep_alive=settings.keep_alive,  # type: ignore[arg-type]
             limit_concurrency=settings.max_connections,
-            loop="service.balance:balanced_loop" if board is not None else "auto",
+            loop="service.http.balance:balanced_loop" if board is not None else "auto",
         )

@@ -11,10 +11,10 @@ from typing import Any, TypeVar
 import anyio
 from fastapi import Request, Response
 
-from service.http.jobs import AnswersFull, Busy, ClusterDown, Job, RenderService, TooSlow
+from service.admission.limits import LimitError
 from service.http.problems import HTTPProblem, unavailable
-from service.limits import LimitError
-from service.passes import PassFile
+from service.render.passes import PassFile
+from service.work.jobs import AnswersFull, Busy, ClusterDown, Job, RenderService, TooSlow
 from tracer import ImageTooLarge, RenderCancelled
 
 T = TypeVar("T")
@@ -145,7 +145,7 @@ def streamed(service: RenderService, file: PassFile, held: int, headers: dict[st
 
 
 class Streamed(Response):
-    """A large answer sent a chunk at a time (:meth:`service.passes.PassFile.chunks`), never joined: each chunk
+    """A large answer sent a chunk at a time (:meth:`service.render.passes.PassFile.chunks`), never joined: each chunk
     must be taken by the client within ``timeout`` seconds (``send_timeout``), else the connection is dropped;
     either way ``done()`` runs once it is over (the answer's memory is let go and its budget given back)."""
 

@@ -20,7 +20,7 @@ import stat
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..classgrade.folders import Folder
+from ..course.folders import Folder
 from .folder import MAX_DEPTH, MAX_ENTRIES, MAX_PATH
 
 if TYPE_CHECKING:

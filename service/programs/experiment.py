@@ -21,7 +21,7 @@ The probes are asked in stages, so that a part found wrong is not blamed on the 
    answers are judged again with it.  For a spot's probe, the pixels it gets wrong against those of the
    spot's ramp between its inner and outer cone say whether the mistake is in that ramp alone.
 
-A probe's answer is read as an uploaded image is (:func:`service.grading.read_submission`: a PNG of the
+A probe's answer is read as an uploaded image is (:func:`service.images.grading.read_submission`: a PNG of the
 probe's size, checked on its header before anything is decompressed); one that cannot be read is that
 probe's "no answer", as a run that failed is, and the experiment goes on; but a probe whose run timed out (or
 used its CPU time) ends the experiment, as every later probe would take as long, and so does the student's
@@ -43,17 +43,17 @@ from schemas import load_scene
 from service.diagnosis.rendered import options_of
 from tracer import decode_png, encode_png
 from tracer.render import Renderer
-from tracer.variants import REFERENCE
+from tracer.scene.variants import REFERENCE
 
-from .. import pipeline
-from ..classgrade.gradebook import matched
-from ..grading import ImageError, grade, read_submission
+from ..diagnosis.records import matched
+from ..images.grading import ImageError, grade, read_submission
+from ..work import pipeline
 from .findings import sentences, unseen
 from .outcome import Reason, RunOutcome
 from .probes import LEFT_OUT, MAX_PROBES, Probe, Scene, aside_probe, camera_probe, light_probes, term_probes
 
 if TYPE_CHECKING:
-    from tracer.variants import Options
+    from tracer.scene.variants import Options
 
 #: the verdict of an answer that is not an image of the probe (not a PNG, the wrong size, a bomb)
 UNREADABLE = "unreadable"
@@ -113,7 +113,7 @@ def render_png(scene: Scene, mistakes: tuple[str, ...] = ()) -> bytes:
 
 def read_answer(image: bytes, reference: np.ndarray) -> np.ndarray:
     """A program's image as an uploaded one is read (its size checked on the header first, against the
-    probe's): :class:`service.grading.ImageError` when it is not one."""
+    probe's): :class:`service.images.grading.ImageError` when it is not one."""
     return read_submission(image, (reference.shape[1], reference.shape[0]))
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from tracer.variants import MORE_VARIANTS, VARIANTS
+from tracer.scene.variants import MORE_VARIANTS, VARIANTS
 
 from .outcome import Reason, told
 from .probes import Kind, light_label

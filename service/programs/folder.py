@@ -18,8 +18,8 @@ import stat
 import tarfile
 from pathlib import Path, PurePosixPath
 
-from ..classgrade.folders import Folder
-from ..classgrade.untrusted import UntrustedFileError
+from ..course.folders import Folder
+from ..course.untrusted import UntrustedFileError
 
 #: how deep a student's folders are followed, and the longest path (in bytes, below the student's folder) a
 #: file or folder may have: deeper and longer ones are left out, as links are (each name may be 255 bytes, so a

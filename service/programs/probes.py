@@ -47,7 +47,7 @@ class Probe:
     """One question: its name in words (``light 'key' alone``), what it isolates (its kind and subject: the
     term's name, the light's index, ``camera``), the scene, and for a spot's probe, a second scene (the spot
     without its ramp: ``inner_cutoff`` = ``cutoff``) whose render differs from the probe's exactly on the
-    ramp's pixels, the region a mistake can be located in; the classic mistakes (``tracer.variants`` ids)
+    ramp's pixels, the region a mistake can be located in; the classic mistakes (``tracer.scene.variants`` ids)
     the program is already found to make, which phongray renders the probe's reference with."""
 
     name: str

@@ -21,7 +21,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ..classgrade.untrusted import UntrustedFileError, read_untrusted
+from ..course.untrusted import UntrustedFileError, read_untrusted
 from .cgroup import CgroupError
 from .folder import MAX_ENTRIES, FolderTooLarge, chown_tree, copy_folder, unpack
 from .guard import Guard, guard

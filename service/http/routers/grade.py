@@ -12,13 +12,14 @@ from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse
 from starlette.datastructures import UploadFile
 
-from service import grading, pipeline
-from service.heatmap import Kind
-from service.http.jobs import Busy, ClusterDown, Job, RenderService, TooSlow
 from service.http.models import GradeAnswer
 from service.http.problems import ERRORS, HTTPProblem, prepared, unavailable
 from service.http.routers.render import EXAMPLE_TEXT
 from service.http.waiting import rendered, watched, whole
+from service.images import grading
+from service.images.heatmap import Kind
+from service.work import pipeline
+from service.work.jobs import Busy, ClusterDown, Job, RenderService, TooSlow
 from tracer import decode_png
 from tracer.memory import release
 

@@ -13,7 +13,7 @@ from fastapi import APIRouter, Response
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.responses import HTMLResponse
 
-from service.heatmap import LEGEND
+from service.images.heatmap import LEGEND
 
 #: the playground's page and the example scene, shipped as package data of service
 STATIC = Path(__file__).parents[2] / "static"

@@ -13,11 +13,11 @@ import anyio
 from fastapi import APIRouter, Query, Request, Response
 
 from schemas import validate_scene
-from service.http.jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted
 from service.http.models import ValidAnswer
 from service.http.problems import ERRORS, HTTPProblem, answering, prepared, require_json, unavailable
 from service.http.waiting import rendered, streamed, watched, whole
-from service.passes import PassFile
+from service.render.passes import PassFile
+from service.work.jobs import Busy, ClusterDown, Job, RenderService, TooSlow, parse_counted
 
 router = APIRouter()
 

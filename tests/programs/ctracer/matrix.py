@@ -25,7 +25,7 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from schemas import Scene, load_scene  # noqa: E402
-from service import pipeline  # noqa: E402
+from service.work import pipeline  # noqa: E402
 from tracer import Renderer, decode_png, encode_png  # noqa: E402
 
 SOURCES = ("ctracer.c", "trace_core.h")
