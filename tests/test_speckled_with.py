@@ -6,10 +6,10 @@ import pytest
 import student
 from test_compose import small
 
-from service.classgrade.gradebook import matched
 from service.diagnosis import diagnose, renders_of
+from service.diagnosis.records import matched
 from service.diagnosis.speckled_with import shows
-from service.grading import grade
+from service.images.grading import grade
 from tracer import Renderer
 
 

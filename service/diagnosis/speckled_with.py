@@ -20,9 +20,9 @@ from dataclasses import fields, replace
 
 import numpy as np
 
-from tracer.variants import BOUNDS, REFERENCE, VARIANTS, Options
+from tracer.scene.variants import BOUNDS, REFERENCE, VARIANTS, Options
 
-from ..grading import Grade
+from ..images.grading import Grade
 from .compose import ALL, Combination, Member, _beyond, merged, telling_rows
 from .looks import speckled
 from .renders import Renders
@@ -36,7 +36,7 @@ NEVER = ("no-shadows", "offset-too-large", *BOUNDS)
 
 
 def speckled_with(reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders) -> Combination | None:
-    """Shadow acne (each speckled mistake of :data:`tracer.variants.BOUNDS`) made with one other classic mistake,
+    """Shadow acne (each speckled mistake of :data:`tracer.scene.variants.BOUNDS`) made with one other classic mistake,
     when the submission passes the speckled test against that mistake's render and its far end; None when the
     scene cannot show acne or no second mistake makes it pass."""
     for name in BOUNDS:
