@@ -154,9 +154,11 @@ def naming(ids: list[str], expected: set[str]) -> str:
 
 
 def shown(scene, names: tuple[str, ...]) -> set[str]:  # noqa: ANN001
-    """The mistakes of ``names`` whose image alone is not the reference's."""
-    reference = Renderer(scene).pixels()
-    return {n for n in names if not np.array_equal(student.render(scene, [n]), reference)}
+    """The mistakes of ``names`` the image shows: each whose undoing changes the image (the image made without it,
+    the others kept, is not the image made with all), so that a mistake another hides (acne with no shadow rays
+    at all) is not asked for."""
+    image = student.render(scene, list(names))
+    return {n for n in names if not np.array_equal(student.render(scene, [m for m in names if m != n]), image)}
 
 
 def sections(scenes: dict[str, Any], which: list[str], pair_width: int, flip: bool) -> dict[str, dict]:
