@@ -87,6 +87,14 @@ class _Kept:
                     self.rows.pop(next(iter(self.rows)))
         return np.stack([have[r] for r in numbers.tolist()])
 
+    def kept_rows(self, key: tuple[object, ...], numbers: np.ndarray) -> np.ndarray | None:
+        """Rows ``numbers`` of the render ``key`` when every one of them is kept (else None: nothing rendered)."""
+        with self.lock:
+            have = self.rows.get(key, {})
+            if not all(r in have for r in numbers.tolist()):
+                return None
+            return np.stack([have[r] for r in numbers.tolist()])
+
     def has(self, key: tuple[object, ...]) -> bool:
         with self.lock:
             return key in self.held or stored(key) is not None
@@ -195,8 +203,8 @@ def _settled(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed
     reference) nor any narrower range between two of them can leave at most ``allowed`` pixels off
     (:func:`.settled.settled`): then :func:`_found` finds nothing, and is not asked."""
     middles, rows = look.looked(pair.submitted.shape[0])
-    if not len(middles):
-        return False
+    if not len(middles) or all(look.has(r.options) for r in rungs):
+        return False  # (whole renders at hand, kept or rendered beforehand, are what decides: no rows rendered)
     w = pair.submitted.shape[1]
 
     def bands(k: int) -> np.ndarray:
@@ -317,9 +325,11 @@ class Look:
     renders: Renders | None = None
 
     def rows(self, scene: Scene, options: Options, rows: np.ndarray) -> np.ndarray:
-        """Rows ``rows`` of the scene rendered with ``options``, each kept for the next failing image."""
+        """Rows ``rows`` of the scene rendered with ``options``, each kept for the next failing image (with the
+        scene's renders for diagnosis, kept there; rows an earlier look without them kept are taken as they are)."""
         if self.renders is not None:
-            return self.renders.with_rows(options, rows)
+            kept = KEPT_RENDERS.kept_rows((self.key, options), rows)
+            return self.renders.with_rows(options, rows) if kept is None else kept
         return KEPT_RENDERS.rows_of((self.key, options), rows, partial(_render_rows, scene, options, how=self))
 
     def whole(self, scene: Scene, options: Options, pixels: int) -> np.ndarray:
