@@ -1,4 +1,4 @@
-"""The diagnosis's last steps (issue 47): when no single classic mistake passes, the mistakes made together
+"""The diagnosis's last steps: when no single classic mistake passes, the mistakes made together
 (:mod:`.compose`), and when nothing fits, the nearest explanations, ranked by how much of the difference each
 accounts for: a failing image's diagnosis never ends with no cause at all.
 

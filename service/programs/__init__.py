@@ -1,4 +1,4 @@
-"""Students' programs, run in a sandbox: build once, then render each scene (issue 48).
+"""Students' programs, run in a sandbox: build once, then render each scene.
 
 :func:`run_program` runs a :class:`ProgramRun` and returns a :class:`RunOutcome`; :func:`build_program` runs a
 :class:`BuildStep` first.  What a program can see and the limits it runs within: :mod:`.sandbox`, :mod:`.limits`.

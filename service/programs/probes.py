@@ -1,4 +1,4 @@
-"""Probe scenes: the questions a failing program is asked, each a scene derived from its task's (issue 48 §3).
+"""Probe scenes: the questions a failing program is asked, each a scene derived from its task's.
 
 A probe changes one thing of the task's scene, so that the program's render of it, compared with phongray's
 render of the same probe, says whether the program gets that one thing right:

@@ -48,7 +48,7 @@ class Options:
     exit_normal_flipped: bool = True  # a refracted ray leaving uses w = −n (False: the outward n, as entering)
     grayscale: bool = False  # the 8-bit image stored as grey, L = 0.299 R + 0.587 G + 0.114 B (Pillow's "L")
     channels_swapped: bool = False  # the 8-bit image stored as BGR
-    # -- the mistakes that image alone may not tell from another (issue 52) --
+    # -- the mistakes that image alone may not tell from another --
     reflect_flipped: bool = False  # the specular's R = L − 2(N·L)N, the reflected vector with the wrong sign
     checker_read: bool = True  # a material's checker read (False: every hit shaded with its object's material)
     clamp_colour: bool = True  # pixels clamped to [0, 1] (False: floor(255·v + 0.5) stored modulo 256, wrapped)
@@ -186,7 +186,7 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "no-refraction": (Options(refractions=False), "no refraction: refracted rays never traced"),
 }
 
-#: more mistakes a student's tracer written from the format makes (issue 47): name → (options, what a student
+#: more mistakes a student's tracer written from the format makes: name → (options, what a student
 #: did).  Not in :data:`VARIANTS`, so that the diagnosis does not try them yet: trying them changes its cost and
 #: its outcomes, which the wiring of the diagnosis decides.  A ray offset far too large is ``offset-too-large``.
 MORE_VARIANTS: dict[str, tuple[Options, str]] = {
