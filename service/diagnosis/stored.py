@@ -23,6 +23,12 @@ STORED = (GAMMA, "grayscale", "channels-swapped")
 KEEP_OUTER = 1.25
 #: at most this many rows are compared to find the image-level mistakes
 SAMPLED_ROWS = 128
+#: a flip the mean difference hides (a brighter light or gamma changes every pixel more than the flip moves
+#: them) is kept on the evidence of the edges when the submission's edges overlap the flipped reference's at
+#: least this many times as much as the reference's own (an image not flipped overlaps its own edges more)
+FLIP_EDGES = 1.3
+#: an edge: a pixel whose grey level differs from its right or lower neighbour's by more than this, in levels
+EDGE_LEVELS = 12
 #: gamma 1/2.2 of an 8-bit value, as a table
 _GAMMA = np.floor(255.0 * (np.arange(256) / 255.0) ** (1 / 2.2) + 0.5).astype(np.uint8)
 
@@ -79,7 +85,33 @@ def image_level(reference: np.ndarray, submitted: np.ndarray) -> dict[str, float
         without = errors[tuple(m for m in best if m != n)]
         if without > KEEP_OUTER * errors[best]:
             kept[n] = min(1.0, (without - errors[best]) / base) if base > 0 else 0.0
+    if "image-flipped" not in kept and flipped_edges(reference, submitted):
+        flipped = errors[("image-flipped",)]
+        kept = {"image-flipped": max(0.0, (base - flipped) / base) if base > 0 else 0.0, **kept}
     return kept
+
+
+def edges(image: np.ndarray) -> np.ndarray:
+    """(H − 1, W − 1) bool: where the grey level of ``image`` changes by more than :data:`EDGE_LEVELS` to the
+    right or below: the outlines of what it shows, which a change of brightness (a light too bright, gamma,
+    an ambient term of another colour) leaves where they are."""
+    grey = image.astype(np.int16).sum(axis=2)
+    across = np.abs(np.diff(grey, axis=1))[:-1, :]
+    down = np.abs(np.diff(grey, axis=0))[:, :-1]
+    return np.maximum(across, down) > 3 * EDGE_LEVELS
+
+
+def flipped_edges(reference: np.ndarray, submitted: np.ndarray) -> bool:
+    """Whether the submission's outlines are the flipped reference's rather than its own: their overlap
+    (shared edge pixels over edge pixels of either) with the flipped reference's is at least :data:`FLIP_EDGES`
+    times that with the reference's.  A scene alike upside down overlaps both alike: no evidence."""
+    mine, theirs = edges(submitted), edges(reference)
+    upside = edges(reference[::-1])
+
+    def overlap(a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.count_nonzero(a & b)) / max(1, int(np.count_nonzero(a | b)))
+
+    return overlap(mine, upside) > FLIP_EDGES * max(overlap(mine, theirs), 1e-9)
 
 
 #: how an image-level mistake shows, for its evidence
