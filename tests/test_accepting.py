@@ -7,6 +7,7 @@ the calibration (tests/offset_matrix.py) are checked here and in tests/test_rule
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -146,6 +147,20 @@ def test_an_offset_far_too_large_fails_and_is_named_with_its_size_in_the_scenes_
     assert not graded.grade.passed and graded.accepted is None
     assert graded.diagnosis is not None and graded.diagnosis.causes[0].variant == "offset-too-large"
     assert graded.diagnosis.causes[0].passes and "about 0.1 in the scene's units" in graded.diagnosis.sentence()
+
+
+def test_an_offset_too_large_of_a_round_amount_is_found_at_that_amount():
+    """The Cornell homework 64 pixels across, as the confusion matrix grades pairs: the student's offset of 0.1
+    is a rung of the ladder and matches it exactly, but the rows looked at leave every amount from 0.087 to 0.1
+    alike, and narrowing took the first of equals: "about 0.092", 0.36 % off, no match and no deduction."""
+    data = json.loads((EXAMPLES / "09_cornell_homework.json").read_text())
+    data["image"].update(width=64, height=48)
+    scene = load_scene(json.dumps(data).encode())
+    graded = _graded(scene, _student(scene, ["offset-too-large"]))
+    assert not graded.grade.passed and graded.diagnosis is not None
+    cause = graded.diagnosis.causes[0]
+    assert cause.variant == "offset-too-large" and cause.passes, graded.diagnosis.sentence()
+    assert "about 0.1 in the scene's units" in graded.diagnosis.sentence()
 
 
 @pytest.mark.parametrize("mistake", student.MISTAKES)

@@ -21,7 +21,7 @@ import numpy as np
 
 from tracer.scene.variants import ACCEPTED_DEFAULT
 
-from ..images.grading import Grade, grade, passes, range_counts
+from ..images.grading import Counts, Grade, grade, passes, range_counts
 from ..images.nearby import rows_distance
 from .looks import sampled_rows, telling_middles
 from .offsets import amount_words, narrowed, round_amounts
@@ -89,8 +89,13 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     chosen = min(found, key=lambda amounts: sampled.off(tuple(amounts)))
     if beyond(sampled.off(tuple(chosen))[0]):
         return False
+    counts = None
+    if sampled.off((ladder[best],)) <= sampled.off(tuple(chosen)):  # (the rows tell the rung alone no worse)
+        counts = _rung_alone(scoring, ladder[best])
+    if counts is not None:
+        chosen = [ladder[best]]
     images = [renders.variant(rung_name(a)) for a in chosen]
-    counts = range_counts(images, submitted, verdict.tolerance, renders.open)
+    counts = counts or range_counts(images, submitted, verdict.tolerance, renders.open)
     if beyond(counts.off_nearby):
         return False
     alone = [
@@ -102,6 +107,15 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
         Cause(NAME, words(amount, size), fraction, passes(counts, scoring.pixels, verdict.max_fraction))
     )
     return True
+
+
+def _rung_alone(scoring: Scoring, rung: float) -> Counts | None:
+    """The whole count against the rung nearest the submission alone, where it passes (None where not): a
+    student's round amount (0.1) is a rung, and where the sampled rows leave every amount near it alike,
+    narrowing walks away from it (the first of equals) to a range that leaves more off elsewhere."""
+    renders, verdict = scoring.renders, scoring.verdict
+    counts = range_counts([renders.variant(rung_name(rung))], scoring.submitted, verdict.tolerance, renders.open)
+    return counts if passes(counts, scoring.pixels, verdict.max_fraction) else None
 
 
 class _Sampled:
