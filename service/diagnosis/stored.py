@@ -27,6 +27,11 @@ SAMPLED_ROWS = 128
 #: them) is kept on the evidence of the edges when the submission's edges overlap the flipped reference's at
 #: least this many times as much as the reference's own (an image not flipped overlaps its own edges more)
 FLIP_EDGES = 1.3
+#: ... and when that overlap is at least this: a camera mistake (a horizontal fov) moves every outline, and the
+#: few the flipped reference then shares by chance are no evidence (at 64 pixels across, upright images of the
+#: student mistakes share at most 0.22 of theirs with the flipped reference; flipped ones, where the mean
+#: difference hides the flip, 0.39 and more)
+FLIP_OVERLAP = 0.3
 #: an edge: a pixel whose grey level differs from its right or lower neighbour's by more than this, in levels
 EDGE_LEVELS = 12
 #: gamma 1/2.2 of an 8-bit value, as a table
@@ -103,15 +108,17 @@ def edges(image: np.ndarray) -> np.ndarray:
 
 def flipped_edges(reference: np.ndarray, submitted: np.ndarray) -> bool:
     """Whether the submission's outlines are the flipped reference's rather than its own: their overlap
-    (shared edge pixels over edge pixels of either) with the flipped reference's is at least :data:`FLIP_EDGES`
-    times that with the reference's.  A scene alike upside down overlaps both alike: no evidence."""
+    (shared edge pixels over edge pixels of either) with the flipped reference's is at least :data:`FLIP_OVERLAP`
+    and :data:`FLIP_EDGES` times that with the reference's.  A scene alike upside down overlaps both alike: no
+    evidence."""
     mine, theirs = edges(submitted), edges(reference)
     upside = edges(reference[::-1])
 
     def overlap(a: np.ndarray, b: np.ndarray) -> float:
         return float(np.count_nonzero(a & b)) / max(1, int(np.count_nonzero(a | b)))
 
-    return overlap(mine, upside) > FLIP_EDGES * max(overlap(mine, theirs), 1e-9)
+    flipped = overlap(mine, upside)
+    return flipped >= FLIP_OVERLAP and flipped > FLIP_EDGES * max(overlap(mine, theirs), 1e-9)
 
 
 #: how an image-level mistake shows, for its evidence
