@@ -53,25 +53,26 @@ def test_a_cancel_set_on_whole_images_stops_the_renders_they_stand_for():
 
 def test_a_grade_renders_each_rung_of_the_offsets_ladders_once_in_the_one_cache(monkeypatch):
     """A mistaken image is graded against the accepted offsets' ladder, then diagnosed against the ladder of offsets
-    too large, which starts at the accepted ladder's top: that rung's rows, like every other's, are rendered once,
-    and kept with the scene's renders for diagnosis (counted in the cache's one budget)."""
+    too large, which starts at the accepted ladder's top: that rung's pixels, like every other's, are rendered once
+    (whether alone, near those a look counts, or as rows), and kept with the scene's renders for diagnosis (counted
+    in the cache's one budget)."""
     scene = schemas.validate_scene(example("04_whitted", 80, 60))
     reference = Renderer(scene).pixels()
     wrong = Renderer(scene, VARIANTS["no-shadows"][0]).pixels()
     rendered: list[tuple[object, int]] = []
-    original = Renderer.pixels_of_rows
+    original = Renderer.pixels_at
 
-    def rows_once(self, rows, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
-        rendered.extend((self.options, int(r)) for r in rows)
-        return original(self, rows, *args, **kwargs)
+    def pixels_once(self, pixels, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        rendered.extend((self.options, int(p)) for p in pixels)
+        return original(self, pixels, *args, **kwargs)
 
-    monkeypatch.setattr(Renderer, "pixels_of_rows", rows_once)
+    monkeypatch.setattr(Renderer, "pixels_at", pixels_once)
     monkeypatch.setattr(accepting, "KEPT_RENDERS", accepting._Kept())
     cache = Cached()
     checking = pipeline.Checking(threads=1, cache=cache)
     graded = pipeline.explain(scene, pipeline.Graded(grade(reference, wrong, ""), None), reference, wrong, run=checking)
     assert graded.diagnosis is not None and graded.diagnosis.causes[0].variant == "no-shadows"
-    assert len(rendered) == len(set(rendered))  # (no row of any render twice)
+    assert rendered and len(rendered) == len(set(rendered))  # (no pixel of any render twice)
     size = cache.held[next(iter(cache.held))].size()
     shared = options_of(too_large.rung_name(too_large.amounts(size)[0]), lambda: size)
     top = next(r for r in accepting.accepted_ladders(scene, None) if r[0].kind == "normal-offset")[-1]

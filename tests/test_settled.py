@@ -97,7 +97,7 @@ def _accepted(scene, image: np.ndarray, reference: np.ndarray, full: bool, monke
     original = accepting._narrowed
     monkeypatch.setattr(accepting, "_narrowed", lambda *a: narrowed.append(1) or original(*a))
     if full:
-        monkeypatch.setattr(accepting, "_settled", lambda *a: False)
+        monkeypatch.setattr(accepting, "_unsettled", lambda *a: a[-1])
     found = accepting.accept(scene, accepting.Failing(reference, image, grade(reference, image, "")))
     monkeypatch.undo()
     said = None if found is None else (found.words, found.grade.passed, found.grade.fraction_off_nearby)
@@ -132,5 +132,5 @@ def test_the_early_stop_leaves_every_diagnosis_as_it_was(glass, mistake, monkeyp
     image = student.render(glass, (mistake,))
     verdict = grade(reference, image, "")
     early = diagnose(reference, image, verdict, renders_of(glass)).as_dict()
-    monkeypatch.setattr(too_large._Sampled, "settled", lambda *a: False)
+    monkeypatch.setattr(too_large._Sampled, "unsettled", lambda *a: a[-1])
     assert diagnose(reference, image, verdict, renders_of(glass)).as_dict() == early

@@ -36,7 +36,7 @@ from ..render.scenekey import scene_key
 from .looks import off_rows, sampled_rows, telling_middles
 from .offsets import Rung, ladder, narrowed, rung, visible_size
 from .renders import Renders
-from .settled import FIRST_ROWS, settled
+from .settled import FIRST_ROWS, unsettled, windows
 
 #: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
@@ -190,7 +190,8 @@ def accept(
     allowed = min(pair.failed.max_fraction, EXPLAINED * pair.failed.fraction_off_nearby) * pair.submitted[..., 0].size
     first = replace(look, middles=telling_middles(counts, FIRST_ROWS * allowed))
     for rungs in accepted_ladders(scene, accepted, key):
-        if _settled(scene, pair, rungs, first, allowed) or _settled(scene, pair, rungs, look, allowed):
+        left = _unsettled(scene, pair, rungs, first, allowed, 1)  # (then on more rows, from the pair left open)
+        if left is None or _unsettled(scene, pair, rungs, look, allowed, left) is None:
             continue  # (no range of its rungs, nor any narrower one, can hold the image: the same None, sooner)
         found = _found(scene, pair, rungs, look, allowed)
         if found is not None:
@@ -198,22 +199,29 @@ def accept(
     return None
 
 
-def _settled(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> bool:
-    """Whether, on the rows ``look`` takes, no range of two neighbouring rungs of the ladder (the first from the
+def _unsettled(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float, start: int) -> int | None:
+    """None when, on the rows ``look`` takes, no range of two neighbouring rungs of the ladder (the first from the
     reference) nor any narrower range between two of them can leave at most ``allowed`` pixels off
-    (:func:`.settled.settled`): then :func:`_found` finds nothing, and is not asked."""
+    (:func:`.settled.unsettled`, from pair ``start`` on, those before it settled on some of these rows): then
+    :func:`_found` finds nothing, and is not asked; else the first pair that leaves it open.  Counted where the
+    submission is off against the reference (a lower bound, :func:`.settled.windows`): the rungs are rendered near
+    there alone."""
     middles, rows = look.looked(pair.submitted.shape[0])
     if not len(middles) or all(look.has(r.options) for r in rungs):
-        return False  # (whole renders at hand, kept or rendered beforehand, are what decides: no rows rendered)
+        return start  # (whole renders at hand, kept or rendered beforehand, are what decides: no rows rendered)
     w = pair.submitted.shape[1]
+    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
+    reference = pair.reference[rows].reshape(len(middles), 3, w, 3)
+    shut = rows_distance(reference, reference, submitted) <= pair.failed.tolerance
+    if pair.open_pixels is not None:
+        shut |= pair.open_pixels[middles]
+    wanted = windows(~shut, middles, pair.submitted.shape[0])
 
     def bands(k: int) -> np.ndarray:
-        image = pair.reference[rows] if k == 0 else look.rows(scene, rungs[k - 1].options, rows)
+        image = reference if k == 0 else look.near(scene, rungs[k - 1].options, rows, wanted)
         return image.reshape(len(middles), 3, w, 3)
 
-    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
-    shut = None if pair.open_pixels is None else pair.open_pixels[middles]
-    return settled(bands, len(rungs) + 1, submitted, pair.failed.tolerance, shut, lambda off: off > allowed)
+    return unsettled(bands, len(rungs) + 1, submitted, pair.failed.tolerance, shut, lambda off: off > allowed, start)
 
 
 def _found(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:
@@ -331,6 +339,14 @@ class Look:
             kept = KEPT_RENDERS.kept_rows((self.key, options), rows)
             return self.renders.with_rows(options, rows) if kept is None else kept
         return KEPT_RENDERS.rows_of((self.key, options), rows, partial(_render_rows, scene, options, how=self))
+
+    def near(self, scene: Scene, options: Options, rows: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+        """Rows ``rows`` of the scene rendered with ``options``, right where ``wanted`` (``(H, W)`` bool) is True:
+        with the scene's renders for diagnosis, those pixels alone (:meth:`.renders.Renders.with_pixels`); else,
+        or where an earlier look kept the rows, the whole rows (:meth:`rows`)."""
+        if self.renders is None or KEPT_RENDERS.kept_rows((self.key, options), rows) is not None:
+            return self.rows(scene, options, rows)
+        return self.renders.with_pixels(options, wanted)[rows]
 
     def whole(self, scene: Scene, options: Options, pixels: int) -> np.ndarray:
         """The whole image with ``options``: from the folder of those rendered beforehand (:data:`STORED`), else

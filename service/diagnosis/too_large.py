@@ -26,8 +26,9 @@ from ..images.nearby import rows_distance
 from .looks import sampled_rows, telling_middles
 from .offsets import amount_words, narrowed, round_amounts
 from .records import Cause
+from .rendered import options_of
 from .renders import Renders
-from .settled import FIRST_ROWS, settled
+from .settled import FIRST_ROWS, unsettled, windows
 
 NAME = "offset-too-large"
 #: the ladder of offsets too large goes up to this × the visible size (an offset that large hides most shadows,
@@ -57,6 +58,7 @@ def words(amount: float, size: float) -> str:
 class Scoring(Protocol):
     """What scoring the ladder needs of a diagnosis's scoring (:class:`service.diagnosis.causes._Scoring`)."""
 
+    reference: np.ndarray
     submitted: np.ndarray
     verdict: Grade
     renders: Renders
@@ -79,7 +81,7 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     ladder = amounts(size)
     sampled = _Told(scoring)
     first = _Sampled(scoring, telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels))
-    if first.settled(ladder, beyond) or sampled.first.settled(ladder, beyond):
+    if _settled(scoring, [first, sampled.first], ladder, beyond):
         return False  # (no range of its rungs, nor any narrower one, can leave few enough off: as narrowing finds)
     # (on either side of the rung nearest the submission: a range of two rungs may leave a pixel fewer off than
     # the range that holds the student's amount, where a larger offset hides what a smaller one shows)
@@ -104,6 +106,23 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     return True
 
 
+def _settled(scoring: Scoring, looks: list[_Sampled], ladder: list[float], beyond: Callable[[int], bool]) -> bool:
+    """Whether the ladder is given up (:mod:`.settled`) on the rows of ``looks`` (each holding the rows of the one
+    before), then on every row the submission is off on: each look from the pair of rungs the one before left open
+    (:func:`.settled.unsettled`).  The last look costs two rungs' pixels near every pixel off (often fewer than the
+    dozen amounts narrowing renders on the sampled rows); it is taken only when it has more rows than the others."""
+    left = 1
+    for look in looks:
+        open_from = look.unsettled(ladder, beyond, left)
+        if open_from is None:
+            return True
+        left = open_from
+    every = np.flatnonzero(scoring.counts > 0)
+    if len(every) <= len(looks[-1].middles):
+        return False
+    return _Sampled(scoring, every).unsettled(ladder, beyond, left) is None
+
+
 class _Sampled:
     """The submission's pixels off even nearby against the range of renders of a few amounts, on a few rows (those
     most off against the reference, as many as :func:`service.diagnosis.looks.sampled_rows` takes, each with the
@@ -113,12 +132,14 @@ class _Sampled:
         self.renders = scoring.renders
         self.tolerance = scoring.verdict.tolerance
         h, self.w, _ = scoring.submitted.shape
+        self.h = h
         self.middles = telling_middles(scoring.counts, np.inf) if middles is None else middles
         if not len(self.middles):
             self.middles = sampled_rows(h)[0]
         self.rows = (self.middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
         self.submitted = scoring.submitted[self.rows].reshape(len(self.middles), 3, self.w, 3)
         self.shut = None if scoring.renders.open is None else scoring.renders.open[self.middles]
+        self.reference = scoring.reference[self.rows].reshape(len(self.middles), 3, self.w, 3)
         self.counted: dict[tuple[float, ...], tuple[int, int]] = {}
 
     def bands(self, amount: float) -> np.ndarray:
@@ -140,13 +161,30 @@ class _Sampled:
             self.counted[amounts] = (int(np.count_nonzero(near > self.tolerance)), int(near.sum(dtype=np.int64)))
         return self.counted[amounts]
 
-    def settled(self, ladder: list[float], beyond: Callable[[int], bool]) -> bool:
-        """Whether, on these rows, no range of two neighbouring amounts of ``ladder`` nor any narrower range
-        between two of them can leave a count of pixels off that ``beyond`` lets by (:func:`.settled.settled`)."""
+    def unsettled(self, ladder: list[float], beyond: Callable[[int], bool], start: int) -> int | None:
+        """None when, on these rows, no range of two neighbouring amounts of ``ladder`` nor any narrower range
+        between two of them can leave a count of pixels off that ``beyond`` lets by (:func:`.settled.unsettled`,
+        from pair ``start`` on, those before it settled on some of these rows), else the first pair that leaves it
+        open; counted where the submission is off against the reference (a lower bound): the rungs are rendered
+        near there alone (:func:`.settled.windows`)."""
         if not len(self.middles):
-            return False
+            return start
         self.renders.check()
-        return settled(lambda k: self.bands(ladder[k]), len(ladder), self.submitted, self.tolerance, self.shut, beyond)
+        shut = rows_distance(self.reference, self.reference, self.submitted) <= self.tolerance
+        if self.shut is not None:
+            shut |= self.shut
+        wanted = windows(~shut, self.middles, self.h)
+
+        def near(k: int) -> np.ndarray:
+            return self.near(ladder[k], wanted)
+
+        return unsettled(near, len(ladder), self.submitted, self.tolerance, shut, beyond, start)
+
+    def near(self, amount: float, wanted: np.ndarray) -> np.ndarray:
+        """:meth:`bands` right where ``wanted`` says (:meth:`.renders.Renders.with_pixels`)."""
+        options = options_of(rung_name(amount), self.renders.size)
+        image = self.renders.with_pixels(options, wanted)
+        return image[self.rows].reshape(len(self.middles), 3, self.w, 3)
 
 
 class _Told:
