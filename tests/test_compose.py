@@ -13,7 +13,6 @@ from service.diagnosis.compose import (
     compatible,
     compose,
     merged,
-    nearest,
     pointed,
     telling_rows,
 )
@@ -134,13 +133,3 @@ def test_a_classic_mistake_alone_is_left_to_the_single_mistake_diagnosis():
     reference = Renderer(scene).pixels()
     submitted = Renderer(scene, merged(("no-shadows",))).pixels()
     assert compose(reference, submitted, grade(reference, submitted, ""), Counted(scene).looks(), []) is None
-
-
-def test_nearest_explanations_are_ranked_by_their_share_of_the_difference():
-    scene = small("01_three_spheres")
-    reference = Renderer(scene).pixels()
-    submitted = np.clip(Renderer(scene, merged(("no-shadows",))).pixels().astype(int) + 9, 0, 255).astype(np.uint8)
-    ranked = nearest(reference, submitted, Counted(scene).looks(), [(Term("ambient", None, 3.0), 0.2)])
-    assert ranked and ranked[0].variant == "no-shadows"
-    assert [e.share for e in ranked] == sorted((e.share for e in ranked), reverse=True)
-    assert any(e.term is not None and e.term.name == "ambient" for e in ranked)

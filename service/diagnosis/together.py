@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .compose import ALL, Combination, Explanation, Looks, compose, nearest
+from .compose import ALL, Combination, Looks, compose
+from .nearest import Explanation, nearest
 from .records import Cause, Term
 from .renders import Renders
 from .words import Names, term_sentence
