@@ -3,7 +3,7 @@
 import numpy as np
 from test_compose import Counted, small
 
-from service.diagnosis.compose import merged
+from service.diagnosis.combination import merged
 from service.diagnosis.nearest import nearest
 from service.diagnosis.records import Term
 from tracer import Renderer
