@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import student
+import student_oop
 from test_variants import _glass_over_floor
 
 import schemas
@@ -197,3 +198,17 @@ def test_a_pair_the_image_cannot_tell_from_another_is_read_both_ways(glass, mist
     credit = partial(row | {"score": got.score, "deducted": got.deducted})
     assert credit.startswith("Partial credit: 5 of 10 points (") and credit.endswith(": -5)")
     assert "refracted rays never traced" in credit and "with the outward normal" in credit, credit
+
+
+def test_no_shadows_with_glass_left_by_the_outward_normal_is_that_pair(glass):
+    """The other student (tests/student_oop.py: one ray at a time, its own code): no shadow rays, and glass left
+    by the outward normal.  Its image is not the no-refraction one (the ball's inside is lit): that pair is
+    named alone, and a deduction for it is taken."""
+    scene, reference = glass
+    made = student_oop.render(scene, ["no-shadows", "exit-normal-not-flipped"])
+    verdict = grade(reference, made, "")
+    found = diagnose(reference, made, verdict, renders_of(scene))
+    row = {"status": "fail", "mistakes": matched(found.as_dict()), "points": 10.0}
+    assert [sorted(m.split("+")) for m in row["mistakes"]] == [["exit-normal-not-flipped", "no-shadows"]]
+    assert _scored(row, {"no-shadows": 4, "exit-normal-not-flipped": 2})[0] == 4.0
+    assert _scored(row, TWO_DEDUCTED) == (0.0, None)
