@@ -26,7 +26,7 @@ import numpy as np
 
 import schemas
 from service.diagnosis import diagnose, renders_of
-from service.diagnosis.compose import merged
+from service.diagnosis.combination import merged
 from service.images.grading import grade
 from tracer import Renderer
 from tracer.scene.variants import VARIANTS

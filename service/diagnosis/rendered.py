@@ -57,10 +57,11 @@ def renders_of(
 
 def options_of(name: str, size: Callable[[], float] | None = None) -> Options:
     """The options of a classic mistake (:data:`VARIANTS`) or a new one (:data:`MORE_VARIANTS`), or of a rung of an
-    offset too large (``offset-too-large@0.05``: that amount in the scene's units, ``size()`` its visible size)."""
-    if "@" in name:
-        amount = float(name.split("@", 1)[1])
-        return Options(offset=amount / (size() if size is not None else 1.0))
+    offset too large (``offset-too-large@0.05``: that amount in the scene's units, ``size()`` its visible size;
+    ``offset-too-large@geometric@0.05`` along the geometric normal)."""
+    if "@" in name:  # (``offset-too-large@geometric@0.05``: along the geometric normal)
+        along, _, amount = name.split("@", 1)[1].rpartition("@")
+        return Options(offset=float(amount) / (size() if size is not None else 1.0), offset_along=along or "normal")
     return VARIANTS[name][0] if name in VARIANTS else MORE_VARIANTS[name][0]
 
 

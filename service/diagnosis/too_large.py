@@ -43,9 +43,16 @@ def amounts(size: float) -> list[float]:
     return [low, *(a for a in round_amounts(low, high) if low < a < high / 1.1), high]
 
 
-def rung_name(amount: float) -> str:
-    """The name a rung renders under (:func:`service.diagnosis.rendered.options_of`): ``offset-too-large@0.05``."""
-    return f"{NAME}@{amount!r}"
+#: the normals a ladder's offsets are along: the shading normal, and, in a scene with a mesh, its faces' own
+#: (geometric) normal too, which many a student's tracer offsets along (where a mesh's normals are interpolated,
+#: the two part, and a shadow an offset detaches moves with the normal it was offset along)
+ALONG = ("normal", "geometric")
+
+
+def rung_name(amount: float, along: str = "normal") -> str:
+    """The name a rung renders under (:func:`service.diagnosis.rendered.options_of`): ``offset-too-large@0.05``,
+    along the geometric normal ``offset-too-large@geometric@0.05``."""
+    return f"{NAME}@{amount!r}" if along == "normal" else f"{NAME}@{along}@{amount!r}"
 
 
 def words(amount: float, size: float) -> str:
@@ -68,10 +75,25 @@ class Scoring(Protocol):
 
 
 def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
-    """Scores ``offset-too-large`` against the range of a few amounts: on either side of the rung that leaves
-    the fewest of the submission's pixels off on the sampled rows, each side narrowed (:func:`.offsets.narrowed`)
-    to the amounts that leave fewer, the side whose range leaves fewer kept, then rendered whole.  False, as
-    :meth:`_Scoring.score` says, when the rows alone (an exact lower bound, as
+    """Scores ``offset-too-large`` along the shading normal (:func:`along`), and where that is not passed against
+    and the scene has a mesh, along its faces' geometric normal too; of the two scored, the one that leaves fewer
+    pixels off is kept.  False when neither is scored."""
+    scored = along(scoring, beyond, "normal")
+    if "mesh" not in scoring.renders.objects or any(c.variant == NAME and c.passes for c in scoring.scored):
+        return scored
+    if not along(scoring, beyond, "geometric"):
+        return scored
+    mine = [c for c in scoring.scored if c.variant == NAME]
+    best = min(mine, key=lambda c: (not c.passes, c.fraction_off_nearby))
+    scoring.scored[:] = [c for c in scoring.scored if c.variant != NAME or c is best]
+    return True
+
+
+def along(scoring: Scoring, beyond: Callable[[int], bool], normal: str) -> bool:
+    """Scores ``offset-too-large`` along ``normal`` (of :data:`ALONG`) against the range of a few amounts: on
+    either side of the rung that leaves the fewest of the submission's pixels off on the sampled rows, each side
+    narrowed (:func:`.offsets.narrowed`) to the amounts that leave fewer, the side whose range leaves fewer kept,
+    then rendered whole.  False, as :meth:`_Scoring.score` says, when the rows alone (an exact lower bound, as
     :func:`service.diagnosis.looks.off_at_least` counts) or the whole count are off by a count ``beyond`` says is
     too many; else adds the cause, its words the amount of the range the submission comes closer to.  The ladder is
     given up before any of that when its rungs' rows alone show that no range of them, nor a narrower one, can
@@ -79,8 +101,9 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
     size = renders.size()
     ladder = amounts(size)
-    sampled = _Told(scoring)
-    first = _Sampled(scoring, telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels))
+    sampled = _Told(scoring, normal)
+    told = telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels)
+    first = _Sampled(scoring, told, normal)
     if _settled(scoring, [first, sampled.first], ladder, beyond):
         return False  # (no range of its rungs, nor any narrower one, can leave few enough off: as narrowing finds)
     # (on either side of the rung nearest the submission: a range of two rungs may leave a pixel fewer off than
@@ -91,7 +114,7 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     chosen = min(found, key=lambda amounts: sampled.off(tuple(amounts)))
     if beyond(sampled.off(tuple(chosen))[0]):
         return False
-    images = [renders.variant(rung_name(a)) for a in chosen]
+    images = [renders.variant(rung_name(a, normal)) for a in chosen]
     counts = range_counts(images, submitted, verdict.tolerance, renders.open)
     if beyond(counts.off_nearby):
         return False
@@ -120,7 +143,7 @@ def _settled(scoring: Scoring, looks: list[_Sampled], ladder: list[float], beyon
     every = np.flatnonzero(scoring.counts > 0)
     if len(every) <= len(looks[-1].middles):
         return False
-    return _Sampled(scoring, every).unsettled(ladder, beyond, left) is None
+    return _Sampled(scoring, every, looks[-1].along).unsettled(ladder, beyond, left) is None
 
 
 class _Sampled:
@@ -128,8 +151,8 @@ class _Sampled:
     most off against the reference, as many as :func:`service.diagnosis.looks.sampled_rows` takes, each with the
     rows either side): an exact lower bound of the whole count."""
 
-    def __init__(self, scoring: Scoring, middles: np.ndarray | None = None):
-        self.renders = scoring.renders
+    def __init__(self, scoring: Scoring, middles: np.ndarray | None = None, along: str = "normal"):
+        self.renders, self.along = scoring.renders, along
         self.tolerance = scoring.verdict.tolerance
         h, self.w, _ = scoring.submitted.shape
         self.h = h
@@ -143,7 +166,7 @@ class _Sampled:
         self.counted: dict[tuple[float, ...], tuple[int, int]] = {}
 
     def bands(self, amount: float) -> np.ndarray:
-        name, renders = rung_name(amount), self.renders
+        name, renders = rung_name(amount, self.along), self.renders
         return renders.rows(name, self.rows).reshape(len(self.middles), 3, self.w, 3)
 
     def off(self, amounts: tuple[float, ...]) -> tuple[int, int]:
@@ -182,7 +205,7 @@ class _Sampled:
 
     def near(self, amount: float, wanted: np.ndarray) -> np.ndarray:
         """:meth:`bands` right where ``wanted`` says (:meth:`.renders.Renders.with_pixels`)."""
-        options = options_of(rung_name(amount), self.renders.size)
+        options = options_of(rung_name(amount, self.along), self.renders.size)
         image = self.renders.with_pixels(options, wanted)
         return image[self.rows].reshape(len(self.middles), 3, self.w, 3)
 
@@ -194,10 +217,10 @@ class _Told:
     puts out of reach), and all larger amounts alike; the other rows tell them apart.  Rendered only for the
     amounts that leave the first rows as the submission has them."""
 
-    def __init__(self, scoring: Scoring):
-        self.first = _Sampled(scoring)
+    def __init__(self, scoring: Scoring, along: str = "normal"):
+        self.first = _Sampled(scoring, None, along)
         spread = np.setdiff1d(sampled_rows(scoring.submitted.shape[0])[0], self.first.middles)
-        self.spread = _Sampled(scoring, spread) if len(spread) else None
+        self.spread = _Sampled(scoring, spread, along) if len(spread) else None
 
     def off(self, amounts: tuple[float, ...]) -> tuple[int, ...]:
         """:meth:`_Sampled.off` on the first rows, followed where it is nothing by that on the other rows (the
