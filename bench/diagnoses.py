@@ -26,7 +26,7 @@ import numpy as np
 
 import schemas
 from service.diagnosis import diagnose, renders_of
-from service.diagnosis.compose import merged
+from service.diagnosis.combination import merged
 from service.images.grading import grade
 from tracer import Renderer
 from tracer.scene.variants import VARIANTS
@@ -82,7 +82,7 @@ def calls(students: tuple[str, ...] = CALLS, width: int = 320, height: int = 240
     count: dict[str, int] = defaultdict(int)
     rows: list[float] = [0.0]  # the current diagnosis's rows rendered
     worth: list[float] = []
-    originals = {entry: getattr(Renderer, entry) for entry in ("pixels", "pixels_of_rows", "diagnosis_passes")}
+    originals = {entry: getattr(Renderer, entry) for entry in ("pixels", "pixels_at", "diagnosis_passes")}
 
     def timed(entry: str) -> Any:
         def wrapper(self: Renderer, *args: Any, **kwargs: Any) -> Any:
@@ -132,11 +132,11 @@ def calls(students: tuple[str, ...] = CALLS, width: int = 320, height: int = 240
 
 
 def _rows_of(renderer: Renderer, entry: str, args: tuple[Any, ...], kwargs: dict[str, Any]) -> float:
-    """How many of the image's rows a call of ``entry`` renders: the whole image, a band (``rows``), the rows
-    given, or the pixels given (as a share of a row each)."""
+    """How many of the image's rows a call of ``entry`` renders: the whole image, a band (``rows``), or the pixels
+    given (rows of them, or pixels alone: as a share of a row each)."""
     img = renderer.scene.image
-    if entry == "pixels_of_rows":
-        return float(len(args[0] if args else kwargs["rows"]))
+    if entry == "pixels_at":
+        return len(args[0] if args else kwargs["pixels"]) / img.width
     if entry == "pixels" and kwargs.get("rows") is not None:
         top, bottom = kwargs["rows"]
         return float(bottom - top)

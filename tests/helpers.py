@@ -181,3 +181,34 @@ def left_in_sandboxes(word: str | None = None) -> list[str]:
             break
         under = grown
     return [f"{p.pid} uid {p.uid}: {p.args}" for p in own if p.pid in under or (word is not None and word in p.args)]
+
+
+def share_renders(monkeypatch: Any) -> dict[tuple[str, Any], dict[int, np.ndarray]]:
+    """Rendered rows kept for the rest of a test, by scene, options and row: a render asked for again, whole
+    (:meth:`tracer.Renderer.pixels`) or a few of its rows (:meth:`~tracer.Renderer.pixels_of_rows`), is the
+    one made before, and only rows not yet rendered are.  For tests of what a diagnosis makes of the renders
+    it asks for, in which each of several diagnoses of one scene starts from nothing: every pixel is computed
+    alone (both methods' docstrings, and tests/test_render.py), so a row is byte for byte the same row however
+    it was asked for.  The rows are copied out, never shared; a render with a budget, a progress, a band or a
+    cancel is made as asked."""
+    kept: dict[tuple[str, Any], dict[int, np.ndarray]] = {}
+    real_rows, real_pixels = tracer.Renderer.pixels_of_rows, tracer.Renderer.pixels
+
+    def rows(self: Any, numbers: Any, threads: Any = None, chunk_rays: Any = None, cancel: Any = None) -> Any:
+        if cancel is not None and cancel():
+            return real_rows(self, numbers, threads, chunk_rays, cancel)  # (stopped as it would have been)
+        mine = kept.setdefault((self.scene.model_dump_json(), self.options), {})
+        wanted = [int(r) for r in np.asarray(numbers)]
+        todo = sorted(set(wanted) - set(mine))
+        if todo:
+            mine.update(zip(todo, real_rows(self, np.array(todo, dtype=np.int64), threads, chunk_rays, cancel)))
+        return np.stack([mine[r] for r in wanted]).copy()
+
+    def pixels(self: Any, threads: Any = None, *args: Any, **kw: Any) -> Any:
+        if args or any(v is not None for k, v in kw.items() if k != "cancel"):
+            return real_pixels(self, threads, *args, **kw)
+        return rows(self, np.arange(self.scene.image.height), threads, None, kw.get("cancel"))
+
+    monkeypatch.setattr(tracer.Renderer, "pixels_of_rows", rows)
+    monkeypatch.setattr(tracer.Renderer, "pixels", pixels)
+    return kept

@@ -27,18 +27,29 @@ def crowd():
     return scene, reference, noise
 
 
-def test_a_many_light_diagnosis_holds_no_matrix_of_lights_by_pixels(crowd):
-    # the attack: a noisy image of a scene of many lights.  Its lights' terms alone, one plane each, are
-    # pixels × 3 × 8 bytes × 2 × 96 lights = 85 MiB here; the fit's matrix of them as much again (the worker went
-    # from 1.5 to 5.8 GB at 640×480 with 100 lights).  Now the peak is a few chunks' worth
+@pytest.fixture(scope="module")
+def noisy(crowd):
+    """The diagnosis of the crowd's noisy image, under tracemalloc: what it found, its peak of traced memory, and
+    the renders it used.  Its two checks (the peak, and the arrays a cache of those renders counts) read the one
+    diagnosis: each took a diagnosis of the same image of the same scene, the same work twice."""
     scene, reference, noise = crowd
-    planes = reference.shape[0] * reference.shape[1] * 3 * 8 * 2 * 96
+    renders = renders_of(scene)
     tracemalloc.start()
     try:
-        found = diagnose(reference, noise, grade(reference, noise, ""), renders_of(scene))
+        found = diagnose(reference, noise, grade(reference, noise, ""), renders)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
+    return found, peak, renders
+
+
+def test_a_many_light_diagnosis_holds_no_matrix_of_lights_by_pixels(crowd, noisy):
+    # the attack: a noisy image of a scene of many lights.  Its lights' terms alone, one plane each, are
+    # pixels × 3 × 8 bytes × 2 × 96 lights = 85 MiB here; the fit's matrix of them as much again (the worker went
+    # from 1.5 to 5.8 GB at 640×480 with 100 lights).  Now the peak is a few chunks' worth
+    _, reference, _ = crowd
+    found, peak, _ = noisy
+    planes = reference.shape[0] * reference.shape[1] * 3 * 8 * 2 * 96
     assert found.sentence()  # (a diagnosis, whatever it says)
     assert peak < planes, f"peak {peak / 2**20:.1f} MiB against {planes / 2**20:.1f} MiB of lights' planes"
 
@@ -85,12 +96,11 @@ def test_a_cancel_stops_the_fit_between_its_blocks(crowd, monkeypatch):
     assert time.monotonic() - started < 600
 
 
-def test_the_diagnosis_cache_counts_its_arrays_and_keeps_within_its_room(crowd):
-    scene, reference, noise = crowd
+def test_the_diagnosis_cache_counts_its_arrays_and_keeps_within_its_room(crowd, noisy):
+    _, reference, _ = crowd
     room = [1 << 40]
     cache = Cached(room=lambda: room[0])
-    renders = cache.get("crowd", lambda: renders_of(scene))
-    diagnose(reference, noise, grade(reference, noise, ""), renders)
+    cache.get("crowd", lambda: noisy[2])  # (the renders of a diagnosis of the noisy image, over)
     cache.trim()
     held = cache.size
     # the variants' images it holds at least (uint8), and nothing near the lights' planes

@@ -1,22 +1,14 @@
 """Mistakes made together (service/compose.py): chosen on rows, confirmed by one render, ranked when none fits."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import student
 
 import schemas
-from service.diagnosis.compose import (
-    ALL,
-    Looks,
-    Rows,
-    chosen,
-    compatible,
-    compose,
-    merged,
-    nearest,
-    pointed,
-    telling_rows,
-)
+from service.diagnosis.combination import ALL, compatible, merged
+from service.diagnosis.compose import Looks, Rows, chosen, compose, pointed, telling_rows
 from service.diagnosis.records import Term
 from service.images.grading import grade
 from tracer import Renderer
@@ -136,11 +128,15 @@ def test_a_classic_mistake_alone_is_left_to_the_single_mistake_diagnosis():
     assert compose(reference, submitted, grade(reference, submitted, ""), Counted(scene).looks(), []) is None
 
 
-def test_nearest_explanations_are_ranked_by_their_share_of_the_difference():
-    scene = small("01_three_spheres")
+def test_a_mistake_the_rows_cannot_tell_from_another_is_never_made_with_it():
+    """On a glass ball's rows (rendered with shadows) no refraction and the normal leaving glass not flipped
+    change alike; with no shadow rays they part (light reaches the ball's inside).  The pair is no shadows and
+    no refraction, the third never joined to it; each reading costs one render, and the one that fails is none."""
+    scene = schemas.load_scene((Path(__file__).parent / "programs" / "glass.json").read_bytes())
+    counted = Counted(scene)
     reference = Renderer(scene).pixels()
-    submitted = np.clip(Renderer(scene, merged(("no-shadows",))).pixels().astype(int) + 9, 0, 255).astype(np.uint8)
-    ranked = nearest(reference, submitted, Counted(scene).looks(), [(Term("ambient", None, 3.0), 0.2)])
-    assert ranked and ranked[0].variant == "no-shadows"
-    assert [e.share for e in ranked] == sorted((e.share for e in ranked), reverse=True)
-    assert any(e.term is not None and e.term.name == "ambient" for e in ranked)
+    submitted = student.render(scene, ["no-shadows", "no-refraction"])
+    found = compose(reference, submitted, grade(reference, submitted, ""), counted.looks(), [])
+    assert found is not None and found.passes
+    assert sorted(found.names) == ["no-refraction", "no-shadows"] and found.readings == ()
+    assert len(counted.whole) == 2

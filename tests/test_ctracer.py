@@ -155,6 +155,9 @@ NAMED = [
     ("no-refraction", "09_cornell_homework", "FAIL(no-refraction, exit-normal-not-flipped)"),
     ("offset-too-large", "04_whitted", "FAIL(offset-too-large)"),
     ("offset-too-large", "09_cornell_homework", "FAIL(offset-too-large)"),
+    # (ctracer offsets along a face's geometric normal; the mesh's shading normals are interpolated, and the
+    # ladder along them leaves its image 0.15 % off at its exact amount: the geometric ladder names it)
+    ("offset-too-large", "05_mesh", "FAIL(offset-too-large)"),
 ]
 
 
@@ -174,7 +177,7 @@ def test_a_mistake_is_named_as_ctracer_makes_it(
     assert matrix.cell(result) == expected, result["diagnosis"]["sentence"]
 
 
-@pytest.mark.parametrize("example", ["04_whitted", "09_cornell_homework"])
+@pytest.mark.parametrize("example", ["04_whitted", "09_cornell_homework", "05_mesh"])
 def test_an_offset_too_large_is_said_at_about_the_students_amount(
     ctracer: Path, grader: matrix.Grader, scenes: dict[str, Path], example: str, tmp_path: Path
 ) -> None:

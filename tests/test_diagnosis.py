@@ -17,6 +17,8 @@ from tracer.image import quantize
 from tracer.scene.variants import BOUNDS, VARIANTS
 from tracer.shade.passes import ADDITIVE
 
+from helpers import share_renders
+
 
 @pytest.fixture(scope="module")
 def setting():
@@ -209,6 +211,9 @@ def _blindly(reference, submitted, verdict, blind, monkeypatch):  # noqa: ANN001
 def test_a_first_look_at_a_few_rows_changes_no_diagnosis_and_spares_renders(monkeypatch):
     from service.diagnosis import looks
 
+    # each submission's diagnosis starts from nothing (its own renders, to count the whole ones it asks for);
+    # the rows they render are the same rows, made once (what is counted is asked for, not how it is rendered)
+    share_renders(monkeypatch)
     scene = schemas.validate_scene(EVERYTHING)
     reference = Renderer(scene).pixels()
     submissions = _submissions(scene, reference)

@@ -32,9 +32,9 @@ def student(tmp_path: Path, mistake: str) -> Path:
     return folder
 
 
-def asked(tmp_path: Path, mistake: str, task: str, diagnosed: bool = True):
-    """The experiment as a failing pair's grade asks it: the task's own diagnosis's exact match kept out (none
-    when not ``diagnosed``: as a grade that found no exact match asks it)."""
+def graded(tmp_path: Path, mistake: str, task: str):
+    """A student's program run on its task's scene, and the task's own grade of its image: (the scene, the
+    runner, the image, the diagnosis as its answer gives it, or None)."""
     check_sandbox()
     run = _runner(
         student(tmp_path, mistake), Program("python3 tracer.py {scene} {output}", limits=LIMITS), f"{task}.json"
@@ -44,8 +44,15 @@ def asked(tmp_path: Path, mistake: str, task: str, diagnosed: bool = True):
     assert first.ok, first.detail
     graded = grade_task(render_png(json.loads(scene)), first.image, 2.0, 0.001, scene)
     found = None if graded.graded is None or graded.graded.diagnosis is None else graded.graded.diagnosis.as_dict()
+    return scene, run, first.image, found
+
+
+def asked(tmp_path: Path, mistake: str, task: str, diagnosed: bool = True):
+    """The experiment as a failing pair's grade asks it: the task's own diagnosis's exact match kept out (none
+    when not ``diagnosed``: as a grade that found no exact match asks it)."""
+    scene, run, image, found = graded(tmp_path, mistake, task)
     known = tuple(matched(found)[:1]) if diagnosed else ()
-    return experiment(scene, first.image, run, Thresholds(2.0, 0.001), known)
+    return experiment(scene, image, run, Thresholds(2.0, 0.001), known)
 
 
 def test_a_spot_without_its_ramp_is_wrong_between_its_inner_and_outer_cone(tmp_path):
@@ -81,12 +88,15 @@ def test_refraction_missing_is_not_blamed_on_the_lights(tmp_path):
 
 @pytest.mark.parametrize("task", ["lamps", "glass"])
 def test_refraction_missing_and_no_shadows_are_both_found(tmp_path, task):
-    """Two mistakes: the glass is found missing (the task's image is the program's own image without it), and
-    its image without the glass, diagnosed, shows no shadow rays; no light, diffuse or specular is blamed.  (The
-    task's own diagnosis names both today, so the experiment is asked as a grade that found no match asks it;
-    with the match kept out, the probes find nothing more behind it.)"""
+    """Two mistakes: the task's own diagnosis names both, made together (and no third the image cannot tell from
+    one of them); with that match kept out, the probes find nothing more behind it.  Asked as a grade that found
+    no match asks it, the glass is found missing (the task's image is the program's own image without it), and
+    its image without the glass, diagnosed, shows no shadow rays; no light, diffuse or specular is blamed."""
     (tmp_path / "as-graded").mkdir()
-    assert asked(tmp_path / "as-graded", "no-refraction\nno-shadows", task).found == ()
+    names = matched(graded(tmp_path / "as-graded", "no-refraction\nno-shadows", task)[3])
+    assert [sorted(n.split("+")) for n in names] == [["no-refraction", "no-shadows"]]
+    (tmp_path / "kept-out").mkdir()
+    assert asked(tmp_path / "kept-out", "no-refraction\nno-shadows", task).found == ()
     found = asked(tmp_path, "no-refraction\nno-shadows", task, diagnosed=False)
     assert found.sentences[:2] == ["refraction missing", "no shadow rays (seen with the glass left out)"]
     assert found.found == ("no-shadows",)

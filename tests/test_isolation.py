@@ -21,7 +21,7 @@ from service.classgrade import rows as rows_module
 from service.classgrade.gradebook import MISTAKES, partial, score
 from service.classgrade.taskfile import TaskSettings
 from service.cli import main
-from service.diagnosis.compose import merged
+from service.diagnosis.combination import merged
 from tracer import Renderer, encode_png
 
 from helpers import run_autograder, scene_dict

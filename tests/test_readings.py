@@ -1,9 +1,12 @@
 """What an image cannot tell apart (service/diagnosis/records.py, words.py, classgrade/gradebook.py): where two
 mistakes give the same image, the diagnosis says both readings, and a deduction applies to what the image shows."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import student
+import student_oop
 from test_variants import _glass_over_floor
 
 import schemas
@@ -136,3 +139,76 @@ def test_the_partial_credit_names_every_reading(alike_row):
     )
     alone = {"status": "fail", "mistakes": ["no-shadows"], "points": 2.0, "score": 1.0, "deducted": "no-shadows"}
     assert partial(alone) == "Partial credit: 1 of 2 points (no shadow rays: -1)"
+
+
+# -- mistakes made together, read two ways ------------------------------------------------------------------------
+
+GLASS = Path(__file__).parent / "programs" / "glass.json"
+#: the task of the glass scene: 10 points, a deduction for two of its mistakes
+TWO_DEDUCTED = {"no-shadows": 4, "no-refraction": 2}
+
+
+@pytest.fixture(scope="module")
+def glass():
+    scene = schemas.load_scene(GLASS.read_bytes())
+    return scene, Renderer(scene).pixels()
+
+
+def _together_row(glass, mistakes: list[str]) -> dict:
+    """The class report's row of a glass student with ``mistakes``, and its diagnosis."""
+    scene, reference = glass
+    made = student.render(scene, mistakes)
+    verdict = grade(reference, made, "")
+    assert not verdict.passed
+    found = diagnose(reference, made, verdict, renders_of(scene))
+    return {"status": "fail", "mistakes": matched(found.as_dict()), "points": 10.0, "found": found}
+
+
+def _scored(row: dict, deductions: dict[str, float]) -> tuple[float, str | None]:
+    got = score(row, TaskSettings(points=10, deductions=deductions))
+    return got.score, got.deducted
+
+
+def test_no_shadows_and_no_refraction_are_the_pair_and_keep_their_credit(glass):
+    """No shadow rays and no refraction: the pair, not a third mistake the rows cannot tell from no refraction
+    (the normal leaving glass not flipped: made with no refraction it has nothing to do) joined to it."""
+    row = _together_row(glass, ["no-shadows", "no-refraction"])
+    assert row["mistakes"] == ["no-refraction+no-shadows"]
+    assert row["found"].sentence().startswith("Likely two mistakes together: no refraction")
+    assert _scored(row, TWO_DEDUCTED) == (4.0, "no-refraction+no-shadows")
+    # the other reading is not this image's: made with no shadow rays, light that cannot leave the glass ball
+    # lights its inside (5 % of the pixels off that render), so a deduction for it is no deduction for this image
+    assert _scored(row, {"no-shadows": 4, "exit-normal-not-flipped": 2}) == (0.0, None)
+
+
+@pytest.mark.parametrize("mistakes", [["gamma", "no-refraction"], ["no-ambient", "no-refraction"]])
+def test_a_pair_the_image_cannot_tell_from_another_is_read_both_ways(glass, mistakes):
+    """A pair with no refraction, where the normal leaving glass not flipped gives the same image: both pairs
+    are named, and a deduction applies to either reading, the smaller taken (as for one mistake of two alike)."""
+    row = _together_row(glass, mistakes)
+    other, twin = mistakes[0], "exit-normal-not-flipped"
+    assert sorted(row["mistakes"]) == sorted([f"{other}+no-refraction", f"{other}+{twin}"])
+    assert "; or " in row["found"].sentence() and "the image cannot tell them apart" in row["found"].sentence()
+    assert row["found"].headline().count(" or ") == 1 and row["found"].headline().count(" + ") == 2
+    assert _scored(row, {other: 3, twin: 2})[0] == 5.0  # the other reading
+    assert _scored(row, {other: 3, "no-refraction": 1})[0] == 6.0
+    assert _scored(row, {other: 3, "no-refraction": 4, twin: 2})[0] == 5.0  # both: the smaller
+    assert _scored(row, {"no-refraction": 1, twin: 2}) == (0.0, None)  # the first mistake has none: nothing
+    got = score(row, TaskSettings(points=10, deductions={other: 3, twin: 2}))
+    credit = partial(row | {"score": got.score, "deducted": got.deducted})
+    assert credit.startswith("Partial credit: 5 of 10 points (") and credit.endswith(": -5)")
+    assert "refracted rays never traced" in credit and "with the outward normal" in credit, credit
+
+
+def test_no_shadows_with_glass_left_by_the_outward_normal_is_that_pair(glass):
+    """The other student (tests/student_oop.py: one ray at a time, its own code): no shadow rays, and glass left
+    by the outward normal.  Its image is not the no-refraction one (the ball's inside is lit): that pair is
+    named alone, and a deduction for it is taken."""
+    scene, reference = glass
+    made = student_oop.render(scene, ["no-shadows", "exit-normal-not-flipped"])
+    verdict = grade(reference, made, "")
+    found = diagnose(reference, made, verdict, renders_of(scene))
+    row = {"status": "fail", "mistakes": matched(found.as_dict()), "points": 10.0}
+    assert [sorted(m.split("+")) for m in row["mistakes"]] == [["exit-normal-not-flipped", "no-shadows"]]
+    assert _scored(row, {"no-shadows": 4, "exit-normal-not-flipped": 2})[0] == 4.0
+    assert _scored(row, TWO_DEDUCTED) == (0.0, None)

@@ -31,8 +31,15 @@ def _scene(path: Path):  # noqa: ANN202
     return load_scene(path.read_bytes())
 
 
+#: each scene's reference PNG, rendered once for every image graded against it: by the scene's JSON
+_REFERENCES: dict[str, bytes] = {}
+
+
 def _graded(scene, image: np.ndarray, diagnose: bool = True) -> pipeline.Graded:  # noqa: ANN001
-    reference = encode_png(Renderer(scene).pixels())
+    key = scene.model_dump_json()
+    if key not in _REFERENCES:
+        _REFERENCES[key] = encode_png(Renderer(scene).pixels())
+    reference = _REFERENCES[key]
     checks = pipeline.Checks(diagnose=diagnose)
     return pipeline.grade_png(
         reference, encode_png(image), 2.0, 0.001, explaining=pipeline.Explaining(lambda: scene, checks)

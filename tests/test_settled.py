@@ -52,6 +52,47 @@ def test_a_ladder_is_given_up_only_past_the_margin_and_on_every_pair_of_rungs():
     assert not given_up(0, rungs[:1])  # (one rung: no range to rule out)
 
 
+def test_a_look_on_more_rows_asks_only_for_the_rungs_from_the_pair_left_open():
+    """The resumed look: pairs a look at fewer rows settled are not asked again (their count on more rows is at
+    least theirs); the rungs from the pair left open are, and settle it or say which pair is open."""
+    w = 20
+    ladder = [_bands(np.zeros(w)), _bands(np.zeros(w)), _bands(np.zeros(w)), _bands(np.full(w, 255))]
+    submitted = _bands(np.where(np.arange(w) % 4 == 0, 255, 0))
+    asked: list[int] = []
+
+    def bands(k: int) -> np.ndarray:
+        asked.append(k)
+        return ladder[k]
+
+    def left(start: int) -> int | None:
+        asked.clear()
+        return settled.unsettled(bands, len(ladder), submitted, 2.0, None, lambda off: off > 0, start)
+
+    assert left(1) == 3 and asked == [0, 1, 2, 3]  # (rungs 2 and 3 agree nowhere: that pair is left open)
+    assert left(3) == 3 and asked == [2, 3]  # (resumed there: rungs 0 and 1 are not rendered again)
+    assert settled.unsettled(lambda k: ladder[k], 3, submitted, 2.0, None, lambda off: off > 0, 2) is None
+
+
+def test_a_count_near_the_pixels_counted_reads_the_rungs_there_alone():
+    """:func:`settled.windows`: rungs right only within REACH columns of the pixels counted (on the middle row and
+    the rows either side) give the count of a whole render, there; elsewhere they may be anything."""
+    rng = np.random.default_rng(5505)
+    h, w, middles = 12, 30, np.array([2, 6, 9])
+    rows = (middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
+    low = rng.choice([0, 10, 200], size=(h, w, 3)).astype(np.uint8)
+    high = low.copy()
+    high[rng.random((h, w)) < 0.05] = 100  # (the two rungs disagree here and there)
+    whole = [low, high]
+    submitted = rng.choice([0, 10, 200], size=(h, w, 3)).astype(np.uint8)[rows].reshape(3, 3, w, 3)
+    counted = rng.random((3, w)) < 0.3
+    wanted = settled.windows(counted, middles, h)
+    assert wanted[middles].sum() < wanted[middles].size  # (some pixels are not read)
+    garbled = [np.where(wanted[..., None], image, rng.integers(0, 256, image.shape, dtype=np.uint8)) for image in whole]
+    ends = [tuple(image[rows].reshape(3, 3, w, 3) for image in pair) for pair in (whole, garbled)]
+    counts = [settled.kept_off(pair, submitted, 2.0, ~counted) for pair in ends]  # type: ignore[arg-type]
+    assert counts[0] == counts[1] > 0
+
+
 @pytest.fixture(scope="module")
 def glass():  # noqa: ANN201
     data = json.loads(WHITTED.read_text())
@@ -97,7 +138,7 @@ def _accepted(scene, image: np.ndarray, reference: np.ndarray, full: bool, monke
     original = accepting._narrowed
     monkeypatch.setattr(accepting, "_narrowed", lambda *a: narrowed.append(1) or original(*a))
     if full:
-        monkeypatch.setattr(accepting, "_settled", lambda *a: False)
+        monkeypatch.setattr(accepting, "_unsettled", lambda *a: a[-1])
     found = accepting.accept(scene, accepting.Failing(reference, image, grade(reference, image, "")))
     monkeypatch.undo()
     said = None if found is None else (found.words, found.grade.passed, found.grade.fraction_off_nearby)
@@ -132,5 +173,5 @@ def test_the_early_stop_leaves_every_diagnosis_as_it_was(glass, mistake, monkeyp
     image = student.render(glass, (mistake,))
     verdict = grade(reference, image, "")
     early = diagnose(reference, image, verdict, renders_of(glass)).as_dict()
-    monkeypatch.setattr(too_large._Sampled, "settled", lambda *a: False)
+    monkeypatch.setattr(too_large._Sampled, "unsettled", lambda *a: a[-1])
     assert diagnose(reference, image, verdict, renders_of(glass)).as_dict() == early

@@ -65,6 +65,17 @@ def test_a_students_offset_goes_along_the_shading_normal_it_has():
         np.testing.assert_allclose(rays.origins, hit.point + side * 0.01 * leaning)
 
 
+def test_an_offset_along_the_geometric_normal_goes_along_the_faces_own():
+    """A student who offsets by the face's own normal (many do, on a mesh) moves along it, not the leaning
+    shading normal, to the side the ray leaves by."""
+    hit = sphere_hits(1)
+    leaning = np.array([[0.6, 0.0, 0.8]])
+    for direction, side in (([0.0, 0.0, 1.0], 1.0), ([0.0, 0.0, -1.0], -1.0)):
+        spawner = Spawner(mirror_world(), REFERENCE, Spawn(0.01, "geometric"))
+        rays = spawner.spawn(hit, np.ones(1), None, np.array([direction]), leaning)
+        np.testing.assert_allclose(rays.origins, hit.point + side * 0.01 * hit.normal)
+
+
 def test_a_bounce_spawns_the_mirror_and_the_refracted_ray_with_their_weights():
     world = mirror_world()
     hit = sphere_hits(1)

@@ -8,7 +8,7 @@ from test_compose import small
 
 from service.cli.display import explained
 from service.diagnosis import diagnose, renders_of
-from service.diagnosis.compose import Combination, Member, merged
+from service.diagnosis.combination import Combination, Member, merged
 from service.diagnosis.records import Cause, matched
 from service.diagnosis.together import closer, together_causes
 from service.images.grading import grade

@@ -178,14 +178,32 @@ class Renderer:
     ) -> np.ndarray:
         """The image's rows ``rows`` (row numbers, any order) as ``(len(rows), W, 3) uint8``, in one go: byte for
         byte those rows of :meth:`pixels` (every pixel is computed alone)."""
+        width = self.scene.image.width
+        shown = np.asarray(rows, dtype=np.int64)
+        pixel = (shown[:, None] * width + np.arange(width)[None, :]).ravel()
+        return self.pixels_at(pixel, threads, chunk_rays, cancel).reshape(len(shown), width, 3)
+
+    def pixels_at(
+        self,
+        pixels: np.ndarray,
+        threads: int | None = None,
+        chunk_rays: int | None = None,
+        cancel: Callable[[], bool] | None = None,
+    ) -> np.ndarray:
+        """The image's pixels ``pixels`` (pixel numbers, row by row from the top left, any order) as
+        ``(len(pixels), 3) uint8``, in one go: byte for byte those pixels of :meth:`pixels` (every pixel is
+        computed alone, its sub-samples' sums exact integers on its own film), at the price of those pixels
+        alone."""
         img = self.scene.image
         run = self._begin(threads, chunk_rays, cancel, UNLIMITED)
-        shown = np.asarray(rows, dtype=np.int64)
+        pixel = np.asarray(pixels, dtype=np.int64)
         if self.options.flip_image:  # (stored bottom to top: row r of the image is row H − 1 − r of the render)
-            shown = img.height - 1 - shown
-        pixel = (shown[:, None] * img.width + np.arange(img.width)[None, :]).ravel()
+            shown, column = np.divmod(pixel, img.width)
+            pixel = (img.height - 1 - shown) * img.width + column
+        if not len(pixel):
+            return np.empty((0, 3), dtype=np.uint8)
         out = self._drive(parts_of(pixel, run.per_chunk), lambda part: self._stored(part, run.slice_rays), run)
-        return np.concatenate([part for part, _ in out]).reshape(len(shown), img.width, 3)
+        return np.concatenate([part for part, _ in out])
 
     def passes(
         self,

@@ -5,7 +5,10 @@ tasks file gives its task ``deductions`` by mistake id (``{"no-shadows": 1}``) a
 such a mistake: it passes against the reference rendered with that mistake (:mod:`service.diagnosis`).  It
 then scores the points less the deduction (at most the points, :mod:`service.classgrade.taskfile`).  An image
 that several mistakes explain alike (it passes against the reference rendered with each: the image cannot tell
-them apart) is graded on what it shows: it gets the smallest of the deductions the task has for them.
+them apart) is graded on what it shows: it gets the smallest of the deductions the task has for them.  So is
+an image of mistakes made together that another combination explains alike (no shadow rays with no refraction,
+or with the normal leaving glass not flipped): each reading is deducted as the sum of its mistakes' deductions,
+and the smallest is taken.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import io
 from dataclasses import dataclass
 from typing import Any
 
-from tracer.scene.variants import VARIANTS
+from tracer.scene.variants import MORE_VARIANTS, VARIANTS
 
 from ..diagnosis.words import listed
 from .forms import ReportRow
@@ -23,6 +26,8 @@ from .taskfile import TaskSettings
 
 #: the ids a deduction may name: the diagnosis's classic mistakes (tracer.scene.variants), with what each is
 MISTAKES = {name: words for name, (_, words) in VARIANTS.items()}
+#: every id a diagnosis names, with what each is: the classic mistakes and the new ones
+KNOWN = {name: words for name, (_, words) in {**VARIANTS, **MORE_VARIANTS}.items()}
 
 
 @dataclass(frozen=True)
@@ -78,9 +83,9 @@ def partial(row: ReportRow) -> str:
     if not row.get("deducted"):
         return ""
     lost = row["points"] - row["score"]
-    readings = [m for m in row.get("mistakes") or [] if m in MISTAKES]
+    readings = [m for m in row.get("mistakes") or [] if all(part in KNOWN for part in m.split("+"))]
     shown = readings if row["deducted"] in readings and len(readings) > 1 else [row["deducted"]]
-    what = listed([" and ".join(MISTAKES.get(part, part) for part in m.split("+")) for m in shown], "or")
+    what = listed([" and ".join(KNOWN.get(part, part) for part in m.split("+")) for m in shown], "or")
     return f"Partial credit: {row['score']:g} of {row['points']:g} points ({what}: -{lost:g})"
 
 

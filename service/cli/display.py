@@ -7,6 +7,7 @@ import sys
 import time
 from typing import Any
 
+from ..diagnosis.records import together_readings
 from ..images.figures import percent
 from ..images.grading import GROSS_ALLOWED
 
@@ -66,8 +67,8 @@ def explained(diagnosis: dict[str, Any] | None) -> list[str]:
         return []
     lines = [diagnosis["sentence"]]
     causes = diagnosis["causes"]
-    if causes and causes[0].get("together"):
-        lines += [f"  {c['mistake']}: {c['evidence']}" for c in causes if c.get("evidence")]
+    if causes and causes[0].get("together"):  # (the evidence of the reading named first: the others' is the same)
+        lines += [f"  {c['mistake']}: {c['evidence']}" for c in together_readings(causes)[0] if c.get("evidence")]
         causes = []
     elif causes and causes[0].get("share") is not None and not causes[0]["passes"]:  # the nearest explanations
         lines += [f"  also: {c['mistake']} (about {round(100 * c['share'])} %)" for c in causes[1:4]]

@@ -17,35 +17,29 @@ pairs of one task share them.
 
 from __future__ import annotations
 
-import os
-import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
-from pathlib import Path
 
 import numpy as np
 
 from schemas import Scene
-from tracer import Renderer, decode_png
+from tracer import Renderer
 from tracer.scene.variants import ACCEPTED_DEFAULT, Options, unchanged
 
 from ..images.grading import GROSS_ALLOWED, Grade, grade, range_counts
 from ..images.nearby import rows_distance
 from ..render.scenekey import scene_key
+from .kept import KEPT, KEPT_PIXELS, KEPT_RENDERS, STORED, _Kept, file_name, stored  # noqa: F401 (re-exported)
 from .looks import off_rows, sampled_rows, telling_middles
 from .offsets import Rung, ladder, narrowed, rung, visible_size
 from .renders import Renders
-from .settled import FIRST_ROWS, settled
+from .settled import FIRST_ROWS, unsettled, windows
 
 #: an accepted variant explains a failing image when the image leaves at most this share of its pixels off
 #: the reference off the variant too (an honest tracer's matches its variant all but exactly; a mistake that
 #: merely looks alike at the threshold, an offset far too large in a scene that barely shows it, does not)
 EXPLAINED = 0.5
-#: renders of accepted variants kept (by scene and variant, whole or a first look's rows), each of at most this
-#: many pixels
-KEPT = 40
-KEPT_PIXELS = 640 * 480
 
 
 @dataclass(frozen=True)
@@ -56,83 +50,6 @@ class Acceptance:
     words: str  # "a ray offset of 0.001 along the normal"
     grade: Grade
     rung: Rung
-
-
-class _Kept:
-    """The last :data:`KEPT` accepted variants rendered, by canonical scene key and options."""
-
-    def __init__(self) -> None:
-        self.held: dict[tuple[object, ...], np.ndarray] = {}
-        #: the rows of renders looked at so far, by scene key and options: row number → its pixels
-        self.rows: dict[tuple[object, ...], dict[int, np.ndarray]] = {}
-        self.lock = threading.Lock()
-
-    def rows_of(
-        self, key: tuple[object, ...], numbers: np.ndarray, make: Callable[[np.ndarray], np.ndarray]
-    ) -> np.ndarray:
-        """Rows ``numbers`` of the render ``key``: those not kept made by ``make`` (row numbers → their pixels),
-        and kept (for the last :data:`KEPT` renders, each of at most :data:`KEPT_PIXELS`)."""
-        with self.lock:
-            have = dict(self.rows.get(key, {}))
-        todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
-        if len(todo):
-            fresh = make(todo)
-            have.update(zip(todo.tolist(), fresh))
-            with self.lock:
-                mine = self.rows.setdefault(key, {})
-                mine.update(zip(todo.tolist(), fresh))
-                if sum(row.shape[0] for row in mine.values()) > KEPT_PIXELS:
-                    self.rows.pop(key)
-                while len(self.rows) > KEPT:
-                    self.rows.pop(next(iter(self.rows)))
-        return np.stack([have[r] for r in numbers.tolist()])
-
-    def kept_rows(self, key: tuple[object, ...], numbers: np.ndarray) -> np.ndarray | None:
-        """Rows ``numbers`` of the render ``key`` when every one of them is kept (else None: nothing rendered)."""
-        with self.lock:
-            have = self.rows.get(key, {})
-            if not all(r in have for r in numbers.tolist()):
-                return None
-            return np.stack([have[r] for r in numbers.tolist()])
-
-    def has(self, key: tuple[object, ...]) -> bool:
-        with self.lock:
-            return key in self.held or stored(key) is not None
-
-    def get(self, key: tuple[object, ...], make: Callable[[], np.ndarray], pixels: int) -> np.ndarray:
-        with self.lock:
-            if key in self.held:
-                return self.held[key]
-        path = stored(key)
-        image = make() if path is None else decode_png(path.read_bytes())
-        if pixels <= KEPT_PIXELS:
-            with self.lock:
-                self.held[key] = image
-                while len(self.held) > KEPT:
-                    self.held.pop(next(iter(self.held)))
-        return image
-
-
-KEPT_RENDERS = _Kept()
-
-#: a folder of accepted variants rendered beforehand (an autograder bundle's), ``<scene key>/<file_name>``
-STORED = "PHONGRAY_ACCEPTED_RENDERS"
-
-
-def file_name(options: Options) -> str:
-    """The name of a whole render of an accepted variant in a folder of them: ``normal-0.0006.png`` (its offset
-    relative to the visible size)."""
-    return f"{options.offset_along}-{options.offset!r}.png"
-
-
-def stored(key: tuple[object, ...]) -> Path | None:
-    """The file of a whole render ``key`` = (scene key, options) in the folder :data:`STORED` names, if there is
-    one (never a first look's rows)."""
-    folder = os.environ.get(STORED)
-    if not folder or len(key) != 2 or not isinstance(key[1], Options):
-        return None
-    path = Path(folder) / str(key[0]) / file_name(key[1])
-    return path if path.is_file() else None
 
 
 @dataclass(frozen=True)
@@ -190,7 +107,8 @@ def accept(
     allowed = min(pair.failed.max_fraction, EXPLAINED * pair.failed.fraction_off_nearby) * pair.submitted[..., 0].size
     first = replace(look, middles=telling_middles(counts, FIRST_ROWS * allowed))
     for rungs in accepted_ladders(scene, accepted, key):
-        if _settled(scene, pair, rungs, first, allowed) or _settled(scene, pair, rungs, look, allowed):
+        left = _unsettled(scene, pair, rungs, first, allowed, 1)  # (then on more rows, from the pair left open)
+        if left is None or _unsettled(scene, pair, rungs, look, allowed, left) is None:
             continue  # (no range of its rungs, nor any narrower one, can hold the image: the same None, sooner)
         found = _found(scene, pair, rungs, look, allowed)
         if found is not None:
@@ -198,22 +116,29 @@ def accept(
     return None
 
 
-def _settled(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> bool:
-    """Whether, on the rows ``look`` takes, no range of two neighbouring rungs of the ladder (the first from the
+def _unsettled(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float, start: int) -> int | None:
+    """None when, on the rows ``look`` takes, no range of two neighbouring rungs of the ladder (the first from the
     reference) nor any narrower range between two of them can leave at most ``allowed`` pixels off
-    (:func:`.settled.settled`): then :func:`_found` finds nothing, and is not asked."""
+    (:func:`.settled.unsettled`, from pair ``start`` on, those before it settled on some of these rows): then
+    :func:`_found` finds nothing, and is not asked; else the first pair that leaves it open.  Counted where the
+    submission is off against the reference (a lower bound, :func:`.settled.windows`): the rungs are rendered near
+    there alone."""
     middles, rows = look.looked(pair.submitted.shape[0])
     if not len(middles) or all(look.has(r.options) for r in rungs):
-        return False  # (whole renders at hand, kept or rendered beforehand, are what decides: no rows rendered)
+        return start  # (whole renders at hand, kept or rendered beforehand, are what decides: no rows rendered)
     w = pair.submitted.shape[1]
+    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
+    reference = pair.reference[rows].reshape(len(middles), 3, w, 3)
+    shut = rows_distance(reference, reference, submitted) <= pair.failed.tolerance
+    if pair.open_pixels is not None:
+        shut |= pair.open_pixels[middles]
+    wanted = windows(~shut, middles, pair.submitted.shape[0])
 
     def bands(k: int) -> np.ndarray:
-        image = pair.reference[rows] if k == 0 else look.rows(scene, rungs[k - 1].options, rows)
+        image = reference if k == 0 else look.near(scene, rungs[k - 1].options, rows, wanted)
         return image.reshape(len(middles), 3, w, 3)
 
-    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
-    shut = None if pair.open_pixels is None else pair.open_pixels[middles]
-    return settled(bands, len(rungs) + 1, submitted, pair.failed.tolerance, shut, lambda off: off > allowed)
+    return unsettled(bands, len(rungs) + 1, submitted, pair.failed.tolerance, shut, lambda off: off > allowed, start)
 
 
 def _found(scene: Scene, pair: Failing, rungs: list[Rung], look: Look, allowed: float) -> Acceptance | None:
@@ -331,6 +256,14 @@ class Look:
             kept = KEPT_RENDERS.kept_rows((self.key, options), rows)
             return self.renders.with_rows(options, rows) if kept is None else kept
         return KEPT_RENDERS.rows_of((self.key, options), rows, partial(_render_rows, scene, options, how=self))
+
+    def near(self, scene: Scene, options: Options, rows: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+        """Rows ``rows`` of the scene rendered with ``options``, right where ``wanted`` (``(H, W)`` bool) is True:
+        with the scene's renders for diagnosis, those pixels alone (:meth:`.renders.Renders.with_pixels`); else,
+        or where an earlier look kept the rows, the whole rows (:meth:`rows`)."""
+        if self.renders is None or KEPT_RENDERS.kept_rows((self.key, options), rows) is not None:
+            return self.rows(scene, options, rows)
+        return self.renders.with_pixels(options, wanted)[rows]
 
     def whole(self, scene: Scene, options: Options, pixels: int) -> np.ndarray:
         """The whole image with ``options``: from the folder of those rendered beforehand (:data:`STORED`), else

@@ -14,31 +14,31 @@ the mistakes would cost a render per pair; instead the failing image itself says
   The new mistakes of :data:`tracer.scene.variants.MORE_VARIANTS` are looked at only where the term fit points to
   them (:func:`pointed`): the fit says which to try.
 * **One render** of the merged options (:func:`merged`) confirms the combination with the grade's own
-  measure, or leaves it the closest.
+  measure, or leaves it the closest; one more for each other reading, where the rows cannot tell one of its
+  mistakes from another (:func:`readings`: no refraction, or the normal leaving glass not flipped).
 
-When nothing fits, :func:`nearest` ranks the explanations by their share of the difference.  Pure (:class:`Looks`).
+When nothing fits, :mod:`.nearest` ranks the explanations by their share of the difference.  Pure (:class:`Looks`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field, fields, replace
-from itertools import combinations
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field, replace
+from itertools import combinations, product
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tracer.scene.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
+from tracer.scene.variants import BOUNDS, MORE_VARIANTS, VARIANTS, Options
 
 from ..images.grading import grade
+from .combination import ALL, Combination, Member, classic_first, compatible, merged
 from .records import Term
 from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
 
 if TYPE_CHECKING:
     from ..images.grading import Grade
 
-#: every mistake that may be named: name → (options, what the student did)
-ALL: dict[str, tuple[Options, str]] = {**VARIANTS, **MORE_VARIANTS}
 #: a further render-level mistake is added to a combination when it leaves at most this share of the mean
 #: difference the combination without it leaves (each mistake of a combination accounts for a real part)
 ADD_AT_MOST = 0.7
@@ -47,8 +47,8 @@ ADD_AT_MOST = 0.7
 ADD_LEVELS = 1e-6
 #: at most this many render-level mistakes together
 MAX_TOGETHER = 3
-#: a nearest explanation that accounts for less of the difference than this accounts for nothing a person sees
-NOTHING = 0.01
+#: at most this many readings of one combination are rendered (:func:`readings`)
+MAX_READINGS = 4
 
 
 @dataclass(frozen=True)
@@ -61,53 +61,6 @@ class Looks:
     shown: Callable[[str], bool]  # name → whether the scene can show the mistake (else it renders the reference)
     lights: tuple[str, ...]  # the scene's light types, in order
     open: np.ndarray | None = None  # (H, W) bool: the pixels not counted against a submission (Renders.open)
-
-
-@dataclass(frozen=True)
-class Member:
-    """One mistake of a combination, with its evidence: how much of the difference it accounts for."""
-
-    variant: str
-    mistake: str
-    share: float  # of the submission's mean difference from the reference, what adding it takes away
-    evidence: str  # in words: why it was tried
-
-
-@dataclass(frozen=True)
-class Combination:
-    """Mistakes made together, and the submission graded against the reference rendered with all of them."""
-
-    members: tuple[Member, ...]
-    fraction_off_nearby: float
-    passes: bool
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return tuple(m.variant for m in self.members)
-
-
-def merged(names: tuple[str, ...] | list[str]) -> Options:
-    """The options of mistakes made together: the changed fields of each mistake's options, on the reference's.
-    ValueError for two that change one field differently (one bounce too many and too few)."""
-    update: dict[str, object] = {}
-    for name in names:
-        options = ALL[name][0]
-        for f in fields(options):
-            value = getattr(options, f.name)
-            if value != getattr(REFERENCE, f.name):
-                if update.get(f.name, value) != value:
-                    raise ValueError(f"{name} and another mistake both change {f.name}")
-                update[f.name] = value
-    return replace(REFERENCE, **update)  # type: ignore[arg-type]
-
-
-def compatible(names: tuple[str, ...]) -> bool:
-    """Whether the mistakes can be made together (no field changed two ways)."""
-    try:
-        merged(names)
-    except ValueError:
-        return False
-    return True
 
 
 # -- which render-level mistakes to try: the term fit points to the new ones ---------------------------------------
@@ -176,6 +129,25 @@ class Rows:
             self.known[key] = self._error(key)
         return self.known[key]
 
+    def alike(self, a: str, b: str) -> bool:
+        """Whether the rows cannot tell mistakes ``a`` and ``b`` apart: each changes them, and alike, to the last
+        bit (no refraction, and the normal leaving glass not flipped, with shadows: :data:`ALIKE`).  Two such are
+        two readings of one change, never two changes: made together, the one leaves the other nothing to do
+        (no refracted ray to leave glass by), though their differences added would count it twice."""
+        if a == b or a in STORED or b in STORED:
+            return False
+        da, db = self.deltas[a], self.deltas[b]
+        return bool(np.any(da)) and np.array_equal(da, db)
+
+    def fits(self, names: tuple[str, ...]) -> bool:
+        """Whether the mistakes can be made together (:func:`compatible`) and the rows tell them all apart."""
+        return compatible(names) and not any(self.alike(a, b) for a, b in combinations(names, 2))
+
+    def ranked(self, tried: Iterable[tuple[str, ...]]) -> list[tuple[float, tuple[str, ...]]]:
+        """The combinations ``tried`` that fit, by their error, and of equal errors the classic mistakes first
+        (:func:`classic_first`): of two readings the rows cannot tell apart, the classic one is tried first."""
+        return sorted(((self.error(p), p) for p in tried if self.fits(p)), key=lambda e: (e[0], classic_first(e[1])))
+
     def _error(self, names: tuple[str, ...]) -> float:
         """How far the submission's rows are from the reference's with the mistakes ``names`` made, their
         differences added: the mean, over the pixels, of the largest channel difference beyond the tolerance
@@ -227,7 +199,7 @@ def chosen(rows: Rows) -> tuple[str, ...]:
         e = rows.error(names)
         return e if e <= ADD_AT_MOST * than and than - e >= ADD_LEVELS else None
 
-    singles = sorted((rows.error((n,)), (n,)) for n in names)
+    singles = rows.ranked((n,) for n in names)
     if singles and better(error, singles[0][1]) is not None:
         best, error = singles[0][1], singles[0][0]
     # (a mistake whose difference alone takes the rows further from the submission is no part of it, unless
@@ -238,11 +210,11 @@ def chosen(rows: Rows) -> tuple[str, ...]:
     if singles:
         first = singles[0][1][0]
         tried |= {(min(first, n), max(first, n)) for n in every if n != first}
-    pairs = sorted((rows.error(p), p) for p in tried if compatible(p))
+    pairs = rows.ranked(tried)
     if pairs and better(error, pairs[0][1]) is not None:
         best, error = pairs[0][1], pairs[0][0]
     while 2 <= len(best) < MAX_TOGETHER:
-        more = sorted((rows.error((*best, n)), (*best, n)) for n in names if n not in best and compatible((*best, n)))
+        more = rows.ranked((*best, n) for n in names if n not in best)
         if not more or better(error, more[0][1]) is None:
             break
         best, error = more[0][1], more[0][0]
@@ -284,10 +256,45 @@ def compose(
         return _partnered(submitted, verdict, looks, (rows, terms), inner[0]) if inner else None
     if all(n in STORED or n in OUTER for n in names) and GAMMA not in names:
         image = outer(reference, names)  # (exact for all but the mirror, which is within a level)
-    else:
-        image = looks.render(merged(names))
-    g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
-    return _combination(rows, inner, found, g, candidates(looks, terms))
+        g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
+        return _combination(rows, inner, found, g, candidates(looks, terms))
+    return _rendered(submitted, verdict, looks, rows, (inner, found, candidates(looks, terms)))
+
+
+def _rendered(
+    submitted: np.ndarray,
+    verdict: Grade,
+    looks: Looks,
+    rows: Rows,
+    made: tuple[tuple[str, ...], dict[str, float], dict[str, str]],
+) -> Combination:
+    """The render-level mistakes ``inner`` (with the image-level ones ``found``), each of their :func:`readings`
+    graded against its render: the first the submission passes against, with the others it passes against as
+    its readings; else the first, which comes closest."""
+    inner, found, tried = made
+    graded = []
+    for names in readings(rows, inner):
+        g = grade(
+            looks.render(merged((*names, *found))), submitted, "", verdict.tolerance, verdict.max_fraction, looks.open
+        )
+        graded.append(_combination(rows, names, found, g, tried))
+    passing = [c for c in graded if c.passes]
+    return replace(passing[0], readings=tuple(passing[1:])) if passing else graded[0]
+
+
+def readings(rows: Rows, inner: tuple[str, ...]) -> list[tuple[str, ...]]:
+    """``inner``, then as many mistakes with some made in place of others the rows cannot tell them from
+    (:meth:`Rows.alike`), classic ones first, at most :data:`MAX_READINGS` in all.  The rows of each mistake are
+    rendered with no other made: what they cannot tell apart, made with the others, a render may (with no shadow
+    rays, light reaches the inside of a glass ball its refracted rays cannot leave, and lights it)."""
+    each = [
+        [m, *sorted((n for n in rows.deltas if n not in inner and rows.alike(m, n)), key=_one_first)] for m in inner
+    ]
+    return [p for p in product(*each) if len(set(p)) == len(p) and compatible(p)][:MAX_READINGS]
+
+
+def _one_first(name: str) -> tuple[int, tuple[str, ...]]:
+    return classic_first((name,))
 
 
 def _partnered(
@@ -303,7 +310,7 @@ def _partnered(
         model = np.where(kept, alone, alone + rows.deltas[n])
         return _beyond(np.floor(np.clip(model, 0.0, 255.0) + 0.5).astype(np.uint8), rows.submitted, rows.tolerance)
 
-    partners = [n for n in rows.deltas if n != first and n not in STORED and compatible((first, n))]
+    partners = [n for n in rows.deltas if n != first and n not in STORED and rows.fits((first, n))]
     ranked = sorted((min(error(n), rows.error((first, n))), n) for n in partners)
     for n in [n for e, n in ranked[:2] if e < rows.error((first,)) - ADD_LEVELS]:  # (one render each)
         g = grade(looks.render(merged((first, n))), submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
@@ -366,34 +373,3 @@ def _rows(
 def _why(pointer: str, share: float) -> str:
     accounts = f"the mistake accounts for {round(100 * share)} % of the difference"
     return f"{pointer} out of scale; {accounts}" if pointer.startswith("the fit") else accounts
-
-
-@dataclass(frozen=True)
-class Explanation:
-    """A part of the difference, and how much of it: a mistake's (``variant``) or a term's (``term``)."""
-
-    share: float
-    variant: str | None = None
-    term: Term | None = None
-
-
-def nearest(
-    reference: np.ndarray,
-    submitted: np.ndarray,
-    looks: Looks,
-    terms: list[tuple[Term, float]],
-    tolerance: float = 2.0,
-) -> list[Explanation]:
-    """When nothing fits: every mistake tried and every term out of scale (with the share of the difference the
-    fit says it accounts for), ranked by how much of the submission's difference from the reference each
-    accounts for, most first; those that account for less than :data:`NOTHING` are left out, but for the first
-    (when it accounts for anything at all)."""
-    found = image_level(reference, submitted)
-    rows = _rows(reference, submitted, looks, candidates(looks, [t for t, _ in terms]), (found, tolerance, None))
-    base = rows.error(())
-    out = [Explanation(share, n) for n, share in found.items()]
-    if base > 0:
-        out += [Explanation(max(0.0, 1.0 - rows.error((n,)) / base), n) for n in rows.deltas]
-    out += [Explanation(share, term=t) for t, share in terms]
-    ranked = sorted(out, key=lambda e: -e.share)
-    return [e for k, e in enumerate(ranked) if e.share >= NOTHING or (k == 0 and e.share > 0)]

@@ -26,7 +26,7 @@ from ..images.grading import Grade, grade
 from ..images.nearby import rows_distance
 from ..render.scenekey import scene_key
 from .accepting import KEPT_RENDERS, Failing, Look, _render, accepted_ladders
-from .compose import ALL, compatible, merged
+from .combination import ALL, compatible, merged
 from .looks import sampled_rows
 from .offsets import Rung
 from .records import Cause, Diagnosis
@@ -82,8 +82,8 @@ def candidates(found: Diagnosis) -> list[tuple[str, ...]]:
     """The mistakes to fit an offset with: the diagnosis's mistakes made together, else each of its first causes
     that is a mistake (not a term), in order."""
     known = [c for c in found.causes if c.variant in VARIANTS or c.variant in MORE_VARIANTS]
-    if found.together and known:
-        names = tuple(c.variant for c in known)
+    if found.together and known:  # (the combination named first: another reading of its image is no other fit)
+        names = tuple(c.variant for c in found.combinations[0] if c in known)
         return [names] if compatible(names) else []
     return [(c.variant,) for c in known[:TRIED]]
 

@@ -3,8 +3,9 @@ are, and the words for it (a sentence for a person, a headline for a report's ce
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any, Literal
+from typing import Any, Literal, TypeVar
 
 from pydantic import Field
 from pydantic.fields import FieldInfo
@@ -172,6 +173,12 @@ class Diagnosis:
         return bool(self.causes and self.causes[0].together)
 
     @property
+    def combinations(self) -> list[list[Cause]]:
+        """The causes of mistakes made together, by reading of the image: the combination named first, then each
+        other combination the image cannot tell from it (none when the causes are not mistakes made together)."""
+        return by_reading(self.causes, lambda c: (c.variant, c.together)) if self.together else []
+
+    @property
     def readings(self) -> list[Cause]:
         """The mistakes the image cannot tell apart: every single mistake the submission passes against (each
         renders an image the grade cannot tell from it), when there are two or more; else none."""
@@ -192,8 +199,9 @@ class Diagnosis:
             return nearest_sentence(self.causes[0].mistake, self.causes[0].share or 0.0)
         also = "" if self.offset is None else f" and {self.offset}"
         if self.together:
-            first = self.causes[0]
-            return together_sentence([c.mistake for c in self.causes], first.fraction_off_nearby, first.passes, also)
+            first, *others = [[c.mistake for c in made] for made in self.combinations]
+            c = self.causes[0]
+            return together_sentence(first, c.fraction_off_nearby, c.passes, also, others)
         if self.readings:
             readings = self.readings
             return readings_sentence(
@@ -218,9 +226,11 @@ class Diagnosis:
             return "nearest: " + self.causes[0].mistake
         if self.readings:  # (what the image cannot tell apart)
             return " or ".join(c.mistake for c in self.readings)
+        if self.together:  # (each reading the image cannot tell apart, mistakes made together joined by +)
+            said = " or ".join(" + ".join(c.mistake for c in made) for made in self.combinations)
+            return said + (" (closest)" if self.closest else "")
         if self.causes:
-            shown = self.causes if self.together else self.causes[:1]
-            return " + ".join(c.mistake for c in shown) + (" (closest)" if self.closest else "")
+            return self.causes[0].mistake + (" (closest)" if self.closest else "")
         if self.terms:
             return term_words(self.terms[0])
         return self.sentence() if self.unavailable is not None else "no known mistake fits"
@@ -282,10 +292,31 @@ def unavailable(why: str) -> Diagnosis:
 def matched(diagnosis: dict[str, Any] | None) -> list[str]:
     """The ids of the mistakes a failing image matches (passes against the reference rendered with each), best
     first, from a diagnosis as :meth:`service.diagnosis.Diagnosis.as_dict` gives it; mistakes made together are
-    one id, ``no-shadows+gamma`` (two faults: each one's deduction is taken: the gradebook's score)."""
+    one id, ``no-shadows+gamma`` (two faults: each one's deduction is taken: the gradebook's score), one per
+    reading of the image (``no-shadows+no-refraction``, ``no-shadows+exit-normal-not-flipped``: the image cannot
+    tell them apart, and a deduction applies to either, as to one of two single mistakes alike)."""
     if not diagnosis:
         return []
     causes = [c for c in diagnosis.get("causes", []) if c.get("passes")]
-    if causes and causes[0].get("together"):  # mistakes made together: one id for them all
-        return ["+".join(c["variant"] for c in causes)]
+    if causes and causes[0].get("together"):  # mistakes made together: one id for each reading
+        return ["+".join(c["variant"] for c in made) for made in together_readings(causes)]
     return [c["variant"] for c in causes]
+
+
+def together_readings(causes: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:
+    """The causes of mistakes made together (as :meth:`Cause.as_dict` gives them) by reading of the image: the
+    combination named first, then each other the image cannot tell from it."""
+    return by_reading(causes, lambda c: (c["variant"], c.get("together") or []))
+
+
+Made = TypeVar("Made")
+
+
+def by_reading(causes: list[Made], names: Callable[[Made], tuple[str, list[str]]]) -> list[list[Made]]:
+    """``causes`` grouped by the mistakes each was made together with (``names``: its own and the others'), in
+    their order: one group per reading of the image."""
+    groups: dict[frozenset[str], list[Made]] = {}
+    for c in causes:
+        variant, together = names(c)
+        groups.setdefault(frozenset((variant, *together)), []).append(c)
+    return list(groups.values())

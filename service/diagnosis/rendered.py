@@ -17,6 +17,7 @@ from tracer.shade.passes import ADDITIVE, LIGHT_TERMS
 
 from .fit import FIT_BLOCK_PIXELS
 from .offsets import visible_size
+from .spots import Spots
 from .words import names_of
 
 if TYPE_CHECKING:
@@ -56,10 +57,11 @@ def renders_of(
 
 def options_of(name: str, size: Callable[[], float] | None = None) -> Options:
     """The options of a classic mistake (:data:`VARIANTS`) or a new one (:data:`MORE_VARIANTS`), or of a rung of an
-    offset too large (``offset-too-large@0.05``: that amount in the scene's units, ``size()`` its visible size)."""
-    if "@" in name:
-        amount = float(name.split("@", 1)[1])
-        return Options(offset=amount / (size() if size is not None else 1.0))
+    offset too large (``offset-too-large@0.05``: that amount in the scene's units, ``size()`` its visible size;
+    ``offset-too-large@geometric@0.05`` along the geometric normal)."""
+    if "@" in name:  # (``offset-too-large@geometric@0.05``: along the geometric normal)
+        along, _, amount = name.split("@", 1)[1].rpartition("@")
+        return Options(offset=float(amount) / (size() if size is not None else 1.0), offset_along=along or "normal")
     return VARIANTS[name][0] if name in VARIANTS else MORE_VARIANTS[name][0]
 
 
@@ -94,6 +96,7 @@ class SceneRenders:
         self.made: dict[str, dict[str, np.ndarray]] = {}
         #: per variant (and per far end), its rows rendered so far, until it is whole
         self.kept: dict[str, dict[int, np.ndarray]] = {}
+        self.spots = Spots(scene.image.height, scene.image.width)  # (rungs' pixels rendered alone, near a look's)
         self.guard = threading.Lock()
         self.last = threading.local()  # per thread, the last scene prepared and its options
         self.asked = threading.local()  # per thread, the cancel of the diagnosis it runs (these may be shared)
@@ -263,14 +266,17 @@ class SceneRenders:
         self, key: str, name: str, options: Options, wholes: dict[str, np.ndarray], numbers: np.ndarray
     ) -> np.ndarray:
         """Rows ``numbers`` of a render: its rows are kept as they come (first looks, bands), under ``key``, and
-        are not rendered again; once every row has come, they are its whole image, ``wholes[name]``."""
+        are not rendered again (nor its pixels rendered alone, :meth:`with_pixels`); once every row has come, they
+        are its whole image, ``wholes[name]``."""
         with self.guard:
             if name in wholes:
                 return wholes[name][numbers]
             have = dict(self.kept.get(key, {}))
         todo = np.array(sorted(set(numbers.tolist()) - set(have)), dtype=np.int64)
         if len(todo):
-            fresh = self.prepared(options).pixels_of_rows(todo, threads=self.threads, cancel=self.polled())
+            fresh = self.spots.rows(key, todo, self.renderer_of(options)) if self.spots.has(key) else None
+            if fresh is None:
+                fresh = self.prepared(options).pixels_of_rows(todo, threads=self.threads, cancel=self.polled())
             with self.guard:
                 if name in wholes:  # (made whole meanwhile, in another thread)
                     return wholes[name][numbers]
@@ -280,7 +286,12 @@ class SceneRenders:
                 if len(mine) == self.height:
                     wholes[name] = np.stack([mine[r] for r in range(self.height)])
                     self.kept.pop(key)
+                    self.spots.drop(key)
         return np.stack([have[r] for r in numbers.tolist()])
+
+    def renderer_of(self, options: Options) -> Callable[[np.ndarray], np.ndarray]:
+        """What renders pixel numbers with ``options`` (:meth:`tracer.Renderer.pixels_at`)."""
+        return lambda pixels: self.prepared(options).pixels_at(pixels, threads=self.threads, cancel=self.polled())
 
     def rows(self, name: str, numbers: np.ndarray) -> np.ndarray:
         """Rows of a classic mistake's render (:data:`VARIANTS`), or of a new one's (:data:`MORE_VARIANTS`), kept; a
@@ -308,11 +319,22 @@ class SceneRenders:
         already are not rendered again)."""
         key = by_options(options)
         if key not in self.variants:
-            if key in self.kept:
+            if key in self.kept or self.spots.has(key):
                 self.with_rows(options, np.arange(self.height))
             else:
                 self.variants[key] = self.prepared(options).pixels(threads=self.threads, cancel=self.polled())
         return self.variants[key]
+
+    def with_pixels(self, options: Options, wanted: np.ndarray) -> np.ndarray:
+        """The scene rendered with ``options`` where ``wanted`` (``(H, W)`` bool) is True, as ``(H, W, 3)`` (the
+        other pixels unset): those pixels alone are rendered (:meth:`tracer.Renderer.pixels_at`, the very bytes
+        of the whole image's), and kept for its rows and whole image (:class:`.spots.Spots`)."""
+        key = by_options(options)
+        with self.guard:
+            if key in self.variants:
+                return self.variants[key]
+            rows = dict(self.kept.get(key, {}))
+        return self.spots.pixels(key, wanted, self.renderer_of(options), rows)
 
     def holds(self, options: Options) -> bool:
         """Whether the whole image with ``options`` is at hand, without a render."""
@@ -348,6 +370,7 @@ class SceneRenders:
                 *list(self.variants.values()),
                 *list(self.bounds.values()),
                 *(r for rows in list(self.kept.values()) for r in list(rows.values())),
+                *self.spots.arrays(),
                 *(a for planes in list(self.made.values()) for a in list(planes.values())),
             ]
         )

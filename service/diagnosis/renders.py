@@ -75,6 +75,10 @@ class Renders(Protocol):
     def with_options(self, options: Options) -> np.ndarray:
         """The whole image rendered with ``options``, kept as :meth:`with_rows` keeps its rows."""
 
+    def with_pixels(self, options: Options, wanted: np.ndarray) -> np.ndarray:
+        """The image rendered with ``options`` where ``wanted`` (``(H, W)`` bool) is True, as ``(H, W, 3)`` (the other
+        pixels unset): the pixels of its whole image, exactly, kept as :meth:`with_rows` keeps its rows."""
+
     def holds(self, options: Options) -> bool:
         """Whether the whole image with ``options`` is at hand, without a render."""
 
@@ -129,6 +133,9 @@ class WholeImages:
 
     def with_rows(self, options: Options, numbers: np.ndarray) -> np.ndarray:
         return self.with_options(options)[numbers]
+
+    def with_pixels(self, options: Options, wanted: np.ndarray) -> np.ndarray:
+        return self.with_options(options)
 
     def at(self, pixels: np.ndarray, fold: Fold) -> np.ndarray:
         found: np.ndarray = self.passes(["object"], None)["object"].reshape(-1)[pixels]

@@ -25,6 +25,12 @@ pixel within :data:`REACH` of it, and a ladder is given up only when what is cou
 :data:`MARGIN` times what ``beyond`` refuses: to turn the verdict, strays would have to make up (MARGIN − 1)
 times what is allowed (that test's bound).  The verdict is then the full ladder's, and its price a few rows of
 each rung (a mistake is off on the rows that tell it, at any offset).
+
+Of those rows, a rung is rendered only near the pixels counted (:func:`windows`): the middle rows' pixels off even
+nearby against the reference, and every pixel within :data:`REACH` columns of one of them on its three rows.  A
+pixel's count reads the rungs at those pixels alone (its 3×3 neighbourhood, and :func:`agreed`'s 3 × (2·REACH + 1)),
+so the count on them is exactly theirs, and a count on some of the middle rows' pixels is a lower bound of the count
+on all of them: giving up stays the full ladder's verdict, at the price of the pixels where the submission is off.
 """
 
 from __future__ import annotations
@@ -59,6 +65,20 @@ def agreed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+def windows(counted: np.ndarray, middles: np.ndarray, height: int) -> np.ndarray:
+    """The pixels a count on the middle rows ``middles`` reads (``(H, W)`` bool): every pixel within :data:`REACH`
+    columns of a pixel ``counted`` (``(k, W)`` bool, one row per middle), on the middle row and the rows either
+    side (all that :func:`kept_off` reads of a counted pixel: its 3×3 neighbourhood and :func:`agreed`'s)."""
+    near = counted.copy()
+    for dx in range(1, REACH + 1):
+        near[:, dx:] |= counted[:, :-dx]
+        near[:, :-dx] |= counted[:, dx:]
+    wanted = np.zeros((height, counted.shape[1]), dtype=bool)
+    for dy in (-1, 0, 1):
+        wanted[np.clip(middles + dy, 0, height - 1)] |= near
+    return wanted
+
+
 def kept_off(
     ends: tuple[np.ndarray, np.ndarray], submitted: np.ndarray, tolerance: float, shut: np.ndarray | None
 ) -> int:
@@ -83,13 +103,35 @@ def settled(
     """Whether no range of two neighbouring rungs of a ladder, nor any narrower range between two of them, can leave
     few enough pixels off (module docstring): for every two neighbours, :data:`MARGIN` times what ``beyond`` refuses
     is off where they agree.  ``bands(k)``: rung ``k``'s bands (ascending; rung 0 the reference where the ladder
-    starts from it), asked for in order, and none past the first two neighbours that do not settle it."""
-    if rungs < 2 or not submitted.shape[0]:
-        return False
-    previous = bands(0)
-    for k in range(1, rungs):
+    starts from it), asked for in order, and none past the first two neighbours that do not settle it; they need be
+    right only within :func:`windows` of the pixels counted (those ``shut`` leaves: it may shut any, for a lower
+    bound)."""
+    return rungs >= 2 and unsettled(bands, rungs, submitted, tolerance, shut, beyond) is None
+
+
+def unsettled(
+    bands: Callable[[int], np.ndarray],
+    rungs: int,
+    submitted: np.ndarray,
+    tolerance: float,
+    shut: np.ndarray | None,
+    beyond: Callable[[int], bool],
+    start: int = 1,
+) -> int | None:
+    """The first two neighbouring rungs from ``start`` on (``k − 1`` and ``k``: ``k`` given) that do not settle the
+    ladder, as :func:`settled` asks of every two; None when none of them is left (every pair from ``start`` on
+    settles it).  ``bands(k)`` is asked for rungs ``start − 1`` on alone, in order.
+
+    The resumed look: pairs before ``start`` settled it on some of these middle rows (a look at fewer rows, the
+    same pixels of theirs counted), and a count on more rows is at least the count on those (each middle row's
+    count reads its own band alone): they settle it here too, and their rungs are not rendered on the rows added.
+    """
+    if not submitted.shape[0]:
+        return start
+    previous = bands(start - 1)
+    for k in range(start, rungs):
         current = bands(k)
         if not beyond(kept_off((previous, current), submitted, tolerance, shut) // MARGIN):
-            return False
+            return k
         previous = current
-    return True
+    return None

@@ -23,7 +23,8 @@ import numpy as np
 from tracer.scene.variants import BOUNDS, REFERENCE, VARIANTS, Options
 
 from ..images.grading import Grade
-from .compose import ALL, Combination, Member, _beyond, merged, telling_rows
+from .combination import ALL, Combination, Member, merged
+from .compose import _beyond, telling_rows
 from .looks import speckled
 from .renders import Renders
 from .stored import GAMMA, outer

@@ -12,7 +12,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .compose import ALL, Combination, Explanation, Looks, compose, nearest
+from .combination import ALL, Combination
+from .compose import Looks, compose
+from .nearest import Explanation, nearest
 from .records import Cause, Term
 from .renders import Renders
 from .words import Names, term_sentence
@@ -47,9 +49,11 @@ def combined(
 
 
 def together_causes(combination: Combination) -> list[Cause]:
-    """The causes of a combination, one per mistake, each with the combination's grade and its evidence."""
+    """The causes of a combination, one per mistake, each with the combination's grade and its evidence; then
+    those of each other reading of the same image (:attr:`.combination.Combination.readings`) likewise: a cause's
+    mistake and its ``together`` say which reading it is of."""
     names = combination.names
-    return [
+    mine = [
         Cause(
             m.variant,
             m.mistake,
@@ -61,6 +65,7 @@ def together_causes(combination: Combination) -> list[Cause]:
         )
         for m in combination.members
     ]
+    return mine + [c for other in combination.readings for c in together_causes(other)]
 
 
 def closer(

@@ -26,8 +26,9 @@ from ..images.nearby import rows_distance
 from .looks import sampled_rows, telling_middles
 from .offsets import amount_words, narrowed, round_amounts
 from .records import Cause
+from .rendered import options_of
 from .renders import Renders
-from .settled import FIRST_ROWS, settled
+from .settled import FIRST_ROWS, unsettled, windows
 
 NAME = "offset-too-large"
 #: the ladder of offsets too large goes up to this × the visible size (an offset that large hides most shadows,
@@ -42,9 +43,16 @@ def amounts(size: float) -> list[float]:
     return [low, *(a for a in round_amounts(low, high) if low < a < high / 1.1), high]
 
 
-def rung_name(amount: float) -> str:
-    """The name a rung renders under (:func:`service.diagnosis.rendered.options_of`): ``offset-too-large@0.05``."""
-    return f"{NAME}@{amount!r}"
+#: the normals a ladder's offsets are along: the shading normal, and, in a scene with a mesh, its faces' own
+#: (geometric) normal too, which many a student's tracer offsets along (where a mesh's normals are interpolated,
+#: the two part, and a shadow an offset detaches moves with the normal it was offset along)
+ALONG = ("normal", "geometric")
+
+
+def rung_name(amount: float, along: str = "normal") -> str:
+    """The name a rung renders under (:func:`service.diagnosis.rendered.options_of`): ``offset-too-large@0.05``,
+    along the geometric normal ``offset-too-large@geometric@0.05``."""
+    return f"{NAME}@{amount!r}" if along == "normal" else f"{NAME}@{along}@{amount!r}"
 
 
 def words(amount: float, size: float) -> str:
@@ -57,6 +65,7 @@ def words(amount: float, size: float) -> str:
 class Scoring(Protocol):
     """What scoring the ladder needs of a diagnosis's scoring (:class:`service.diagnosis.causes._Scoring`)."""
 
+    reference: np.ndarray
     submitted: np.ndarray
     verdict: Grade
     renders: Renders
@@ -66,10 +75,25 @@ class Scoring(Protocol):
 
 
 def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
-    """Scores ``offset-too-large`` against the range of a few amounts: on either side of the rung that leaves
-    the fewest of the submission's pixels off on the sampled rows, each side narrowed (:func:`.offsets.narrowed`)
-    to the amounts that leave fewer, the side whose range leaves fewer kept, then rendered whole.  False, as
-    :meth:`_Scoring.score` says, when the rows alone (an exact lower bound, as
+    """Scores ``offset-too-large`` along the shading normal (:func:`along`), and where that is not passed against
+    and the scene has a mesh, along its faces' geometric normal too; of the two scored, the one that leaves fewer
+    pixels off is kept.  False when neither is scored."""
+    scored = along(scoring, beyond, "normal")
+    if "mesh" not in scoring.renders.objects or any(c.variant == NAME and c.passes for c in scoring.scored):
+        return scored
+    if not along(scoring, beyond, "geometric"):
+        return scored
+    mine = [c for c in scoring.scored if c.variant == NAME]
+    best = min(mine, key=lambda c: (not c.passes, c.fraction_off_nearby))
+    scoring.scored[:] = [c for c in scoring.scored if c.variant != NAME or c is best]
+    return True
+
+
+def along(scoring: Scoring, beyond: Callable[[int], bool], normal: str) -> bool:
+    """Scores ``offset-too-large`` along ``normal`` (of :data:`ALONG`) against the range of a few amounts: on
+    either side of the rung that leaves the fewest of the submission's pixels off on the sampled rows, each side
+    narrowed (:func:`.offsets.narrowed`) to the amounts that leave fewer, the side whose range leaves fewer kept,
+    then rendered whole.  False, as :meth:`_Scoring.score` says, when the rows alone (an exact lower bound, as
     :func:`service.diagnosis.looks.off_at_least` counts) or the whole count are off by a count ``beyond`` says is
     too many; else adds the cause, its words the amount of the range the submission comes closer to.  The ladder is
     given up before any of that when its rungs' rows alone show that no range of them, nor a narrower one, can
@@ -77,9 +101,10 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
     size = renders.size()
     ladder = amounts(size)
-    sampled = _Told(scoring)
-    first = _Sampled(scoring, telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels))
-    if first.settled(ladder, beyond) or sampled.first.settled(ladder, beyond):
+    sampled = _Told(scoring, normal)
+    told = telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels)
+    first = _Sampled(scoring, told, normal)
+    if _settled(scoring, [first, sampled.first], ladder, beyond):
         return False  # (no range of its rungs, nor any narrower one, can leave few enough off: as narrowing finds)
     # (on either side of the rung nearest the submission: a range of two rungs may leave a pixel fewer off than
     # the range that holds the student's amount, where a larger offset hides what a smaller one shows)
@@ -91,10 +116,10 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
         return False
     counts = None
     if sampled.off((ladder[best],)) <= sampled.off(tuple(chosen)):  # (the rows tell the rung alone no worse)
-        counts = _rung_alone(scoring, ladder[best])
+        counts = _rung_alone(scoring, ladder[best], normal)
     if counts is not None:
         chosen = [ladder[best]]
-    images = [renders.variant(rung_name(a)) for a in chosen]
+    images = [renders.variant(rung_name(a, normal)) for a in chosen]
     counts = counts or range_counts(images, submitted, verdict.tolerance, renders.open)
     if beyond(counts.off_nearby):
         return False
@@ -109,13 +134,31 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     return True
 
 
-def _rung_alone(scoring: Scoring, rung: float) -> Counts | None:
+def _rung_alone(scoring: Scoring, rung: float, normal: str) -> Counts | None:
     """The whole count against the rung nearest the submission alone, where it passes (None where not): a
     student's round amount (0.1) is a rung, and where the sampled rows leave every amount near it alike,
     narrowing walks away from it (the first of equals) to a range that leaves more off elsewhere."""
     renders, verdict = scoring.renders, scoring.verdict
-    counts = range_counts([renders.variant(rung_name(rung))], scoring.submitted, verdict.tolerance, renders.open)
+    image = renders.variant(rung_name(rung, normal))
+    counts = range_counts([image], scoring.submitted, verdict.tolerance, renders.open)
     return counts if passes(counts, scoring.pixels, verdict.max_fraction) else None
+
+
+def _settled(scoring: Scoring, looks: list[_Sampled], ladder: list[float], beyond: Callable[[int], bool]) -> bool:
+    """Whether the ladder is given up (:mod:`.settled`) on the rows of ``looks`` (each holding the rows of the one
+    before), then on every row the submission is off on: each look from the pair of rungs the one before left open
+    (:func:`.settled.unsettled`).  The last look costs two rungs' pixels near every pixel off (often fewer than the
+    dozen amounts narrowing renders on the sampled rows); it is taken only when it has more rows than the others."""
+    left = 1
+    for look in looks:
+        open_from = look.unsettled(ladder, beyond, left)
+        if open_from is None:
+            return True
+        left = open_from
+    every = np.flatnonzero(scoring.counts > 0)
+    if len(every) <= len(looks[-1].middles):
+        return False
+    return _Sampled(scoring, every, looks[-1].along).unsettled(ladder, beyond, left) is None
 
 
 class _Sampled:
@@ -123,20 +166,22 @@ class _Sampled:
     most off against the reference, as many as :func:`service.diagnosis.looks.sampled_rows` takes, each with the
     rows either side): an exact lower bound of the whole count."""
 
-    def __init__(self, scoring: Scoring, middles: np.ndarray | None = None):
-        self.renders = scoring.renders
+    def __init__(self, scoring: Scoring, middles: np.ndarray | None = None, along: str = "normal"):
+        self.renders, self.along = scoring.renders, along
         self.tolerance = scoring.verdict.tolerance
         h, self.w, _ = scoring.submitted.shape
+        self.h = h
         self.middles = telling_middles(scoring.counts, np.inf) if middles is None else middles
         if not len(self.middles):
             self.middles = sampled_rows(h)[0]
         self.rows = (self.middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
         self.submitted = scoring.submitted[self.rows].reshape(len(self.middles), 3, self.w, 3)
         self.shut = None if scoring.renders.open is None else scoring.renders.open[self.middles]
+        self.reference = scoring.reference[self.rows].reshape(len(self.middles), 3, self.w, 3)
         self.counted: dict[tuple[float, ...], tuple[int, int]] = {}
 
     def bands(self, amount: float) -> np.ndarray:
-        name, renders = rung_name(amount), self.renders
+        name, renders = rung_name(amount, self.along), self.renders
         return renders.rows(name, self.rows).reshape(len(self.middles), 3, self.w, 3)
 
     def off(self, amounts: tuple[float, ...]) -> tuple[int, int]:
@@ -154,13 +199,30 @@ class _Sampled:
             self.counted[amounts] = (int(np.count_nonzero(near > self.tolerance)), int(near.sum(dtype=np.int64)))
         return self.counted[amounts]
 
-    def settled(self, ladder: list[float], beyond: Callable[[int], bool]) -> bool:
-        """Whether, on these rows, no range of two neighbouring amounts of ``ladder`` nor any narrower range
-        between two of them can leave a count of pixels off that ``beyond`` lets by (:func:`.settled.settled`)."""
+    def unsettled(self, ladder: list[float], beyond: Callable[[int], bool], start: int) -> int | None:
+        """None when, on these rows, no range of two neighbouring amounts of ``ladder`` nor any narrower range
+        between two of them can leave a count of pixels off that ``beyond`` lets by (:func:`.settled.unsettled`,
+        from pair ``start`` on, those before it settled on some of these rows), else the first pair that leaves it
+        open; counted where the submission is off against the reference (a lower bound): the rungs are rendered
+        near there alone (:func:`.settled.windows`)."""
         if not len(self.middles):
-            return False
+            return start
         self.renders.check()
-        return settled(lambda k: self.bands(ladder[k]), len(ladder), self.submitted, self.tolerance, self.shut, beyond)
+        shut = rows_distance(self.reference, self.reference, self.submitted) <= self.tolerance
+        if self.shut is not None:
+            shut |= self.shut
+        wanted = windows(~shut, self.middles, self.h)
+
+        def near(k: int) -> np.ndarray:
+            return self.near(ladder[k], wanted)
+
+        return unsettled(near, len(ladder), self.submitted, self.tolerance, shut, beyond, start)
+
+    def near(self, amount: float, wanted: np.ndarray) -> np.ndarray:
+        """:meth:`bands` right where ``wanted`` says (:meth:`.renders.Renders.with_pixels`)."""
+        options = options_of(rung_name(amount, self.along), self.renders.size)
+        image = self.renders.with_pixels(options, wanted)
+        return image[self.rows].reshape(len(self.middles), 3, self.w, 3)
 
 
 class _Told:
@@ -170,10 +232,10 @@ class _Told:
     puts out of reach), and all larger amounts alike; the other rows tell them apart.  Rendered only for the
     amounts that leave the first rows as the submission has them."""
 
-    def __init__(self, scoring: Scoring):
-        self.first = _Sampled(scoring)
+    def __init__(self, scoring: Scoring, along: str = "normal"):
+        self.first = _Sampled(scoring, None, along)
         spread = np.setdiff1d(sampled_rows(scoring.submitted.shape[0])[0], self.first.middles)
-        self.spread = _Sampled(scoring, spread) if len(spread) else None
+        self.spread = _Sampled(scoring, spread, along) if len(spread) else None
 
     def off(self, amounts: tuple[float, ...]) -> tuple[int, ...]:
         """:meth:`_Sampled.off` on the first rows, followed where it is nothing by that on the other rows (the

@@ -111,12 +111,23 @@ def lights_line(shares: list[tuple[int, float]], names: Names) -> str:
     return ", ".join(f"{names.light(k)} {round(100 * s)} %" for k, s in shares)
 
 
-def together_sentence(mistakes: list[str], fraction: float, passes: bool, also: str = "") -> str:
+def together_sentence(
+    mistakes: list[str], fraction: float, passes: bool, also: str = "", others: list[list[str]] | None = None
+) -> str:
     """ "Likely two mistakes together: no shadow rays, and gamma 1/2.2 applied to the output — the submission
     matches the reference rendered with both (0.02 % of pixels off)"; ``also`` follows "both" (" and a ray
-    offset of 0.003 along the normal")."""
+    offset of 0.003 along the normal").  With ``others``, the other readings of the same image: "…: no shadow rays
+    and no refraction; or no shadow rays and the normal … — the image cannot tell them apart: the submission
+    matches the reference rendered with either (…)"."""
     count = {2: "two", 3: "three"}.get(len(mistakes), str(len(mistakes)))
     how = "matches" if passes else "comes closest to"
+    if others:
+        every = "either" if len(others) == 1 else "any of them"
+        said = "; or ".join(listed(m) for m in [mistakes, *others])
+        return (
+            f"Likely {count} mistakes together: {said} — the image cannot tell them apart: the submission {how} the "
+            f"reference rendered with {every}{also} ({percent(fraction)} of pixels off)"
+        )
     every = "both" if len(mistakes) == 2 else "all of them"
     return (
         f"Likely {count} mistakes together: {listed(mistakes)} — the submission {how} the reference rendered with "

@@ -37,7 +37,7 @@ class Options:
     depth_offset: int = 0  # max_depth read as max_depth + this
     ior_inverted: bool = False  # η = ior entering and 1/ior leaving
     offset: float = 0.0  # shadow and secondary rays start this far off the hit point, × the visible size
-    offset_along: str = "normal"  # "normal": along the surface's normal; "ray": along the ray (a t_min)
+    offset_along: str = "normal"  # "normal": along the shading normal; "geometric": the face's; "ray": a t_min
     # -- the mistakes of MORE_VARIANTS (none of them in VARIANTS yet) --
     blend_reflection: bool = False  # local colour × (1 − k_r) before the mirror ray's k_r·colour is added
     left_handed: bool = False  # r = unit(up × f), u = f × r: the image mirrored left to right
@@ -138,7 +138,8 @@ def scene_size(scene: Any) -> float:
 @dataclass(frozen=True)
 class Spawn:
     """A student's way of starting shadow and secondary rays off the surface: ``amount`` (local units) along the
-    shading normal, to the side the ray leaves by (``along="normal"``), or along the ray itself
+    shading normal, to the side the ray leaves by (``along="normal"``), along the surface's geometric normal
+    (``along="geometric"``: a mesh's face's own, where its shading normal is interpolated), or along the ray itself
     (``along="ray"``: the same as ignoring hits nearer than ``amount``, a t_min, since the ray starts on the
     surface).  The rays are moved by :func:`tracer.shade.spawn.offset`."""
 

@@ -69,7 +69,7 @@ class ShadowRays:
         spawn = self.spawner.offset
         if em.kind == "directional":
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
-        elif spawn is not None and spawn.along == "normal":
+        elif spawn is not None and spawn.along != "ray":
             # a student's offset along the normal: as long as from the hit point to the light, from where the ray
             # starts (as the students' own do: the distance to the light is the hit point's), so that its far end
             # passes the light by as much as the offset moved it; no surface is exempt at the light

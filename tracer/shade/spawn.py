@@ -33,12 +33,13 @@ def picker(rows: np.ndarray | None) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def offset(spawn: Spawn, rays: Rays, normals: np.ndarray) -> Rays:
-    """``rays`` (from hit points, leaving surfaces of shading normals ``normals``, (N, 3)) moved off them by a
+    """``rays`` (from hit points, leaving surfaces of normals ``normals``, (N, 3), shading or geometric as the
+    student's offset is along) moved off them by a
     student's offset ``spawn``.  As a student's rays do, the moved rays carry no identity of the surface they
     leave: the offset alone keeps them off it, and they are traced as rays from anywhere are (a camera inside the
     scene's).
 
-    Guarantee: each origin moves by exactly ``spawn.amount``, along the shading normal to the side its direction
+    Guarantee: each origin moves by exactly ``spawn.amount``, along the given normal to the side its direction
     points to (the normal's sign is taken from the direction), as a student's ``p ± ε·N`` does: on a mesh with
     normals, where the shading normal leans away from the face's, that is where a student's ray starts too."""
     points, dirs = rays.origins, rays.dirs
@@ -62,11 +63,12 @@ class Spawner:
         """Rays along ``dirs (len(rows), 3)`` from the hit points ``rows`` of ``hit`` (None: all, in order),
         leaving their surfaces by identity; ``mag (N,)`` the world magnitudes of all of ``hit``'s points.  A
         student's offset moves them along the shading normals ``shading (N, 3)`` (on a mesh with normals, the
-        one a student's tracer has at hand, interpolated)."""
+        one a student's tracer has at hand, interpolated), or along the geometric ones where the student's
+        offset says so (the face's own normal, which other students use)."""
         pick = picker(rows)
         rays = Rays(pick(hit.point), dirs, pick(hit.kind), pick(hit.index), pick(mag))
         if self.offset is not None:  # a student's offset: off the surface
-            rays = offset(self.offset, rays, pick(shading))
+            rays = offset(self.offset, rays, pick(hit.normal if self.offset.along == "geometric" else shading))
         return rays
 
     def shadow(self, hit: Hits, mag: np.ndarray, rows: np.ndarray | None, dirs: np.ndarray, normal: np.ndarray) -> Rays:
