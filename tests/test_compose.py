@@ -140,3 +140,18 @@ def test_a_mistake_the_rows_cannot_tell_from_another_is_never_made_with_it():
     assert found is not None and found.passes
     assert sorted(found.names) == ["no-refraction", "no-shadows"] and found.readings == ()
     assert len(counted.whole) == 2
+
+
+def test_a_mistake_the_rows_are_as_near_with_is_a_reading_rendered_too():
+    """On the Cornell homework's rows the reflected vector with the wrong sign and no specular term leave the
+    submission (the first with no reflection) as near; the rows miss the few pixels where a light behind a
+    surface lights a highlight.  Both pairs are rendered: the one the submission passes against is named."""
+    scene = schemas.load_scene((Path(__file__).parent.parent / "examples" / "09_cornell_homework.json").read_bytes())
+    scene = scene.model_copy(update={"image": scene.image.model_copy(update={"width": 64, "height": 48})})
+    counted = Counted(scene)
+    reference = Renderer(scene).pixels()
+    submitted = student.render(scene, ["reflect-sign", "no-reflection"])
+    found = compose(reference, submitted, grade(reference, submitted, ""), counted.looks(), [])
+    assert found is not None and found.passes
+    assert sorted(found.names) == ["no-reflection", "reflect-sign"]
+    assert len(counted.whole) == 2

@@ -284,12 +284,20 @@ def _rendered(
 
 def readings(rows: Rows, inner: tuple[str, ...]) -> list[tuple[str, ...]]:
     """``inner``, then as many mistakes with some made in place of others the rows cannot tell them from
-    (:meth:`Rows.alike`), classic ones first, at most :data:`MAX_READINGS` in all.  The rows of each mistake are
-    rendered with no other made: what they cannot tell apart, made with the others, a render may (with no shadow
-    rays, light reaches the inside of a glass ball its refracted rays cannot leave, and lights it)."""
-    each = [
-        [m, *sorted((n for n in rows.deltas if n not in inner and rows.alike(m, n)), key=_one_first)] for m in inner
-    ]
+    (:meth:`Rows.alike`, or made in place of it the rows are as near the submission's: the reflected vector
+    with the wrong sign and no specular term, on rows that miss the few pixels a light behind a surface lights),
+    classic ones first, at most :data:`MAX_READINGS` in all.  The rows of each mistake are rendered with no other
+    made: what they cannot tell apart, made with the others, a render may (with no shadow rays, light reaches the
+    inside of a glass ball its refracted rays cannot leave, and lights it)."""
+    error = rows.error(inner)
+
+    def twin(m: str, n: str) -> bool:
+        if rows.alike(m, n):
+            return True
+        swapped = tuple(n if x == m else x for x in inner)
+        return m not in STORED and n not in STORED and rows.fits(swapped) and rows.error(swapped) <= error
+
+    each = [[m, *sorted((n for n in rows.deltas if n not in inner and twin(m, n)), key=_one_first)] for m in inner]
     return [p for p in product(*each) if len(set(p)) == len(p) and compatible(p)][:MAX_READINGS]
 
 
