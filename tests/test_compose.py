@@ -142,12 +142,16 @@ def test_a_mistake_the_rows_cannot_tell_from_another_is_never_made_with_it():
     assert len(counted.whole) == 2
 
 
+def cornell() -> schemas.Scene:
+    scene = schemas.load_scene((Path(__file__).parent.parent / "examples" / "09_cornell_homework.json").read_bytes())
+    return scene.model_copy(update={"image": scene.image.model_copy(update={"width": 64, "height": 48})})
+
+
 def test_a_mistake_the_rows_are_as_near_with_is_a_reading_rendered_too():
     """On the Cornell homework's rows the reflected vector with the wrong sign and no specular term leave the
     submission (the first with no reflection) as near; the rows miss the few pixels where a light behind a
     surface lights a highlight.  Both pairs are rendered: the one the submission passes against is named."""
-    scene = schemas.load_scene((Path(__file__).parent.parent / "examples" / "09_cornell_homework.json").read_bytes())
-    scene = scene.model_copy(update={"image": scene.image.model_copy(update={"width": 64, "height": 48})})
+    scene = cornell()
     counted = Counted(scene)
     reference = Renderer(scene).pixels()
     submitted = student.render(scene, ["reflect-sign", "no-reflection"])
@@ -155,3 +159,15 @@ def test_a_mistake_the_rows_are_as_near_with_is_a_reading_rendered_too():
     assert found is not None and found.passes
     assert sorted(found.names) == ["no-reflection", "reflect-sign"]
     assert len(counted.whole) == 2
+
+
+def test_a_third_mistake_whose_difference_did_not_add_is_dropped_when_two_pass():
+    """With the ambient scaled by k_d, the rows add Blinn–Phong to the reflected vector's wrong sign (their
+    differences do not add: the half vector uses no R); the three fail, the first two pass and are named."""
+    scene = cornell()
+    counted = Counted(scene)
+    reference = Renderer(scene).pixels()
+    submitted = student.render(scene, ["reflect-sign", "ambient-from-diffuse"])
+    found = compose(reference, submitted, grade(reference, submitted, ""), counted.looks(), [])
+    assert found is not None and found.passes
+    assert sorted(found.names) == ["ambient-from-diffuse", "reflect-sign"]
