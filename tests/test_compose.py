@@ -171,3 +171,18 @@ def test_a_third_mistake_whose_difference_did_not_add_is_dropped_when_two_pass()
     found = compose(reference, submitted, grade(reference, submitted, ""), counted.looks(), [])
     assert found is not None and found.passes
     assert sorted(found.names) == ["ambient-from-diffuse", "reflect-sign"]
+
+
+def test_the_runner_up_on_the_rows_is_rendered_when_nothing_passes():
+    """With the pixel centres moved, the rows are a little nearer no specular term than the reflected vector
+    with the wrong sign (the differences of a moved image do not add exactly); no specular term fails its
+    render, and the runner-up, one mistake swapped, passes and is named."""
+    data = scene_dict("02_all_lights")
+    data["image"].update(width=64, height=48)
+    scene = schemas.validate_scene(data)
+    counted = Counted(scene)
+    reference = Renderer(scene).pixels()
+    submitted = student.render(scene, ["no-half-pixel", "reflect-sign"])
+    found = compose(reference, submitted, grade(reference, submitted, ""), counted.looks(), [])
+    assert found is not None and found.passes
+    assert sorted(found.names) == ["no-half-pixel", "reflect-sign"]

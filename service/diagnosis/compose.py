@@ -271,7 +271,8 @@ def _rendered(
     """The render-level mistakes ``inner`` (with the image-level ones ``found``), each of their :func:`readings`
     graded against its render: the first the submission passes against, with the others it passes against as
     its readings; else, of three, the first two (the third was added where its difference did not add to
-    theirs) when the submission passes against them; else the first, which comes closest."""
+    theirs) when the submission passes against them; else one mistake swapped, the nearest on the rows, when it
+    passes; else the first, which comes closest."""
     inner, found, tried = made
     graded = []
     for names in readings(rows, inner):
@@ -280,10 +281,22 @@ def _rendered(
         )
         graded.append(_combination(rows, names, found, g, tried))
     passing = [c for c in graded if c.passes]
-    if not passing and len(inner) == MAX_TOGETHER:  # (a third whose difference did not add: Blinn–Phong uses no R)
+    if passing:
+        return replace(passing[0], readings=tuple(passing[1:]))
+    if len(inner) == MAX_TOGETHER:  # (a third whose difference did not add: Blinn–Phong uses no R)
         fewer = _rendered(submitted, verdict, looks, rows, (inner[:-1], found, tried))
         return fewer if fewer.passes else graded[0]
-    return replace(passing[0], readings=tuple(passing[1:])) if passing else graded[0]
+    swaps = [(rows.error(p), p) for m in inner for n in rows.deltas if n not in inner and (p := _swap(inner, m, n))]
+    best = min(((e, p) for e, p in swaps if rows.fits(p) and p not in [c.names for c in graded]), default=None)
+    if best is not None:  # (the runner-up on the rows: one more render, only when nothing passes)
+        image = looks.render(merged((*best[1], *found)))
+        g = grade(image, submitted, "", verdict.tolerance, verdict.max_fraction, looks.open)
+        return _combination(rows, best[1], found, g, tried) if g.passed else graded[0]
+    return graded[0]
+
+
+def _swap(inner: tuple[str, ...], m: str, n: str) -> tuple[str, ...]:
+    return () if m in STORED or n in STORED else tuple(n if x == m else x for x in inner)
 
 
 def readings(rows: Rows, inner: tuple[str, ...]) -> list[tuple[str, ...]]:
@@ -298,8 +311,8 @@ def readings(rows: Rows, inner: tuple[str, ...]) -> list[tuple[str, ...]]:
     def twin(m: str, n: str) -> bool:
         if rows.alike(m, n):
             return True
-        swapped = tuple(n if x == m else x for x in inner)
-        return m not in STORED and n not in STORED and rows.fits(swapped) and rows.error(swapped) <= error
+        swapped = _swap(inner, m, n)
+        return bool(swapped) and rows.fits(swapped) and rows.error(swapped) <= error
 
     each = [[m, *sorted((n for n in rows.deltas if n not in inner and twin(m, n)), key=_one_first)] for m in inner]
     return [p for p in product(*each) if len(set(p)) == len(p) and compatible(p)][:MAX_READINGS]
