@@ -1,4 +1,5 @@
 import ctypes
+import multiprocessing.util
 import os
 import sys
 import tempfile
@@ -10,6 +11,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 #: prctl's option that makes this process the reaper of its orphaned descendants
 PR_SET_CHILD_SUBREAPER = 36
+#: the machine's temporary folder, as the first process of the session found it (pytest-xdist's processes
+#: inherit a TMPDIR of that process's own)
+OUTER_TMPDIR = "TESTS_OUTER_TMPDIR"
 
 
 def _own_temporary_folder() -> None:
@@ -19,7 +23,12 @@ def _own_temporary_folder() -> None:
     process of this session runs, a TA's ``grade-class --run``) are doing in ``/tmp``.  Each of pytest-xdist's
     processes imports this file and makes its own, inside the one of the process that started it (whose
     TMPDIR it inherits).  Open to be traversed (0711), as ``/tmp`` is, so that a sandbox's user reaches the
-    run folder made for it."""
+    run folder made for it.  multiprocessing's own folder (where a forkserver's socket is), which
+    multiprocessing removes as this process exits, is made in the machine's temporary folder instead: these go
+    at the session's end (pytest_sessionfinish), before the processes exit."""
+    tempfile.tempdir = os.environ.setdefault(OUTER_TMPDIR, tempfile.gettempdir())
+    multiprocessing.util.get_temp_dir()
+    tempfile.tempdir = None
     folder = tempfile.mkdtemp(prefix="phongray-tests-")
     os.chmod(folder, 0o711)
     os.environ["TMPDIR"] = folder

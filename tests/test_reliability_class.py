@@ -407,9 +407,10 @@ def test_a_pool_process_killed_every_time_stops_with_one_line_and_a_rerun_resume
     assert {p: p.stat().st_mtime_ns for p in kept} == kept  # the finished grades were not graded again
 
 
-def _children(pid: int) -> list[int]:
-    """The processes whose parent is ``pid`` and that are multiprocessing's (the pool)."""
-    out = []
+def _pool(pid: int) -> list[int]:
+    """The processes of the pool of grade-class ``pid``: its descendants that are multiprocessing's (the
+    forkserver and the processes forked from it, or spawned ones)."""
+    parents: dict[int, tuple[int, bytes]] = {}
     for entry in os.listdir("/proc"):
         if not entry.isdigit():
             continue
@@ -418,9 +419,28 @@ def _children(pid: int) -> list[int]:
             cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
         except OSError:
             continue
-        if int(stat_line.rpartition(")")[2].split()[1]) == pid and b"multiprocessing" in cmdline:
-            out.append(int(entry))
+        parents[int(entry)] = (int(stat_line.rpartition(")")[2].split()[1]), cmdline)
+    out: list[int] = []
+    for child, (parent, cmdline) in parents.items():
+        ancestor = parent
+        while ancestor not in (pid, 0, 1) and ancestor in parents:
+            ancestor = parents[ancestor][0]
+        if ancestor == pid and b"multiprocessing" in cmdline:
+            out.append(child)
     return out
+
+
+def _workers(pid: int) -> list[int]:
+    """Those of :func:`_pool` that run tasks: not the forkserver (a child of grade-class that forks them)."""
+    return [p for p in _pool(pid) if not _is_forkserver_of(p, pid)]
+
+
+def _is_forkserver_of(child: int, pid: int) -> bool:
+    try:
+        parent = int(Path(f"/proc/{child}/stat").read_text().rpartition(")")[2].split()[1])
+        return parent == pid and b"forkserver" in Path(f"/proc/{child}/cmdline").read_bytes()
+    except OSError:
+        return False
 
 
 def _alive(pid: int) -> bool:
@@ -456,9 +476,10 @@ def test_pool_processes_die_with_grade_class(tmp_path):
     pool: list[int] = []
     try:
         deadline = time.monotonic() + 30
-        while not (pool := _children(proc.pid)) and time.monotonic() < deadline:
+        while not _workers(proc.pid) and time.monotonic() < deadline:
             time.sleep(0.1)
-        assert pool, "no pool process started"
+        assert _workers(proc.pid), "no pool process started"
+        pool = _pool(proc.pid)  # (the processes that run tasks, and the forkserver that forked them)
         time.sleep(0.5)  # the render is under way
         proc.kill()  # as the OOM killer, or kill -9, would
         proc.wait()
@@ -467,7 +488,7 @@ def test_pool_processes_die_with_grade_class(tmp_path):
             time.sleep(0.05)
         assert not any(map(_alive, pool)), "pool processes outlived grade-class"
     finally:  # (a pool process that outlived grade-class is no longer its child: killed by its pid)
-        for pid in {*_children(proc.pid), *pool, proc.pid}:
+        for pid in {*_pool(proc.pid), *pool, proc.pid}:
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import concurrent.futures as futures
 import contextlib
-import multiprocessing
 import os
 import threading
 import time
@@ -19,9 +18,8 @@ from typing import Any
 from ..client import ServerError, check
 from ..course.errors import ClassError
 from ..render.cluster import client, connect_timeout, wait_for_workers
-from ..render.rendering import die_with_parent
 from ..settings import Settings
-from . import faults, tasks
+from . import faults, processes, tasks
 from .records import ClassRun, GradeJob, Marked
 from .remote import server_grade, server_render
 
@@ -59,7 +57,8 @@ class Backend:
 
 
 class LocalBackend(Backend):
-    """A pool of processes here (spawned, each ending with grade-class), one per core or ``jobs``, at most one
+    """A pool of processes here (forked from a forkserver, each ending with grade-class:
+    :mod:`~service.classgrade.processes`), one per core or ``jobs``, at most one
     per task; none for a run with nothing to do."""
 
     name = "the pool of processes"
@@ -79,12 +78,15 @@ class LocalBackend(Backend):
         return tasks.local_grade  # (looked up now: a test may put another in its place)
 
     def _pool(self) -> None:
-        context = multiprocessing.get_context("spawn")  # no fork of a process that may hold threads
+        context = processes.context()
+        # the kernel's signal at a parent's end is to be trusted where the parent is the forkserver, or this
+        # process if the pool is made by its main thread (the signal comes when the creating thread ends)
+        prctl = context.get_start_method() == "forkserver" or threading.current_thread() is threading.main_thread()
         self.executor = futures.ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=context,
-            initializer=die_with_parent,
-            initargs=(os.getpid(), threading.current_thread() is threading.main_thread()),
+            initializer=processes.join,
+            initargs=processes.initargs(prctl),
         )
 
     def reset(self) -> None:

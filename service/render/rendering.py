@@ -23,8 +23,9 @@ from .cluster import render as render_on
 
 
 def die_with_parent(parent: int, prctl: bool) -> None:
-    """Initializer of a pool process: it ends when grade-class does, however grade-class ends (SIGKILL, the
-    OOM killer), never left running.  On Linux the kernel kills it (PR_SET_PDEATHSIG; only when the pool was
+    """Initializer of a process forked by :func:`render_forked`: it ends when its parent does, however that
+    ends (SIGKILL, the OOM killer), never left running (class grading's pool, whose processes are not the
+    grading process's children, watches a pipe instead: :mod:`service.classgrade.processes`).  On Linux the kernel kills it (PR_SET_PDEATHSIG; only when the pool was
     made by the main thread, as the signal comes when the creating thread ends); everywhere, a watchdog thread
     sees the parent gone."""
     if prctl and sys.platform.startswith("linux"):
