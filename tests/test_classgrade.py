@@ -96,9 +96,16 @@ def grade(klass, report, **kw):
     return classgrade.grade_class(ClassRun(scenes, subs, report, jobs=2, student_scenes=own, **kw))
 
 
-def test_every_status_and_reason(klass, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def graded(klass, tmp_path_factory):
+    """The class graded once, into a report folder that the tests given it only read: (outcome, folder)."""
+    report = tmp_path_factory.mktemp("graded") / "report"
+    return grade(klass, report), report
+
+
+def test_every_status_and_reason(klass, graded, capsys):
     scenes, subs, _ = klass
-    outcome = grade(klass, tmp_path / "report")
+    outcome, _ = graded
     rows = by_pair(outcome.rows)
     assert len(outcome.rows) == 7 * 2  # every (student, task) pair, exactly once
     assert {k: r["status"] for k, r in rows.items()} == {
@@ -131,9 +138,9 @@ def test_every_status_and_reason(klass, tmp_path, capsys):
     assert outcome.renders == 3  # two shared scenes and one student's own
 
 
-def test_a_scene_among_the_submissions_cannot_change_the_task(klass, tmp_path):
+def test_a_scene_among_the_submissions_cannot_change_the_task(graded):
     """A student's balls.json (an empty scene) and a black image: graded against the task's scene, it fails."""
-    rows = by_pair(grade(klass, tmp_path / "report").rows)
+    rows = by_pair(graded[0].rows)
     cheat = rows[("cheat", "balls")]
     assert cheat["status"] == "fail" and cheat["scene"] == "shared" and cheat["fraction_off_nearby"] > 0.1
     assert "of the pixels are off even nearby" in cheat["reason"]
@@ -147,17 +154,16 @@ def test_a_student_cannot_change_their_task_from_the_command_line(klass, tmp_pat
     assert f"ignored: {subs}/cheat/balls.json: {submissions.SCENE_IGNORED}" in capsys.readouterr().err
 
 
-def test_fail_rows_give_their_reason(klass, tmp_path):
-    rows = by_pair(grade(klass, tmp_path / "report").rows)
+def test_fail_rows_give_their_reason(graded):
+    rows = by_pair(graded[0].rows)
     bad = rows[("bad", "lamps")]
     assert bad["reason"].startswith(f"{100 * bad['fraction_off_nearby']:.2f} % of the pixels are off even nearby")
     assert bad["reason"].endswith("at most 0.10 % may be")
     assert rows[("good", "lamps")]["reason"] == ""
 
 
-def test_the_report_files_agree_and_link_what_exists(klass, tmp_path):
-    report = tmp_path / "report"
-    outcome = grade(klass, report)
+def test_the_report_files_agree_and_link_what_exists(graded):
+    outcome, report = graded
     rows = json.loads((report / "report.json").read_text())
     assert rows == json.loads(json.dumps(outcome.rows))
     with open(report / "report.csv") as f:
@@ -385,9 +391,9 @@ def test_a_tasks_file_gives_points_and_thresholds_per_task(klass, tmp_path):
     }
 
 
-def test_gradescope_results_of_every_student(klass, tmp_path):
-    report = tmp_path / "r"
-    rows = grade(klass, report).rows
+def test_gradescope_results_of_every_student(graded):
+    outcome, report = graded
+    rows = outcome.rows
     for student in {r["student"] for r in rows}:
         results = json.loads((report / "gradescope" / student / "results.json").read_text())
         mine = [r for r in rows if r["student"] == student]
