@@ -431,16 +431,18 @@ def _pool(pid: int) -> list[int]:
 
 
 def _workers(pid: int) -> list[int]:
-    """Those of :func:`_pool` that run tasks: not the forkserver (a child of grade-class that forks them)."""
-    return [p for p in _pool(pid) if not _is_forkserver_of(p, pid)]
+    """Those of :func:`_pool` that run tasks: spawned, or forked by the forkserver (not the forkserver itself, nor
+    multiprocessing's resource tracker, children of grade-class that run none)."""
+    return [p for p in _pool(pid) if _runs_tasks(p, pid)]
 
 
-def _is_forkserver_of(child: int, pid: int) -> bool:
+def _runs_tasks(child: int, pid: int) -> bool:
     try:
         parent = int(Path(f"/proc/{child}/stat").read_text().rpartition(")")[2].split()[1])
-        return parent == pid and b"forkserver" in Path(f"/proc/{child}/cmdline").read_bytes()
+        cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
     except OSError:
         return False
+    return b"spawn_main" in cmdline or (parent != pid and b"forkserver" in cmdline)
 
 
 def _alive(pid: int) -> bool:
