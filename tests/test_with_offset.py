@@ -3,7 +3,7 @@ the offset at its own amount, both named, the offset with its size."""
 
 import pytest
 import student
-from test_compose import cornell
+from test_compose import cornell, small
 
 from service.diagnosis import diagnose, renders_of
 from service.diagnosis.records import matched
@@ -48,3 +48,22 @@ def test_no_offset_is_named_with_a_mistake_made_alone(homework, mistake):
     made = student.render(scene, [mistake])
     verdict = grade(reference, made, "")
     assert with_offset(reference, made, verdict, renders, ["no-shadows", "horizontal-fov", "no-half-pixel"]) is None
+
+
+@pytest.mark.parametrize(
+    "mistakes",
+    [
+        # the image flipped is a change of the stored image: made with the offset, it is rendered as any other
+        ["image-flipped", "offset-too-large"],
+        # an area light not divided saturates the image: the offset's rungs tie on the rows, and the rung the rows
+        # the submission is most off on tell leaves no pixel off at all
+        ["area-not-divided", "offset-too-large"],
+    ],
+)
+def test_an_offset_too_large_is_named_with_a_mistake_the_sum_cannot_model(mistakes):
+    scene = small("02_all_lights")
+    reference = Renderer(scene).pixels()
+    made = student.render(scene, mistakes)
+    verdict = grade(reference, made, "")
+    found = diagnose(reference, made, verdict, renders_of(scene, 1))
+    assert [set(i.split("+")) for i in matched(found.as_dict())][:1] == [set(mistakes)]
