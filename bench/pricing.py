@@ -3,6 +3,7 @@ exact images, with honest images whose tracer offsets its rays, and with images 
 mistake, and each time against the exact class (ratios in one run, so a busy machine moves all three alike).
 
     python -m bench.pricing [--students 9] [--size 200] [--profile FILE.txt]
+    python -m bench.pricing --single 640x480
 
 Each student has a scene of their own (the glass ball moved a little), 2×2 samples, depth 5, as the homework
 sets it.  The honest images are tests/student.py's tracer starting shadow and secondary rays 1e-3 along the
@@ -11,6 +12,9 @@ gamma and no-ambient (each of which the homework shows).  Every honest image mus
 named: the bench checks both, so that a speed-up that changes an answer is not reported as one.
 ``--profile`` writes where a mistaken image's grade spends its time (cProfile, cumulative, the top 40
 functions), graded here in this process as a pool's process grades it, for one student of each mistake.
+``--single WxH`` prices one image of the homework at that size instead, graded cold as ``phongray grade``
+grades it (a process of its own, the reference rendered in it), in renders: the time of ``phongray render``
+of the scene, then of grading an exact image, an honest one (the 1e-3 offset) and one of each mistake.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import cProfile
 import io
 import json
 import pstats
+import subprocess
 import sys
 import tempfile
 import time
@@ -107,12 +112,56 @@ def profiled(size: int, out: Path) -> None:
     out.write_text(text.getvalue())
 
 
+def _cli(*argv: str) -> tuple[float, str]:
+    """Seconds a ``phongray`` command takes in a process of its own, and what it printed."""
+    cli = "import sys\nfrom service.cli import main\nsys.exit(main())"
+    started = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", cli, *argv], check=False, capture_output=True, text=True)
+    return time.perf_counter() - started, done.stdout
+
+
+def _answer_checked(name: str, printed: str) -> None:
+    """An exact or honest image passes; a mistaken one fails with its mistake among the passing causes."""
+    grade = json.loads(printed)
+    if name in ("exact", "offset"):
+        assert grade["passed"], grade["reason"]
+        return
+    causes = (grade.get("diagnosis") or {}).get("causes") or []
+    assert not grade["passed"] and any(c["variant"] == name and c["passes"] for c in causes), grade["diagnosis"]
+
+
+def single(width: int, height: int) -> None:
+    """One image of each kind at ``width`` × ``height``, graded cold, against one cold render of the scene."""
+    data = own_scene(1, width)
+    data["image"].update(height=height)
+    with tempfile.TemporaryDirectory(prefix="phongray-single-") as place:
+        scene = Path(place, "cornell.json")
+        scene.write_text(json.dumps(data))
+        kinds = {"exact": "exact", "offset": "offset", **{m: "mistake" for m in MISTAKES}}
+        for name, kind in kinds.items():
+            k = MISTAKES.index(name) if kind == "mistake" else 0
+            Path(place, f"{name}.png").write_bytes(image(kind, k, data))
+        render, _ = _cli("render", str(scene), "-o", str(Path(place, "reference.png")))
+        print(f"Cornell homework at {width}×{height}, 2×2 samples, depth 5: one render {render:.1f} s")
+        print("| image | seconds | renders |")
+        print("|---|---|---|")
+        for name in kinds:
+            seconds, printed = _cli("grade", str(scene), str(Path(place, f"{name}.png")), "--json")
+            _answer_checked(name, printed)
+            print(f"| {name} | {seconds:.1f} | {seconds / render:.2f} |")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--students", type=int, default=9)
     ap.add_argument("--size", type=int, default=200)
     ap.add_argument("--profile", type=Path, help="where a mistaken image's grade spends its time (cProfile text)")
+    ap.add_argument("--single", metavar="WxH", help="price one image at this size, in renders")
     args = ap.parse_args(argv)
+    if args.single:
+        width, height = (int(n) for n in args.single.lower().split("x"))
+        single(width, height)
+        return
     with tempfile.TemporaryDirectory(prefix="phongray-pricing-") as place:
         runs = {kind: build(Path(place, kind), kind, args.students, args.size) for kind in KINDS}
         seconds = {kind: timed(run, kind) for kind, run in runs.items()}

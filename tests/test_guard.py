@@ -10,6 +10,7 @@ import os
 import re
 import signal
 import subprocess
+import sys
 import textwrap
 import threading
 import time
@@ -20,6 +21,7 @@ from test_programs import PRELUDE, make_course, nothing_left  # noqa: F401  (aft
 from service.programs import Limits, ProgramRun, Reason, run_program
 from service.programs.guard import enforcement
 from service.programs.outcome import busy
+from service.programs.process import Command, run_command
 from service.programs.sandbox import sandbox_uid
 from service.programs.watchdog import Watchdog, family
 
@@ -167,6 +169,19 @@ def test_the_watchdog_counts_processes_where_the_kernel_does_not(tmp_path):
     finally:
         os.killpg(family_of_nine.pid, signal.SIGKILL)
         family_of_nine.wait()
+
+
+def test_a_run_over_its_memory_at_its_wall_time_ends_for_memory(tmp_path):
+    """A watchdog whose looks a busy machine put off (here: none in the hour) looks once more when the run's
+    wall time is up, before the kill: four children holding 200 MB each end the run as ``memory``, not
+    ``timeout``, as they would have on an idle machine."""
+    script = textwrap.dedent(FOUR_CHILDREN).replace("write_png(output)", "")
+    argv = [sys.executable, "-c", "import os, time\n" + script]
+    guard = Watchdog(512 << 20, None, interval=3600)
+    command = Command(argv, str(tmp_path), dict(os.environ), 3.0, 0, 4096, guard=guard)
+    finished = run_command(command)
+    assert (finished.exceeded, finished.timed_out) == ("memory", False)
+    assert guard.looks == 1
 
 
 def test_a_run_killed_at_its_wall_time_says_whether_it_waited_for_a_cpu(course):

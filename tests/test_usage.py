@@ -183,7 +183,7 @@ def test_walks_of_page_tables_take_at_most_their_fraction_of_the_time(monkeypatc
     monkeypatch.setattr(usage, "_cheap", lambda pid: (100 * MIB, 0, 0))
     monkeypatch.setattr(usage, "_share", share)
     monkeypatch.setattr(usage, "_mappings", lambda pid: 0)
-    shares = Shares(clock)
+    shares = Shares(clock, cpu=clock)  # (a walk's time all the watchdog's own CPU's)
     exact = []
     for _ in range(200):  # (20 s of looks, every tenth of a second)
         pages, fresh = shares.pages(pids, 500 * MIB)
@@ -234,3 +234,43 @@ def test_a_process_that_ends_during_a_walk_counts_nothing(monkeypatch):
     monkeypatch.setattr(usage, "_mappings", lambda pid: 0)
     pages, exact = Shares().pages([1, 2, 3], 512 * MIB)
     assert exact and pages == 200 * MIB
+
+
+def test_a_walk_a_busy_machine_slows_owes_only_its_cpu_time(monkeypatch):
+    """Four processes over the limit by their resident pages, walked while the machine is busy: each walk takes
+    0.5 s of wall time but 1 ms of the watchdog's CPU, so the next look walks again, a tenth of a second on, and
+    the walk that finds the run over its limit is not put off by the waits of the one before."""
+    clock, cpu = _Clock(walk=0.5), _Clock(walk=0.001)
+    over = {"now": False}
+
+    def share(pid: int, resident: int) -> int:
+        clock.now += clock.walk
+        cpu.now += cpu.walk
+        return resident if over["now"] else resident // 2
+
+    monkeypatch.setattr(usage, "_cheap", lambda pid: (140 * MIB, 0, 0))
+    monkeypatch.setattr(usage, "_share", share)
+    monkeypatch.setattr(usage, "_mappings", lambda pid: 0)
+    shares = Shares(clock, cpu=cpu)
+    assert shares.pages([1, 2, 3, 4], 512 * MIB) == (280 * MIB, True)  # (mid-fork: half of it shared)
+    over["now"] = True
+    clock.now += 0.1
+    assert shares.pages([1, 2, 3, 4], 512 * MIB) == (560 * MIB, True)
+
+
+def test_a_last_look_walks_whatever_is_owed(monkeypatch):
+    """A run's last look (at its wall time) walks its pages even when the walks' budget is spent."""
+    clock = _Clock(walk=1.0)
+
+    def share(pid: int, resident: int) -> int:
+        clock.now += clock.walk
+        return resident
+
+    monkeypatch.setattr(usage, "_cheap", lambda pid: (300 * MIB, 0, 0))
+    monkeypatch.setattr(usage, "_share", share)
+    monkeypatch.setattr(usage, "_mappings", lambda pid: 0)
+    shares = Shares(clock, cpu=clock)
+    assert shares.pages([1, 2], 512 * MIB) == (600 * MIB, True)  # (a walk of 2 s: 8 s owed)
+    clock.now += 0.1
+    assert shares.pages([1, 2], 512 * MIB) == (600 * MIB, False)  # (the estimate)
+    assert shares.pages([1, 2], 512 * MIB, walk=True) == (600 * MIB, True)

@@ -13,10 +13,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .combination import ALL, Combination
-from .compose import Looks, compose
+from .compose import Looks, candidates, compose
 from .nearest import Explanation, nearest
 from .records import Cause, Term
 from .renders import Renders
+from .stored import OUTER
+from .too_large import NAME as TOO_LARGE
+from .with_offset import with_offset
 from .words import Names, term_sentence
 
 if TYPE_CHECKING:
@@ -43,9 +46,16 @@ def combined(
     reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders, terms: list[Term]
 ) -> Combination | None:
     """The mistakes made together the submission matches or comes nearest (:func:`.compose.compose`); None
-    when no mistake helps, or the one found is a classic one alone."""
+    when no mistake helps, or the one found is a classic one alone.  Where none is passed against and the scene
+    can show an offset too large, the offset made with another mistake at its own amount
+    (:func:`.with_offset.with_offset`) when the submission passes against that."""
     renders.check()
-    return compose(reference, submitted, verdict, looks_of(renders), fitted(terms))
+    looks = looks_of(renders)
+    found = compose(reference, submitted, verdict, looks, fitted(terms))
+    if (found is None or not found.passes) and looks.shown(TOO_LARGE):
+        tried = [*candidates(looks, fitted(terms)), *filter(looks.shown, OUTER)]
+        return with_offset(reference, submitted, verdict, renders, tried) or found
+    return found
 
 
 def together_causes(combination: Combination) -> list[Cause]:

@@ -92,6 +92,9 @@ class RunGroup:
     def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None:
         """Nothing to do: the kernel holds the limits."""
 
+    def last_look(self) -> None:
+        """Nothing to do: the kernel has killed a run over its memory at once."""
+
     def stop(self) -> str | None:
         events = _pairs(self.path / "memory.events")
         self.cpu_seconds = int(_pairs(self.path / "cpu.stat").get("usage_usec", 0)) / 1e6

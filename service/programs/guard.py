@@ -34,6 +34,9 @@ class Guard(Protocol):
 
     def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None: ...
 
+    def last_look(self) -> None:
+        """At the wall-time limit, just before the kill: settle whether the run is over a limit then."""
+
     def stop(self) -> str | None: ...
 
     def close(self) -> None: ...

@@ -243,13 +243,16 @@ class _Group:
         return status, usage.ru_utime + usage.ru_stime
 
 
-def _watch(group: _Group, head: _Head, stop: threading.Event, wall: float) -> threading.Event:
-    """Kill the group at the wall-time limit (the event returned is then set) or once ``head`` overflows."""
+def _watch(group: _Group, head: _Head, stop: threading.Event, command: Command) -> threading.Event:
+    """Kill the group at the wall-time limit (the event returned is then set; its guard looks a last time
+    first) or once ``head`` overflows."""
     timed_out = threading.Event()
 
     def watch() -> None:
-        if not stop.wait(wall):
+        if not stop.wait(command.wall_seconds):
             timed_out.set()
+            if command.guard is not None:
+                command.guard.last_look()
             group.kill()
         elif head.overflowed:
             group.kill()
@@ -282,7 +285,7 @@ def run_command(command: Command) -> Finished:
     stop = threading.Event()
     head, tail, group = _Head(command.stdout_bytes, stop), _Tail(command.stderr_bytes), _Group(proc.pid)
     readers = _read(proc, head, tail)
-    timed_out = _watch(group, head, stop, command.wall_seconds)
+    timed_out = _watch(group, head, stop, command)
     pidfd, started = None, None
     try:
         inside = status.child()

@@ -216,16 +216,24 @@ class Shares:
     grew since (a new process's cheap bound in full); only a walk's sum is ``exact``, what a run is killed on.
     ``mapping`` is what each mapping counts (:func:`mapping_bytes`)."""
 
-    def __init__(self, clock: Callable[[], float] = time.monotonic, mapping: int = mapping_bytes(64)):
-        self.clock, self.mapping = clock, mapping
+    def __init__(
+        self,
+        clock: Callable[[], float] = time.monotonic,
+        mapping: int = mapping_bytes(64),
+        cpu: Callable[[], float] = time.thread_time,
+    ):
+        """``clock``: the time between looks; ``cpu``: the watchdog's own CPU time, what a walk costs (on a
+        busy machine a walk can take many times its CPU time in wall time, none of it the grader's)."""
+        self.clock, self.mapping, self.cpu = clock, mapping, cpu
         self.walked: dict[int, tuple[int, int, int]] = {}  # pid: (share, mappings, resident pages when walked)
         self.owed = 0.0  # seconds to wait before the next walk
         self.then = clock()
         self.last = -REFRESH
 
-    def pages(self, pids: list[int], limit: int) -> tuple[int, bool]:
+    def pages(self, pids: list[int], limit: int, walk: bool = False) -> tuple[int, bool]:
         """The pages (and page tables and mappings) of ``pids`` together, in bytes, and whether the sum is exact
-        (a walk's, or the cheap bound within ``limit``) rather than the estimate between walks."""
+        (a walk's, or the cheap bound within ``limit``) rather than the estimate between walks; ``walk``: a
+        walk now if one is needed, whatever is owed (the last look of a run)."""
         seen = {pid: _cheap(pid) for pid in pids}
         tables = sum(t for _, t, _ in seen.values())
         cheap = tables + sum(r + self.mapping * most for r, _, most in seen.values())
@@ -235,11 +243,12 @@ class Shares:
         self.owed = max(0.0, self.owed - (now - self.then))
         self.then = now
         estimate = tables + sum(self._estimate(pid, r, most) for pid, (r, _, most) in seen.items())
-        if self.owed > 0 or (estimate <= limit and now - self.last < REFRESH):
+        if not walk and (self.owed > 0 or (estimate <= limit and now - self.last < REFRESH)):
             return estimate, False
+        used = self.cpu()
         self.walked = {pid: (*_walk(pid, r), r) for pid, (r, _, _) in seen.items()}
-        self.then = self.clock()
-        self.last, spent = now, self.then - now
+        spent = self.cpu() - used
+        self.then, self.last = self.clock(), now
         self.owed += spent / FRACTION - spent  # (the time to wait before the next walk)
         return tables + sum(share + self.mapping * maps for share, maps, _ in self.walked.values()), True
 

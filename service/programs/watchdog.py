@@ -12,8 +12,10 @@ as ``memory``.  Between two looks a run can go over the limit for a tenth of a s
 share pages or make many mappings, until the next walk of their page tables and mappings:
 :class:`~service.programs.usage.Shares`); each process is also held to its address space (``RLIMIT_AS``), so
 no one process goes past it.  However many processes and mappings a run makes, the watchdog spends at most
-:data:`~service.programs.usage.FRACTION` of one CPU walking their page tables and mappings; every other look costs the
-grader a read of a few small files per process and thread.
+:data:`~service.programs.usage.FRACTION` of one CPU walking their page tables and mappings (its own CPU time, not
+the wall time a busy machine stretches a walk to); every other look costs the grader a read of a few small files
+per process and thread.  When the run's wall time is up, one last look (a walk, whatever the budget) comes before
+the kill, so that a run then over its memory ends as ``memory`` however late a busy machine let the looks come.
 
 Where it counts processes too (a run without the sandbox, by a grading user that is not root: the
 kernel's count, ``RLIMIT_NPROC``, would then count all of that user's processes), it kills a run that has
@@ -58,6 +60,8 @@ class Watchdog:
         self.shares = Shares(mapping=mapping_bytes(most))
         self.looks = 0
         self._stop = threading.Event()
+        self._lock = threading.Lock()
+        self._pid: int | None = None
         self._thread: threading.Thread | None = None
 
     @property
@@ -67,11 +71,12 @@ class Watchdog:
 
     def start(self, pid: int, kill: Callable[[], None], inside: int | None = None) -> None:
         """Look at the run whose command is ``pid`` (``inside``: its sandbox's first process) until it ends."""
-        self.inside = inside
+        self.inside, self._pid = inside, pid
 
         def watch() -> None:
             while not self._stop.wait(self.interval):
-                self.exceeded = self.look(pid)
+                with self._lock:
+                    self.exceeded = self.look(pid)
                 if self.exceeded is not None:
                     kill()
                     return
@@ -79,8 +84,9 @@ class Watchdog:
         self._thread = threading.Thread(target=watch, name="phongray-watchdog", daemon=True)
         self._thread.start()
 
-    def look(self, pid: int) -> str | None:
-        """One look at the run whose command is ``pid``: the limit it is over, or None."""
+    def look(self, pid: int, walk: bool = False) -> str | None:
+        """One look at the run whose command is ``pid``: the limit it is over, or None (``walk``: its pages'
+        shares walked now, if over the cheap bound, whatever the walks' budget)."""
         self.looks += 1
         found = _family(pid, usage=self.looks % USAGE_EVERY == 1)
         self.cpu_seconds = max(self.cpu_seconds, found.cpu_seconds)
@@ -89,10 +95,19 @@ class Watchdog:
         if self.processes is not None and sum(found.threads.values()) > self.processes:
             return "processes"
         held = open_files(pids) * FILE_BYTES + folders(self.inside)
-        pages, exact = self.shares.pages(pids, self.memory_bytes - held)
+        pages, exact = self.shares.pages(pids, self.memory_bytes - held, walk)
         self.peak = max(self.peak, held + pages)
         over = held > self.memory_bytes or (exact and held + pages > self.memory_bytes)
         return "memory" if over else None
+
+    def last_look(self) -> None:
+        """At the wall-time limit, before the kill: one look with a walk, so that a run then over a limit ends
+        for it, not for its time, however late a busy machine let the looks before come."""
+        if self._pid is None:
+            return
+        with self._lock:
+            if self.exceeded is None:
+                self.exceeded = self.look(self._pid, walk=True)
 
     def stop(self) -> str | None:
         self._stop.set()

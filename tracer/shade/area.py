@@ -17,10 +17,17 @@ import numpy as np
 from ..proofs.bounds import SurfacePoints
 from ..proofs.culling import HIDDEN, MIXED, SEEN, classify, faces_away
 from ..proofs.penumbra import Penumbra
-from ..scene.lights import LightGroup
-from .kernel import Kernel, Points
+from ..scene.lights import Emitter, LightGroup
+from .kernel import Kernel, Points, Reach
 from .passes import Seen
-from .shadows import ShadowRays
+from .shadows import Query, ShadowRays
+
+#: the points of one run of an area light's samples whose shadow rays are decided in one occlusion query
+#: (:func:`_samples`): a run's stored terms and rays are a few slices' worth at most, and at this size a query's
+#: fixed cost (a test per plane and per surface, the walk's passes) is a small share of its rays' own
+JOINED_RAYS = 1 << 16
+#: no shadow rays: a sample whose rays are all proven, or that lights no mixed point
+NONE = Query(0, None, None, None, None)
 
 
 @dataclass
@@ -104,28 +111,75 @@ def _samples(
     shadows: ShadowRays, group: LightGroup, points: Sorted, seen: Seen, holds: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """``Σwd, Σws`` over the light's samples at the sorted points, each sample the kernel's emitter, its shadow
-    rays cast from the mixed points alone (the seen points see it)."""
-    sub, ns, penumbra, meter = points.at, points.seen, points.penumbra, shadows.meter
+    rays cast from the mixed points alone (the seen points see it).
+
+    **The shadow rays of several samples are decided together**: the samples are taken in runs of at most
+    :data:`JOINED_RAYS` points in all, each sample's rays made (and counted) as it comes, the run's rays then
+    decided in one occlusion query (:meth:`tracer.shade.shadows.ShadowRays.decide`: the same answer for each
+    ray as its sample's query alone), and the run's samples' terms summed in their order, as one sample after
+    another would: so the same bits, at the price of one query per run, not per sample."""
+    sub, meter = points.at, shadows.meter
     kernel = Kernel(shadows.world, shadows.options, sub)
     m = len(sub.nv)
     sum_d, sum_s = np.zeros(m), np.zeros(m)
     rows_seen = None if points.every else points.active
-    for e, em in enumerate(shadows.world.emitters[group.first : group.end]):
-        meter.stop()
-        reach = kernel.reach(em, bool(holds[e]))
-        lit, weight = reach.lit, reach.weight
-        rows = ns + np.flatnonzero(lit[ns:])  # the mixed points' shadow rays
-        if len(rows) and penumbra is not None:  # rays decided by their pairs, the rest cast against theirs
-            blocked, cast, pairs = penumbra.decide(lit[ns:], reach.to_light[ns:], reach.dist[ns:])
-            if cast.any():
-                meter.count("shadow", int(np.count_nonzero(cast)))
-                blocked[cast] = shadows.blocked(sub, rows[cast], reach, em, pairs)
-            weight[rows[blocked]] = 0.0
-        elif len(rows):
-            meter.count("shadow", len(rows))
-            weight[rows[shadows.blocked(sub, rows, reach, em)]] = 0.0
-        wd, ws = kernel.terms(reach)
-        sum_d += wd
-        sum_s += ws
-        seen(weight, reach.facing, rows_seen)
+    emitters = shadows.world.emitters[group.first : group.end]
+    run = max(1, JOINED_RAYS // max(m, 1))
+    for first in range(0, len(emitters), run):
+        cast = []
+        for e in range(first, min(first + run, len(emitters))):
+            meter.stop()
+            cast.append(_cast(shadows, kernel, points, emitters[e], bool(holds[e]), run > 1))
+        decided = shadows.decide([c.query for c in cast])
+        for c, blocked in zip(cast, decided):
+            c.apply(blocked)
+            wd, ws = kernel.terms(c.reach)
+            sum_d += wd
+            sum_s += ws
+            seen(c.reach.weight, c.reach.facing, rows_seen)
     return sum_d, sum_s
+
+
+@dataclass
+class _Cast:
+    """One sample's reach at the sorted points and its shadow rays, made and waiting to be decided."""
+
+    reach: Reach
+    rows: np.ndarray  # the mixed points' rays (rows of the sorted points)
+    proven: np.ndarray | None  # with the penumbra's proofs: which of them are proven blocked
+    cast: np.ndarray | None  # and which are cast (the query's rays); None: every ray of ``rows`` is
+    query: Query
+
+    def apply(self, blocked: np.ndarray) -> None:
+        """Zero the weight where the sample's shadow rays are blocked, ``blocked`` the query's answer."""
+        if self.proven is not None:
+            assert self.cast is not None
+            self.proven[self.cast] = blocked
+            blocked = self.proven
+        self.reach.weight[self.rows[blocked]] = 0.0
+
+
+def _cast(shadows: ShadowRays, kernel: Kernel, points: Sorted, em: Emitter, holds: bool, keep: bool) -> _Cast:
+    """The sample ``em``'s reach at the sorted points (a copy of the kernel's buffers, with ``keep``: the kernel
+    goes on to other samples before this one is decided) and its shadow rays, counted."""
+    sub, ns, penumbra, meter = points.at, points.seen, points.penumbra, shadows.meter
+    reach = kernel.reach(em, holds)
+    rows = ns + np.flatnonzero(reach.lit[ns:])  # the mixed points' shadow rays
+    proven = cast = None
+    if len(rows) and penumbra is not None:  # rays decided by their pairs, the rest cast against theirs
+        proven, cast, pairs = penumbra.decide(reach.lit[ns:], reach.to_light[ns:], reach.dist[ns:])
+        query = NONE
+        if cast.any():
+            meter.count("shadow", int(np.count_nonzero(cast)))
+            query = shadows.cast(sub, rows[cast], reach, em, pairs)
+    elif len(rows):
+        meter.count("shadow", len(rows))
+        query = shadows.cast(sub, rows, reach, em)
+    else:
+        query = NONE
+    if keep:  # (what the terms and the observer read: the rest is the kernel's, rewritten by the next sample)
+        to_light, nl, facing, weight = (
+            a.copy(order="K") for a in (reach.to_light, reach.nl, reach.facing, reach.weight)
+        )
+        reach = Reach(to_light, reach.dist, nl, facing, reach.lit, weight)
+    return _Cast(reach, rows, proven, cast, query)
