@@ -39,7 +39,7 @@ def one_way(way: str, pools: int, processes: int) -> float:
     for _ in range(pools):
         if way == "forkserver":
             context = pool_processes.context()
-            options = {"initializer": pool_processes.join, "initargs": pool_processes.initargs(True)}
+            options = {"initializer": pool_processes.join, "initargs": pool_processes.initargs(context)}
         else:
             context, options = multiprocessing.get_context("spawn"), {}
         with ProcessPoolExecutor(processes, mp_context=context, **options) as pool:

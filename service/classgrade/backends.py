@@ -8,7 +8,6 @@ from __future__ import annotations
 import concurrent.futures as futures
 import contextlib
 import os
-import threading
 import time
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
@@ -79,14 +78,11 @@ class LocalBackend(Backend):
 
     def _pool(self) -> None:
         context = processes.context()
-        # the kernel's signal at a parent's end is to be trusted where the parent is the forkserver, or this
-        # process if the pool is made by its main thread (the signal comes when the creating thread ends)
-        prctl = context.get_start_method() == "forkserver" or threading.current_thread() is threading.main_thread()
         self.executor = futures.ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=context,
             initializer=processes.join,
-            initargs=processes.initargs(prctl),
+            initargs=processes.initargs(context),
         )
 
     def reset(self) -> None:

@@ -58,8 +58,11 @@ def lifeline() -> Connection:
     return _LIFELINE[0][1]
 
 
-def initargs(prctl: bool) -> tuple[Any, ...]:
-    """The arguments of :func:`join` for a pool made now by this process (``prctl``: see :func:`join`)."""
+def initargs(context: BaseContext) -> tuple[Any, ...]:
+    """The arguments of :func:`join` for a pool of ``context``'s processes made now by this process: the kernel's
+    signal at a parent's end is to be trusted where the parent is the forkserver, or this process if the pool is
+    made by its main thread (the signal comes when the creating thread ends)."""
+    prctl = context.get_start_method() == "forkserver" or threading.current_thread() is threading.main_thread()
     return lifeline(), dict(os.environ), prctl
 
 

@@ -25,9 +25,9 @@ from .cluster import render as render_on
 def die_with_parent(parent: int, prctl: bool) -> None:
     """Initializer of a process forked by :func:`render_forked`: it ends when its parent does, however that
     ends (SIGKILL, the OOM killer), never left running (class grading's pool, whose processes are not the
-    grading process's children, watches a pipe instead: :mod:`service.classgrade.processes`).  On Linux the kernel kills it (PR_SET_PDEATHSIG; only when the pool was
-    made by the main thread, as the signal comes when the creating thread ends); everywhere, a watchdog thread
-    sees the parent gone."""
+    grading process's children, watches a pipe instead: :mod:`service.classgrade.processes`).  On Linux the
+    kernel kills it (PR_SET_PDEATHSIG; only when the pool was made by the main thread, as the signal comes when
+    the creating thread ends); everywhere, a watchdog thread sees the parent gone."""
     if prctl and sys.platform.startswith("linux"):
         with contextlib.suppress(OSError, AttributeError):
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL, 0, 0, 0)  # 1: PR_SET_PDEATHSIG
