@@ -1,6 +1,7 @@
 """The same work on a real Dask cluster on 127.0.0.1 (a scheduler and two workers): the same bytes, the same report,
 and a batch that survives a worker killed in the middle."""
 
+import contextlib
 import json
 import os
 import signal
@@ -33,13 +34,25 @@ def _start(args: list[str], log: Path) -> subprocess.Popen:
 
 
 def _stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
+    """End the process and its whole session's group (a worker started under bubblewrap is bubblewrap's child:
+    it may outlive bubblewrap's end), asked first, killed after 10 s."""
+    with contextlib.suppress(ProcessLookupError):
         os.killpg(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+    deadline = time.monotonic() + 10
+    while _group_alive(proc) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+
+
+def _group_alive(proc: subprocess.Popen) -> bool:
+    proc.poll()  # (reaps the leader once it has ended, so that its group is only what is left of it)
+    try:
+        os.killpg(proc.pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 def _workers(address: str) -> int:
