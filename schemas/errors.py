@@ -31,6 +31,11 @@ class SceneError(ValueError):
         self.problems = [(_clip(path), _clip(message)) for path, message in problems]
         super().__init__("\n".join(format_problem(p) for p in problems))
 
+    def __reduce__(self) -> tuple[type[SceneError], tuple[list[tuple[str, str]]]]:
+        """Pickled as its problems (its one argument), so that one raised in a pool's process reaches the
+        grading process as itself, not as a broken pool."""
+        return type(self), (self.problems,)
+
 
 #: paths and messages echo the user's keys and names; longer ones are cut in the middle
 MAX_TEXT = 240

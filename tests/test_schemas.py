@@ -1,6 +1,7 @@
 """Validation: every rule of the format is enforced and every error names its place."""
 
 import json
+import pickle
 
 import pytest
 
@@ -558,3 +559,10 @@ def test_a_name_changes_no_image_and_unnamed_scenes_keep_their_key():
     data = _named([None], [None])
     data["objects"][0]["name"] = data["lights"][0]["name"] = None  # a name of null is no name
     assert scene_key(schemas.validate_scene(data)) == scene_key(plain)
+
+
+def test_a_scene_error_crosses_processes_as_itself():
+    """A SceneError raised in a pool's process is pickled back to the grading process: the same problems."""
+    error = schemas.SceneError([("objects[2].radius", "must be > 0"), ("", "no camera")])
+    back = pickle.loads(pickle.dumps(error))
+    assert isinstance(back, schemas.SceneError) and back.problems == error.problems and str(back) == str(error)
