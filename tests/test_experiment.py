@@ -201,6 +201,22 @@ def test_a_students_probes_stop_once_its_allowance_of_time_is_spent():
     assert scenes == []
 
 
+def test_a_busy_machines_wait_is_not_charged_to_the_students_probes():
+    """Probes that each took 10 s of wall time, 9 of them waiting for a CPU on a busy machine, cost the allowance
+    their own second each: all of them are asked, as on an idle machine; a probe that waited for no CPU (asleep)
+    costs its whole wall time."""
+    from service.programs.experiment import Allowance, charged
+
+    scene = (HERE / "spot.json").read_bytes()
+    image = render_png(json.loads(scene), ("no-shadows",))
+    busy = RunOutcome(Reason.OK, "ok", image, wall_seconds=10.0, cpu_seconds=0.5, waited_seconds=9.0)
+    allowance = Allowance(25.0)
+    run, scenes = counted(busy)
+    experiment(scene, image, run, Thresholds(2.0, 0.001), allowance=allowance)
+    assert len(scenes) > 3 and allowance.seconds == 25.0 - len(scenes)
+    assert charged(RunOutcome(Reason.OK, "ok", wall_seconds=10.0, cpu_seconds=0.1)) == 10.0
+
+
 def test_a_program_sleeping_on_its_probes_is_asked_one(tmp_path):
     """In the sandbox: the task rendered wrong at once, every probe slept on."""
     check_sandbox()

@@ -185,6 +185,14 @@ class Allowance:
 STOPS = (Reason.TIMEOUT, Reason.CPU_TIME)
 
 
+def charged(outcome: RunOutcome) -> float:
+    """What a probe's run costs the student's allowance: its wall time less the time its processes waited,
+    ready, for a CPU (a busy grading machine's, not the program's), never less than its CPU time; so that how
+    busy the machine was does not decide how many probes a program is asked (a sleeping program waits for no
+    CPU and is charged its whole wall time)."""
+    return max(outcome.cpu_seconds, outcome.wall_seconds - outcome.waited_seconds)
+
+
 class _Asking:
     """The probes asked of one program, at most :data:`MAX_PROBES` runs in all; none after one that timed out,
     nor once the student's ``allowance`` is spent."""
@@ -196,7 +204,7 @@ class _Asking:
     def run(self, scene: bytes) -> RunOutcome:
         outcome = self.plain(scene)
         if self.allowance is not None:
-            self.allowance.seconds -= outcome.wall_seconds
+            self.allowance.seconds -= charged(outcome)
         self.stopped = outcome.reason in STOPS or (self.allowance is not None and self.allowance.seconds <= 0)
         return outcome
 
