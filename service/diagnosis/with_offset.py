@@ -80,6 +80,8 @@ class _Search:
         self.reference, self.submitted, self.verdict, self.renders = reference, submitted, verdict, renders
         self.open: np.ndarray | None = getattr(renders, "open", None)
         self.numbers = telling_rows(reference, submitted, verdict.tolerance)
+        #: the reference's distance from the submission on the telling rows
+        self.base = _beyond(reference[self.numbers], submitted[self.numbers], verdict.tolerance)
         self.size = renders.size()
         self.ladder = amounts(self.size)
         self.pixels = submitted.shape[0] * submitted.shape[1]
@@ -107,10 +109,9 @@ class _Search:
         submission passes against."""
         rung = self.ladder[self.nearest(None)]
         alone = self.error(None, rung)
-        base = _beyond(self.reference[self.numbers], self.submitted[self.numbers], self.verdict.tolerance)
         ranked = sorted(partners, key=lambda n: (self.error(n, rung), classic_first((n,))))
         for name in ranked[:TRIED]:
-            if self.error(name, rung) > min(alone - ADD_LEVELS, NEAR * base):
+            if self.error(name, rung) > min(alone - ADD_LEVELS, NEAR * self.base):
                 break
             made = self.graded(name)
             if made is not None:
@@ -151,11 +152,10 @@ class _Search:
         off = [range_counts([i], self.submitted, self.verdict.tolerance, self.open).off_nearby for i in images]
         amount = self.ladder[span[int(np.argmin(off))]]
         counts = range_counts(images, self.submitted, self.verdict.tolerance, self.open)
-        base = _beyond(self.reference[self.numbers], self.submitted[self.numbers], self.verdict.tolerance)
         both = self.error(name, amount)
         share = {
-            name: (self.error(None, amount) - both) / base if base > 0 else 0.0,
-            NAME: (self.error(name, 0.0) - both) / base if base > 0 else 0.0,
+            name: (self.error(None, amount) - both) / self.base if self.base > 0 else 0.0,
+            NAME: (self.error(name, 0.0) - both) / self.base if self.base > 0 else 0.0,
         }
         members = [
             Member(name, ALL[name][1], max(0.0, share[name]), _evidence(share[name])),
