@@ -1,5 +1,6 @@
 """Shadow rays (tracer/shade/shadows.py): queries decided together answer as each decided alone, and an area
-light's samples cost one occlusion query per shading step, not one per sample."""
+light's samples, and a run of point, spot and directional lights, cost one occlusion query per shading step, not
+one per sample or light."""
 
 import numpy as np
 import pytest
@@ -8,7 +9,7 @@ import schemas
 from tracer import Renderer
 from tracer.exact.intersect import Intersector
 from tracer.scene.variants import REFERENCE, Options
-from tracer.shade import area
+from tracer.shade import area, direct
 from tracer.shade.shadows import Query, ShadowRays
 
 VARIANTS = {
@@ -21,9 +22,11 @@ VARIANTS = {
 }
 
 
-def scene(spheres: int, seed: int = 0, samples: int = 4, depth: int = 2, point: bool = True) -> schemas.Scene:
+def scene(
+    spheres: int, seed: int = 0, samples: int = 4, depth: int = 2, point: bool = True, more: tuple[dict, ...] = ()
+) -> schemas.Scene:
     """Spheres (some glass) over a floor, a small mesh, an area light of ``samples``² samples and a point light
-    (with ``point``)."""
+    (with ``point``), and the lights ``more``."""
     rng = np.random.default_rng(seed)
     objects = [
         {
@@ -62,7 +65,8 @@ def scene(spheres: int, seed: int = 0, samples: int = 4, depth: int = 2, point: 
                     "samples": [samples, samples],
                 },
             ]
-            + ([{"type": "point", "color": 0.4, "position": [2, 2.5, 3]}] if point else []),
+            + ([{"type": "point", "color": 0.4, "position": [2, 2.5, 3]}] if point else [])
+            + list(more),
         }
     )
 
@@ -111,3 +115,47 @@ def test_an_area_light_costs_one_occlusion_query_per_shading_step(monkeypatch):
     rows = np.arange(10, 20) * 40
     renderer.pixels_at((rows[:, None] + np.arange(40)).ravel(), threads=1)
     assert len(calls) == 1 and calls[0] > 0
+
+
+#: lights of one emitter each, of both forms of shadow ray (towards a point; along a direction), after the area
+#: light and its point light: a run of five whose rays are decided together
+SINGLES = (
+    {"type": "point", "color": 0.3, "position": [-2, 3, 1]},
+    {"type": "directional", "color": 0.2, "direction": [0.3, -1, -0.4]},
+    {"type": "spot", "color": 0.5, "position": [1, 3, 2], "direction": [-0.2, -1, -0.5], "cutoff": 35},
+    {"type": "point", "color": 0.3, "position": [0.5, 0.3, 2.5]},
+    {"type": "directional", "color": 0.2, "direction": [-0.5, -1, 0.2]},
+)
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_a_run_of_lights_joined_or_each_alone_renders_the_same_bytes(monkeypatch, variant):
+    """Every variant; with pixels of one point each too (a batch of one: its shadow rays' directions are copied
+    out of the kernel's (1, 3) buffer, which the next light's reach rewrites before the run is decided)."""
+    pixels = np.random.default_rng(5).choice(40 * 30, 200, replace=False)
+    made = scene(8, seed=2, samples=2, more=SINGLES)
+    made = made.model_copy(update={"image": made.image.model_copy(update={"samples": 1})})  # (a ray a pixel)
+    together = Renderer(made, VARIANTS[variant]).pixels_at(pixels, threads=1)
+    ones = [Renderer(made, VARIANTS[variant]).pixels_at(pixels[k : k + 1], threads=1) for k in range(0, 200, 4)]
+    with monkeypatch.context() as m:
+        m.setattr(direct, "JOINED_RAYS", 1)  # (a run of one light: each light's rays decided alone)
+        alone = Renderer(made, VARIANTS[variant]).pixels_at(pixels, threads=1)
+    np.testing.assert_array_equal(together, alone)
+    np.testing.assert_array_equal(np.concatenate(ones), alone[::4])
+
+
+def test_a_run_of_lights_costs_one_occlusion_query_per_shading_step(monkeypatch):
+    occluded = Intersector.occluded
+    calls = []
+
+    def counted(self, shadows, among=None):
+        calls.append(len(shadows))
+        return occluded(self, shadows, among)
+
+    monkeypatch.setattr(Intersector, "occluded", counted)
+    lights = tuple(light for light in SINGLES if light["type"] != "directional")  # (one form: at a point)
+    renderer = Renderer(scene(6, samples=1, depth=0, point=False, more=lights))
+    renderer.world  # noqa: B018 (made before the count)
+    rows = np.arange(10, 20) * 40
+    renderer.pixels_at((rows[:, None] + np.arange(40)).ravel(), threads=1)
+    assert len(calls) == 2 and all(calls)  # (the area light's one sample, then the run of three)

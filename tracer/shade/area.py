@@ -20,14 +20,7 @@ from ..proofs.penumbra import Penumbra
 from ..scene.lights import Emitter, LightGroup
 from .kernel import Kernel, Points, Reach
 from .passes import Seen
-from .shadows import Query, ShadowRays
-
-#: the points of one run of an area light's samples whose shadow rays are decided in one occlusion query
-#: (:func:`_samples`): a run's stored terms and rays are a few slices' worth at most, and at this size a query's
-#: fixed cost (a test per plane and per surface, the walk's passes) is a small share of its rays' own
-JOINED_RAYS = 1 << 16
-#: no shadow rays: a sample whose rays are all proven, or that lights no mixed point
-NONE = Query(0, None, None, None, None)
+from .shadows import JOINED_RAYS, NONE, Query, ShadowRays
 
 
 @dataclass

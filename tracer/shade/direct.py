@@ -17,7 +17,11 @@ passes count is told to an observer (:class:`tracer.shade.passes.Observer`).
 
 Shadow rays run from the exact hit point, leaving its surface by identity,
 to the light (:class:`tracer.shade.shadows.ShadowRays`, which :mod:`tracer.shade.area`
-takes too).  Two proofs spare them: in a scene
+takes too).  The lights of one emitter that follow one another in the scene
+are taken in runs: each light's rays are made as it comes, the run's decided
+in one occlusion query (the same answer for every ray as its light's query
+alone), and the terms added light by light in the scene's order, so the same
+bits as one light after another.  Two proofs spare them: in a scene
 of few surfaces, a point or directional light's rays are tested only against
 the surfaces their bounds allow (:mod:`tracer.proofs.cones`), and an area light's
 points are sorted by :mod:`tracer.proofs.culling` into those that see every sample,
@@ -25,6 +29,8 @@ none, or some, whose rays meet only the surfaces that may block them.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -34,11 +40,12 @@ from ..scene.lights import LightGroup
 from ..scene.rays import Hits
 from ..scene.variants import add_clamped
 from ..scene.vec import columns, dot, rows_of
+from ..scene.world import World
 from .area import area_terms
-from .kernel import Kernel, Points
-from .passes import UNOBSERVED, Observer, Seen
+from .kernel import Kernel, Points, Reach
+from .passes import UNOBSERVED, Observer
 from .shading import add_phong, planes_holding
-from .shadows import ShadowRays
+from .shadows import JOINED_RAYS, NONE, Query, ShadowRays
 
 
 class DirectLight:
@@ -75,32 +82,59 @@ class DirectLight:
         observer.ambient(colour)
         # N·V, the same for every light; the magnitudes where every light's shadow rays start
         at = Points(hit, normal, dirs, -dot(normal, dirs), self.world.magnitude(hit.point), m.shininess[mat])
+        into = _Into(self.world, colour, diffuse, specular, observer, opt.clamp_terms)
         kernel: Kernel | None = None  # (one for every light of one emitter: its buffers are reused)
-        for group in self.groups:
-            self.shadows.meter.stop()  # a long chunk (many lights) stops early too
-            color = self.world.emitters[group.first].color
-            if not np.any(color > 0):
-                continue
-            seen = observer.seen(group.first)
-            if group.corners is not None:
-                terms = area_terms(self.shadows, group, at, seen, self.holds[group.first : group.end])
+        for run in self._runs(len(mat)):
+            if run[0].corners is not None:  # an area light, alone
+                self.shadows.meter.stop()  # a long chunk (many lights) stops early too
+                group = run[0]
+                seen = observer.seen(group.first)
+                into.add(group.first, area_terms(self.shadows, group, at, seen, self.holds[group.first : group.end]))
             else:
                 kernel = kernel or Kernel(self.world, opt, at)
-                terms = self._one(kernel, group.first, seen)
-            if terms is None:
-                continue
-            (add_clamped if opt.clamp_terms else add_phong)(colour, color, diffuse, specular, *terms)
-            observer.light(group.first, color, diffuse, specular, terms)
+                self._singles(run, kernel, into)
         observer.shaded(colour)
         return colour
 
+    def _singles(self, run: list[LightGroup], kernel: Kernel, into: _Into) -> None:
+        """A run of lights of one emitter each: their shadow rays made one light after another and decided in one
+        query (:meth:`tracer.shade.shadows.ShadowRays.decide`: each ray the answer its light's query alone
+        gives), then each light's terms added in the run's order, as one light after another would: the same
+        bits, at the price of one query per run, not per light."""
+        cast = [(group, self._cast(kernel, group.first, len(run) > 1)) for group in run]
+        waiting = [(group, c) for group, c in cast if c is not None]
+        for (group, c), blocked in zip(waiting, self.shadows.decide([c.query for _, c in waiting])):
+            c.reach.weight[c.rows[blocked] if c.rows is not None else blocked] = 0.0
+            terms = kernel.terms(c.reach)
+            into.observer.seen(group.first)(c.reach.weight, c.reach.facing, None)
+            into.add(group.first, terms)
+
+    def _runs(self, points: int) -> list[list[LightGroup]]:
+        """The lights that give light, in their order, in runs whose shadow rays are decided together: an area
+        light alone (its samples are joined by :mod:`tracer.shade.area`), and lights of one emitter (points, spots,
+        directional lights) one after another, at most :data:`JOINED_RAYS` // ``points`` of them in a run."""
+        most = max(1, JOINED_RAYS // max(points, 1))
+        runs: list[list[LightGroup]] = []
+        for group in self.groups:
+            if not np.any(self.world.emitters[group.first].color > 0):
+                continue
+            single = group.corners is None
+            if single and runs and runs[-1][0].corners is None and len(runs[-1]) < most:
+                runs[-1].append(group)
+            else:
+                runs.append([group])
+        return runs
+
     # -- one emitter: a point light, a spot or a directional light ----------------------------------------------
-    def _one(self, kernel: Kernel, e_index: int, seen: Seen) -> tuple[np.ndarray, np.ndarray] | None:
-        """The terms of a light of one emitter (``e_index``) at every point, or None where it reaches none."""
+    def _cast(self, kernel: Kernel, e_index: int, keep: bool) -> _Single | None:
+        """Where a light of one emitter (``e_index``) reaches the points and its shadow rays, made and waiting to
+        be decided (with ``keep``, its reach a copy of the kernel's buffers: the kernel goes on to the run's other
+        lights before this one is decided), or None where it reaches none."""
+        self.shadows.meter.stop()  # a long chunk (many lights) stops early too
         at, em = kernel.at, self.world.emitters[e_index]
         hit = at.hit
         reach = kernel.reach(em, bool(self.holds[e_index]))
-        lit, weight = reach.lit, reach.weight
+        lit = reach.lit
         if not lit.any():
             return None
         rows = np.flatnonzero(lit)
@@ -121,10 +155,47 @@ class DirectLight:
                 TILE,
             )[: len(sub.t)]
             rows = rows[~clear] if few else np.flatnonzero(lit & ~clear)
+        query = NONE
+        given: np.ndarray | None = rows
         if len(rows):
             self.shadows.meter.count("shadow", len(rows))
             every = len(rows) == len(lit)  # then no gathering: the rows are all of them, in order
-            weight[rows[self.shadows.blocked(at, None if every else rows, reach, em)]] = 0.0
-        terms = kernel.terms(reach)
-        seen(weight, reach.facing, None)
-        return terms
+            given = None if every else rows
+            query = self.shadows.cast(at, given, reach, em)
+        if keep:  # (what the terms and the observer read: the rest is the kernel's, rewritten by the next light)
+            to_light, nl, facing, weight = (
+                a.copy(order="K") for a in (reach.to_light, reach.nl, reach.facing, reach.weight)
+            )
+            reach = Reach(to_light, reach.dist, nl, facing, reach.lit, weight)
+        return _Single(reach, given, query)
+
+
+@dataclass(frozen=True)
+class _Single:
+    """A light of one emitter at the points, its shadow rays made and waiting to be decided: the ``query``'s
+    answer for the ``rows`` of the points (None: all of them, in order) zeroes ``reach.weight`` where blocked."""
+
+    reach: Reach
+    rows: np.ndarray | None
+    query: Query
+
+
+@dataclass(frozen=True)
+class _Into:
+    """What every light's terms are added to: the colour (with the points' k_d and k_s), and the observer told."""
+
+    world: World
+    colour: np.ndarray
+    diffuse: np.ndarray
+    specular: np.ndarray
+    observer: Observer
+    clamp: bool  # (a variant's: each light's terms clamped as they are added)
+
+    def add(self, first: int, terms: tuple[np.ndarray, np.ndarray] | None) -> None:
+        """The terms of the light whose first emitter is ``first`` (None: it reaches no point) added, and told."""
+        if terms is None:
+            return
+        color = self.world.emitters[first].color
+        add = add_clamped if self.clamp else add_phong
+        add(self.colour, color, self.diffuse, self.specular, *terms)
+        self.observer.light(first, color, self.diffuse, self.specular, terms)

@@ -47,6 +47,15 @@ class Query:
     index: np.ndarray | None
 
 
+#: no shadow rays: a light's or a sample's whose rays are all proven, or that lights no point that casts one
+NONE = Query(0, None, None, None, None)
+#: the rays of one run of lights (an area light's samples, or point, spot and directional lights in turn) decided
+#: in one occlusion query (:meth:`ShadowRays.decide`): a run's stored reach and rays are a few slices' worth at
+#: most, and at this size a query's fixed cost (a test per plane and per surface, the walk's passes) is a small
+#: share of its rays' own
+JOINED_RAYS = 1 << 16
+
+
 def _joined(parts: list[np.ndarray]) -> np.ndarray:
     """``parts`` one after another, as one array laid out as the first (columns contiguous or rows)."""
     out = np.concatenate(parts)
@@ -135,7 +144,10 @@ class ShadowRays:
         if not self.options.shadows:
             return Query(n, None, None, None, None)
         pick = picker(rows)
-        rays = self.spawner.shadow(at.hit, at.mag, rows, np.ascontiguousarray(pick(reach.to_light)), at.normal)
+        # (a copy even of every row: of one point, the kernel's (1, 3) buffer is already C-contiguous, and would be
+        # the rays' own directions until the next light's reach rewrote them)
+        dirs = np.ascontiguousarray(pick(reach.to_light)) if rows is not None else np.array(reach.to_light, order="C")
+        rays = self.spawner.shadow(at.hit, at.mag, rows, dirs, at.normal)
         dist = pick(reach.dist) if rows is not None else reach.dist.copy()
         spawn = self.spawner.offset
         if em.kind == "directional":
