@@ -170,9 +170,6 @@ def _cast(shadows: ShadowRays, kernel: Kernel, points: Sorted, em: Emitter, hold
         query = shadows.cast(sub, rows, reach, em)
     else:
         query = NONE
-    if keep:  # (what the terms and the observer read: the rest is the kernel's, rewritten by the next sample)
-        to_light, nl, facing, weight = (
-            a.copy(order="K") for a in (reach.to_light, reach.nl, reach.facing, reach.weight)
-        )
-        reach = Reach(to_light, reach.dist, nl, facing, reach.lit, weight)
+    if keep:  # (the kernel's buffers are rewritten by the next sample's reach)
+        reach = reach.kept()
     return _Cast(reach, rows, proven, cast, query)

@@ -59,7 +59,9 @@ class DirectLight:
     def __init__(self, groups: list[LightGroup], shadows: ShadowRays):
         #: the render's shadow rays, with its world, options and proofs
         self.shadows = shadows
-        self.world, self.options, self.groups = shadows.world, shadows.options, groups
+        self.world, self.options = shadows.world, shadows.options
+        #: the lights that give light (a colour above 0), in the scene's order
+        self.groups = [g for g in groups if np.any(self.world.emitters[g.first].color > 0)]
         #: the emitters some flat surface's plane holds (where N·L is rounding noise: light_in_plane)
         self.holds = planes_holding(self.world, self.world.emitters)
 
@@ -122,8 +124,6 @@ class DirectLight:
         most = max(1, JOINED_RAYS // max(points, 1)) if points < ALONE_FROM else 1
         runs: list[list[LightGroup]] = []
         for group in self.groups:
-            if not np.any(self.world.emitters[group.first].color > 0):
-                continue
             single = group.corners is None
             if single and runs and runs[-1][0].corners is None and len(runs[-1]) < most:
                 runs[-1].append(group)
@@ -168,12 +168,8 @@ class DirectLight:
             every = len(rows) == len(lit)  # then no gathering: the rows are all of them, in order
             given = None if every else rows
             query = self.shadows.cast(at, given, reach, em)
-        if keep:  # (what the terms and the observer read: the rest is the kernel's, rewritten by the next light)
-            to_light, nl, facing, weight = (
-                a.copy(order="K") for a in (reach.to_light, reach.nl, reach.facing, reach.weight)
-            )
-            reach = Reach(to_light, reach.dist, nl, facing, reach.lit, weight)
-        return _Single(reach, given, query)
+        # (kept: the kernel's buffers are rewritten by the next light's reach)
+        return _Single(reach.kept() if keep else reach, given, query)
 
 
 @dataclass(frozen=True)

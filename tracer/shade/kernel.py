@@ -69,6 +69,12 @@ class Reach:
     lit: np.ndarray  # (N,) bool: where a shadow ray decides whether the emitter lights the point
     weight: np.ndarray  # (N,) the factor where lit, 0 elsewhere: the caller zeroes it where a shadow ray is blocked
 
+    def kept(self) -> Reach:
+        """A copy of what :meth:`Kernel.terms` and the observer read (L, N·L, the facing and the weight), for an
+        emitter decided after the kernel has gone on to others; ``dist`` and ``lit``, read only before, stay views."""
+        to_light, nl, facing, weight = (a.copy(order="K") for a in (self.to_light, self.nl, self.facing, self.weight))
+        return Reach(to_light, self.dist, nl, facing, self.lit, weight)
+
 
 class Kernel:
     """The Phong terms of one emitter after another at the points ``at``, computed into buffers of its own."""
