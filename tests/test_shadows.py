@@ -102,15 +102,21 @@ def test_every_sample_joined_or_alone_renders_the_same_bytes(monkeypatch):
         np.testing.assert_array_equal(together, alone)
 
 
-def test_an_area_light_costs_one_occlusion_query_per_shading_step(monkeypatch):
+def counted_queries(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The rays of each occlusion query the renders make from now on, in order."""
     occluded = Intersector.occluded
-    calls = []
+    calls: list[int] = []
 
     def counted(self, shadows, among=None):
         calls.append(len(shadows))
         return occluded(self, shadows, among)
 
     monkeypatch.setattr(Intersector, "occluded", counted)
+    return calls
+
+
+def test_an_area_light_costs_one_occlusion_query_per_shading_step(monkeypatch):
+    calls = counted_queries(monkeypatch)
     renderer = Renderer(scene(6, samples=5, depth=0, point=False))  # (the camera rays' hits alone: one step)
     rows = np.arange(10, 20) * 40
     renderer.pixels_at((rows[:, None] + np.arange(40)).ravel(), threads=1)
@@ -145,17 +151,9 @@ def test_a_run_of_lights_joined_or_each_alone_renders_the_same_bytes(monkeypatch
 
 
 def test_a_run_of_lights_costs_one_occlusion_query_per_shading_step(monkeypatch):
-    occluded = Intersector.occluded
-    calls = []
-
-    def counted(self, shadows, among=None):
-        calls.append(len(shadows))
-        return occluded(self, shadows, among)
-
-    monkeypatch.setattr(Intersector, "occluded", counted)
+    calls = counted_queries(monkeypatch)
     lights = tuple(light for light in SINGLES if light["type"] != "directional")  # (one form: at a point)
     renderer = Renderer(scene(6, samples=1, depth=0, point=False, more=lights))
-    renderer.world  # noqa: B018 (made before the count)
     rows = np.arange(10, 20) * 40
     renderer.pixels_at((rows[:, None] + np.arange(40)).ravel(), threads=1)
     assert len(calls) == 2 and all(calls)  # (the area light's one sample, then the run of three)
