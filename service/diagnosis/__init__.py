@@ -26,7 +26,9 @@ Everything here is pure: the renders come in through a :class:`Renders`.  The mo
 of a scene, made when first asked for), :mod:`.cache` (those of the last few scenes, kept) and
 :mod:`.accepting` (the accepted variants a failing image is graded against before it is diagnosed),
 :mod:`.compose` and :mod:`.stored` (mistakes made together; mistakes of the stored image, found without a
-render), :mod:`.together` (the nearest explanations) and :mod:`.words` (names and scales in a student's words).
+render), :mod:`.together` (the nearest explanations), :mod:`.nuisance` (a mistake behind an honest offset),
+:mod:`.behind_camera` (a mistake behind a camera mistake) and :mod:`.words` (names and scales in a student's
+words).
 """
 
 from .cache import CACHE, Cached

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -70,12 +70,25 @@ def by_options(options: Options) -> str:
     return f"options:{options!r}"
 
 
+#: the fields of an offset, taken from a base together or not at all
+OFFSET_FIELDS = ("offset", "offset_along")
+
+
 def on_base(options: Options, base: Options) -> Options:
-    """``options`` made by a student whose rays leave surfaces as ``base`` says (its offset), unless they set an
-    offset of their own (an offset too large)."""
-    if base.offset == 0 or options.offset != 0:
-        return options
-    return replace(options, offset=base.offset, offset_along=base.offset_along)
+    """``options`` made by a student who renders as ``base`` says: its rays leave surfaces by its offset, unless
+    ``options`` sets an offset of its own (an offset too large); every other field ``base`` changes (a camera
+    mistake's, :mod:`.behind_camera`) is changed so, unless ``options`` changes that field itself."""
+    update: dict[str, object] = {}
+    for f in fields(base):
+        value = getattr(base, f.name)
+        if value == getattr(REFERENCE, f.name):
+            continue
+        mine = (
+            options.offset != 0 if f.name in OFFSET_FIELDS else getattr(options, f.name) != getattr(REFERENCE, f.name)
+        )
+        if not mine:
+            update[f.name] = value
+    return replace(options, **update) if update else options  # type: ignore[arg-type]
 
 
 class SceneRenders:
