@@ -67,3 +67,15 @@ def test_an_offset_too_large_is_named_with_a_mistake_the_sum_cannot_model(mistak
     verdict = grade(reference, made, "")
     found = diagnose(reference, made, verdict, renders_of(scene, 1))
     assert [set(i.split("+")) for i in matched(found.as_dict())][:1] == [set(mistakes)]
+
+
+def test_a_mistake_away_from_the_detached_shadows_is_named_with_the_offset():
+    """On 04_whitted the offset too large alone (0.1) explains the rows the submission departs most from the
+    reference on (its detached shadows); no specular term shows only in the highlights, on other rows.  The
+    partner is chosen on the rows the submission departs most from the offset's render: both are named."""
+    scene = small("04_whitted")
+    reference = Renderer(scene).pixels()
+    made = student.render(scene, ["no-specular", "offset-too-large"])
+    verdict = grade(reference, made, "")
+    found = diagnose(reference, made, verdict, renders_of(scene, 1))
+    assert [set(i.split("+")) for i in matched(found.as_dict())][:1] == [{"no-specular", "offset-too-large"}]

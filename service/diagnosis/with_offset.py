@@ -13,7 +13,9 @@ looked for with both made in one render, on the rows a combination is chosen on 
 * the offset's rung, of the ladder of amounts :mod:`.too_large` grades an offset too large alone against, that
   comes nearest the submission on those rows;
 * each other mistake the scene can show made with the offset at that rung, rows rendered; the two that come
-  nearest (and nearer than the offset alone) are tried, in turn;
+  nearest (and nearer than the offset alone) are tried, in turn.  Where the offset alone explains those rows
+  (what the other mistake changes lies elsewhere: a highlight missing, away from the detached shadows), the
+  rows are chosen again where the submission departs most from the offset's render at its rung;
 * for one, the rung with it made that comes nearest on the rows, then on the rows the submission is most off
   against it: the submission is graded against that rung's whole render, and against the range of it and each
   neighbour (:func:`service.images.grading.range_counts`: any amount between them lies in their range, as
@@ -86,6 +88,13 @@ class _Search:
         self.ladder = amounts(self.size)
         self.pixels = submitted.shape[0] * submitted.shape[1]
 
+    def told_by(self, image: np.ndarray) -> None:
+        """The rows a partner is chosen on made those where the submission departs most from ``image`` (the offset
+        alone at its rung, which explains the rows it departs most from the reference on: a missing highlight
+        lies elsewhere), and the reference's distance measured there."""
+        self.numbers = telling_rows(image, self.submitted, self.verdict.tolerance)
+        self.base = _beyond(self.reference[self.numbers], self.submitted[self.numbers], self.verdict.tolerance)
+
     def options(self, name: str | None, amount: float) -> Options:
         """The options of mistake ``name`` (None: none) made with an offset of ``amount`` in the scene's units."""
         made = merged((name,)) if name is not None else merged(())
@@ -107,8 +116,12 @@ class _Search:
         """The first of the :data:`TRIED` partners nearest on the rows (nearer than the offset alone, and within
         :data:`NEAR` of the reference's distance) that, made with the offset at some rung or between two, the
         submission passes against."""
-        rung = self.ladder[self.nearest(None)]
+        k = self.nearest(None)
+        rung = self.ladder[k]
         alone = self.error(None, rung)
+        if alone <= ADD_LEVELS:  # (the offset alone explains the rows: the other mistake shows elsewhere)
+            self.told_by(self.whole(None, k))
+            alone = self.error(None, rung)
         ranked = sorted(partners, key=lambda n: (self.error(n, rung), classic_first((n,))))
         for name in ranked[:TRIED]:
             if self.error(name, rung) > min(alone - ADD_LEVELS, NEAR * self.base):
@@ -135,7 +148,7 @@ class _Search:
         passing = [(off, span) for off, span in counted if off is not None]
         return self.named(name, min(passing)[1]) if passing else None
 
-    def whole(self, name: str, rung: int) -> np.ndarray:
+    def whole(self, name: str | None, rung: int) -> np.ndarray:
         self.renders.check()
         return self.renders.with_options(self.options(name, self.ladder[rung]))
 
