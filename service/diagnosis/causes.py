@@ -16,7 +16,7 @@ import numpy as np
 from tracer.scene.variants import ALIKE, BOUNDS, MORE_VARIANTS, VARIANTS
 
 from ..images.grading import Grade, grade
-from . import too_large
+from . import too_large, unclamped
 from .compose import stored_only
 from .fit import fit_terms
 from .looks import (
@@ -76,6 +76,7 @@ def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict
         if out.causes[0].variant in BOUNDS:  # (acne's far end hides a mistake that only darkens: is one shown?)
             acne = speckled_with(reference, submitted, verdict, renders)
             out.causes = out.causes if acne is None else together_causes(acne)
+        _wrapped(out, submitted, verdict, renders)
         return
     renders.check()
     out.terms = fit_terms(submitted, renders)
@@ -89,8 +90,21 @@ def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict
         return
     scoring.closest_round(later, later_bounds)  # the closest is named: score what may come closest
     out.causes, out.closest = closer(together, *scoring.named(), verdict)
+    _wrapped(out, submitted, verdict, renders)
     if not out.causes:
         out.causes = nearest_causes(reference, submitted, verdict, renders, out.terms)
+
+
+def _wrapped(out: Diagnosis, submitted: np.ndarray, verdict: Grade, renders: Renders) -> None:
+    """``out``'s causes made the mistake it names first with colours not clamped (:mod:`.unclamped`), where the
+    submission passes against the two together with fewer pixels off than against that mistake alone."""
+    first = out.causes[0] if out.causes else None
+    if first is None or first.together or (first.passes and first.fraction_off_nearby == 0):
+        return
+    renders.check()
+    found = unclamped.behind(first.variant, submitted, verdict, renders)
+    if found is not None:
+        out.causes, out.closest = together_causes(found), False
 
 
 class _Scoring:
