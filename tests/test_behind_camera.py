@@ -1,8 +1,9 @@
 """A mistake behind a camera mistake (service/diagnosis/behind_camera.py): the camera's mistake made the reference,
 the other mistake found behind it, both named and matched."""
 
+import pytest
 import student
-from test_compose import cornell, small
+from test_compose import small
 
 from service.diagnosis import Cached
 from service.diagnosis.behind_camera import camera_named
@@ -20,14 +21,15 @@ def graded(scene, mistakes: list[str]) -> pipeline.Graded:  # noqa: ANN001
     return pipeline.grade_png(reference, made, 2.0, 0.001, explaining=explaining)
 
 
-def test_no_shadow_rays_behind_a_horizontal_fov_are_named_with_it():
-    """On the Cornell homework the fov across the width moves every shadow: no shadow rays measured on the
-    reference's pixels does not add to it, and the fov alone only comes closest (11 % of the pixels off).
-    Behind the camera's mistake, no shadow rays match: both are named, matched, so both deductions apply."""
-    found = graded(cornell(), ["horizontal-fov", "no-shadows"])
+@pytest.mark.parametrize("other", ["blinn-phong", "no-specular"])
+def test_a_highlight_mistake_behind_a_horizontal_fov_is_named_with_it(other):
+    """On 04_whitted the fov across the width moves every highlight: the half vector's (or the missing specular
+    term's) difference measured on the reference's pixels does not add to it, and the fov alone only comes
+    closest.  Behind the camera's mistake, the other matches: both are named, matched, so both deductions apply."""
+    found = graded(small("04_whitted"), ["horizontal-fov", other])
     assert not found.grade.passed and found.diagnosis is not None
     said = found.diagnosis.as_dict()
-    assert [set(i.split("+")) for i in matched(said)][:1] == [{"horizontal-fov", "no-shadows"}]
+    assert [set(i.split("+")) for i in matched(said)][:1] == [{"horizontal-fov", other}]
     assert not said["closest"] and said["sentence"].startswith("Likely two mistakes together")
 
 
@@ -41,7 +43,7 @@ def test_a_camera_mistake_the_diagnosis_does_not_name_is_tried_where_it_helps_on
 
 
 def test_a_camera_mistake_made_alone_is_named_alone():
-    found = graded(cornell(), ["horizontal-fov"])
+    found = graded(small("04_whitted"), ["horizontal-fov"])
     assert found.diagnosis is not None
     assert matched(found.diagnosis.as_dict())[:1] == ["horizontal-fov"]
 
