@@ -116,3 +116,17 @@ def test_a_pair_of_a_student_tracer_is_named_both(all_lights, mistakes, named):
     verdict = grade(reference, made, "")
     assert not verdict.passed
     assert matched(diagnose(reference, made, verdict, renders_of(scene, 1)).as_dict()) == [named]
+
+
+@pytest.mark.parametrize("other", ["no-shadows", "gamma", "transparent-no-shadows"])
+def test_a_second_mistake_on_few_pixels_is_chosen_on_the_rows_the_closest_leaves_off(other):
+    """On 04_whitted no specular term shows on a few highlight pixels; made with a mistake that changes most rows
+    (shadows, gamma), it lies on none of the rows the submission departs most from the reference on, and the
+    other mistake alone only comes closest.  On the rows the submission departs most from that mistake's render,
+    the highlights are seen: both are named."""
+    scene = small("04_whitted")
+    reference = Renderer(scene).pixels()
+    made = student.render(scene, [other, "no-specular"])
+    found = diagnose(reference, made, grade(reference, made, ""), renders_of(scene, 1))
+    assert [set(i.split("+")) for i in matched(found.as_dict())][:1] == [{other, "no-specular"}]
+    assert not found.closest

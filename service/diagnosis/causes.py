@@ -17,6 +17,7 @@ from tracer.scene.variants import ALIKE, BOUNDS, MORE_VARIANTS, VARIANTS
 
 from ..images.grading import Grade, grade
 from . import too_large, unclamped
+from .combination import ALL
 from .compose import stored_only
 from .fit import fit_terms
 from .looks import (
@@ -31,7 +32,7 @@ from .looks import (
 from .records import Cause, Diagnosis
 from .renders import Renders
 from .speckled_with import speckled_with
-from .together import closer, combined, nearest_causes, together_causes
+from .together import beside_closest, closer, combined, nearest_causes, together_causes
 from .where import where
 
 #: a variant that is not passed against is still named when it leaves at most this share of the reference's
@@ -91,6 +92,10 @@ def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict
     scoring.closest_round(later, later_bounds)  # the closest is named: score what may come closest
     out.causes, out.closest = closer(together, *scoring.named(), verdict)
     _wrapped(out, submitted, verdict, renders)
+    if out.closest and not out.together and out.causes[0].variant in ALL:  # (a second mistake on other rows?)
+        beside = beside_closest(reference, submitted, verdict, renders, out.terms, out.causes[0].variant)
+        if beside is not None:
+            out.causes, out.closest, out.terms = together_causes(beside), False, []
     if not out.causes:
         out.causes = nearest_causes(reference, submitted, verdict, renders, out.terms)
 

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .combination import ALL, Combination
-from .compose import Looks, candidates, compose
+from .compose import Looks, candidates, compose, telling_rows
 from .nearest import Explanation, nearest
 from .records import Cause, Term
 from .renders import Renders
@@ -56,6 +56,19 @@ def combined(
         tried = [*candidates(looks, fitted(terms)), *filter(looks.shown, OUTER)]
         return with_offset(reference, submitted, verdict, renders, tried) or found
     return found
+
+
+def beside_closest(
+    reference: np.ndarray, submitted: np.ndarray, verdict: Grade, renders: Renders, terms: list[Term], closest: str
+) -> Combination | None:
+    """The mistakes made together the submission passes against, chosen (:func:`.compose.compose`) on the rows
+    where it departs most from the render of the mistake it comes ``closest`` to, not from the reference: a second
+    mistake that shows on few pixels (a highlight missing beside shadows missing) lies on none of the rows the
+    first one's difference fills, and its own difference is seen on these.  None when none passes."""
+    renders.check()
+    numbers = telling_rows(renders.variant(closest), submitted, verdict.tolerance)
+    found = compose(reference, submitted, verdict, looks_of(renders), fitted(terms), numbers)
+    return found if found is not None and found.passes else None
 
 
 def together_causes(combination: Combination) -> list[Cause]:
