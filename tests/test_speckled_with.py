@@ -53,3 +53,26 @@ def test_a_second_mistake_shows_only_where_the_pixels_acne_spares_show_it():
     both = darker.copy()
     both[0, ::2] = 40
     assert shows(reference, darker, both, 2.0)
+
+
+def test_acne_averaged_over_sub_samples_is_still_acne():
+    """08_antialiased takes 4 × 4 sub-samples a pixel: acne's speckles average out to about half the light, varying
+    from one pixel to the next by 0.14 of the way to the far end where one sample a pixel varies by 0.5.  The
+    speckle test's threshold falls with the sub-samples, and acne is named (it was a light "half as bright")."""
+    scene = small("08_antialiased")
+    reference = Renderer(scene).pixels()
+    made = student.render(scene, ["shadow-acne"])
+    found = diagnose(reference, made, grade(reference, made, ""), renders_of(scene, 1))
+    assert matched(found.as_dict())[:1] == ["shadow-acne"]
+
+
+@pytest.mark.parametrize("mistake", ["no-specular", "blinn-phong"])
+def test_a_smooth_departure_between_the_reference_and_acnes_far_end_is_not_acne(mistake):
+    """No specular term lies between the reference and acne's far end everywhere; with 16 sub-samples its changes
+    from a pixel to the next (0.03) stay under the threshold's floor: it is named as itself, not acne."""
+    scene = small("08_antialiased")
+    reference = Renderer(scene).pixels()
+    made = student.render(scene, [mistake])
+    found = diagnose(reference, made, grade(reference, made, ""), renders_of(scene, 1))
+    assert "shadow-acne" not in matched(found.as_dict())
+    assert matched(found.as_dict())[:1] == [mistake]

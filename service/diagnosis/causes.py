@@ -158,7 +158,7 @@ class _Scoring:
         )
         if far is None:
             return False
-        outside = speckled(self.reference, far, self.submitted, self.verdict.tolerance)
+        outside = speckled(self.reference, far, self.submitted, self.verdict.tolerance, self.renders.samples)
         if outside is not None:
             self.scored.append(Cause(name, VARIANTS[name][1], outside, outside <= self.verdict.max_fraction))
         return True

@@ -102,6 +102,7 @@ class SceneRenders:
         self.lights = [light.type for light in scene.lights]
         self.objects = [obj.type for obj in scene.objects]
         self.names = names_of(scene)
+        self.samples: int = scene.image.samples
         self.visible: float | None = None
         self.variants: dict[str, np.ndarray] = {}
         self.bounds: dict[str, np.ndarray] = {}

@@ -31,6 +31,10 @@ class Renders(Protocol):
         """The scene's object types, in order."""
 
     @property
+    def samples(self) -> int:
+        """The scene's sub-samples per pixel side (``image.samples``: each pixel the mean of n × n)."""
+
+    @property
     def names(self) -> Names:
         """How a student is told of the scene's objects and lights (:mod:`.words`)."""
 
@@ -112,6 +116,7 @@ class WholeImages:
     def __init__(self, renders: Renders):
         self.inner = renders
         self.lights, self.objects, self.names, self.open = renders.lights, renders.objects, renders.names, renders.open
+        self.samples = renders.samples
         self.variant, self.bound, self.passes = renders.variant, renders.bound, renders.passes
         self.blocks, self.render, self.size, self.check = renders.blocks, renders.render, renders.size, renders.check
         self.cancel_in_thread, self.done, self.nbytes = renders.cancel_in_thread, renders.done, renders.nbytes

@@ -94,7 +94,7 @@ def _confirmed(
     if not shows(reference, image, submitted, verdict.tolerance):
         return None
     far = renders.render(_far(name, other))
-    share = speckled(image, far, submitted, verdict.tolerance)
+    share = speckled(image, far, submitted, verdict.tolerance, renders.samples)
     if share is None or share > verdict.max_fraction:
         return None
     base = _beyond(reference, submitted, verdict.tolerance)
