@@ -27,7 +27,7 @@ of a scene, made when first asked for), :mod:`.cache` (those of the last few sce
 :mod:`.accepting` (the accepted variants a failing image is graded against before it is diagnosed),
 :mod:`.compose` and :mod:`.stored` (mistakes made together; mistakes of the stored image, found without a
 render), :mod:`.together` (the nearest explanations), :mod:`.nuisance` (a mistake behind an honest offset),
-:mod:`.behind_camera` (a mistake behind a camera mistake) and :mod:`.words` (names and scales in a student's
+:mod:`.behind` (a mistake behind another) and :mod:`.words` (names and scales in a student's
 words).
 """
 

@@ -77,7 +77,7 @@ OFFSET_FIELDS = ("offset", "offset_along")
 def on_base(options: Options, base: Options) -> Options:
     """``options`` made by a student who renders as ``base`` says: its rays leave surfaces by its offset, unless
     ``options`` sets an offset of its own (an offset too large); every other field ``base`` changes (a camera
-    mistake's, :mod:`.behind_camera`) is changed so, unless ``options`` changes that field itself."""
+    mistake's, :mod:`.behind`) is changed so, unless ``options`` changes that field itself."""
     update: dict[str, object] = {}
     for f in fields(base):
         value = getattr(base, f.name)

@@ -23,7 +23,7 @@ from tracer import decode_png, open_pixels
 
 from ..diagnosis import CACHE, Cached, Diagnosis, Renders, accepting, diagnose, renders_of
 from ..diagnosis.accepting import Failing
-from ..diagnosis.behind_camera import behind_camera, renders_behind
+from ..diagnosis.behind import behind_mistake, renders_behind
 from ..diagnosis.nuisance import behind_offset
 from ..images import grading
 from ..images.heatmap import Kind, heatmap_png
@@ -162,7 +162,7 @@ def explain(
     if not any(c.passes for c in found.causes) and found.unavailable is None:
         found = _behind_offset(scene, failing, checks, run, found) or found
     if not any(c.passes for c in found.causes) and found.unavailable is None:
-        found = _behind_camera(scene, failing, (renders, held), run, found) or found
+        found = _behind_mistake(scene, failing, (renders, held), run, found) or found
     return Graded(graded.grade, graded.heatmap, found)
 
 
@@ -181,17 +181,17 @@ def _behind_offset(scene: Scene, failing: Failing, checks: Checks, run: Checking
     return behind_offset(scene, failing, found, checks.accepted, (run.threads, run.cancel))
 
 
-def _behind_camera(
+def _behind_mistake(
     scene: Scene, failing: Failing, kept: tuple[Renders, Cached], run: Checking, found: Diagnosis
 ) -> Diagnosis | None:
-    """``found`` with the mistakes the submission matches behind the camera mistake it names
-    (:mod:`service.diagnosis.behind_camera`); None when there are none.  The renders on the camera's base are
-    held with the scene's (``kept``: the scene's renders and their cache)."""
+    """``found`` with the mistakes the submission matches behind another it names (:mod:`service.diagnosis.behind`);
+    None when there are none.  The renders on that mistake's base are held with the scene's (``kept``: the scene's
+    renders and their cache)."""
     renders, held = kept
     made = renders_behind(scene, scene_key(scene), (run.threads, run.cancel), held, failing.open_pixels)
     renders.cancel_in_thread(run.cancel)
     try:
-        return behind_camera(failing, found, renders, made)
+        return behind_mistake(failing, found, renders, made)
     finally:
         renders.done()
         held.trim()

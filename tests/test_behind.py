@@ -1,12 +1,12 @@
-"""A mistake behind a camera mistake (service/diagnosis/behind_camera.py): the camera's mistake made the reference,
-the other mistake found behind it, both named and matched."""
+"""A mistake behind another (service/diagnosis/behind.py): a camera mistake, or the mistake the diagnosis names
+first, made the reference, the other mistake found behind it, both named and matched."""
 
 import pytest
 import student
 from test_compose import small
 
 from service.diagnosis import Cached
-from service.diagnosis.behind_camera import camera_named
+from service.diagnosis.behind import camera_named
 from service.diagnosis.records import Cause, Diagnosis, matched
 from service.diagnosis.rendered import on_base
 from service.work import pipeline
@@ -40,6 +40,22 @@ def test_a_camera_mistake_the_diagnosis_does_not_name_is_tried_where_it_helps_on
     found = graded(small("02_all_lights"), ["no-half-pixel", "spot-radians"])
     assert found.diagnosis is not None
     assert [set(i.split("+")) for i in matched(found.diagnosis.as_dict())][:1] == [{"no-half-pixel", "spot-radians"}]
+
+
+@pytest.mark.parametrize(
+    "mistakes",
+    [
+        # no shadow rays light the back of a surface whose normal is not turned to face the ray: no sum of the two
+        # differences models it, and no shadow rays only leads the nearest explanations (99 % of the difference)
+        ["no-shadows", "normals-not-flipped"],
+        # with no mirror rays the highlights a mirror showed are gone with them: no reflection only comes closest
+        ["no-specular", "no-reflection"],
+    ],
+)
+def test_a_mistake_behind_the_one_the_diagnosis_names_first_is_named_with_it(mistakes):
+    found = graded(small("04_whitted"), mistakes)
+    assert found.diagnosis is not None
+    assert [set(i.split("+")) for i in matched(found.diagnosis.as_dict())][:1] == [set(mistakes)]
 
 
 def test_a_camera_mistake_made_alone_is_named_alone():
