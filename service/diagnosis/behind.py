@@ -16,10 +16,10 @@ mistake is that mistake made by them too.  The mistakes tried (:func:`bases`): t
 names (closest, nearest, or made with another), else each camera mistake that, made with the mistake it names
 first, leaves at most :data:`HELPS` of the pixels off on a few rows that mistake alone leaves (two renders of those
 rows: a spot's cutoff in radians relights most of the image and hides the half-pixel shift); then the mistake it
-names first, where it comes closest or is the nearest explanation of at least :data:`LEADS` of the difference.  A
-mistake the submission passes against behind one is named with it, as mistakes made together, graded as that
-whole diagnosis grades it: every reading it gives is kept.  Each costs a diagnosis of its own, paid only for an
-image no mistake, nor any sum of them, explains.
+names first (one made in the render: not one of :data:`NOT_BASES`), where it comes closest or is the nearest
+explanation of at least :data:`LEADS` of the difference.  A mistake the submission passes against behind one is
+named with it, as mistakes made together, graded as that whole diagnosis grades it: every reading it gives is
+kept.  Each costs a diagnosis of its own, paid only for an image no mistake, nor any sum of them, explains.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from collections.abc import Callable
 import numpy as np
 
 from schemas import Scene
+from tracer.scene.variants import BOUNDS
 
 from ..images.grading import grade
 from ..images.nearby import rows_distance
@@ -40,13 +41,19 @@ from .looks import sampled_rows
 from .records import Diagnosis
 from .rendered import renders_of
 from .renders import Renders
+from .stored import OUTER, STORED
 from .together import together_causes
+from .too_large import NAME as TOO_LARGE
 
 #: the mistakes of the camera: each moves what every pixel shows, so no other mistake's difference adds to theirs
 CAMERA = ("horizontal-fov", "no-half-pixel")
 #: the first nearest explanation is diagnosed behind when it is a mistake that accounts for at least this share of
 #: the difference (most of it: the rest is likely another mistake's)
 LEADS = 0.5
+#: never a base: a speckled mistake (its render is one pattern of speckles of many, not the student's), an offset
+#: too large (at the one amount its variant is rendered at: :mod:`.with_offset` finds it with another at the
+#: student's own), and the mistakes of the stored image (:mod:`.compose` finds them with others exactly)
+NOT_BASES = frozenset({*BOUNDS, TOO_LARGE, *OUTER, *STORED})
 
 #: a camera mistake the diagnosis does not name is tried when, made with the mistake it names first, it leaves at
 #: most this share of the pixels off on a few rows that mistake alone leaves (a shift of every edge: far fewer)
@@ -82,7 +89,8 @@ def bases(found: Diagnosis, pair: Failing, renders: Renders) -> list[str]:
     nearest explanations (:data:`LEADS`)."""
     lead = found.causes[0] if found.causes else None
     first = lead.variant if lead is not None and lead.variant in ALL else None
-    out = [] if first is None or not (found.closest or (lead and (lead.share or 0.0) >= LEADS)) else [first]
+    leads = first is not None and first not in NOT_BASES and (found.closest or (lead and (lead.share or 0.0) >= LEADS))
+    out = [first] if leads and first is not None else []
     named = camera_named(found)
     if named is not None:
         return [named, *(n for n in out if n != named)]
