@@ -19,7 +19,7 @@ from pydantic import ValidationError
 from schemas import Image, Scene, SceneError, parse_json, validate_scene
 from schemas.errors import problems_from_validation
 from schemas.locate import Located, as_lines, format_located
-from tracer import decode_png, open_pixels
+from tracer import RenderCancelled, decode_png, open_pixels
 
 from ..diagnosis import CACHE, Cached, Diagnosis, Renders, accepting, diagnose, renders_of
 from ..diagnosis.accepting import Failing
@@ -185,13 +185,16 @@ def _behind_mistake(
     scene: Scene, failing: Failing, kept: tuple[Renders, Cached], run: Checking, found: Diagnosis
 ) -> Diagnosis | None:
     """``found`` with the mistakes the submission matches behind another it names (:mod:`service.diagnosis.behind`);
-    None when there are none.  The renders on that mistake's base are held with the scene's (``kept``: the scene's
-    renders and their cache)."""
+    None when there are none, or when the time runs out on the way (``found`` is a whole diagnosis already: it is
+    not lost to a further look's).  The renders on that mistake's base are held with the scene's (``kept``: the
+    scene's renders and their cache)."""
     renders, held = kept
     made = renders_behind(scene, scene_key(scene), (run.threads, run.cancel), held, failing.open_pixels)
     renders.cancel_in_thread(run.cancel)
     try:
         return behind_mistake(failing, found, renders, made)
+    except RenderCancelled:
+        return None
     finally:
         renders.done()
         held.trim()
