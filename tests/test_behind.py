@@ -7,8 +7,8 @@ from test_compose import small
 
 from service.diagnosis import Cached, behind
 from service.diagnosis.behind import camera_named
+from service.diagnosis.combination import on_base
 from service.diagnosis.records import Cause, Diagnosis, matched
-from service.diagnosis.rendered import on_base
 from service.work import pipeline
 from tracer import RenderCancelled, Renderer, encode_png
 from tracer.scene.variants import REFERENCE, Options

@@ -11,7 +11,7 @@ which holds where each changes its own term.  Some never add:
   turned to face the ray, where no shadow rays light the back of a surface) change what the other changes.
 
 So where nothing passes, the diagnosis is made again with a mistake as the student's own way of rendering (the
-renders' ``base``, :func:`.rendered.on_base`): the reference is the scene as that student renders it, and each
+renders' ``base``, :func:`.combination.on_base`): the reference is the scene as that student renders it, and each
 mistake is that mistake made by them too.  The mistakes tried (:func:`bases`): the camera mistake the diagnosis
 names (closest, nearest, or made with another), else each camera mistake that, made with the mistake it names
 first, leaves at most :data:`HELPS` of the pixels off on a few rows that mistake alone leaves (two renders of those

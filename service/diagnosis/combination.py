@@ -1,6 +1,7 @@
 """A combination of mistakes made together: its record (:class:`Combination`, each mistake a :class:`Member`
-with its evidence), the options of mistakes made together (:func:`merged`), and which come first of two a
-diagnosis cannot tell apart (:func:`classic_first`)."""
+with its evidence), the options of mistakes made together (:func:`merged`) and of a mistake made by a student who
+renders their own way (:func:`on_base`), and which come first of two a diagnosis cannot tell apart
+(:func:`classic_first`)."""
 
 from __future__ import annotations
 
@@ -65,3 +66,24 @@ def compatible(names: tuple[str, ...]) -> bool:
 def classic_first(names: tuple[str, ...]) -> tuple[int, tuple[str, ...]]:
     """A sort key: fewer new mistakes (:data:`MORE_VARIANTS`) first, then by name."""
     return sum(n not in VARIANTS for n in names), names
+
+
+#: the fields of an offset, taken from a base together or not at all
+OFFSET_FIELDS = ("offset", "offset_along")
+
+
+def on_base(options: Options, base: Options) -> Options:
+    """``options`` made by a student who renders as ``base`` says: its rays leave surfaces by its offset, unless
+    ``options`` sets an offset of its own (an offset too large); every other field ``base`` changes (a camera
+    mistake's, :mod:`.behind`) is changed so, unless ``options`` changes that field itself."""
+    update: dict[str, object] = {}
+    for f in fields(base):
+        value = getattr(base, f.name)
+        if value == getattr(REFERENCE, f.name):
+            continue
+        mine = (
+            options.offset != 0 if f.name in OFFSET_FIELDS else getattr(options, f.name) != getattr(REFERENCE, f.name)
+        )
+        if not mine:
+            update[f.name] = value
+    return replace(options, **update) if update else options  # type: ignore[arg-type]

@@ -26,11 +26,10 @@ from ..images.grading import Grade, grade
 from ..images.nearby import rows_distance
 from ..render.scenekey import scene_key
 from .accepting import KEPT_RENDERS, Failing, Look, _render, accepted_ladders
-from .combination import ALL, compatible, merged
+from .combination import ALL, compatible, merged, on_base
 from .looks import sampled_rows
 from .offsets import Rung
 from .records import Cause, Diagnosis
-from .rendered import on_base
 
 #: the offset is fitted only when, with the mistake made, it explains more than this share of what the grade
 #: allows off: less than that changes no verdict

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from dataclasses import fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -15,6 +14,7 @@ from tracer.image import quantize
 from tracer.scene.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
 from tracer.shade.passes import ADDITIVE, LIGHT_TERMS
 
+from .combination import on_base
 from .fit import FIT_BLOCK_PIXELS
 from .offsets import visible_size
 from .spots import Spots
@@ -68,27 +68,6 @@ def options_of(name: str, size: Callable[[], float] | None = None) -> Options:
 def by_options(options: Options) -> str:
     """The name a render made with ``options`` is kept under (:meth:`SceneRenders.with_rows`)."""
     return f"options:{options!r}"
-
-
-#: the fields of an offset, taken from a base together or not at all
-OFFSET_FIELDS = ("offset", "offset_along")
-
-
-def on_base(options: Options, base: Options) -> Options:
-    """``options`` made by a student who renders as ``base`` says: its rays leave surfaces by its offset, unless
-    ``options`` sets an offset of its own (an offset too large); every other field ``base`` changes (a camera
-    mistake's, :mod:`.behind`) is changed so, unless ``options`` changes that field itself."""
-    update: dict[str, object] = {}
-    for f in fields(base):
-        value = getattr(base, f.name)
-        if value == getattr(REFERENCE, f.name):
-            continue
-        mine = (
-            options.offset != 0 if f.name in OFFSET_FIELDS else getattr(options, f.name) != getattr(REFERENCE, f.name)
-        )
-        if not mine:
-            update[f.name] = value
-    return replace(options, **update) if update else options  # type: ignore[arg-type]
 
 
 class SceneRenders:
