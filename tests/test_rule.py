@@ -148,3 +148,19 @@ def test_a_mistake_behind_an_honest_offset_keeps_its_name_and_its_deduction():
     row = kept_row(marked, path)
     assert row["status"] == "fail" and row["mistakes"] == ["gamma"]
     assert score(row, TaskSettings(points=2, deductions={"gamma": 1})).score == 1
+
+
+@pytest.mark.parametrize(
+    ("example", "mistake"), [("04_whitted", "no-reflection"), ("02_all_lights", "area-not-divided")]
+)
+def test_a_mistake_behind_an_offset_that_shows_on_few_rows_keeps_its_name(example, mistake):
+    """Behind an honest offset of 3e-3 of the visible size, a Whitted scene with no reflection, or an area light not
+    divided by nu·nv, differs from the mistake's own render only on a glass ball or a few shadow edges, which the
+    evenly sampled rows miss: the offset is fitted on the rows the submission departs most from that render on, and
+    the mistake is named as matched."""
+    scene = _scene(ROOT / "examples" / f"{example}.json")
+    image = student.render(scene, [mistake], style=student.Offset(3e-3 * Renderer(scene).visible_size()))
+    found = _graded(scene, image).diagnosis
+    assert found is not None and not found.closest, found
+    assert [c.variant for c in found.causes] == [mistake] and found.causes[0].passes
+    assert found.offset is not None and found.offset.endswith("along the normal")

@@ -27,7 +27,7 @@ from ..images.nearby import rows_distance
 from ..render.scenekey import scene_key
 from .accepting import KEPT_RENDERS, Failing, Look, _render, accepted_ladders
 from .combination import ALL, compatible, merged, on_base
-from .looks import sampled_rows
+from .looks import off_rows, sampled_rows, telling_middles
 from .offsets import Rung
 from .records import Cause, Diagnosis
 
@@ -90,21 +90,23 @@ def candidates(found: Diagnosis) -> list[tuple[str, ...]]:
 def fit(asked: Asked, pair: Failing, mistake: Options) -> AtOffset | None:
     """The submission graded against ``mistake`` made at the rung of the ladder that leaves the fewest of its
     pixels off on a few rows, with the pixels the offset moves between the rungs either side not counted; None
-    when no rung explains enough to matter (:data:`MATTERS`)."""
+    when no rung explains enough to matter (:data:`MATTERS`).
+
+    The rows are first the sampled ones (:func:`.looks.sampled_rows`), a fair sample of the image; where the
+    offset shows on few pixels (a glass ball's refractions, the mistake's own difference everywhere else) it
+    may lie on none of them, so then on the rows where the submission departs most from the mistake's own
+    render (as many as the sample, :func:`.looks.telling_middles`), which the offset's pixels fill.  Rows only
+    choose the rung: the answer is the whole image's grade."""
     h, w, _ = pair.submitted.shape
-    middles, rows = sampled_rows(h)
-    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
-    shut = np.zeros((len(middles), w), bool) if pair.open_pixels is None else pair.open_pixels[middles]
-
-    def off(options: Options) -> int:
-        bands = asked.look.rows(asked.scene, options, rows).reshape(len(middles), 3, w, 3)
-        return int(np.count_nonzero((rows_distance(bands, bands, submitted) > pair.failed.tolerance) & ~shut))
-
-    options = [on_base(mistake, r.options) for r in asked.rungs]
-    counts = [off(o) for o in options]
-    best = int(np.argmin(counts))
-    if (off(mistake) - counts[best]) * h / max(len(middles), 1) <= MATTERS * pair.failed.max_fraction * h * w:
+    middles = sampled_rows(h)[0]
+    best = _rung(asked, pair, mistake, middles, h / max(len(middles), 1))
+    if best is None:
+        counts = off_rows(_whole(asked, mistake, h * w), pair.submitted, pair.failed.tolerance, pair.open_pixels)
+        middles = telling_middles(counts, float(counts.sum()))  # (as many as the sample has, most off first)
+        best = _rung(asked, pair, mistake, middles, 1.0) if len(middles) else None
+    if best is None:
         return None
+    options = [on_base(mistake, r.options) for r in asked.rungs]
     near = [mistake] if best == 0 else []
     near += [options[k] for k in range(max(best - 1, 0), min(best + 2, len(options)))]
     images = {o: _whole(asked, o, h * w) for o in near}
@@ -115,6 +117,26 @@ def fit(asked: Asked, pair: Failing, mistake: Options) -> AtOffset | None:
     failed = pair.failed
     graded = grade(images[options[best]], pair.submitted, "", failed.tolerance, failed.max_fraction, moved)
     return AtOffset(asked.rungs[best], graded)
+
+
+def _rung(asked: Asked, pair: Failing, mistake: Options, middles: np.ndarray, scale: float) -> int | None:
+    """The rung whose render with ``mistake`` leaves the fewest of the submission's pixels off on the rows
+    ``middles`` (each with its neighbours); None when it leaves fewer than the mistake alone by no more than
+    :data:`MATTERS` of what the grade allows off, the rows' count × ``scale`` (their share of the image)."""
+    h, w, _ = pair.submitted.shape
+    rows = (middles[:, None] + np.arange(-1, 2)[None, :]).ravel()
+    submitted = pair.submitted[rows].reshape(len(middles), 3, w, 3)
+    shut = np.zeros((len(middles), w), bool) if pair.open_pixels is None else pair.open_pixels[middles]
+
+    def off(options: Options) -> int:
+        bands = asked.look.rows(asked.scene, options, rows).reshape(len(middles), 3, w, 3)
+        return int(np.count_nonzero((rows_distance(bands, bands, submitted) > pair.failed.tolerance) & ~shut))
+
+    counts = [off(on_base(mistake, r.options)) for r in asked.rungs]
+    best = int(np.argmin(counts))
+    if (off(mistake) - counts[best]) * scale <= MATTERS * pair.failed.max_fraction * h * w:
+        return None
+    return best
 
 
 def _whole(asked: Asked, options: Options, pixels: int) -> np.ndarray:
