@@ -27,6 +27,14 @@ from .scene import (
 Problem = tuple[str, str]
 #: at most this many index errors are listed for one mesh
 MAX_LISTED = 10
+#: the largest magnitude of a coordinate or a length (a radius, an area light's edge, an orthographic view's
+#: height) phongray renders: beyond about 1e77 the squares and products of the tracer's bounds and tests overflow
+#: (a mesh's cell grid, a sphere's lighting past 1e150), so a scene there would render wrong, not be refused
+MOST = 1e60
+#: the least the largest of them may be (a whole scene this small underflows the same way below about 1e-100);
+#: one tiny coordinate or object in a scene of ordinary size is no problem.  The format asks for every scale
+#: from 1e-30 to 1e30 times a scene's; these bounds leave thirty orders of ten beyond that either way
+LEAST = 1e-60
 
 
 def parallel(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray) -> bool:
@@ -62,7 +70,61 @@ def check_scene(scene: Scene) -> list[Problem]:
         *_lights(scene),
         *_names(scene.objects, "objects"),
         *_names(scene.lights, "lights"),
+        *_scale(scene),
     ]
+
+
+def _scale(scene: Scene) -> Iterator[Problem]:
+    """The scene's largest coordinate or length, where it lies beyond :data:`MOST` or below :data:`LEAST`."""
+    largest, where = 0.0, ""
+    for path, values in _lengths(scene):
+        if values.size:
+            k = int(np.argmax(np.abs(values)))
+            if abs(float(values.flat[k])) > largest:
+                largest, where = abs(float(values.flat[k])), _at(path, values.shape, k)
+    if largest > MOST:
+        yield (
+            where,
+            f"{largest:.3g} is too large: phongray renders coordinates and sizes of at most 1e{math.log10(MOST):.0f} "
+            "(scale the scene down)",
+        )
+    elif 0 < largest < LEAST:
+        yield (
+            where,
+            (
+                f"the scene's largest coordinate or size is {largest:.3g}: phongray renders scenes whose largest "
+                f"is at least 1e{math.log10(LEAST):.0f} (scale the scene up)"
+            ),
+        )
+
+
+def _at(path: str, shape: tuple[int, ...], k: int) -> str:
+    """The path of element ``k`` (flat) of values of ``shape`` at ``path``: ``objects[2].vertices[5][0]``."""
+    return path + "".join(f"[{i}]" for i in np.unravel_index(k, shape)) if len(shape) else path
+
+
+def _lengths(scene: Scene) -> Iterator[tuple[str, np.ndarray]]:
+    """Each coordinate and length of the scene with its path (directions, whose length is not read, are not)."""
+    cam = scene.camera
+    yield "camera.position", np.asarray(cam.position, dtype=np.float64)
+    yield "camera.look_at", np.asarray(cam.look_at, dtype=np.float64)
+    if cam.type == "orthographic":
+        yield "camera.height", np.asarray(cam.height, dtype=np.float64)
+    for i, obj in enumerate(scene.objects):
+        where = f"objects[{i}]"
+        if isinstance(obj, Mesh):
+            yield f"{where}.vertices", obj.rows("vertices")
+        elif isinstance(obj, Triangle):
+            yield f"{where}.vertices", np.asarray(obj.vertices, dtype=np.float64)
+        elif isinstance(obj, Plane):
+            yield f"{where}.point", np.asarray(obj.point, dtype=np.float64)
+        else:
+            yield f"{where}.center", np.asarray(obj.center, dtype=np.float64)
+            yield f"{where}.radius", np.asarray(obj.radius, dtype=np.float64)
+    for i, light in enumerate(scene.lights):
+        for name in ("position", "corner", "edge_u", "edge_v"):
+            if hasattr(light, name):
+                yield f"lights[{i}].{name}", np.asarray(getattr(light, name), dtype=np.float64)
 
 
 def _names(items: Sequence[object], where: str) -> Iterator[Problem]:

@@ -137,15 +137,20 @@ def test_hostile_scene_is_refused_fast(server, name, body, says):
 
 
 def test_huge_but_finite_numbers_render_finite_pixels(server):
+    """As large as phongray renders (coordinates and sizes up to 1e60; colours and attenuations any finite number):
+    rendered; beyond that, refused at the place, never rendered wrong."""
     url, _ = server
     data = json.loads(SCENE)
-    data["objects"].append({"type": "sphere", "material": "red", "center": [1e300, 1e300, -1e300], "radius": 1e300})
+    data["objects"].append({"type": "sphere", "material": "red", "center": [1e60, 1e60, -1e60], "radius": 1e60})
     data["lights"].append(
-        {"type": "point", "position": [-1e308, 1e308, 1e308], "color": 1e308, "attenuation": [1e-308, 0, 1e308]}
+        {"type": "point", "position": [-1e60, 1e60, 1e60], "color": 1e308, "attenuation": [1e-308, 0, 1e308]}
     )
     status, text, seconds = post(url, "/render", json.dumps(data).encode())
     measured("hostile huge but finite numbers: rendered (s)", seconds)
     assert status == 200 and seconds < 5 * REFUSED_WITHIN
+    data["objects"][-1]["radius"] = 1e300
+    status, text, _ = post(url, "/render", json.dumps(data).encode())
+    assert status == 422 and "objects[" in text and "radius" in text and "is too large" in text, text
 
 
 def png_bomb() -> bytes:

@@ -372,6 +372,55 @@ def test_numbers_too_large_for_float64_are_rejected():
     assert "camera.look_at[2]: must be a finite number" in str(info.value)
 
 
+def _scaled(data: dict, k: float) -> dict:
+    """A scene with every coordinate and length times ``k`` (its attenuation scaled with it)."""
+    out = json.loads(json.dumps(data))
+
+    def times(v):  # noqa: ANN001, ANN202
+        return [times(x) for x in v] if isinstance(v, list) else v * k
+
+    out["camera"].update(position=times(out["camera"]["position"]), look_at=times(out["camera"]["look_at"]))
+    for obj in out["objects"]:
+        for key in ("center", "point", "vertices", "radius"):
+            if key in obj:
+                obj[key] = times(obj[key])
+    for light in out["lights"]:
+        for key in ("position", "corner", "edge_u", "edge_v"):
+            if key in light:
+                light[key] = times(light[key])
+    return out
+
+
+@pytest.mark.parametrize("k", [1e-30, 1e30])
+def test_every_scale_the_format_asks_for_is_valid(k):
+    for name in EXAMPLES:
+        schemas.validate_scene(_scaled(scene_dict(name), k))
+
+
+def test_a_coordinate_beyond_what_renders_exactly_is_refused_at_its_place():
+    """Beyond 1e60 the tracer's squares and products overflow (a mesh's grid failed from 1e77): refused, named at
+    the largest value, not rendered wrong."""
+    data = scene_dict("05_mesh")
+    data["objects"][1]["vertices"][2][1] = -3e70
+    assert problems(data) == [
+        "objects[1].vertices[2][1]: 3e+70 is too large: phongray renders coordinates and sizes of at most 1e60 "
+        "(scale the scene down)"
+    ]
+    data = scene_dict("01_three_spheres")
+    data["objects"][1]["radius"] = 1e61
+    assert [p.split(":")[0] for p in problems(data)] == ["objects[1].radius"]
+
+
+def test_a_whole_scene_too_small_is_refused_but_one_tiny_value_is_not():
+    assert problems(_scaled(scene_dict("05_mesh"), 1e-70))[0].startswith(
+        "camera.position[2]: the scene's largest coordinate or size is "
+    )
+    data = scene_dict("01_three_spheres")
+    data["objects"][1]["radius"] = 1e-200  # (a tiny ball in a scene of ordinary size)
+    data["objects"][1]["center"] = [1e-300, 0, 0]
+    schemas.validate_scene(data)
+
+
 def test_deep_nesting_is_an_error_not_a_crash():
     with pytest.raises(schemas.SceneError):
         schemas.load_scene("[" * 100_000 + "]" * 100_000)
