@@ -255,6 +255,10 @@ def syntax_error(exc: json.JSONDecodeError) -> str:
     return f"invalid JSON: {what} at line {line} column {column}"
 
 
+#: the longest whole number Python reads from text (sys.get_int_max_str_digits's default)
+_MOST_DIGITS = 4300
+
+
 def parse_json(text: str | bytes, shared: bool = True) -> Any:
     """Strict JSON: no NaN/Infinity tokens, no duplicate keys; errors as SceneError.
 
@@ -273,4 +277,6 @@ def parse_json(text: str | bytes, shared: bool = True) -> Any:
     except RecursionError:
         raise SceneError([("", "invalid JSON: nested too deeply")]) from None
     except ValueError as exc:
+        if "integer string conversion" in str(exc):  # (Python's guard against quadratic int parsing)
+            raise SceneError([("", f"invalid JSON: a whole number of more than {_MOST_DIGITS} digits")]) from None
         raise SceneError([("", f"invalid JSON: {exc}")]) from None

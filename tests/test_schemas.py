@@ -356,6 +356,7 @@ def test_zero_area_mesh_face_is_allowed():
         ('{"a": ', "invalid JSON"),
         ("[1, 2]", "a scene must be a JSON object"),
         (b"\xff\xfe", "invalid JSON"),
+        ('{"image": {"width": 1' + "0" * 5000 + "}}", "invalid JSON: a whole number of more than 4300 digits"),
     ],
 )
 def test_malformed_documents(text, expected):
