@@ -67,6 +67,9 @@ def test_etag_and_if_none_match(api):
     # whitespace and key order do not change the canonical scene
     reordered = json.dumps(dict(reversed(list(json.loads(SCENE).items()))), indent=4)
     assert api.post("/render", content=reordered, headers={**JSON, "if-none-match": etag}).status_code == 304
+    for header in ("*", f'"other", W/{etag}', f"W/{etag}"):  # (any tag, and weak comparison: RFC 9110 13.1.2)
+        assert api.post("/render", content=SCENE, headers={**JSON, "if-none-match": header}).status_code == 304
+    assert api.post("/render", content=SCENE, headers={**JSON, "if-none-match": '"other"'}).status_code == 200
 
 
 def test_query_overrides(api):

@@ -99,7 +99,7 @@ async def render_scene(
     )
     if pass_ is not None:
         return await _pass(request, job, PassRequest(pass_, light, format))
-    if job.etag in [t.strip() for t in request.headers.get("if-none-match", "").split(",")]:
+    if _none_match(request.headers.get("if-none-match", ""), job.etag):
         return Response(status_code=304, headers={"ETag": job.etag, "Cache-Control": "no-cache"})
     started = time.perf_counter()
     headers = {"ETag": job.etag}  # (Cache-Control: no-cache is every streamed answer's own)
@@ -147,3 +147,10 @@ async def validate(request: Request) -> dict[str, bool]:
     service: RenderService = request.app.state.service
     await anyio.to_thread.run_sync(_validate, body, service, limiter=service.parsing)
     return {"valid": True}
+
+
+def _none_match(header: str, etag: str) -> bool:
+    """Whether ``If-None-Match`` matches the render's ETag, as RFC 9110 §13.1.2 compares: ``*``, or any of its
+    tags weakly (``W/"…"`` matches ``"…"``)."""
+    tags = [t.strip() for t in header.split(",")]
+    return "*" in tags or any(t.removeprefix("W/") == etag.removeprefix("W/") for t in tags)
