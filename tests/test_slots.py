@@ -185,4 +185,5 @@ def test_a_grade_that_gets_no_slot_in_time_is_503_with_retry_after_never_a_fail(
         slots.give(held)
     assert res.status_code == 503, res.text
     assert "every render slot is busy" in res.json()["detail"] and int(res.headers["retry-after"]) >= 1
+    assert "(1 render at once; this one waited longer than queue_wait = 0 s)" in res.json()["detail"], res.text
     assert _grade(api, scene, image).json()["accepted"] == ACCEPTED  # (once a slot is free)

@@ -102,10 +102,12 @@ def unavailable(exc: Exception, service: RenderService) -> HTTPProblem:
         detail = "the render ran out of memory beside this worker's other work; try again shortly"
     elif isinstance(exc, Busy):
         retry = service.slots.retry_after(retry)
+        waiting = service.slots.waiting  # (the others: this request has left the queue)
+        others = f", {waiting} more still waiting" if waiting else ""
+        slots = settings.max_concurrent_renders
         detail = (
-            f"every render slot is busy ({service.slots.waiting} waiting their turn for "
-            f"{settings.max_concurrent_renders}, longer than queue_wait = {settings.queue_wait:g} s); "
-            f"try again in {retry} s"
+            f"every render slot is busy ({slots} render{'s' if slots != 1 else ''} at once; this one waited longer "
+            f"than queue_wait = {settings.queue_wait:g} s{others}); try again in {retry} s"
         )
     elif isinstance(exc, TooSlow):
         detail = f"the render ran past the limit render_timeout = {settings.render_timeout:g} s"
