@@ -283,6 +283,12 @@ def test_grade_form_errors(api, reference_png):
     assert res.status_code == 422 and "image: required" in res.json()["detail"]
     bad_scene = grade(api, scene=b'{"camera": {}}', image=reference_png)
     assert bad_scene.status_code == 422 and bad_scene.json()["errors"]
+    twice = api.post(
+        "/grade",
+        data={"scene": SCENE.decode()},
+        files=[("image", ("a.png", reference_png)), ("image", ("b.png", b"x"))],
+    )
+    assert twice.status_code == 422 and "image: given 2 times in the form" in twice.json()["detail"], twice.text
 
 
 def test_heatmap(api, reference_png):

@@ -90,6 +90,7 @@ async def grade(
     except Exception as exc:  # malformed multipart bodies
         raise HTTPProblem(422, f"invalid multipart form: {exc}") from None
     try:
+        _once(form)
         scene_text = await _field(form.get("scene"), "scene")
         image = await _field(form.get("image"), "image", text=False)
     finally:
@@ -175,6 +176,19 @@ def _compare(
     finally:
         del submitted
         release()
+
+
+#: the form's fields, each of which a grade reads once
+FIELDS = ("scene", "image", "tolerance", "max_fraction", "diagnose")
+
+
+def _once(form: Any) -> None:
+    """A field sent twice is refused, naming it: which of the two a grade took would be a guess."""
+    for name in FIELDS:
+        if len(form.getlist(name)) > 1:
+            raise HTTPProblem(
+                422, f"{name}: given {len(form.getlist(name))} times in the form; send it once", part=name
+            )
 
 
 async def _field(value: Any, name: str, text: bool = True) -> Any:
