@@ -268,6 +268,8 @@ def parse_json(text: str | bytes, shared: bool = True) -> Any:
     numbers: dict[str, Any] = {"parse_float": _float, "parse_int": _int} if yielding else {}
     if not text or text.isspace():
         raise SceneError([("", "invalid JSON: the document is empty")])
+    if isinstance(text, bytes) and (text.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\0" in text[:4]):
+        raise SceneError([("", "invalid JSON: the document is UTF-16 or UTF-32 text; send it as UTF-8")])
     try:
         return json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates, **numbers)
     except json.JSONDecodeError as exc:

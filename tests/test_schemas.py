@@ -356,6 +356,8 @@ def test_zero_area_mesh_face_is_allowed():
         ('{"a": ', "invalid JSON"),
         ("[1, 2]", "a scene must be a JSON object"),
         (b"\xff\xfe", "invalid JSON"),
+        ('{"a": 1}'.encode("utf-16"), "invalid JSON: the document is UTF-16 or UTF-32 text; send it as UTF-8"),
+        ('{"a": 1}'.encode("utf-32-le"), "invalid JSON: the document is UTF-16 or UTF-32 text; send it as UTF-8"),
         ('{"image": {"width": 1' + "0" * 5000 + "}}", "invalid JSON: a whole number of more than 4300 digits"),
     ],
 )

@@ -186,9 +186,8 @@ def _once(form: Any) -> None:
     """A field sent twice is refused, naming it: which of the two a grade took would be a guess."""
     for name in FIELDS:
         if len(form.getlist(name)) > 1:
-            raise HTTPProblem(
-                422, f"{name}: given {len(form.getlist(name))} times in the form; send it once", part=name
-            )
+            said = f"{name}: given {len(form.getlist(name))} times in the form; send it once"
+            raise HTTPProblem(422, said, part=name if name in ("scene", "image") else None)
 
 
 async def _field(value: Any, name: str, text: bool = True) -> Any:
