@@ -1,11 +1,15 @@
 """Shadow acne made with a second mistake (service/diagnosis/speckled_with.py): both named, from the image of a
 student tracer written from the scene format (tests/student.py), its acne in its own speckles."""
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 import student
 from test_compose import small
 
+from schemas import validate_scene
 from service.diagnosis import diagnose, renders_of
 from service.diagnosis.records import matched
 from service.diagnosis.speckled_with import shows
@@ -33,9 +37,33 @@ def test_acne_with_another_mistake_names_both(lights, other):
 
 
 def test_acne_with_a_mistake_that_only_darkens_names_both(lights):
-    # no specular lies between the reference and acne's far end (no direct light): acne alone passed
+    # no specular lies between the reference and acne's far end (no direct light): acne alone passed.  The
+    # reflected vector with the wrong sign differs from it only where a light lies behind a surface, and acne
+    # darkens those pixels as far: the image cannot tell the two apart, and says both, its own first
     scene, reference = lights
-    assert _ids(scene, reference, ["shadow-acne", "no-specular"]) == ["shadow-acne+no-specular"]
+    assert _ids(scene, reference, ["shadow-acne", "no-specular"]) == [
+        "shadow-acne+no-specular",
+        "shadow-acne+reflect-sign",
+    ]
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    data = json.loads((Path(__file__).resolve().parent.parent / "examples" / "09_cornell_homework.json").read_text())
+    data["image"].update(width=64, height=48)
+    scene = validate_scene(data)
+    return scene, Renderer(scene).pixels()
+
+
+def test_acne_with_the_reflected_vector_wrong_is_named_so_beside_its_twin(cornell):
+    """In the Cornell homework, acne with the reflected vector's sign wrong was named as acne with no specular
+    term, nothing more: a student with a specular term was told they had none.  Both readings are said now, the
+    one the image comes nearer first."""
+    scene, reference = cornell
+    assert _ids(scene, reference, ["shadow-acne", "reflect-sign"]) == [
+        "shadow-acne+reflect-sign",
+        "shadow-acne+no-specular",
+    ]
 
 
 def test_acne_alone_is_still_acne_alone(lights):
@@ -76,3 +104,11 @@ def test_a_smooth_departure_between_the_reference_and_acnes_far_end_is_not_acne(
     found = diagnose(reference, made, grade(reference, made, ""), renders_of(scene, 1))
     assert "shadow-acne" not in matched(found.as_dict())
     assert matched(found.as_dict())[:1] == [mistake]
+
+
+def test_acne_over_a_spots_wider_cone_names_both(cornell):
+    """A spot's cutoff read in radians widens its cone across the walls, and acne speckles the very pixels it
+    lights: few match the spot mistake's render as they are.  Between that render and its far end (acne made
+    with it), and not between the reference and acne's own far end, lie more: both are named."""
+    scene, reference = cornell
+    assert _ids(scene, reference, ["shadow-acne", "spot-radians"]) == ["shadow-acne+spot-radians"]
