@@ -6,6 +6,7 @@ import http.client
 import json
 import os
 import urllib.error
+import urllib.parse
 import urllib.request
 import uuid
 from typing import Any
@@ -60,9 +61,19 @@ class ServerError(Exception):
 
 
 def base_url(server: str) -> str:
-    """``localhost:8000`` → ``http://localhost:8000``; no trailing slash."""
+    """``localhost:8000`` → ``http://localhost:8000``; no trailing slash.  A ServerError (the caller's) for a URL
+    that names no server: an empty one, an unclosed ``[`` of an IPv6 address, a port beyond 65535, a scheme other
+    than http or https."""
     server = server.strip()
-    return (server if "://" in server else f"http://{server}").rstrip("/")
+    url = (server if "://" in server else f"http://{server}").rstrip("/")
+    try:
+        parts = urllib.parse.urlsplit(url)
+        parts.port  # noqa: B018 (read for its ValueError: a port that is not 0–65535)
+    except ValueError as exc:
+        raise ServerError(f"--server: {server!r} is not a URL ({exc})") from None
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        raise ServerError(f"--server: {server!r} is not the http:// or https:// URL of a server")
+    return url
 
 
 def _call(request: urllib.request.Request, timeout: float, api_key: str | None) -> tuple[int, bytes, dict[str, str]]:

@@ -4,6 +4,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -281,6 +282,43 @@ def test_server_urls_without_a_scheme_and_api_keys(tmp_path, capsys, monkeypatch
         out = tmp_path / "a.png"
         assert main(["render", scene, "-o", str(out), "--server", bare]) == 0
         assert decode_png(out.read_bytes()).shape == (120, 160, 3)
+
+
+@pytest.mark.parametrize(
+    "url, says",
+    [
+        ("http://[::1", "--server: 'http://[::1' is not a URL (Invalid IPv6 URL)"),
+        ("127.0.0.1:99999", "--server: '127.0.0.1:99999' is not a URL (Port out of range 0-65535)"),
+        ("ftp://host", "--server: 'ftp://host' is not the http:// or https:// URL of a server"),
+    ],
+)
+def test_a_server_url_that_names_no_server_is_one_line_and_exit_2(tmp_path, capsys, url, says):
+    scene = str(SCENES / "01_three_spheres.json")
+    class_folder = Path(__file__).resolve().parent.parent / "examples" / "class"
+    for args in (
+        ["render", scene, "-o", str(tmp_path / "a.png")],
+        ["grade-class", str(class_folder / "scenes"), str(class_folder / "submissions"), "-o", str(tmp_path / "r")],
+    ):
+        assert main([*args, "--server", url]) == 2
+        assert capsys.readouterr().err == f"phongray: {says}\n"
+
+
+@pytest.mark.parametrize(
+    "option, value, says",
+    [
+        ("--run-timeout", "inf", "'inf': must be at most 604800"),
+        ("--run-timeout", "1e12", "'1e12': must be at most 604800"),
+        ("--memory", "99999999999999999999999G", "at most 1024T (a pebibyte)"),
+        ("--processes", "99999999999", "must be at most 4194304"),
+    ],
+)
+def test_a_limit_beyond_what_a_run_can_be_given_is_refused_as_an_option(tmp_path, capsys, option, value, says):
+    class_folder = Path(__file__).resolve().parent.parent / "examples" / "class"
+    args = ["grade-class", str(class_folder / "scenes"), str(class_folder / "submissions"), "-o", str(tmp_path)]
+    with pytest.raises(SystemExit) as exit_:
+        main([*args, "--run", "python3 render.py {scene} {output}", option, value])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and f"argument {option}: " in err and says in err, err
 
 
 class _Terminal(io.StringIO):

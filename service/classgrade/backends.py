@@ -141,7 +141,8 @@ class ServerBackend(Backend):
         try:
             check(url, api_key)
         except ServerError as exc:
-            raise ClassError(f"--server {url}: {exc}") from None
+            said = str(exc)
+            raise ClassError(said if said.startswith("--server") else f"--server {url}: {said}") from None
         self.name = f"--server {url}"
         self.url, self.api_key = url, api_key
         self.executor = futures.ThreadPoolExecutor(max_workers=jobs or 4)

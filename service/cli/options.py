@@ -65,6 +65,10 @@ def port(text: str) -> int:
     return _integer(text, 0, 65535, "a TCP port (0–65535)")
 
 
+#: the longest wait an option takes (a week): beyond, a timer's deadline overflows the platform's time
+MOST_WAIT = 7 * 24 * 3600.0
+
+
 def seconds(text: str) -> float:
     try:
         value = float(text)
@@ -72,6 +76,8 @@ def seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     if not value >= 0:
         raise argparse.ArgumentTypeError("must be ≥ 0")
+    if not value <= MOST_WAIT:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be at most {MOST_WAIT:g} (a week)")
     return value
 
 

@@ -31,6 +31,12 @@ UNITS = {
     "GB": 1000**3,
 }
 _SIZE = re.compile(r"\s*(\d+(?:\.\d+)?)\s*([A-Za-z]*)\s*")
+#: the largest size an option takes (a pebibyte): beyond, no limit means anything, and prlimit cannot read it
+MOST_BYTES = 1 << 50
+#: the longest a run may be given (a week): beyond, a timer's deadline overflows the platform's time
+MOST_SECONDS = 7 * 24 * 3600.0
+#: the most processes a run may be given (Linux's largest pid_max)
+MOST_PROCESSES = 1 << 22
 
 
 def size(text: str) -> int:
@@ -42,11 +48,14 @@ def size(text: str) -> int:
             f"{text!r} is not a size: a number of bytes with an optional unit, "
             f"K, M, G (powers of 1024) or KB, MB, GB (of 1000), such as 2G"
         )
-    return int(float(found.group(1)) * UNITS[unit])
+    value = int(float(found.group(1)) * UNITS[unit])
+    if value > MOST_BYTES:
+        raise argparse.ArgumentTypeError(f"{text!r}: at most 1024T (a pebibyte)")
+    return value
 
 
-def _positive(kind: Callable[[str], float]) -> Callable[[str], float]:
-    """argparse's type: a number of ``kind`` (int, float) above 0."""
+def _positive(kind: Callable[[str], float], most: float) -> Callable[[str], float]:
+    """argparse's type: a number of ``kind`` (int, float) above 0 and at most ``most``."""
 
     def parse(text: str) -> float:
         try:
@@ -55,6 +64,8 @@ def _positive(kind: Callable[[str], float]) -> Callable[[str], float]:
             raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
         if not value > 0:
             raise argparse.ArgumentTypeError(f"{text!r}: must be > 0")
+        if not value <= most:
+            raise argparse.ArgumentTypeError(f"{text!r}: must be at most {most:.15g}")
         return value
 
     return parse
@@ -76,14 +87,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--build", metavar="CMD", help="a command run once per student first, in the sandbox (make)")
     group.add_argument(
         "--run-timeout",
-        type=_positive(float),
+        type=_positive(float, MOST_SECONDS),
         metavar="S",
         help="wall time of a run, and of a build (default: 60); the CPU time of each process is "
         "held to the same number of seconds",
     )
     group.add_argument("--memory", type=size, metavar="SIZE", help="address space of each process (default: 2G)")
     group.add_argument(
-        "--processes", type=_positive(int), metavar="N", help="processes and threads of a run at once (default: 64)"
+        "--processes",
+        type=_positive(int, MOST_PROCESSES),
+        metavar="N",
+        help="processes and threads of a run at once (default: 64)",
     )
     group.add_argument(
         "--output-size", type=size, metavar="SIZE", help="any one file a program writes, and its image (default: 100MB)"
