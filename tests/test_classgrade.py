@@ -442,6 +442,7 @@ def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_p
     "content, says",
     [
         ('{"lamps": {"points": -1}}', ":1: lamps.points: must be ≥ 0"),
+        ('{"lamps": {"points": 1e308}}', ":1: lamps.points: must be ≤ 1e+06"),  # (two of them: an infinite total)
         ('{"lampz": {}}', ": no task lampz (did you mean 'lamps'?) (the tasks are balls, lamps)"),
         ('{"lamps": {"tolerence": 3}}', ":1: lamps.tolerence: unknown key (did you mean 'tolerance'?)"),
         ('{"lamps": {"point": 3}}', ":1: lamps.point: unknown key (did you mean 'points'?)"),

@@ -54,6 +54,9 @@ CANVAS_WORDS = (
     "give the assignment as Canvas's gradebook names its column, its title and id: 'Homework 3 (12345)' (the id "
     "is the number in the assignment's address, .../assignments/12345)"
 )
+#: the most points a task (or a deduction) may be worth: a class's total of them stays a finite number in every
+#: report (1e308 twice overflowed to infinity, which no JSON holds)
+MOST_POINTS = 1e6
 #: the key of tasks.json whose settings are every task's, unless the task's own say otherwise
 EVERY = "*"
 
@@ -61,13 +64,13 @@ EVERY = "*"
 class TaskSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    points: Annotated[Number, Field(ge=0)] = 1.0
+    points: Annotated[Number, Field(ge=0, le=MOST_POINTS)] = 1.0
     tolerance: Annotated[Number, Field(ge=0, le=255)] | None = None  # None: the command's --tolerance
     max_fraction: Annotated[Number, Field(ge=0, le=1)] | None = None  # None: the command's --max-fraction
     visibility: Literal["visible", "hidden", "after_due_date", "after_published"] = "visible"  # Gradescope's
     #: what a student reads of the task (Gradescope's output): a hidden scene's TA may show less
     show: Literal["images", "diagnosis", "verdict", "verdict-only"] = "images"
-    deductions: dict[str, Annotated[Number, Field(ge=0)]] = Field(default_factory=dict)  # mistake id → points
+    deductions: dict[str, Annotated[Number, Field(ge=0, le=MOST_POINTS)]] = Field(default_factory=dict)  # id → points
     #: what a pair of a program holding phongray's own code scores (service.classgrade.copied): its grade, flagged
     #: for the TA (review), or nothing (zero)
     phongray_code: Literal["review", "zero"] = "review"
