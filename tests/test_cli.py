@@ -321,6 +321,28 @@ def test_a_limit_beyond_what_a_run_can_be_given_is_refused_as_an_option(tmp_path
     assert exit_.value.code == 2 and f"argument {option}: " in err and says in err, err
 
 
+def test_a_tas_file_that_never_ends_or_waits_for_a_writer_is_refused_not_read(tmp_path, capsys):
+    """A FIFO or a device given as a scene or a tasks file would wait forever or fill the memory: refused."""
+    fifo = tmp_path / "scene.json"
+    os.mkfifo(fifo)
+    class_folder = Path(__file__).resolve().parent.parent / "examples" / "class"
+    runs = [
+        (["validate", str(fifo)], f"{fifo}: cannot read: a FIFO, not a regular file"),
+        (
+            ["render", "/dev/zero", "-o", str(tmp_path / "a.png")],
+            "/dev/zero: cannot read: a device, not a regular file",
+        ),
+        (
+            ["grade-class", str(class_folder / "scenes"), str(class_folder / "submissions"), "-o", str(tmp_path / "r")]
+            + ["--tasks", str(fifo)],
+            f"{fifo}: cannot read: a FIFO, not a regular file",
+        ),
+    ]
+    for args, says in runs:
+        assert main(args) == 2
+        assert capsys.readouterr().err == f"phongray: {says}\n"
+
+
 class _Terminal(io.StringIO):
     def isatty(self) -> bool:
         return True
@@ -578,8 +600,8 @@ def test_no_traceback_for_a_closed_pipe(tmp_path):
     "args, says",
     [
         (["serve", "--port", "99999"], b"99999 is not a TCP port (0-65535)".replace(b"-", "–".encode())),
-        (["validate", str(SCENES / "01_three_spheres.json"), "--server", "127.0.0.1:notaport"], b"cannot reach"),
-        (["validate", str(SCENES / "01_three_spheres.json"), "--server", "http://127.0.0.1:99999"], b"cannot reach"),
+        (["validate", str(SCENES / "01_three_spheres.json"), "--server", "127.0.0.1:notaport"], b"is not a URL"),
+        (["validate", str(SCENES / "01_three_spheres.json"), "--server", "http://127.0.0.1:99999"], b"is not a URL"),
         (
             ["render", str(SCENES / "01_three_spheres.json"), "-o", "x.png", "--cluster", "garbage"],
             b"not a Dask scheduler address",

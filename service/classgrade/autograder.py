@@ -33,6 +33,7 @@ from tracer import ImageTooLarge, Renderer, encode_png, render
 from tracer.scene.variants import unchanged
 
 from ..course.errors import ClassError
+from ..course.untrusted import read_own
 from ..diagnosis.accepting import accepted_ladders, file_name
 from ..programs.program import Program
 from ..render.scenekey import scene_key
@@ -116,7 +117,7 @@ def _own_scenes(student_scenes: Path | None) -> list[str]:
 
 def _read(path: Path) -> bytes:
     try:
-        return path.read_bytes()
+        return read_own(path)
     except OSError as exc:
         raise ClassError(f"{path}: cannot read: {exc.strerror or exc}") from None
 

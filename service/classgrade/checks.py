@@ -8,6 +8,7 @@ from schemas import SceneError
 
 from ..admission.limits import LimitError, check_body, check_scene
 from ..course.errors import ClassError
+from ..course.untrusted import read_own
 from ..render.scenekey import scene_key
 from ..settings import Settings
 from ..work.pipeline import load_scene
@@ -30,7 +31,7 @@ def scene_keys(batch: Coursework, settings: Settings | None) -> tuple[dict[str, 
             continue
         keys[pair.scene] = ""
         try:
-            text = texts[pair.scene] = pair.scene.read_bytes()
+            text = texts[pair.scene] = read_own(pair.scene)
             if settings is not None:
                 check_body(text, settings)
             scene = load_scene(str(pair.scene), text)

@@ -44,6 +44,7 @@ from tracer.scene.variants import MORE_VARIANTS, VARIANTS
 
 from ..course.errors import ClassError
 from ..course.lms import did_you_mean
+from ..course.untrusted import read_own
 
 #: a number of the TA's: a JSON number, finite (a string "5", true or 1e400 is a mistake, not 5, 1 or infinity)
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
@@ -113,7 +114,7 @@ def load_tasks(path: Path | None, tasks: dict[str, Path], canvas: str | None = N
         _canvas_option(canvas)
     if path is not None:
         try:
-            text = path.read_bytes()
+            text = read_own(path)
         except OSError as exc:
             raise ClassError(f"{path}: cannot read: {exc.strerror or exc}") from None
         try:

@@ -27,8 +27,10 @@ class CliError(Exception):
 
 
 def read(path: str) -> bytes:
+    from service.course.untrusted import read_own
+
     try:
-        return sys.stdin.buffer.read() if path == "-" else Path(path).read_bytes()
+        return sys.stdin.buffer.read() if path == "-" else read_own(path)
     except OSError as exc:
         raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
 
