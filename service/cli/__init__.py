@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -97,6 +98,13 @@ def _settings_error(exc: ValueError) -> int:
     return EXIT_BAD_INPUT
 
 
+def _quit_now(signum: int, frame: object) -> None:
+    """A second interrupt, while the first one's exit waits for the worker processes to wind down (their
+    current render, a student's run): quit at once, with the same status and no traceback.  What the workers
+    leave is theirs to end: a pool's worker exits when it finds its parent gone, a sandboxed run at its limit."""
+    os._exit(130)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["bench"]:  # the benchmark has its own options
@@ -122,6 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         _quiet_pipe()
     except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, _quit_now)  # (a second Ctrl-C while the pools wind down)
         if ProgressBar.active is not None:
             ProgressBar.active.close()  # the message goes on a line of its own
         print("phongray: interrupted", file=sys.stderr)
