@@ -96,11 +96,17 @@ def test_what_cannot_be_graded_is_reported_with_its_reason(task, tmp_path):
     put(tmp_path, "__MACOSX/deep/._Cornell.png", b"")
     put(tmp_path, "loose.png", right)
     put(tmp_path, "lnk/x.png", right)
+    put(tmp_path, "cases/Cornell.png", right)  # (only the student knows which of two spellings is the one)
+    put(tmp_path, "cases/cornell.png", right)
     os.symlink(tmp_path / "subs" / "both" / "Cornell.png", tmp_path / "subs" / "lnk" / "Cornell.png")
     rows, ignored = rows_of(tmp_path, tmp_path)
     subs = tmp_path / "subs"
     assert rows["two"]["status"] == "invalid"
     assert rows["two"]["reason"] == f"2 files for Cornell: {subs}/two/a/Cornell.png, {subs}/two/b/Cornell.png; keep one"
+    assert rows["cases"]["status"] == "invalid"
+    assert rows["cases"]["reason"] == (
+        f"2 files for Cornell: {subs}/cases/Cornell.png, {subs}/cases/cornell.png; keep one"
+    )
     assert rows["both"]["status"] == "pass" and rows["both"]["file"] == "Cornell.png"
     assert rows["png-and-jpg"]["status"] == "pass" and rows["png-and-jpg"]["file"] == "Cornell.png"
     assert rows["deep"]["status"] == "missing"

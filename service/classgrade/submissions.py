@@ -235,7 +235,7 @@ class _Walk:
         elif named.ext == "json":
             self.ignored.append((shown, SCENE_IGNORED))
         elif image:
-            rank = (depth, named.ext not in GRADED, not named.exact)
+            rank = (depth, named.ext not in GRADED)  # (spelt in another case is no less the student's own)
             late = given is not None and given.late
             self.candidates.setdefault(named.task, []).append(Candidate(rank, folder, entry.name, late))
         else:
