@@ -284,6 +284,7 @@ def test_a_program_holding_phongray_is_flagged_and_scored_as_tasks_json_says(tmp
     ("args", "words"),
     [
         (["--run", "python3 tracer.py {scene}"], "names no {output}"),
+        (["--run", "python3 tracer.py {output}"], "names no {scene}"),
         (["--run", RUN, "--build", "mkae"], "no program 'mkae'"),
         (["--build", "make"], "--build: only with --run"),
     ],

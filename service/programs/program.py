@@ -28,9 +28,14 @@ class Program:
 
     def __post_init__(self) -> None:
         """ValueError for a command that cannot be run (the TA's mistake, found before any student is run):
-        one that cannot be split, a run that names no ``{output}``, or a command whose program is a name
-        (not a path into the student's folder) that no folder of the sandbox's ``PATH`` holds."""
+        one that cannot be split, a run that names no ``{scene}`` or no ``{output}``, or a command whose program is
+        a name (not a path into the student's folder) that no folder of the sandbox's ``PATH`` holds."""
         ProgramRun(Path("."), self.run, Path("scene.json"))
+        if "{scene}" not in self.run:
+            raise ValueError(
+                f"command {self.run!r}: it names no {{scene}}, the task scene's file the program renders "
+                f"(python3 render.py {{scene}} {{output}})"
+            )
         if self.build is not None:
             BuildStep(Path("."), self.build)
         check_names(self.runtime, self.packages)
