@@ -165,7 +165,7 @@ class Submitted:
 class Candidate:
     """A file that may be a task's submission, in the folder it was found in (held open)."""
 
-    rank: tuple[int, bool]  # (depth, not a PNG or PPM, not named as the task is spelt): the lowest is graded
+    rank: tuple[int, bool]  # (depth, not a PNG or PPM): the lowest is graded
     folder: Folder
     name: str
     late: bool = False  # the LMS marked it late (Canvas's _LATE_)
