@@ -619,3 +619,27 @@ def test_a_programs_failed_run_is_named_in_the_report_not_left_undiagnosed():
         ("not diagnosed", 1, 3),
         ("run: timeout", 1, 3),
     ]
+
+
+def test_a_task_most_students_fail_for_one_reason_is_the_tas_to_look_at(tmp_path, capsys):
+    """A task scene of the wrong size: every student's image is 'invalid' for the same reason.  The run goes on
+    (exit 0, each row as it is), and the TA reads one warning naming the task and the reason."""
+    folder = Path(__file__).resolve().parent.parent / "examples" / "class"
+    shutil.copytree(folder / "scenes", tmp_path / "scenes")
+    shutil.copytree(folder / "submissions", tmp_path / "subs")
+    data = json.loads((tmp_path / "scenes" / "spheres.json").read_text())
+    data["image"].update(width=40, height=30)
+    (tmp_path / "scenes" / "spheres.json").write_text(json.dumps(data))
+    assert main(["grade-class", str(tmp_path / "scenes"), str(tmp_path / "subs"), "-o", str(tmp_path / "r"), "-q"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning: ")]
+    assert len(warnings) == 1 and warnings[0].startswith("warning: spheres: "), warnings
+    assert "students invalid for one reason, 'image is 160×120 pixels, the scene is 40×30'" in warnings[0]
+    rows = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert all(r["status"] in ("invalid", "missing") for r in rows if r["task"] == "spheres")
+
+
+def test_an_ordinary_class_gets_no_warning(tmp_path, capsys):
+    folder = Path(__file__).resolve().parent.parent / "examples" / "class"
+    args = [str(folder / "scenes"), str(folder / "submissions"), "-o", str(tmp_path / "r"), "-q"]
+    assert main(["grade-class", *args, "--tasks", str(folder / "tasks.json")]) == 0
+    assert "warning:" not in capsys.readouterr().err

@@ -16,6 +16,7 @@ import io
 import os
 import re
 import threading
+from collections import Counter
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -130,6 +131,28 @@ def summary(rows: list[ReportRow], renders: int, seconds: float) -> str:
         + (f"{flagged} flagged for review (⚑); " if flagged else "")
         + f"{counted(renders, 'reference')} rendered; {seconds:.1f} s"
     )
+
+
+#: a task of at least this many students, most of whom share one reason not to pass, is worth a word to the TA
+ALIKE_STUDENTS = 3
+
+
+def alike(rows: list[ReportRow]) -> list[str]:
+    """Per task, a warning where more than half its students (at least :data:`ALIKE_STUDENTS`) are not passed for
+    one same reason, their file's name aside ("image is 160×120 pixels, the scene is 40×30"; "no spheres.png
+    found"; a run that crashed): a task scene of the wrong size, a task named as no student names the file, or a
+    run template that cannot work is the TA's to look at, before anyone's grade is taken as it is."""
+    out = []
+    for task in dict.fromkeys(r["task"] for r in rows):
+        mine = [r for r in rows if r["task"] == task]
+        reasons = Counter((r["status"], _without_file(r["reason"])) for r in mine if r["status"] != "pass")
+        if not reasons or len(mine) < ALIKE_STUDENTS:
+            continue
+        (status, reason), count = reasons.most_common(1)[0]
+        if 2 * count > len(mine) and reason:
+            said = {"fail": "failed"}.get(status, status)
+            out.append(f"{task}: {count} of {len(mine)} students {said} for one reason, {reason!r}: is the task right?")
+    return out
 
 
 def report_csv(rows: list[ReportRow]) -> str:
