@@ -343,6 +343,19 @@ def test_a_tas_file_that_never_ends_or_waits_for_a_writer_is_refused_not_read(tm
         assert capsys.readouterr().err == f"phongray: {says}\n"
 
 
+def test_validate_refuses_what_render_refuses(tmp_path, capsys):
+    """A valid scene beyond what phongray renders (2^28 pixels) is no task scene: validate says so as render does."""
+    data = json.loads((SCENES / "01_three_spheres.json").read_text())
+    data["image"].update(width=100000, height=100000)
+    path = tmp_path / "huge.json"
+    path.write_text(json.dumps(data))
+    says = "image: 100000×100000 pixels is more than phongray renders (268435456 pixels, 16384×16384)"
+    assert main(["validate", str(path)]) == 1
+    assert capsys.readouterr().out == f"{path}: {says}\n"
+    assert main(["render", str(path), "-o", str(tmp_path / "a.png")]) == 2
+    assert capsys.readouterr().err == f"phongray: {path}: {says}\n"
+
+
 class _Terminal(io.StringIO):
     def isatty(self) -> bool:
         return True

@@ -18,18 +18,27 @@ class ImageTooLarge(ValueError):
     """The render asked for is beyond what phongray does: too many pixels, rays or light samples."""
 
 
+def _count(n: int) -> str:
+    """A count as a person reads it: itself, or its power of ten when longer than a dozen digits."""
+    digits = str(n)
+    return digits if len(digits) <= 12 else f"about 10^{len(digits) - 1}"
+
+
 def check_size(scene: Scene) -> None:
     """Raises :class:`ImageTooLarge` for a render beyond what phongray does."""
     img = scene.image
     if img.width * img.height > MAX_PIXELS:
         raise ImageTooLarge(
-            f"image: {img.width}×{img.height} pixels is more than phongray renders ({MAX_PIXELS} pixels, 16384×16384)"
+            f"image: {_count(img.width)}×{_count(img.height)} pixels is more than phongray renders ({MAX_PIXELS} "
+            "pixels, 16384×16384)"
         )
     if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
         raise ImageTooLarge(
-            f"image: {img.width}×{img.height} pixels × {img.samples}² sub-samples is more "
+            f"image: {_count(img.width)}×{_count(img.height)} pixels × {_count(img.samples)}² sub-samples is more "
             f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})"
         )
     lights = emitter_count(scene.lights)
     if lights > MAX_LIGHT_SAMPLES:
-        raise ImageTooLarge(f"lights: {lights} light samples are more than phongray renders ({MAX_LIGHT_SAMPLES})")
+        raise ImageTooLarge(
+            f"lights: {_count(lights)} light samples are more than phongray renders ({MAX_LIGHT_SAMPLES})"
+        )

@@ -31,11 +31,17 @@ def cmd_validate(args: argparse.Namespace) -> int:
         else:
             lines = []
     else:
+        from tracer.sizes import ImageTooLarge, check_size
+
         try:
-            _warn_of_limits(args.scene, load_scene(args.scene, text))
+            scene = load_scene(args.scene, text)
+            check_size(scene)  # (valid, but beyond what phongray renders: render and grade-class refuse it)
+            _warn_of_limits(args.scene, scene)
             lines = []
         except SceneError as exc:
             lines = exc.lines  # type: ignore[attr-defined]
+        except ImageTooLarge as exc:
+            lines = [f"{args.scene}: {exc}"]
     for line in lines:
         print(line)
     if lines:
