@@ -643,3 +643,16 @@ def test_an_ordinary_class_gets_no_warning(tmp_path, capsys):
     args = [str(folder / "scenes"), str(folder / "submissions"), "-o", str(tmp_path / "r"), "-q"]
     assert main(["grade-class", *args, "--tasks", str(folder / "tasks.json")]) == 0
     assert "warning:" not in capsys.readouterr().err
+
+
+def test_a_tasks_file_among_the_scenes_is_said_to_be_one(tmp_path, capsys):
+    folder = Path(__file__).resolve().parent.parent / "examples" / "class"
+    shutil.copytree(folder / "scenes", tmp_path / "scenes")
+    shutil.copy(folder / "tasks.json", tmp_path / "scenes" / "tasks.json")
+    args = [str(tmp_path / "scenes"), str(folder / "submissions"), "-o", str(tmp_path / "r")]
+    assert main(["grade-class", *args, "--tasks", str(tmp_path / "scenes" / "tasks.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(
+        f"phongray: {tmp_path}/scenes/tasks.json: tasks.json among the task scenes is read as a task scene; keep it "
+        "beside the scenes folder and give it with --tasks; "
+    ), err

@@ -16,6 +16,10 @@ from . import journal
 from .records import Coursework
 from .report import write_atomic
 
+#: the name a tasks file usually has, and what to do with one found among the task scenes
+TASKS_FILE = "tasks.json"
+MOVE = "keep it beside the scenes folder and give it with --tasks"
+
 
 def scene_keys(batch: Coursework, settings: Settings | None) -> tuple[dict[str, Path], dict[Path, bytes]]:
     """Validate every scene of the TA's once (the tasks' and the students' own), and price it with the service's
@@ -39,6 +43,8 @@ def scene_keys(batch: Coursework, settings: Settings | None) -> tuple[dict[str, 
                 check_scene(scene, settings)
             pair.key = keys[pair.scene] = scene_key(scene)
         except SceneError as exc:
+            if pair.scene.name == TASKS_FILE:  # (the TA's tasks file, put among the scenes: said first)
+                problems.append(f"{pair.scene}: {TASKS_FILE} among the task scenes is read as a task scene; {MOVE}")
             problems.extend(exc.lines)  # type: ignore[attr-defined]
         except LimitError as exc:
             problems.append(f"{pair.scene}: {exc} (the service's limit, asked for by --limits)")
