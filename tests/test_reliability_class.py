@@ -17,6 +17,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -453,46 +454,58 @@ def _alive(pid: int) -> bool:
     return state != "Z"
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_pool_processes_die_with_grade_class(tmp_path):
-    scenes, subs, _ = make_class(
-        tmp_path, {"ada": b""}, data=tiny("02_all_lights", width=640, height=480, samples=2)
-    )  # 8 s on one core
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "service.cli",
-            "grade-class",
-            str(scenes),
-            str(subs),
-            "-o",
-            str(tmp_path / "r"),
-            "--jobs",
-            "2",
-        ],
-        env={**os.environ, "PHONGRAY_MAX_COST": "1e10"},
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+@contextlib.contextmanager
+def _rendering_class(tmp_path: Path, stderr: int = subprocess.DEVNULL) -> Iterator[tuple[subprocess.Popen, list[int]]]:
+    """``grade-class`` of one student at 640×480 (8 s on one core) on two pool processes, its render under way:
+    the process, and its pool's (the processes that run tasks, and the forkserver that forked them).  Whatever
+    outlives the test is killed by its pid after it."""
+    scenes, subs, _ = make_class(tmp_path, {"ada": b""}, data=tiny("02_all_lights", width=640, height=480, samples=2))
+    args = [sys.executable, "-m", "service.cli", "grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")]
+    env = {**os.environ, "PHONGRAY_MAX_COST": "1e10"}
+    proc = subprocess.Popen([*args, "--jobs", "2"], env=env, stdout=subprocess.DEVNULL, stderr=stderr)
     pool: list[int] = []
     try:
         deadline = time.monotonic() + 30
         while not _workers(proc.pid) and time.monotonic() < deadline:
             time.sleep(0.1)
         assert _workers(proc.pid), "no pool process started"
-        pool = _pool(proc.pid)  # (the processes that run tasks, and the forkserver that forked them)
+        pool += _pool(proc.pid)
         time.sleep(0.5)  # the render is under way
-        proc.kill()  # as the OOM killer, or kill -9, would
-        proc.wait()
-        deadline = time.monotonic() + 3
-        while any(map(_alive, pool)) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert not any(map(_alive, pool)), "pool processes outlived grade-class"
+        yield proc, pool
     finally:  # (a pool process that outlived grade-class is no longer its child: killed by its pid)
         for pid in {*_pool(proc.pid), *pool, proc.pid}:
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
+
+
+def _outlived(pool: list[int], seconds: float) -> bool:
+    """Whether some of ``pool`` is still alive ``seconds`` on."""
+    deadline = time.monotonic() + seconds
+    while any(map(_alive, pool)) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return any(map(_alive, pool))
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_pool_processes_die_with_grade_class(tmp_path):
+    with _rendering_class(tmp_path) as (proc, pool):
+        proc.kill()  # as the OOM killer, or kill -9, would
+        proc.wait()
+        assert not _outlived(pool, 3), "pool processes outlived grade-class"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_second_ctrl_c_quits_at_once_with_no_traceback(tmp_path):
+    """A TA who presses Ctrl-C twice (the first one's exit waits for the pool's render to wind down): exit 130,
+    one line, no traceback, no hang; the pool's processes go with it."""
+    with _rendering_class(tmp_path, subprocess.PIPE) as (proc, pool):
+        proc.send_signal(signal.SIGINT)
+        time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 130 and err.startswith(b"phongray: interrupted\n"), err
+        assert b"Traceback" not in err, err
+        assert not _outlived(pool, 10), "pool processes outlived grade-class"
 
 
 class ResettingProxy:
@@ -863,38 +876,3 @@ def test_a_name_of_255_bytes_that_composing_would_lengthen_is_graded(tmp_path):
     scenes, subs, _ = make_class(tmp_path, {name: b"", "bob": b""})
     outcome = classgrade.grade_class(ClassRun(scenes, subs, tmp_path / "report", jobs=1))
     assert [(r["student"], r["status"]) for r in outcome.rows] == [("bob", "pass"), (name, "pass")]
-
-
-def test_a_second_ctrl_c_quits_at_once_with_no_traceback(tmp_path):
-    """A TA who presses Ctrl-C twice (the first one's exit waits for the pool's render to wind down): exit 130,
-    one line, no traceback, no hang; the pool's processes go with it."""
-    scenes, subs, _ = make_class(tmp_path, {"ada": b""}, data=tiny("02_all_lights", width=640, height=480, samples=2))
-    args = [sys.executable, "-m", "service.cli", "grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")]
-    proc = subprocess.Popen(
-        [*args, "--jobs", "2"],
-        env={**os.environ, "PHONGRAY_MAX_COST": "1e10"},
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
-    pool: list[int] = []
-    try:
-        deadline = time.monotonic() + 30
-        while not _workers(proc.pid) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert _workers(proc.pid), "no pool process started"
-        pool = _pool(proc.pid)
-        time.sleep(0.5)  # the render is under way
-        proc.send_signal(signal.SIGINT)
-        time.sleep(0.2)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=60)
-        assert proc.returncode == 130 and err.startswith(b"phongray: interrupted\n"), err
-        assert b"Traceback" not in err, err
-        deadline = time.monotonic() + 10
-        while any(map(_alive, pool)) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert not any(map(_alive, pool)), "pool processes outlived grade-class"
-    finally:
-        for pid in {*_pool(proc.pid), *pool, proc.pid}:
-            with contextlib.suppress(OSError):
-                os.kill(pid, signal.SIGKILL)
