@@ -462,7 +462,13 @@ def _rendering_class(tmp_path: Path, stderr: int = subprocess.DEVNULL) -> Iterat
     scenes, subs, _ = make_class(tmp_path, {"ada": b""}, data=tiny("02_all_lights", width=640, height=480, samples=2))
     args = [sys.executable, "-m", "service.cli", "grade-class", str(scenes), str(subs), "-o", str(tmp_path / "r")]
     env = {**os.environ, "PHONGRAY_MAX_COST": "1e10"}
-    proc = subprocess.Popen([*args, "--jobs", "2"], env=env, stdout=subprocess.DEVNULL, stderr=stderr)
+    proc = subprocess.Popen(  # (SIGINT as a terminal's Ctrl-C sends it: code run before in this process may have
+        [*args, "--jobs", "2"],  # left it ignored, and a signal ignored stays ignored across exec)
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=stderr,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     pool: list[int] = []
     try:
         deadline = time.monotonic() + 30

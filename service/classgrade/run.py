@@ -25,7 +25,7 @@ from .isolation import unwritable
 from .job import TaskScene
 from .programs import check_programs, discover_programs, program_jobs, program_tasks, warn
 from .records import ClassRun, Coursework, GradeJob, Marked, Pair
-from .report import COLUMNS, summary, write_atomic
+from .report import COLUMNS, alike, summary, write_atomic
 from .rows import files, has_image, kept_row, report_row
 from .submissions import discover
 from .taskfile import TaskSettings, load_tasks
@@ -48,6 +48,10 @@ class Outcome:
 
     def summary(self) -> str:
         return summary(self.rows, self.renders, self.seconds)
+
+    def alike(self) -> list[str]:
+        """A warning per task most of whose students are not passed for one same reason (:func:`.report.alike`)."""
+        return alike(self.rows)
 
 
 @dataclass

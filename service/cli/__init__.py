@@ -98,6 +98,17 @@ def _settings_error(exc: ValueError) -> int:
     return EXIT_BAD_INPUT
 
 
+def _interrupted(as_program: bool) -> int:
+    """Ctrl-C: one line, status 130; run as the command (``as_program``: its process ends with this call), a
+    second Ctrl-C while the pools wind down quits at once (:func:`_quit_now`)."""
+    if as_program:  # (not in a caller's process that goes on: a test's, a script's)
+        signal.signal(signal.SIGINT, _quit_now)
+    if ProgressBar.active is not None:
+        ProgressBar.active.close()  # the message goes on a line of its own
+    print("phongray: interrupted", file=sys.stderr)
+    return 130
+
+
 def _quit_now(signum: int, frame: object) -> None:
     """A second interrupt, while the first one's exit waits for the worker processes to wind down (their
     current render, a student's run): quit at once, with the same status and no traceback.  What the workers
@@ -106,6 +117,7 @@ def _quit_now(signum: int, frame: object) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    as_program = argv is None  # (run as the command, whose process ends with this call)
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["bench"]:  # the benchmark has its own options
         from bench.run import main as bench_main
@@ -130,11 +142,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         _quiet_pipe()
     except KeyboardInterrupt:
-        signal.signal(signal.SIGINT, _quit_now)  # (a second Ctrl-C while the pools wind down)
-        if ProgressBar.active is not None:
-            ProgressBar.active.close()  # the message goes on a line of its own
-        print("phongray: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted(as_program)
     except MemoryError:
         print("phongray: out of memory", file=sys.stderr)
         return 1

@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from service.course.untrusted import read_own
+
 if TYPE_CHECKING:
     from service.work.pipeline import Overrides
     from tracer.budget import OverBudget
@@ -27,8 +29,6 @@ class CliError(Exception):
 
 
 def read(path: str) -> bytes:
-    from service.course.untrusted import read_own
-
     try:
         return sys.stdin.buffer.read() if path == "-" else read_own(path)
     except OSError as exc:

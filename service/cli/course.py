@@ -23,7 +23,6 @@ if TYPE_CHECKING:
 def cmd_grade_class(args: argparse.Namespace) -> int:
     """Exit 0 when the batch ran (whatever the verdicts), 2 when the TA's input or set-up is unusable."""
     from service.classgrade import ClassRun, grade_class
-    from service.classgrade.report import alike
     from service.course.errors import ClassError
     from service.render.cluster import ClusterError
 
@@ -61,7 +60,7 @@ def cmd_grade_class(args: argparse.Namespace) -> int:
         bar.close()
     for name, why in outcome.ignored:
         print(printable(f"ignored: {name}: {why}"), file=sys.stderr)
-    for line in alike(outcome.rows):  # (the TA's to look at: a task scene of the wrong size, a task misnamed)
+    for line in outcome.alike():  # (the TA's to look at: a task scene of the wrong size, a task misnamed)
         print(printable(f"warning: {line}"), file=sys.stderr)
     for line in outcome.unwritten:  # (each such grade's row says so, with its verdict and score)
         print(printable(f"not written whole: {line}"), file=sys.stderr)

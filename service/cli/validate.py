@@ -15,7 +15,7 @@ from service.cli.options import remote as remote_options
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from schemas import SceneError
-    from service.work.pipeline import load_scene, scene_lines
+    from service.work.pipeline import renderable_scene, scene_lines
 
     text = read(args.scene)
     if args.server:
@@ -31,17 +31,11 @@ def cmd_validate(args: argparse.Namespace) -> int:
         else:
             lines = []
     else:
-        from tracer.sizes import ImageTooLarge, check_size
-
-        try:
-            scene = load_scene(args.scene, text)
-            check_size(scene)  # (valid, but beyond what phongray renders: render and grade-class refuse it)
-            _warn_of_limits(args.scene, scene)
+        try:  # (valid, but beyond what phongray renders, is refused: render and grade-class refuse it)
+            _warn_of_limits(args.scene, renderable_scene(args.scene, text))
             lines = []
         except SceneError as exc:
             lines = exc.lines  # type: ignore[attr-defined]
-        except ImageTooLarge as exc:
-            lines = [f"{args.scene}: {exc}"]
     for line in lines:
         print(line)
     if lines:

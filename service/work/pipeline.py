@@ -20,6 +20,7 @@ from schemas import Image, Scene, SceneError, parse_json, validate_scene
 from schemas.errors import problems_from_validation
 from schemas.locate import Located, as_lines, format_located
 from tracer import RenderCancelled, decode_png, open_pixels
+from tracer.sizes import ImageTooLarge, check_size
 
 from ..diagnosis import CACHE, Cached, Diagnosis, Renders, accepting, diagnose, renders_of
 from ..diagnosis.accepting import Failing
@@ -64,6 +65,20 @@ def load_scene(name: str, text: bytes, overrides: Overrides | None = None, share
     except SceneError as exc:
         exc.lines = as_lines(name, exc.problems, text)  # type: ignore[attr-defined]
         raise
+
+
+def renderable_scene(name: str, text: bytes) -> Scene:
+    """:func:`load_scene`, and a scene beyond what phongray renders (:func:`tracer.sizes.check_size`: too many
+    pixels, rays or light samples) refused as its file's problem, a :class:`SceneError` whose ``.lines`` are
+    render's own words: valid as the format goes, but no task scene."""
+    scene = load_scene(name, text)
+    try:
+        check_size(scene)
+    except ImageTooLarge as exc:
+        error = SceneError([("", str(exc))])
+        error.lines = [f"{name}: {exc}"]  # type: ignore[attr-defined]
+        raise error from None
+    return scene
 
 
 def scene_or_bad_input(name: str, text: bytes, overrides: Overrides | None = None) -> Scene:
