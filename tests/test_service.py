@@ -1,5 +1,6 @@
 """Every endpoint and error, in-process."""
 
+import gzip
 import io
 import json
 import re
@@ -126,6 +127,16 @@ def test_malformed_bodies_are_422(api, body):
 def test_wrong_content_type_is_415(api):
     assert api.post("/render", content=SCENE, headers={"content-type": "text/plain"}).status_code == 415
     assert api.post("/grade", content=SCENE, headers=JSON).status_code == 415
+
+
+def test_an_encoded_body_is_415_not_read_as_json(api):
+    """A gzipped body was read as JSON ("the document is not UTF-8 text"); the service takes bodies as sent."""
+    for path in ("/render", "/validate"):
+        res = api.post(path, content=gzip.compress(SCENE), headers={**JSON, "content-encoding": "gzip"})
+        assert res.status_code == 415 and "content encoding 'gzip' is not taken" in res.json()["detail"], res.text
+    assert api.post("/render", content=SCENE, headers={**JSON, "content-encoding": "identity"}).status_code == 200
+    form = api.post("/grade", data={"scene": SCENE.decode()}, headers={"content-encoding": "br"})
+    assert form.status_code == 415, form.text
 
 
 def test_body_limit_is_413():

@@ -68,7 +68,16 @@ def scene_errors(exc: SceneError, text: bytes | str) -> list[Located]:
     return located(exc.problems, text)
 
 
+def require_plain(request: Request) -> None:
+    """A body sent encoded (``Content-Encoding: gzip``) is refused, not read as if it were the JSON or the form:
+    the service takes bodies as they are."""
+    encoding = request.headers.get("content-encoding", "").strip().lower()
+    if encoding not in ("", "identity"):
+        raise HTTPProblem(415, f"content encoding {encoding!r} is not taken: send the body as it is")
+
+
 def require_json(request: Request) -> None:
+    require_plain(request)
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind != "application/json" and not kind.endswith("+json"):
         raise HTTPProblem(415, f"content type must be application/json, got {kind or 'none'}")

@@ -13,7 +13,7 @@ from fastapi.responses import JSONResponse
 from starlette.datastructures import UploadFile
 
 from service.http.models import GradeAnswer
-from service.http.problems import ERRORS, HTTPProblem, prepared, unavailable
+from service.http.problems import ERRORS, HTTPProblem, prepared, require_plain, unavailable
 from service.http.routers.render import EXAMPLE_TEXT
 from service.http.waiting import rendered, watched, whole
 from service.images import grading
@@ -80,6 +80,7 @@ async def grade(
     legend: Annotated[bool, Query(description="a band beneath the heat-map naming its colours")] = True,
 ) -> Response:
     service: RenderService = request.app.state.service
+    require_plain(request)
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind not in ("multipart/form-data", "application/x-www-form-urlencoded"):
         raise HTTPProblem(415, f"content type must be multipart/form-data, got {kind or 'none'}")
