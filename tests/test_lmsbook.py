@@ -197,3 +197,16 @@ def test_the_option_names_the_assignment_and_a_misnamed_one_stops_the_run(tmp_pa
     with pytest.raises(ClassError, match=r"tasks.json:1: \*.canvas: give the assignment"):
         (tmp_path / "tasks.json").write_text('{"*": {"canvas": "HW3"}}')
         graded(tmp_path)
+
+
+def test_a_folder_of_both_exports_gives_each_lms_its_own_students(tmp_path, images):
+    """Canvas's flat files and Moodle's folders in one submissions folder: the Moodle student is in Moodle's
+    worksheet, not in Canvas's gradebook as a row with no id (which Canvas's import cannot match)."""
+    a_class(
+        tmp_path, images, {k: v for k, v in CANVAS.items() if k.startswith("libo")} | dict(list(MOODLE.items())[:2])
+    )
+    graded(tmp_path)
+    canvas = read_csv(tmp_path / "report" / "canvas-gradebook.csv")
+    assert [line[:2] for line in canvas[2:]] == [["libo", "222"]]
+    moodle = read_csv(tmp_path / "report" / "moodle-grading-worksheet.csv")
+    assert [line[:2] for line in moodle[1:]] == [["Participant 100001", "Ada Adams"]]

@@ -99,7 +99,9 @@ def _canvas_number(x: float) -> str:
 
 
 def canvas_csv(rows: list[ReportRow], students: list[str], tasks: dict[str, TaskSettings], cell: Cell) -> str:
-    """``canvas-gradebook.csv``: the students' scores in Canvas's gradebook import format."""
+    """``canvas-gradebook.csv``: the students' scores in Canvas's gradebook import format: where some came from
+    a Canvas export, those and the others of no LMS (a student found in a Moodle export is in Moodle's
+    worksheet); where none did (a task names a Canvas assignment), every student, with no id."""
     columns: dict[str, list[str]] = {}  # assignment column → its tasks
     for task, settings in tasks.items():
         columns.setdefault(settings.canvas or task, []).append(task)
@@ -107,7 +109,10 @@ def canvas_csv(rows: list[ReportRow], students: list[str], tasks: dict[str, Task
     _writerow(buf, [*CANVAS_STUDENT, *map(cell, columns)])
     points = [_canvas_number(sum(tasks[t].points for t in mine)) for mine in columns.values()]
     _writerow(buf, [POINTS_POSSIBLE, "", "", "", "", *points])
+    from_canvas = any(r["lms"] == "canvas" for r in rows)
     for mine in _students(rows, students):
+        if from_canvas and mine[0]["lms"] == "moodle":  # (beside Canvas's own: Moodle's, in its worksheet)
+            continue
         score = {r["task"]: r["score"] for r in mine}
         canvas_id = mine[0]["lms_id"] if mine[0]["lms"] == "canvas" else ""
         scores = [_canvas_number(sum(score[t] for t in each)) for each in columns.values()]
