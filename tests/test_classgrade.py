@@ -656,3 +656,22 @@ def test_a_tasks_file_among_the_scenes_is_said_to_be_one(tmp_path, capsys):
         f"phongray: {tmp_path}/scenes/tasks.json: tasks.json among the task scenes is read as a task scene; keep it "
         "beside the scenes folder and give it with --tasks; "
     ), err
+
+
+def test_a_folder_of_the_tas_own_files_is_no_report_folder(tmp_path, capsys):
+    """A report replaces what its own folders held (references/, gradescope/): into a folder of the TA's own
+    files that is no report, nothing is written and nothing of theirs removed; a new folder, or an earlier
+    report, is written as before."""
+    folder = Path(__file__).resolve().parent.parent / "examples" / "class"
+    home = tmp_path / "home"
+    (home / "references").mkdir(parents=True)
+    (home / "references" / "notes.png").write_text("mine")
+    args = ["grade-class", str(folder / "scenes"), str(folder / "submissions"), "-q"]
+    assert main([*args, "-o", str(home)]) == 2
+    assert capsys.readouterr().err == (
+        f"phongray: {home}: the folder holds files of its own (references) and no phongray report; write the "
+        "report to a new folder\n"
+    )
+    assert (home / "references" / "notes.png").read_text() == "mine"
+    assert main([*args, "-o", str(tmp_path / "r")]) == 0
+    assert main([*args, "-o", str(tmp_path / "r")]) == 0  # (an earlier report: written again)

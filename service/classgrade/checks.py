@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from schemas import SceneError
@@ -87,8 +88,36 @@ def outside(report: Path, submissions: Path, scenes: Path, student_scenes: Path 
             )
 
 
+#: what a folder an earlier run wrote its report to holds (a run stopped before its report still kept its grades)
+REPORT_MARKS = ("report.json", "resume")
+#: a reference's file name: its scene's key (a SHA-256 in hex) and .png
+REFERENCE_NAME = re.compile(r"[0-9a-f]{64}\.png")
+
+
+def _references_only(report: Path) -> bool:
+    """Whether the folder holds only references phongray rendered (``references/<scene key>.png``), as the
+    autograder's bundle brings them."""
+    try:
+        held = {p.name for p in report.iterdir() if not p.name.startswith(".")}
+        names = [p.name for p in (report / "references").iterdir()]
+    except OSError:
+        return False
+    return held == {"references"} and all(REFERENCE_NAME.fullmatch(n) for n in names)
+
+
 def writable(report: Path) -> None:
-    """The report folder can be made and written to (else the run stops before any grading)."""
+    """The report folder can be made and written to (else the run stops before any grading), and is new, empty
+    or an earlier report: a folder of the TA's own files is not one to write into, since the report replaces
+    what its own folders (references/, gradescope/) held."""
+    try:
+        held = [p.name for p in report.iterdir() if not p.name.startswith(".")] if report.is_dir() else []
+    except OSError:
+        held = []  # (said below, as it fails to be written)
+    if held and not any((report / mark).exists() for mark in REPORT_MARKS) and not _references_only(report):
+        raise ClassError(
+            f"{report}: the folder holds files of its own ({', '.join(sorted(held)[:3])}"
+            f"{', ...' if len(held) > 3 else ''}) and no phongray report; write the report to a new folder"
+        )
     try:
         report.mkdir(parents=True, exist_ok=True)
         write_atomic(report / ".phongray-write-check", b"")
