@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from schemas import Scene
 
 from .scene.lights import emitter_count
@@ -18,10 +20,12 @@ class ImageTooLarge(ValueError):
     """The render asked for is beyond what phongray does: too many pixels, rays or light samples."""
 
 
-def _count(n: int) -> str:
-    """A count as a person reads it: itself, or its power of ten when longer than a dozen digits."""
-    digits = str(n)
-    return digits if len(digits) <= 12 else f"about 10^{len(digits) - 1}"
+def shown(n: int) -> str:
+    """An integer for a message: in full up to 15 digits, else its order of magnitude (Python refuses
+    to format integers of more than 4300 digits, and nobody wants to read them)."""
+    if abs(n) < 10**15:
+        return str(n)
+    return f"about 10^{int(abs(n).bit_length() * math.log10(2))}"
 
 
 def check_size(scene: Scene) -> None:
@@ -29,16 +33,16 @@ def check_size(scene: Scene) -> None:
     img = scene.image
     if img.width * img.height > MAX_PIXELS:
         raise ImageTooLarge(
-            f"image: {_count(img.width)}×{_count(img.height)} pixels is more than phongray renders ({MAX_PIXELS} "
+            f"image: {shown(img.width)}×{shown(img.height)} pixels is more than phongray renders ({MAX_PIXELS} "
             "pixels, 16384×16384)"
         )
     if img.width * img.height * img.samples**2 > MAX_PRIMARY_RAYS:
         raise ImageTooLarge(
-            f"image: {_count(img.width)}×{_count(img.height)} pixels × {_count(img.samples)}² sub-samples is more "
+            f"image: {shown(img.width)}×{shown(img.height)} pixels × {shown(img.samples)}² sub-samples is more "
             f"primary rays than phongray renders ({MAX_PRIMARY_RAYS})"
         )
     lights = emitter_count(scene.lights)
     if lights > MAX_LIGHT_SAMPLES:
         raise ImageTooLarge(
-            f"lights: {_count(lights)} light samples are more than phongray renders ({MAX_LIGHT_SAMPLES})"
+            f"lights: {shown(lights)} light samples are more than phongray renders ({MAX_LIGHT_SAMPLES})"
         )

@@ -7,6 +7,7 @@ from typing import Any
 
 from schemas import AreaLight, Mesh, Plane, Scene, Sphere, Triangle
 from tracer.budget import Budget, OverBudget
+from tracer.sizes import shown
 
 from ..settings import Settings
 from .estimate import ray_tree
@@ -18,14 +19,6 @@ class LimitError(ValueError):
     def __init__(self, message: str, status: int = 422):
         super().__init__(message)
         self.status = status
-
-
-def shown(n: int) -> str:
-    """An integer for a message: in full up to 15 digits, else its order of magnitude (Python refuses
-    to format integers of more than 4300 digits, and nobody wants to read them)."""
-    if abs(n) < 10**15:
-        return str(n)
-    return f"about 10^{int(abs(n).bit_length() * math.log10(2))}"
 
 
 def check_body(body: bytes | str, settings: Settings) -> None:

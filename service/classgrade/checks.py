@@ -94,15 +94,15 @@ REPORT_MARKS = ("report.json", "resume")
 REFERENCE_NAME = re.compile(r"[0-9a-f]{64}\.png")
 
 
-def _references_only(report: Path) -> bool:
-    """Whether the folder holds only references phongray rendered (``references/<scene key>.png``), as the
-    autograder's bundle brings them."""
+def _references_only(report: Path, held: list[str]) -> bool:
+    """Whether the folder holds (``held``) only references phongray rendered (``references/<scene key>.png``),
+    as the autograder's bundle brings them."""
+    if held != ["references"]:
+        return False
     try:
-        held = {p.name for p in report.iterdir() if not p.name.startswith(".")}
-        names = [p.name for p in (report / "references").iterdir()]
+        return all(REFERENCE_NAME.fullmatch(p.name) for p in (report / "references").iterdir())
     except OSError:
         return False
-    return held == {"references"} and all(REFERENCE_NAME.fullmatch(n) for n in names)
 
 
 def writable(report: Path) -> None:
@@ -113,7 +113,7 @@ def writable(report: Path) -> None:
         held = [p.name for p in report.iterdir() if not p.name.startswith(".")] if report.is_dir() else []
     except OSError:
         held = []  # (said below, as it fails to be written)
-    if held and not any((report / mark).exists() for mark in REPORT_MARKS) and not _references_only(report):
+    if held and not any((report / mark).exists() for mark in REPORT_MARKS) and not _references_only(report, held):
         raise ClassError(
             f"{report}: the folder holds files of its own ({', '.join(sorted(held)[:3])}"
             f"{', ...' if len(held) > 3 else ''}) and no phongray report; write the report to a new folder"

@@ -65,7 +65,8 @@ def port(text: str) -> int:
     return _integer(text, 0, 65535, "a TCP port (0–65535)")
 
 
-#: the longest wait an option takes (a week): beyond, a timer's deadline overflows the platform's time
+#: the longest wait an option takes (a week; a run's wall time too): beyond, a timer's deadline overflows the
+#: platform's time
 MOST_WAIT = 7 * 24 * 3600.0
 
 

@@ -15,6 +15,8 @@ import re
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from service.cli.options import MOST_WAIT
+
 if TYPE_CHECKING:
     from service.programs.program import Program
 
@@ -33,8 +35,6 @@ UNITS = {
 _SIZE = re.compile(r"\s*(\d+(?:\.\d+)?)\s*([A-Za-z]*)\s*")
 #: the largest size an option takes (a pebibyte): beyond, no limit means anything, and prlimit cannot read it
 MOST_BYTES = 1 << 50
-#: the longest a run may be given (a week): beyond, a timer's deadline overflows the platform's time
-MOST_SECONDS = 7 * 24 * 3600.0
 #: the most processes a run may be given (Linux's largest pid_max)
 MOST_PROCESSES = 1 << 22
 
@@ -87,7 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--build", metavar="CMD", help="a command run once per student first, in the sandbox (make)")
     group.add_argument(
         "--run-timeout",
-        type=_positive(float, MOST_SECONDS),
+        type=_positive(float, MOST_WAIT),
         metavar="S",
         help="wall time of a run, and of a build (default: 60); the CPU time of each process is "
         "held to the same number of seconds",

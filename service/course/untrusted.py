@@ -36,7 +36,7 @@ def read_own(path: Path | str) -> bytes:
     with os.fdopen(fd, "rb") as f:
         mode = os.fstat(f.fileno()).st_mode
         if not stat.S_ISREG(mode):
-            raise IsADirectoryError(0, file_kind(mode)) if stat.S_ISDIR(mode) else OSError(0, file_kind(mode))
+            raise OSError(0, file_kind(mode))
         return f.read()
 
 

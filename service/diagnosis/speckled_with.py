@@ -64,9 +64,9 @@ def _with_twins(found: Combination, other: str, ranked: list[str], args: _Args) 
     the image cannot tell them apart, so both are said, the one leaving fewer pixels off first."""
     name, reference, submitted, verdict, renders = args
     readings = []
-    for n in ranked[:TRIED]:
+    for n in ranked[ranked.index(other) + 1 : TRIED]:  # (those ranked before it were tried: none passed)
         renders.check()
-        twin = None if n == other else _confirmed(name, n, reference, submitted, verdict, renders)
+        twin = _confirmed(name, n, reference, submitted, verdict, renders)
         if twin is not None:
             readings.append(twin)
     if not readings:

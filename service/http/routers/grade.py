@@ -186,8 +186,8 @@ FIELDS = ("scene", "image", "tolerance", "max_fraction", "diagnose")
 def _once(form: Any) -> None:
     """A field sent twice is refused, naming it: which of the two a grade took would be a guess."""
     for name in FIELDS:
-        if len(form.getlist(name)) > 1:
-            said = f"{name}: given {len(form.getlist(name))} times in the form; send it once"
+        if (times := len(form.getlist(name))) > 1:
+            said = f"{name}: given {times} times in the form; send it once"
             raise HTTPProblem(422, said, part=name if name in ("scene", "image") else None)
 
 
