@@ -467,6 +467,13 @@ def test_each_failing_pair_gets_its_likely_mistake_and_each_task_a_summary(tmp_p
             '{"lamps": {"deductions": {"gamma": 4}}}',
             ":1: lamps.deductions.gamma: must be ≤ the task's points, 1 (points not given: the default)",
         ),
+        # every task's deduction ("*") too large for one task: said at the "*", naming the task
+        (
+            '{"*": {"deductions": {"gamma": 3}},\n "balls": {"points": 5}}',
+            ":1: *.deductions.gamma: must be ≤ the points of task lamps, 1 (points not given: the default)",
+        ),
+        # null is no number of points (a threshold's null is the command's: points has no such default)
+        ('{"lamps": {"points": null}}', ":1: lamps.points: must be a number (leave the key out for the default, 1"),
     ],
 )
 def test_a_bad_tasks_file_stops_the_run(klass, tmp_path, capsys, content, says):

@@ -83,6 +83,13 @@ class TaskSettings(BaseModel):
     #: the late policy: the fraction of the task's points a late submission loses (0: none)
     late_penalty: Annotated[Number, Field(ge=0, le=1)] = 0.0
 
+    @field_validator("points", mode="before")
+    @classmethod
+    def _points_given(cls, value: object) -> object:
+        if value is None:  # (unlike the thresholds', a null here is no default: the key left out is)
+            raise PydanticCustomError("points_null", "must be a number (leave the key out for the default, 1 point)")
+        return value
+
     @field_validator("canvas")
     @classmethod
     def _canvas_column(cls, value: str | None) -> str | None:
@@ -136,7 +143,7 @@ def load_tasks(path: Path | None, tasks: dict[str, Path], canvas: str | None = N
         every = TaskSettings.model_validate({**_given(every), "canvas": canvas})
     merged = {task: _over(every, given.get(task)) for task in tasks}
     if path is not None:
-        _within_points(path, merged, text)
+        _within_points(path, given, merged, text)
     return merged
 
 
@@ -175,17 +182,17 @@ def _known_mistakes(path: Path, given: dict[str, TaskSettings], text: bytes) -> 
         raise ClassError("; ".join(as_lines(str(path), problems, text)))
 
 
-def _within_points(path: Path, given: dict[str, TaskSettings], text: bytes) -> None:
-    """Every deduction takes at most its task's points (else the run stops, naming the place)."""
-    problems = [
-        (
-            f"{task}.deductions.{mistake}",
-            f"must be ≤ the task's points, {settings.points:g}"
-            + ("" if "points" in settings.model_fields_set else " (points not given: the default)"),
-        )
-        for task, settings in sorted(given.items())
-        for mistake, less in settings.deductions.items()
-        if less > settings.points
-    ]
+def _within_points(path: Path, given: dict[str, TaskSettings], merged: dict[str, TaskSettings], text: bytes) -> None:
+    """Every deduction takes at most its task's points (else the run stops, naming the place: the task's own
+    deductions, or the ``"*"``'s that it takes)."""
+    problems = []
+    for task, settings in sorted(merged.items()):
+        own = given.get(task)
+        where = task if own is not None and "deductions" in own.model_fields_set else EVERY
+        for mistake, less in settings.deductions.items():
+            if less > settings.points:
+                whose = "the task's points" if where == task else f"the points of task {task}"
+                default = "" if "points" in settings.model_fields_set else " (points not given: the default)"
+                problems.append((f"{where}.deductions.{mistake}", f"must be ≤ {whose}, {settings.points:g}{default}"))
     if problems:
         raise ClassError("; ".join(as_lines(str(path), problems, text)))
