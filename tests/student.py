@@ -45,6 +45,8 @@ MISTAKES = (
     "transparent-no-shadows",
     "no-reflection",
     "no-refraction",
+    "spot-cone-ignored",
+    "attenuation-not-squared",
 )
 
 
@@ -98,6 +100,7 @@ class Lamp:
     attenuation: tuple[float, float, float] = (1.0, 0.0, 0.0)
     cone: tuple[float, float, float] | None = None  # spot: cos(outer), cos(inner), exponent
     angles: tuple[float, float] | None = None  # spot of a student who ramps in the angle: outer, inner (radians)
+    unsquared: bool = False  # the attenuation's q·d for q·d², the distance not squared
 
 
 def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN001
@@ -109,9 +112,7 @@ def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN
             ambient += color
         elif light.type == "directional":
             out.append(Lamp(color, None, _unit(np.array(light.direction, dtype=np.float64))))
-        elif light.type == "point":
-            out.append(Lamp(color, np.array(light.position, dtype=np.float64), None, atten))
-        elif light.type == "spot":
+        elif light.type == "spot" and "spot-cone-ignored" not in wrong:
             angle = float if "spot-radians" in wrong else math.radians
             inner = light.cutoff if light.inner_cutoff is None else light.inner_cutoff
             out.append(
@@ -124,6 +125,8 @@ def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN
                     (angle(light.cutoff), angle(inner)) if "spot-ramp-angle" in wrong else None,
                 )
             )
+        elif light.type in ("point", "spot"):  # (a spot whose cone is ignored: a point light)
+            out.append(Lamp(color, np.array(light.position, dtype=np.float64), None, atten))
         else:
             nu, nv = light.samples
             corner, eu, ev = (np.array(v, dtype=np.float64) for v in (light.corner, light.edge_u, light.edge_v))
@@ -133,6 +136,8 @@ def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN
                 for i in range(nu)
                 for j in range(nv)
             ]
+    for lamp in out:
+        lamp.unsquared = "attenuation-not-squared" in wrong
     return ambient, out
 
 
@@ -144,7 +149,7 @@ def shine(lamp: Lamp, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
     v = lamp.position - p
     d = np.linalg.norm(v, axis=1)
     c, lin, q = lamp.attenuation
-    strength = 1.0 / (c + lin * d + q * d * d)
+    strength = 1.0 / (c + lin * d + q * d * (1.0 if lamp.unsquared else d))
     to = v / d[:, None]
     if lamp.cone is not None:
         assert lamp.direction is not None

@@ -72,6 +72,8 @@ CLASSIC = (
     "transparent-no-shadows",
     "no-reflection",
     "no-refraction",
+    "spot-cone-ignored",
+    "attenuation-not-squared",
 )
 NEW = (
     "reflection-blended",

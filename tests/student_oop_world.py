@@ -189,7 +189,7 @@ class Light:
         if d == 0:
             return None
         c, lin, q = self.attenuation
-        denom = c + lin * d + q * d * d
+        denom = c + lin * d + q * (d if "attenuation-not-squared" in self.wrong else d * d)
         if denom == 0:
             return None
         return LightSample(mul(v, 1.0 / d), d, mul(color, 1.0 / denom))
@@ -227,7 +227,7 @@ class SpotLight(PointLight):
 
     def samples(self, p: Vec) -> list[LightSample]:
         out = super().samples(p)
-        if not out:
+        if not out or "spot-cone-ignored" in self.wrong:  # (lit as the point light it is also)
             return out
         s = dot(self.direction, mul(out[0].to_light, -1.0))
         if s < self.cos_outer:

@@ -561,3 +561,27 @@ def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_wo
         "lights": [],
     }
     assert Diagnosis.from_dict(late.as_dict()) == late and late.headline() == late.sentence()
+
+
+@pytest.mark.parametrize(
+    "scene_name, mistake",
+    [
+        ("07_spotlights", "spot-cone-ignored"),
+        ("02_all_lights", "spot-cone-ignored"),
+        ("02_all_lights", "attenuation-not-squared"),
+    ],
+)
+def test_a_spot_lit_as_a_point_light_or_a_distance_not_squared_is_named(scene_name, mistake):
+    """Two mistakes a student's tracer written from the format alone showed unnamed (the cause blamed the
+    ambient term, or another light): a spot lit as a point light, and attenuation's q·d for q·d².  Made by the
+    object-oriented student, each is named and matched."""
+    import student_oop
+    from test_compose import small
+
+    scene = small(scene_name, 96, 72)
+    reference = Renderer(scene).pixels()
+    made = student_oop.render(scene, [mistake])
+    verdict = grade(reference, made, "")
+    assert not verdict.passed
+    found = diagnose(reference, made, verdict, renders_of(scene))
+    assert found.causes[0].variant == mistake and found.causes[0].passes and not found.closest

@@ -33,7 +33,14 @@ from .stored import GAMMA, outer
 _Args = tuple[str, np.ndarray, np.ndarray, Grade, Renders]
 #: second mistakes whose change acne may speckle all over (the pixels a spot's cone reaches): where the plain test
 #: (:func:`shows`) fails, their far end is rendered and the test made between the far ends (:func:`shows_speckled`)
-SPECKLED_OVER = ("spot-radians", "spot-ramp-angle", "area-not-divided", "no-attenuation")
+SPECKLED_OVER = (
+    "spot-radians",
+    "spot-ramp-angle",
+    "area-not-divided",
+    "no-attenuation",
+    "spot-cone-ignored",
+    "attenuation-not-squared",
+)
 #: at most this many second mistakes are confirmed by a render of their far end
 TRIED = 2
 #: mistakes never tried with acne: no shadows hides it (no shadow ray, no acne: the image is no shadows'), the

@@ -61,10 +61,14 @@ def _directional(light: DirectionalLight, origin: np.ndarray, options: Options) 
 
 
 def _attenuation(light: PointLight | SpotLight | AreaLight, options: Options) -> np.ndarray:
-    return np.array(light.attenuation if options.attenuation else (1.0, 0.0, 0.0), F64)
+    """``c, l, q``: the light's, or as a variant's student reads them: none, or q·d for q·d² (``c + (l + q)·d``)."""
+    if not options.attenuation:
+        return np.array((1.0, 0.0, 0.0), F64)
+    c, lin, q = light.attenuation
+    return np.array((c, lin, q) if options.attenuation_squared else (c, lin + q, 0.0), F64)
 
 
-def _point(light: PointLight, origin: np.ndarray, options: Options) -> Emitters:
+def _point(light: PointLight | SpotLight, origin: np.ndarray, options: Options) -> Emitters:
     return [
         Emitter(
             "point",
@@ -77,6 +81,8 @@ def _point(light: PointLight, origin: np.ndarray, options: Options) -> Emitters:
 
 
 def _spot(light: SpotLight, origin: np.ndarray, options: Options) -> Emitters:
+    if not options.spot_cone:  # (a variant's student lights a spot as a point light: no cone, no exponent)
+        return _point(light, origin, options)
     angle = math.radians if options.spot_degrees else float  # (a variant reads the cutoffs as radians)
     return [
         Emitter(

@@ -57,6 +57,8 @@ class Options:
     transparent_shadows: bool = True  # objects with k_t > 0 block shadow rays (False: shadow rays pass them)
     reflections: bool = True  # mirror rays traced where k_r > 0 (False: never, at any depth)
     refractions: bool = True  # refracted rays traced where k_t > 0 (False: never, at any depth)
+    spot_cone: bool = True  # a spot's cone read (False: the spot lit as a point light, its cone and exponent unread)
+    attenuation_squared: bool = True  # attenuation's q·d² (False: q·d, the distance not squared)
 
     @property
     def reference(self) -> bool:
@@ -185,6 +187,11 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     ),
     "no-reflection": (Options(reflections=False), "no reflection: mirror rays never traced"),
     "no-refraction": (Options(refractions=False), "no refraction: refracted rays never traced"),
+    "spot-cone-ignored": (Options(spot_cone=False), "a spot light lit as a point light: its cone ignored"),
+    "attenuation-not-squared": (
+        Options(attenuation_squared=False),
+        "attenuation's quadratic term taken as q·d instead of q·d²",
+    ),
 }
 
 #: more mistakes a student's tracer written from the format makes: name → (options, what a student
@@ -358,6 +365,12 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     # a mirror or refracted ray is spawned only below max_depth, at a material with k_r (k_t) > 0
     "no-reflection": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.reflectance > 0),
     "no-refraction": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0),
+    # a spot is lit as a point light only in the variant: no spot, nothing to read otherwise
+    "spot-cone-ignored": lambda scene: not any(light.type == "spot" for light in scene.lights),
+    # q·d for q·d² is the same where q is 0 (lights lit with the attenuation are point, spot and area lights)
+    "attenuation-not-squared": lambda scene: all(
+        light.attenuation[2] == 0 for light in scene.lights if light.type in ("point", "spot", "area")
+    ),
 }
 
 
