@@ -3,7 +3,10 @@ are left out, and a folder over its limit (in bytes, or in files) is refused."""
 
 import io
 import os
+import shutil
 import tarfile
+import tempfile
+from pathlib import Path
 
 import pytest
 
@@ -122,3 +125,59 @@ def test_a_folder_deeper_than_the_machines_longest_path_is_copied_to_its_limit(t
     assert pack.too_large is None
     with unpacked(pack, 1 << 20) as folder:
         assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*")) == kept
+
+
+def _as_nobody(work):  # noqa: ANN001, ANN202
+    """``work()``'s answer, called as a user who is not root (here if this is not root, else in a child that
+    becomes user 65534): root reads every file, whatever its mode."""
+
+    def said() -> str:
+        try:
+            return str(work())
+        except Exception as exc:  # noqa: BLE001
+            return f"{type(exc).__name__}: {exc}"
+
+    if os.geteuid() != 0:
+        return said()
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # (the child: never back into pytest)
+        os.close(read)
+        try:
+            os.setgid(65534)
+            os.setuid(65534)
+            os.write(write, said().encode())
+        finally:
+            os._exit(0)
+    os.close(write)
+    with os.fdopen(read, "rb") as f:
+        answer = f.read().decode()
+    os.waitpid(pid, 0)
+    return answer
+
+
+def test_a_students_file_the_grader_cannot_read_stops_the_class_naming_it():
+    """A student's file this user cannot read (unpacked by another user) was left out of the program's copy
+    without a word, and the student charged with the crash: now the run stops first, naming it."""
+    from service.classgrade.programs import discover_programs
+
+    place = Path(tempfile.mkdtemp(prefix="phongray-unreadable-"))
+    try:
+        os.chmod(place, 0o755)
+        (place / "scenes").mkdir(mode=0o755)
+        (place / "scenes" / "spheres.json").write_text("{}")
+        for student in ("ada", "eve"):
+            (place / "subs" / student / "src").mkdir(mode=0o755, parents=True)
+            (place / "subs" / student / "src" / "tracer.js").write_text("1")
+        os.chmod(place / "subs", 0o755)
+        os.chmod(place / "subs" / "eve" / "src" / "tracer.js", 0o000)
+
+        def found():  # noqa: ANN202
+            return len(discover_programs(place / "scenes", place / "subs").students)
+
+        said = _as_nobody(found)
+        assert str(said).startswith(f"ClassError: {place}/subs/eve/src/tracer.js: this user cannot read it"), said
+        os.chmod(place / "subs" / "eve" / "src" / "tracer.js", 0o644)
+        assert str(_as_nobody(found)) == "2"
+    finally:
+        shutil.rmtree(place)
