@@ -237,6 +237,23 @@ def test_a_hidden_scenes_run_is_told_to_a_student_without_its_exit_status(tmp_pa
     assert "43" not in json.dumps(results)
 
 
+def test_a_programs_image_that_is_no_image_is_invalid_as_its_own_with_its_run_kept(tmp_path, listener):
+    """A program that writes what is no image: its pair is invalid, said of the program's image (never by the
+    TA's folder, which a student must not see), and the TA keeps what the run printed."""
+    check_sandbox()
+    scenes, subs = make_class(tmp_path, listener[0], ["junk"])
+    (subs / "junk" / "tracer.py").write_text(
+        'import sys\nprint("Rendering...", file=sys.stderr)\nopen(sys.argv[2], "wb").write(b"no image")\n'
+    )
+    code, rows, report = grade(tmp_path, scenes, subs)
+    row = rows["junk", "spot"]
+    assert code == 0 and row["status"] == "invalid", row
+    assert row["reason"] == "the program's image: image is not a PNG or a PPM; PNG or PPM required", row
+    assert row["run"] == "ok" and "Rendering..." in row["run_output"], row
+    results = (report / "gradescope" / "junk" / "results.json").read_text()
+    assert str(tmp_path) not in results and "the program's image" in results
+
+
 def test_a_probe_answered_with_no_image_is_that_probes_no_answer_and_the_class_is_graded(tmp_path, listener):
     """A program that fails its task and answers the one-light probes with bytes that are no PNG, or with a
     20000² PNG, is asked the others; its pair fails with its mistake named, and every student is graded."""

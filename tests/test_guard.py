@@ -203,3 +203,26 @@ def test_a_run_killed_at_its_wall_time_says_whether_it_waited_for_a_cpu(course):
     assert (ran, waited) == (round(outcome.cpu_seconds, 1), round(outcome.waited_seconds, 1))
     assert "the grading machine was busy" in said
     assert outcome.detail == "still running at the wall-time limit of 3 s; killed"  # (the same however busy)
+
+
+@pytest.mark.parametrize(
+    "said, reason",
+    [
+        # Node's words, in its own case: a write past the file-size limit, an allocation refused
+        ("Error: EFBIG: file too large, write\n    at Object.writeSync (node:fs:927:3)\n", Reason.OUTPUT_TOO_LARGE),
+        ("RangeError: Array buffer allocation failed\n    at new ArrayBuffer (<anonymous>)\n", Reason.MEMORY),
+        ("Fatal process OOM in Failed to reserve virtual memory for CodeRange\n", Reason.MEMORY),
+        ("Traceback (most recent call last):\nMemoryError\n", Reason.MEMORY),
+        ("OSError: [Errno 27] File too large\n", Reason.OUTPUT_TOO_LARGE),
+        ("TypeError: cannot read properties of undefined\n", Reason.CRASHED),
+    ],
+)
+def test_a_runtimes_own_words_for_a_limit_name_the_limit(said, reason):
+    """A program that dies of a limit in its runtime's own words (Node's lower-case ``EFBIG``, its array
+    buffers) is told as that limit, not as a crash."""
+    from service.programs.outcome import failure
+    from service.programs.process import Finished
+
+    finished = Finished(1 << 8, False, False, b"", said.encode(), 0.1, 0.1)
+    assert failure(finished, Limits()) is not None
+    assert failure(finished, Limits())[0] is reason

@@ -18,10 +18,13 @@ from .taskfile import TaskSettings
 
 def kept_row(marked: Marked, file: Path | None) -> ReportRow:
     """The row kept of a backend's grade (plain values, as the journal writes them): an invalid pair's reason
-    naming its ``file``; else the grade's numbers, its reason, the likely mistake (a program's experiment's,
-    where no mistake matched) and the ids of those it matches, and a program's run, experiment and flag."""
-    if marked.status == "invalid":
+    naming its ``file`` (a program's image as the program's, its run kept); else the grade's numbers, its
+    reason, the likely mistake (a program's experiment's, where no mistake matched) and the ids of those it
+    matches, and a program's run, experiment and flag."""
+    if marked.status == "invalid" and marked.run is None:
         return {"status": "invalid", "reason": f"{file}: {marked.reason}"}
+    if marked.status == "invalid":  # (a program's output: named as such, never by the TA's folder; its run kept)
+        return {"status": "invalid", "reason": f"the program's image: {marked.reason}", **_run_of(marked)}
     graded = marked.graded
     row: ReportRow = {"status": marked.status, "passed": False, "reason": marked.reason}
     found = None
@@ -29,9 +32,7 @@ def kept_row(marked: Marked, file: Path | None) -> ReportRow:
         reason = f"as rendered with {graded.accepted}" if graded.accepted else graded.grade.reason
         row = {**graded.grade.as_dict(), "reason": reason, "status": marked.status}
         found = graded.diagnosis
-    if marked.run is not None:
-        row.update(asdict(marked.run))
-        del row["run_busy"]  # (said to the TA as it came, never kept)
+    row.update(_run_of(marked))
     for key in ("experiment", "flag", "flag_reason"):
         if getattr(marked, key) is not None:
             row[key] = getattr(marked, key)
@@ -40,6 +41,15 @@ def kept_row(marked: Marked, file: Path | None) -> ReportRow:
     if not row["mistakes"] and marked.experiment:  # a program's mistake its probes found instead
         row["likely"] = marked.experiment.split("; ")[0]
     return row
+
+
+def _run_of(marked: Marked) -> ReportRow:
+    """A program's run as its row keeps it (none for an uploaded image)."""
+    if marked.run is None:
+        return {}
+    run = asdict(marked.run)
+    del run["run_busy"]  # (said to the TA as it came, never kept)
+    return run
 
 
 def has_image(row: ReportRow) -> bool:

@@ -49,9 +49,18 @@ def told(reason: Reason) -> str:
     return TOLD.get(str(reason), "crashed")
 
 
-#: the end of standard error's words for running out of memory, and for writing a file past the limit
-MEMORY_WORDS = ("MemoryError", "std::bad_alloc", "Cannot allocate memory", "out of memory")
-FILE_SIZE_WORDS = ("File too large", "No space left on device")
+#: the end of standard error's words for running out of memory, and for writing a file past the limit, in any
+#: case (Python's, C++'s, the C library's, Node's ``EFBIG: file too large`` and ``Array buffer allocation failed``)
+MEMORY_WORDS = (
+    "memoryerror",
+    "std::bad_alloc",
+    "cannot allocate memory",
+    "out of memory",
+    "enomem",
+    "allocation failed",
+    "failed to reserve virtual memory",
+)
+FILE_SIZE_WORDS = ("file too large", "no space left on device", "efbig")
 
 
 @dataclass(frozen=True)
@@ -149,9 +158,10 @@ def failure(finished: Finished, limits: Limits) -> tuple[Reason, str] | None:
     tail, cpu = split_times(finished.stderr_tail, finished.cpu_seconds)
     if sig == signal.SIGXCPU or (sig == signal.SIGKILL and cpu >= limits.cpu_seconds):
         return Reason.CPU_TIME, f"used the CPU-time limit of {limits.cpu_seconds} s; killed"
-    if sig == signal.SIGXFSZ or any(word in tail for word in FILE_SIZE_WORDS):
+    words = tail.lower()
+    if sig == signal.SIGXFSZ or any(word in words for word in FILE_SIZE_WORDS):
         return Reason.OUTPUT_TOO_LARGE, f"wrote more than the output limit of {limits.output_bytes} bytes"
     ended = f"killed by {_signal_name(sig)}" if sig is not None else f"exit {code}"
-    if any(word in tail for word in MEMORY_WORDS):
+    if any(word in words for word in MEMORY_WORDS):
         return Reason.MEMORY, f"ran out of memory (limit {size(limits.memory_bytes)}; {ended})"
     return Reason.CRASHED, f"crashed ({ended})"
