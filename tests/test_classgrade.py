@@ -645,6 +645,16 @@ def test_a_task_most_students_fail_for_one_reason_is_the_tas_to_look_at(tmp_path
     assert all(r["status"] in ("invalid", "missing") for r in rows if r["task"] == "spheres")
 
 
+def test_most_programs_out_of_memory_ask_whether_the_memory_limit_lets_their_language_start():
+    """Node under 512M of address space cannot reserve its code range: every student's run 'ran out of memory'.
+    The warning asks about --memory, not about the task."""
+    reason = "the run failed: memory: ran out of memory (limit 512 MiB; killed by SIGTRAP)"
+    rows = [{"task": "spheres", "status": "fail", "reason": reason} for _ in range(3)]
+    (warning,) = report_module.alike(rows)
+    assert warning.endswith(f"{reason!r}: {report_module.RUNTIME_MEMORY}")
+    assert "Node" in report_module.RUNTIME_MEMORY and "--memory" in report_module.RUNTIME_MEMORY
+
+
 def test_an_ordinary_class_gets_no_warning(tmp_path, capsys):
     folder = Path(__file__).resolve().parent.parent / "examples" / "class"
     args = [str(folder / "scenes"), str(folder / "submissions"), "-o", str(tmp_path / "r"), "-q"]

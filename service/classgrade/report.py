@@ -137,6 +137,12 @@ def summary(rows: list[ReportRow], renders: int, seconds: float) -> str:
 ALIKE_STUDENTS = 3
 
 
+#: a run's reason when it ran out of memory, and what most of a task's students doing so asks of the TA: a runtime
+#: (Node's, Java's) reserves hundreds of MiB of address space just to start
+MEMORY_FAILED = "the run failed: memory"
+RUNTIME_MEMORY = "is --memory enough for the programs' language to start (Node's and Java's need 1G or more)?"
+
+
 def alike(rows: list[ReportRow]) -> list[str]:
     """Per task, a warning where more than half its students (at least :data:`ALIKE_STUDENTS`) are not passed for
     one same reason, their file's name aside ("image is 160×120 pixels, the scene is 40×30"; "no spheres.png
@@ -151,7 +157,8 @@ def alike(rows: list[ReportRow]) -> list[str]:
         (status, reason), count = reasons.most_common(1)[0]
         if 2 * count > len(mine) and reason:
             said = {"fail": "failed"}.get(status, status)
-            out.append(f"{task}: {count} of {len(mine)} students {said} for one reason, {reason!r}: is the task right?")
+            asked = RUNTIME_MEMORY if reason.startswith(MEMORY_FAILED) else "is the task right?"
+            out.append(f"{task}: {count} of {len(mine)} students {said} for one reason, {reason!r}: {asked}")
     return out
 
 
