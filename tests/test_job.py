@@ -85,6 +85,9 @@ def test_a_build_runs_once_and_its_result_is_what_runs(tmp_path, tasks):
     [
         ("python3 tracer.py {scene}", "names no {output}"),
         ("pyhton3 tracer.py {scene} {output}", "no program 'pyhton3'"),
+        # a path that is no program, or one the sandbox does not show: every student's run would crash
+        ("/usr/local/bin/no-such-node tracer.js {scene} {output}", "no program /usr/local/bin/no-such-node that"),
+        ("/tmp/python3 tracer.py {scene} {output}", r"no program /tmp/python3 that .* \(the sandbox shows /usr,"),
     ],
 )
 def test_a_command_of_the_tas_that_cannot_run_is_refused_before_any_student(command, words):

@@ -3,6 +3,7 @@ run is the TA's mistake, found before any student is run."""
 
 from __future__ import annotations
 
+import os
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -10,7 +11,7 @@ from pathlib import Path
 from .limits import Limits
 from .runner import BuildStep, ProgramRun, command_argv
 from .runtime import check_names
-from .sandbox import search_path
+from .sandbox import SYSTEM, search_path
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,23 @@ class Program:
         for command in (self.run, self.build):
             if command is not None:
                 _installed(command, search_path(self.runtime))
+                _shown(command, self.runtime if self.sandbox else "/")
+
+
+def _shown(command: str, runtime: str | None) -> None:
+    """The command's program, when an absolute path (``/usr/local/bin/node``), is an executable file that the
+    programs see: in the sandbox's system folders or the runtime (``runtime`` ``/`` without a sandbox: every
+    path), so that a path missing here is not every student's crash."""
+    first = command_argv(command)[0]
+    if not first.startswith("/") or "{" in first:
+        return
+    seen = ("/usr", *SYSTEM, *([runtime] if runtime else []))
+    inside = any(first == top or first.startswith(top.rstrip("/") + "/") for top in seen)
+    if not (os.path.isfile(first) and os.access(first, os.X_OK)) or not inside:
+        raise ValueError(
+            f"command {command!r}: no program {first} that a student's program can run (the sandbox shows "
+            f"{', '.join(seen)}); install it there, or name it by its name"
+        )
 
 
 def _installed(command: str, path: str) -> None:
