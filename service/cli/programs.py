@@ -82,7 +82,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--run",
         metavar="TEMPLATE",
         help="the program's command line, with {scene} and {output} (python3 render.py {scene} "
-        "{output}, ./raytracer {scene} {output})",
+        "{output}, ./raytracer {scene} {output}), or {stdout} for a program that prints its image",
     )
     group.add_argument("--build", metavar="CMD", help="a command run once per student first, in the sandbox (make)")
     group.add_argument(
@@ -92,7 +92,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="wall time of a run, and of a build (default: 60); the CPU time of each process is "
         "held to the same number of seconds",
     )
-    group.add_argument("--memory", type=size, metavar="SIZE", help="address space of each process (default: 2G)")
+    group.add_argument(
+        "--memory", type=size, metavar="SIZE", help="memory of the run's processes together (default: 2G)"
+    )
     group.add_argument(
         "--processes",
         type=_positive(int, MOST_PROCESSES),
