@@ -319,6 +319,7 @@ def test_a_limit_beyond_what_a_run_can_be_given_is_refused_as_an_option(tmp_path
         main([*args, "--run", "python3 render.py {scene} {output}", option, value])
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and f"argument {option}: " in err and says in err, err
+    assert err.count("\n") == 1 and err.startswith("phongray grade-class: argument"), err  # (no usage first)
 
 
 def test_a_tas_file_that_never_ends_or_waits_for_a_writer_is_refused_not_read(tmp_path, capsys):

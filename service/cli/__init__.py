@@ -25,10 +25,16 @@ from service.cli.render import PASS_NAMES
 __all__ = ["PASS_NAMES", "CliError", "ProgressBar", "build_parser", "main", "parse"]
 
 
+class _OneLine(argparse.ArgumentParser):
+    """A parser whose mistakes are one line and exit 2, as every other mistake of the user's is (argparse's own
+    prints its whole usage first: fifteen lines of ``grade-class``'s options before the one that says what)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="phongray", description="A reference Phong/Whitted ray tracer.", formatter_class=Help
-    )
+    parser = _OneLine(prog="phongray", description="A reference Phong/Whitted ray tracer.", formatter_class=Help)
     parser.add_argument("-V", "--version", action=Version, help="show the version and exit")
     sub = parser.add_subparsers(dest="command", required=True)
     render.add(sub)
