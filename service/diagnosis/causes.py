@@ -77,6 +77,7 @@ def _named(out: Diagnosis, reference: np.ndarray, submitted: np.ndarray, verdict
         if out.causes[0].variant in BOUNDS:  # (acne's far end hides a mistake that only darkens: is one shown?)
             acne = speckled_with(reference, submitted, verdict, renders)
             out.causes = out.causes if acne is None else together_causes(acne)
+            _wrapped_beats_acne(out, scoring.scored, submitted, verdict, renders)
         _wrapped(out, submitted, verdict, renders)
         return
     renders.check()
@@ -110,6 +111,24 @@ def _wrapped(out: Diagnosis, submitted: np.ndarray, verdict: Grade, renders: Ren
     found = unclamped.behind(first.variant, submitted, verdict, renders)
     if found is not None:
         out.causes, out.closest = together_causes(found), False
+
+
+def _wrapped_beats_acne(
+    out: Diagnosis, scored: list[Cause], submitted: np.ndarray, verdict: Grade, renders: Renders
+) -> None:
+    """``out``'s causes, acne's (alone or with another mistake), made the nearest mistake scored with colours
+    not clamped (:mod:`.unclamped`) where the submission passes against those two rendered together with no
+    more pixels off.  Acne's is a test between bounds (its speckles are one pattern of many), and the dark dots
+    of colours that wrap lie between the reference and acne's far end too: an image that a render of two
+    mistakes matches (no reflection with colours not clamped) is that render's, not acne's."""
+    plain = [c for c in scored if c.variant not in BOUNDS]
+    if not plain:
+        return
+    nearest = min(plain, key=lambda c: c.fraction_off_nearby)
+    renders.check()
+    found = unclamped.behind(nearest.variant, submitted, verdict, renders)
+    if found is not None and found.fraction_off_nearby <= out.causes[0].fraction_off_nearby:
+        out.causes = together_causes(found)
 
 
 class _Scoring:
