@@ -585,3 +585,25 @@ def test_a_spot_lit_as_a_point_light_or_a_distance_not_squared_is_named(scene_na
     assert not verdict.passed
     found = diagnose(reference, made, verdict, renders_of(scene))
     assert found.causes[0].variant == mistake and found.causes[0].passes and not found.closest
+
+
+def test_a_mistake_that_explains_little_of_the_difference_is_not_named_as_the_nearest():
+    """A student's spot cone drawn too narrow was told 'some of the difference is what the image saved in
+    grayscale changes (about 40 %)': a mistake they did not make.  Below most of the difference a mistake is not
+    named; the sentence says where the difference lies instead.  One that explains most of it still is."""
+    from service.diagnosis import Cause, Diagnosis, Share
+
+    def near(share: float) -> Diagnosis:
+        cause = Cause("grayscale", "what the image saved in grayscale changes", 0.3, False, [], share, "")
+        objects = [Share(0, "plane", 0.8, "the first plane"), Share(1, "sphere", 0.2, "the first sphere")]
+        return Diagnosis(causes=[cause], objects=objects, lights=[Share(2, "spot", 0.9, "the third light (spot)")])
+
+    little = near(0.4)
+    assert little.nearest and little.sentence() == (
+        "No known mistake fits: compare the heat-map with the reference; the difference is mostly on the first "
+        "plane, in the light of the third light (spot)"
+    )
+    assert little.headline() == "no known mistake fits"
+    most = near(0.7)
+    assert most.sentence().startswith("No known mistake fits exactly: most of the difference is what the image")
+    assert most.headline() == "nearest: what the image saved in grayscale changes"

@@ -80,7 +80,8 @@ def test_nothing_that_fits_still_has_causes_ranked_by_share(spheres):
     assert found.causes and found.nearest and not any(c.passes for c in found.causes)
     shares = [c.share for c in found.causes]
     assert all(s is not None for s in shares) and shares == sorted(shares, reverse=True)
-    assert found.sentence().startswith("No known mistake fits exactly:")
+    # (noise is no mistake's: the first explains far less than most of it, and is not named)
+    assert shares[0] < 0.6 and found.sentence().startswith("No known mistake fits: compare the heat-map")
 
 
 def test_mistakes_made_together_lose_each_ones_deduction():

@@ -17,6 +17,10 @@ from .words import Names, nearest_sentence, readings_sentence, term_sentence, to
 
 #: the key of a record's field metadata that says how the service's answer documents the field
 ANSWERED = "answered"
+#: the share of the difference a classic mistake must account for to be named as the nearest explanation
+#: (:meth:`Diagnosis.sentence`): "most of" the difference (:func:`.words.share_words`); below it, a mistake the
+#: student did not make is named by the little of the difference that happens to look like it
+NAMED_SHARE = 0.6
 
 
 def answered(doc: Any, as_type: object = None) -> dict[str, tuple[object, FieldInfo]]:
@@ -196,7 +200,10 @@ class Diagnosis:
         if self.unavailable is not None:
             return f"No diagnosis: {self.unavailable}"
         if self.nearest:
-            return nearest_sentence(self.causes[0].mistake, self.causes[0].share or 0.0)
+            named = self._nearest_named()
+            if named is None:
+                return "No known mistake fits: compare the heat-map with the reference" + self._where()
+            return nearest_sentence(named.mistake, named.share or 0.0)
         also = "" if self.offset is None else f" and {self.offset}"
         if self.together:
             first, *others = [[c.mistake for c in made] for made in self.combinations]
@@ -219,11 +226,30 @@ class Diagnosis:
             return f"Likely: {term_words(self.terms[0])}"
         return "No known mistake fits: compare the heat-map with the reference"
 
+    def _nearest_named(self) -> Cause | None:
+        """The nearest explanation a sentence names: a term out of scale, or a mistake that accounts for
+        :data:`NAMED_SHARE` of the difference or more; None where the first is a mistake that accounts for less
+        (a spot's cone drawn too narrow is not 'some of what grayscale changes': naming it misleads)."""
+        first = self.causes[0]
+        return first if first.variant.startswith("term:") or (first.share or 0.0) >= NAMED_SHARE else None
+
+    def _where(self) -> str:
+        """ "; the difference is mostly on the first plane, in the light of the second light (point)": the object
+        and the light that most of the failing pixels are of, where one is."""
+        places = [
+            f"{lead}{top.words}"
+            for lead, shares in (("on ", self.objects), ("in the light of ", self.lights))
+            for top in shares[:1]
+            if top.share >= 0.5 and top.words and top.index >= 0
+        ]
+        return f"; the difference is mostly {', '.join(places)}" if places else ""
+
     def headline(self) -> str:
         """A few words for a report's cell: the likely mistake (mistakes made together joined by +), the nearest
         explanation, the term out of scale, that nothing fits, or why there is no diagnosis."""
         if self.nearest:
-            return "nearest: " + self.causes[0].mistake
+            named = self._nearest_named()
+            return "no known mistake fits" if named is None else "nearest: " + named.mistake
         if self.readings:  # (what the image cannot tell apart)
             return " or ".join(c.mistake for c in self.readings)
         if self.together:  # (each reading the image cannot tell apart, mistakes made together joined by +)
