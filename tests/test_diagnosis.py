@@ -596,7 +596,8 @@ def test_a_mistake_that_explains_little_of_the_difference_is_not_named_as_the_ne
     def near(share: float) -> Diagnosis:
         cause = Cause("grayscale", "what the image saved in grayscale changes", 0.3, False, [], share, "")
         objects = [Share(0, "plane", 0.8, "the first plane"), Share(1, "sphere", 0.2, "the first sphere")]
-        return Diagnosis(causes=[cause], objects=objects, lights=[Share(2, "spot", 0.9, "the third light (spot)")])
+        lights = [Share(2, "spot", 0.9, "the third light (spot)"), Share(1, "point", 0.1, "the second light (point)")]
+        return Diagnosis(causes=[cause], objects=objects, lights=lights)
 
     little = near(0.4)
     assert little.nearest and little.sentence() == (
@@ -604,6 +605,8 @@ def test_a_mistake_that_explains_little_of_the_difference_is_not_named_as_the_ne
         "plane, in the light of the third light (spot)"
     )
     assert little.headline() == "no known mistake fits"
+    little.lights = little.lights[:1]  # (the one light on every failing pixel tells nothing of the mistake)
+    assert little.sentence().endswith("the difference is mostly on the first plane")
     most = near(0.7)
     assert most.sentence().startswith("No known mistake fits exactly: most of the difference is what the image")
     assert most.headline() == "nearest: what the image saved in grayscale changes"

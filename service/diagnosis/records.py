@@ -235,10 +235,12 @@ class Diagnosis:
 
     def _where(self) -> str:
         """ "; the difference is mostly on the first plane, in the light of the second light (point)": the object
-        and the light that most of the failing pixels are of, where one is."""
+        and the light that most of the failing pixels are of, where one is (a light only where another light
+        falls on some of them too: the one light of every failing pixel tells nothing of the mistake)."""
+        lights = self.lights if len(self.lights) > 1 else []
         places = [
             f"{lead}{top.words}"
-            for lead, shares in (("on ", self.objects), ("in the light of ", self.lights))
+            for lead, shares in (("on ", self.objects), ("in the light of ", lights))
             for top in shares[:1]
             if top.share >= 0.5 and top.words and top.index >= 0
         ]
