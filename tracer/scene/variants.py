@@ -167,7 +167,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "spot-radians": (Options(spot_degrees=False), "a spot's cutoff compared in radians"),
     "depth-plus-one": (Options(depth_offset=1), "max_depth off by one (one bounce too many)"),
     "depth-minus-one": (Options(depth_offset=-1), "max_depth off by one (one bounce too few)"),
-    "ior-inverted": (Options(ior_inverted=True), "the index of refraction inverted"),
+    "ior-inverted": (
+        Options(ior_inverted=True),
+        "the index of refraction inverted (or the surface normals pointing inward, which swaps entering and leaving)",
+    ),
     # (rendered at 2e-2 of the visible size; the diagnosis scores it against a ladder of amounts, and says which)
     "offset-too-large": (Options(offset=2e-2), "shadow and secondary rays offset too far from the surface"),
     "reflect-sign": (Options(reflect_flipped=True), "the reflected vector R with the wrong sign (L − 2(N·L)N)"),
