@@ -47,6 +47,7 @@ MISTAKES = (
     "no-refraction",
     "spot-cone-ignored",
     "attenuation-not-squared",
+    "shadow-past-light",
 )
 
 
@@ -247,10 +248,14 @@ def render(
                     speck = (np.floor(np.abs(origin).sum(axis=1) * 977.0) % 2 == 1)[:, None]
                     origin = origin - np.where(speck, 1e-7, 0.0) * n[rows]
                     leaving = np.full(len(rows), -1)
+                # (a student who does not stop the ray at the light: as far as a directional light's goes)
+                reach, at = (
+                    (np.full(len(rows), np.inf), None) if "shadow-past-light" in wrong else (dist[rows], lamp.position)
+                )
                 if "transparent-no-shadows" in wrong:  # the loop over the objects skips glass
-                    shadowed, _ = ref.blocked(opaque, origin, to[rows], dist[rows], renumber[leaving], lamp.position)
+                    shadowed, _ = ref.blocked(opaque, origin, to[rows], reach, renumber[leaving], at)
                 else:
-                    shadowed, _ = ref.blocked(surfaces, origin, to[rows], dist[rows], leaving, lamp.position)
+                    shadowed, _ = ref.blocked(surfaces, origin, to[rows], reach, leaving, at)
                 gets[rows[shadowed]] = False
             if "blinn-phong" in wrong:
                 rv = _dot(n, _unit(to + view))

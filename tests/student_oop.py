@@ -74,6 +74,7 @@ CLASSIC = (
     "no-refraction",
     "spot-cone-ignored",
     "attenuation-not-squared",
+    "shadow-past-light",
 )
 NEW = (
     "reflection-blended",
@@ -156,7 +157,8 @@ class Tracer:
             if "transparent-no-shadows" in self.wrong and self.scene.materials[shape.material].transmittance > 0:
                 continue  # glass lets the light through
             hit = shape.intersect(ray)  # (t > 0: with no offset, rounding puts half the points below)
-            if hit is not None and hit.t < s.distance * (1 - 1e-9):
+            past = "shadow-past-light" in self.wrong  # (no check of the light's distance: anything on the line)
+            if hit is not None and (past or hit.t < s.distance * (1 - 1e-9)):
                 return True
         return False
 

@@ -239,8 +239,22 @@ class _Scoring:
         """The causes named, best first, and whether the first is only the closest: those passed against, or
         else the one that comes far closer than the reference does, or none."""
         # (of two alike, the classic mistake first: the new one is a further reading of the same image)
-        self.scored.sort(key=lambda c: (not c.passes, c.fraction_off_nearby, c.variant not in VARIANTS, c.variant))
+        # (of two alike, a render matched before a speckled mistake's test between bounds: acne's far end darkens
+        # every lit point, so a mistake that only adds shadow passes that test too, and a render that matches it
+        # as well or better is that mistake's, not acne's)
+        self.scored.sort(
+            key=lambda c: (
+                not c.passes,
+                c.fraction_off_nearby,
+                c.variant in BOUNDS,
+                c.variant not in VARIANTS,
+                c.variant,
+            )
+        )
         passing = [c for c in self.scored if c.passes]
+        rendered = [c.fraction_off_nearby for c in passing if c.variant not in BOUNDS]
+        if rendered:
+            passing = [c for c in passing if c.variant not in BOUNDS or c.fraction_off_nearby < min(rendered)]
         if passing:
             return passing, False
         if self.scored and self.scored[0].fraction_off_nearby <= CLOSEST_SHARE * self.verdict.fraction_off_nearby:

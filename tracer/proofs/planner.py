@@ -107,7 +107,8 @@ def plan_proofs(world: World, options: Options, spawn: Spawn | None) -> ProofPla
     ``spawn``, if any)."""
     spheres_and_triangles = len(world.spheres.radius) + len(world.triangles.v0)
     cone_bounds = bounds_of(world) if spheres_and_triangles <= CONE_MAX else None
-    exact = not options.acne and spawn is None and options.transparent_shadows  # (else: a variant's rays)
+    exact = not options.acne and spawn is None and options.transparent_shadows and options.shadow_to_light
+    # (else: a variant's rays)
     facing = not options.specular_behind
     # the proofs of which points a light reaches (tiles, classify, penumbra) exempt a point's own surface, which
     # holds only for rays of points facing the light: with the variant lighting points from behind, its sphere

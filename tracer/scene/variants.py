@@ -59,6 +59,7 @@ class Options:
     refractions: bool = True  # refracted rays traced where k_t > 0 (False: never, at any depth)
     spot_cone: bool = True  # a spot's cone read (False: the spot lit as a point light, its cone and exponent unread)
     attenuation_squared: bool = True  # attenuation's q·d² (False: q·d, the distance not squared)
+    shadow_to_light: bool = True  # a shadow ray stops at its light (False: it goes on, and what lies beyond blocks)
 
     @property
     def reference(self) -> bool:
@@ -194,6 +195,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "attenuation-not-squared": (
         Options(attenuation_squared=False),
         "attenuation's quadratic term taken as q·d instead of q·d²",
+    ),
+    "shadow-past-light": (
+        Options(shadow_to_light=False),
+        "shadow rays not stopped at the light: what lies beyond a light casts shadows",
     ),
 }
 
@@ -374,6 +379,8 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     "attenuation-not-squared": lambda scene: all(
         light.attenuation[2] == 0 for light in scene.lights if light.type in ("point", "spot", "area")
     ),
+    # a directional light's shadow rays have no end to stop at: only point, spot and area lights show it
+    "shadow-past-light": lambda scene: not any(light.type in ("point", "spot", "area") for light in scene.lights),
 }
 
 

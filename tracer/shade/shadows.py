@@ -150,7 +150,7 @@ class ShadowRays:
         rays = self.spawner.shadow(at.hit, at.mag, rows, dirs, at.normal)
         dist = pick(reach.dist) if rows is not None else reach.dist.copy()
         spawn = self.spawner.offset
-        if em.kind == "directional":
+        if em.kind == "directional" or not self.options.shadow_to_light:  # (a variant's rays go on past the light)
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
         elif spawn is not None and spawn.along != "ray":
             # a student's offset along the normal: as long as from the hit point to the light, from where the ray
