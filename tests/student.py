@@ -48,6 +48,7 @@ MISTAKES = (
     "spot-cone-ignored",
     "attenuation-not-squared",
     "shadow-past-light",
+    "specular-in-shadow",
 )
 
 
@@ -241,6 +242,7 @@ def render(
             to, dist, strength = shine(lamp, p)
             nl = _dot(n, to)
             gets = (strength > 0) & ((nl > 0) | ("specular-behind" in wrong))
+            shines = gets.copy()  # (where the specular is added: after the shadow test, unless it skips it)
             if "no-shadows" not in wrong and gets.any():
                 rows = np.flatnonzero(gets)
                 origin, leaving = spawn(p[rows], to[rows], n[rows], which[rows], style)
@@ -257,6 +259,8 @@ def render(
                 else:
                     shadowed, _ = ref.blocked(surfaces, origin, to[rows], reach, leaving, at)
                 gets[rows[shadowed]] = False
+                if "specular-in-shadow" not in wrong:
+                    shines = gets
             if "blinn-phong" in wrong:
                 rv = _dot(n, _unit(to + view))
             elif "reflect-sign" in wrong:  # reflect(L, N) = L − 2(N·L)N where reflect(−L, N) was meant
@@ -266,7 +270,8 @@ def render(
             spec = np.where(rv > 0, np.abs(rv) ** shininess, 0.0)
             diffuse = kd * np.maximum(nl, 0.0)[:, None]
             specular = np.zeros_like(ks) if "no-specular" in wrong else ks * spec[:, None]
-            colour += np.where(gets[:, None], lamp.color * strength[:, None] * (diffuse + specular), 0.0)
+            lit = np.where(gets[:, None], diffuse, 0.0) + np.where(shines[:, None], specular, 0.0)
+            colour += lamp.color * strength[:, None] * lit
         np.add.at(total, pixel, weight[:, None] * colour)
         if depth == depth_limit:
             break

@@ -75,6 +75,7 @@ CLASSIC = (
     "spot-cone-ignored",
     "attenuation-not-squared",
     "shadow-past-light",
+    "specular-in-shadow",
 )
 NEW = (
     "reflection-blended",
@@ -188,11 +189,14 @@ class Tracer:
                 nl = dot(n, s.to_light)
                 if nl <= 0 and "specular-behind" not in self.wrong:
                     continue
+                dark = False
                 if "no-shadows" not in self.wrong:
                     eps = 0.0 if "shadow-acne" in self.wrong else self.eps
-                    if self.in_shadow(self.off(p, hit.normal, s.to_light, eps), s):
+                    dark = self.in_shadow(self.off(p, hit.normal, s.to_light, eps), s)
+                    if dark and "specular-in-shadow" not in self.wrong:
                         continue
-                diffuse = add(diffuse, mul(times(s.intensity, kd), max(nl, 0.0)))
+                if not dark:  # (the student whose highlights shine in shadow skips only this)
+                    diffuse = add(diffuse, mul(times(s.intensity, kd), max(nl, 0.0)))
                 if "blinn-phong" in self.wrong:
                     rv = dot(n, normalize(add(s.to_light, v)))
                 elif "reflect-sign" in self.wrong:

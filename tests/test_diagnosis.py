@@ -570,12 +570,15 @@ def test_a_diagnosis_read_back_from_its_json_is_the_same_record_with_the_same_wo
         ("02_all_lights", "spot-cone-ignored"),
         ("02_all_lights", "attenuation-not-squared"),
         ("02_all_lights", "shadow-past-light"),
+        ("02_all_lights", "specular-in-shadow"),
+        ("07_spotlights", "specular-in-shadow"),
     ],
 )
 def test_a_spot_lit_as_a_point_light_or_a_distance_not_squared_is_named(scene_name, mistake):
     """Mistakes students' tracers written from the format alone showed unnamed (the cause blamed the ambient
     term, or another light): a spot lit as a point light, attenuation's q·d for q·d², a shadow ray not stopped
-    at its light (what lies beyond a lamp shadows what it lights).  Made by the
+    at its light (what lies beyond a lamp shadows what it lights), a shadow test that skips the specular term
+    (highlights shine in shadow).  Made by the
     object-oriented student, each is named and matched."""
     import student_oop
     from test_compose import small

@@ -113,7 +113,8 @@ def plan_proofs(world: World, options: Options, spawn: Spawn | None) -> ProofPla
     # the proofs of which points a light reaches (tiles, classify, penumbra) exempt a point's own surface, which
     # holds only for rays of points facing the light: with the variant lighting points from behind, its sphere
     # may block them
-    light_bounds = bounds_of(world) if options.shadows and exact and facing else None
+    # (and, for the variant whose shadows take only the diffuse term, a point proven hidden still has its specular)
+    light_bounds = bounds_of(world) if options.shadows and exact and facing and options.specular_shadowed else None
     return ProofPlan(world.triangles, cone_bounds, light_bounds, exact, facing)
 
 

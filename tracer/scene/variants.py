@@ -60,6 +60,7 @@ class Options:
     spot_cone: bool = True  # a spot's cone read (False: the spot lit as a point light, its cone and exponent unread)
     attenuation_squared: bool = True  # attenuation's q·d² (False: q·d, the distance not squared)
     shadow_to_light: bool = True  # a shadow ray stops at its light (False: it goes on, and what lies beyond blocks)
+    specular_shadowed: bool = True  # a blocked shadow ray takes the specular term too (False: only the diffuse)
 
     @property
     def reference(self) -> bool:
@@ -199,6 +200,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "shadow-past-light": (
         Options(shadow_to_light=False),
         "shadow rays not stopped at the light: what lies beyond a light casts shadows",
+    ),
+    "specular-in-shadow": (
+        Options(specular_shadowed=False),
+        "highlights not shadowed: the shadow test removes only the diffuse term",
     ),
 }
 
@@ -381,6 +386,8 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     ),
     # a directional light's shadow rays have no end to stop at: only point, spot and area lights show it
     "shadow-past-light": lambda scene: not any(light.type in ("point", "spot", "area") for light in scene.lights),
+    # the specular term is k_s times a finite number: with every k_s zero, what a shadow leaves of it is 0 either way
+    "specular-in-shadow": lambda scene: not _specular(scene),
 }
 
 

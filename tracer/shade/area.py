@@ -125,7 +125,7 @@ def _samples(
             cast.append(_cast(shadows, kernel, points, emitters[e], bool(holds[e]), run > 1))
         decided = shadows.decide([c.query for c in cast])
         for c, blocked in zip(cast, decided):
-            c.apply(blocked)
+            c.apply(blocked, shadows.options.specular_shadowed)
             wd, ws = kernel.terms(c.reach)
             sum_d += wd
             sum_s += ws
@@ -143,13 +143,14 @@ class _Cast:
     cast: np.ndarray | None  # and which are cast (the query's rays); None: every ray of ``rows`` is
     query: Query
 
-    def apply(self, blocked: np.ndarray) -> None:
-        """Zero the weight where the sample's shadow rays are blocked, ``blocked`` the query's answer."""
+    def apply(self, blocked: np.ndarray, specular: bool) -> None:
+        """Zero the weight where the sample's shadow rays are blocked, ``blocked`` the query's answer (of the
+        diffuse term alone, without ``specular``: :meth:`tracer.shade.kernel.Reach.shadowed`)."""
         if self.proven is not None:
             assert self.cast is not None
             self.proven[self.cast] = blocked
             blocked = self.proven
-        self.reach.weight[self.rows[blocked]] = 0.0
+        self.reach.shadowed(self.rows[blocked], specular)
 
 
 def _cast(shadows: ShadowRays, kernel: Kernel, points: Sorted, em: Emitter, holds: bool, keep: bool) -> _Cast:

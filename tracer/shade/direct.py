@@ -111,7 +111,7 @@ class DirectLight:
         cast = [(group, self._cast(kernel, group.first, len(run) > 1)) for group in run]
         waiting = [(group, c) for group, c in cast if c is not None]
         for (group, c), blocked in zip(waiting, self.shadows.decide([c.query for _, c in waiting])):
-            c.reach.weight[c.rows[blocked] if c.rows is not None else blocked] = 0.0
+            c.reach.shadowed(c.rows[blocked] if c.rows is not None else blocked, self.options.specular_shadowed)
             terms = kernel.terms(c.reach)
             into.observer.seen(group.first)(c.reach.weight, c.reach.facing, None)
             into.add(group.first, terms)

@@ -67,13 +67,23 @@ class Reach:
     nl: np.ndarray  # (N,) N·L (0 where a flat surface's plane holds the light)
     facing: np.ndarray  # (N,) bool: N·L > 0
     lit: np.ndarray  # (N,) bool: where a shadow ray decides whether the emitter lights the point
-    weight: np.ndarray  # (N,) the factor where lit, 0 elsewhere: the caller zeroes it where a shadow ray is blocked
+    weight: np.ndarray  # (N,) the factor where lit, 0 elsewhere: :meth:`shadowed` zeroes it where a ray is blocked
+    #: the weight before shadows, kept for the specular term of a variant whose shadows take only the diffuse
+    unshadowed: np.ndarray | None = None
 
     def kept(self) -> Reach:
         """A copy of what :meth:`Kernel.terms` and the observer read (L, N·L, the facing and the weight), for an
         emitter decided after the kernel has gone on to others; ``dist`` and ``lit``, read only before, stay views."""
         to_light, nl, facing, weight = (a.copy(order="K") for a in (self.to_light, self.nl, self.facing, self.weight))
         return Reach(to_light, self.dist, nl, facing, self.lit, weight)
+
+    def shadowed(self, rows: np.ndarray, specular: bool = True) -> None:
+        """Zero the weight at ``rows`` (indices or a mask), where the emitter's shadow rays are blocked; without
+        ``specular`` (a variant's student, whose shadow test skips the specular term), the weight before is kept
+        for that term."""
+        if not specular and self.unshadowed is None:
+            self.unshadowed = self.weight.copy()
+        self.weight[rows] = 0.0
 
 
 class Kernel:
@@ -127,5 +137,5 @@ class Kernel:
             np.power(rv, self.at.shininess, out=spec)
         spec *= pos  # (where R·V ≤ 0 the power of 1, times 0)
         np.multiply(reach.weight, np.maximum(nl, 0.0) if self.options.specular_behind else nl, out=self.wd)
-        np.multiply(reach.weight, spec, out=self.ws)
+        np.multiply(reach.weight if reach.unshadowed is None else reach.unshadowed, spec, out=self.ws)
         return self.wd, self.ws
