@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from test_cluster import DASK, _start, _stop, _workers
 
+from service.classgrade import journal
 from service.classgrade.feedback import ZEROED
 from service.cli import main
 from service.programs import check_sandbox
@@ -252,6 +253,8 @@ def test_a_programs_image_that_is_no_image_is_invalid_as_its_own_with_its_run_ke
     assert row["run"] == "ok" and "Rendering..." in row["run_output"], row
     results = (report / "gradescope" / "junk" / "results.json").read_text()
     assert str(tmp_path) not in results and "the program's image" in results
+    kept = json.loads(journal.path(report, "junk", "spot").read_text())  # (kept for a run that resumes)
+    assert journal.valid_row(kept["row"]) and kept["row"]["run"] == "ok", kept
 
 
 def test_a_probe_answered_with_no_image_is_that_probes_no_answer_and_the_class_is_graded(tmp_path, listener):

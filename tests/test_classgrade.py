@@ -648,7 +648,12 @@ def test_a_task_most_students_fail_for_one_reason_is_the_tas_to_look_at(tmp_path
 def test_most_programs_out_of_memory_ask_whether_the_memory_limit_lets_their_language_start():
     """Node under 512M of address space cannot reserve its code range: every student's run 'ran out of memory'.
     The warning asks about --memory, not about the task."""
-    reason = "the run failed: memory: ran out of memory (limit 512 MiB; killed by SIGTRAP)"
+    from service.classgrade.job import failed_run
+    from service.programs import Reason
+    from service.programs.outcome import RunOutcome
+
+    ended = RunOutcome(Reason.MEMORY, "ran out of memory (limit 512 MiB; killed by SIGTRAP)")
+    reason = failed_run(ended).reason  # (as a run's row says it)
     rows = [{"task": "spheres", "status": "fail", "reason": reason} for _ in range(3)]
     (warning,) = report_module.alike(rows)
     assert warning.endswith(f"{reason!r}: {report_module.RUNTIME_MEMORY}")

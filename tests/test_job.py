@@ -95,6 +95,17 @@ def test_a_command_of_the_tas_that_cannot_run_is_refused_before_any_student(comm
         Program(command)
 
 
+def test_a_program_the_sandbox_does_not_show_is_refused_though_it_is_here(tmp_path):
+    """An executable of the TA's machine outside the folders the sandbox shows (their home, /opt): every
+    student's run would find nothing there."""
+    program = tmp_path / "node"
+    program.write_text("#!/bin/sh\n")
+    program.chmod(0o755)
+    with pytest.raises(ValueError, match=f"no program {program} that a student's program can run"):
+        Program(f"{program} tracer.js {{scene}} {{output}}")
+    assert Program(f"{program} tracer.js {{scene}} {{output}}", sandbox=False).run.startswith(str(program))
+
+
 def test_the_digest_follows_the_files_and_the_commands_not_the_links(tmp_path):
     student = folder(tmp_path)
     program = Program(RUN, limits=LIMITS)

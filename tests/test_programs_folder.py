@@ -179,5 +179,31 @@ def test_a_students_file_the_grader_cannot_read_stops_the_class_naming_it():
         assert str(said).startswith(f"ClassError: {place}/subs/eve/src/tracer.js: this user cannot read it"), said
         os.chmod(place / "subs" / "eve" / "src" / "tracer.js", 0o644)
         assert str(_as_nobody(found)) == "2"
+        os.chmod(place / "subs" / "eve", 0o444)  # (listed, but nothing in it can be opened)
+        said = _as_nobody(found)
+        assert str(said).startswith(f"ClassError: {place}/subs/eve: this user cannot read it"), said
+        os.chmod(place / "subs" / "eve", 0o755)
     finally:
         shutil.rmtree(place)
+
+
+def test_names_too_long_for_a_path_or_a_folder_gone_meanwhile_are_no_refusal(tmp_path):
+    """Sixteen nested folders of 250-byte names make paths longer than the system takes: the copy leaves them
+    out (MAX_PATH), and the check that every file may be read does not count them as refused."""
+    from service.programs.folder import unreadable
+
+    deep = tmp_path / "student"
+    deep.mkdir()
+    fd = os.open(deep, os.O_RDONLY)
+    try:
+        for _ in range(16):
+            os.mkdir("d" * 250, dir_fd=fd)
+            inner = os.open("d" * 250, os.O_RDONLY, dir_fd=fd)
+            os.close(fd)
+            fd = inner
+        with open(os.open("f.txt", os.O_WRONLY | os.O_CREAT, 0o644, dir_fd=fd), "w") as f:
+            f.write("x")
+    finally:
+        os.close(fd)
+    (deep / "tracer.py").write_text("1")
+    assert unreadable(deep) is None

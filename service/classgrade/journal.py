@@ -23,6 +23,7 @@ from tracer.scene.variants import VARIANTS
 
 from ..course.untrusted import UntrustedFileError, read_untrusted
 from .forms import ReportRow, Stamp
+from .records import RunInfo
 from .report import write_atomic
 
 #: the folder of a report where each finished grade is kept
@@ -87,19 +88,28 @@ def _number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
+#: the keys a program's run adds to its row (:class:`~.records.RunInfo`; ``run_busy`` is said, never kept)
+RUN_KEYS = frozenset(RunInfo.__dataclass_fields__) - {"run_busy"}
+
+
 def _scalar(value: Any) -> bool:
     return value is None or isinstance(value, str | bool) or _number(value)
 
 
 def valid_row(row: Any) -> bool:
-    """A row as a grade of this version keeps it: ``{"status": "invalid", "reason": text}``, or a graded one
+    """A row as a grade of this version keeps it: ``{"status": "invalid", "reason": text}`` (with a program's
+    run, its plain values), or a graded one
     with every number of its type, ``passed`` agreeing with its status, and known mistake ids (``a+b`` for
     mistakes made together; a key of its own, such as a newer grade may give, only as a plain value); or a
     program's failed run: a failing row of plain values and no numbers."""
     if not isinstance(row, dict) or row.get("status") not in KEPT:
         return False
-    if row["status"] == "invalid":
-        return set(row) == {"status", "reason"} and isinstance(row["reason"], str)
+    if row["status"] == "invalid":  # (a program's image that is none keeps its run's plain values beside)
+        return (
+            {"status", "reason"} <= set(row) <= {"status", "reason", *RUN_KEYS}
+            and isinstance(row["reason"], str)
+            and all(_scalar(row[k]) for k in row)
+        )
     if row.get("run") not in (None, "ok"):  # a program's run that failed: its reason and the run's end, no numbers
         return (
             row["status"] == "fail"

@@ -17,8 +17,6 @@ not start in the sandbox or would show programs what they may not see, ``--serve
 
 from __future__ import annotations
 
-import os
-import stat
 import sys
 from collections.abc import Callable, Iterator
 from dataclasses import replace
@@ -29,7 +27,7 @@ from ..course.errors import ClassError
 from ..course.folders import hidden, own_scenes, sorted_entries, task_scenes
 from ..programs import SandboxUnavailable, check_sandbox
 from ..programs.digest import digest
-from ..programs.folder import MAX_DEPTH, MAX_ENTRIES
+from ..programs.folder import unreadable
 from ..programs.pack import pack_folder
 from ..programs.runtime import check_runtime, runtime_starts
 from . import journal
@@ -95,33 +93,15 @@ def discover_programs(scenes: Path, submissions: Path, student_scenes: Path | No
 
 
 def _all_readable(submissions: Path, folder: Path) -> None:
-    """:class:`ClassError` naming the first of a student's files or folders that this user cannot read: the
-    copy a program runs in would leave it out, and the student would be charged with the crash (a folder
-    unpacked by another user, as root).  Links are not followed, and no more is looked at than a copy takes
-    (:data:`~service.programs.folder.MAX_ENTRIES`, :data:`~service.programs.folder.MAX_DEPTH`)."""
-    seen, unreadable = 0, []
-    for top, folders, files in os.walk(folder, onerror=lambda exc: unreadable.append(Path(exc.filename))):
-        depth = len(Path(top).relative_to(folder).parts)
-        if depth >= MAX_DEPTH:
-            folders.clear()
-        for name in [*files, *folders]:
-            seen += 1
-            if seen > MAX_ENTRIES:  # (no more than the copy takes: it stops the folder there)
-                break
-            path = Path(top, name)
-            try:
-                info = path.lstat()
-            except OSError:  # (gone since it was listed: the copy will not find it either)
-                continue
-            wanted = os.R_OK | os.X_OK if stat.S_ISDIR(info.st_mode) else os.R_OK
-            if (stat.S_ISREG(info.st_mode) or stat.S_ISDIR(info.st_mode)) and not os.access(path, wanted):
-                unreadable.append(path)
-        if unreadable or seen > MAX_ENTRIES:
-            break
-    if unreadable:
+    """:class:`ClassError` naming the first of a student's files or folders this user may not read
+    (:func:`~service.programs.folder.unreadable`): the copy a program runs in would leave it out, and the student
+    would be charged with the crash (a folder unpacked by another user, as root)."""
+    found = unreadable(folder)
+    if found is not None:
         raise ClassError(
-            f"{unreadable[0]}: this user cannot read it, so a student's program would run without it; make the "
-            f"students' files readable (chmod -R u+rwX {submissions}, as their owner) and run again"
+            f"{folder / found if found else folder}: this user cannot read it, so a student's program would run "
+            f"without it; make the students' files readable (chmod -R u+rwX {submissions}, as their owner) and "
+            f"run again"
         )
 
 

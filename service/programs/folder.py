@@ -12,12 +12,14 @@ as a tar stream (:func:`unpack`), read with the same rules.
 
 from __future__ import annotations
 
+import errno
 import io
 import os
 import stat
 import tarfile
 from pathlib import Path, PurePosixPath
 
+from ..course.errors import ClassError
 from ..course.folders import Folder
 from ..course.untrusted import UntrustedFileError
 
@@ -132,6 +134,67 @@ def _measure(source: Folder, budget: _Budget, depth: int) -> None:
                     continue
                 with sub:
                     _measure(sub, budget, depth + 1)
+
+
+def unreadable(student: Path) -> str | None:
+    """The first of a student's files and folders that this user may not read, as its path below the student's
+    folder (``""``: the folder itself), among what :func:`copy_folder` would copy, walked as :func:`_measure`
+    walks it (regular files and folders, no link, within :data:`MAX_DEPTH`, :data:`MAX_PATH` and
+    :data:`MAX_ENTRIES`); None when it may read them all.  Only a refusal counts (``EACCES``, ``EPERM``): what
+    vanished meanwhile the copy does not find either."""
+    if not os.access(student, os.R_OK | os.X_OK):
+        return ""
+    try:
+        root = Folder.root(student)
+    except ClassError:
+        return None
+    with root:
+        return _unreadable(root, [MAX_ENTRIES], 0)
+
+
+def _refused(exc: OSError) -> bool:
+    return exc.errno in (errno.EACCES, errno.EPERM)
+
+
+def _unreadable(source: Folder, left: list[int], depth: int) -> str | None:
+    """:func:`unreadable` below ``source``, ``left[0]`` the entries it may still look at."""
+    try:
+        listing = os.scandir(source.fd)
+    except OSError as exc:
+        return source.rel if _refused(exc) else None
+    with listing:
+        for entry in listing:
+            if _left_out(source, entry.name):
+                continue
+            try:
+                info = entry.stat(follow_symlinks=False)
+            except OSError as exc:
+                if _refused(exc):
+                    return source.rel + entry.name
+                continue
+            folder = stat.S_ISDIR(info.st_mode)
+            if not (stat.S_ISREG(info.st_mode) or (folder and depth < MAX_DEPTH)):
+                continue
+            left[0] -= 1
+            if left[0] < 0:
+                return None
+            wanted = os.R_OK | os.X_OK if folder else os.R_OK
+            if not os.access(entry.name, wanted, dir_fd=source.fd, follow_symlinks=False):
+                return source.rel + entry.name + ("/" if folder else "")
+            if folder:
+                found = _unreadable_in(source, entry.name, left, depth)
+                if found is not None:
+                    return found
+    return None
+
+
+def _unreadable_in(source: Folder, name: str, left: list[int], depth: int) -> str | None:
+    try:
+        sub = source.sub(name)
+    except OSError as exc:
+        return f"{source.rel}{name}/" if _refused(exc) else None
+    with sub:
+        return _unreadable(sub, left, depth + 1)
 
 
 def copy_folder(student: Path, target: Path, limit: int) -> None:

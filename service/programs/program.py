@@ -54,7 +54,8 @@ def _shown(command: str, runtime: str | None) -> None:
     if not first.startswith("/") or "{" in first:
         return
     seen = ("/usr", *SYSTEM, *([runtime] if runtime else []))
-    inside = any(first == top or first.startswith(top.rstrip("/") + "/") for top in seen)
+    real = os.path.realpath(first)  # (a link under /usr to what the sandbox does not show runs nothing either)
+    inside = all(any(p == top or p.startswith(top.rstrip("/") + "/") for top in seen) for p in (first, real))
     if not (os.path.isfile(first) and os.access(first, os.X_OK)) or not inside:
         raise ValueError(
             f"command {command!r}: no program {first} that a student's program can run (the sandbox shows "
