@@ -30,6 +30,9 @@ class _OneLine(argparse.ArgumentParser):
     prints its whole usage first: fifteen lines of ``grade-class``'s options before the one that says what)."""
 
     def error(self, message: str) -> NoReturn:
+        commands = [a.choices for a in self._actions if isinstance(a, argparse._SubParsersAction)]
+        if commands and "required: command" in message:  # (the usage, which lists them, is not printed)
+            message += f", one of {', '.join(commands[0])}"
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 

@@ -71,7 +71,8 @@ def explained(diagnosis: dict[str, Any] | None) -> list[str]:
         lines += [f"  {c['mistake']}: {c['evidence']}" for c in together_readings(causes)[0] if c.get("evidence")]
         causes = []
     elif causes and causes[0].get("share") is not None and not causes[0]["passes"]:  # the nearest explanations
-        lines += [f"  also: {c['mistake']} (about {round(100 * c['share'])} %)" for c in causes[1:4]]
+        if diagnosis["sentence"].startswith("No known mistake fits exactly"):  # (none named: no lesser ones either)
+            lines += [f"  also: {c['mistake']} (about {round(100 * c['share'])} %)" for c in causes[1:4]]
         causes = []
     if causes[1:4]:
         lines.append(

@@ -13,14 +13,14 @@ from pydantic.fields import FieldInfo
 from tracer.scene.variants import SENTENCES
 
 from ..images.figures import percent
-from .words import Names, nearest_sentence, readings_sentence, term_sentence, together_sentence
+from .words import MOST, Names, nearest_sentence, readings_sentence, term_sentence, together_sentence
 
 #: the key of a record's field metadata that says how the service's answer documents the field
 ANSWERED = "answered"
 #: the share of the difference a classic mistake must account for to be named as the nearest explanation
 #: (:meth:`Diagnosis.sentence`): "most of" the difference (:func:`.words.share_words`); below it, a mistake the
 #: student did not make is named by the little of the difference that happens to look like it
-NAMED_SHARE = 0.6
+NAMED_SHARE = MOST
 
 
 def answered(doc: Any, as_type: object = None) -> dict[str, tuple[object, FieldInfo]]:

@@ -90,9 +90,13 @@ def term_sentence(name: str, light: int | None, scale: float, names: Names, join
     return f"{term_name(name, light, names)}{joined}{verb} {how}{tail}"
 
 
+#: the share of the difference that is "most of" it (:func:`share_words`)
+MOST = 0.6
+
+
 def share_words(share: float) -> str:
     """A share of the difference in words: "most of", "about half of", "some of", "a little of"."""
-    if share >= 0.6:
+    if share >= MOST:
         return "most of"
     if share >= 0.35:
         return "about half of"
