@@ -386,3 +386,15 @@ def test_a_ramp_over_itself_and_a_terrain_under_its_copy_agree_with_the_brute_fo
         data = scene(objects, lights, cam, width=80, height=60)
         assert Renderer(schemas.validate_scene(data)).intersector.walker.mates is not None  # plain faces, mates skipped
         agrees_with_brute_force(data)
+
+
+def test_a_variants_shadow_rays_past_their_light_get_no_sightlines():
+    """The walk spares a shadow ray the faces it does not meet on its way to its light: a variant's ray that runs
+    on past the light (shadow-past-light) may meet them beyond it, so its render has no sightlines."""
+    from tracer.scene.variants import VARIANTS
+
+    s = schemas.validate_scene(scene([BALL], [{"type": "point", "color": 1, "position": [0, 0.6, 5]}], EYE))
+    origin = build_world(s).origin
+    camera = CameraRays(s.camera, s.image, origin)
+    assert scene_sightlines(s, origin, camera) is not None
+    assert scene_sightlines(s, origin, camera, VARIANTS["shadow-past-light"][0]) is None

@@ -55,7 +55,7 @@ class Stages:
             )
             if options.left_handed:  # a variant's r = up × f (u kept): the image mirrored left to right
                 self.camera.right = -self.camera.right
-            self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera))
+            self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera, options))
             #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
             self.spawner = Spawner(self.world, options, options.spawn(self.visible_size))
             #: which proofs spare which rays (:mod:`tracer.proofs.planner`)

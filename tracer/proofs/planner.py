@@ -20,7 +20,8 @@ apply to its rays (:class:`ProofPlan`):
   the format's shadow rays; the points facing away, and the penumbra's own-surface rule, only where just the
   points facing a sample are lit;
 * mesh faces Embree may meet as they are (:func:`tracer.proofs.sightlines.plain_triangles`): from the lines every
-  ray of the scene runs on (:func:`scene_sightlines`), none with a mirror or glass.
+  ray of the scene runs on (:func:`scene_sightlines`), none with a mirror or glass, nor for a variant's shadow rays
+  that run on past their light.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from ..scene.camera import CameraRays
 from ..scene.lights import LIGHT_TYPES, Emitter
 from ..scene.rays import Among, Rays
 from ..scene.surfaces import Triangles
-from ..scene.variants import Options, Spawn
+from ..scene.variants import REFERENCE, Options, Spawn
 from ..scene.world import World
 from .bounds import Bounds, bounds_of
 from .cones import along_direction, on_lines, through_point
@@ -61,7 +62,8 @@ class ProofPlan:
     #: the surfaces as bounds for which points a light reaches (:mod:`tracer.proofs.tiles`,
     #: :mod:`tracer.proofs.culling`,
     #: :mod:`tracer.proofs.penumbra`); None where shadow rays are not the format's, where points not facing a light
-    #: may be lit (their own surface may block them), or the scene has too many surfaces
+    #: may be lit (their own surface may block them), where a blocked ray leaves the specular term (a variant's:
+    #: a point proven hidden is shaded still), or the scene has too many surfaces
     light_bounds: Bounds | None
     #: shadow rays start at the exact hit point, leaving its surface by identity, and end at the light
     exact_shadows: bool
@@ -118,9 +120,15 @@ def plan_proofs(world: World, options: Options, spawn: Spawn | None) -> ProofPla
     return ProofPlan(world.triangles, cone_bounds, light_bounds, exact, facing)
 
 
-def scene_sightlines(scene: Scene, origin: np.ndarray, camera: CameraRays) -> Sightlines | None:
+def scene_sightlines(
+    scene: Scene, origin: np.ndarray, camera: CameraRays, options: Options = REFERENCE
+) -> Sightlines | None:
     """The lines of a validated scene's rays (local coordinates about ``origin``), or None when a mirror or
-    glass may send rays anywhere."""
+    glass may send rays anywhere, or a variant's shadow rays run on past their light (the faces the walk
+    spares a shadow ray are those it does not meet on its way to the light:
+    :func:`tracer.proofs.sightlines.plain_triangles`)."""
+    if not options.shadow_to_light:
+        return None
     used = {obj.material for obj in scene.objects}
     used |= {checker.material for name in used if (checker := scene.materials[name].checker) is not None}
     if scene.image.max_depth > 0 and any(

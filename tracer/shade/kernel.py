@@ -10,10 +10,12 @@ a column at a time):
   N·L, and the weight ``w``: the factor where the emitter lights the point
   (N·L > 0, or everywhere for the variant that lights a point from behind), 0
   elsewhere;
-* the caller's shadow rays set ``w`` to 0 where the light is blocked;
+* the caller's shadow rays set ``w`` to 0 where the light is blocked (:meth:`Reach.shadowed`);
 * :meth:`Kernel.terms`: ``wd = w·(N·L)`` and ``ws = w·max(0, R·V)^n``, with
   ``R·V = 2(N·L)(N·V) + L·D`` (V = −D), or N·H for Blinn–Phong (a variant), or
-  −R·V for a reflected vector of the wrong sign (another).
+  −R·V for a reflected vector of the wrong sign (another); for the variant whose
+  shadow test skips the specular term, ``ws`` takes ``w`` as it was before the
+  shadow rays.
 
 ``max(0, R·V)^n`` is 0 where R·V ≤ 0, also for n = 0: the power is taken of 1
 there and multiplied by 0.
@@ -72,10 +74,12 @@ class Reach:
     unshadowed: np.ndarray | None = None
 
     def kept(self) -> Reach:
-        """A copy of what :meth:`Kernel.terms` and the observer read (L, N·L, the facing and the weight), for an
-        emitter decided after the kernel has gone on to others; ``dist`` and ``lit``, read only before, stay views."""
+        """A copy of what :meth:`Kernel.terms` and the observer read (L, N·L, the facing, the weight and the weight
+        before shadows), for an emitter decided after the kernel has gone on to others; ``dist`` and ``lit``, read
+        only before, stay views."""
         to_light, nl, facing, weight = (a.copy(order="K") for a in (self.to_light, self.nl, self.facing, self.weight))
-        return Reach(to_light, self.dist, nl, facing, self.lit, weight)
+        before = None if self.unshadowed is None else self.unshadowed.copy()
+        return Reach(to_light, self.dist, nl, facing, self.lit, weight, before)
 
     def shadowed(self, rows: np.ndarray, specular: bool = True) -> None:
         """Zero the weight at ``rows`` (indices or a mask), where the emitter's shadow rays are blocked; without
@@ -121,7 +125,8 @@ class Kernel:
 
     def terms(self, reach: Reach) -> tuple[np.ndarray, np.ndarray]:
         """``wd = w·(N·L)`` and ``ws = w·max(0, R·V)^n`` per point (N·L at least 0 for the variant that lights
-        a point from behind), into the kernel's buffers: valid until its next call. Each (N,)."""
+        a point from behind; ``w`` before shadows in ``ws`` for the variant whose shadows skip it), into the
+        kernel's buffers: valid until its next call. Each (N,)."""
         nl, rv, tmp, pos, spec = reach.nl, self.rv, self.tmp, self.pos, self.spec
         if self.options.blinn:  # N·H with H = unit(L + V)
             np.copyto(rv, dot(self.normal, unit(reach.to_light - self.dirs)))
