@@ -274,3 +274,11 @@ def test_a_last_look_walks_whatever_is_owed(monkeypatch):
     clock.now += 0.1
     assert shares.pages([1, 2], 512 * MIB) == (600 * MIB, False)  # (the estimate)
     assert shares.pages([1, 2], 512 * MIB, walk=True) == (600 * MIB, True)
+
+
+def test_a_process_still_in_the_machines_root_holds_no_sandbox_folders():
+    """bubblewrap names the sandbox's first process as soon as it is cloned, before it has its own root: a look
+    then saw the machine's /tmp (gigabytes of a disk's used blocks) as the run's tmpfs, and a busy machine's
+    first look ended a run of a few bytes as out of memory.  A process whose root is the machine's holds none."""
+    assert usage.folders(os.getpid()) == 0
+    assert usage.folders(None) == 0

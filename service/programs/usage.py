@@ -151,8 +151,11 @@ def open_files(pids: list[int]) -> int:
 
 def folders(inside: int | None) -> int:
     """What the sandbox's tmpfs folders hold, in bytes (their used blocks, and :data:`INODE_BYTES` a file or
-    folder), seen through the root of ``inside``, a process of the sandbox; 0 without one."""
-    if inside is None:
+    folder), seen through the root of ``inside``, a process of the sandbox; 0 without one, and 0 while its root
+    is still the machine's: bubblewrap names its first process as soon as it is cloned, before it has made its
+    own root, and until then ``/tmp`` there is the machine's, whose used blocks (gigabytes of a disk) are no run's
+    (a look that came first, on a busy machine, ended a run of a few bytes as out of memory)."""
+    if inside is None or _same_root(inside):
         return 0
     total = 0
     for folder in FOLDERS:
@@ -162,6 +165,15 @@ def folders(inside: int | None) -> int:
             continue
         total += (seen.f_blocks - seen.f_bfree) * seen.f_frsize + (seen.f_files - seen.f_ffree) * INODE_BYTES
     return total
+
+
+def _same_root(pid: int) -> bool:
+    """Whether process ``pid``'s root is this one's (or it has ended): not yet, or never, a sandbox's own."""
+    try:
+        theirs, ours = os.stat(f"/proc/{pid}/root/"), os.stat("/")
+    except OSError:
+        return True
+    return (theirs.st_dev, theirs.st_ino) == (ours.st_dev, ours.st_ino)
 
 
 def mapping_bytes(processes: int) -> int:
