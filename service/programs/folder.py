@@ -17,6 +17,7 @@ import io
 import os
 import stat
 import tarfile
+from collections.abc import Iterator
 from pathlib import Path, PurePosixPath
 
 from ..course.errors import ClassError
@@ -109,31 +110,38 @@ def _copy_folder(source: Folder, name: str, target: Path, budget: _Budget, depth
         _copy(sub, target / name, budget, depth + 1)
 
 
-def _measure(source: Folder, budget: _Budget, depth: int) -> None:
-    """Count what :func:`_copy` would copy, its regular files' sizes as listed (no file is read), stopping
-    with :class:`FolderTooLarge` at the first entry over the budget."""
-    try:
-        listing = os.scandir(source.fd)
-    except OSError:
-        return
-    with listing:
+def _listed(source: Folder) -> Iterator[tuple[str, os.stat_result | OSError]]:
+    """The entries of ``source`` the copy looks at (their paths within :data:`MAX_PATH`), each with its status
+    as it is (a link not followed), or the error its status gave; the listing's own error is raised."""
+    with os.scandir(source.fd) as listing:
         for entry in listing:
             if _left_out(source, entry.name):
                 continue
             try:
-                info = entry.stat(follow_symlinks=False)
-            except OSError:
+                yield entry.name, entry.stat(follow_symlinks=False)
+            except OSError as exc:
+                yield entry.name, exc
+
+
+def _measure(source: Folder, budget: _Budget, depth: int) -> None:
+    """Count what :func:`_copy` would copy, its regular files' sizes as listed (no file is read), stopping
+    with :class:`FolderTooLarge` at the first entry over the budget."""
+    try:
+        for name, info in _listed(source):
+            if isinstance(info, OSError):
                 continue
             if stat.S_ISREG(info.st_mode):
                 budget.take(info.st_size)
             elif stat.S_ISDIR(info.st_mode) and depth < MAX_DEPTH:
                 budget.take(0)
                 try:
-                    sub = source.sub(entry.name)
+                    sub = source.sub(name)
                 except OSError:
                     continue
                 with sub:
                     _measure(sub, budget, depth + 1)
+    except OSError:  # (a folder that cannot be listed is copied empty)
+        return
 
 
 def unreadable(student: Path) -> str | None:
@@ -159,18 +167,10 @@ def _refused(exc: OSError) -> bool:
 def _unreadable(source: Folder, left: list[int], depth: int) -> str | None:
     """:func:`unreadable` below ``source``, ``left[0]`` the entries it may still look at."""
     try:
-        listing = os.scandir(source.fd)
-    except OSError as exc:
-        return source.rel if _refused(exc) else None
-    with listing:
-        for entry in listing:
-            if _left_out(source, entry.name):
-                continue
-            try:
-                info = entry.stat(follow_symlinks=False)
-            except OSError as exc:
-                if _refused(exc):
-                    return source.rel + entry.name
+        for name, info in _listed(source):
+            if isinstance(info, OSError):
+                if _refused(info):
+                    return source.rel + name
                 continue
             folder = stat.S_ISDIR(info.st_mode)
             if not (stat.S_ISREG(info.st_mode) or (folder and depth < MAX_DEPTH)):
@@ -178,13 +178,13 @@ def _unreadable(source: Folder, left: list[int], depth: int) -> str | None:
             left[0] -= 1
             if left[0] < 0:
                 return None
-            wanted = os.R_OK | os.X_OK if folder else os.R_OK
-            if not os.access(entry.name, wanted, dir_fd=source.fd, follow_symlinks=False):
-                return source.rel + entry.name + ("/" if folder else "")
-            if folder:
-                found = _unreadable_in(source, entry.name, left, depth)
-                if found is not None:
-                    return found
+            if not os.access(name, os.R_OK | os.X_OK if folder else os.R_OK, dir_fd=source.fd, follow_symlinks=False):
+                return source.rel + name + ("/" if folder else "")
+            found = _unreadable_in(source, name, left, depth) if folder else None
+            if found is not None:
+                return found
+    except OSError as exc:
+        return source.rel if _refused(exc) else None
     return None
 
 
