@@ -615,3 +615,22 @@ def test_a_mistake_that_explains_little_of_the_difference_is_not_named_as_the_ne
     most = near(0.7)
     assert most.sentence().startswith("No known mistake fits exactly: most of the difference is what the image")
     assert most.headline() == "nearest: what the image saved in grayscale changes"
+
+
+def test_speckles_only_on_the_references_edges_are_not_acnes():
+    """A student who averages sub-samples in gamma space differs only where a pixel mixes two surfaces: 0.84 %
+    of the Cornell homework, darker, and between the reference and acne's far end, so acne's test passed it and
+    'shadow acne' was named.  Departures count as speckles only where the reference is flat around them; the
+    same speckles on a surface's inside are acne's still."""
+    from service.diagnosis.looks import speckled
+
+    reference = np.full((40, 40, 3), 200, dtype=np.uint8)
+    reference[:, 20:] = 60  # (two surfaces, one edge between them)
+    far = np.full_like(reference, 20)  # (acne's far end: every lit point in shadow)
+    rows = np.arange(0, 40, 2)
+    on_edge = reference.copy()
+    on_edge[rows, 19] = 120  # (the edge's pixels, every other one darker: speckled along it)
+    assert speckled(reference, far, on_edge, 2.0) is None
+    inside = reference.copy()
+    inside[rows, 8] = 120  # (the same speckles inside the bright surface)
+    assert speckled(reference, far, inside, 2.0) == 0.0

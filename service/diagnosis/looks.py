@@ -290,6 +290,24 @@ def outside_at_least(
     return off
 
 
+#: a departure counts as a speckle's only where the reference is flat around it: no neighbour more than this
+#: many tolerances away (departures only at edges, where sub-samples mix two surfaces, are how a student's
+#: anti-aliasing differs, averaged in gamma space, say: not speckles of acne on a surface)
+EDGE = 4.0
+
+
+def _flat(image: np.ndarray, within: float) -> np.ndarray:
+    """``(H, W)`` bool: where no pixel of the 3×3 neighbourhood differs from the pixel by more than ``within`` in
+    any channel (the image's border pixels against the neighbours they have)."""
+    wide = np.pad(image.astype(np.int16), ((1, 1), (1, 1), (0, 0)), mode="edge")
+    h, w = image.shape[:2]
+    flat = np.ones((h, w), dtype=bool)
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            flat &= np.all(np.abs(wide[dy : dy + h, dx : dx + w] - wide[1 : 1 + h, 1 : 1 + w]) <= within, axis=2)
+    return flat
+
+
 def speckled(
     reference: np.ndarray, bound: np.ndarray, submitted: np.ndarray, tolerance: float, samples: int = 1
 ) -> float | None:
@@ -311,8 +329,8 @@ def speckled(
     moved = np.take_along_axis((sub - ref).astype(np.float64), channel, axis=2)[..., 0]
     can = np.abs(span) > tolerance
     departs = can & (np.abs(moved) > tolerance)
-    if departs.sum() < 16:
-        return None
+    if departs.sum() < 16 or np.count_nonzero(departs & _flat(ref, EDGE * tolerance)) < 16:
+        return None  # (too few, or only on the reference's edges: a pixel mixing two surfaces is no speckle)
     share = np.where(can, moved / np.where(can, span, 1.0), 0.0)
     pairs = can[:, 1:] & can[:, :-1] & (departs[:, 1:] | departs[:, :-1])
     if not pairs.any() or float(np.abs(np.diff(share, axis=1))[pairs].mean()) < speckle_threshold(samples):
