@@ -620,8 +620,8 @@ def test_a_mistake_that_explains_little_of_the_difference_is_not_named_as_the_ne
 def test_speckles_only_on_the_references_edges_are_not_acnes():
     """A student who averages sub-samples in gamma space differs only where a pixel mixes two surfaces: 0.84 %
     of the Cornell homework, darker, and between the reference and acne's far end, so acne's test passed it and
-    'shadow acne' was named.  Departures count as speckles only where the reference is flat around them; the
-    same speckles on a surface's inside are acne's still."""
+    'shadow acne' was named.  Departures are speckles only where enough of them go beyond every reference pixel
+    around them; the same speckles on a surface's inside are acne's still."""
     from service.diagnosis.looks import speckled
 
     reference = np.full((40, 40, 3), 200, dtype=np.uint8)
