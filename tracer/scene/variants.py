@@ -154,10 +154,7 @@ class Spawn:
 #: name → (options, what a student did)
 VARIANTS: dict[str, tuple[Options, str]] = {
     "no-shadows": (Options(shadows=False), "no shadow rays"),
-    "shadow-acne": (
-        Options(acne=True),
-        "shadow acne: shadow rays hit the surface they start from (or, at their end, the one a light lies on)",
-    ),
+    "shadow-acne": (Options(acne=True), "shadow acne: shadow rays hit the surface they start or end on"),
     "blinn-phong": (Options(blinn=True), "the Blinn–Phong half vector instead of the reflected vector"),
     "specular-behind": (Options(specular_behind=True), "specular light where N·L ≤ 0"),
     "gamma": (Options(gamma=True), "gamma 1/2.2 applied to the output"),
