@@ -120,7 +120,7 @@ def case(
 
 def cases(name: str, size: tuple[int, int], cache: Path | None) -> list[Case]:
     """Every case of one example: honest, each mistake it can show alone, and the pairs of :data:`PAIRS`."""
-    from tracer.scene.variants import unchanged
+    from tracer.scene.shown import unchanged
 
     oop = student()
     scene = schemas.validate_scene(example(name, *size))

@@ -642,8 +642,9 @@ class Frame:
         return np.floor(255.0 * v + 0.5).astype(np.uint8)
 
 
-def _checker_material(scene, s: Surface, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
-    """Per hit point: whether the checker's other material applies, and whether that is unclear."""
+def _checker_material(scene, s: Surface, p: np.ndarray, index=np.floor) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """Per hit point: whether the checker's other material applies, and whether that is unclear.  ``index`` takes
+    a coordinate in cells to its cell's index (``np.trunc``: a student's ``int()``, for tests/student.py)."""
     mat = scene.materials[s.material]
     n = len(p)
     if mat.checker is None:
@@ -653,7 +654,7 @@ def _checker_material(scene, s: Surface, p: np.ndarray) -> tuple[np.ndarray, np.
     if s.kind != "sphere":
         q = p - _dot(p - s.point, s.normal)[:, None] * s.normal
     cell = q / size
-    idx = np.floor(cell)
+    idx = index(cell)
     odd = np.mod(np.sum(idx, axis=1), 2.0) == 1.0
     frac = np.abs(cell - np.round(cell))
     exact_axis = np.zeros((n, 3), bool)

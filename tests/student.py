@@ -39,6 +39,7 @@ MISTAKES = (
     "offset-too-large",
     "reflect-sign",
     "checker-ignored",
+    "checker-truncated",
     "colours-not-clamped",
     "ambient-from-diffuse",
     "spot-ramp-angle",
@@ -225,7 +226,8 @@ def render(
             )
             if "normals-not-flipped" in wrong:
                 n[at] = outward[at]
-            other, _ = ref._checker_material(scene, surface, p[at])
+            cells = np.trunc if "checker-truncated" in wrong else np.floor  # (int(P/s) rounds toward 0)
+            other, _ = ref._checker_material(scene, surface, p[at], cells)
             if "checker-ignored" in wrong:  # every point in the object's own material
                 other = np.zeros_like(other)
             main = scene.materials[surface.material]

@@ -66,6 +66,7 @@ CLASSIC = (
     "offset-too-large",
     "reflect-sign",
     "checker-ignored",
+    "checker-truncated",
     "colours-not-clamped",
     "ambient-from-diffuse",
     "spot-ramp-angle",
@@ -172,7 +173,8 @@ class Tracer:
             n = hit.shape.normal
             q = sub(p, mul(n, dot(sub(p, hit.shape.point), n)))
         size = m.checker.size
-        cell = math.floor(q[0] / size) + math.floor(q[1] / size) + math.floor(q[2] / size)
+        index = int if "checker-truncated" in self.wrong else math.floor  # (int() rounds toward 0)
+        cell = index(q[0] / size) + index(q[1] / size) + index(q[2] / size)
         return self.scene.materials[m.checker.material] if cell % 2 else m
 
     def off(self, p: Vec, n: Vec, towards: Vec, eps: float) -> Vec:

@@ -12,7 +12,8 @@ from service.diagnosis.compose import Looks, Rows, chosen, compose, pointed, tel
 from service.diagnosis.records import Term
 from service.images.grading import grade
 from tracer import Renderer
-from tracer.scene.variants import REFERENCE, Options, unchanged
+from tracer.scene.shown import unchanged
+from tracer.scene.variants import REFERENCE, Options
 
 from helpers import scene_dict
 

@@ -397,7 +397,7 @@ def test_a_mistake_the_scene_cannot_show_is_never_named_even_against_a_foreign_r
     verdict = grade(foreign, ours, "")
     assert not verdict.passed
     found = diagnose(foreign, ours, verdict, renders_of(scene))
-    from tracer.scene.variants import unchanged
+    from tracer.scene.shown import unchanged
 
     assert not any(unchanged(c.variant, scene) for c in found.causes)
 

@@ -158,7 +158,7 @@ class Stages:
             return None
         hit, done = self.intersector.describe(work.rays, best, rows), work.take(rows)  # (the hits alone)
         dd = done.rays.dirs
-        mat = resolve_material(self.world, hit)
+        mat = resolve_material(self.world, hit, self.options.checker_floor)
         normal = shading_normal(self.world, hit, dd, self.options.flip_normals)
         observer = UNOBSERVED if tally is None else PassObserver(tally, done)
         if work.depth == 0:

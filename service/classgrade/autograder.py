@@ -30,7 +30,7 @@ from pathlib import Path
 import service
 from schemas import SceneError
 from tracer import ImageTooLarge, Renderer, encode_png, render
-from tracer.scene.variants import unchanged
+from tracer.scene.shown import unchanged
 
 from ..course.errors import ClassError
 from ..course.untrusted import read_own

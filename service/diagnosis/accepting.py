@@ -25,7 +25,8 @@ import numpy as np
 
 from schemas import Scene
 from tracer import Renderer
-from tracer.scene.variants import ACCEPTED_DEFAULT, Options, unchanged
+from tracer.scene.shown import unchanged
+from tracer.scene.variants import ACCEPTED_DEFAULT, Options
 
 from ..images.grading import GROSS_ALLOWED, Grade, grade, range_counts
 from ..images.nearby import rows_distance

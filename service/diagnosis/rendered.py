@@ -11,7 +11,8 @@ import numpy as np
 
 from tracer import RenderCancelled, Renderer
 from tracer.image import quantize
-from tracer.scene.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options, unchanged
+from tracer.scene.shown import unchanged
+from tracer.scene.variants import BOUNDS, MORE_VARIANTS, REFERENCE, VARIANTS, Options
 from tracer.shade.passes import ADDITIVE, LIGHT_TERMS
 
 from .combination import on_base
@@ -41,7 +42,7 @@ def renders_of(
     One render gives every pass, every light's terms and the image's linear colour
     (:meth:`tracer.Renderer.diagnosis_passes`); from that colour come, exactly as their own renders would make
     them, the gamma variant (each pixel's colour to the power 1/2.2, then stored) and the flipped image, and
-    the reference itself stands for every variant the scene cannot show (:func:`tracer.scene.variants.unchanged`).
+    the reference itself stands for every variant the scene cannot show (:func:`tracer.scene.shown.unchanged`).
     Only the other variants are rendered, each once.
 
     That render is made only when something needs the whole image's passes (a fit of the terms, a variant

@@ -61,6 +61,7 @@ class Options:
     attenuation_squared: bool = True  # attenuation's q·d² (False: q·d, the distance not squared)
     shadow_to_light: bool = True  # a shadow ray stops at its light (False: it goes on, and what lies beyond blocks)
     specular_shadowed: bool = True  # a blocked shadow ray takes the specular term too (False: only the diffuse)
+    checker_floor: bool = True  # a checker's cell index floor(P/s) (False: int(P/s), truncated toward 0)
 
     @property
     def reference(self) -> bool:
@@ -177,6 +178,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "offset-too-large": (Options(offset=2e-2), "shadow and secondary rays offset too far from the surface"),
     "reflect-sign": (Options(reflect_flipped=True), "the reflected vector R with the wrong sign (L − 2(N·L)N)"),
     "checker-ignored": (Options(checker_read=False), "the checkerboard ignored"),
+    "checker-truncated": (
+        Options(checker_floor=False),
+        "the checker's cells counted with int() instead of floor(): the two cells either side of 0 count as one",
+    ),
     "colours-not-clamped": (
         Options(clamp_colour=False),
         "colours not clamped: values above 1 wrap around in 8 bits instead of staying white",
@@ -283,117 +288,3 @@ ACCEPTED_KINDS: dict[str, tuple[str, str]] = {"normal-offset": ("normal", "ray o
 #: the options of the mistake's far end.  An image with the mistake lies between the reference and that
 #: render, pixel by pixel, and departs from the reference in speckles.
 BOUNDS: dict[str, Options] = {"shadow-acne": Options(acne=True, acne_everywhere=True)}
-
-
-# -- variants a scene cannot show: the reference, bit for bit, without a render -----------------------------------
-
-
-def _lit(scene: Any) -> bool:
-    return any(light.type != "ambient" for light in scene.lights)
-
-
-def _materials(scene: Any, test: Callable[[Any], bool]) -> bool:
-    return any(test(m) for m in scene.materials.values())
-
-
-def _specular(scene: Any) -> bool:
-    return _lit(scene) and _materials(scene, lambda m: any(v != 0 for v in m.specular))
-
-
-def _bounces(scene: Any) -> bool:
-    return _materials(scene, lambda m: m.reflectance > 0 or m.transmittance > 0)
-
-
-#: per variant, whether a scene can show it: when not, the variant's render is the reference's, bit for bit.
-#: Each rule follows the one place the variant's option is read (tracer/render.py, lights.py, camera.py):
-UNCHANGED: dict[str, Callable[[Any], bool]] = {
-    # shadow rays are cast only towards a light that is not ambient
-    "no-shadows": lambda scene: not _lit(scene),
-    "shadow-acne": lambda scene: not _lit(scene),
-    # the specular term is k_s times a finite number: with every k_s zero (or no light to have one), another
-    # R·V (Blinn's), or a term behind the surface, adds exactly 0; where N·L > 0 nothing else changes
-    "blinn-phong": lambda scene: not _specular(scene),
-    "specular-behind": lambda scene: not _specular(scene),
-    "no-specular": lambda scene: not _specular(scene),
-    # no ambient light (or every k_a zero): the ambient term is k_a times 0, exactly the 0 the variant starts at
-    "no-ambient": lambda scene: (
-        not (
-            any(light.type == "ambient" and any(v != 0 for v in light.color) for light in scene.lights)
-            and _materials(scene, lambda m: any(v != 0 for v in m.ambient))
-        )
-    ),
-    # every point, spot and area light already falls off as (1, 0, 0)
-    "no-attenuation": lambda scene: all(
-        tuple(light.attenuation) == (1.0, 0.0, 0.0) for light in scene.lights if light.type in ("point", "spot", "area")
-    ),
-    # a square image: the view window's half-sizes are (1, 1) either way
-    "horizontal-fov": lambda scene: scene.image.width == scene.image.height,
-    # an area light of one sample is divided by 1 either way
-    "area-not-divided": lambda scene: all(
-        light.samples[0] * light.samples[1] == 1 for light in scene.lights if light.type == "area"
-    ),
-    "spot-radians": lambda scene: not any(light.type == "spot" for light in scene.lights),
-    # with no mirror or glass, no hit spawns a ray, so how deep the tree may go changes nothing
-    "depth-plus-one": lambda scene: not _bounces(scene),
-    "depth-minus-one": lambda scene: scene.image.max_depth == 0 or not _bounces(scene),
-    # η is read only where a refracted ray is spawned: no glass, no bounce, or ior 1 (1/1 is 1)
-    "ior-inverted": lambda scene: (
-        scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0 and m.ior != 1.0)
-    ),
-    # an offset moves only shadow rays (of a light that is not ambient) and mirror or refracted rays
-    "offset-too-large": lambda scene: not _lit(scene) and (scene.image.max_depth == 0 or not _bounces(scene)),
-    # -- of MORE_VARIANTS --
-    # the local colour is multiplied by 1 − k_r = 1 exactly where k_r = 0
-    "reflection-blended": lambda scene: not _materials(scene, lambda m: m.reflectance > 0),
-    # the scene read with samples 1 is the scene
-    "samples-ignored": lambda scene: scene.image.samples == 1,
-    # exponent 0 read for an exponent of 0
-    "spot-exponent-ignored": lambda scene: all(light.exponent == 0 for light in scene.lights if light.type == "spot"),
-    # white read for white
-    "light-colour-ignored": lambda scene: all(
-        tuple(light.color) == (1.0, 1.0, 1.0) for light in scene.lights if light.type != "ambient"
-    ),
-    # the normal is read only where a refracted ray is spawned
-    "exit-normal-not-flipped": lambda scene: (
-        scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0)
-    ),
-    # -- of the mistakes an image may not tell from another --
-    # −R·V is read only where R·V is: in the specular term
-    "reflect-sign": lambda scene: not _specular(scene),
-    # a checker is read only of an object's own material (the other cell's has none)
-    "checker-ignored": lambda scene: not any(scene.materials[o.material].checker for o in scene.objects),
-    # k_d read for k_a: the same where they are equal, and times 0 without ambient light
-    "ambient-from-diffuse": lambda scene: (
-        not any(light.type == "ambient" and any(v != 0 for v in light.color) for light in scene.lights)
-        or not _materials(scene, lambda m: m.ambient != m.diffuse)
-    ),
-    # with inner_cutoff = cutoff there is no ramp to be linear: S is s^exponent inside the cone, 0 outside
-    "spot-ramp-angle": lambda scene: (
-        not any(light.type == "spot" and light.inner < light.cutoff for light in scene.lights)
-    ),
-    # with no transparent object (or no light to cast shadows), every surface blocks either way
-    "transparent-no-shadows": lambda scene: (
-        not _lit(scene) or not any(scene.materials[o.material].transmittance > 0 for o in scene.objects)
-    ),
-    # a mirror or refracted ray is spawned only below max_depth, at a material with k_r (k_t) > 0
-    "no-reflection": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.reflectance > 0),
-    "no-refraction": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0),
-    # a spot is lit as a point light only in the variant: no spot, nothing to read otherwise
-    "spot-cone-ignored": lambda scene: not any(light.type == "spot" for light in scene.lights),
-    # q·d for q·d² is the same where q is 0 (lights lit with the attenuation are point, spot and area lights)
-    "attenuation-not-squared": lambda scene: all(
-        light.attenuation[2] == 0 for light in scene.lights if light.type in ("point", "spot", "area")
-    ),
-    # a directional light's shadow rays have no end to stop at: only point, spot and area lights show it
-    "shadow-past-light": lambda scene: not any(light.type in ("point", "spot", "area") for light in scene.lights),
-    # the specular term is k_s times a finite number: with every k_s zero, what a shadow leaves of it is 0 either way
-    "specular-in-shadow": lambda scene: not _specular(scene),
-}
-
-
-def unchanged(name: str, scene: Any) -> bool:
-    """Whether variant ``name`` (of :data:`VARIANTS` or :data:`MORE_VARIANTS`, or a far end in :data:`BOUNDS`)
-    renders ``scene`` exactly as the reference does, by the rules of :data:`UNCHANGED` (a variant without a rule:
-    False)."""
-    rule = UNCHANGED.get(name)
-    return bool(rule is not None and rule(scene))

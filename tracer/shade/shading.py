@@ -16,7 +16,7 @@ from ..scene.vec import along, dot, rows_of
 from ..scene.world import World
 
 
-def resolve_material(world: World, hits: Hits) -> np.ndarray:
+def resolve_material(world: World, hits: Hits, floor: bool = True) -> np.ndarray:
     """Material id after the checker, per hit. Shape (N,), int.
 
     The checker is evaluated in world coordinates; on flat surfaces the point
@@ -24,7 +24,8 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     point (or the face's first vertex) as given, so that a floor lying on a
     cell boundary such as y = 0 lands exactly on it.  A column at a time: the
     same operations, in the same order, as on ``(N, 3)`` rows (the cells' sum
-    is ``(x + y) + z``, as ``np.sum`` over a row adds it).
+    is ``(x + y) + z``, as ``np.sum`` over a row adds it).  ``floor`` False is a
+    variant's: cell indices truncated toward 0, as a student's ``int(P/s)``.
     """
     mats = world.materials
     mat = hits.material
@@ -63,7 +64,7 @@ def resolve_material(world: World, hits: Hits) -> np.ndarray:
     cell = size[sel]
     for k in range(3):
         p[k] /= cell
-        np.floor(p[k], out=p[k])
+        (np.floor if floor else np.trunc)(p[k], out=p[k])
     cells = p[0] + p[1]
     cells += p[2]
     odd = sel[odd_cells(cells)]

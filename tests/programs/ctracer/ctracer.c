@@ -48,6 +48,7 @@
  *   offset-too-large        rays leave by 2e-2 of the scene's size along the normal
  *   reflect-sign            R = L - 2(N.L)N (the reflect() of a textbook applied to L, not -L)
  *   checker-ignored         every point shaded with its object's own material
+ *   checker-truncated       the cell index (long long)(x / s), toward 0, not floor(x / s)
  *   colours-not-clamped     (unsigned char)(int)(255 v + 0.5): values above 1 wrap around
  *   ambient-from-diffuse    the ambient light times k_d instead of k_a
  *   transparent-no-shadows  the shadow loop skips objects whose material has k_t > 0
@@ -283,8 +284,8 @@ typedef struct {
 enum {
     M_NO_SHADOWS, M_SHADOW_ACNE, M_BLINN, M_SPEC_BEHIND, M_GAMMA, M_NO_ATTEN, M_NO_AMBIENT, M_NO_SPECULAR,
     M_NOT_FLIPPED, M_IMAGE_FLIPPED, M_NO_HALF, M_HFOV, M_AREA_NOT_DIVIDED, M_SPOT_RADIANS, M_DEPTH_PLUS,
-    M_DEPTH_MINUS, M_IOR_INVERTED, M_OFFSET_LARGE, M_REFLECT_SIGN, M_CHECKER_IGNORED, M_NOT_CLAMPED,
-    M_AMBIENT_KD, M_SPOT_RAMP_ANGLE, M_TRANSPARENT_NO_SHADOWS, M_NO_REFLECTION, M_NO_REFRACTION,
+    M_DEPTH_MINUS, M_IOR_INVERTED, M_OFFSET_LARGE, M_REFLECT_SIGN, M_CHECKER_IGNORED, M_CHECKER_TRUNCATED,
+    M_NOT_CLAMPED, M_AMBIENT_KD, M_SPOT_RAMP_ANGLE, M_TRANSPARENT_NO_SHADOWS, M_NO_REFLECTION, M_NO_REFRACTION,
     M_LEFT_HANDED, M_SAMPLES_IGNORED, M_BGR, M_COUNT
 };
 
@@ -292,8 +293,8 @@ static const char *MISTAKE_IDS[M_COUNT] = {
     "no-shadows", "shadow-acne", "blinn-phong", "specular-behind", "gamma", "no-attenuation", "no-ambient",
     "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel", "horizontal-fov", "area-not-divided",
     "spot-radians", "depth-plus-one", "depth-minus-one", "ior-inverted", "offset-too-large", "reflect-sign",
-    "checker-ignored", "colours-not-clamped", "ambient-from-diffuse", "spot-ramp-angle", "transparent-no-shadows",
-    "no-reflection", "no-refraction", "left-handed", "samples-ignored", "bgr",
+    "checker-ignored", "checker-truncated", "colours-not-clamped", "ambient-from-diffuse", "spot-ramp-angle",
+    "transparent-no-shadows", "no-reflection", "no-refraction", "left-handed", "samples-ignored", "bgr",
 };
 
 static char *read_file(const char *path, size_t *len) {

@@ -398,8 +398,10 @@ static vec trace(const World *w, vec o, vec d, real tmin, int depth, real travel
     if (m->other >= 0 && !wrong[M_CHECKER_IGNORED]) {
         vec q = s.p;
         if (s.flat) q = vsub(q, vmul(s.ng, vdot(vsub(q, s.p0), s.ng)));
-        long long cell = (long long)FLOOR(q.x / m->cell) + (long long)FLOOR(q.y / m->cell) +
-                         (long long)FLOOR(q.z / m->cell);
+        long long cell = wrong[M_CHECKER_TRUNCATED] /* (long long) alone rounds toward 0 */
+                             ? (long long)(q.x / m->cell) + (long long)(q.y / m->cell) + (long long)(q.z / m->cell)
+                             : (long long)FLOOR(q.x / m->cell) + (long long)FLOOR(q.y / m->cell) +
+                                   (long long)FLOOR(q.z / m->cell);
         if (cell & 1) m = &w->mats[m->other];
     }
     real far = travelled + h.t;
