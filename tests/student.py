@@ -32,6 +32,7 @@ MISTAKES = (
     "no-half-pixel",
     "horizontal-fov",
     "area-not-divided",
+    "area-samples-at-corners",
     "spot-radians",
     "depth-plus-one",
     "depth-minus-one",
@@ -134,8 +135,9 @@ def lamps(scene, wrong: set[str]) -> tuple[np.ndarray, list[Lamp]]:  # noqa: ANN
             nu, nv = light.samples
             corner, eu, ev = (np.array(v, dtype=np.float64) for v in (light.corner, light.edge_u, light.edge_v))
             share = color if "area-not-divided" in wrong else color / (nu * nv)
+            half = 0.0 if "area-samples-at-corners" in wrong else 0.5  # (a cell's corner, not its centre)
             out += [
-                Lamp(share, corner + (i + 0.5) / nu * eu + (j + 0.5) / nv * ev, None, atten)
+                Lamp(share, corner + (i + half) / nu * eu + (j + half) / nv * ev, None, atten)
                 for i in range(nu)
                 for j in range(nv)
             ]

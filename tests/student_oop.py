@@ -59,6 +59,7 @@ CLASSIC = (
     "no-half-pixel",
     "horizontal-fov",
     "area-not-divided",
+    "area-samples-at-corners",
     "spot-radians",
     "depth-plus-one",
     "depth-minus-one",

@@ -244,8 +244,9 @@ class AreaLight(Light):
         super().__init__(light, wrong)
         nu, nv = light.samples
         corner, eu, ev = vec(light.corner), vec(light.edge_u), vec(light.edge_v)
+        h = 0.0 if "area-samples-at-corners" in wrong else 0.5  # (a cell's corner, not its centre)
         self.points = [
-            add(corner, add(mul(eu, (i + 0.5) / nu), mul(ev, (j + 0.5) / nv))) for i in range(nu) for j in range(nv)
+            add(corner, add(mul(eu, (i + h) / nu), mul(ev, (j + h) / nv))) for i in range(nu) for j in range(nv)
         ]
         self.share = self.color if "area-not-divided" in wrong else mul(self.color, 1.0 / (nu * nv))
 

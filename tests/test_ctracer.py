@@ -42,6 +42,7 @@ SHOWN_BY = {
     "no-half-pixel": "01_three_spheres",
     "horizontal-fov": "01_three_spheres",
     "area-not-divided": "03_soft_shadows",
+    "area-samples-at-corners": "03_soft_shadows",
     "spot-radians": "07_spotlights",
     "depth-plus-one": "mirrors",
     "depth-minus-one": "mirrors",
@@ -161,6 +162,9 @@ NAMED = [
     ("offset-too-large", "05_mesh", "FAIL(offset-too-large)"),
     # (C's (long long) cast of x / s: the cells either side of 0 merge on the orthographic floor)
     ("checker-truncated", "06_orthographic", "FAIL(checker-truncated)"),
+    # (each sample i/nu of the way along an edge: the light moved half a cell towards its corner)
+    ("area-samples-at-corners", "03_soft_shadows", "FAIL(area-samples-at-corners)"),
+    ("area-samples-at-corners", "09_cornell_homework", "FAIL(area-samples-at-corners)"),
 ]
 
 

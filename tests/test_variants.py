@@ -269,6 +269,7 @@ BOTH_STUDENTS = (
     "reflect-sign",
     "checker-ignored",
     "checker-truncated",
+    "area-samples-at-corners",
     "colours-not-clamped",
     "ambient-from-diffuse",
     "spot-ramp-angle",

@@ -102,13 +102,14 @@ def _spot(light: SpotLight, origin: np.ndarray, options: Options) -> Emitters:
 def _area(light: AreaLight, origin: np.ndarray, options: Options) -> Emitters:
     nu, nv = light.samples
     color = np.array(light.color, F64) / (nu * nv if options.area_divided else 1)
+    half = 0.5 if options.area_centres else 0.0  # (a variant's samples at the cells' corners: still on the light)
     corner = np.array(light.corner, F64)
     eu, ev = np.array(light.edge_u, F64), np.array(light.edge_v, F64)
     return [
         Emitter(
             "point",
             color,
-            corner + ((i + 0.5) / nu) * eu + ((j + 0.5) / nv) * ev - origin,
+            corner + ((i + half) / nu) * eu + ((j + half) / nv) * ev - origin,
             np.zeros(3),
             _attenuation(light, options),
         )

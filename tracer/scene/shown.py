@@ -51,6 +51,8 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     "area-not-divided": lambda scene: all(
         light.samples[0] * light.samples[1] == 1 for light in scene.lights if light.type == "area"
     ),
+    # the samples are read only of an area light
+    "area-samples-at-corners": lambda scene: not any(light.type == "area" for light in scene.lights),
     "spot-radians": lambda scene: not any(light.type == "spot" for light in scene.lights),
     # with no mirror or glass, no hit spawns a ray, so how deep the tree may go changes nothing
     "depth-plus-one": lambda scene: not _bounces(scene),

@@ -62,6 +62,7 @@ class Options:
     shadow_to_light: bool = True  # a shadow ray stops at its light (False: it goes on, and what lies beyond blocks)
     specular_shadowed: bool = True  # a blocked shadow ray takes the specular term too (False: only the diffuse)
     checker_floor: bool = True  # a checker's cell index floor(P/s) (False: int(P/s), truncated toward 0)
+    area_centres: bool = True  # area-light samples at cell centres, (i + 0.5)/nu (False: at corners, i/nu)
 
     @property
     def reference(self) -> bool:
@@ -167,6 +168,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "no-half-pixel": (Options(half_pixel=False), "pixel centres without the +0.5"),
     "horizontal-fov": (Options(vertical_fov=False), "fov taken as horizontal instead of vertical"),
     "area-not-divided": (Options(area_divided=False), "an area light not divided by nu·nv"),
+    "area-samples-at-corners": (
+        Options(area_centres=False),
+        "an area light's samples at its cells' corners, i/nu, without the + 0.5 of their centres",
+    ),
     "spot-radians": (Options(spot_degrees=False), "a spot's cutoff compared in radians"),
     "depth-plus-one": (Options(depth_offset=1), "max_depth off by one (one bounce too many)"),
     "depth-minus-one": (Options(depth_offset=-1), "max_depth off by one (one bounce too few)"),

@@ -494,7 +494,8 @@ static void add_lamps(World *w, const Light *light) {
         if (!wrong[M_AREA_NOT_DIVIDED]) lamp.color = vmul(lamp.color, K(1) / (real)(light->nu * light->nv));
         for (int i = 0; i < light->nu; i++)
             for (int j = 0; j < light->nv; j++) {
-                real a = ((real)i + K(0.5)) / (real)light->nu, b = ((real)j + K(0.5)) / (real)light->nv;
+                real h = wrong[M_AREA_AT_CORNERS] ? K(0) : K(0.5); /* a cell's corner, not its centre */
+                real a = ((real)i + h) / (real)light->nu, b = ((real)j + h) / (real)light->nv;
                 lamp.position = vadd(corner, vadd(vmul(eu, a), vmul(ev, b)));
                 w->lamps[w->nlamps++] = lamp;
             }
