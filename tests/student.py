@@ -31,6 +31,7 @@ MISTAKES = (
     "image-flipped",
     "no-half-pixel",
     "horizontal-fov",
+    "camera-up-as-given",
     "area-not-divided",
     "area-samples-at-corners",
     "spot-radians",
@@ -174,7 +175,7 @@ def eye_rays(scene, wrong: set[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray
     eye = np.array(cam.position, dtype=np.float64)
     forward = _unit(np.array(cam.look_at, dtype=np.float64) - eye)
     right = _unit(np.cross(forward, np.array(cam.up, dtype=np.float64)))
-    up = np.cross(right, forward)
+    up = _unit(np.array(cam.up, dtype=np.float64)) if "camera-up-as-given" in wrong else np.cross(right, forward)
     half = cam.height / 2 if cam.type == "orthographic" else math.tan(math.radians(cam.fov) / 2)
     across, down = (half, half * H / W) if "horizontal-fov" in wrong else (half * W / H, half)
     centre = 0.0 if "no-half-pixel" in wrong else 0.5

@@ -58,6 +58,7 @@ CLASSIC = (
     "image-flipped",
     "no-half-pixel",
     "horizontal-fov",
+    "camera-up-as-given",
     "area-not-divided",
     "area-samples-at-corners",
     "spot-radians",
@@ -113,7 +114,7 @@ class Camera:
             self.u = cross(self.f, self.r)
         else:
             self.r = normalize(cross(self.f, up))
-            self.u = cross(self.r, self.f)
+            self.u = normalize(up) if "camera-up-as-given" in wrong else cross(self.r, self.f)
         self.ortho = cam.type == "orthographic"
         h = cam.height / 2 if self.ortho else math.tan(math.radians(cam.fov) / 2)
         self.w, self.h = img.width, img.height

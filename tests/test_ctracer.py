@@ -41,6 +41,7 @@ SHOWN_BY = {
     "image-flipped": "01_three_spheres",
     "no-half-pixel": "01_three_spheres",
     "horizontal-fov": "01_three_spheres",
+    "camera-up-as-given": "01_three_spheres",
     "area-not-divided": "03_soft_shadows",
     "area-samples-at-corners": "03_soft_shadows",
     "spot-radians": "07_spotlights",
@@ -165,6 +166,9 @@ NAMED = [
     # (each sample i/nu of the way along an edge: the light moved half a cell towards its corner)
     ("area-samples-at-corners", "03_soft_shadows", "FAIL(area-samples-at-corners)"),
     ("area-samples-at-corners", "09_cornell_homework", "FAIL(area-samples-at-corners)"),
+    # (u = unit(up) where the camera looks down: the rows sheared along the view)
+    ("camera-up-as-given", "04_whitted", "FAIL(camera-up-as-given)"),
+    ("camera-up-as-given", "06_orthographic", "FAIL(camera-up-as-given)"),
 ]
 
 

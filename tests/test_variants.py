@@ -147,6 +147,9 @@ def _plain():
     for m in still["materials"].values():
         m["reflectance"] = m["transmittance"] = 0.0
     out["ambient light only, no mirror, no glass"] = still
+    level = copy.deepcopy(EVERYTHING)  # up ⟂ the view: u = r × f is up itself, and a student reading it as given agrees
+    level["camera"]["look_at"] = [0, 2.2, 0]
+    out["a camera that looks level"] = level
     return out
 
 
@@ -270,6 +273,7 @@ BOTH_STUDENTS = (
     "checker-ignored",
     "checker-truncated",
     "area-samples-at-corners",
+    "camera-up-as-given",
     "colours-not-clamped",
     "ambient-from-diffuse",
     "spot-ramp-angle",

@@ -23,9 +23,10 @@ from .exact.intersect import PLANE, SPHERE, TRIANGLE, Intersector
 from .exact.visible import visible_size
 from .film import Film
 from .proofs.planner import plan_proofs, scene_sightlines
-from .scene.camera import CameraRays
+from .scene.camera import CameraRays, up_perpendicular
 from .scene.lights import LIGHT_TYPES, light_groups
 from .scene.rays import Among, Rays, Work
+from .scene.surfaces import unit
 from .scene.variants import Options, scene_size
 from .scene.vec import scaled
 from .scene.world import World, build_world
@@ -55,6 +56,8 @@ class Stages:
             )
             if options.left_handed:  # a variant's r = up × f (u kept): the image mirrored left to right
                 self.camera.right = -self.camera.right
+            if not options.up_made and not up_perpendicular(scene.camera):  # a variant's u = unit(up), as given
+                self.camera.up = unit(np.asarray(scene.camera.up, dtype=np.float64))
             self.intersector = Intersector(self.world, scene_sightlines(scene, self.world.origin, self.camera, options))
             #: where shadow and secondary rays are born: off the surface in a variant of a student's offset
             self.spawner = Spawner(self.world, options, options.spawn(self.visible_size))

@@ -13,6 +13,14 @@ from .vec import plus
 TABLE_MAX = 1 << 20
 
 
+def up_perpendicular(camera: Camera) -> bool:
+    """Whether the camera's ``up`` is perpendicular to its view, ``look_at − position``, exactly, in the numbers
+    the scene gives: then ``u = r × f`` is ``unit(up)`` up to rounding, and a student who uses ``up`` as it is
+    (variant ``camera-up-as-given``) renders the reference."""
+    view = np.subtract(np.asarray(camera.look_at, dtype=np.float64), np.asarray(camera.position, dtype=np.float64))
+    return float(np.dot(view, np.asarray(camera.up, dtype=np.float64))) == 0.0
+
+
 class CameraRays:
     """Generates the rays of a range of pixels, each with its n×n regular grid of sub-samples."""
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from .camera import up_perpendicular
+
 
 def _lit(scene: Any) -> bool:
     return any(light.type != "ambient" for light in scene.lights)
@@ -45,6 +47,8 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     "no-attenuation": lambda scene: all(
         tuple(light.attenuation) == (1.0, 0.0, 0.0) for light in scene.lights if light.type in ("point", "spot", "area")
     ),
+    # an up perpendicular to the view is u, as given (the variant reads it only where it is not)
+    "camera-up-as-given": lambda scene: up_perpendicular(scene.camera),
     # a square image: the view window's half-sizes are (1, 1) either way
     "horizontal-fov": lambda scene: scene.image.width == scene.image.height,
     # an area light of one sample is divided by 1 either way

@@ -63,6 +63,7 @@ class Options:
     specular_shadowed: bool = True  # a blocked shadow ray takes the specular term too (False: only the diffuse)
     checker_floor: bool = True  # a checker's cell index floor(P/s) (False: int(P/s), truncated toward 0)
     area_centres: bool = True  # area-light samples at cell centres, (i + 0.5)/nu (False: at corners, i/nu)
+    up_made: bool = True  # the camera's u = r × f (False: u = unit(up), as given, where up is not ⟂ the view)
 
     @property
     def reference(self) -> bool:
@@ -167,6 +168,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "image-flipped": (Options(flip_image=True), "the image flipped vertically"),
     "no-half-pixel": (Options(half_pixel=False), "pixel centres without the +0.5"),
     "horizontal-fov": (Options(vertical_fov=False), "fov taken as horizontal instead of vertical"),
+    "camera-up-as-given": (
+        Options(up_made=False),
+        "the camera's up vector used as given, not made perpendicular to the view (u = r × f)",
+    ),
     "area-not-divided": (Options(area_divided=False), "an area light not divided by nu·nv"),
     "area-samples-at-corners": (
         Options(area_centres=False),

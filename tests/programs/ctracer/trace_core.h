@@ -552,7 +552,7 @@ static void render(const Scene *sc, const Options *opt, unsigned char *rgb) {
     vec eye = vfrom(sc->eye), up = vfrom(sc->up);
     vec f = vunit(vsub(vfrom(sc->look_at), eye));
     vec r = wrong[M_LEFT_HANDED] ? vunit(vcross(up, f)) : vunit(vcross(f, up));
-    vec u = wrong[M_LEFT_HANDED] ? vcross(f, r) : vcross(r, f);
+    vec u = wrong[M_LEFT_HANDED] ? vcross(f, r) : wrong[M_UP_AS_GIVEN] ? vunit(up) : vcross(r, f);
     real h = sc->ortho ? (real)sc->view_height / 2 : TAN((real)sc->fov * K(3.14159265358979323846) / K(360));
     real across = h * (real)width / (real)height, down = h;
     if (wrong[M_HFOV]) across = h, down = h * (real)height / (real)width;
