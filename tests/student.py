@@ -47,6 +47,7 @@ MISTAKES = (
     "spot-ramp-angle",
     "transparent-no-shadows",
     "no-reflection",
+    "bounce-miss-black",
     "no-refraction",
     "spot-cone-ignored",
     "attenuation-not-squared",
@@ -213,7 +214,8 @@ def render(
     for depth in range(max(depth_limit, 0) + 1):
         hit = ref.closest(surfaces, o, d, start)
         missed = hit.surface < 0
-        np.add.at(total, pixel[missed], weight[missed, None] * np.array(img.background, dtype=np.float64))
+        sky = np.zeros(3) if depth > 0 and "bounce-miss-black" in wrong else np.array(img.background, dtype=np.float64)
+        np.add.at(total, pixel[missed], weight[missed, None] * sky)
         keep = np.flatnonzero(~missed)
         if len(keep) == 0:
             break

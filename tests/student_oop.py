@@ -74,6 +74,7 @@ CLASSIC = (
     "spot-ramp-angle",
     "transparent-no-shadows",
     "no-reflection",
+    "bounce-miss-black",
     "no-refraction",
     "spot-cone-ignored",
     "attenuation-not-squared",
@@ -217,7 +218,7 @@ class Tracer:
     def trace(self, ray: Ray, depth: int) -> Vec:
         hit = self.closest(ray)
         if hit is None:
-            return self.background
+            return (0.0, 0.0, 0.0) if depth > 0 and "bounce-miss-black" in self.wrong else self.background
         p = ray.at(hit.t)
         d = ray.direction
         n = hit.shading

@@ -94,9 +94,9 @@ def test_nnls_is_non_negative_and_exact_where_it_can_be():
 
 def classroom() -> dict[str, dict]:
     """Three scenes that every mistake of the list changes: anti-aliased, every light type (a spot with a soft
-    edge), glass, a mirror and a checkerboard."""
+    edge), glass, a mirror that shows the sky and a checkerboard."""
     a = copy.deepcopy(EVERYTHING)
-    a["image"] = {"width": 64, "height": 48, "max_depth": 2, "samples": 2}
+    a["image"] = EVERYTHING["image"] | {"width": 64, "height": 48, "samples": 2}
     a["lights"][2]["inner_cutoff"] = 16
     a["objects"][4]["material"] = "tiles"  # the triangle at the back
     a["materials"]["tiles"] = {"diffuse": [0.6, 0.5, 0.4], "specular": 0.7, "shininess": 30}

@@ -10,10 +10,10 @@ from tracer.scene.variants import MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
 from helpers import scene_dict
 
-#: a scene where every mistake shows: glass, a mirror, every light type, a spot with a hard edge, a deep tree
+#: a scene where every mistake shows: glass, a mirror, every light type, a spot with a hard edge, a deep tree, a sky
 EVERYTHING = {
     "camera": {"position": [0.5, 2.2, 5.5], "look_at": [0, 0.6, 0], "fov": 45},
-    "image": {"width": 48, "height": 36, "max_depth": 2},
+    "image": {"width": 48, "height": 36, "max_depth": 2, "background": [0.1, 0.15, 0.3]},
     "materials": {
         "m": {"diffuse": [0.6, 0.5, 0.4], "specular": 0.7, "shininess": 30},
         "glass": {"transmittance": 0.8, "reflectance": 0.1, "ior": 1.5},
@@ -274,6 +274,7 @@ BOTH_STUDENTS = (
     "checker-truncated",
     "area-samples-at-corners",
     "camera-up-as-given",
+    "bounce-miss-black",
     "colours-not-clamped",
     "ambient-from-diffuse",
     "spot-ramp-angle",

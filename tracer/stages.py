@@ -146,7 +146,7 @@ class Stages:
     def _trace(self, work: Work, film: Film, tally: Tally | None, deepest: int) -> Work | None:
         """One slice of one depth, stage by stage: intersect → misses take the background → direct light → the
         next depth's mirror and refracted rays, returned (None: no hit, or the deepest depth)."""
-        background = np.asarray(self.scene.image.background, dtype=np.float64)
+        background = self.options.background(np.asarray(self.scene.image.background, dtype=np.float64), work.depth)
         best = self.intersector.nearest(
             work.rays, self._camera_among(work.rays) if work.depth == 0 else self._mirror_among(work.rays)
         )

@@ -104,6 +104,10 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
         not _lit(scene) or not any(scene.materials[o.material].transmittance > 0 for o in scene.objects)
     ),
     # a mirror or refracted ray is spawned only below max_depth, at a material with k_r (k_t) > 0
+    # a black background is black either way; only a mirror or refracted ray, spawned below max_depth, reads it
+    "bounce-miss-black": lambda scene: (
+        tuple(scene.image.background) == (0.0, 0.0, 0.0) or scene.image.max_depth == 0 or not _bounces(scene)
+    ),
     "no-reflection": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.reflectance > 0),
     "no-refraction": lambda scene: scene.image.max_depth == 0 or not _materials(scene, lambda m: m.transmittance > 0),
     # a spot is lit as a point light only in the variant: no spot, nothing to read otherwise

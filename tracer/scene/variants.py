@@ -64,10 +64,16 @@ class Options:
     checker_floor: bool = True  # a checker's cell index floor(P/s) (False: int(P/s), truncated toward 0)
     area_centres: bool = True  # area-light samples at cell centres, (i + 0.5)/nu (False: at corners, i/nu)
     up_made: bool = True  # the camera's u = r × f (False: u = unit(up), as given, where up is not ⟂ the view)
+    miss_background: bool = True  # a mirror or refracted ray that misses takes the background (False: black)
 
     @property
     def reference(self) -> bool:
         return self == REFERENCE
+
+    def background(self, colour: np.ndarray, depth: int) -> np.ndarray:
+        """What a ray of ``depth`` that hits nothing returns: the scene's background ``colour``, at any depth, as
+        the format says; black past the camera's rays in a variant's (``miss_background`` False)."""
+        return colour if depth == 0 or self.miss_background else np.zeros(3)
 
     def spawn(self, size: Callable[[], float]) -> Spawn | None:
         """Where this render's shadow and secondary rays start (None: at the hit point, as the format says): its
@@ -206,6 +212,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
         "transparent objects cast no shadows (shadow rays pass through objects with k_t > 0)",
     ),
     "no-reflection": (Options(reflections=False), "no reflection: mirror rays never traced"),
+    "bounce-miss-black": (
+        Options(miss_background=False),
+        "a mirror or refracted ray that hits nothing returns black instead of the background",
+    ),
     "no-refraction": (Options(refractions=False), "no refraction: refracted rays never traced"),
     "spot-cone-ignored": (Options(spot_cone=False), "a spot light lit as a point light: its cone ignored"),
     "attenuation-not-squared": (

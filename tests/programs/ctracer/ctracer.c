@@ -55,6 +55,7 @@
  *   ambient-from-diffuse    the ambient light times k_d instead of k_a
  *   transparent-no-shadows  the shadow loop skips objects whose material has k_t > 0
  *   no-reflection           mirror rays never traced
+ *   bounce-miss-black       a mirror or refracted ray that misses returns black, not the background
  *   no-refraction           refracted rays never traced
  *   left-handed             r = unit(up x f), u = f x r: the image mirrored left to right
  *   samples-ignored         one sample per pixel, whatever image.samples says
@@ -278,7 +279,7 @@ typedef struct {
 
 /* what the command line asks for */
 typedef struct {
-    int mistake[32];
+    int mistake[64]; /* by M_ index (M_COUNT of them, checked below) */
     double offset; /* < 0: the careful relative offset */
     int along_ray, float32, ppm;
 } Options;
@@ -288,15 +289,18 @@ enum {
     M_NOT_FLIPPED, M_IMAGE_FLIPPED, M_NO_HALF, M_HFOV, M_UP_AS_GIVEN, M_AREA_NOT_DIVIDED, M_AREA_AT_CORNERS,
     M_SPOT_RADIANS, M_DEPTH_PLUS, M_DEPTH_MINUS, M_IOR_INVERTED, M_OFFSET_LARGE, M_REFLECT_SIGN, M_CHECKER_IGNORED,
     M_CHECKER_TRUNCATED, M_NOT_CLAMPED, M_AMBIENT_KD, M_SPOT_RAMP_ANGLE, M_TRANSPARENT_NO_SHADOWS, M_NO_REFLECTION,
-    M_NO_REFRACTION, M_LEFT_HANDED, M_SAMPLES_IGNORED, M_BGR, M_COUNT
+    M_MISS_BLACK, M_NO_REFRACTION, M_LEFT_HANDED, M_SAMPLES_IGNORED, M_BGR, M_COUNT
 };
+
+_Static_assert(M_COUNT <= 64, "Options.mistake holds every mistake");
 
 static const char *MISTAKE_IDS[M_COUNT] = {
     "no-shadows", "shadow-acne", "blinn-phong", "specular-behind", "gamma", "no-attenuation", "no-ambient",
     "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel", "horizontal-fov", "camera-up-as-given",
     "area-not-divided", "area-samples-at-corners", "spot-radians", "depth-plus-one", "depth-minus-one",
     "ior-inverted", "offset-too-large", "reflect-sign", "checker-ignored", "checker-truncated", "colours-not-clamped",
-    "ambient-from-diffuse", "spot-ramp-angle", "transparent-no-shadows", "no-reflection", "no-refraction",
+    "ambient-from-diffuse", "spot-ramp-angle", "transparent-no-shadows", "no-reflection", "bounce-miss-black",
+    "no-refraction",
     "left-handed", "samples-ignored", "bgr",
 };
 

@@ -389,7 +389,8 @@ static vec refracted(const World *w, vec d, vec ng, real ior) {
 
 static vec trace(const World *w, vec o, vec d, real tmin, int depth, real travelled) {
     Hit h;
-    if (!first_hit(w, o, d, tmin, K(INFINITY), 0, 0, &h)) return w->background;
+    if (!first_hit(w, o, d, tmin, K(INFINITY), 0, 0, &h))
+        return depth > 0 && w->wrong[M_MISS_BLACK] ? vmul(w->background, K(0)) : w->background;
     Surface s = surface_at(w, o, d, &h);
     const int *wrong = w->wrong;
     vec n = s.n;
