@@ -270,9 +270,10 @@ def _rendered(
 ) -> Combination:
     """The render-level mistakes ``inner`` (with the image-level ones ``found``), each of their :func:`readings`
     graded against its render: the first the submission passes against, with the others it passes against as
-    its readings; else, of three, the first two (the third was added where its difference did not add to
-    theirs) when the submission passes against them; else one mistake swapped, the nearest on the rows, when it
-    passes; else the first, which comes closest."""
+    its readings, unless, of three, the first two pass alone (a third added for a residue of the rows' sum, too
+    small for the grade to see, is no mistake the image shows); else, of three, the first two (the third was
+    added where its difference did not add to theirs) when the submission passes against them; else one mistake
+    swapped, the nearest on the rows, when it passes; else the first, which comes closest."""
     inner, found, tried = made
     graded = []
     for names in readings(rows, inner):
@@ -281,6 +282,10 @@ def _rendered(
         )
         graded.append(_combination(rows, names, found, g, tried))
     passing = [c for c in graded if c.passes]
+    if passing and len(inner) == MAX_TOGETHER:  # (a third the image need not show: the two alone, if they pass)
+        fewer = _rendered(submitted, verdict, looks, rows, (inner[:-1], found, tried))
+        if fewer.passes:
+            return fewer
     if passing:
         return replace(passing[0], readings=tuple(passing[1:]))
     if len(inner) == MAX_TOGETHER:  # (a third whose difference did not add: Blinn–Phong uses no R)
