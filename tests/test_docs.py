@@ -137,3 +137,12 @@ def test_the_render_commands_image_is_ignored_by_git():
     out = render.split(" -o ", 1)[1].split()[0]
     ignored = [line.strip() for line in (ROOT / ".gitignore").read_text().splitlines()]
     assert out in ignored or f"/{out}" in ignored, out
+
+
+def test_the_course_page_counts_the_mistakes_phongray_names():
+    """The course page says how many classic mistakes a failing image is scored against, and how many more are
+    named where the term fit points to them: today's numbers, whatever a change adds."""
+    from tracer.scene.variants import MORE_VARIANTS, VARIANTS
+
+    text = " ".join((ROOT / "docs" / "course.md").read_text().split())
+    assert f"{len(VARIANTS)} classic mistakes in all, and {len(MORE_VARIANTS)} more" in text
