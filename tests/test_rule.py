@@ -164,3 +164,18 @@ def test_a_mistake_behind_an_offset_that_shows_on_few_rows_keeps_its_name(exampl
     assert found is not None and not found.closest, found
     assert [c.variant for c in found.causes] == [mistake] and found.causes[0].passes
     assert found.offset is not None and found.offset.endswith("along the normal")
+
+
+@pytest.mark.parametrize("example", ["05_mesh", "02_all_lights"])
+def test_a_mistake_behind_an_accepted_offset_is_never_told_its_offset_is_too_large(example):
+    """A camera's up vector used as given, behind an honest offset of 3e-3 of the visible size (the largest accepted
+    is 5e-3): the offset ladder's first rung is the largest accepted amount, and the pair "that mistake and an
+    offset too large" matched there, worded "about 0.027 (at most 0.027 is accepted)".  An amount no larger than
+    the accepted is an honest student's: the mistake is named behind it, as matched, with no offset too large."""
+    scene = _scene(ROOT / "examples" / f"{example}.json")
+    image = student.render(scene, ["camera-up-as-given"], style=student.Offset(3e-3 * Renderer(scene).visible_size()))
+    found = _graded(scene, image).diagnosis
+    assert found is not None and not found.closest, found
+    assert [c.variant for c in found.causes] == ["camera-up-as-given"] and found.causes[0].passes, found.sentence()
+    assert found.offset is not None and found.offset.endswith("along the normal")
+    assert "too far" not in found.sentence()

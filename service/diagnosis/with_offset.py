@@ -134,11 +134,12 @@ class _Search:
     def graded(self, name: str) -> Combination | None:
         """``name`` with the offset at the rung nearest on the telling rows, then at the rung nearest on the rows
         the submission is most off against that one, alone and in a range with each neighbour: the first the
-        submission passes against, of the ranges the one that leaves fewer off; None when none passes."""
+        submission passes against, of the ranges the one that leaves fewer off; None when none passes, or when the
+        amount the submission comes nearest is the largest offset accepted (:meth:`above_accepted`)."""
         first = self.nearest(name)
         image = self.whole(name, first)
         if self.counted([image]) is not None:
-            return self.named(name, [first])
+            return self.named(name, [first]) if first > 0 else None
         counts = off_rows(image, self.submitted, self.verdict.tolerance, self.open)
         worst = np.sort(np.argsort(-counts, kind="stable")[: len(self.numbers)])
         k = self.nearest(name, worst[counts[worst] > 0]) if np.any(counts > 0) else first
@@ -146,7 +147,22 @@ class _Search:
         spans += [[j, j + 1] for j in (k - 1, k) if 0 <= j and j + 1 < len(self.ladder)]
         counted = [(self.counted([self.whole(name, j) for j in span]), span) for span in spans]
         passing = [(off, span) for off, span in counted if off is not None]
+        passing = [(off, span) for off, span in passing if self.above_accepted(name, span)]
         return self.named(name, min(passing)[1]) if passing else None
+
+    def above_accepted(self, name: str, span: list[int]) -> bool:
+        """Whether the amount the submission comes nearest alone, of the rungs ``span``, is more than the largest
+        offset accepted (the ladder's first rung): at that rung the offset is an honest student's, and the
+        other mistake is looked for behind it (:mod:`.nuisance`), never named with an offset "too large"."""
+        return span[self.nearest_of(name, span)] > 0
+
+    def nearest_of(self, name: str, span: list[int]) -> int:
+        """Which of the rungs ``span`` (made with ``name``) leaves the fewest of the submission's pixels off."""
+        off = [
+            range_counts([self.whole(name, j)], self.submitted, self.verdict.tolerance, self.open).off_nearby
+            for j in span
+        ]
+        return int(np.argmin(off))
 
     def whole(self, name: str | None, rung: int) -> np.ndarray:
         self.renders.check()
@@ -162,8 +178,7 @@ class _Search:
         their range), the offset's words the amount the submission comes nearest alone, each member's share of
         the difference on the telling rows."""
         images = [self.whole(name, j) for j in span]
-        off = [range_counts([i], self.submitted, self.verdict.tolerance, self.open).off_nearby for i in images]
-        amount = self.ladder[span[int(np.argmin(off))]]
+        amount = self.ladder[span[self.nearest_of(name, span)]]
         counts = range_counts(images, self.submitted, self.verdict.tolerance, self.open)
         both = self.error(name, amount)
         share = {
