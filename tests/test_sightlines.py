@@ -398,3 +398,24 @@ def test_a_variants_shadow_rays_past_their_light_get_no_sightlines():
     camera = CameraRays(s.camera, s.image, origin)
     assert scene_sightlines(s, origin, camera) is not None
     assert scene_sightlines(s, origin, camera, VARIANTS["shadow-past-light"][0]) is None
+
+
+def test_an_orthographic_camera_whose_up_is_used_as_given_gets_no_sightlines():
+    """The orthographic camera's rays start on the plane through the eye across the view, which the sightlines'
+    starts take as given; a variant whose camera keeps ``up`` as given (not perpendicular to the view) starts
+    them off that plane, so it gets none, and the reference keeps them."""
+    from tracer.scene.variants import VARIANTS
+
+    s = schemas.validate_scene(
+        {
+            "camera": {"type": "orthographic", "position": [6, 5, 6], "look_at": [0, 0.5, 0], "height": 4},
+            "image": {"width": 8, "height": 6},
+            "materials": {"m": {}},
+            "objects": [{"type": "triangle", "material": "m", "vertices": [[-1, 0, -1], [1, 0, -1], [0, 1, 1]]}],
+            "lights": [{"type": "point", "color": 1, "position": [0, 4, 0]}],
+        }
+    )
+    origin = np.zeros(3)
+    assert scene_sightlines(s, origin, CameraRays(s.camera, s.image, origin)) is not None
+    variant = VARIANTS["camera-up-as-given"][0]
+    assert scene_sightlines(s, origin, CameraRays(s.camera, s.image, origin), variant) is None

@@ -126,8 +126,9 @@ def scene_sightlines(
     """The lines of a validated scene's rays (local coordinates about ``origin``), or None when a mirror or
     glass may send rays anywhere, or a variant's shadow rays run on past their light (the faces the walk
     spares a shadow ray are those it does not meet on its way to the light:
-    :func:`tracer.proofs.sightlines.plain_triangles`)."""
-    if not options.shadow_to_light:
+    :func:`tracer.proofs.sightlines.plain_triangles`), or a variant's orthographic camera uses ``up`` as given
+    (its rays then start off the plane through the eye across the view, which the starts below assume)."""
+    if not options.shadow_to_light or (camera.orthographic and not options.up_made):
         return None
     used = {obj.material for obj in scene.objects}
     used |= {checker.material for name in used if (checker := scene.materials[name].checker) is not None}
