@@ -8,8 +8,9 @@ import student
 
 import schemas
 from service.diagnosis.combination import ALL, compatible, merged
-from service.diagnosis.compose import Looks, Rows, chosen, compose, pointed, telling_rows
+from service.diagnosis.compose import Rows, chosen, compose, telling_rows
 from service.diagnosis.records import Term
+from service.diagnosis.tried import Looks, pointed
 from service.images.grading import grade
 from tracer import Renderer
 from tracer.scene.shown import unchanged

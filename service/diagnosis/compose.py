@@ -12,29 +12,31 @@ the mistakes would cost a render per pair; instead the failing image itself says
   made together add up, all but exactly (each mistake changes one term of a sum of terms): the submission
   less the reference is fitted with the sum of the differences of one, two or three mistakes, on those rows.
   The new mistakes of :data:`tracer.scene.variants.MORE_VARIANTS` are looked at only where the term fit points to
-  them (:func:`pointed`): the fit says which to try.
+  them (:func:`.tried.pointed`): the fit says which to try.
 * **One render** of the merged options (:func:`merged`) confirms the combination with the grade's own
   measure, or leaves it the closest; one more for each other reading, where the rows cannot tell one of its
   mistakes from another (:func:`readings`: no refraction, or the normal leaving glass not flipped).
 
-When nothing fits, :mod:`.nearest` ranks the explanations by their share of the difference.  Pure (:class:`Looks`).
+When nothing fits, :mod:`.nearest` ranks the explanations by their share of the difference.  Which mistakes are
+tried, and what is needed of the scene to try them, is :mod:`.tried`'s.  Pure (:class:`.tried.Looks`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from itertools import combinations, product
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tracer.scene.variants import BOUNDS, MORE_VARIANTS, VARIANTS, Options
+from tracer.scene.variants import VARIANTS
 
 from ..images.grading import grade
 from .combination import ALL, Combination, Member, classic_first, compatible, merged
 from .records import Term
 from .stored import GAMMA, OUTER, SHOWN, STORED, image_level, outer, undone
+from .tried import Looks, candidates
 
 if TYPE_CHECKING:
     from ..images.grading import Grade
@@ -49,62 +51,6 @@ ADD_LEVELS = 1e-6
 MAX_TOGETHER = 3
 #: at most this many readings of one combination are rendered (:func:`readings`)
 MAX_READINGS = 4
-
-
-@dataclass(frozen=True)
-class Looks:
-    """What a composition needs of the scene: rows of a mistake's render, one whole render of merged options,
-    and which mistakes the scene can show at all."""
-
-    rows: Callable[[str, np.ndarray], np.ndarray]  # a name of ALL, row numbers → those rows, (k, W, 3) uint8
-    render: Callable[[Options], np.ndarray]  # options → the whole image (H, W, 3) uint8
-    shown: Callable[[str], bool]  # name → whether the scene can show the mistake (else it renders the reference)
-    lights: tuple[str, ...]  # the scene's light types, in order
-    open: np.ndarray | None = None  # (H, W) bool: the pixels not counted against a submission (Renders.open)
-
-
-# -- which render-level mistakes to try: the term fit points to the new ones ---------------------------------------
-
-#: the term fit's slack: a coefficient further than this from 1 is out of scale
-SLACK = 0.15
-
-
-def pointed(terms: list[Term], lights: tuple[str, ...]) -> dict[str, str]:
-    """The new render-level mistakes (:data:`tracer.scene.variants.MORE_VARIANTS`) the fitted terms point to, each with
-    the term that points to it, in words: a spot's term too strong (its exponent ignored), a light's term out of
-    scale (its colour ignored), a light's term too weak (clamped per term; reflections blended, which darken
-    the local colour of a mirror), the refractions out of scale (the normal leaving glass)."""
-    out: dict[str, str] = {}
-    for t in terms:
-        what = f"{t.name}:{t.light}" if t.light is not None else t.name
-        kind = lights[t.light] if t.light is not None and 0 <= t.light < len(lights) else None
-        if kind == "spot" and t.scale > 1 + SLACK:
-            out.setdefault("spot-exponent-ignored", what)
-        if kind is not None:
-            out.setdefault("light-colour-ignored", what)
-        if t.scale < 1 - SLACK and t.name in ("diffuse", "specular", "ambient"):
-            out.setdefault("clamped-per-term", what)
-            out.setdefault("reflection-blended", what)
-        if t.name == "reflection":
-            out.setdefault("reflection-blended", what)
-        if t.name == "refraction":
-            out.setdefault("exit-normal-not-flipped", what)
-    return out
-
-
-def candidates(looks: Looks, terms: list[Term]) -> dict[str, str]:
-    """The render-level mistakes to try, each with why: every classic one the scene can show (the single-mistake
-    diagnosis has looked at them already), the new ones the fit points to (:func:`pointed`), or every new one
-    the scene can show when the fit has no term out of scale (the difference is in no term's scale: the fit
-    cannot point), and the scene's samples ignored when it asks for more than one (aliasing is no term's).  A
-    speckled mistake (shadow acne) is never one of a combination: its own speckles are not the student's."""
-    out = {name: "" for name in VARIANTS if name not in OUTER and name not in BOUNDS and looks.shown(name)}
-    out |= {name: "" for name in STORED}
-    new = pointed(terms, looks.lights) if terms else {name: "" for name in MORE_VARIANTS if name not in OUTER}
-    out |= {name: f"the fit's {what}" if what else "" for name, what in new.items() if looks.shown(name)}
-    if looks.shown("samples-ignored"):
-        out["samples-ignored"] = "the scene's samples per pixel"
-    return out
 
 
 # -- the differences of mistakes add up ------------------------------------------------------------------------------

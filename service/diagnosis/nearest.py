@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .compose import Looks, _rows, candidates
+from .compose import _rows
 from .records import Term
 from .stored import image_level
+from .tried import Looks, candidates
 
 #: a nearest explanation that accounts for less of the difference than this accounts for nothing a person sees
 NOTHING = 0.01

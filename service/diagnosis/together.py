@@ -13,12 +13,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .combination import ALL, Combination
-from .compose import Looks, candidates, compose, telling_rows
+from .compose import compose, telling_rows
 from .nearest import Explanation, nearest
 from .records import Cause, Term
 from .renders import Renders
 from .stored import OUTER
 from .too_large import NAME as TOO_LARGE
+from .tried import Looks, candidates
 from .with_offset import with_offset
 from .words import Names, term_sentence
 
