@@ -87,6 +87,8 @@ class _Search:
         self.size = renders.size()
         self.ladder = amounts(self.size)
         self.pixels = submitted.shape[0] * submitted.shape[1]
+        #: per mistake and rung, the submission's pixels off against that rung's render alone (counted once)
+        self.alone: dict[tuple[str, int], int] = {}
 
     def told_by(self, image: np.ndarray) -> None:
         """The rows a partner is chosen on made those where the submission departs most from ``image`` (the offset
@@ -158,11 +160,11 @@ class _Search:
 
     def nearest_of(self, name: str, span: list[int]) -> int:
         """Which of the rungs ``span`` (made with ``name``) leaves the fewest of the submission's pixels off."""
-        off = [
-            range_counts([self.whole(name, j)], self.submitted, self.verdict.tolerance, self.open).off_nearby
-            for j in span
-        ]
-        return int(np.argmin(off))
+        for j in span:
+            if (name, j) not in self.alone:
+                counts = range_counts([self.whole(name, j)], self.submitted, self.verdict.tolerance, self.open)
+                self.alone[name, j] = counts.off_nearby
+        return int(np.argmin([self.alone[name, j] for j in span]))
 
     def whole(self, name: str | None, rung: int) -> np.ndarray:
         self.renders.check()
