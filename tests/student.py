@@ -59,10 +59,11 @@ MISTAKES = (
 @dataclass(frozen=True)
 class Offset:
     """How the student starts shadow and secondary rays off the surface, ``amount`` in the scene's units, as the
-    student wrote it (``1e-3``): along the normal, to the side the ray leaves by (``along="normal"``), or by a
-    t_min, ignoring hits nearer than it (``along="ray"``: for a ray that starts on the surface, the same as
-    starting ``amount`` along itself).  The student's rays then carry no identity of the surface they leave: the
-    offset is all that keeps them off it."""
+    student wrote it (``1e-3``): along the normal, to the side the ray leaves by (``along="normal"``), or along the
+    ray itself (``along="ray"``: ``p + amount·d``, a shadow ray still as long as from the hit point to the light,
+    so that it passes the light by ``amount``; for the small amounts of an honest tracer, the same image as a
+    t_min, the tracer's ``offset_along="ray"``; for a large one, the tracer's ``"direction"``).  The student's rays
+    then carry no identity of the surface they leave: the offset is all that keeps them off it."""
 
     amount: float
     along: str = "normal"

@@ -8,6 +8,7 @@ the calibration (tests/offset_matrix.py) are checked here and in tests/test_rule
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -161,6 +162,24 @@ def test_an_offset_too_large_of_a_round_amount_is_found_at_that_amount():
     cause = graded.diagnosis.causes[0]
     assert cause.variant == "offset-too-large" and cause.passes, graded.diagnosis.sentence()
     assert "about 0.1 in the scene's units" in graded.diagnosis.sentence()
+
+
+@pytest.mark.parametrize("amount", [0.06, 0.1])
+def test_rays_started_too_far_along_themselves_are_named_as_that_with_their_size(amount):
+    """A student's ``p + ε·d``, ε 0.06 or 0.1, where a t_min of at most 0.049 is accepted (the Cornell homework, 64
+    pixels across): a shadow ray as long as from the hit point to the light passes it by ε and reaches the
+    ceiling just above, and most of the room goes dark.  It was "no known mistake fits"; the ladder along the
+    ray names it, with its size.  (0.06 lies just above the ladder's lowest rungs, 0.049 and 0.05, which leave
+    the ceiling out of reach alike: with both rungs, no range held 0.06.)"""
+    data = json.loads((EXAMPLES / "09_cornell_homework.json").read_text())
+    data["image"].update(width=64, height=48)
+    scene = load_scene(json.dumps(data).encode())
+    graded = _graded(scene, _student(scene, style=student.Offset(amount, "ray")))
+    assert not graded.grade.passed and graded.diagnosis is not None
+    cause = graded.diagnosis.causes[0]
+    assert cause.variant == "offset-too-large" and cause.passes, graded.diagnosis.sentence()
+    said = re.search(r"too far along their own direction: about ([0-9.e-]+) in the scene's units", cause.mistake)
+    assert said and abs(float(said.group(1)) - amount) <= 0.1 * amount, cause.mistake
 
 
 @pytest.mark.parametrize("mistake", student.MISTAKES)

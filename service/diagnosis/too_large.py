@@ -36,17 +36,25 @@ NAME = "offset-too-large"
 TOP = 5e-2
 
 
-def amounts(size: float) -> list[float]:
+def amounts(size: float, along: str = "normal") -> list[float]:
     """The ladder's amounts in a scene of visible size ``size``, ascending: the largest accepted offset along the
-    normal, the round amounts above it (none within a tenth of the top), and :data:`TOP` × ``size``."""
-    low, high = ACCEPTED_DEFAULT["normal-offset"] * size, TOP * size
-    return [low, *(a for a in round_amounts(low, high) if low < a < high / 1.1), high]
+    normal (along ``"direction"``: the largest accepted t_min), the round amounts above it (none within a tenth of
+    either end: a rung next to an end is the same look twice, and where the look changes at once above the lowest
+    rung, as a shadow ray that passes its light reaches a ceiling, the side of two rungs that alike would leave
+    the student's amount out of every range), and :data:`TOP` × ``size``."""
+    low, high = ACCEPTED_DEFAULT[_ACCEPTED_AS[along]] * size, TOP * size
+    return [low, *(a for a in round_amounts(low, high) if 1.1 * low < a < high / 1.1), high]
 
 
-#: the normals a ladder's offsets are along: the shading normal, and, in a scene with a mesh, its faces' own
+#: the ways a ladder's offsets are taken: along the shading normal; in a scene with a mesh, along its faces' own
 #: (geometric) normal too, which many a student's tracer offsets along (where a mesh's normals are interpolated,
-#: the two part, and a shadow an offset detaches moves with the normal it was offset along)
-ALONG = ("normal", "geometric")
+#: the two part, and a shadow an offset detaches moves with the normal it was offset along); and along the ray
+#: itself (``"direction"``: ``p + ε·d``, a shadow ray still as long as from the hit point to the light, so that it
+#: passes the light by ε), the other way a textbook keeps rays off the surface they leave.  (A true t_min, whose
+#: shadow ray ends at the light, hides only what lies within it of a surface, and a large one rarely shows.)
+ALONG = ("normal", "geometric", "direction")
+#: the accepted variant (:data:`tracer.scene.variants.ACCEPTED_DEFAULT`) each way's ladder starts above
+_ACCEPTED_AS = {"normal": "normal-offset", "geometric": "normal-offset", "direction": "t-min"}
 
 
 def rung_name(amount: float, along: str = "normal") -> str:
@@ -55,10 +63,16 @@ def rung_name(amount: float, along: str = "normal") -> str:
     return f"{NAME}@{amount!r}" if along == "normal" else f"{NAME}@{along}@{amount!r}"
 
 
-def words(amount: float, size: float) -> str:
+def words(amount: float, size: float, along: str = "normal") -> str:
+    accepted = amount_words(ACCEPTED_DEFAULT[_ACCEPTED_AS[along]] * size)
+    if along == "direction":
+        return (
+            f"shadow and secondary rays started too far along their own direction: about {amount_words(amount)} in "
+            f"the scene's units, a t_min or an offset along the ray too large (at most {accepted} is accepted)"
+        )
     return (
         f"shadow and secondary rays offset too far from the surface: about {amount_words(amount)} in the scene's "
-        f"units (at most {amount_words(ACCEPTED_DEFAULT['normal-offset'] * size)} is accepted)"
+        f"units (at most {accepted} is accepted)"
     )
 
 
@@ -75,18 +89,20 @@ class Scoring(Protocol):
 
 
 def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
-    """Scores ``offset-too-large`` along the shading normal (:func:`along`), and where that is not passed against
-    and the scene has a mesh, along its faces' geometric normal too; of the two scored, the one that leaves fewer
-    pixels off is kept.  False when neither is scored."""
-    scored = along(scoring, beyond, "normal")
-    if "mesh" not in scoring.renders.objects or any(c.variant == NAME and c.passes for c in scoring.scored):
-        return scored
-    if not along(scoring, beyond, "geometric"):
-        return scored
+    """Scores ``offset-too-large`` along the shading normal (:func:`along`); where that is not passed against,
+    along its faces' geometric normal too in a scene with a mesh, then along the ray itself; of those scored, the
+    one that leaves fewest pixels off is kept.  False when none is scored."""
+    ways = [way for way in ALONG if way != "geometric" or "mesh" in scoring.renders.objects]
+    scored = False
+    for way in ways:
+        if any(c.variant == NAME and c.passes for c in scoring.scored):
+            break
+        scored = along(scoring, beyond, way) or scored
     mine = [c for c in scoring.scored if c.variant == NAME]
-    best = min(mine, key=lambda c: (not c.passes, c.fraction_off_nearby))
-    scoring.scored[:] = [c for c in scoring.scored if c.variant != NAME or c is best]
-    return True
+    if len(mine) > 1:
+        best = min(mine, key=lambda c: (not c.passes, c.fraction_off_nearby))
+        scoring.scored[:] = [c for c in scoring.scored if c.variant != NAME or c is best]
+    return scored
 
 
 def along(scoring: Scoring, beyond: Callable[[int], bool], normal: str) -> bool:
@@ -100,7 +116,7 @@ def along(scoring: Scoring, beyond: Callable[[int], bool], normal: str) -> bool:
     come under ``beyond`` (:mod:`.settled`: the same False, sooner)."""
     renders, submitted, verdict = scoring.renders, scoring.submitted, scoring.verdict
     size = renders.size()
-    ladder = amounts(size)
+    ladder = amounts(size, normal)
     sampled = _Told(scoring, normal)
     told = telling_middles(scoring.counts, FIRST_ROWS * verdict.max_fraction * scoring.pixels)
     first = _Sampled(scoring, told, normal)
@@ -129,7 +145,7 @@ def along(scoring: Scoring, beyond: Callable[[int], bool], normal: str) -> bool:
     amount = chosen[int(np.argmin(alone))]
     fraction = counts.off_nearby / scoring.pixels
     scoring.scored.append(
-        Cause(NAME, words(amount, size), fraction, passes(counts, scoring.pixels, verdict.max_fraction))
+        Cause(NAME, words(amount, size, normal), fraction, passes(counts, scoring.pixels, verdict.max_fraction))
     )
     return True
 

@@ -37,7 +37,10 @@ class Options:
     depth_offset: int = 0  # max_depth read as max_depth + this
     ior_inverted: bool = False  # η = ior entering and 1/ior leaving
     offset: float = 0.0  # shadow and secondary rays start this far off the hit point, × the visible size
-    offset_along: str = "normal"  # "normal": along the shading normal; "geometric": the face's; "ray": a t_min
+    # "normal": along the shading normal; "geometric": the face's; "ray": a t_min (a shadow ray still ends at the
+    # light); "direction": along the ray itself, a shadow ray as long as from the hit point to the light (so that
+    # it passes the light by the amount, as a student's p + ε·d with t < |light − p| does)
+    offset_along: str = "normal"
     # -- the mistakes of MORE_VARIANTS (none of them in VARIANTS yet) --
     blend_reflection: bool = False  # local colour × (1 − k_r) before the mirror ray's k_r·colour is added
     left_handed: bool = False  # r = unit(up × f), u = f × r: the image mirrored left to right

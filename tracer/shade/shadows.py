@@ -153,9 +153,9 @@ class ShadowRays:
         if em.kind == "directional" or not self.options.shadow_to_light:  # (a variant's rays go on past the light)
             shadows = Shadows(rays, np.full(n, np.inf), None, None)
         elif spawn is not None and spawn.along != "ray":
-            # a student's offset along the normal: as long as from the hit point to the light, from where the ray
-            # starts (as the students' own do: the distance to the light is the hit point's), so that its far end
-            # passes the light by as much as the offset moved it; no surface is exempt at the light
+            # a student's offset along the normal or the ray: as long as from the hit point to the light, from where
+            # the ray starts (as the students' own do: the distance to the light is the hit point's), so that its far
+            # end passes the light by as much as the offset moved it; no surface is exempt at the light
             shadows = Shadows(rays, dist, None, None)
         else:  # one light for every ray
             shadows = Shadows(rays, dist, em.position[None], self.world.magnitude(em.position[None]))

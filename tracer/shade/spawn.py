@@ -41,9 +41,10 @@ def offset(spawn: Spawn, rays: Rays, normals: np.ndarray) -> Rays:
 
     Guarantee: each origin moves by exactly ``spawn.amount``, along the given normal to the side its direction
     points to (the normal's sign is taken from the direction), as a student's ``p ± ε·N`` does: on a mesh with
-    normals, where the shading normal leans away from the face's, that is where a student's ray starts too."""
+    normals, where the shading normal leans away from the face's, that is where a student's ray starts too.
+    Along ``"ray"`` or ``"direction"``, each origin moves by exactly ``spawn.amount`` along its own direction."""
     points, dirs = rays.origins, rays.dirs
-    if spawn.along == "ray":
+    if spawn.along in ("ray", "direction"):
         moved = points + spawn.amount * dirs
     else:
         side = np.where(np.einsum("ij,ij->i", dirs, normals) < 0, -spawn.amount, spawn.amount)
