@@ -97,6 +97,8 @@ def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
     for way in ways:
         if any(c.variant == NAME and c.passes for c in scoring.scored):
             break
+        if way == "direction" and any(c.passes for c in scoring.scored):
+            break  # (an image another mistake matches already: the costliest ladder is not climbed for it)
         scored = along(scoring, beyond, way) or scored
     mine = [c for c in scoring.scored if c.variant == NAME]
     if len(mine) > 1:
