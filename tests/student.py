@@ -31,6 +31,7 @@ MISTAKES = (
     "image-flipped",
     "no-half-pixel",
     "horizontal-fov",
+    "aspect-inverted",
     "camera-up-as-given",
     "area-not-divided",
     "area-samples-at-corners",
@@ -180,6 +181,8 @@ def eye_rays(scene, wrong: set[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray
     up = _unit(np.array(cam.up, dtype=np.float64)) if "camera-up-as-given" in wrong else np.cross(right, forward)
     half = cam.height / 2 if cam.type == "orthographic" else math.tan(math.radians(cam.fov) / 2)
     across, down = (half, half * H / W) if "horizontal-fov" in wrong else (half * W / H, half)
+    if "aspect-inverted" in wrong:
+        across = half * H / W
     centre = 0.0 if "no-half-pixel" in wrong else 0.5
     rows, cols, sub_rows, sub_cols = np.meshgrid(np.arange(H), np.arange(W), np.arange(n), np.arange(n), indexing="ij")
     x = ((cols + (sub_cols + centre) / n) / W * 2 - 1).ravel() * across

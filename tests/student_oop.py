@@ -58,6 +58,7 @@ CLASSIC = (
     "image-flipped",
     "no-half-pixel",
     "horizontal-fov",
+    "aspect-inverted",
     "camera-up-as-given",
     "area-not-divided",
     "area-samples-at-corners",
@@ -120,6 +121,8 @@ class Camera:
         h = cam.height / 2 if self.ortho else math.tan(math.radians(cam.fov) / 2)
         self.w, self.h = img.width, img.height
         self.half_w, self.half_h = (h, h * self.h / self.w) if "horizontal-fov" in wrong else (h * self.w / self.h, h)
+        if "aspect-inverted" in wrong:
+            self.half_w = h * self.h / self.w
         self.centre = 0.0 if "no-half-pixel" in wrong else 0.5
 
     def ray(self, i: int, j: int, a: int, b: int, n: int) -> Ray:

@@ -41,6 +41,7 @@ SHOWN_BY = {
     "image-flipped": "01_three_spheres",
     "no-half-pixel": "01_three_spheres",
     "horizontal-fov": "01_three_spheres",
+    "aspect-inverted": "01_three_spheres",
     "camera-up-as-given": "01_three_spheres",
     "area-not-divided": "03_soft_shadows",
     "area-samples-at-corners": "03_soft_shadows",
@@ -170,6 +171,9 @@ NAMED = [
     # (u = unit(up) where the camera looks down: the rows sheared along the view)
     ("camera-up-as-given", "04_whitted", "FAIL(camera-up-as-given)"),
     ("camera-up-as-given", "06_orthographic", "FAIL(camera-up-as-given)"),
+    # (the view's half-width h·H/W: a 4:3 image squeezed across to 3:4 of its width)
+    ("aspect-inverted", "04_whitted", "FAIL(aspect-inverted)"),
+    ("aspect-inverted", "09_cornell_homework", "FAIL(aspect-inverted)"),
     # (the mirror ball and the glass show black where the format shows the sky)
     ("bounce-miss-black", "04_whitted", "FAIL(bounce-miss-black)"),
     ("bounce-miss-black", "08_antialiased", "FAIL(bounce-miss-black)"),

@@ -54,6 +54,8 @@ class Stages:
             self.camera = CameraRays(
                 scene.camera, scene.image, self.world.origin, options.half_pixel, options.vertical_fov
             )
+            if options.aspect_inverted:  # a variant's window h·H/W across (the format's h·W/H upside down)
+                self.camera.scale_x = scene.image.height / scene.image.width
             if options.left_handed:  # a variant's r = up × f (u kept): the image mirrored left to right
                 self.camera.right = -self.camera.right
             if not options.up_made and not up_perpendicular(scene.camera):  # a variant's u = unit(up), as given

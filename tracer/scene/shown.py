@@ -51,6 +51,8 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     "camera-up-as-given": lambda scene: up_perpendicular(scene.camera),
     # a square image: the view window's half-sizes are (1, 1) either way
     "horizontal-fov": lambda scene: scene.image.width == scene.image.height,
+    # a square image: its aspect is 1 either way up
+    "aspect-inverted": lambda scene: scene.image.width == scene.image.height,
     # an area light of one sample is divided by 1 either way
     "area-not-divided": lambda scene: all(
         light.samples[0] * light.samples[1] == 1 for light in scene.lights if light.type == "area"

@@ -32,6 +32,7 @@ class Options:
     flip_image: bool = False  # rows stored bottom to top
     half_pixel: bool = True  # sub-sample centres at +0.5
     vertical_fov: bool = True  # fov spans the image's height (False: its width)
+    aspect_inverted: bool = False  # the view window's half-width h·H/W instead of h·W/H (the aspect upside down)
     area_divided: bool = True  # an area light's colour split among its nu·nv samples
     spot_degrees: bool = True  # a spot's cutoff read in degrees (False: radians, as a mix-up does)
     depth_offset: int = 0  # max_depth read as max_depth + this
@@ -177,6 +178,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "image-flipped": (Options(flip_image=True), "the image flipped vertically"),
     "no-half-pixel": (Options(half_pixel=False), "pixel centres without the +0.5"),
     "horizontal-fov": (Options(vertical_fov=False), "fov taken as horizontal instead of vertical"),
+    "aspect-inverted": (
+        Options(aspect_inverted=True),
+        "the aspect ratio inverted: the view's half-width tan(fov/2)·height/width, not ·width/height",
+    ),
     "camera-up-as-given": (
         Options(up_made=False),
         "the camera's up vector used as given, not made perpendicular to the view (u = r × f)",

@@ -40,6 +40,7 @@
  *   no-half-pixel           sample at (i + a/n)/W: the pixel's corner, without the + 0.5
  *   camera-up-as-given      u = unit(up) as the scene gives it, not r x f
  *   horizontal-fov          fov read as horizontal: x = (2 sx - 1) h, y = (1 - 2 sy) h H/W
+ *   aspect-inverted         the aspect upside down: x = (2 sx - 1) h H/W
  *   area-not-divided        each area-light sample shines with the whole colour
  *   area-samples-at-corners each area-light sample at corner + (i/nu) eu + (j/nv) ev, without the + 0.5
  *   spot-radians            cos(cutoff) with the cutoff in degrees passed as radians
@@ -286,7 +287,8 @@ typedef struct {
 
 enum {
     M_NO_SHADOWS, M_SHADOW_ACNE, M_BLINN, M_SPEC_BEHIND, M_GAMMA, M_NO_ATTEN, M_NO_AMBIENT, M_NO_SPECULAR,
-    M_NOT_FLIPPED, M_IMAGE_FLIPPED, M_NO_HALF, M_HFOV, M_UP_AS_GIVEN, M_AREA_NOT_DIVIDED, M_AREA_AT_CORNERS,
+    M_NOT_FLIPPED, M_IMAGE_FLIPPED, M_NO_HALF, M_HFOV, M_ASPECT_INVERTED, M_UP_AS_GIVEN, M_AREA_NOT_DIVIDED,
+    M_AREA_AT_CORNERS,
     M_SPOT_RADIANS, M_DEPTH_PLUS, M_DEPTH_MINUS, M_IOR_INVERTED, M_OFFSET_LARGE, M_REFLECT_SIGN, M_CHECKER_IGNORED,
     M_CHECKER_TRUNCATED, M_NOT_CLAMPED, M_AMBIENT_KD, M_SPOT_RAMP_ANGLE, M_TRANSPARENT_NO_SHADOWS, M_NO_REFLECTION,
     M_MISS_BLACK, M_NO_REFRACTION, M_LEFT_HANDED, M_SAMPLES_IGNORED, M_BGR, M_COUNT
@@ -296,8 +298,8 @@ _Static_assert(M_COUNT <= 64, "Options.mistake holds every mistake");
 
 static const char *MISTAKE_IDS[M_COUNT] = {
     "no-shadows", "shadow-acne", "blinn-phong", "specular-behind", "gamma", "no-attenuation", "no-ambient",
-    "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel", "horizontal-fov", "camera-up-as-given",
-    "area-not-divided", "area-samples-at-corners", "spot-radians", "depth-plus-one", "depth-minus-one",
+    "no-specular", "normals-not-flipped", "image-flipped", "no-half-pixel", "horizontal-fov", "aspect-inverted",
+    "camera-up-as-given", "area-not-divided", "area-samples-at-corners", "spot-radians", "depth-plus-one", "depth-minus-one",
     "ior-inverted", "offset-too-large", "reflect-sign", "checker-ignored", "checker-truncated", "colours-not-clamped",
     "ambient-from-diffuse", "spot-ramp-angle", "transparent-no-shadows", "no-reflection", "bounce-miss-black",
     "no-refraction",

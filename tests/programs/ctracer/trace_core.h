@@ -557,6 +557,7 @@ static void render(const Scene *sc, const Options *opt, unsigned char *rgb) {
     real h = sc->ortho ? (real)sc->view_height / 2 : TAN((real)sc->fov * K(3.14159265358979323846) / K(360));
     real across = h * (real)width / (real)height, down = h;
     if (wrong[M_HFOV]) across = h, down = h * (real)height / (real)width;
+    if (wrong[M_ASPECT_INVERTED]) across = h * (real)height / (real)width;
     real centre = wrong[M_NO_HALF] ? K(0) : K(0.5);
     for (int j = 0; j < height; j++)
         for (int i = 0; i < width; i++) {
