@@ -188,17 +188,15 @@ class _Scoring:
         renders, later = self.renders, []
         for name in filter(self.shown, VARIANTS):
             renders.check()
-            if name in BOUNDS:
-                continue  # (a speckled mistake is scored against its far end below, not by its own render)
-            if name == too_large.NAME:  # (against its ladder, by its own looks)
-                if not too_large.score(self, self.cannot_pass):
-                    later.append(name)
-                continue
+            if name in BOUNDS or name == too_large.NAME:
+                continue  # (a speckled mistake is scored against its far end below; an offset too large last)
             # a first look at a few rows (exact: a lower bound of the variant's off pixels): a variant that cannot
             # pass is scored only if none passes, and then only if it may come closest
             least = off_at_least(name, self.submitted, self.verdict, renders, self.cannot_pass, self.first)
             if (least is not None and self.cannot_pass(least)) or not self.score(name, self.cannot_pass):
                 later.append(name)
+        if self.shown(too_large.NAME) and not self._ladder_scored():
+            later.append(too_large.NAME)
         later_bounds = []
         for name in filter(self.shown, BOUNDS):
             renders.check()
@@ -208,6 +206,14 @@ class _Scoring:
             if (least is not None and self.cannot_pass(least)) or not self.score_speckled(name, self.cannot_pass):
                 later_bounds.append(name)
         return later, later_bounds
+
+    def _ladder_scored(self) -> bool:
+        """Scores ``offset-too-large`` against its ladder (:func:`.too_large.score`), unless a mistake scored before
+        it passes already: its ladder is the costliest look of the round, and the image is explained without it.
+        False where it is not scored (it is then scored later, if none passes)."""
+        if any(c.passes for c in self.scored):
+            return False
+        return too_large.score(self, self.cannot_pass)
 
     def alike_round(self) -> None:
         """Scores the new mistakes that may render the image of a classic one passed against (:data:`ALIKE`), so
