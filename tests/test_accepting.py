@@ -164,6 +164,18 @@ def test_an_offset_too_large_of_a_round_amount_is_found_at_that_amount():
     assert "about 0.1 in the scene's units" in graded.diagnosis.sentence()
 
 
+def test_an_image_a_mistake_matches_climbs_no_offset_ladder(whitted, monkeypatch):
+    """The ladder of offsets too large is scored last in the first round, and only where no mistake passes: an
+    image with no shadows is named as before without it (it cost 1.3 s of 4.8 in bench.pricing's class)."""
+    from service.diagnosis import too_large
+
+    wrong = _student(whitted, ["no-shadows"])
+    monkeypatch.setattr(too_large, "score", lambda *a: pytest.fail("the offset ladder was climbed"))
+    graded = _graded(whitted, wrong)
+    assert graded.diagnosis is not None and graded.diagnosis.causes[0].variant == "no-shadows"
+    assert graded.diagnosis.causes[0].passes
+
+
 @pytest.mark.parametrize("amount", [0.06, 0.1])
 def test_rays_started_too_far_along_themselves_are_named_as_that_with_their_size(amount):
     """A student's ``p + ε·d``, ε 0.06 or 0.1, where a t_min of at most 0.049 is accepted (the Cornell homework, 64
