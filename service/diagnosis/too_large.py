@@ -89,16 +89,15 @@ class Scoring(Protocol):
 
 
 def score(scoring: Scoring, beyond: Callable[[int], bool]) -> bool:
-    """Scores ``offset-too-large`` along the shading normal (:func:`along`); where that is not passed against,
-    along its faces' geometric normal too in a scene with a mesh, then along the ray itself; of those scored, the
-    one that leaves fewest pixels off is kept.  False when none is scored."""
+    """Scores ``offset-too-large`` along the shading normal (:func:`along`); where nothing is passed against yet,
+    along its faces' geometric normal too in a scene with a mesh, then along the ray itself (each way's ladder
+    the cost of a few renders: none is climbed for an image already explained); of those scored, the one that
+    leaves fewest pixels off is kept.  False when none is scored."""
     ways = [way for way in ALONG if way != "geometric" or "mesh" in scoring.renders.objects]
     scored = False
     for way in ways:
-        if any(c.variant == NAME and c.passes for c in scoring.scored):
+        if any(c.passes for c in scoring.scored):
             break
-        if way == "direction" and any(c.passes for c in scoring.scored):
-            break  # (an image another mistake matches already: the costliest ladder is not climbed for it)
         scored = along(scoring, beyond, way) or scored
     mine = [c for c in scoring.scored if c.variant == NAME]
     if len(mine) > 1:
