@@ -67,6 +67,15 @@ def translated(data: dict[str, Any], shift: tuple[float, float, float]) -> dict[
     return out
 
 
+def smooth_octahedron(centre: tuple[float, float, float], radius: float, material: str) -> dict[str, Any]:
+    """A mesh of eight faces with its corners' outward normals: a ball shaded smooth, whose normals, blended
+    mid-face, are a vector of length 1/√3 before they are made unit (a mistake that leaves them so shows)."""
+    axes = [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]
+    corners = [[c + radius * a for c, a in zip(centre, axis)] for axis in axes]
+    faces = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+    return {"type": "mesh", "material": material, "vertices": corners, "faces": faces, "normals": axes}
+
+
 def differing(a: np.ndarray, b: np.ndarray, tolerance: int = 2) -> float:
     """Fraction of pixels whose largest channel difference exceeds ``tolerance``."""
     d = np.abs(a.astype(np.int16) - b.astype(np.int16)).max(axis=2)

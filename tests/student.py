@@ -28,6 +28,7 @@ MISTAKES = (
     "no-ambient",
     "no-specular",
     "normals-not-flipped",
+    "normals-not-normalised",
     "image-flipped",
     "no-half-pixel",
     "horizontal-fov",
@@ -55,6 +56,24 @@ MISTAKES = (
     "shadow-past-light",
     "specular-in-shadow",
 )
+
+
+def _student_normal(
+    surface: ref.Surface, uw: tuple[np.ndarray, np.ndarray], facing: np.ndarray, outward: np.ndarray, wrong: set[str]
+) -> np.ndarray:
+    """The shading normal as a student with the normal's mistakes among ``wrong`` has it: a mesh's blend of its
+    vertex normals (at barycentric ``uw``) left as it is (``normals-not-normalised``), and any normal left on the
+    side it was given on (``normals-not-flipped``: a sphere's, a plane's or a face's ``outward``, a mesh's
+    blend); else as the format's ``facing`` (unit, turned to face the ray)."""
+    if surface.vn is None:
+        return outward if "normals-not-flipped" in wrong else facing
+    u, w = uw
+    blend = (1 - u - w)[:, None] * surface.vn[0] + u[:, None] * surface.vn[1] + w[:, None] * surface.vn[2]
+    zero = ~np.any(blend != 0, axis=1)
+    blend = np.where(zero[:, None], outward, blend if "normals-not-normalised" in wrong else _unit(blend))
+    if "normals-not-flipped" in wrong:
+        return blend
+    return np.where((_dot(blend, facing) < 0)[:, None], -blend, blend)
 
 
 @dataclass(frozen=True)
@@ -233,8 +252,8 @@ def render(
             p[at], outward[at], n[at] = ref.surface_point(
                 surface, o[at], d[at], hit.t[keep][at], hit.u[keep][at], hit.w[keep][at]
             )
-            if "normals-not-flipped" in wrong:
-                n[at] = outward[at]
+            if wrong & {"normals-not-flipped", "normals-not-normalised"}:
+                n[at] = _student_normal(surface, (hit.u[keep][at], hit.w[keep][at]), n[at], outward[at], wrong)
             cells = np.trunc if "checker-truncated" in wrong else np.floor  # (int(P/s) rounds toward 0)
             other, _ = ref._checker_material(scene, surface, p[at], cells)
             if "checker-ignored" in wrong:  # every point in the object's own material

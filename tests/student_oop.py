@@ -55,6 +55,7 @@ CLASSIC = (
     "no-ambient",
     "no-specular",
     "normals-not-flipped",
+    "normals-not-normalised",
     "image-flipped",
     "no-half-pixel",
     "horizontal-fov",
@@ -224,7 +225,7 @@ class Tracer:
             return (0.0, 0.0, 0.0) if depth > 0 and "bounce-miss-black" in self.wrong else self.background
         p = ray.at(hit.t)
         d = ray.direction
-        n = hit.shading
+        n = hit.blend if hit.blend is not None and "normals-not-normalised" in self.wrong else hit.shading
         if dot(n, d) > 0 and "normals-not-flipped" not in self.wrong:
             n = mul(n, -1.0)
         m = self.material(hit, p)

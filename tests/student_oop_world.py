@@ -64,6 +64,7 @@ class Hit:
     shape: Shape
     normal: Vec  # geometric, as the format defines it (outward for a sphere)
     shading: Vec  # the normal for lighting (a mesh's blended vertex normals)
+    blend: Vec | None = None  # a mesh's blend of vertex normals before it is normalised (None: no blend, or zero)
 
 
 # -- shapes -----------------------------------------------------------------------------------------------------
@@ -136,13 +137,12 @@ class Triangle(Shape):
         t = dot(self.e2, q) * inv
         if t <= 0:
             return None
-        shading = self.normal
         if self.normals is not None:
             na, nb, nc = self.normals
             blend = add(add(mul(na, 1 - u - v), mul(nb, u)), mul(nc, v))
             if length(blend) > 0:
-                shading = normalize(blend)
-        return Hit(t, self, self.normal, shading)
+                return Hit(t, self, self.normal, normalize(blend), blend)
+        return Hit(t, self, self.normal, self.normal)
 
 
 def shapes_of(obj) -> list[Shape]:  # noqa: ANN001

@@ -17,7 +17,7 @@ from tracer.image import quantize
 from tracer.scene.variants import BOUNDS, VARIANTS
 from tracer.shade.passes import ADDITIVE
 
-from helpers import share_renders
+from helpers import share_renders, smooth_octahedron
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +94,7 @@ def test_nnls_is_non_negative_and_exact_where_it_can_be():
 
 def classroom() -> dict[str, dict]:
     """Three scenes that every mistake of the list changes: anti-aliased, every light type (a spot with a soft
-    edge), glass, a mirror that shows the sky and a checkerboard."""
+    edge), glass, a mirror that shows the sky, a checkerboard and a smooth mesh."""
     a = copy.deepcopy(EVERYTHING)
     a["image"] = EVERYTHING["image"] | {"width": 64, "height": 48, "samples": 2}
     a["lights"][2]["inner_cutoff"] = 16
@@ -102,6 +102,7 @@ def classroom() -> dict[str, dict]:
     a["materials"]["tiles"] = {"diffuse": [0.6, 0.5, 0.4], "specular": 0.7, "shininess": 30}
     a["materials"]["tiles"]["checker"] = {"size": 0.4, "material": "dark"}
     a["materials"]["dark"] = {"diffuse": [0.1, 0.1, 0.3], "specular": 0.5, "shininess": 10}
+    a["objects"].append(smooth_octahedron((1.6, 0.45, 1.2), 0.45, "m"))
     b = copy.deepcopy(a)
     b["camera"] = {"position": [-2.5, 1.5, 4.5], "look_at": [0.3, 0.5, 0], "fov": 50}
     b["lights"][1]["position"] = [2, 5, 2]

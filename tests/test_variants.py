@@ -8,7 +8,7 @@ from tracer import Renderer
 from tracer.image import quantize
 from tracer.scene.variants import MORE_VARIANTS, REFERENCE, VARIANTS, Options
 
-from helpers import scene_dict
+from helpers import scene_dict, smooth_octahedron
 
 #: a scene where every mistake shows: glass, a mirror, every light type, a spot with a hard edge, a deep tree, a sky
 EVERYTHING = {
@@ -51,7 +51,8 @@ def pixels(options=REFERENCE, data=EVERYTHING):
 
 def _bright():
     """EVERYTHING anti-aliased, with a coloured light bright enough that a term alone passes 1, a spot of a
-    steep falloff and a soft edge, and a checkerboard: every mistake of VARIANTS and MORE_VARIANTS shows in it."""
+    steep falloff and a soft edge, a checkerboard and a smooth mesh: every mistake of VARIANTS and MORE_VARIANTS
+    shows in it."""
     import copy
 
     data = copy.deepcopy(EVERYTHING)
@@ -60,6 +61,7 @@ def _bright():
     data["lights"][2].update(exponent=8, color=[0.6, 0.9, 1.4], inner_cutoff=12)
     data["materials"]["m"]["checker"] = {"size": 0.5, "material": "dark"}
     data["materials"]["dark"] = {"diffuse": [0.1, 0.1, 0.3], "specular": 0.5, "shininess": 10}
+    data["objects"].append(smooth_octahedron((1.6, 0.45, 1.2), 0.45, "m"))
     return data
 
 

@@ -164,7 +164,7 @@ class Stages:
         hit, done = self.intersector.describe(work.rays, best, rows), work.take(rows)  # (the hits alone)
         dd = done.rays.dirs
         mat = resolve_material(self.world, hit, self.options.checker_floor)
-        normal = shading_normal(self.world, hit, dd, self.options.flip_normals)
+        normal = shading_normal(self.world, hit, dd, self.options.flip_normals, self.options.normals_unit)
         observer = UNOBSERVED if tally is None else PassObserver(tally, done)
         if work.depth == 0:
             observer.first_hits(hit, self._owners, normal)

@@ -47,6 +47,10 @@ UNCHANGED: dict[str, Callable[[Any], bool]] = {
     "no-attenuation": lambda scene: all(
         tuple(light.attenuation) == (1.0, 0.0, 0.0) for light in scene.lights if light.type in ("point", "spot", "area")
     ),
+    # only a mesh with vertex normals interpolates one (elsewhere the normal is a sphere's, a plane's or a face's)
+    "normals-not-normalised": lambda scene: (
+        not any(obj.type == "mesh" and obj.normals is not None for obj in scene.objects)
+    ),
     # an up perpendicular to the view is u, as given (the variant reads it only where it is not)
     "camera-up-as-given": lambda scene: up_perpendicular(scene.camera),
     # a square image: the view window's half-sizes are (1, 1) either way

@@ -29,6 +29,7 @@ class Options:
     ambient: bool = True  # the ambient term
     specular: bool = True  # the specular term
     flip_normals: bool = True  # normals turned to face the ray
+    normals_unit: bool = True  # a mesh's interpolated normal made unit (False: the blend of its vertex normals as is)
     flip_image: bool = False  # rows stored bottom to top
     half_pixel: bool = True  # sub-sample centres at +0.5
     vertical_fov: bool = True  # fov spans the image's height (False: its width)
@@ -175,6 +176,10 @@ VARIANTS: dict[str, tuple[Options, str]] = {
     "no-ambient": (Options(ambient=False), "no ambient term"),
     "no-specular": (Options(specular=False), "no specular term"),
     "normals-not-flipped": (Options(flip_normals=False), "normals not turned to face the ray"),
+    "normals-not-normalised": (
+        Options(normals_unit=False),
+        "a mesh's interpolated normal not normalised: the blend of its vertex normals used as it is, not made unit",
+    ),
     "image-flipped": (Options(flip_image=True), "the image flipped vertically"),
     "no-half-pixel": (Options(half_pixel=False), "pixel centres without the +0.5"),
     "horizontal-fov": (Options(vertical_fov=False), "fov taken as horizontal instead of vertical"),

@@ -85,9 +85,13 @@ def odd_cells(cells: np.ndarray) -> np.ndarray:
         return half == 1.0
 
 
-def shading_normal(world: World, hits: Hits, dirs: np.ndarray, face_the_ray: bool = True) -> np.ndarray:
+def shading_normal(
+    world: World, hits: Hits, dirs: np.ndarray, face_the_ray: bool = True, unit_blend: bool = True
+) -> np.ndarray:
     """Unit shading normal turned to face the ray (N·D ≤ 0; unless not ``face_the_ray``, a variant's
-    mistake). Shape (N, 3)."""
+    mistake). Shape (N, 3).  Without ``unit_blend`` (another), a mesh's interpolated normal is the blend of its
+    vertex normals as it is, not made unit: shorter than 1 between normals that differ, and as long as the
+    normals given are."""
     normal = hits.normal.copy(order="K")  # (its columns contiguous, as every later stage reads them)
     tris = np.flatnonzero(hits.kind == TRIANGLE)
     if len(tris):
@@ -97,7 +101,8 @@ def shading_normal(world: World, hits: Hits, dirs: np.ndarray, face_the_ray: boo
             rows, k = tris[smooth], k[smooth]
             u, v = hits.bary[rows, 0:1], hits.bary[rows, 1:2]
             vn = rows_of(world.triangles.vertex_normals, k)
-            blend = unit((1.0 - u - v) * vn[:, 0] + u * vn[:, 1] + v * vn[:, 2])
+            blend = (1.0 - u - v) * vn[:, 0] + u * vn[:, 1] + v * vn[:, 2]
+            blend = unit(blend) if unit_blend else blend
             zero = ~np.any(blend != 0, axis=1)
             blend[zero] = normal[rows[zero]]
             normal[rows] = blend

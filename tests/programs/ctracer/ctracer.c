@@ -61,6 +61,7 @@
  *   left-handed             r = unit(up x f), u = f x r: the image mirrored left to right
  *   samples-ignored         one sample per pixel, whatever image.samples says
  *   bgr                     the channels written blue, green, red
+ *   normals-not-normalised  a mesh's blend of vertex normals used as it is, never made unit
  *
  * The scene is trusted (it is the course's): this reads what the format says and does not validate it all.
  */
@@ -291,7 +292,7 @@ enum {
     M_AREA_AT_CORNERS,
     M_SPOT_RADIANS, M_DEPTH_PLUS, M_DEPTH_MINUS, M_IOR_INVERTED, M_OFFSET_LARGE, M_REFLECT_SIGN, M_CHECKER_IGNORED,
     M_CHECKER_TRUNCATED, M_NOT_CLAMPED, M_AMBIENT_KD, M_SPOT_RAMP_ANGLE, M_TRANSPARENT_NO_SHADOWS, M_NO_REFLECTION,
-    M_MISS_BLACK, M_NO_REFRACTION, M_LEFT_HANDED, M_SAMPLES_IGNORED, M_BGR, M_COUNT
+    M_MISS_BLACK, M_NO_REFRACTION, M_LEFT_HANDED, M_SAMPLES_IGNORED, M_BGR, M_NOT_NORMALISED, M_COUNT
 };
 
 _Static_assert(M_COUNT <= 64, "Options.mistake holds every mistake");
@@ -303,7 +304,7 @@ static const char *MISTAKE_IDS[M_COUNT] = {
     "ior-inverted", "offset-too-large", "reflect-sign", "checker-ignored", "checker-truncated", "colours-not-clamped",
     "ambient-from-diffuse", "spot-ramp-angle", "transparent-no-shadows", "no-reflection", "bounce-miss-black",
     "no-refraction",
-    "left-handed", "samples-ignored", "bgr",
+    "left-handed", "samples-ignored", "bgr", "normals-not-normalised",
 };
 
 static char *read_file(const char *path, size_t *len) {

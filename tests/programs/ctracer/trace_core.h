@@ -285,7 +285,7 @@ static Surface surface_at(const World *w, vec o, vec d, const Hit *h) {
         s.ng = s.n = tr->n, s.obj = tr->obj, s.p0 = tr->v0;
         if (tr->smooth) {
             vec blend = vadd(vadd(vmul(tr->n0, K(1) - h->u - h->v), vmul(tr->n1, h->u)), vmul(tr->n2, h->v));
-            if (vdot(blend, blend) > 0) s.n = vunit(blend);
+            if (vdot(blend, blend) > 0) s.n = w->wrong[M_NOT_NORMALISED] ? blend : vunit(blend);
         }
     }
     return s;
