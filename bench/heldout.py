@@ -93,14 +93,18 @@ def image(scene: Any, name: str, made: tuple[str, ...], cache: Path | None) -> n
 
 
 def named(found: dict[str, Any] | None) -> tuple[str, ...]:
-    """The mistake ids a diagnosis (as JSON) names: the causes it matches, else the one it comes closest to."""
+    """The mistake ids a diagnosis (as JSON) names: the causes it matches, else the one it comes closest to (with
+    the mistakes it comes closest to together with, when it is a combination: "comes closest to the reference
+    rendered with both")."""
     if not found:
         return ()
     causes = found.get("causes") or []
     matched = [c["variant"] for c in causes if c.get("passes")]
     if matched:
         return tuple(matched)
-    return (causes[0]["variant"],) if causes and found.get("closest") and causes[0].get("variant") else ()
+    if not (causes and found.get("closest") and causes[0].get("variant")):
+        return ()
+    return (causes[0]["variant"], *(causes[0].get("together") or []))
 
 
 def case(

@@ -34,3 +34,6 @@ def test_a_case_is_named_only_when_every_visible_mistake_is():
     assert not Case("x", (), (), False, (), "").ok and Case("x", (), (), True, (), "PASS").ok
     assert named({"causes": [{"variant": "a", "passes": False}], "closest": True}) == ("a",)
     assert named({"causes": [{"variant": "a", "passes": False}], "closest": False}) == ()
+    # (closest to a combination: "comes closest to the reference rendered with both" names both)
+    closest_pair = [{"variant": "a", "passes": False, "together": ["b"]}, {"variant": "b", "passes": False}]
+    assert named({"causes": closest_pair, "closest": True}) == ("a", "b")
