@@ -12,7 +12,8 @@ run again.
 
 The TA's mistakes stop the batch before any student is run (:func:`check_programs`): a command that cannot
 run, bubblewrap missing or unable to start (unless ``--no-sandbox``), a runtime that is not installed, does
-not start in the sandbox or would show programs what they may not see, ``--server`` (which grades images).
+not start in the sandbox or would show programs what they may not see, an interpreter that runs out of memory
+as it starts (:mod:`service.programs.interpreter`), ``--server`` (which grades images).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from ..course.folders import hidden, own_scenes, sorted_entries, task_scenes
 from ..programs import SandboxUnavailable, check_sandbox
 from ..programs.digest import digest
 from ..programs.folder import unreadable
+from ..programs.interpreter import fails_to_start
 from ..programs.pack import pack_folder
 from ..programs.runtime import check_runtime, runtime_starts
 from . import journal
@@ -58,6 +60,7 @@ def check_programs(run: ClassRun) -> None:
         if program.sandbox:
             check_sandbox()
         problem = None if program.runtime is None else runtime_starts(program.runtime, program.sandbox)
+        problem = problem or fails_to_start(program)
     except SandboxUnavailable as exc:
         raise ClassError(str(exc)) from None
     if problem is not None:
