@@ -11,6 +11,7 @@ interpreter that crashes doing nothing (Python under 4 MiB) or cannot start its 
 
 from __future__ import annotations
 
+import shlex
 import tempfile
 from dataclasses import replace
 from pathlib import Path
@@ -42,15 +43,17 @@ def fails_to_start(program: Program) -> str | None:
     """One line when the run command's interpreter (one of :data:`IDLE`) cannot start and do nothing within the
     run's limits, or None: a command whose program is the student's own, or another, is not looked at.  Where
     more memory lets it start, the line says how much (doubling the run's, up to :data:`MOST`)."""
-    name = Path(command_argv(program.run)[0]).name
+    first = command_argv(program.run)[0]
+    name = Path(first).name
     if name not in IDLE:
         return None
     given = program.limits.memory_bytes
-    failed = _failure(program, name, given)
+    idle = f"{shlex.quote(first)} {IDLE[name]} {{output}}"  # (the interpreter as the command names it)
+    failed = _failure(program, idle, given)
     if failed is None:
         return None
     sizes = [given << k for k in range(1, 8) if given << k <= MOST]
-    least = next((size for size in sizes if _failure(program, name, size) is None), None)
+    least = next((size for size in sizes if _failure(program, idle, size) is None), None)
     if least is None:
         limits = f"--memory {_size(given)}, --processes {program.limits.processes}"
         return f"{name} fails as it starts within a run's limits ({limits}), before any student's code ({failed})"
@@ -60,17 +63,14 @@ def fails_to_start(program: Program) -> str | None:
     )
 
 
-def _failure(program: Program, name: str, memory: int) -> str | None:
+def _failure(program: Program, idle: str, memory: int) -> str | None:
     """How the interpreter ended, when it did not start and do nothing within the run's limits with ``memory``
     (its reason, and the first line it printed); else None."""
     limits: Limits = replace(program.limits, memory_bytes=memory, wall_seconds=WALL_SECONDS)
     with tempfile.TemporaryDirectory(prefix="phongray-interpreter-") as empty:
         scene = Path(empty, "scene.json")
         scene.write_text("{}")
-        idle = ProgramRun(
-            Path(empty), f"{name} {IDLE[name]} {{output}}", scene, limits, program.sandbox, program.runtime
-        )
-        outcome = run_program(idle)
+        outcome = run_program(ProgramRun(Path(empty), idle, scene, limits, program.sandbox, program.runtime))
     if outcome.reason in STARTED:
         return None
     lines = [line.strip(" #") for line in outcome.stderr_tail.splitlines() if line.strip(" #")]
