@@ -44,3 +44,15 @@ def test_python_that_cannot_start_within_the_memory_stops_the_class_before_any_s
     assert len(said) == 1 and said[0].startswith("phongray: --memory 4M: python3 fails as it starts"), said
     assert "it starts with --memory " in said[0]  # (the least of 8M, 16M, …, in which it does)
     assert not (report / "report.json").exists()  # (no student graded)
+
+
+def test_an_autograder_whose_interpreter_cannot_start_is_not_written(tmp_path, capsys):
+    """On Gradescope every student would get the same "could not grade": the bundle is refused as it is made."""
+    check_sandbox()
+    scenes, _ = _class(tmp_path)
+    bundle = tmp_path / "autograder.zip"
+    run = ["--run", "python3 render.py {scene} {output}", "--memory", "4M"]
+    assert main(["autograder", str(scenes), "-o", str(bundle), *run]) == 2
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and "python3 fails as it starts" in said[0], said
+    assert not bundle.exists()

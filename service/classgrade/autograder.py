@@ -41,6 +41,7 @@ from ..work.pipeline import load_scene
 from .bundled import PROGRAM_FILE, lay_out_program, load_program, program_files
 from .feedback import printed
 from .forms import Results
+from .programs import bundle_checked
 from .records import ClassRun
 from .run import grade_class
 from .submissions import discover
@@ -82,6 +83,8 @@ def build(
     """Write the autograder zip ``out`` for the task scenes in ``scenes`` (with a ``program``, for students'
     programs: :mod:`.bundled`, and the ``requirements`` of their runtime); :class:`ClassError` for a fault of
     the TA's (an invalid scene or tasks file, a scene that does not render), before anything is written."""
+    if program is not None:
+        bundle_checked(program)
     with tempfile.TemporaryDirectory() as empty:  # (the TA's folders checked as a class of one empty folder)
         (Path(empty) / "nobody").mkdir()
         batch = discover(scenes, Path(empty), student_scenes)

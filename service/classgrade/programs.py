@@ -31,6 +31,7 @@ from ..programs.digest import digest
 from ..programs.folder import unreadable
 from ..programs.interpreter import fails_to_start
 from ..programs.pack import pack_folder
+from ..programs.program import Program
 from ..programs.runtime import check_runtime, runtime_starts
 from . import journal
 from .forms import ReportRow, Stamp
@@ -63,6 +64,21 @@ def check_programs(run: ClassRun) -> None:
         problem = problem or fails_to_start(program)
     except SandboxUnavailable as exc:
         raise ClassError(str(exc)) from None
+    if problem is not None:
+        raise ClassError(problem)
+
+
+def bundle_checked(program: Program) -> None:
+    """:class:`ClassError` for a bundle's run command whose interpreter cannot start within the run's limits
+    (:mod:`service.programs.interpreter`), found as the bundle is made rather than as every student's zero on
+    Gradescope; not looked at where no sandbox can start here (the image's batch looks again, before its one
+    student)."""
+    try:
+        if program.sandbox:
+            check_sandbox()
+        problem = fails_to_start(program)
+    except SandboxUnavailable:
+        return
     if problem is not None:
         raise ClassError(problem)
 
